@@ -1,0 +1,73 @@
+#include "csg.hpp"
+
+#include <cmath>
+
+#include "dense_grid.hpp"
+#include "errors.hpp"
+#include "redistance.hpp"
+#include "shapes.hpp"
+
+namespace marzipan {
+
+std::optional<ToolShape> toolShapeFromName(std::string_view name) {
+  if (name == "sphere") return ToolShape::Sphere;
+  if (name == "box") return ToolShape::Box;
+  if (name == "cylinder") return ToolShape::Cylinder;
+  return std::nullopt;
+}
+
+double toolDistance(const CsgParams& p, Vec3 x) {
+  switch (p.shape) {
+    case ToolShape::Sphere:
+      return sdf::sphere(x, p.center, p.radius);
+    case ToolShape::Box:
+      return sdf::box(x, p.center, {p.radius, p.radius, p.radius});
+    case ToolShape::Cylinder:
+      return sdf::cylinder(x, p.center, p.radius, p.radius, p.axis);
+  }
+  return 0;
+}
+
+Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool&) {
+  if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+  requireRange(p.radius, 0.5, kMaxDomainSide, "radius");
+  requireRange(p.blend, 0, p.radius, "blend");
+  if (p.axis < 0 || p.axis > 2) throw EngineError(ErrorKind::InvalidArgument, "axis", "must be 0, 1 or 2");
+  const float band = vol.band();
+  // Every voxel whose value can change: the tool's bounding box grown by band and blend.
+  const double reach = p.radius + band + p.blend + 1;
+  const Box toolBox = boxAround(p.center, {reach, reach, reach});
+  const Box region = toolBox.intersect(vol.domain());
+  if (region.empty())
+    throw EngineError(ErrorKind::OutOfDomain, "center", "the tool lies outside the volume");
+
+  const int margin = int(std::ceil(band)) + 1;
+  DenseGrid g = DenseGrid::gather(vol, region.grown(margin));
+  for (int z = region.lo.z; z < region.hi.z; ++z)
+    for (int y = region.lo.y; y < region.hi.y; ++y)
+      for (int x = region.lo.x; x < region.hi.x; ++x) {
+        const std::size_t i = g.index({x, y, z});
+        const double d = g.v[i];
+        const double t = toolDistance(p, {double(x), double(y), double(z)});
+        double r = d;
+        switch (p.op) {
+          case CsgOp::Add: r = sdf::smoothMin(d, t, p.blend); break;
+          case CsgOp::Subtract: r = sdf::smoothMax(d, -t, p.blend); break;
+          case CsgOp::Intersect: r = sdf::smoothMax(d, t, p.blend); break;
+        }
+        g.v[i] = float(r);
+      }
+  Edit e;
+  if (p.op == CsgOp::Intersect) {
+    // Outside the tool's reach max(d, t) is air: the march must not continue from the old
+    // field there, and every brick outside the region is cleared.
+    for (std::size_t i = 0; i < g.v.size(); ++i)
+      if (!region.contains(g.point(i))) g.v[i] = band;
+    e.append(vol.fill(false), vol.domain());
+  }
+  redistanceRegion(g, region, band, Outside::Source);
+  e.append(vol.scatter(region, g.v.data(), g.box), region);
+  return e;
+}
+
+}  // namespace marzipan

@@ -1,0 +1,41 @@
+// A dense scratch copy of a box of the field, where tools do their work before the result
+// is scattered back into bricks. Index order x fastest: index = x + sx*(y + sy*z) in box-local
+// coordinates. Units and sign as in volume.hpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "geometry.hpp"
+
+namespace marzipan {
+
+class Volume;
+
+struct DenseGrid {
+  Box box;
+  Int3 size;
+  std::size_t sx = 0, sxy = 0;  // strides of y and z
+  std::vector<float> v;
+
+  DenseGrid() = default;
+  explicit DenseGrid(const Box& b, float fillValue = 0.0f)
+      : box(b), size(b.size()), sx(std::size_t(size.x)), sxy(std::size_t(size.x) * size.y),
+        v(std::size_t(b.voxels()), fillValue) {}
+
+  // The box's voxels copied out of a volume.
+  static DenseGrid gather(const Volume& vol, const Box& b);
+
+  std::size_t index(Int3 p) const {  // p in volume coordinates, must lie in box
+    return std::size_t(p.x - box.lo.x) + sx * std::size_t(p.y - box.lo.y) + sxy * std::size_t(p.z - box.lo.z);
+  }
+  Int3 point(std::size_t i) const {
+    return {box.lo.x + int(i % sx), box.lo.y + int((i / sx) % std::size_t(size.y)), box.lo.z + int(i / sxy)};
+  }
+  std::size_t stride(int axis) const { return axis == 0 ? 1 : (axis == 1 ? sx : sxy); }
+  float& operator[](std::size_t i) { return v[i]; }
+  float operator[](std::size_t i) const { return v[i]; }
+};
+
+}  // namespace marzipan

@@ -1,0 +1,57 @@
+// Deformative tools by the level-set method (METHOD.md section 3): phi_t + F |grad phi| = 0,
+// followed after every application by keep / reset / fast-marching redistance.
+//
+// Local tools act inside a region of interest (ROI), the cube of half side `radius` around
+// `center`, with the scaling-windowing speed F = s * W(q) * F0, W = prod_a (1 - t_a^2)^2,
+// t_a = |q_a - c_a| / radius, evaluated at each voxel's foot point q = p - d grad d (the
+// velocity extension: F is constant along normals, so phi - t F stays a distance field).
+// W is 0 on the ROI boundary, so the field outside the ROI never changes.
+//
+// Global tools use W = 1 over the whole volume. All tools: sign and units as in volume.hpp;
+// the volume is modified in place and the returned Edit holds the replaced bricks; invalid
+// parameters throw EngineError before anything changes. Results do not depend on the pool's
+// thread count.
+#pragma once
+
+#include "edit.hpp"
+#include "geometry.hpp"
+#include "thread_pool.hpp"
+#include "volume.hpp"
+
+namespace marzipan {
+
+struct BrushParams {
+  Vec3 center;            // tool centre, vu; the ROI must meet the domain
+  double radius = 8;      // half side of the ROI cube, vu, in (0, 1024]
+  double strength = 1;    // in (0, 1]: see each tool
+};
+
+// F0 = 1. One application moves the surface outward (add) or inward (remove) by `strength`
+// vu at the tool centre, less towards the ROI boundary. Two upwind (Godunov, second-order
+// ENO) steps of dt * |F| <= 0.5 vu each.
+Edit addBlob(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::serial());
+Edit removeBlob(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::serial());
+
+// F0 = -mean curvature, with the fast curvature of a distance field: phi += dt * s * W * L(phi),
+// L the 7-point Laplacian (= sum of principal curvatures). One application is one explicit
+// step of dt = strength / 6 (the stability limit at strength 1).
+Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::serial());
+// Negative smoothing: the same step backwards in time. Curvature is limited to |L| <= 1 per
+// voxel so that noise cannot blow up; one application moves the surface <= strength/6 vu.
+Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::serial());
+
+// Whole-volume mean curvature flow: `iterations` applications (each redistanced) of
+// dt = strength / 6. A sphere of radius R0 follows R^2 = R0^2 - 4 t, t = iterations * dt.
+Edit meanCurvatureFlow(Volume& vol, int iterations, double strength = 1,
+                       ThreadPool& pool = ThreadPool::serial());
+
+// Euclidean morphology with a sphere of radius k vu, as constant-speed level-set motion in
+// applications of at most 1 vu. k in (0, 64].
+Edit dilate(Volume& vol, double k, ThreadPool& pool = ThreadPool::serial());
+Edit erode(Volume& vol, double k, ThreadPool& pool = ThreadPool::serial());
+// open = erode then dilate (removes structure thinner than 2r); close = dilate then erode
+// (fills gaps narrower than 2r).
+Edit openSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
+Edit closeSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
+
+}  // namespace marzipan

@@ -1,0 +1,241 @@
+#include "measures.hpp"
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <numbers>
+#include <numeric>
+#include <vector>
+
+#include "dense_grid.hpp"
+
+namespace marzipan {
+
+namespace {
+
+// A present brick with a one-voxel ring of its neighbours, for stencils at its faces.
+struct Neighbourhood {
+  static constexpr int kSide = kBrickSide + 2;
+  float v[kSide * kSide * kSide];
+
+  Neighbourhood(const Volume& vol, Int3 brick) {
+    const Int3 o{brick.x * kBrickSide - 1, brick.y * kBrickSide - 1, brick.z * kBrickSide - 1};
+    vol.gather({o, o + Int3{kSide, kSide, kSide}}, v);
+  }
+  // Local voxel (x,y,z) of the brick, each in [-1, 8].
+  float at(int x, int y, int z) const { return v[(x + 1) + kSide * ((y + 1) + kSide * (z + 1))]; }
+};
+
+Int3 brickOrigin(Int3 b) { return {b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide}; }
+
+// Calls fn(local, global) for each voxel of a brick that lies in the domain.
+template <class F>
+void forEachDomainVoxel(const Volume& vol, Int3 b, F&& fn) {
+  const Int3 o = brickOrigin(b);
+  const Int3 d = vol.dims();
+  for (int z = 0; z < kBrickSide && o.z + z < d.z; ++z)
+    for (int y = 0; y < kBrickSide && o.y + y < d.y; ++y)
+      for (int x = 0; x < kBrickSide && o.x + x < d.x; ++x) fn(Int3{x, y, z}, o + Int3{x, y, z});
+}
+
+const Int3 kSix[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+
+}  // namespace
+
+double insideVolume(const Volume& vol) {
+  double sum = 0;
+  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
+      sum += std::clamp(0.5 - double(br.v[l.x + kBrickSide * (l.y + kBrickSide * l.z)]), 0.0, 1.0);
+    });
+  });
+  vol.forEachInsideBrick([&](Int3 b) { forEachDomainVoxel(vol, b, [&](Int3, Int3) { sum += 1; }); });
+  return sum;
+}
+
+double surfaceArea(const Volume& vol) {
+  constexpr double eps = 1.5;
+  double sum = 0;
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const Neighbourhood n(vol, b);
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
+      const double d = n.at(l.x, l.y, l.z);
+      if (std::fabs(d) >= eps) return;
+      const double gx = 0.5 * (n.at(l.x + 1, l.y, l.z) - n.at(l.x - 1, l.y, l.z));
+      const double gy = 0.5 * (n.at(l.x, l.y + 1, l.z) - n.at(l.x, l.y - 1, l.z));
+      const double gz = 0.5 * (n.at(l.x, l.y, l.z + 1) - n.at(l.x, l.y, l.z - 1));
+      sum += (1 + std::cos(std::numbers::pi * d / eps)) / (2 * eps) * std::sqrt(gx * gx + gy * gy + gz * gz);
+    });
+  });
+  return sum;
+}
+
+int countComponents(const Volume& vol) {
+  const Int3 bd = vol.brickDims();
+  const std::size_t slots = std::size_t(bd.x) * bd.y * bd.z;
+  auto slotOf = [&](Int3 b) { return std::size_t(b.x) + std::size_t(bd.x) * (std::size_t(b.y) + std::size_t(bd.y) * b.z); };
+  // Node ids: 512 per present brick (one per voxel), then one per uniformly inside brick.
+  std::vector<std::int64_t> base(slots, -1);
+  std::vector<const Brick*> data(slots, nullptr);
+  std::int64_t next = 0;
+  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
+    base[slotOf(b)] = next;
+    data[slotOf(b)] = &br;
+    next += kBrickVoxels;
+  });
+  std::vector<Int3> insideBricks;
+  vol.forEachInsideBrick([&](Int3 b) {
+    base[slotOf(b)] = next++;
+    insideBricks.push_back(b);
+  });
+  std::vector<std::int64_t> parent(static_cast<std::size_t>(next));
+  std::iota(parent.begin(), parent.end(), 0);
+  std::vector<std::uint8_t> isInside(static_cast<std::size_t>(next), 0);
+  auto find = [&](std::int64_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  auto unite = [&](std::int64_t a, std::int64_t b) {
+    a = find(a), b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  };
+  const Box domain = vol.domain();
+  // The node of an inside voxel at global p, or -1 when p is outside the solid or the domain.
+  auto nodeAt = [&](Int3 p) -> std::int64_t {
+    if (!domain.contains(p)) return -1;
+    const std::size_t s = slotOf({p.x >> 3, p.y >> 3, p.z >> 3});
+    if (base[s] < 0) return -1;
+    if (!data[s]) return base[s];
+    const int l = (p.x & 7) + kBrickSide * ((p.y & 7) + kBrickSide * (p.z & 7));
+    return data[s]->v[l] < 0 ? base[s] + l : -1;
+  };
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    forEachDomainVoxel(vol, b, [&](Int3, Int3 p) {
+      const std::int64_t self = nodeAt(p);
+      if (self < 0) return;
+      isInside[self] = 1;
+      for (const Int3& d : kSix)
+        if (const std::int64_t o = nodeAt(p + d); o >= 0) unite(self, o);
+    });
+  });
+  for (const Int3& b : insideBricks) {
+    const std::int64_t self = base[slotOf(b)];
+    isInside[self] = 1;
+    for (const Int3& d : kSix) {
+      const Int3 nb = b + d;
+      if (nb.x < 0 || nb.y < 0 || nb.z < 0 || nb.x >= bd.x || nb.y >= bd.y || nb.z >= bd.z) continue;
+      if (base[slotOf(nb)] >= 0 && !data[slotOf(nb)]) unite(self, base[slotOf(nb)]);
+    }
+  }
+  int count = 0;
+  for (std::int64_t i = 0; i < next; ++i)
+    if (isInside[i] && find(i) == i) ++count;
+  return count;
+}
+
+Bounds boundingBox(const Volume& vol) {
+  Bounds bb;
+  auto include = [&](Vec3 p) {
+    if (bb.empty) {
+      bb.lo = bb.hi = p;
+      bb.empty = false;
+      return;
+    }
+    for (int a = 0; a < 3; ++a) bb.lo[a] = std::min(bb.lo[a], p[a]), bb.hi[a] = std::max(bb.hi[a], p[a]);
+  };
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const Neighbourhood n(vol, b);
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) {
+      const double d = n.at(l.x, l.y, l.z);
+      if (d >= 0) return;
+      const Vec3 pv{double(p.x), double(p.y), double(p.z)};
+      include(pv);
+      for (int a = 0; a < 3; ++a)
+        for (int s = -1; s <= 1; s += 2) {
+          Int3 q = l;
+          q[a] += s;
+          const double dq = n.at(q.x, q.y, q.z);
+          if (dq < 0) continue;
+          Vec3 c = pv;
+          c[a] += s * d / (d - dq);
+          include(c);
+        }
+    });
+  });
+  vol.forEachInsideBrick([&](Int3 b) {
+    const Int3 o = brickOrigin(b);
+    const Int3 d = vol.dims();
+    include({double(o.x), double(o.y), double(o.z)});
+    include({double(std::min(o.x + 7, d.x - 1)), double(std::min(o.y + 7, d.y - 1)), double(std::min(o.z + 7, d.z - 1))});
+  });
+  return bb;
+}
+
+GradientError gradientError(const Volume& vol) {
+  GradientError e;
+  double sum = 0;
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const Neighbourhood n(vol, b);
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
+      const float d = n.at(l.x, l.y, l.z);
+      bool adjacent = false;
+      for (const Int3& s : kSix) adjacent = adjacent || ((n.at(l.x + s.x, l.y + s.y, l.z + s.z) < 0) != (d < 0));
+      if (!adjacent) return;
+      const double gx = 0.5 * (n.at(l.x + 1, l.y, l.z) - n.at(l.x - 1, l.y, l.z));
+      const double gy = 0.5 * (n.at(l.x, l.y + 1, l.z) - n.at(l.x, l.y - 1, l.z));
+      const double gz = 0.5 * (n.at(l.x, l.y, l.z + 1) - n.at(l.x, l.y, l.z - 1));
+      const double err = std::fabs(std::sqrt(gx * gx + gy * gy + gz * gz) - 1.0);
+      e.max = std::max(e.max, err);
+      sum += err;
+      ++e.voxels;
+    });
+  });
+  e.mean = e.voxels ? sum / double(e.voxels) : 0;
+  return e;
+}
+
+std::uint64_t digest(const Volume& vol) {
+  std::uint64_t h = 0x6a09e667f3bcc908ull;
+  auto mix = [&](std::uint64_t w) {
+    h ^= w * 0x9e3779b97f4a7c15ull;
+    h = std::rotl(h, 29) * 0xbf58476d1ce4e5b9ull;
+  };
+  const Int3 d = vol.dims();
+  mix(std::uint64_t(d.x) | std::uint64_t(d.y) << 20 | std::uint64_t(d.z) << 40);
+  mix(std::bit_cast<std::uint32_t>(vol.band()));
+  auto key = [](Int3 b) { return std::uint64_t(b.x) | std::uint64_t(b.y) << 20 | std::uint64_t(b.z) << 40; };
+  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
+    mix(key(b) | 1ull << 62);
+    for (int i = 0; i < kBrickVoxels; i += 2) {
+      std::uint64_t w;
+      std::memcpy(&w, br.v + i, sizeof w);
+      mix(w);
+    }
+  });
+  vol.forEachInsideBrick([&](Int3 b) { mix(key(b) | 2ull << 62); });
+  h ^= h >> 31;
+  h *= 0x94d049bb133111ebull;
+  h ^= h >> 29;
+  return h;
+}
+
+std::string digestHex(const Volume& vol) {
+  static const char* hex = "0123456789abcdef";
+  std::uint64_t h = digest(vol);
+  std::string s(16, '0');
+  for (int i = 15; i >= 0; --i, h >>= 4) s[std::size_t(i)] = hex[h & 15];
+  return s;
+}
+
+Measures measure(const Volume& vol) {
+  Measures m;
+  m.insideVolume = insideVolume(vol);
+  m.surfaceArea = surfaceArea(vol);
+  m.components = countComponents(vol);
+  m.bounds = boundingBox(vol);
+  m.gradientError = gradientError(vol);
+  m.digest = digestHex(vol);
+  return m;
+}
+
+}  // namespace marzipan

@@ -1,0 +1,70 @@
+#include "redistance.hpp"
+
+#include <cmath>
+
+#include "chunked_pass.hpp"
+#include "thread_pool.hpp"
+#include "volume.hpp"
+
+namespace marzipan {
+
+MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside, bool normalizeKept,
+                            MarchOrder order) {
+  const Box r = region.intersect(g.box);
+  std::vector<MarchState> state(g.v.size(), outside == Outside::Source ? MarchState::Source : MarchState::Ignored);
+  std::vector<std::size_t> kept;
+  for (int z = r.lo.z; z < r.hi.z; ++z)
+    for (int y = r.lo.y; y < r.hi.y; ++y) {
+      std::size_t i = g.index({r.lo.x, y, z});
+      for (int x = r.lo.x; x < r.hi.x; ++x, ++i) {
+        const float v = g.v[i];
+        bool adjacent = false;
+        if (std::fabs(v) < 1.75f) {  // a voxel further than sqrt(3) from the surface cannot be adjacent
+          const bool neg = v < 0;
+          const Int3 p{x, y, z};
+          for (int a = 0; a < 3 && !adjacent; ++a) {
+            const std::size_t s = g.stride(a);
+            if (p[a] > g.box.lo[a] && (g.v[i - s] < 0) != neg) adjacent = true;
+            if (p[a] + 1 < g.box.hi[a] && (g.v[i + s] < 0) != neg) adjacent = true;
+          }
+        }
+        if (adjacent) {
+          state[i] = MarchState::Source;
+          kept.push_back(i);
+        } else {
+          state[i] = MarchState::Unknown;
+        }
+      }
+    }
+  if (normalizeKept) {
+    std::vector<float> scaled(kept.size());
+    for (std::size_t k = 0; k < kept.size(); ++k) {
+      const std::size_t i = kept[k];
+      const Int3 p = g.point(i);
+      double g2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const std::size_t s = g.stride(a);
+        const double lo = p[a] > g.box.lo[a] ? g.v[i - s] : g.v[i];
+        const double hi = p[a] + 1 < g.box.hi[a] ? g.v[i + s] : g.v[i];
+        const double span = (p[a] > g.box.lo[a] ? 1 : 0) + (p[a] + 1 < g.box.hi[a] ? 1 : 0);
+        const double d = span > 0 ? (hi - lo) / span : 0;
+        g2 += d * d;
+      }
+      const double len = std::sqrt(g2);
+      scaled[k] = len > 1e-3 ? float(g.v[i] / len) : g.v[i];
+    }
+    for (std::size_t k = 0; k < kept.size(); ++k) g.v[kept[k]] = scaled[k];
+  }
+  return fastMarch(g, state, band, order);
+}
+
+void redistanceVolume(Volume& vol, ThreadPool& pool) {
+  const float band = vol.band();
+  // Kept voxels need one neighbour, distances reach band + 1 voxels: a margin of band + 3.
+  const int margin = int(std::ceil(band)) + 3;
+  chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool&) {
+    redistanceRegion(g, g.box.grown(-1), band, Outside::Ignored, true);
+  });
+}
+
+}  // namespace marzipan

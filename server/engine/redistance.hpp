@@ -1,0 +1,31 @@
+// Redistancing after an edit (METHOD.md sections 3 and 4): keep the voxels adjacent to the
+// zero set, reset every other voxel of the edited region, and march distances out from the
+// kept ones. Resetting everything is what keeps vanished parts from leaving stray voxels.
+#pragma once
+
+#include "dense_grid.hpp"
+#include "fast_marching.hpp"
+
+namespace marzipan {
+
+class ThreadPool;
+class Volume;
+
+enum class Outside {
+  Source,   // voxels of the grid outside the region are valid distances (a local tool)
+  Ignored,  // they are a stale ghost layer (one chunk of a global operation)
+};
+
+// Redistances `region` (must lie in grid.box) of the grid in place. A voxel is adjacent to
+// the zero set when one of its 6 neighbours has the other sign (0 counts as outside).
+// With normalizeKept, each kept value d is first replaced by d / |grad d| (central
+// differences), which turns a field with the right zero set but a wrong slope into distances.
+MarchStats redistanceRegion(DenseGrid& grid, const Box& region, float band, Outside outside,
+                            bool normalizeKept = false, MarchOrder order = MarchOrder::Second);
+
+// Turns an approximate signed distance (right sign, right zero set, |grad| not 1) into a
+// true distance field over the whole volume: kept voxels are scaled by 1/|grad| first.
+// Used for solids built from CSG and smooth blends.
+void redistanceVolume(Volume& vol, ThreadPool& pool);
+
+}  // namespace marzipan

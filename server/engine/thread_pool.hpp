@@ -1,0 +1,51 @@
+// A fixed pool of worker threads that heavy kernels take explicitly.
+// Kernels split work into items whose results do not depend on which thread runs them,
+// so results are bit-identical for any thread count.
+#pragma once
+
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace marzipan {
+
+class ThreadPool {
+ public:
+  // threads <= 0 means one per hardware core. A pool of 1 runs everything on the caller.
+  explicit ThreadPool(int threads = 0);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  int threads() const { return int(workers_.size()) + 1; }
+
+  // Calls fn(i) for every i in [0, n), spread over the pool and the calling thread; returns
+  // when all are done. The first exception thrown by fn is rethrown here. Not re-entrant:
+  // fn must not call parallelFor on the same pool.
+  void parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn);
+
+  // A single-threaded pool for callers that want no parallelism.
+  static ThreadPool& serial();
+
+ private:
+  void workerLoop();
+  void runItems();
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  const std::function<void(std::size_t)>* job_ = nullptr;
+  std::size_t jobSize_ = 0;
+  std::size_t next_ = 0;
+  std::size_t finished_ = 0;
+  std::size_t generation_ = 0;
+  int busy_ = 0;
+  bool stop_ = false;
+  std::exception_ptr error_;
+  std::mutex callMutex_;
+};
+
+}  // namespace marzipan

@@ -1,0 +1,293 @@
+#include "volume.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <sstream>
+
+#include "errors.hpp"
+
+namespace marzipan {
+
+namespace {
+
+int localIndex(int x, int y, int z) { return x + kBrickSide * (y + kBrickSide * z); }
+
+// make_shared keeps the brick and its control block in one allocation; this is its size.
+constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
+
+}  // namespace
+
+Volume::Volume(Int3 dims, float band) : dims_(dims), band_(band) {
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < kBrickSide || dims[a] > kMaxDomainSide) {
+      std::ostringstream s;
+      s << "each side must be between " << kBrickSide << " and " << kMaxDomainSide << " voxels (got "
+        << dims.x << "x" << dims.y << "x" << dims.z << ")";
+      throw EngineError(dims[a] > kMaxDomainSide ? ErrorKind::TooLarge : ErrorKind::InvalidArgument, "size",
+                        s.str());
+    }
+  }
+  requireRange(band, 2.0, 8.0, "band");
+  for (int a = 0; a < 3; ++a) {
+    brickDims_[a] = (dims[a] + kBrickSide - 1) / kBrickSide;
+    tileDims_[a] = (brickDims_[a] + kTileSide - 1) / kTileSide;
+  }
+  const std::size_t nt = std::size_t(tileDims_.x) * tileDims_.y * tileDims_.z;
+  tiles_.assign(nt, nullptr);
+  tileInside_.assign(nt, 0);
+}
+
+std::size_t Volume::tileIndex(Int3 b) const {
+  return std::size_t(b.x / kTileSide) +
+         std::size_t(tileDims_.x) * (std::size_t(b.y / kTileSide) + std::size_t(tileDims_.y) * (b.z / kTileSide));
+}
+
+int Volume::slotInTile(Int3 b) {
+  return (b.x % kTileSide) + kTileSide * ((b.y % kTileSide) + kTileSide * (b.z % kTileSide));
+}
+
+BrickRef Volume::brick(Int3 b) const {
+  const std::size_t ti = tileIndex(b);
+  const Tile* t = tiles_[ti].get();
+  if (!t) return {nullptr, tileInside_[ti] != 0};
+  const int s = slotInTile(b);
+  return {t->bricks[s], t->inside[s]};
+}
+
+const float* Volume::brickData(Int3 b, float* uniformValue) const {
+  const std::size_t ti = tileIndex(b);
+  const Tile* t = tiles_[ti].get();
+  bool inside;
+  if (t) {
+    const int s = slotInTile(b);
+    if (const Brick* br = t->bricks[s].get()) return br->v;
+    inside = t->inside[s];
+  } else {
+    inside = tileInside_[ti] != 0;
+  }
+  *uniformValue = inside ? -band_ : band_;
+  return nullptr;
+}
+
+float Volume::at(Int3 p) const {
+  if (p.x < 0 || p.y < 0 || p.z < 0 || p.x >= dims_.x || p.y >= dims_.y || p.z >= dims_.z) return band_;
+  float u;
+  const float* d = brickData({p.x >> 3, p.y >> 3, p.z >> 3}, &u);
+  return d ? d[localIndex(p.x & 7, p.y & 7, p.z & 7)] : u;
+}
+
+void Volume::gather(const Box& box, float* out) const {
+  const Int3 s = box.size();
+  for (int z = box.lo.z; z < box.hi.z; ++z) {
+    for (int y = box.lo.y; y < box.hi.y; ++y) {
+      float* row = out + std::size_t(s.x) * (std::size_t(y - box.lo.y) + std::size_t(s.y) * (z - box.lo.z));
+      if (z < 0 || y < 0 || z >= dims_.z || y >= dims_.y) {
+        std::fill(row, row + s.x, band_);
+        continue;
+      }
+      int x = box.lo.x;
+      while (x < box.hi.x) {
+        if (x < 0 || x >= dims_.x) {
+          const int end = x < 0 ? std::min(0, box.hi.x) : box.hi.x;
+          std::fill(row + (x - box.lo.x), row + (end - box.lo.x), band_);
+          x = end;
+          continue;
+        }
+        const int end = std::min({(x | 7) + 1, box.hi.x, dims_.x});
+        float u;
+        const float* d = brickData({x >> 3, y >> 3, z >> 3}, &u);
+        if (d) {
+          std::memcpy(row + (x - box.lo.x), d + localIndex(x & 7, y & 7, z & 7), sizeof(float) * (end - x));
+        } else {
+          std::fill(row + (x - box.lo.x), row + (end - box.lo.x), u);
+        }
+        x = end;
+      }
+    }
+  }
+}
+
+double Volume::sample(Vec3 p) const {
+  const int i = int(std::floor(p.x)), j = int(std::floor(p.y)), k = int(std::floor(p.z));
+  const double fx = p.x - i, fy = p.y - j, fz = p.z - k;
+  double c[2][2][2];
+  for (int dz = 0; dz < 2; ++dz)
+    for (int dy = 0; dy < 2; ++dy)
+      for (int dx = 0; dx < 2; ++dx) c[dz][dy][dx] = at(i + dx, j + dy, k + dz);
+  const double c00 = c[0][0][0] + fx * (c[0][0][1] - c[0][0][0]);
+  const double c10 = c[0][1][0] + fx * (c[0][1][1] - c[0][1][0]);
+  const double c01 = c[1][0][0] + fx * (c[1][0][1] - c[1][0][0]);
+  const double c11 = c[1][1][0] + fx * (c[1][1][1] - c[1][1][0]);
+  const double c0 = c00 + fy * (c10 - c00);
+  const double c1 = c01 + fy * (c11 - c01);
+  return c0 + fz * (c1 - c0);
+}
+
+Vec3 Volume::gradient(Vec3 p) const {
+  const int i = int(std::floor(p.x)), j = int(std::floor(p.y)), k = int(std::floor(p.z));
+  const double f[3] = {p.x - i, p.y - j, p.z - k};
+  double c[2][2][2];
+  for (int dz = 0; dz < 2; ++dz)
+    for (int dy = 0; dy < 2; ++dy)
+      for (int dx = 0; dx < 2; ++dx) c[dx][dy][dz] = at(i + dx, j + dy, k + dz);
+  Vec3 g;
+  // d/dx of the trilinear interpolant: bilinear blend in (y,z) of the x-differences, and so on.
+  for (int a = 0; a < 3; ++a) {
+    const int b = (a + 1) % 3, e = (a + 2) % 3;
+    double sum = 0;
+    for (int ub = 0; ub < 2; ++ub)
+      for (int ue = 0; ue < 2; ++ue) {
+        int hi[3], lo[3];
+        hi[a] = 1, lo[a] = 0, hi[b] = lo[b] = ub, hi[e] = lo[e] = ue;
+        const double w = (ub ? f[b] : 1 - f[b]) * (ue ? f[e] : 1 - f[e]);
+        sum += w * (c[hi[0]][hi[1]][hi[2]] - c[lo[0]][lo[1]][lo[2]]);
+      }
+    g[a] = sum;
+  }
+  return g;
+}
+
+Vec3 Volume::voxelGradient(Int3 p) const {
+  return {0.5 * (at(p.x + 1, p.y, p.z) - at(p.x - 1, p.y, p.z)), 0.5 * (at(p.x, p.y + 1, p.z) - at(p.x, p.y - 1, p.z)),
+          0.5 * (at(p.x, p.y, p.z + 1) - at(p.x, p.y, p.z - 1))};
+}
+
+std::size_t Volume::memoryBytes() const {
+  std::size_t tiles = 0;
+  for (const auto& t : tiles_) tiles += t ? 1 : 0;
+  return presentBricks_ * kBrickAllocation + tiles * sizeof(Tile) + tiles_.size() * sizeof(tiles_[0]) +
+         tileInside_.size() + sizeof(*this);
+}
+
+std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox) {
+  auto changes = diff(region, src, srcBox);
+  publish(changes, true);
+  return changes;
+}
+
+std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox) const {
+  const Box r = region.intersect(domain());
+  std::vector<BrickChange> changes;
+  if (r.empty()) return changes;
+  if (!srcBox.contains(r.lo) || !srcBox.contains(r.hi - Int3{1, 1, 1}))
+    throw EngineError(ErrorKind::InvalidArgument, "srcBox", "must contain the region to write");
+  const Int3 ss = srcBox.size();
+  for (int bz = r.lo.z >> 3; bz <= (r.hi.z - 1) >> 3; ++bz)
+    for (int by = r.lo.y >> 3; by <= (r.hi.y - 1) >> 3; ++by)
+      for (int bx = r.lo.x >> 3; bx <= (r.hi.x - 1) >> 3; ++bx) {
+        const Int3 b{bx, by, bz};
+        const BrickRef old = brick(b);
+        auto nb = std::make_shared<Brick>();
+        if (old.data) {
+          std::memcpy(nb->v, old.data->v, sizeof(Brick));
+        } else {
+          std::fill(std::begin(nb->v), std::end(nb->v), old.inside ? -band_ : band_);
+        }
+        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
+        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(r);
+        for (int z = here.lo.z; z < here.hi.z; ++z)
+          for (int y = here.lo.y; y < here.hi.y; ++y) {
+            const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
+                                    std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
+                                                         std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
+            float* d = nb->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z);
+            for (int x = 0; x < here.hi.x - here.lo.x; ++x) d[x] = std::clamp(s[x], -band_, band_);
+          }
+        // Voxels past the domain's edge are never read; they are kept at +band so that equal
+        // fields have equal bricks, and they do not count for uniformity.
+        const Box inDomain = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(domain());
+        bool allOut = true, allIn = true;
+        for (int z = 0; z < kBrickSide; ++z)
+          for (int y = 0; y < kBrickSide; ++y)
+            for (int x = 0; x < kBrickSide; ++x) {
+              float& v = nb->v[localIndex(x, y, z)];
+              if (!inDomain.contains(o + Int3{x, y, z})) {
+                v = band_;
+                continue;
+              }
+              allOut = allOut && v == band_;
+              allIn = allIn && v == -band_;
+            }
+        BrickRef next;
+        if (allOut || allIn) {
+          next.inside = allIn;
+        } else {
+          next.data = std::move(nb);
+        }
+        const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
+                                    : (!old.data && old.inside == next.inside);
+        if (same) continue;
+        changes.push_back({b, old, next});
+      }
+  return changes;
+}
+
+std::vector<BrickChange> Volume::fill(bool inside) {
+  std::vector<BrickChange> changes;
+  std::vector<std::pair<Int3, BrickRef>> slots;
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        BrickRef old = brick(b);
+        if (!old.data && old.inside == inside) continue;
+        changes.push_back({b, old, BrickRef{nullptr, inside}});
+        slots.emplace_back(b, BrickRef{nullptr, inside});
+      }
+  setSlots(slots);
+  return changes;
+}
+
+void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
+  std::vector<std::pair<Int3, BrickRef>> slots;
+  slots.reserve(changes.size());
+  for (const auto& c : changes) slots.emplace_back(c.brick, forward ? c.after : c.before);
+  setSlots(slots);
+}
+
+void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
+  if (slotsIn.empty()) return;
+  std::vector<std::pair<Int3, BrickRef>> slots = slotsIn;
+  std::stable_sort(slots.begin(), slots.end(),
+                   [&](const auto& a, const auto& b) { return tileIndex(a.first) < tileIndex(b.first); });
+  std::size_t i = 0;
+  while (i < slots.size()) {
+    const std::size_t ti = tileIndex(slots[i].first);
+    // Every tile touched by this edit is copied once: readers of older versions keep theirs.
+    auto t = std::make_shared<Tile>();
+    if (const Tile* old = tiles_[ti].get()) {
+      *t = *old;
+    } else if (tileInside_[ti]) {
+      t->inside.set();
+    }
+    for (; i < slots.size() && tileIndex(slots[i].first) == ti; ++i) {
+      const int s = slotInTile(slots[i].first);
+      const BrickRef& ref = slots[i].second;
+      t->present += (ref.data ? 1 : 0) - (t->bricks[s] ? 1 : 0);
+      presentBricks_ += (ref.data ? 1 : 0);
+      presentBricks_ -= (t->bricks[s] ? 1 : 0);
+      t->bricks[s] = ref.data;
+      t->inside[s] = ref.data ? false : ref.inside;
+    }
+    // A tile whose real bricks are all uniform on one side collapses to a null tile.
+    bool collapse = t->present == 0;
+    bool first = true, side = false;
+    const Int3 tb{int(ti % tileDims_.x) * kTileSide, int((ti / tileDims_.x) % tileDims_.y) * kTileSide,
+                  int(ti / (std::size_t(tileDims_.x) * tileDims_.y)) * kTileSide};
+    for (int z = tb.z; collapse && z < std::min(tb.z + kTileSide, brickDims_.z); ++z)
+      for (int y = tb.y; collapse && y < std::min(tb.y + kTileSide, brickDims_.y); ++y)
+        for (int x = tb.x; collapse && x < std::min(tb.x + kTileSide, brickDims_.x); ++x) {
+          const bool in = t->inside[slotInTile({x, y, z})];
+          if (first) side = in, first = false;
+          collapse = in == side;
+        }
+    if (collapse) {
+      tiles_[ti] = nullptr;
+      tileInside_[ti] = side ? 1 : 0;
+    } else {
+      tiles_[ti] = std::move(t);
+    }
+  }
+}
+
+}  // namespace marzipan

@@ -1,0 +1,163 @@
+// The solid: a sparse, bricked, copy-on-write signed distance field.
+//
+// Conventions (every engine file follows them):
+// - d < 0 inside, d > 0 outside; |grad d| = 1; the outward normal is grad d.
+// - Unit: vu (voxel spacing 1). Voxel (i,j,k) sits at the point (i,j,k).
+// - Only the band |d| < band() is exact; values beyond are clamped to +-band().
+//   Points outside the domain read as +band() (the domain is surrounded by air).
+// - Storage: bricks of 8^3 floats, index x + 8*(y + 8*z) inside a brick; bricks are grouped
+//   in tiles of 8^3 bricks. A brick slot either shares an immutable Brick or is uniform
+//   (every voxel -band or +band) and stores nothing, so memory grows with surface area.
+// - Copy-on-write: a Volume is a value. Copying it copies only the tile table (O(tiles)) and
+//   shares every brick; an edit publishes new bricks and new tiles and leaves copies alone.
+//   A copy may be handed to another thread and read there without any lock while the
+//   original goes on being edited on its own thread.
+#pragma once
+
+#include <bitset>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "geometry.hpp"
+
+namespace marzipan {
+
+inline constexpr int kBrickSide = 8;
+inline constexpr int kBrickVoxels = kBrickSide * kBrickSide * kBrickSide;
+inline constexpr int kMaxDomainSide = 1024;
+
+struct Brick {
+  float v[kBrickVoxels];  // index x + 8*(y + 8*z), local voxel coordinates
+};
+
+// One slot of the brick table: shared voxel data, or uniform inside/outside when data is null.
+struct BrickRef {
+  std::shared_ptr<const Brick> data;
+  bool inside = false;  // meaningful only when data is null
+
+  bool uniform() const { return !data; }
+  friend bool operator==(const BrickRef& a, const BrickRef& b) {
+    return a.data == b.data && (a.data || a.inside == b.inside);
+  }
+};
+
+// One brick replaced by an edit: applying `after` over `before` redoes it, the reverse undoes it.
+struct BrickChange {
+  Int3 brick;  // brick coordinates (voxel / 8)
+  BrickRef before, after;
+};
+
+class Volume {
+ public:
+  static constexpr float kDefaultBand = 3.0f;
+
+  // An empty domain of dims voxels (all outside). Each side must be in [8, 1024]; the band
+  // half-width in [2, 8] vu. Throws EngineError otherwise.
+  explicit Volume(Int3 dims, float band = kDefaultBand);
+
+  Int3 dims() const { return dims_; }
+  Box domain() const { return {{0, 0, 0}, dims_}; }
+  float band() const { return band_; }
+  Int3 brickDims() const { return brickDims_; }
+
+  // Counts published edits; saved with the volume. The service sets it after undo/redo.
+  std::uint64_t revision() const { return revision_; }
+  void setRevision(std::uint64_t r) { revision_ = r; }
+
+  // --- reading -------------------------------------------------------------------------
+  BrickRef brick(Int3 b) const;  // b must be within brickDims()
+  // The brick's voxels, or null with *uniformValue set to -band/+band.
+  const float* brickData(Int3 b, float* uniformValue) const;
+  float at(Int3 p) const;  // +band outside the domain
+  float at(int i, int j, int k) const { return at(Int3{i, j, k}); }
+
+  // Copies box into out (x fastest, then y, then z); voxels outside the domain read +band.
+  void gather(const Box& box, float* out) const;
+
+  // Trilinear interpolation of d and its analytic gradient at any point.
+  double sample(Vec3 p) const;
+  Vec3 gradient(Vec3 p) const;
+  // Central-difference gradient at a voxel.
+  Vec3 voxelGradient(Int3 p) const;
+
+  std::size_t presentBricks() const { return presentBricks_; }
+  // Calls fn(brickCoord, const Brick&) for every brick that stores data, in z,y,x order.
+  template <class F>
+  void forEachPresentBrick(F&& fn) const;
+  // Calls fn(brickCoord) for every uniformly inside brick slot, in z,y,x order.
+  template <class F>
+  void forEachInsideBrick(F&& fn) const;
+
+  // Bytes held by this version: bricks, tiles and the tile table.
+  std::size_t memoryBytes() const;
+
+  // --- editing -------------------------------------------------------------------------
+  // Replaces the voxels of `region` (clipped to the domain) by those of src, an array over
+  // srcBox (x fastest) that must contain the clipped region. Values are clamped to +-band.
+  // Publishes one new brick per brick whose values really changed (a brick that becomes
+  // uniform is stored as such) and returns the changes, old bricks included.
+  std::vector<BrickChange> scatter(const Box& region, const float* src, const Box& srcBox);
+  // The changes scatter() would publish, without publishing them. Safe to call from several
+  // threads at once on one volume that nobody edits meanwhile.
+  std::vector<BrickChange> diff(const Box& region, const float* src, const Box& srcBox) const;
+
+  // Sets every voxel of the domain to the given uniform side (used for clearing).
+  std::vector<BrickChange> fill(bool inside);
+
+  // Re-publishes recorded changes: forward sets `after` (redo), backward sets `before` (undo).
+  void publish(const std::vector<BrickChange>& changes, bool forward);
+
+ private:
+  static constexpr int kTileSide = 8;  // bricks per tile side
+  static constexpr int kTileBricks = kTileSide * kTileSide * kTileSide;
+  struct Tile {
+    std::shared_ptr<const Brick> bricks[kTileBricks];
+    std::bitset<kTileBricks> inside;
+    int present = 0;
+  };
+
+  void setSlots(const std::vector<std::pair<Int3, BrickRef>>& slots);
+  std::size_t tileIndex(Int3 b) const;
+  static int slotInTile(Int3 b);
+
+  Int3 dims_;
+  Int3 brickDims_;
+  Int3 tileDims_;
+  float band_;
+  std::uint64_t revision_ = 0;
+  std::size_t presentBricks_ = 0;
+  // A null tile is uniform: every brick of it inside (tileInside_ = 1) or outside.
+  std::vector<std::shared_ptr<const Tile>> tiles_;
+  std::vector<std::uint8_t> tileInside_;
+};
+
+template <class F>
+void Volume::forEachPresentBrick(F&& fn) const {
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        const Tile* t = tiles_[tileIndex(b)].get();
+        if (!t) {
+          bx = (bx / kTileSide + 1) * kTileSide - 1;  // skip the rest of this uniform tile's row
+          continue;
+        }
+        if (const Brick* br = t->bricks[slotInTile(b)].get()) fn(b, *br);
+      }
+}
+
+template <class F>
+void Volume::forEachInsideBrick(F&& fn) const {
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        const std::size_t ti = tileIndex(b);
+        const Tile* t = tiles_[ti].get();
+        if (t ? (!t->bricks[slotInTile(b)] && t->inside[slotInTile(b)]) : tileInside_[ti] != 0) fn(b);
+      }
+}
+
+}  // namespace marzipan

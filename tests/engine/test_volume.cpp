@@ -1,0 +1,113 @@
+#include <catch2/catch.hpp>
+
+#include <cstring>
+#include <vector>
+
+#include "engine/errors.hpp"
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+#include "support.hpp"
+#include "engine/volume.hpp"
+
+using namespace marzipan;
+
+TEST_CASE("an empty volume is all outside and stores nothing", "[volume]") {
+  Volume v({64, 64, 64});
+  CHECK(v.at(10, 20, 30) == v.band());
+  CHECK(v.at(-5, 0, 0) == v.band());
+  CHECK(v.presentBricks() == 0);
+  CHECK(v.memoryBytes() < 4096);
+}
+
+TEST_CASE("sizes outside [8, 1024] and bad bands are refused", "[volume][errors]") {
+  CHECK_THROWS_AS(Volume({4, 64, 64}), EngineError);
+  CHECK_THROWS_AS(Volume({64, 2048, 64}), EngineError);
+  CHECK_THROWS_AS(Volume({64, 64, 64}, std::nanf("")), EngineError);
+  CHECK_THROWS_AS(Volume({64, 64, 64}, 0.5f), EngineError);
+  try {
+    Volume({64, 64, 5000});
+    FAIL("no error");
+  } catch (const EngineError& e) {
+    CHECK(e.kind() == ErrorKind::TooLarge);
+    CHECK(e.field() == "size");
+  }
+}
+
+TEST_CASE("scatter and gather round-trip values and clamp to the band", "[volume]") {
+  Volume v({40, 24, 16});  // sides not all multiples of 8: the last bricks are partial
+  const Box b{{3, 5, 2}, {37, 24, 16}};
+  std::vector<float> src(std::size_t(b.voxels()));
+  for (std::size_t i = 0; i < src.size(); ++i) src[i] = float(int(i % 13) - 6) * 0.5f;  // -3 .. 3
+  src[0] = -100.0f;
+  v.scatter(b, src.data(), b);
+  std::vector<float> back(src.size());
+  v.gather(b, back.data());
+  CHECK(back[0] == -v.band());
+  for (std::size_t i = 1; i < src.size(); ++i) REQUIRE(back[i] == src[i]);
+  // Outside the domain reads as air, whatever was written.
+  CHECK(v.at(40, 0, 0) == v.band());
+}
+
+TEST_CASE("bricks that become uniform are not stored", "[volume]") {
+  Volume v({32, 32, 32});
+  const Box b{{0, 0, 0}, {32, 32, 32}};
+  std::vector<float> inside(std::size_t(b.voxels()), -v.band());
+  const auto changes = v.scatter(b, inside.data(), b);
+  CHECK(changes.size() == 64);
+  CHECK(v.presentBricks() == 0);
+  CHECK(v.at(5, 5, 5) == -v.band());
+  std::vector<float> out(std::size_t(b.voxels()), v.band());
+  v.scatter(b, out.data(), b);
+  CHECK(v.presentBricks() == 0);
+  CHECK(digest(v) == digest(Volume({32, 32, 32})));
+}
+
+TEST_CASE("copies share bricks and keep their own version after an edit", "[volume][cow]") {
+  Volume v = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
+  const Volume before = v;
+  const std::uint64_t d0 = digest(before);
+  const float old = v.at(52, 32, 32);
+  const Box b{{40, 24, 24}, {60, 40, 40}};
+  std::vector<float> src(std::size_t(b.voxels()), -1.0f);
+  const auto changes = v.scatter(b, src.data(), b);
+  REQUIRE_FALSE(changes.empty());
+  CHECK(v.at(52, 32, 32) == -1.0f);
+  CHECK(before.at(52, 32, 32) == old);
+  CHECK(digest(before) == d0);
+  // The old bricks returned by the edit are exactly the ones the copy still reads.
+  for (const auto& c : changes) CHECK(before.brick(c.brick) == c.before);
+  v.publish(changes, false);
+  CHECK(digest(v) == d0);
+  v.publish(changes, true);
+  CHECK(v.at(52, 32, 32) == -1.0f);
+}
+
+TEST_CASE("trilinear sampling reproduces a linear field and its gradient exactly", "[volume][sampling]") {
+  Volume v({32, 32, 32});
+  const Box b{{0, 0, 0}, {32, 32, 32}};
+  std::vector<float> src(std::size_t(b.voxels()));
+  for (int z = 0; z < 32; ++z)
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x) src[std::size_t(x + 32 * (y + 32 * z))] = 0.05f * x - 0.02f * y + 0.01f * z - 0.4f;
+  v.scatter(b, src.data(), b);
+  const Vec3 p{10.3, 7.7, 20.25};
+  CHECK(v.sample(p) == Approx(0.05 * p.x - 0.02 * p.y + 0.01 * p.z - 0.4).margin(1e-6));
+  const Vec3 g = v.gradient(p);
+  CHECK(g.x == Approx(0.05).margin(1e-6));
+  CHECK(g.y == Approx(-0.02).margin(1e-6));
+  CHECK(g.z == Approx(0.01).margin(1e-6));
+  const Vec3 gv = v.voxelGradient({5, 6, 7});
+  CHECK(gv.x == Approx(0.05).margin(1e-6));
+  CHECK(gv.y == Approx(-0.02).margin(1e-6));
+}
+
+TEST_CASE("memory grows with surface area, not with the domain", "[volume][memory]") {
+  const Volume small = makeSphere({256, 256, 256}, {128, 128, 128}, 100);
+  INFO("radius 100 in 256^3: " << small.memoryBytes() << " bytes, " << small.presentBricks() << " bricks");
+  CHECK(small.memoryBytes() <= std::size_t(10.55e6));  // OpenVDB's narrow band for the same sphere
+  const Volume big = makeSphere({512, 512, 512}, {256, 256, 256}, 200);
+  INFO("radius 200 in 512^3: " << big.memoryBytes() << " bytes");
+  CHECK(big.memoryBytes() < std::size_t(50e6));
+  // Area grows 4x from radius 100 to 200: memory must follow the area, not the 8x domain.
+  CHECK(double(big.memoryBytes()) / double(small.memoryBytes()) < 4.5);
+}
