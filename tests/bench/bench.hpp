@@ -1,0 +1,60 @@
+// The benchmark harness: scenarios register themselves by name and print one JSON object per
+// line (at least scenario, threads, median_ms, min_ms, max_ms, reps, then their own figures).
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace marzipan::bench {
+
+struct Options {
+  int threads = 0;     // as given on the command line (0 = all cores)
+  bool quick = false;  // a short smoke run: small sizes, few repetitions
+};
+
+struct Timing {
+  double median_ms = 0, min_ms = 0, max_ms = 0;
+  int reps = 0;
+};
+
+// Runs setup() then f() `reps` times; only f is timed.
+template <class Setup, class F>
+Timing measure(int reps, Setup&& setup, F&& f) {
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) {
+    setup();
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return {ms[ms.size() / 2], ms.front(), ms.back(), reps};
+}
+template <class F>
+Timing measure(int reps, F&& f) {
+  return measure(reps, [] {}, std::forward<F>(f));
+}
+
+// One output line: {"scenario":..., "threads":..., timing..., extra...}.
+void emit(const std::string& scenario, int threads, const Timing& t, nlohmann::ordered_json extra = {});
+
+using ScenarioFn = std::function<void(const Options&)>;
+struct Registrar {
+  Registrar(const char* name, ScenarioFn fn);
+};
+
+}  // namespace marzipan::bench
+
+// Defines a scenario: MARZIPAN_BENCH("name") { ... uses `opt` ... }
+#define MARZIPAN_BENCH_CAT2(a, b) a##b
+#define MARZIPAN_BENCH_CAT(a, b) MARZIPAN_BENCH_CAT2(a, b)
+#define MARZIPAN_BENCH(name)                                                                         \
+  static void MARZIPAN_BENCH_CAT(benchFn, __LINE__)(const ::marzipan::bench::Options& opt);          \
+  static ::marzipan::bench::Registrar MARZIPAN_BENCH_CAT(benchReg, __LINE__)(                        \
+      name, MARZIPAN_BENCH_CAT(benchFn, __LINE__));                                                  \
+  static void MARZIPAN_BENCH_CAT(benchFn, __LINE__)([[maybe_unused]] const ::marzipan::bench::Options& opt)
