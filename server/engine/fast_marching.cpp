@@ -116,8 +116,17 @@ class Marcher {
       const int q2 = q[a] + 2 * bestDir;
       if (second_ && q2 >= 0 && q2 < g_.size[a]) {
         const std::size_t n2 = bestDir > 0 ? n + 2 * s : n - 2 * s;
-        if (usable(n2, neg) && best - dist_[n2] >= kMonotoneRun) {
-          m[count] = (4.0 * best - dist_[n2]) / 3.0;
+        // The signed field is smooth across the surface, so a kept voxel of the other sign
+        // serves as the second upwind point with its sign: without it the first layer off
+        // the surface is only first order, and its bias shows in every curvature.
+        double b = kInf;
+        if (usable(n2, neg)) {
+          b = dist_[n2];
+        } else if (state_[n2] == MarchState::Source && neg_[n2] != neg) {
+          b = -double(dist_[n2]);
+        }
+        if (best - b >= kMonotoneRun) {
+          m[count] = (4.0 * best - b) / 3.0;
           c[count] = 9.0 / 4.0;
         }
       }

@@ -63,7 +63,7 @@ void redistanceVolume(Volume& vol, ThreadPool& pool) {
   // Kept voxels need one neighbour, distances reach band + 1 voxels: a margin of band + 3.
   const int margin = int(std::ceil(band)) + 3;
   chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool&) {
-    redistanceRegion(g, g.box.grown(-1), band, Outside::Ignored, true);
+    redistanceRegion(g, g.box.grown(-1), band, Outside::Ignored);
   });
 }
 
