@@ -171,12 +171,17 @@ Bounds boundingBox(const Volume& vol) {
   return bb;
 }
 
-GradientError gradientError(const Volume& vol) {
+GradientError gradientError(const Volume& vol) { return gradientError(vol, vol.domain()); }
+
+GradientError gradientError(const Volume& vol, const Box& region) {
   GradientError e;
   double sum = 0;
   vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const Int3 o = brickOrigin(b);
+    if (Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(region).empty()) return;
     const Neighbourhood n(vol, b);
-    forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) {
+      if (!region.contains(p)) return;
       const float d = n.at(l.x, l.y, l.z);
       bool adjacent = false;
       for (const Int3& s : kSix) adjacent = adjacent || ((n.at(l.x + s.x, l.y + s.y, l.z + s.z) < 0) != (d < 0));

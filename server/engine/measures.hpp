@@ -33,6 +33,8 @@ struct GradientError {
   std::size_t voxels = 0;
 };
 GradientError gradientError(const Volume& vol);
+// The same over the voxels of `region` only.
+GradientError gradientError(const Volume& vol, const Box& region);
 
 // A 64-bit hash of the field (dims, band and every brick's values): identical volumes have
 // identical digests whatever their history.

@@ -50,8 +50,19 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         const double d = span > 0 ? (hi - lo) / span : 0;
         g2 += d * d;
       }
+      // The surface crosses an edge to an opposite-sign neighbour within t = v / (v - v_n) vu,
+      // so no distance exceeds the nearest such t; this bounds the result where the gradient
+      // is small (a kink between two surfaces), where v / |grad| alone would explode.
+      const double v = g.v[i];
+      double bound = 1.0;
+      for (int a = 0; a < 3; ++a) {
+        const std::size_t s = g.stride(a);
+        if (p[a] > g.box.lo[a] && (g.v[i - s] < 0) != (v < 0)) bound = std::min(bound, v / (v - g.v[i - s]));
+        if (p[a] + 1 < g.box.hi[a] && (g.v[i + s] < 0) != (v < 0)) bound = std::min(bound, v / (v - g.v[i + s]));
+      }
       const double len = std::sqrt(g2);
-      scaled[k] = len > 1e-3 ? float(g.v[i] / len) : g.v[i];
+      const double mag = len > 1e-6 ? std::min(std::fabs(v) / len, bound) : bound;
+      scaled[k] = float(std::copysign(mag, v));
     }
     for (std::size_t k = 0; k < kept.size(); ++k) g.v[kept[k]] = scaled[k];
   }

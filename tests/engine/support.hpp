@@ -27,4 +27,24 @@ double maxErrorNear(const Volume& v, const Box& box, double within, F exact) {
   return worst;
 }
 
+// Band voxels with no surface near them: |d| < 0.9 band but no voxel of the other sign within
+// |d| + 1.5 vu. A true distance field has none; spurious voxels (reference Fig. 7.11) do.
+inline int strayBandVoxels(const Volume& v) {
+  int stray = 0;
+  const Int3 n = v.dims();
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        const float d = v.at(x, y, z);
+        if (!(std::fabs(d) < 0.9f * v.band())) continue;
+        const int r = int(std::ceil(std::fabs(d) + 1.5));
+        bool found = false;
+        for (int k = -r; k <= r && !found; ++k)
+          for (int j = -r; j <= r && !found; ++j)
+            for (int i = -r; i <= r && !found; ++i) found = (v.at(x + i, y + j, z + k) < 0) != (d < 0);
+        stray += found ? 0 : 1;
+      }
+  return stray;
+}
+
 }  // namespace marzipan::test
