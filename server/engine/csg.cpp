@@ -65,7 +65,12 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool&) {
       if (!region.contains(g.point(i))) g.v[i] = band;
     e.append(vol.fill(false), vol.domain());
   }
-  redistanceRegion(g, region, band, Outside::Source);
+  // min/max of two exact distances is exact on one side: outside a union, inside an
+  // intersection or difference. Re-marching that side would only add the marcher's error
+  // (up to 0.3 vu around the tool's convex edges); a blend is exact on neither side.
+  RedistanceOptions opt;
+  if (p.blend == 0) opt.exactSide = p.op == CsgOp::Add ? +1 : -1;
+  redistanceRegion(g, region, band, Outside::Source, opt);
   e.append(vol.scatter(region, g.v.data(), g.box), region);
   return e;
 }

@@ -8,8 +8,8 @@
 
 namespace marzipan {
 
-MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside, bool normalizeKept,
-                            MarchOrder order) {
+MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
+                            const RedistanceOptions& options) {
   const Box r = region.intersect(g.box);
   std::vector<MarchState> state(g.v.size(), outside == Outside::Source ? MarchState::Source : MarchState::Ignored);
   std::vector<std::size_t> kept;
@@ -18,8 +18,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       std::size_t i = g.index({r.lo.x, y, z});
       for (int x = r.lo.x; x < r.hi.x; ++x, ++i) {
         const float v = g.v[i];
-        bool adjacent = false;
-        if (std::fabs(v) < 1.75f) {  // a voxel further than sqrt(3) from the surface cannot be adjacent
+        bool adjacent = v == 0;  // on the surface itself (grid-aligned faces, edges, corners)
+        if (!adjacent && std::fabs(v) < 1.75f) {  // a voxel further than sqrt(3) from the surface cannot be adjacent
           const bool neg = v < 0;
           const Int3 p{x, y, z};
           for (int a = 0; a < 3 && !adjacent; ++a) {
@@ -28,7 +28,9 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
             if (p[a] + 1 < g.box.hi[a] && (g.v[i + s] < 0) != neg) adjacent = true;
           }
         }
-        if (adjacent) {
+        if (options.exactSide != 0 && (v < 0) == (options.exactSide < 0)) {
+          state[i] = MarchState::Source;
+        } else if (adjacent) {
           state[i] = MarchState::Source;
           kept.push_back(i);
         } else {
@@ -36,7 +38,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         }
       }
     }
-  if (normalizeKept) {
+  if (options.normalizeKept) {
     std::vector<float> scaled(kept.size());
     for (std::size_t k = 0; k < kept.size(); ++k) {
       const std::size_t i = kept[k];
@@ -66,7 +68,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     }
     for (std::size_t k = 0; k < kept.size(); ++k) g.v[kept[k]] = scaled[k];
   }
-  return fastMarch(g, state, band, order);
+  return fastMarch(g, state, band, options.order);
 }
 
 void redistanceVolume(Volume& vol, ThreadPool& pool) {
