@@ -37,26 +37,36 @@ double solveEikonal(double m[3], double c[3], int n) {
 class Marcher {
  public:
   Marcher(DenseGrid& g, const std::vector<MarchState>& state, float band, MarchOrder order)
-      : g_(g), state_(state), band_(band), second_(order == MarchOrder::Second) {
+      : g_(g), band_(band), second_(order == MarchOrder::Second) {
     const std::size_t n = g.v.size();
     dist_.resize(n);
-    known_.assign(n, 0);
-    neg_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      neg_[i] = g.v[i] < 0;
-      if (state[i] == MarchState::Source) {
-        dist_[i] = std::fabs(g.v[i]);
-        known_[i] = 1;
-      } else {
-        dist_[i] = kInf;
+    flag_.resize(n);
+    stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
+    std::size_t i = 0;
+    for (int z = 0; z < g.size.z; ++z)
+      for (int y = 0; y < g.size.y; ++y) {
+        const bool yzInterior = z >= 2 && z + 2 < g.size.z && y >= 2 && y + 2 < g.size.y;
+        for (int x = 0; x < g.size.x; ++x, ++i) {
+          // MarchState's values are its flag bits (Source = known + frozen, Ignored =
+          // ignored + frozen), so this stays free of branches.
+          const std::uint8_t st = std::uint8_t(state[i]);
+          std::uint8_t f = std::uint8_t(st | (g.v[i] < 0 ? kNeg : 0));
+          if (yzInterior && x >= 2 && x + 2 < g.size.x) f |= kInterior;
+          dist_[i] = st == std::uint8_t(MarchState::Source) ? std::fabs(g.v[i]) : kInf;
+          flag_[i] = f;
+        }
       }
-    }
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
   }
 
   MarchStats run() {
-    for (std::size_t i = 0; i < dist_.size(); ++i)
-      if (state_[i] == MarchState::Source && dist_[i] < band_) push(i, dist_[i], 0);
+    // Only sources next to an unknown voxel can lower anything.
+    for (std::size_t i = 0; i < dist_.size(); ++i) {
+      if ((flag_[i] & (kKnown | kIgnored)) != kKnown || !(dist_[i] < band_)) continue;
+      bool feeds = false;
+      forNeighbours(i, [&](std::size_t n) { feeds = feeds || !(flag_[n] & kFrozen); });
+      if (feeds) push(i, dist_[i], 0);
+    }
     for (std::size_t b = 0; b < buckets_.size(); ++b) {
       current_ = b;
       auto& bucket = buckets_[b];
@@ -64,67 +74,89 @@ class Marcher {
         const Entry e = bucket[k];
         if (e.dist != dist_[e.index]) continue;  // superseded by a lower entry
         ++stats_.accepted;
-        if (known_[e.index] == 2) ++stats_.retaken;
-        if (known_[e.index] == 0) known_[e.index] = 2;
-        relax(e.index);
+        if (flag_[e.index] & kTaken) ++stats_.retaken;
+        flag_[e.index] |= kKnown | kTaken;
+        // A neighbour already at or below this value would drop it from its stencil (the
+        // upwind rule), so this voxel cannot lower it.
+        forNeighbours(e.index, [&](std::size_t n) {
+          if (!(flag_[n] & kFrozen) && dist_[n] > e.dist) update(n);
+        });
       }
       bucket.clear();
-      bucket.shrink_to_fit();
     }
     for (std::size_t i = 0; i < dist_.size(); ++i)
-      if (state_[i] == MarchState::Unknown) g_.v[i] = neg_[i] ? -std::min(dist_[i], band_) : std::min(dist_[i], band_);
+      if (!(flag_[i] & kFrozen)) g_.v[i] = (flag_[i] & kNeg) ? -std::min(dist_[i], band_) : std::min(dist_[i], band_);
     return stats_;
   }
 
  private:
+  static constexpr std::uint8_t kKnown = 1;     // has a value others may use (source or taken)
+  static constexpr std::uint8_t kNeg = 2;       // inside
+  static constexpr std::uint8_t kFrozen = 4;    // source or ignored: never recomputed
+  static constexpr std::uint8_t kIgnored = 8;
+  static constexpr std::uint8_t kInterior = 16; // at least 2 voxels from every face of the grid
+  static_assert(std::uint8_t(MarchState::Source) == (kKnown | kFrozen) &&
+                std::uint8_t(MarchState::Ignored) == (kIgnored | kFrozen));
+  static constexpr std::uint8_t kTaken = 32;    // taken from the queue at least once
+
+  Int3 coords(std::size_t i) const {
+    return {int(i % g_.sx), int((i / g_.sx) % std::size_t(g_.size.y)), int(i / g_.sxy)};
+  }
+
+  template <class F>
+  void forNeighbours(std::size_t i, F&& fn) const {
+    if (flag_[i] & kInterior) {
+      for (int a = 0; a < 3; ++a) fn(i - stride_[a]), fn(i + stride_[a]);
+      return;
+    }
+    const Int3 p = coords(i);
+    for (int a = 0; a < 3; ++a) {
+      if (p[a] > 0) fn(i - stride_[a]);
+      if (p[a] + 1 < g_.size[a]) fn(i + stride_[a]);
+    }
+  }
+
   void push(std::size_t i, float d, std::size_t minBucket) {
     const std::size_t b = std::max(minBucket, std::size_t(d * kBucketsPerVu));
     buckets_[std::min(b, buckets_.size() - 1)].push_back({std::uint32_t(i), d});
   }
 
-  bool usable(std::size_t n, bool neg) const {
-    return known_[n] != 0 && neg_[n] == neg && state_[n] != MarchState::Ignored;
+  // Usable as an upwind value for a voxel whose sign bit is negBit.
+  bool usable(std::size_t n, std::uint8_t negBit) const {
+    return (flag_[n] & (kKnown | kIgnored | kNeg)) == (kKnown | negBit);
   }
 
-  // Recomputes the Unknown neighbours of voxel i from their known neighbours.
-  void relax(std::size_t i) {
-    const Int3 p{int(i % g_.sx), int((i / g_.sx) % std::size_t(g_.size.y)), int(i / g_.sxy)};
-    for (int axis = 0; axis < 3; ++axis) {
-      const std::size_t s = g_.stride(axis);
-      if (p[axis] > 0) update(i - s, p, axis, -1);
-      if (p[axis] + 1 < g_.size[axis]) update(i + s, p, axis, +1);
-    }
+  // The second upwind value two steps away along one axis, or infinity. The signed field is
+  // smooth across the surface, so a source of the other sign serves with its sign: without
+  // it the first layer off the surface is only first order, and its bias shows in every
+  // curvature.
+  double secondUpwind(std::size_t n2, std::uint8_t negBit) const {
+    const std::uint8_t f = flag_[n2];
+    if ((f & (kKnown | kIgnored)) != kKnown) return kInf;
+    if ((f & kNeg) == negBit) return dist_[n2];
+    return (f & kFrozen) ? -double(dist_[n2]) : kInf;
   }
 
-  // n is the neighbour of the voxel at p along `axis` in direction `dir`.
-  void update(std::size_t n, Int3 p, int axis, int dir) {
-    if (state_[n] != MarchState::Unknown) return;
-    Int3 q = p;
-    q[axis] += dir;
-    const bool neg = neg_[n];
+  // Recomputes voxel n from its known neighbours.
+  void update(std::size_t n) {
+    const std::uint8_t negBit = flag_[n] & kNeg;
+    const bool interior = flag_[n] & kInterior;
+    Int3 q{};
+    if (!interior) q = coords(n);
     double m[3], c[3];
     int count = 0;
     for (int a = 0; a < 3; ++a) {
-      const std::size_t s = g_.stride(a);
+      const std::size_t s = stride_[a];
+      const bool hasLo = interior || q[a] > 0, hasHi = interior || q[a] + 1 < g_.size[a];
       float best = kInf;
-      int bestDir = 0;
-      if (q[a] > 0 && usable(n - s, neg)) best = dist_[n - s], bestDir = -1;
-      if (q[a] + 1 < g_.size[a] && usable(n + s, neg) && dist_[n + s] < best) best = dist_[n + s], bestDir = +1;
-      if (bestDir == 0) continue;
+      int dir = 0;
+      if (hasLo && usable(n - s, negBit)) best = dist_[n - s], dir = -1;
+      if (hasHi && usable(n + s, negBit) && dist_[n + s] < best) best = dist_[n + s], dir = +1;
+      if (dir == 0) continue;
       m[count] = best;
       c[count] = 1.0;
-      const int q2 = q[a] + 2 * bestDir;
-      if (second_ && q2 >= 0 && q2 < g_.size[a]) {
-        const std::size_t n2 = bestDir > 0 ? n + 2 * s : n - 2 * s;
-        // The signed field is smooth across the surface, so a kept voxel of the other sign
-        // serves as the second upwind point with its sign: without it the first layer off
-        // the surface is only first order, and its bias shows in every curvature.
-        double b = kInf;
-        if (usable(n2, neg)) {
-          b = dist_[n2];
-        } else if (state_[n2] == MarchState::Source && neg_[n2] != neg) {
-          b = -double(dist_[n2]);
-        }
+      if (second_ && (interior || (q[a] + 2 * dir >= 0 && q[a] + 2 * dir < g_.size[a]))) {
+        const double b = secondUpwind(dir > 0 ? n + 2 * s : n - 2 * s, negBit);
         if (best - b >= kMonotoneRun) {
           m[count] = (4.0 * best - b) / 3.0;
           c[count] = 9.0 / 4.0;
@@ -141,12 +173,11 @@ class Marcher {
   }
 
   DenseGrid& g_;
-  const std::vector<MarchState>& state_;
   float band_;
   bool second_;
+  std::size_t stride_[3];
   std::vector<float> dist_;
-  std::vector<std::uint8_t> known_;  // 0 not yet, 1 source, 2 taken from the queue
-  std::vector<std::uint8_t> neg_;
+  std::vector<std::uint8_t> flag_;
   std::vector<std::vector<Entry>> buckets_;
   std::size_t current_ = 0;
   MarchStats stats_;

@@ -16,9 +16,9 @@
 namespace marzipan {
 
 enum class MarchState : std::uint8_t {
-  Unknown = 0,  // to be computed; only the sign of its value is read
-  Source = 1,   // value is a known signed distance and is kept
-  Ignored = 2,  // neither read nor written (e.g. a stale ghost layer)
+  Unknown = 0,   // to be computed; only the sign of its value is read
+  Source = 5,    // value is a known signed distance and is kept
+  Ignored = 12,  // neither read nor written (e.g. a stale ghost layer)
 };
 
 enum class MarchOrder {

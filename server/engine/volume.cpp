@@ -78,33 +78,31 @@ float Volume::at(Int3 p) const {
 
 void Volume::gather(const Box& box, float* out) const {
   const Int3 s = box.size();
-  for (int z = box.lo.z; z < box.hi.z; ++z) {
-    for (int y = box.lo.y; y < box.hi.y; ++y) {
-      float* row = out + std::size_t(s.x) * (std::size_t(y - box.lo.y) + std::size_t(s.y) * (z - box.lo.z));
-      if (z < 0 || y < 0 || z >= dims_.z || y >= dims_.y) {
-        std::fill(row, row + s.x, band_);
-        continue;
-      }
-      int x = box.lo.x;
-      while (x < box.hi.x) {
-        if (x < 0 || x >= dims_.x) {
-          const int end = x < 0 ? std::min(0, box.hi.x) : box.hi.x;
-          std::fill(row + (x - box.lo.x), row + (end - box.lo.x), band_);
-          x = end;
-          continue;
-        }
-        const int end = std::min({(x | 7) + 1, box.hi.x, dims_.x});
+  if (box.empty()) return;
+  const std::size_t sx = std::size_t(s.x), sxy = sx * std::size_t(s.y);
+  const Box inside = box.intersect(domain());
+  // Everything outside the domain reads as air; inside, brick by brick (one table look-up each).
+  if (inside.voxels() != box.voxels()) std::fill(out, out + sxy * std::size_t(s.z), band_);
+  if (inside.empty()) return;
+  for (int bz = inside.lo.z >> 3; bz <= (inside.hi.z - 1) >> 3; ++bz)
+    for (int by = inside.lo.y >> 3; by <= (inside.hi.y - 1) >> 3; ++by)
+      for (int bx = inside.lo.x >> 3; bx <= (inside.hi.x - 1) >> 3; ++bx) {
+        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
+        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(inside);
         float u;
-        const float* d = brickData({x >> 3, y >> 3, z >> 3}, &u);
-        if (d) {
-          std::memcpy(row + (x - box.lo.x), d + localIndex(x & 7, y & 7, z & 7), sizeof(float) * (end - x));
-        } else {
-          std::fill(row + (x - box.lo.x), row + (end - box.lo.x), u);
-        }
-        x = end;
+        const float* d = brickData({bx, by, bz}, &u);
+        const int n = here.hi.x - here.lo.x;
+        for (int z = here.lo.z; z < here.hi.z; ++z)
+          for (int y = here.lo.y; y < here.hi.y; ++y) {
+            float* row = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
+                         sxy * std::size_t(z - box.lo.z);
+            if (d) {
+              std::memcpy(row, d + localIndex(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
+            } else {
+              std::fill(row, row + n, u);
+            }
+          }
       }
-    }
-  }
 }
 
 double Volume::sample(Vec3 p) const {
@@ -177,14 +175,27 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
       for (int bx = r.lo.x >> 3; bx <= (r.hi.x - 1) >> 3; ++bx) {
         const Int3 b{bx, by, bz};
         const BrickRef old = brick(b);
+        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
+        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(r);
+        // Most bricks of a tool's region do not change: find out before allocating one.
+        bool changed = false;
+        const float uniform = old.inside ? -band_ : band_;
+        for (int z = here.lo.z; z < here.hi.z && !changed; ++z)
+          for (int y = here.lo.y; y < here.hi.y && !changed; ++y) {
+            const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
+                                    std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
+                                                         std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
+            const float* d = old.data ? old.data->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
+            for (int x = 0; x < here.hi.x - here.lo.x; ++x)
+              changed = changed || std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
+          }
+        if (!changed) continue;
         auto nb = std::make_shared<Brick>();
         if (old.data) {
           std::memcpy(nb->v, old.data->v, sizeof(Brick));
         } else {
           std::fill(std::begin(nb->v), std::end(nb->v), old.inside ? -band_ : band_);
         }
-        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
-        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(r);
         for (int z = here.lo.z; z < here.hi.z; ++z)
           for (int y = here.lo.y; y < here.hi.y; ++y) {
             const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +

@@ -1,0 +1,127 @@
+// Level-set scenarios: the reference's Table 7.2 (add blob and smoothing on ROIs of side
+// 10..70, and 100, 150, on the surface of a radius-100 sphere), one whole-volume curvature
+// iteration and dilation, and the memory the volume takes.
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "bench.hpp"
+#include "engine/level_set.hpp"
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+
+namespace marzipan::bench {
+
+namespace {
+
+// The reference's seconds per application (Athlon, 2001), by ROI side.
+struct SeedRow {
+  int side;
+  double addBlobMs, smoothMs;
+};
+constexpr SeedRow kSeed[] = {{10, 44, 47},   {20, 134, 153},  {30, 307, 352},  {40, 703, 878},
+                             {50, 973, 1109}, {60, 1246, 1293}, {70, 1744, 1453}};
+
+struct Sphere {
+  Int3 dims;
+  Vec3 centre;
+  double radius;
+};
+Sphere benchSphere(const Options& opt) {
+  return opt.quick ? Sphere{{80, 80, 80}, {40, 40, 40}, 30} : Sphere{{256, 256, 256}, {128, 128, 128}, 100};
+}
+
+std::size_t bandVoxelsIn(const Volume& v, const Box& box) {
+  const Box b = box.intersect(v.domain());
+  std::vector<float> d(std::size_t(b.voxels()));
+  v.gather(b, d.data());
+  std::size_t n = 0;
+  for (float x : d) n += std::fabs(x) < v.band() ? 1 : 0;
+  return n;
+}
+
+void table72(const Options& opt, const char* scenario, bool addBlobTool) {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  const std::vector<int> sides = opt.quick ? std::vector<int>{10, 30} : std::vector<int>{10, 20, 30, 40, 50, 60, 70, 100, 150};
+  for (int side : sides) {
+    Volume v = makeSphere(s.dims, s.centre, s.radius);
+    std::mt19937 rng{unsigned(side)};
+    std::normal_distribution<double> gauss;
+    const int reps = opt.quick ? 3 : (side <= 70 ? 21 : 7);
+    std::size_t band = 0;
+    BrushParams p;
+    p.radius = side / 2.0;
+    p.strength = 1;
+    const Timing t = measure(
+        reps,
+        [&] {
+          // A random point of the surface; the surface there moves with the tools, which is
+          // what the reference's random applications did too.
+          const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+          p.center = s.centre + dir * s.radius;
+          band = bandVoxelsIn(v, boxAround(p.center, {p.radius, p.radius, p.radius}));
+        },
+        [&] {
+          if (addBlobTool) {
+            addBlob(v, p, pool);
+          } else {
+            smooth(v, p, pool);
+          }
+        });
+    nlohmann::ordered_json extra;
+    extra["roi"] = side;
+    extra["band_voxels"] = band;
+    for (const auto& row : kSeed)
+      if (row.side == side) {
+        const double seed = addBlobTool ? row.addBlobMs : row.smoothMs;
+        extra["seed_ms"] = seed;
+        extra["speedup_vs_seed"] = seed / t.median_ms;
+      }
+    emit(scenario, opt.threads, t, extra);
+  }
+}
+
+}  // namespace
+
+MARZIPAN_BENCH("table72_add_blob") { table72(opt, "table72_add_blob", true); }
+MARZIPAN_BENCH("table72_smooth") { table72(opt, "table72_smooth", false); }
+
+MARZIPAN_BENCH("mcf_global") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  const Timing t = measure(opt.quick ? 1 : 5, [&] { meanCurvatureFlow(v, 1, 1.0, pool); });
+  emit("mcf_global", opt.threads, t, {{"radius", s.radius}, {"openvdb_ms", 1065}});
+}
+
+MARZIPAN_BENCH("dilate_global") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  const Timing t = measure(
+      opt.quick ? 1 : 5, [&] { v = makeSphere(s.dims, s.centre, s.radius); }, [&] { dilate(v, 1, pool); });
+  emit("dilate_global", opt.threads, t,
+       {{"radius", s.radius}, {"radius_after", std::cbrt(3 * insideVolume(v) / (4 * std::numbers::pi))},
+        {"openvdb_ms", 2000}});
+}
+
+MARZIPAN_BENCH("memory") {
+  struct Case {
+    int n;
+    double r;
+  };
+  const std::vector<Case> cases = opt.quick ? std::vector<Case>{{128, 50}} : std::vector<Case>{{256, 100}, {512, 200}};
+  for (const auto& c : cases) {
+    Volume v({c.n, c.n, c.n});
+    const double h = (c.n - 1) / 2.0;
+    const Timing t = measure(1, [&] { v = makeSphere({c.n, c.n, c.n}, {h, h, h}, c.r); });
+    const std::size_t band = bandVoxelsIn(v, v.domain());
+    emit("memory", opt.threads, t,
+         {{"size", c.n}, {"radius", c.r}, {"bytes", v.memoryBytes()}, {"bricks", v.presentBricks()},
+          {"band_voxels", band}, {"bytes_per_band_voxel", double(v.memoryBytes()) / double(band)},
+          {"openvdb_bytes", c.n == 256 ? 10.55e6 : 0.0}});
+  }
+}
+
+}  // namespace marzipan::bench
