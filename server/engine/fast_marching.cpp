@@ -176,9 +176,20 @@ class Marcher {
   float band_;
   bool second_;
   std::size_t stride_[3];
-  std::vector<float> dist_;
-  std::vector<std::uint8_t> flag_;
-  std::vector<std::vector<Entry>> buckets_;
+  // Per-thread scratch, reused across calls: global operations march thousands of times, and
+  // fresh multi-megabyte arrays each time cost as much in page faults as the marching itself.
+  struct Scratch {
+    std::vector<float> dist;
+    std::vector<std::uint8_t> flag;
+    std::vector<std::vector<Entry>> buckets;
+  };
+  static Scratch& scratch() {
+    thread_local Scratch s;
+    return s;
+  }
+  std::vector<float>& dist_ = scratch().dist;
+  std::vector<std::uint8_t>& flag_ = scratch().flag;
+  std::vector<std::vector<Entry>>& buckets_ = scratch().buckets;
   std::size_t current_ = 0;
   MarchStats stats_;
 };
