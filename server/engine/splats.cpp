@@ -1,0 +1,530 @@
+// Splat extraction and encoding. Conventions and the byte layout: see splats.hpp.
+//
+// Speed: a brick that provably has no splat (one side of the surface and |d| >= kSurfaceNear
+// throughout, neighbours' faces on the same side) is skipped after one counting pass. Others
+// are copied once into a 10^3 array with a one-voxel ring (faces only: the splat of a voxel
+// reads its six neighbours, never edge or corner neighbours); the test runs as byte
+// operations over that array, and only voxels whose byte survives are visited.
+#include "splats.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <string>
+#include <tuple>
+
+#include "errors.hpp"
+
+namespace marzipan {
+
+namespace {
+
+constexpr int kPad = kBrickSide + 2;  // padded side: the brick and its ring
+constexpr int kPadVoxels = kPad * kPad * kPad;
+constexpr int kStride[3] = {1, kPad, kPad * kPad};
+constexpr int kBrickStride[3] = {1, kBrickSide, kBrickSide * kBrickSide};
+
+constexpr int kPosBits = 14;
+constexpr int kPosMax = (1 << kPosBits) - 1;
+constexpr float kPosLow = -2.0f;                          // range start, vu from the brick origin
+constexpr float kPosStep = 12.0f / float(1 << kPosBits);  // exactly 3/4096 vu
+constexpr int kOctBits = 11;
+constexpr int kOctMax = (1 << kOctBits) - 1;
+constexpr int kMaxPointsPerBrick = kBrickVoxels;
+
+// Index in the padded array of local voxel (x, y, z), each in [-1, 8].
+constexpr int padIndex(int x, int y, int z) { return (x + 1) + kPad * ((y + 1) + kPad * (z + 1)); }
+
+bool inGrid(const Volume& vol, Int3 b) {
+  const Int3 n = vol.brickDims();
+  return b.x >= 0 && b.y >= 0 && b.z >= 0 && b.x < n.x && b.y < n.y && b.z < n.z;
+}
+
+// Brick lookups for one extraction: straight from the volume (a few bricks), or from a table
+// filled in one pass over the grid (a full extraction, which looks each brick up 7 times).
+class BrickLookup {
+ public:
+  explicit BrickLookup(const Volume& vol) : vol_(vol), n_(vol.brickDims()), band_(vol.band()) {}
+
+  void fillTable() {
+    data_.resize(std::size_t(n_.x) * n_.y * n_.z);
+    inside_.resize(data_.size());
+    for (int z = 0; z < n_.z; ++z)
+      for (int y = 0; y < n_.y; ++y)
+        for (int x = 0; x < n_.x; ++x) {
+          const std::size_t i = index({x, y, z});
+          float u;
+          data_[i] = vol_.brickData({x, y, z}, &u);
+          inside_[i] = !data_[i] && u < 0;
+        }
+  }
+
+  const Volume& volume() const { return vol_; }
+  bool inGrid(Int3 b) const { return b.x >= 0 && b.y >= 0 && b.z >= 0 && b.x < n_.x && b.y < n_.y && b.z < n_.z; }
+  // The brick's voxels, or null with *u its uniform value; beyond the grid, null and +band.
+  const float* operator()(Int3 b, float* u) const {
+    if (!inGrid(b)) {
+      *u = band_;
+      return nullptr;
+    }
+    if (data_.empty()) return vol_.brickData(b, u);
+    const std::size_t i = index(b);
+    *u = inside_[i] ? -band_ : band_;
+    return data_[i];
+  }
+  // 0 uniform outside (also beyond the grid), 1 uniform inside, 2 stored; table only.
+  int kind(Int3 b) const {
+    if (!inGrid(b)) return 0;
+    const std::size_t i = index(b);
+    return data_[i] ? 2 : inside_[i];
+  }
+
+ private:
+  std::size_t index(Int3 b) const {
+    return std::size_t(b.x) + std::size_t(n_.x) * (std::size_t(b.y) + std::size_t(n_.y) * std::size_t(b.z));
+  }
+
+  const Volume& vol_;
+  Int3 n_;
+  float band_;
+  std::vector<const float*> data_;
+  std::vector<std::uint8_t> inside_;
+};
+
+// Calls fn(k, value) for the 64 voxels of a brick's face (axis a, local coordinate c along
+// it), with k = i + 8 j over the two other axes in increasing order. Loops follow memory.
+template <class F>
+void forFace(const float* v, int a, int c, F&& fn) {
+  if (a == 0) {
+    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[c + kBrickSide * r]);  // k = y + 8 z
+  } else if (a == 1) {
+    for (int z = 0; z < kBrickSide; ++z)  // k = z + 8 x, visited x fastest
+      for (int x = 0; x < kBrickSide; ++x) fn(z + kBrickSide * x, v[x + kBrickSide * (c + kBrickSide * z)]);
+  } else {
+    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[kBrickSide * kBrickSide * c + r]);  // k = x + 8 y
+  }
+}
+
+// True when some voxel of the neighbour's face next to us (the neighbour lies on side s of
+// axis a) is on the other side of the surface than `inside`.
+bool faceCrosses(const float* nd, int a, int s, bool inside) {
+  int in = 0;
+  forFace(nd, a, s < 0 ? kBrickSide - 1 : 0, [&](int, float v) { in += v < 0; });
+  return in != (inside ? kBrickSide * kBrickSide : 0);
+}
+
+// A quick proof that the brick has no splat, which most bricks near a surface but not on it
+// allow: no voxel has |d| < kSurfaceNear, all are on one side, and so is every voxel next to
+// them (the neighbours' faces; air beyond the grid and past the domain's edge).
+bool provablyEmpty(const BrickLookup& look, Int3 b, const float* own, float ownValue) {
+  bool inside = ownValue < 0;
+  if (own) {
+    // Counts rather than a min/max: integer sums vectorize without fast-math.
+    int out = 0, in = 0;
+    for (int i = 0; i < kBrickVoxels; ++i) {
+      out += own[i] >= kSurfaceNear;
+      in += own[i] <= -kSurfaceNear;
+    }
+    if (out == kBrickVoxels) {
+      inside = false;
+    } else if (in == kBrickVoxels) {
+      inside = true;
+    } else {
+      return false;
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (inside && (b[a] + 1) * kBrickSide > look.volume().dims()[a]) return false;
+    for (int s = -1; s <= 1; s += 2) {
+      Int3 nb = b;
+      nb[a] += s;
+      float u;
+      const float* nd = look(nb, &u);
+      if (nd ? faceCrosses(nd, a, s, inside) : ((u < 0) != inside)) return false;
+    }
+  }
+  return true;
+}
+
+// Fills g with the brick's voxels and its six face rings; edges and corners of the ring are
+// never read as neighbours of a brick voxel and only get a value so that the byte tests below
+// can run over the whole array.
+void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownValue, float* g) {
+  const Volume& vol = look.volume();
+  const float band = vol.band();
+  for (int z = -1; z <= kBrickSide; ++z)
+    for (int y = -1; y <= kBrickSide; ++y) {
+      const bool ringY = y < 0 || y == kBrickSide, ringZ = z < 0 || z == kBrickSide;
+      if (ringY && ringZ) {
+        std::fill(g + padIndex(-1, y, z), g + padIndex(-1, y, z) + kPad, band);
+      } else if (ringY || ringZ) {
+        g[padIndex(-1, y, z)] = band;
+        g[padIndex(kBrickSide, y, z)] = band;
+      }
+    }
+  for (int z = 0; z < kBrickSide; ++z)
+    for (int y = 0; y < kBrickSide; ++y) {
+      float* row = g + padIndex(0, y, z);
+      if (own) {
+        std::memcpy(row, own + kBrickSide * (y + kBrickSide * z), sizeof(float) * kBrickSide);
+      } else {
+        std::fill(row, row + kBrickSide, ownValue);
+      }
+    }
+  for (int a = 0; a < 3; ++a) {
+    const int a1 = (a + 1) % 3, a2 = (a + 2) % 3;
+    const int s1 = kStride[a1], s2 = kStride[a2];  // forFace's k = i + 8 j runs over (a1, a2)
+    for (int s = -1; s <= 1; s += 2) {
+      Int3 nb = b;
+      nb[a] += s;
+      float u;
+      const float* nd = look(nb, &u);
+      // The ring voxel at padded coordinate -1 (or 8) is voxel 7 (or 0) of the neighbour.
+      float* dst = g + (s < 0 ? 0 : kBrickSide + 1) * kStride[a] + kStride[a1] + kStride[a2];
+      if (!nd) {
+        for (int k = 0; k < kBrickSide * kBrickSide; ++k) dst[(k & 7) * s1 + (k >> 3) * s2] = u;
+      } else {
+        forFace(nd, a, s < 0 ? kBrickSide - 1 : 0, [&](int k, float v) { dst[(k & 7) * s1 + (k >> 3) * s2] = v; });
+      }
+    }
+  }
+  // Voxels past the domain's far edge read as air, whatever the brick stores there.
+  const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
+  const Int3 dims = vol.dims();
+  if (o.x + kBrickSide + 1 > dims.x || o.y + kBrickSide + 1 > dims.y || o.z + kBrickSide + 1 > dims.z) {
+    for (int z = -1; z <= kBrickSide; ++z)
+      for (int y = -1; y <= kBrickSide; ++y)
+        for (int x = -1; x <= kBrickSide; ++x)
+          if (o.x + x >= dims.x || o.y + y >= dims.y || o.z + z >= dims.z) g[padIndex(x, y, z)] = band;
+  }
+}
+
+// 8 bytes of 0/1 (the first at the lowest address) packed into 8 bits, bit i from byte i.
+std::uint32_t packBytes(const std::uint8_t* p) {
+  std::uint64_t w = 0;
+  for (int i = 0; i < 8; ++i) w |= std::uint64_t(p[i]) << (8 * i);
+  return std::uint32_t((w * 0x0102040810204080ull) >> 56);
+}
+
+float clampPosition(float q, float origin) {
+  return std::clamp(q, origin + kPosLow, origin + kPosLow + kPosStep * float(kPosMax));
+}
+
+void checkBrick(const Volume& vol, Int3 b) {
+  if (!inGrid(vol, b)) {
+    const Int3 n = vol.brickDims();
+    std::ostringstream s;
+    s << "brick (" << b.x << ", " << b.y << ", " << b.z << ") is outside the brick grid " << n.x << "x" << n.y << "x"
+      << n.z;
+    throw EngineError(ErrorKind::OutOfDomain, "brick", s.str());
+  }
+}
+
+std::uint64_t brickKey(Int3 b) {
+  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
+         std::uint64_t(std::uint32_t(b.z)) << 42;
+}
+
+// --- byte helpers -------------------------------------------------------------------------
+
+void put16(std::uint8_t* p, std::uint32_t v) {
+  p[0] = std::uint8_t(v);
+  p[1] = std::uint8_t(v >> 8);
+}
+void put32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = std::uint8_t(v >> (8 * i));
+}
+void put64(std::uint8_t* p, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = std::uint8_t(v >> (8 * i));
+}
+std::uint32_t get16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
+std::uint32_t get32(const std::uint8_t* p) {
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+}
+std::uint64_t get64(const std::uint8_t* p) {
+  std::uint64_t v = 0;
+  for (int i = 7; i >= 0; --i) v = v << 8 | p[i];
+  return v;
+}
+
+constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'S', 'P'};
+
+float signOrPlus(float v) { return v < 0 ? -1.0f : 1.0f; }
+
+std::uint32_t positionCode(float q, float origin) {
+  const float t = std::clamp((q - origin - kPosLow) * (1 / kPosStep), 0.0f, float(kPosMax));
+  return std::uint32_t(t + 0.5f);
+}
+
+std::uint64_t encodePoint(const Splat& s, Int3 origin) {
+  float u = 0, v = 0;
+  const float l1 = std::fabs(s.nx) + std::fabs(s.ny) + std::fabs(s.nz);
+  if (l1 > 0) {
+    const float inv = 1 / l1;
+    u = s.nx * inv;
+    v = s.ny * inv;
+    if (s.nz < 0) {
+      const float fu = (1 - std::fabs(v)) * signOrPlus(u), fv = (1 - std::fabs(u)) * signOrPlus(v);
+      u = fu;
+      v = fv;
+    }
+  }
+  const auto oct = [](float c) {
+    return std::uint64_t(std::clamp((c + 1) * (float(kOctMax) / 2), 0.0f, float(kOctMax)) + 0.5f);
+  };
+  return std::uint64_t(positionCode(s.x, float(origin.x))) |
+         std::uint64_t(positionCode(s.y, float(origin.y))) << kPosBits |
+         std::uint64_t(positionCode(s.z, float(origin.z))) << (2 * kPosBits) | oct(u) << (3 * kPosBits) |
+         oct(v) << (3 * kPosBits + kOctBits);
+}
+
+Splat decodePoint(std::uint64_t w, Int3 origin) {
+  Splat s;
+  s.x = float(origin.x) + kPosLow + float(w & kPosMax) * kPosStep;
+  s.y = float(origin.y) + kPosLow + float((w >> kPosBits) & kPosMax) * kPosStep;
+  s.z = float(origin.z) + kPosLow + float((w >> (2 * kPosBits)) & kPosMax) * kPosStep;
+  // (2U - 2047) / 2047 rather than 2U / 2047 - 1: the same value, but codes mirrored around
+  // the middle give exactly opposite floats, so both codes of the folded seam decode alike.
+  float u = float(2 * int((w >> (3 * kPosBits)) & kOctMax) - kOctMax) / float(kOctMax);
+  float v = float(2 * int(w >> (3 * kPosBits + kOctBits)) - kOctMax) / float(kOctMax);
+  const float z = 1 - std::fabs(u) - std::fabs(v);
+  if (z < 0) {
+    const float fu = (1 - std::fabs(v)) * signOrPlus(u), fv = (1 - std::fabs(u)) * signOrPlus(v);
+    u = fu;
+    v = fv;
+  }
+  const float inv = 1 / std::sqrt(u * u + v * v + z * z);
+  s.nx = u * inv;
+  s.ny = v * inv;
+  s.nz = z * inv;
+  return s;
+}
+
+[[noreturn]] void formatError(const std::string& message) { throw EngineError(ErrorKind::Format, "splats", message); }
+
+}  // namespace
+
+namespace {
+
+BrickSplats extractWith(const BrickLookup& look, Int3 b) {
+  const Volume& vol = look.volume();
+  BrickSplats out{b, {}};
+  float ownValue;
+  const float* own = look(b, &ownValue);
+  if (provablyEmpty(look, b, own, ownValue)) return out;
+
+  float g[kPadVoxels];
+  gatherPadded(look, b, own, ownValue, g);
+
+  // The test as bytes over the whole padded array (plain loops the compiler vectorizes):
+  // inside[i] = d < 0, then surface[i] = near | any of the six neighbours on the other side.
+  // Entries on the ring come out meaningless and are never used.
+  std::uint8_t inside[kPadVoxels], surface[kPadVoxels];
+  for (int i = 0; i < kPadVoxels; ++i) inside[i] = g[i] < 0;
+  constexpr int kLo = kPad * kPad, kHi = kPadVoxels - kPad * kPad;
+  for (int i = kLo; i < kHi; ++i) {
+    const std::uint8_t s = inside[i];
+    surface[i] = std::uint8_t(std::fabs(g[i]) < kSurfaceNear) | (s ^ inside[i - 1]) | (s ^ inside[i + 1]) |
+                 (s ^ inside[i - kPad]) | (s ^ inside[i + kPad]) | (s ^ inside[i - kPad * kPad]) |
+                 (s ^ inside[i + kPad * kPad]);
+  }
+
+  const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
+  const Int3 dims = vol.dims();
+  const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y),
+            zs = std::min(kBrickSide, dims.z - o.z);
+  const std::uint32_t xBits = (1u << xs) - 1;
+
+  Splat found[kBrickVoxels];
+  int count = 0;
+  for (int z = 0; z < zs; ++z)
+    for (int y = 0; y < ys; ++y)
+      for (std::uint32_t m = packBytes(surface + padIndex(0, y, z)) & xBits; m; m &= m - 1) {
+        const int x = std::countr_zero(m);
+        const int c = padIndex(x, y, z);
+        const float d = g[c];
+        const float gx = g[c + 1] - g[c - 1], gy = g[c + kPad] - g[c - kPad],
+                    gz = g[c + kPad * kPad] - g[c - kPad * kPad];
+        const float len2 = gx * gx + gy * gy + gz * gz;
+        const float px = float(o.x + x), py = float(o.y + y), pz = float(o.z + z);
+        Splat& sp = found[count++];
+        sp = {px, py, pz, 0, 0, 1};
+        if (len2 > 0) {
+          const float inv = 1 / std::sqrt(len2);
+          sp.nx = gx * inv;
+          sp.ny = gy * inv;
+          sp.nz = gz * inv;
+          sp.x = clampPosition(px - d * sp.nx, float(o.x));
+          sp.y = clampPosition(py - d * sp.ny, float(o.y));
+          sp.z = clampPosition(pz - d * sp.nz, float(o.z));
+        }
+      }
+  out.points.assign(found, found + count);
+  return out;
+}
+
+std::vector<BrickSplats> extractAll(const BrickLookup& look, const std::vector<Int3>& bricks, ThreadPool& pool) {
+  std::vector<BrickSplats> out(bricks.size());
+  pool.parallelFor(bricks.size(), [&](std::size_t i) { out[i] = extractWith(look, bricks[i]); });
+  return out;
+}
+
+}  // namespace
+
+BrickSplats extractBrickSplats(const Volume& vol, Int3 b) {
+  checkBrick(vol, b);
+  return extractWith(BrickLookup(vol), b);
+}
+
+std::vector<BrickSplats> extractSplats(const Volume& vol, const std::vector<Int3>& bricks, ThreadPool& pool) {
+  for (const Int3& b : bricks) checkBrick(vol, b);
+  return extractAll(BrickLookup(vol), bricks, pool);
+}
+
+std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
+  // Candidates: stored bricks, and uniform bricks next to a brick of another kind (or, for
+  // inside bricks, next to the domain's edge). Others hold no sign change and no |d| < band.
+  BrickLookup look(vol);
+  look.fillTable();
+  const Int3 n = vol.brickDims();
+  std::vector<Int3> candidates;
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        const Int3 b{x, y, z};
+        const int k = look.kind(b);
+        bool keep = k == 2;
+        for (int a = 0; a < 3 && !keep; ++a) {
+          keep = k == 1 && (b[a] + 1) * kBrickSide > vol.dims()[a];
+          for (int s = -1; s <= 1 && !keep; s += 2) {
+            Int3 nb = b;
+            nb[a] += s;
+            keep = look.kind(nb) != k;
+          }
+        }
+        if (keep) candidates.push_back(b);
+      }
+
+  auto all = extractAll(look, candidates, pool);
+  std::erase_if(all, [](const BrickSplats& bs) { return bs.points.empty(); });
+  return all;
+}
+
+std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes) {
+  std::vector<Int3> out;
+  out.reserve(changes.size() * 7);
+  for (const auto& c : changes) {
+    if (inGrid(vol, c.brick)) out.push_back(c.brick);
+    for (int a = 0; a < 3; ++a)
+      for (int s = -1; s <= 1; s += 2) {
+        Int3 nb = c.brick;
+        nb[a] += s;
+        if (inGrid(vol, nb)) out.push_back(nb);
+      }
+  }
+  auto order = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };
+  std::sort(out.begin(), out.end(), order);
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+std::size_t encodedSplatsSize(const std::vector<BrickSplats>& bricks) {
+  std::size_t n = kSplatHeaderBytes;
+  for (const auto& b : bricks) n += kSplatBrickHeaderBytes + kSplatPointBytes * b.points.size();
+  return n;
+}
+
+std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks) {
+  std::vector<std::uint64_t> keys;
+  keys.reserve(bricks.size());
+  std::size_t points = 0;
+  for (const auto& b : bricks) {
+    for (int a = 0; a < 3; ++a)
+      if (b.brick[a] < 0 || b.brick[a] > 0xffff)
+        throw EngineError(ErrorKind::InvalidArgument, "brick", "coordinates must be in [0, 65535]");
+    if (b.points.size() > std::size_t(kMaxPointsPerBrick))
+      throw EngineError(ErrorKind::InvalidArgument, "points", "a brick holds at most 512 points");
+    for (const Splat& s : b.points)
+      if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z) || !std::isfinite(s.nx) ||
+          !std::isfinite(s.ny) || !std::isfinite(s.nz))
+        throw EngineError(ErrorKind::InvalidArgument, "points", "positions and normals must be finite");
+    keys.push_back(brickKey(b.brick));
+    points += b.points.size();
+  }
+  std::sort(keys.begin(), keys.end());
+  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end())
+    throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
+  if (bricks.size() > 0xffffffffu || points > 0xffffffffu)
+    throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
+
+  std::vector<std::uint8_t> out(encodedSplatsSize(bricks));
+  std::uint8_t* p = out.data();
+  std::memcpy(p, kMagic, 4);
+  put16(p + 4, kSplatFormatVersion);
+  put16(p + 6, 0);
+  put32(p + 8, std::uint32_t(bricks.size()));
+  put32(p + 12, std::uint32_t(points));
+  p += kSplatHeaderBytes;
+  for (const auto& b : bricks) {
+    put16(p, std::uint32_t(b.brick.x));
+    put16(p + 2, std::uint32_t(b.brick.y));
+    put16(p + 4, std::uint32_t(b.brick.z));
+    put16(p + 6, std::uint32_t(b.points.size()));
+    p += kSplatBrickHeaderBytes;
+    const Int3 o{b.brick.x * kBrickSide, b.brick.y * kBrickSide, b.brick.z * kBrickSide};
+    for (const Splat& s : b.points) {
+      put64(p, encodePoint(s, o));
+      p += kSplatPointBytes;
+    }
+  }
+  return out;
+}
+
+std::vector<BrickSplats> decodeSplats(std::span<const std::uint8_t> bytes) {
+  const std::size_t size = bytes.size();
+  const std::uint8_t* p = bytes.data();
+  if (size < kSplatHeaderBytes) formatError("truncated: " + std::to_string(size) + " bytes, the header alone takes 16");
+  if (std::memcmp(p, kMagic, 4) != 0) formatError("not a splat buffer (wrong magic bytes)");
+  const std::uint32_t version = get16(p + 4);
+  if (version != kSplatFormatVersion)
+    formatError("unsupported version " + std::to_string(version) + " (this build reads version 1)");
+  if (get16(p + 6) != 0) formatError("reserved header bytes must be 0");
+  const std::uint32_t brickCount = get32(p + 8), pointCount = get32(p + 12);
+  const std::size_t room = (size - kSplatHeaderBytes) / kSplatBrickHeaderBytes;
+  if (brickCount > room || pointCount > room)
+    formatError("counts (" + std::to_string(brickCount) + " bricks, " + std::to_string(pointCount) +
+                " points) exceed what " + std::to_string(size) + " bytes can hold");
+
+  std::vector<BrickSplats> out;
+  out.reserve(brickCount);
+  std::vector<std::uint64_t> keys;
+  keys.reserve(brickCount);
+  std::size_t at = kSplatHeaderBytes, points = 0;
+  for (std::uint32_t i = 0; i < brickCount; ++i) {
+    if (size - at < kSplatBrickHeaderBytes) formatError("truncated in the header of brick block " + std::to_string(i));
+    const Int3 b{int(get16(p + at)), int(get16(p + at + 2)), int(get16(p + at + 4))};
+    const std::uint32_t n = get16(p + at + 6);
+    at += kSplatBrickHeaderBytes;
+    if (n > std::uint32_t(kMaxPointsPerBrick))
+      formatError("brick block " + std::to_string(i) + " claims " + std::to_string(n) + " points (at most 512)");
+    if ((size - at) / kSplatPointBytes < n) formatError("truncated in the points of brick block " + std::to_string(i));
+    BrickSplats bs{b, {}};
+    bs.points.reserve(n);
+    const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
+    for (std::uint32_t k = 0; k < n; ++k, at += kSplatPointBytes) bs.points.push_back(decodePoint(get64(p + at), o));
+    points += n;
+    keys.push_back(brickKey(b));
+    out.push_back(std::move(bs));
+  }
+  if (at != size) formatError(std::to_string(size - at) + " trailing bytes after the last brick block");
+  if (points != pointCount)
+    formatError("the header announces " + std::to_string(pointCount) + " points, the blocks hold " +
+                std::to_string(points));
+  std::sort(keys.begin(), keys.end());
+  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end()) formatError("a brick is listed twice");
+  return out;
+}
+
+}  // namespace marzipan

@@ -1,0 +1,258 @@
+// The native volume file. Byte layout and validity rules: see volume_file.hpp.
+// Validation order: size and magic, version, header values, exact file size, checksum, then
+// every brick; nothing is allocated from a count before the file's size has confirmed it.
+#include "volume_file.hpp"
+
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "errors.hpp"
+
+namespace marzipan {
+
+namespace {
+
+constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'V', 'F'};
+
+void put16(std::uint8_t* p, std::uint32_t v) {
+  p[0] = std::uint8_t(v);
+  p[1] = std::uint8_t(v >> 8);
+}
+void put32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = std::uint8_t(v >> (8 * i));
+}
+void put64(std::uint8_t* p, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = std::uint8_t(v >> (8 * i));
+}
+std::uint32_t get16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
+std::uint32_t get32(const std::uint8_t* p) {
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+}
+std::uint64_t get64(const std::uint8_t* p) { return std::uint64_t(get32(p)) | std::uint64_t(get32(p + 4)) << 32; }
+
+// 512 voxel values to or from little-endian bytes.
+void putValues(std::uint8_t* p, const float* v) {
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(p, v, sizeof(float) * kBrickVoxels);
+  } else {
+    for (int i = 0; i < kBrickVoxels; ++i) put32(p + 4 * i, std::bit_cast<std::uint32_t>(v[i]));
+  }
+}
+void getValues(const std::uint8_t* p, float* v) {
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(v, p, sizeof(float) * kBrickVoxels);
+  } else {
+    for (int i = 0; i < kBrickVoxels; ++i) v[i] = std::bit_cast<float>(get32(p + 4 * i));
+  }
+}
+
+constexpr std::array<std::uint32_t, 256> makeCrcTable() {
+  std::array<std::uint32_t, 256> t{};
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    std::uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    t[i] = c;
+  }
+  return t;
+}
+constexpr auto kCrcTable = makeCrcTable();
+
+[[noreturn]] void formatError(const std::string& message) { throw EngineError(ErrorKind::Format, "file", message); }
+
+std::string brickName(Int3 b) {
+  std::ostringstream s;
+  s << "brick (" << b.x << ", " << b.y << ", " << b.z << ")";
+  return s.str();
+}
+
+std::uint64_t orderKey(Int3 b) { return std::uint64_t(b.z) << 32 | std::uint64_t(b.y) << 16 | std::uint64_t(b.x); }
+
+// Reads the 8-byte brick address (u16 x, y, z, reserved) and checks it against the grid and
+// the z, y, x order that makes files canonical.
+Int3 readAddress(const std::uint8_t* p, Int3 grid, std::uint64_t& lastKey, bool& first, const char* what) {
+  const Int3 b{int(get16(p)), int(get16(p + 2)), int(get16(p + 4))};
+  if (get16(p + 6) != 0) formatError(std::string("reserved bytes of a ") + what + " must be 0");
+  if (b.x >= grid.x || b.y >= grid.y || b.z >= grid.z)
+    formatError(std::string(what) + " " + brickName(b) + " is outside the brick grid " + std::to_string(grid.x) + "x" +
+                std::to_string(grid.y) + "x" + std::to_string(grid.z));
+  const std::uint64_t key = orderKey(b);
+  if (!first && key <= lastKey)
+    formatError(std::string(what) + " " + brickName(b) + " is out of z, y, x order or listed twice");
+  first = false;
+  lastKey = key;
+  return b;
+}
+
+}  // namespace
+
+std::uint32_t crc32Ieee(std::span<const std::uint8_t> bytes) {
+  std::uint32_t c = 0xFFFFFFFFu;
+  for (const std::uint8_t b : bytes) c = kCrcTable[(c ^ b) & 0xFF] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+std::size_t savedVolumeSize(const Volume& vol) {
+  std::size_t inside = 0;
+  vol.forEachInsideBrick([&](Int3) { ++inside; });
+  return kVolumeFileHeaderBytes + kVolumeFileBrickBytes * vol.presentBricks() + kVolumeFileInsideBytes * inside +
+         kVolumeFileTrailerBytes;
+}
+
+std::vector<std::uint8_t> saveVolume(const Volume& vol) {
+  std::vector<Int3> inside;
+  vol.forEachInsideBrick([&](Int3 b) { inside.push_back(b); });
+  const std::size_t present = vol.presentBricks();
+  std::vector<std::uint8_t> out(kVolumeFileHeaderBytes + kVolumeFileBrickBytes * present +
+                                kVolumeFileInsideBytes * inside.size() + kVolumeFileTrailerBytes);
+  std::uint8_t* p = out.data();
+  std::memcpy(p, kMagic, 4);
+  put32(p + 4, kVolumeFileVersion);
+  const Int3 d = vol.dims();
+  put32(p + 8, std::uint32_t(d.x));
+  put32(p + 12, std::uint32_t(d.y));
+  put32(p + 16, std::uint32_t(d.z));
+  put32(p + 20, std::bit_cast<std::uint32_t>(vol.band()));
+  put64(p + 24, vol.revision());
+  put32(p + 32, kBrickSide);
+  put32(p + 36, std::uint32_t(present));
+  put32(p + 40, std::uint32_t(inside.size()));
+  put32(p + 44, 0);
+  p += kVolumeFileHeaderBytes;
+  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
+    put16(p, std::uint32_t(b.x));
+    put16(p + 2, std::uint32_t(b.y));
+    put16(p + 4, std::uint32_t(b.z));
+    put16(p + 6, 0);
+    putValues(p + 8, br.v);
+    p += kVolumeFileBrickBytes;
+  });
+  for (const Int3& b : inside) {
+    put16(p, std::uint32_t(b.x));
+    put16(p + 2, std::uint32_t(b.y));
+    put16(p + 4, std::uint32_t(b.z));
+    put16(p + 6, 0);
+    p += kVolumeFileInsideBytes;
+  }
+  put32(p, crc32Ieee({out.data(), out.size() - kVolumeFileTrailerBytes}));
+  return out;
+}
+
+Volume loadVolume(std::span<const std::uint8_t> bytes) {
+  const std::size_t size = bytes.size();
+  const std::uint8_t* p = bytes.data();
+  constexpr std::size_t kMinSize = kVolumeFileHeaderBytes + kVolumeFileTrailerBytes;
+  if (size < kMinSize)
+    formatError("truncated: " + std::to_string(size) + " bytes, a volume file has at least " +
+                std::to_string(kMinSize));
+  if (std::memcmp(p, kMagic, 4) != 0) formatError("not a Marzipan volume file (wrong magic bytes)");
+  const std::uint32_t version = get32(p + 4);
+  if (version != kVolumeFileVersion)
+    formatError("unsupported format version " + std::to_string(version) + " (this build reads version " +
+                std::to_string(kVolumeFileVersion) + ")");
+
+  Int3 dims;
+  for (int a = 0; a < 3; ++a) {
+    const std::uint32_t v = get32(p + 8 + 4 * a);
+    if (v < std::uint32_t(kBrickSide) || v > std::uint32_t(kMaxDomainSide))
+      formatError("dimension " + std::to_string(v) + " is outside [8, 1024]");
+    dims[a] = int(v);
+  }
+  const float band = std::bit_cast<float>(get32(p + 20));
+  if (!(band >= 2.0f && band <= 8.0f)) formatError("band half-width must be in [2, 8]");
+  const std::uint64_t revision = get64(p + 24);
+  if (get32(p + 32) != std::uint32_t(kBrickSide))
+    formatError("brick side " + std::to_string(get32(p + 32)) + " (this build uses 8)");
+  if (get32(p + 44) != 0) formatError("reserved header bytes must be 0");
+  const Int3 grid{(dims.x + kBrickSide - 1) / kBrickSide, (dims.y + kBrickSide - 1) / kBrickSide,
+                  (dims.z + kBrickSide - 1) / kBrickSide};
+  const std::uint64_t slots = std::uint64_t(grid.x) * std::uint64_t(grid.y) * std::uint64_t(grid.z);
+  const std::uint64_t present = get32(p + 36), inside = get32(p + 40);
+  if (present + inside > slots)
+    formatError(std::to_string(present) + " stored and " + std::to_string(inside) + " inside bricks exceed the " +
+                std::to_string(slots) + " bricks of the grid");
+  const std::uint64_t expected = kVolumeFileHeaderBytes + kVolumeFileBrickBytes * present +
+                                 kVolumeFileInsideBytes * inside + kVolumeFileTrailerBytes;
+  if (std::uint64_t(size) != expected)
+    formatError("size mismatch: the header describes " + std::to_string(present) + " stored and " +
+                std::to_string(inside) + " inside bricks, " + std::to_string(expected) + " bytes; the file has " +
+                std::to_string(size) + (std::uint64_t(size) < expected ? " (truncated)" : " (trailing bytes)"));
+  const std::uint32_t stored = get32(p + size - kVolumeFileTrailerBytes);
+  const std::uint32_t computed = crc32Ieee({p, size - kVolumeFileTrailerBytes});
+  if (stored != computed) formatError("checksum mismatch: the file is corrupted");
+
+  Volume vol(dims, band);
+  std::vector<BrickChange> changes;
+  changes.reserve(std::size_t(present + inside));
+  std::vector<std::uint8_t> seen(std::size_t(slots), 0);
+  auto slot = [&](Int3 b) {
+    return std::size_t(b.x) + std::size_t(grid.x) * (std::size_t(b.y) + std::size_t(grid.y) * std::size_t(b.z));
+  };
+  std::size_t at = kVolumeFileHeaderBytes;
+  std::uint64_t lastKey = 0;
+  bool first = true;
+  for (std::uint64_t i = 0; i < present; ++i, at += kVolumeFileBrickBytes) {
+    const Int3 b = readAddress(p + at, grid, lastKey, first, "stored brick");
+    seen[slot(b)] = 1;
+    auto br = std::make_shared<Brick>();
+    getValues(p + at + 8, br->v);
+    for (const float v : br->v)
+      if (!(std::fabs(v) <= band)) formatError(brickName(b) + " holds a value that is NaN or outside +-band");
+    changes.push_back({b, {}, BrickRef{std::move(br), false}});
+  }
+  first = true;
+  for (std::uint64_t i = 0; i < inside; ++i, at += kVolumeFileInsideBytes) {
+    const Int3 b = readAddress(p + at, grid, lastKey, first, "inside brick");
+    if (seen[slot(b)]) formatError(brickName(b) + " is listed both as stored and as inside");
+    changes.push_back({b, {}, BrickRef{nullptr, true}});
+  }
+  vol.publish(changes, true);
+  vol.setRevision(revision);
+  return vol;
+}
+
+void saveVolumeFile(const Volume& vol, const std::string& path) {
+  const auto bytes = saveVolume(vol);
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    f.close();
+    if (!f) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw EngineError(ErrorKind::InvalidArgument, "path", "cannot write " + tmp);
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw EngineError(ErrorKind::InvalidArgument, "path", "cannot rename " + tmp + " to " + path + ": " + ec.message());
+  }
+}
+
+Volume loadVolumeFile(const std::string& path) {
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  if (!f) throw EngineError(ErrorKind::InvalidArgument, "path", "cannot open " + path);
+  const std::streamoff size = f.tellg();
+  if (size < 0) throw EngineError(ErrorKind::InvalidArgument, "path", "cannot read " + path);
+  // The largest valid file: every brick of a 1024^3 grid stored.
+  constexpr std::uint64_t kMaxSlots =
+      std::uint64_t(kMaxDomainSide / kBrickSide) * (kMaxDomainSide / kBrickSide) * (kMaxDomainSide / kBrickSide);
+  if (std::uint64_t(size) > kVolumeFileHeaderBytes + kVolumeFileBrickBytes * kMaxSlots + kVolumeFileTrailerBytes)
+    formatError(path + " is larger than any volume file");
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+  f.seekg(0);
+  f.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size()));
+  if (!f) throw EngineError(ErrorKind::InvalidArgument, "path", "cannot read " + path);
+  return loadVolume(bytes);
+}
+
+}  // namespace marzipan

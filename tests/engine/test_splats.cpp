@@ -1,0 +1,314 @@
+// Splats: foot points against analytic spheres and a brute-force reference, per-brick
+// re-extraction after edits, and the decoder against truncated and corrupted buffers.
+// Conventions as in engine/splats.hpp.
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <numbers>
+#include <random>
+#include <span>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "engine/errors.hpp"
+#include "engine/level_set.hpp"
+#include "engine/solids.hpp"
+#include "engine/splats.hpp"
+#include "engine/thread_pool.hpp"
+#include "engine/volume.hpp"
+
+using namespace marzipan;
+
+namespace {
+
+double degreesBetween(Vec3 a, Vec3 b) {
+  const double c = std::clamp(dot(normalized(a), normalized(b)), -1.0, 1.0);
+  return std::acos(c) * 180.0 / std::numbers::pi;
+}
+
+Vec3 position(const Splat& s) { return {s.x, s.y, s.z}; }
+Vec3 normal(const Splat& s) { return {s.nx, s.ny, s.nz}; }
+
+struct Key {
+  int x, y, z;
+  friend bool operator<(const Key& a, const Key& b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); }
+  friend bool operator==(const Key&, const Key&) = default;
+};
+Key key(Int3 b) { return {b.x, b.y, b.z}; }
+
+using SplatMap = std::map<Key, std::vector<Splat>>;
+
+SplatMap toMap(const std::vector<BrickSplats>& all) {
+  SplatMap m;
+  for (const auto& b : all)
+    if (!b.points.empty()) m[key(b.brick)] = b.points;
+  return m;
+}
+
+// The definition of splats.hpp evaluated voxel by voxel through Volume::at, in double.
+SplatMap referenceSplats(const Volume& v) {
+  SplatMap m;
+  const Int3 n = v.dims();
+  const Int3 six[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        const Int3 p{x, y, z};
+        const double d = v.at(p);
+        bool surface = std::fabs(d) < kSurfaceNear;
+        for (const Int3& s : six) surface = surface || ((v.at(p + s) < 0) != (d < 0));
+        if (!surface) continue;
+        const Int3 b{x / 8, y / 8, z / 8};
+        const Vec3 g = v.voxelGradient(p);
+        Splat s{float(x), float(y), float(z), 0, 0, 1};
+        if (length(g) > 0) {
+          const Vec3 nn = normalized(g);
+          Vec3 q = Vec3{double(x), double(y), double(z)} - d * nn;
+          for (int a = 0; a < 3; ++a) q[a] = std::clamp(q[a], 8.0 * b[a] - 2, 8.0 * b[a] + 10 - 12.0 / 16384);
+          s = {float(q.x), float(q.y), float(q.z), float(nn.x), float(nn.y), float(nn.z)};
+        }
+        m[key(b)].push_back(s);
+      }
+  return m;
+}
+
+void requireSameWithin(const SplatMap& got, const SplatMap& want, double posTol, double dirTol) {
+  REQUIRE(got.size() == want.size());
+  for (const auto& [k, pts] : want) {
+    INFO("brick " << k.x << "," << k.y << "," << k.z);
+    const auto it = got.find(k);
+    REQUIRE(it != got.end());
+    REQUIRE(it->second.size() == pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      REQUIRE(length(position(it->second[i]) - position(pts[i])) < posTol);
+      REQUIRE(length(normal(it->second[i]) - normal(pts[i])) < dirTol);
+    }
+  }
+}
+
+struct SphereError {
+  double position = 0, degrees = 0;
+  std::size_t points = 0;
+};
+
+SphereError sphereError(const std::vector<BrickSplats>& bricks, Vec3 c, double r) {
+  SphereError e;
+  for (const auto& b : bricks)
+    for (const Splat& s : b.points) {
+      const Vec3 q = position(s);
+      e.position = std::max(e.position, std::fabs(length(q - c) - r));
+      e.degrees = std::max(e.degrees, degreesBetween(normal(s), q - c));
+      ++e.points;
+    }
+  return e;
+}
+
+bool rejectedAsFormat(std::span<const std::uint8_t> bytes) {
+  try {
+    decodeSplats(bytes);
+  } catch (const EngineError& e) {
+    return e.kind() == ErrorKind::Format;
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST_CASE("decoded splats of spheres lie on the surface with the analytic normal", "[splats]") {
+  struct Case {
+    Int3 dims;
+    Vec3 center;
+    double radius;
+  };
+  for (const Case& k :
+       {Case{{72, 72, 72}, {35.3, 36.7, 35.9}, 30.0}, Case{{256, 256, 256}, {127.6, 128.2, 127.9}, 100.0}}) {
+    const Volume v = makeSphere(k.dims, k.center, k.radius);
+    const auto bricks = extractAllSplats(v);
+    const auto bytes = encodeSplats(bricks);
+    const auto decoded = decodeSplats(bytes);
+    const SphereError raw = sphereError(bricks, k.center, k.radius);
+    const SphereError e = sphereError(decoded, k.center, k.radius);
+    INFO("radius " << k.radius << ": " << e.points << " points, max foot-point error " << e.position
+                   << " vu (before quantization " << raw.position << "), max normal error " << e.degrees << " deg, "
+                   << double(bytes.size()) / double(e.points) << " bytes per point");
+    CHECK(e.points == raw.points);
+    // A sphere has about 4 pi r^2 * 1.33 voxels next to its surface.
+    CHECK(double(e.points) > 4 * std::numbers::pi * k.radius * k.radius);
+    CHECK(double(e.points) < 8 * std::numbers::pi * k.radius * k.radius);
+    CHECK(e.position < 0.01);
+    CHECK(e.degrees < 1.0);
+    CHECK(double(bytes.size()) / double(e.points) < 8.5);
+  }
+}
+
+TEST_CASE("every voxel next to the surface yields exactly one splat", "[splats]") {
+  SECTION("pig in a domain whose sides are not multiples of 8") {
+    const Volume v = makeSolid(SolidKind::Pig, {70, 61, 53});
+    requireSameWithin(toMap(extractAllSplats(v)), referenceSplats(v), 1e-4, 1e-5);
+  }
+  SECTION("a box cut by the domain's edges: uniform inside bricks against the air outside") {
+    const Volume v = makeBox({44, 40, 37}, {30, 20, 18}, {25, 30, 10});
+    const SplatMap want = referenceSplats(v);
+    CHECK(want.size() > 20);
+    requireSameWithin(toMap(extractAllSplats(v)), want, 1e-4, 1e-5);
+  }
+  SECTION("bricks of -band next to bricks of +band") {
+    Volume v({48, 48, 48});
+    const Box cube{{8, 16, 8}, {32, 32, 24}};
+    std::vector<float> inside(std::size_t(cube.voxels()), -v.band());
+    v.scatter(cube, inside.data(), cube);
+    CHECK(v.presentBricks() == 0);
+    const SplatMap want = referenceSplats(v);
+    CHECK(!want.empty());
+    requireSameWithin(toMap(extractAllSplats(v)), want, 1e-4, 1e-5);
+  }
+  SECTION("torus") {
+    const Volume v = makeSolid(SolidKind::Torus, {64, 64, 64});
+    requireSameWithin(toMap(extractAllSplats(v)), referenceSplats(v), 1e-4, 1e-5);
+  }
+}
+
+TEST_CASE("splats do not depend on the thread count", "[splats]") {
+  const Volume v = makeSolid(SolidKind::Pig, {96, 96, 96});
+  ThreadPool pool(3);
+  CHECK(extractAllSplats(v, pool) == extractAllSplats(v));
+}
+
+TEST_CASE("re-extracting the bricks around an edit matches a fresh extraction", "[splats]") {
+  Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+  ThreadPool pool(2);
+  SplatMap shown = toMap(extractAllSplats(v, pool));
+  const Vec3 spots[] = {{51.5, 32.2, 30.8}, {31.5, 12.2, 30.8}, {45.6, 46.3, 30.8}, {31.5, 32.2, 50.8}};
+  int round = 0;
+  for (const Vec3& c : spots) {
+    for (int k = 0; k < 3; ++k) {
+      const BrushParams brush{c, 7.0, 1.0};
+      const Edit e = (round++ % 2 == 0) ? addBlob(v, brush, pool) : removeBlob(v, brush, pool);
+      REQUIRE(!e.empty());
+      const auto around = bricksAroundChanges(v, e.changes);
+      CHECK(around.size() >= e.changes.size());
+      // The delta goes through the wire format: empty blocks clear bricks that lost their points.
+      const auto delta = decodeSplats(encodeSplats(extractSplats(v, around, pool)));
+      REQUIRE(delta.size() == around.size());
+      const auto exact = extractSplats(v, around);
+      for (const auto& b : exact) {
+        if (b.points.empty()) {
+          shown.erase(key(b.brick));
+        } else {
+          shown[key(b.brick)] = b.points;
+        }
+      }
+      REQUIRE(shown == toMap(extractAllSplats(v)));
+      for (std::size_t i = 0; i < delta.size(); ++i) {
+        REQUIRE(delta[i].brick == exact[i].brick);
+        REQUIRE(delta[i].points.size() == exact[i].points.size());
+      }
+    }
+  }
+}
+
+TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
+  const Volume v = makeSolid(SolidKind::Dumbbell, {64, 48, 48});
+  auto bricks = extractAllSplats(v);
+  bricks.push_back({v.brickDims() - Int3{1, 1, 1}, {}});  // an empty block
+  std::size_t points = 0;
+  for (const auto& b : bricks) points += b.points.size();
+  const auto bytes = encodeSplats(bricks);
+  CHECK(bytes.size() == 16 + 8 * bricks.size() + 8 * points);
+  CHECK(bytes.size() == encodedSplatsSize(bricks));
+  CHECK(std::string(bytes.begin(), bytes.begin() + 4) == "MZSP");
+  const auto back = decodeSplats(bytes);
+  REQUIRE(back.size() == bricks.size());
+  double worstPos = 0, worstDeg = 0;
+  for (std::size_t i = 0; i < back.size(); ++i) {
+    REQUIRE(back[i].brick == bricks[i].brick);
+    REQUIRE(back[i].points.size() == bricks[i].points.size());
+    for (std::size_t k = 0; k < back[i].points.size(); ++k) {
+      const Splat &a = back[i].points[k], &b = bricks[i].points[k];
+      worstPos = std::max(
+          {worstPos, double(std::fabs(a.x - b.x)), double(std::fabs(a.y - b.y)), double(std::fabs(a.z - b.z))});
+      worstDeg = std::max(worstDeg, degreesBetween(normal(a), normal(b)));
+    }
+  }
+  INFO("worst position error " << worstPos << " vu per axis, worst normal error " << worstDeg << " deg");
+  CHECK(worstPos <= 3.0 / 8192 + 1e-5);
+  CHECK(worstDeg < 0.15);
+  // Quantization is idempotent: re-encoding decoded points gives the same points back (on the
+  // octahedron's folded seam two codes may name one normal, so compare points, not bytes).
+  CHECK(decodeSplats(encodeSplats(back)) == back);
+}
+
+TEST_CASE("truncated, padded and corrupted splat buffers are rejected cleanly", "[splats][errors]") {
+  const Volume v = makeSphere({24, 24, 24}, {11.7, 12.1, 12.4}, 5);
+  auto bricks = extractAllSplats(v);
+  bricks.push_back({{2, 2, 2}, {}});
+  const auto bytes = encodeSplats(bricks);
+  REQUIRE(bytes.size() > 1000);
+
+  for (std::size_t n = 0; n < bytes.size(); ++n)
+    REQUIRE(rejectedAsFormat(std::span<const std::uint8_t>(bytes.data(), n)));
+
+  auto longer = bytes;
+  longer.push_back(0);
+  CHECK(rejectedAsFormat(longer));
+
+  auto badVersion = bytes;
+  badVersion[4] = 2;
+  CHECK(rejectedAsFormat(badVersion));
+
+  auto badMagic = bytes;
+  badMagic[0] = 'X';
+  CHECK(rejectedAsFormat(badMagic));
+
+  auto hugeCount = bytes;
+  for (int i = 8; i < 12; ++i) hugeCount[std::size_t(i)] = 0xff;
+  CHECK(rejectedAsFormat(hugeCount));
+
+  auto hugeBrick = bytes;
+  hugeBrick[16 + 6] = 0xff;
+  hugeBrick[16 + 7] = 0xff;
+  CHECK(rejectedAsFormat(hugeBrick));
+
+  auto twice = bricks;
+  twice.back().brick = twice.front().brick;
+  CHECK_THROWS_AS(encodeSplats(twice), EngineError);
+  auto duplicate = bytes;
+  // Rewrite the coordinates of the empty last block to those of the first block.
+  const std::size_t last = bytes.size() - 8;
+  for (int i = 0; i < 6; ++i) duplicate[last + std::size_t(i)] = bytes[16 + std::size_t(i)];
+  CHECK(rejectedAsFormat(duplicate));
+
+  std::mt19937 rng(7);
+  int rejected = 0;
+  for (int t = 0; t < 3000; ++t) {
+    auto bad = bytes;
+    const int flips = 1 + int(rng() % 3);
+    for (int f = 0; f < flips; ++f) bad[rng() % bad.size()] ^= std::uint8_t(1 + rng() % 255);
+    try {
+      const auto out = decodeSplats(bad);
+      std::size_t n = 0;
+      for (const auto& b : out) n += b.points.size();
+      REQUIRE(16 + 8 * out.size() + 8 * n == bad.size());
+    } catch (const EngineError& e) {
+      REQUIRE(e.kind() == ErrorKind::Format);
+      ++rejected;
+    }
+  }
+  CHECK(rejected > 0);
+}
+
+TEST_CASE("splat extraction refuses bricks outside the grid", "[splats][errors]") {
+  const Volume v({40, 40, 40});
+  try {
+    extractBrickSplats(v, {5, 0, 0});
+    FAIL("no error");
+  } catch (const EngineError& e) {
+    CHECK(e.kind() == ErrorKind::OutOfDomain);
+  }
+  CHECK_THROWS_AS(extractSplats(v, {{0, 0, 0}, {0, -1, 0}}), EngineError);
+  CHECK(extractAllSplats(v).empty());
+  CHECK(extractBrickSplats(v, {4, 4, 4}).points.empty());
+}
