@@ -1,0 +1,718 @@
+// Ray casting by sphere tracing with empty-space skipping (conventions in raycast.hpp).
+//
+// Per 16x16 tile, a cone holding all the tile's rays is marched once through the brick level
+// (RaycastAccel) from the eye and once back from beyond the domain: every ray of the tile starts
+// where the cone first nears a brick with cells that may hold a zero, and stops where it last
+// leaves one. Each ray is clipped to the box [-1, dims] (beyond it the field is +band), then:
+// - in a brick with no such cell, it jumps to the exit of the cube of such bricks around it
+//   (reach); in a brick with some, it jumps to where it enters their box, or leaves the brick;
+// - elsewhere it samples the trilinear interpolant d and steps by max(d, kMinStep): d underestimates
+//   the distance to the surface in the clamped part of the band, and near the surface the floor
+//   makes the ray cross the zero set in a few steps instead of creeping towards it;
+// - a sign change between two samples is refined by Illinois regula falsi on the interpolant.
+// A cell with every corner > 0 has a positive interpolant, so no skip can pass over a zero.
+// Rays of a row advance in groups of kGroup, one step each in turn: a step is a chain of
+// dependent loads and arithmetic, and interleaving independent rays overlaps those chains.
+// Sampling reads one brick pointer for the 8 corners when the cell lies inside one brick (7 cells
+// in 8 per axis) and the flat, padded brick table otherwise; uniform bricks point at constant
+// bricks, so there is no branch on brick kind. The kernel works in float: depths up to a few
+// thousand vu keep ~1e-3 vu of precision or better, below the interpolant's own error.
+#include "raycast.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "errors.hpp"
+
+namespace marzipan {
+
+namespace {
+
+constexpr int kTile = 16;
+constexpr double kMaxCameraCoordinate = 1e5;
+constexpr int kGroup = 4;  // rays traced together, interleaved
+constexpr float kMinStep = 0.3f;
+constexpr float kJumpNudge = 1e-3f;
+constexpr int kConeSteps = 64;
+constexpr float kConeSlack = 1e-3f;  // relative and absolute (vu) margin on the cone's radius
+constexpr int kRefineIterations = 8;
+constexpr float kRefineTolerance = 1e-3f;  // |d| at which the root is taken, vu
+constexpr float kGradientErrorWhite = 0.1f;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+struct F3 {
+  float x = 0, y = 0, z = 0;
+  float operator[](int a) const { return a == 0 ? x : (a == 1 ? y : z); }
+  friend F3 operator+(F3 a, F3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+  friend F3 operator-(F3 a, F3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+  friend F3 operator*(F3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+};
+float dot(F3 a, F3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+F3 normalizedF(F3 a) {
+  const float l = std::sqrt(dot(a, a));
+  return l > 0 ? a * (1.0f / l) : F3{};
+}
+F3 toF3(Vec3 v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+// Linear [0, 1] to 8-bit sRGB through a table: the exact curve per pixel would cost more than
+// the rest of the shading.
+const std::array<std::uint8_t, 4097>& srgbTable() {
+  static const std::array<std::uint8_t, 4097> table = [] {
+    std::array<std::uint8_t, 4097> t{};
+    for (int i = 0; i <= 4096; ++i) {
+      const double c = i / 4096.0;
+      const double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1 / 2.4) - 0.055;
+      t[i] = std::uint8_t(std::lround(std::clamp(s, 0.0, 1.0) * 255));
+    }
+    return t;
+  }();
+  return table;
+}
+
+std::uint8_t toByte(float linear, const std::array<std::uint8_t, 4097>& table) {
+  return table[int(std::clamp(linear, 0.0f, 1.0f) * 4096.0f + 0.5f)];
+}
+
+// The camera's orthonormal frame: forward, right, upward on screen.
+struct View {
+  F3 eye, forward, right, up;
+  F3 light;  // towards the key light: from the camera's upper left
+  float tanHalf, aspect, width, height;
+
+  // The unit ray through the centre of pixel (x, y); fractional pixels interpolate.
+  F3 ray(float x, float y) const {
+    const float sx = (2.0f * (x + 0.5f) / width - 1.0f) * tanHalf * aspect;
+    const float sy = (1.0f - 2.0f * (y + 0.5f) / height) * tanHalf;
+    return normalizedF(forward + right * sx + up * sy);
+  }
+};
+
+View makeView(const Camera& c) {
+  const Vec3 f = normalized(c.target - c.eye);
+  const Vec3 r = normalized(cross(f, c.up));
+  const Vec3 u = cross(r, f);
+  constexpr double kPi = 3.14159265358979323846;
+  return {toF3(c.eye),
+          toF3(f),
+          toF3(r),
+          toF3(u),
+          toF3(normalized(r * -0.45 + u * 0.65 - f * 0.6)),
+          float(std::tan(c.fovY_degrees * kPi / 360.0)),
+          float(c.width) / float(c.height),
+          float(c.width),
+          float(c.height)};
+}
+
+}  // namespace
+
+void Camera::validate() const {
+  for (const auto& [v, name] : {std::pair{eye, "eye"}, std::pair{target, "target"}, std::pair{up, "up"}})
+    if (!isFinite(v)) throw EngineError(ErrorKind::InvalidArgument, name, "must be three finite numbers");
+  // The kernel works in float: keep positions where a voxel is still well resolved.
+  for (const auto& [v, name] : {std::pair{eye, "eye"}, std::pair{target, "target"}})
+    for (int a = 0; a < 3; ++a)
+      if (std::fabs(v[a]) > kMaxCameraCoordinate) {
+        std::ostringstream s;
+        s << "must be within " << kMaxCameraCoordinate << " vu of the origin on each axis";
+        throw EngineError(ErrorKind::InvalidArgument, name, s.str());
+      }
+  requireFinite(fovY_degrees, "fovY_degrees");
+  if (!(fovY_degrees > 1 && fovY_degrees < 170)) {
+    std::ostringstream s;
+    s << "must be strictly between 1 and 170 degrees (got " << fovY_degrees << ")";
+    throw EngineError(ErrorKind::InvalidArgument, "fovY_degrees", s.str());
+  }
+  for (const auto& [v, name] : {std::pair{width, "width"}, std::pair{height, "height"}}) {
+    if (v < 1 || v > kMaxFrameSide) {
+      std::ostringstream s;
+      s << "must be between 1 and " << kMaxFrameSide << " pixels (got " << v << ")";
+      throw EngineError(v > kMaxFrameSide ? ErrorKind::TooLarge : ErrorKind::InvalidArgument, name, s.str());
+    }
+  }
+  const Vec3 view = target - eye;
+  const double dist = length(view);
+  if (!(dist > 1e-9) || !std::isfinite(dist))
+    throw EngineError(ErrorKind::InvalidArgument, "target", "must differ from eye");
+  const double upLength = length(up);
+  if (!(upLength > 0) || !std::isfinite(upLength))
+    throw EngineError(ErrorKind::InvalidArgument, "up", "must not be the zero vector");
+  // sin of the angle between up and the view direction; below ~0.06 degree the roll is undefined.
+  if (length(cross(view / dist, up / upLength)) < 1e-3)
+    throw EngineError(ErrorKind::InvalidArgument, "up", "must not be parallel to the view direction");
+}
+
+RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(volume) {
+  const Int3 bd = volume_.brickDims();
+  const Int3 dims = volume_.dims();
+  padded_ = bd + Int3{2, 2, 2};
+  const std::size_t sy = std::size_t(padded_.x), sz = sy * std::size_t(padded_.y);
+  const std::size_t n = sz * std::size_t(padded_.z);
+  auto padIndex = [&](int bx, int by, int bz) {
+    return std::size_t(bx + 1) + sy * std::size_t(by + 1) + sz * std::size_t(bz + 1);
+  };
+  const float w = volume_.band();
+
+  auto outside = std::make_shared<Brick>();
+  auto inside = std::make_shared<Brick>();
+  std::fill(std::begin(outside->v), std::end(outside->v), w);
+  std::fill(std::begin(inside->v), std::end(inside->v), -w);
+  owned_ = {outside, inside};
+  bricks_.assign(n, outside->v);
+
+  for (int bz = 0; bz < bd.z; ++bz)
+    for (int by = 0; by < bd.y; ++by)
+      for (int bx = 0; bx < bd.x; ++bx) {
+        float u;
+        const float* data = volume_.brickData({bx, by, bz}, &u);
+        const std::size_t i = padIndex(bx, by, bz);
+        if (data) {
+          bricks_[i] = data;
+          continue;
+        }
+        if (u > 0) continue;
+        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
+        if (o.x + kBrickSide <= dims.x && o.y + kBrickSide <= dims.y && o.z + kBrickSide <= dims.z) {
+          bricks_[i] = inside->v;
+          continue;
+        }
+        // A partial brick at the domain's far edge: its voxels past the edge read +band.
+        auto edge = std::make_shared<Brick>();
+        for (int z = 0; z < kBrickSide; ++z)
+          for (int y = 0; y < kBrickSide; ++y)
+            for (int x = 0; x < kBrickSide; ++x) {
+              const bool in = o.x + x < dims.x && o.y + y < dims.y && o.z + z < dims.z;
+              edge->v[x + kBrickSide * (y + kBrickSide * z)] = in ? -w : w;
+            }
+        bricks_[i] = edge->v;
+        owned_.push_back(std::move(edge));
+      }
+
+  // The box of each brick's voxels <= 0, local coordinates (none when lo > hi).
+  struct VoxelBox {
+    std::int8_t lo[3] = {8, 8, 8}, hi[3] = {-1, -1, -1};
+  };
+  std::vector<VoxelBox> negative(std::size_t(bd.x) * bd.y * bd.z);
+  pool.parallelFor(std::size_t(bd.z), [&](std::size_t bz) {
+    for (int by = 0; by < bd.y; ++by)
+      for (int bx = 0; bx < bd.x; ++bx) {
+        const float* v = bricks_[padIndex(bx, by, int(bz))];
+        VoxelBox& box = negative[std::size_t(bx) + std::size_t(bd.x) * (by + std::size_t(bd.y) * bz)];
+        if (v == outside->v) continue;
+        if (v == inside->v) {
+          box = {{0, 0, 0}, {7, 7, 7}};
+          continue;
+        }
+        int nonPositive = 0;  // a vectorizable first look: most stored bricks have none
+        for (int k = 0; k < kBrickVoxels; ++k) nonPositive += v[k] <= 0 ? 1 : 0;
+        if (!nonPositive) continue;
+        int rows = 0, minX = 8, maxX = -1;
+        for (int z = 0; z < kBrickSide; ++z)
+          for (int y = 0; y < kBrickSide; ++y) {
+            const float* row = v + kBrickSide * (y + kBrickSide * z);
+            unsigned mask = 0;
+            for (int x = 0; x < kBrickSide; ++x) mask |= unsigned(row[x] <= 0) << x;
+            if (!mask) continue;
+            ++rows;
+            minX = std::min(minX, std::countr_zero(mask));
+            maxX = std::max(maxX, 31 - std::countl_zero(mask));
+            box.lo[1] = std::int8_t(std::min<int>(box.lo[1], y)), box.hi[1] = std::int8_t(std::max<int>(box.hi[1], y));
+            box.lo[2] = std::int8_t(std::min<int>(box.lo[2], z)), box.hi[2] = std::int8_t(std::max<int>(box.hi[2], z));
+          }
+        if (rows) box.lo[0] = std::int8_t(minX), box.hi[0] = std::int8_t(maxX);
+      }
+  });
+
+  // A voxel <= 0 puts a possible zero in the 8 cells it is a corner of, so a brick's box grows
+  // by one cell downwards, into the bricks below it along each axis.
+  info_.assign(n, BrickInfo{255, {8, 8, 8}, {0, 0, 0}});
+  for (int bz = 0; bz < bd.z; ++bz)
+    for (int by = 0; by < bd.y; ++by)
+      for (int bx = 0; bx < bd.x; ++bx) {
+        const VoxelBox& box = negative[std::size_t(bx) + std::size_t(bd.x) * (by + std::size_t(bd.y) * bz)];
+        if (box.lo[0] > box.hi[0]) continue;
+        const int b[3] = {bx, by, bz};
+        int cellLo[3], cellHi[3];
+        for (int k = 0; k < 3; ++k) cellLo[k] = 8 * b[k] + box.lo[k] - 1, cellHi[k] = 8 * b[k] + box.hi[k];
+        for (int dz = -1; dz <= 0; ++dz)
+          for (int dy = -1; dy <= 0; ++dy)
+            for (int dx = -1; dx <= 0; ++dx) {
+              const int nb[3] = {bx + dx, by + dy, bz + dz};
+              int lo[3], hi[3];
+              bool any = true;
+              for (int k = 0; k < 3; ++k) {
+                lo[k] = std::max(cellLo[k], 8 * nb[k]) - 8 * nb[k];
+                hi[k] = std::min(cellHi[k], 8 * nb[k] + 7) - 8 * nb[k];
+                any = any && lo[k] <= hi[k];
+              }
+              if (!any) continue;
+              BrickInfo& info = info_[padIndex(nb[0], nb[1], nb[2])];
+              info.reach = 0;
+              for (int k = 0; k < 3; ++k) {
+                info.lo[k] = std::uint8_t(std::min<int>(info.lo[k], lo[k]));
+                info.hi[k] = std::uint8_t(std::max<int>(info.hi[k], hi[k]));
+              }
+            }
+      }
+
+  // Chessboard distance transform by two raster passes over the 26-neighbourhood; exact for this
+  // metric because a shortest king path can be reordered into forward moves then backward moves.
+  // A pass takes, for each brick, the neighbours it has already visited: 9 in the previous
+  // plane and 3 in the previous row, gathered a row at a time, then the previous brick of the
+  // same row, which is the only sequential dependency.
+  const Int3 p = padded_;
+  std::vector<std::uint8_t> reach(n);
+  for (std::size_t i = 0; i < n; ++i) reach[i] = info_[i].reach;
+  std::vector<int> near(std::size_t(p.x));
+  auto rowMin3 = [&](const std::uint8_t* row) {
+    for (int x = 0; x < p.x; ++x) {
+      int m = row[x];
+      if (x > 0) m = std::min<int>(m, row[x - 1]);
+      if (x + 1 < p.x) m = std::min<int>(m, row[x + 1]);
+      near[std::size_t(x)] = std::min(near[std::size_t(x)], m + 1);
+    }
+  };
+  auto pass = [&](int dir) {
+    for (int zi = 0; zi < p.z; ++zi) {
+      const int z = dir > 0 ? zi : p.z - 1 - zi, zp = z - dir;
+      for (int yi = 0; yi < p.y; ++yi) {
+        const int y = dir > 0 ? yi : p.y - 1 - yi, yp = y - dir;
+        std::uint8_t* row = &reach[sy * std::size_t(y) + sz * std::size_t(z)];
+        std::fill(near.begin(), near.end(), 255);
+        if (zp >= 0 && zp < p.z)
+          for (int yy = y - 1; yy <= y + 1; ++yy)
+            if (yy >= 0 && yy < p.y) rowMin3(&reach[sy * std::size_t(yy) + sz * std::size_t(zp)]);
+        if (yp >= 0 && yp < p.y) rowMin3(&reach[sy * std::size_t(yp) + sz * std::size_t(z)]);
+        int prev = 255;
+        for (int xi = 0; xi < p.x; ++xi) {
+          const int x = dir > 0 ? xi : p.x - 1 - xi;
+          prev = std::min({int(row[x]), near[std::size_t(x)], prev + 1, 255});
+          row[x] = std::uint8_t(prev);
+        }
+      }
+    }
+  };
+  pass(+1);
+  pass(-1);
+  for (std::size_t i = 0; i < n; ++i) info_[i].reach = reach[i];
+}
+
+// Everything one ray needs, as raw pointers and floats: built once per frame, shared read-only.
+struct RayKernel {
+  const float* const* bricks;
+  const RaycastAccel::BrickInfo* info;
+  int sy, sz;
+  float band;
+  F3 clipLo, clipHi;
+  F3 tableLo, tableHi;  // the padded brick table's extent, vu
+
+  explicit RayKernel(const RaycastAccel& a)
+      : bricks(a.bricks_.data()),
+        info(a.info_.data()),
+        sy(a.padded_.x),
+        sz(a.padded_.x * a.padded_.y),
+        band(a.volume_.band()),
+        clipLo{-1, -1, -1},
+        clipHi{float(a.volume_.dims().x), float(a.volume_.dims().y), float(a.volume_.dims().z)},
+        tableLo{-8, -8, -8},
+        tableHi{float(8 * (a.padded_.x - 1)), float(8 * (a.padded_.y - 1)), float(8 * (a.padded_.z - 1))} {}
+
+  // floor for the coordinates the kernel reads, all above -8 (the padded table starts there): one
+  // truncation instead of the longer sequence std::floor compiles to without SSE4.1.
+  static int floorIndex(float x) { return int(x + 8.0f) - 8; }
+
+  // Brick coordinates start at -1 (the padding ring).
+  int brickIndex(int bx, int by, int bz) const { return (bx + 1) + sy * (by + 1) + sz * (bz + 1); }
+
+  float voxel(int x, int y, int z) const {
+    return bricks[brickIndex(x >> 3, y >> 3, z >> 3)][(x & 7) + kBrickSide * ((y & 7) + kBrickSide * (z & 7))];
+  }
+
+  // The 8 corners of the cell holding p (index dx + 2*dy + 4*dz) and p's offset in the cell.
+  void cell(F3 p, float c[8], float f[3]) const {
+    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
+    const float fx = float(ix), fy = float(iy), fz = float(iz);
+    f[0] = p.x - fx, f[1] = p.y - fy, f[2] = p.z - fz;
+    const int lx = ix & 7, ly = iy & 7, lz = iz & 7;
+    const int bx = ix >> 3, by = iy >> 3, bz = iz >> 3;
+    if (lx != 7 && ly != 7 && lz != 7) {
+      const float* v = bricks[brickIndex(bx, by, bz)] + (lx + 8 * ly + 64 * lz);
+      c[0] = v[0], c[1] = v[1], c[2] = v[8], c[3] = v[9];
+      c[4] = v[64], c[5] = v[65], c[6] = v[72], c[7] = v[73];
+      return;
+    }
+    const int bxs[2] = {bx, bx + (lx == 7)}, lxs[2] = {lx, (lx + 1) & 7};
+    const int bys[2] = {by, by + (ly == 7)}, lys[2] = {ly, (ly + 1) & 7};
+    const int bzs[2] = {bz, bz + (lz == 7)}, lzs[2] = {lz, (lz + 1) & 7};
+    for (int dz = 0; dz < 2; ++dz)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx)
+          c[dx + 2 * dy + 4 * dz] =
+              bricks[brickIndex(bxs[dx], bys[dy], bzs[dz])][lxs[dx] + 8 * lys[dy] + 64 * lzs[dz]];
+  }
+
+  float sample(F3 p) const {
+    float c[8], f[3];
+    cell(p, c, f);
+    const float x00 = c[0] + f[0] * (c[1] - c[0]), x10 = c[2] + f[0] * (c[3] - c[2]);
+    const float x01 = c[4] + f[0] * (c[5] - c[4]), x11 = c[6] + f[0] * (c[7] - c[6]);
+    const float y0 = x00 + f[1] * (x10 - x00), y1 = x01 + f[1] * (x11 - x01);
+    return y0 + f[2] * (y1 - y0);
+  }
+
+  // The analytic gradient of the trilinear interpolant.
+  F3 gradient(F3 p) const {
+    float c[8], f[3];
+    cell(p, c, f);
+    const float gx = f[0], gy = f[1], gz = f[2], hx = 1 - gx, hy = 1 - gy, hz = 1 - gz;
+    return {hy * hz * (c[1] - c[0]) + gy * hz * (c[3] - c[2]) + hy * gz * (c[5] - c[4]) + gy * gz * (c[7] - c[6]),
+            hx * hz * (c[2] - c[0]) + gx * hz * (c[3] - c[1]) + hx * gz * (c[6] - c[4]) + gx * gz * (c[7] - c[5]),
+            hx * hy * (c[4] - c[0]) + gx * hy * (c[5] - c[1]) + hx * gy * (c[6] - c[2]) + gx * gy * (c[7] - c[3])};
+  }
+
+  // The brick holding p (coordinates from -1) and its entry in the table.
+  const RaycastAccel::BrickInfo& brickAt(F3 p, int b[3]) const {
+    b[0] = floorIndex(p.x) >> 3, b[1] = floorIndex(p.y) >> 3, b[2] = floorIndex(p.z) >> 3;
+    return info[brickIndex(b[0], b[1], b[2])];
+  }
+
+  // How far along the unit axis a, from o, a cone of half-angle atan(tanA) holds no zero of the
+  // interpolant: every ray inside the cone may start there. Cone marching: a ball of radius e
+  // around the axis point q known to be empty lets the axis advance while the cone's
+  // cross-section (radius t*tanA) stays in the ball.
+  float coneStart(F3 o, F3 a, float tanA) const {
+    float t = 0;
+    for (int i = 0; i < kConeSteps; ++i) {
+      const float rho = t * tanA * (1 + kConeSlack) + kConeSlack;
+      const float e = emptyRadius(o + a * t);
+      if (e <= rho) break;
+      t += (e - rho) / (1 + tanA);
+    }
+    return t;
+  }
+
+  // The radius of a ball around q that holds no cell that may hold a zero (0 if q is in one).
+  float emptyRadius(F3 q) const {
+    bool inTable = true;
+    for (int k = 0; k < 3; ++k) inTable = inTable && q[k] >= tableLo[k] && q[k] < tableHi[k];
+    float e = 0;
+    if (inTable) {
+      int b[3];
+      const int r = brickAt(q, b).reach;
+      if (r == 0) return 0;
+      // The cube of bricks [b - r + 1, b + r - 1] holds no such cell.
+      e = kInf;
+      for (int k = 0; k < 3; ++k) e = std::min({e, q[k] - float(8 * (b[k] - r + 1)), float(8 * (b[k] + r)) - q[k]});
+    } else {
+      // Far outside the domain: the slab beyond the clip box along some axis is empty.
+      for (int k = 0; k < 3; ++k) e = std::max({e, clipLo[k] - q[k], q[k] - clipHi[k]});
+    }
+    return e;
+  }
+
+  // The reverse: from which axis parameter on the cone holds no such zero, marching back from
+  // beyond the far corner of the clip box.
+  float coneEnd(F3 o, F3 a, float tanA) const {
+    float far = 0;
+    for (int k = 0; k < 3; ++k) {
+      const float span = std::max(std::fabs(clipLo[k] - o[k]), std::fabs(clipHi[k] - o[k]));
+      far += span * span;
+    }
+    float t = std::sqrt(far) + 1;
+    for (int i = 0; i < kConeSteps && t > 0; ++i) {
+      const float rho = t * tanA * (1 + kConeSlack) + kConeSlack;
+      const float e = emptyRadius(o + a * t);
+      if (e <= rho) return t;
+      // Going back the cross-section shrinks: the ball at t holds every cross-section down to t - (e - rho).
+      t -= e - rho;
+    }
+    return std::max(t, 0.0f);
+  }
+
+  // One ray in flight. Rays advance one step at a time so that several independent rays can be
+  // interleaved: each step is a chain of dependent loads and arithmetic, and interleaving lets
+  // the processor overlap the chains of different rays.
+  struct Ray {
+    F3 o, d;
+    float inv[3];
+    float t, t1;
+    float tPrev, dPrev;  // the last point known to be outside the solid; d there, or -1 if unsampled
+    bool outside;        // false until some point of the ray is known to be outside the solid
+    bool done;
+    float hit;  // distance to the first zero of the interpolant, +inf for none
+  };
+
+  // Starts a ray from o along the unit direction d that is known to meet no zero before tSafe
+  // nor after tEnd (from the tile's cone).
+  void start(Ray& r, F3 o, F3 d, float tSafe, float tEnd) const {
+    r.o = o, r.d = d, r.done = true, r.hit = kInf;
+    float t0 = 0, t1 = tEnd;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] == 0) {
+        r.inv[a] = kInf;
+        if (o[a] < clipLo[a] || o[a] > clipHi[a]) return;
+        continue;
+      }
+      r.inv[a] = 1.0f / d[a];
+      float ta = (clipLo[a] - o[a]) * r.inv[a], tb = (clipHi[a] - o[a]) * r.inv[a];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+    }
+    // On the clip box the field is +band: only an eye inside the box may start inside the solid.
+    r.t = std::max(t0, tSafe), r.t1 = t1, r.tPrev = r.t, r.dPrev = -1, r.outside = r.t > 0;
+    r.done = !(r.t <= r.t1);
+  }
+
+  float exitOf(const Ray& r, const float lo[3], const float hi[3]) const {
+    float e = kInf;
+    for (int a = 0; a < 3; ++a)
+      if (r.d[a] != 0) e = std::min(e, ((r.d[a] > 0 ? hi[a] : lo[a]) - r.o[a]) * r.inv[a]);
+    return e;
+  }
+  float entryOf(const Ray& r, const float lo[3], const float hi[3]) const {
+    float e = -kInf;
+    for (int a = 0; a < 3; ++a)
+      if (r.d[a] != 0) e = std::max(e, ((r.d[a] > 0 ? lo[a] : hi[a]) - r.o[a]) * r.inv[a]);
+    return e;
+  }
+
+  // One jump or one sample.
+  void step(Ray& r) const {
+    F3 p = r.o + r.d * r.t;
+    int b[3];
+    const RaycastAccel::BrickInfo& in = brickAt(p, b);
+    float lo[3], hi[3];
+    bool skip = in.reach > 0;  // jump to where the ray leaves [lo, hi]
+    if (skip) {
+      // The cube of bricks [b - r + 1, b + r - 1] holds no cell that may hold a zero.
+      for (int a = 0; a < 3; ++a) lo[a] = float(8 * (b[a] - in.reach + 1)), hi[a] = float(8 * (b[a] + in.reach));
+    } else {
+      // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
+      // the ray enters them, or leave the brick.
+      float clo[3], chi[3];
+      for (int a = 0; a < 3; ++a) clo[a] = float(8 * b[a] + in.lo[a]), chi[a] = float(8 * b[a] + in.hi[a] + 1);
+      if (p.x < clo[0] || p.y < clo[1] || p.z < clo[2] || p.x > chi[0] || p.y > chi[1] || p.z > chi[2]) {
+        const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
+        if (enter <= leave && leave >= r.t) {
+          if (enter > r.t) {
+            r.t = enter, r.tPrev = enter, r.dPrev = -1, r.outside = true;
+            if (r.t > r.t1) {
+              r.done = true;
+              return;
+            }
+            p = r.o + r.d * r.t;
+          }
+        } else {
+          skip = true;
+          for (int a = 0; a < 3; ++a) lo[a] = float(8 * b[a]), hi[a] = lo[a] + 8;
+        }
+      }
+    }
+    if (skip) {
+      r.tPrev = std::max(r.t, exitOf(r, lo, hi)), r.dPrev = -1, r.outside = true;
+      // The value at the exit is positive but unknown: sample next just past it. The nudge stays
+      // several float steps above t, so the ray always moves on.
+      r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
+      r.done = r.t > r.t1;
+      return;
+    }
+    const float dist = sample(p);
+    if (dist <= 0) {
+      r.done = true;
+      if (!r.outside) {
+        r.hit = r.t;
+        return;
+      }
+      if (r.dPrev < 0) r.dPrev = sample(r.o + r.d * r.tPrev);
+      r.hit = r.dPrev > 0 ? refine(r.o, r.d, r.tPrev, r.dPrev, r.t, dist) : r.tPrev;
+      return;
+    }
+    r.outside = true;
+    r.tPrev = r.t, r.dPrev = dist;
+    r.t += std::max(dist, kMinStep);
+    r.done = r.t > r.t1;
+  }
+
+  // Runs n rays to completion, a step of each in turn.
+  void trace(Ray* rays, int n) const {
+    for (bool busy = true; busy;) {
+      busy = false;
+      for (int i = 0; i < n; ++i)
+        if (!rays[i].done) {
+          step(rays[i]);
+          busy = true;
+        }
+    }
+  }
+
+  // Illinois regula falsi on [a, b] where the interpolant goes from fa > 0 to fb <= 0.
+  float refine(F3 o, F3 d, float a, float fa, float b, float fb) const {
+    int kept = 0;  // which end the last two steps kept: -1 a, +1 b
+    for (int i = 0; i < kRefineIterations; ++i) {
+      const float m = (a * fb - b * fa) / (fb - fa);
+      const float fm = sample(o + d * m);
+      if (std::fabs(fm) < kRefineTolerance) return m;
+      if (fm > 0) {
+        a = m, fa = fm;
+        if (kept == -1) fb *= 0.5f;
+        kept = -1;
+      } else {
+        b = m, fb = fm;
+        if (kept == 1) fa *= 0.5f;
+        kept = 1;
+      }
+    }
+    return (a * fb - b * fa) / (fb - fa);
+  }
+
+  // Largest | |grad d| - 1 | over the 8 corners of the cell holding p (central differences).
+  float gradientError(F3 p) const {
+    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
+    float worst = 0;
+    for (int dz = 0; dz < 2; ++dz)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+          const int x = ix + dx, y = iy + dy, z = iz + dz;
+          const float gx = 0.5f * (voxel(x + 1, y, z) - voxel(x - 1, y, z));
+          const float gy = 0.5f * (voxel(x, y + 1, z) - voxel(x, y - 1, z));
+          const float gz = 0.5f * (voxel(x, y, z + 1) - voxel(x, y, z - 1));
+          worst = std::max(worst, std::fabs(std::sqrt(gx * gx + gy * gy + gz * gz) - 1));
+        }
+    return worst;
+  }
+
+  // Ambient occlusion from the field itself: along the normal, an unoccluded surface has d equal
+  // to the offset; the relative shortfall measures nearby material. Two offsets inside the band
+  // (beyond it d is clamped) catch creases and contact shadows at a few voxels' scale.
+  float occlusion(F3 p, F3 n) const {
+    const float s1 = band * 0.35f, s2 = band * 0.7f;
+    const float occ = 0.6f * std::max(0.0f, s1 - sample(p + n * s1)) / s1 +
+                      0.4f * std::max(0.0f, s2 - sample(p + n * s2)) / s2;
+    return std::clamp(1.0f - 1.2f * occ, 0.0f, 1.0f);
+  }
+};
+
+namespace {
+
+struct Background {
+  float top[3] = {0.070f, 0.078f, 0.095f};
+  float bottom[3] = {0.018f, 0.020f, 0.024f};
+};
+
+// Clay lit from the camera's upper left, with a cool sky / warm ground hemisphere fill.
+struct Material {
+  F3 albedo{0.72f, 0.46f, 0.33f};
+  F3 key{1.10f, 1.03f, 0.94f};
+  F3 sky{0.26f, 0.29f, 0.36f};
+  F3 ground{0.12f, 0.09f, 0.07f};
+  float wrap = 0.2f;
+  float specular = 0.10f;
+};
+
+F3 shadeLit(const RayKernel& k, const View& v, const Material& m, F3 p, F3 n, F3 dir) {
+  const F3 toEye = dir * -1.0f;
+  const F3 light = v.light;
+  const float ao = k.occlusion(p, n);
+  const float diffuse = std::max(0.0f, (dot(n, light) + m.wrap) / (1 + m.wrap));
+  const float h = 0.5f + 0.5f * dot(n, v.up);
+  const F3 half = normalizedF(light + toEye);
+  float s = std::max(0.0f, dot(n, half));
+  s *= s, s *= s, s *= s, s *= s, s *= s;  // ^32: clay is rough, the highlight is broad and faint
+  const float spec = dot(n, light) > 0 ? m.specular * s : 0.0f;
+  const float keyShade = diffuse * (0.55f + 0.45f * ao);
+  const F3 fill = m.ground + (m.sky - m.ground) * h;
+  return {m.albedo.x * (m.key.x * keyShade + fill.x * ao) + m.key.x * spec,
+          m.albedo.y * (m.key.y * keyShade + fill.y * ao) + m.key.y * spec,
+          m.albedo.z * (m.key.z * keyShade + fill.z * ao) + m.key.z * spec};
+}
+
+}  // namespace
+
+Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool) {
+  camera.validate();
+  const RayKernel kernel(accel);
+  const View view = makeView(camera);
+  const Material material;
+  const Background background;
+  const auto& srgb = srgbTable();
+
+  Frame frame;
+  frame.width = camera.width;
+  frame.height = camera.height;
+  frame.rgb.assign(std::size_t(camera.width) * camera.height * 3, 0);
+  frame.depth.assign(std::size_t(camera.width) * camera.height, kInf);
+  const int tilesX = (camera.width + kTile - 1) / kTile, tilesY = (camera.height + kTile - 1) / kTile;
+
+  pool.parallelFor(std::size_t(tilesX) * tilesY, [&](std::size_t tile) {
+    const int x0 = int(tile % tilesX) * kTile, y0 = int(tile / tilesX) * kTile;
+    const int x1 = std::min(x0 + kTile, camera.width), y1 = std::min(y0 + kTile, camera.height);
+    // Every ray of the tile lies in the cone around the ray through the tile's middle that holds
+    // its four corner rays; the cone is marched once for all of them.
+    const F3 axis = view.ray(0.5f * float(x0 + x1 - 1), 0.5f * float(y0 + y1 - 1));
+    float tanA = 0;
+    for (const auto& [cx, cy] : {std::pair{x0, y0}, std::pair{x1 - 1, y0}, std::pair{x0, y1 - 1}, std::pair{x1 - 1, y1 - 1}}) {
+      const float c = std::min(1.0f, dot(axis, view.ray(float(cx), float(cy))));
+      tanA = std::max(tanA, std::sqrt(1 - c * c) / c);
+    }
+    const float tSafe = kernel.coneStart(view.eye, axis, tanA), tEnd = kernel.coneEnd(view.eye, axis, tanA);
+    for (int y = y0; y < y1; ++y) {
+      const float along = float(y) / float(std::max(1, camera.height - 1));
+      std::uint8_t bg[3];
+      for (int c = 0; c < 3; ++c)
+        bg[c] = toByte(background.top[c] + along * (background.bottom[c] - background.top[c]), srgb);
+      RayKernel::Ray rays[kTile];
+      for (int x = x0; x < x1; ++x) {
+        const F3 dir = view.ray(float(x), float(y));
+        // The cone is empty beyond tEnd along its axis: along this ray, beyond tEnd / cos(angle).
+        kernel.start(rays[x - x0], view.eye, dir, tSafe, tEnd * (1 + kConeSlack) / std::max(dot(dir, axis), 1e-6f));
+      }
+      for (int x = x0; x < x1; x += kGroup) kernel.trace(rays + (x - x0), std::min(kGroup, x1 - x));
+      for (int x = x0; x < x1; ++x) {
+        const F3 dir = rays[x - x0].d;
+        const float t = rays[x - x0].hit;
+        const std::size_t pi = std::size_t(y) * camera.width + x;
+        std::uint8_t* out = &frame.rgb[pi * 3];
+        if (!(t < kInf)) {
+          out[0] = bg[0], out[1] = bg[1], out[2] = bg[2];
+          continue;
+        }
+        frame.depth[pi] = t;
+        const F3 p = view.eye + dir * t;
+        switch (shading) {
+          case Shading::Lit: {
+            F3 n = normalizedF(kernel.gradient(p));
+            if (dot(n, n) == 0) n = dir * -1.0f;
+            const F3 c = shadeLit(kernel, view, material, p, n, dir);
+            out[0] = toByte(c.x, srgb), out[1] = toByte(c.y, srgb), out[2] = toByte(c.z, srgb);
+            break;
+          }
+          case Shading::Normals: {
+            F3 n = normalizedF(kernel.gradient(p));
+            if (dot(n, n) == 0) n = dir * -1.0f;
+            out[0] = std::uint8_t(std::lround(127.5f * (n.x + 1)));
+            out[1] = std::uint8_t(std::lround(127.5f * (n.y + 1)));
+            out[2] = std::uint8_t(std::lround(127.5f * (n.z + 1)));
+            break;
+          }
+          case Shading::GradientError: {
+            const float e = std::min(1.0f, kernel.gradientError(p) / kGradientErrorWhite);
+            out[0] = out[1] = out[2] = std::uint8_t(std::lround(255 * e));
+            break;
+          }
+        }
+      }
+    }
+  });
+  return frame;
+}
+
+Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool) {
+  camera.validate();
+  return render(RaycastAccel(volume, pool), camera, shading, pool);
+}
+
+}  // namespace marzipan

@@ -1,0 +1,85 @@
+// Ray-cast frames of the solid: depth and RGB8 pixels, for the viewer and for snapshots.
+//
+// Conventions:
+// - World coordinates are voxel units (vu), as in volume.hpp; the surface is the zero set of the
+//   trilinear interpolant of the voxels. The domain is closed: an inside region that touches the
+//   domain's edge is capped half a voxel beyond it (points outside the domain read +band).
+// - Camera: a pinhole at `eye` looking at `target`; `up` fixes the roll (it need not be
+//   orthogonal to the view direction); fovY_degrees is the full vertical field of view; pixels
+//   are square. Pixel (x, y) has x to the right and y downwards from the top-left corner, and its
+//   ray passes through the pixel's centre.
+// - Frame::rgb is width*height*3 bytes (R, G, B), rows from the top; Frame::depth is the
+//   distance from the eye to the hit along the ray, in vu (+inf where the ray meets nothing).
+// - Pixels are identical for any thread count: the frame is split into fixed 16x16 tiles and
+//   every pixel is computed from its own ray only.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "geometry.hpp"
+#include "thread_pool.hpp"
+#include "volume.hpp"
+
+namespace marzipan {
+
+inline constexpr int kMaxFrameSide = 4096;
+
+struct Camera {
+  Vec3 eye, target, up{0, 1, 0};
+  double fovY_degrees = 40;
+  int width = 512, height = 512;
+
+  // Throws EngineError unless every number is finite, eye and target are within 1e5 vu of the
+  // origin on each axis, width and height are in [1, kMaxFrameSide], the field of view is in
+  // (1, 170) degrees, eye != target and up is not parallel to the view direction.
+  void validate() const;
+};
+
+enum class Shading {
+  Lit,            // clay: warm albedo, soft key and hemisphere fill, faint specular, SDF ambient occlusion
+  Normals,        // RGB = (n + 1) / 2 for the outward unit normal n (world axes)
+  GradientError,  // grey level = max | |grad d| - 1 | over the hit cell's 8 corners, 0.1 -> white
+};
+
+struct Frame {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> rgb;  // width*height*3
+  std::vector<float> depth;       // width*height
+};
+
+// What the ray caster reads, built once per volume version: a flat table of brick pointers
+// (uniform bricks point at shared constant bricks, so sampling never branches on them) padded by
+// one ring of outside bricks; per brick, the box of its cells that may hold a zero of the
+// interpolant (cells with a corner <= 0) and the Chebyshev distance, in bricks, to the nearest
+// brick with such cells, which lets rays jump over empty space in large steps.
+// It keeps a copy of the volume (cheap, see volume.hpp), so it stays valid while the original is
+// edited; it is then simply a view of the older version. Building reads every stored voxel once
+// (about 1-3 ms for a radius-100 sphere in 256^3). Immutable once built: any number of threads
+// may render from it at once.
+class RaycastAccel {
+ public:
+  explicit RaycastAccel(const Volume& volume, ThreadPool& pool = ThreadPool::serial());
+
+  const Volume& volume() const { return volume_; }
+
+ private:
+  friend struct RayKernel;
+  struct BrickInfo {
+    std::uint8_t reach;          // 0 for a brick with cells that may hold a zero; capped at 255
+    std::uint8_t lo[3], hi[3];  // those cells, local coordinates; none when lo[0] > hi[0]
+  };
+
+  Volume volume_;
+  Int3 padded_;  // brick table size: volume brick dims + 2
+  std::vector<const float*> bricks_;
+  std::vector<BrickInfo> info_;
+  std::vector<std::shared_ptr<const Brick>> owned_;
+};
+
+Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool);
+// Builds the accelerator for this one frame; keep a RaycastAccel to render a version repeatedly.
+Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool);
+
+}  // namespace marzipan

@@ -1,0 +1,83 @@
+// Ray-cast frames: a lit 512x512 view of a radius-100 sphere in 256^3 from a 3/4 view, JPEG
+// (quality 75) included, as the viewer requests it. median_ms is render + encode from a prepared
+// RaycastAccel (one per volume version: a camera orbit reuses it); accel_ms is the build that an
+// edit adds once, and frame_with_accel_ms the whole of a frame right after an edit. Each thread
+// count gets its own line: opt.threads, then 1 thread.
+#include <chrono>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "bench.hpp"
+#include "engine/image_io.hpp"
+#include "engine/raycast.hpp"
+#include "engine/solids.hpp"
+#include "engine/thread_pool.hpp"
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+MARZIPAN_BENCH("raycast_512") {
+  using namespace marzipan;
+  using Clock = std::chrono::steady_clock;
+  const int side = opt.quick ? 128 : 512;
+  const int n = opt.quick ? 96 : 256;
+  const double radius = opt.quick ? 30 : 100;
+  const int reps = opt.quick ? 1 : 21;
+  const Vec3 c{n / 2.0, n / 2.0, n / 2.0};
+  const Volume sphere = makeSphere({n, n, n}, c, radius);
+  const Camera camera{c + normalized(Vec3{1, 0.75, 1.25}) * (4.2 * radius), c, {0, 1, 0}, 40, side, side};
+
+  std::vector<int> counts{opt.threads};
+  if (opt.threads != 1) counts.push_back(1);
+  for (int threads : counts) {
+    ThreadPool pool(threads);
+    std::vector<double> renderMs, encodeMs, accelMs, withAccelMs;
+    std::size_t bytes = 0;
+    std::unique_ptr<RaycastAccel> accel;
+    Frame last;
+    const auto t = bench::measure(
+        reps,
+        [&] {
+          const auto t0 = Clock::now();
+          accel = std::make_unique<RaycastAccel>(sphere, pool);
+          accelMs.push_back(msSince(t0));
+        },
+        [&] {
+          auto t0 = Clock::now();
+          Frame frame = render(*accel, camera, Shading::Lit, pool);
+          renderMs.push_back(msSince(t0));
+          t0 = Clock::now();
+          bytes = encodeJpeg(frame.rgb, frame.width, frame.height, 75).size();
+          encodeMs.push_back(msSince(t0));
+          withAccelMs.push_back(accelMs.back() + renderMs.back() + encodeMs.back());
+          last = std::move(frame);
+        });
+    std::size_t hits = 0;
+    for (float d : last.depth) hits += std::isfinite(d) ? 1 : 0;
+    const double render = median(renderMs);
+    bench::emit("raycast_512", threads, t,
+                {{"width", side},
+                 {"height", side},
+                 {"volume", n},
+                 {"radius", radius},
+                 {"render_ms", render},
+                 {"encode_ms", median(encodeMs)},
+                 {"accel_ms", median(accelMs)},
+                 {"frame_with_accel_ms", median(withAccelMs)},
+                 {"rays_per_s", double(side) * side / (render / 1000.0)},
+                 {"hit_fraction", double(hits) / (double(side) * side)},
+                 {"jpeg_bytes", bytes}});
+  }
+}
