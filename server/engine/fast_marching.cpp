@@ -23,7 +23,7 @@ double solveEikonal(double m[3], double c[3], int n) {
   for (int i = 1; i < n; ++i)  // insertion sort of at most three
     for (int j = i; j > 0 && m[j] < m[j - 1]; --j) std::swap(m[j], m[j - 1]), std::swap(c[j], c[j - 1]);
   double a = c[0], b = c[0] * m[0], cc = c[0] * m[0] * m[0];
-  double u = m[0] + 1.0 / std::sqrt(c[0]);
+  double u = m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
   for (int k = 1; k < n && u > m[k]; ++k) {
     const double a2 = a + c[k], b2 = b + c[k] * m[k], c2 = cc + c[k] * m[k] * m[k];
     const double disc = b2 * b2 - a2 * (c2 - 1.0);

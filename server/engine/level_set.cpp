@@ -27,7 +27,7 @@ struct Motion {
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
 constexpr int kStencilReach = 2;
 
-double minmod(double a, double b) {
+float minmod(float a, float b) {
   if (a * b <= 0) return 0;
   return std::fabs(a) < std::fabs(b) ? a : b;
 }
@@ -39,20 +39,17 @@ double window1(double t) {
 }
 
 // Godunov |grad phi| with second-order ENO one-sided differences, upwind for speed sign.
-double upwindGradient(const float* v, std::size_t i, const std::size_t stride[3], bool outward) {
-  double g2 = 0;
+// Single precision: the field is stored in floats and the differences are of order 1.
+float upwindGradient(const float* v, std::size_t i, const std::size_t stride[3], bool outward) {
+  float g2 = 0;
   for (int a = 0; a < 3; ++a) {
     const std::size_t s = stride[a];
-    const double vm2 = v[i - 2 * s], vm1 = v[i - s], v0 = v[i], vp1 = v[i + s], vp2 = v[i + 2 * s];
-    const double dm = (v0 - vm1) + 0.5 * minmod(v0 - 2 * vm1 + vm2, vp1 - 2 * v0 + vm1);
-    const double dp = (vp1 - v0) - 0.5 * minmod(vp1 - 2 * v0 + vm1, vp2 - 2 * vp1 + v0);
-    if (outward) {
-      const double a1 = std::max(dm, 0.0), a2 = std::min(dp, 0.0);
-      g2 += a1 * a1 + a2 * a2;
-    } else {
-      const double a1 = std::min(dm, 0.0), a2 = std::max(dp, 0.0);
-      g2 += a1 * a1 + a2 * a2;
-    }
+    const float vm2 = v[i - 2 * s], vm1 = v[i - s], v0 = v[i], vp1 = v[i + s], vp2 = v[i + 2 * s];
+    const float dm = (v0 - vm1) + 0.5f * minmod(v0 - 2 * vm1 + vm2, vp1 - 2 * v0 + vm1);
+    const float dp = (vp1 - v0) - 0.5f * minmod(vp1 - 2 * v0 + vm1, vp2 - 2 * vp1 + v0);
+    const float a1 = outward ? std::max(dm, 0.0f) : std::min(dm, 0.0f);
+    const float a2 = outward ? std::min(dp, 0.0f) : std::max(dp, 0.0f);
+    g2 += a1 * a1 + a2 * a2;
   }
   return std::sqrt(g2);
 }
@@ -95,7 +92,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, Thread
         const std::size_t i = list[k];
         const double f = speed[k];
         if (m.kind == Motion::Kind::Advect) {
-          next[k] = float(v[i] - m.dt * f * upwindGradient(v, i, stride, f > 0));
+          next[k] = v[i] - float(m.dt * f) * upwindGradient(v, i, stride, f > 0);
         } else {
           double lap = v[i + 1] + v[i - 1] + v[i + g.sx] + v[i - g.sx] + v[i + g.sxy] + v[i - g.sxy] - 6.0 * v[i];
           lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
