@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "errors.hpp"
+#include "little_endian.hpp"
 
 namespace marzipan {
 
@@ -23,17 +24,10 @@ namespace {
   formatError("line " + std::to_string(line) + ": " + what);
 }
 
-// --- little-endian bytes -------------------------------------------------------------------
-
-void putU32(std::vector<std::uint8_t>& out, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) out.push_back(std::uint8_t(v >> (8 * i)));
-}
-void putF32(std::vector<std::uint8_t>& out, float f) { putU32(out, std::bit_cast<std::uint32_t>(f)); }
-
-std::uint32_t getU32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
-}
-float getF32(const std::uint8_t* p) { return std::bit_cast<float>(getU32(p)); }
+using le::append32;
+using le::appendF32;
+using le::get32;
+using le::getF32;
 
 // Export needs a well-formed mesh; a bad one is the caller's mistake, not a file's.
 void requireExportable(const Mesh& m) {
@@ -273,14 +267,14 @@ std::vector<std::uint8_t> exportStl(const Mesh& m) {
   const char header[] = "Marzipan binary STL";
   std::memcpy(out.data(), header, sizeof header - 1);
   out.reserve(84 + 50 * m.triangleCount());
-  putU32(out, std::uint32_t(m.triangleCount()));
+  append32(out, std::uint32_t(m.triangleCount()));
   for (std::size_t t = 0; t < m.triangleCount(); ++t) {
     const std::uint32_t* i = &m.indices[3 * t];
     const Vec3 a = m.position(i[0]), b = m.position(i[1]), c = m.position(i[2]);
     const Vec3 n = normalized(cross(b - a, c - a));
-    putF32(out, float(n.x)), putF32(out, float(n.y)), putF32(out, float(n.z));
+    appendF32(out, float(n.x)), appendF32(out, float(n.y)), appendF32(out, float(n.z));
     for (int k = 0; k < 3; ++k)
-      for (int a2 = 0; a2 < 3; ++a2) putF32(out, m.positions[3 * std::size_t(i[k]) + std::size_t(a2)]);
+      for (int a2 = 0; a2 < 3; ++a2) appendF32(out, m.positions[3 * std::size_t(i[k]) + std::size_t(a2)]);
     out.push_back(0), out.push_back(0);
   }
   return out;
@@ -330,13 +324,13 @@ std::vector<std::uint8_t> exportPly(const Mesh& m) {
   std::vector<std::uint8_t> out(header.begin(), header.end());
   out.reserve(out.size() + m.vertexCount() * (normals ? 24 : 12) + m.triangleCount() * 13);
   for (std::size_t v = 0; v < m.vertexCount(); ++v) {
-    for (int a = 0; a < 3; ++a) putF32(out, m.positions[3 * v + std::size_t(a)]);
+    for (int a = 0; a < 3; ++a) appendF32(out, m.positions[3 * v + std::size_t(a)]);
     if (normals)
-      for (int a = 0; a < 3; ++a) putF32(out, m.normals[3 * v + std::size_t(a)]);
+      for (int a = 0; a < 3; ++a) appendF32(out, m.normals[3 * v + std::size_t(a)]);
   }
   for (std::size_t t = 0; t < m.triangleCount(); ++t) {
     out.push_back(3);
-    for (int k = 0; k < 3; ++k) putU32(out, m.indices[3 * t + std::size_t(k)]);
+    for (int k = 0; k < 3; ++k) append32(out, m.indices[3 * t + std::size_t(k)]);
   }
   return out;
 }
@@ -437,7 +431,7 @@ Mesh parseObj(std::string_view text) {
 Mesh parseStl(std::span<const std::uint8_t> bytes) {
   if (bytes.empty()) formatError("STL is empty");
   if (bytes.size() >= 84) {
-    const std::uint32_t count = getU32(bytes.data() + 80);
+    const std::uint32_t count = get32(bytes.data() + 80);
     if (std::uint64_t(bytes.size()) == 84 + 50 * std::uint64_t(count)) {
       if (count == 0) formatError("STL has no triangles");
       return parseBinaryStl(bytes, count);
@@ -453,7 +447,7 @@ Mesh parseStl(std::span<const std::uint8_t> bytes) {
   }
   if (bytes.size() < 84)
     formatError("binary STL is truncated: " + std::to_string(bytes.size()) + " bytes, under the 84-byte header");
-  const std::uint64_t expected = 84 + 50 * std::uint64_t(getU32(bytes.data() + 80));
+  const std::uint64_t expected = 84 + 50 * std::uint64_t(get32(bytes.data() + 80));
   formatError("binary STL size " + std::to_string(bytes.size()) + " does not match its triangle count (" +
               std::to_string(expected) + " bytes expected)" + (bytes.size() < expected ? ": truncated" : ""));
 }

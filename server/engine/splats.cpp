@@ -16,6 +16,7 @@
 #include <tuple>
 
 #include "errors.hpp"
+#include "little_endian.hpp"
 
 namespace marzipan {
 
@@ -227,27 +228,7 @@ std::uint64_t brickKey(Int3 b) {
          std::uint64_t(std::uint32_t(b.z)) << 42;
 }
 
-// --- byte helpers -------------------------------------------------------------------------
-
-void put16(std::uint8_t* p, std::uint32_t v) {
-  p[0] = std::uint8_t(v);
-  p[1] = std::uint8_t(v >> 8);
-}
-void put32(std::uint8_t* p, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = std::uint8_t(v >> (8 * i));
-}
-void put64(std::uint8_t* p, std::uint64_t v) {
-  for (int i = 0; i < 8; ++i) p[i] = std::uint8_t(v >> (8 * i));
-}
-std::uint32_t get16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
-std::uint32_t get32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
-}
-std::uint64_t get64(const std::uint8_t* p) {
-  std::uint64_t v = 0;
-  for (int i = 7; i >= 0; --i) v = v << 8 | p[i];
-  return v;
-}
+using namespace le;
 
 constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'S', 'P'};
 

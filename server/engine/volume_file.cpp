@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "errors.hpp"
+#include "little_endian.hpp"
 
 namespace marzipan {
 
@@ -20,21 +21,7 @@ namespace {
 
 constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'V', 'F'};
 
-void put16(std::uint8_t* p, std::uint32_t v) {
-  p[0] = std::uint8_t(v);
-  p[1] = std::uint8_t(v >> 8);
-}
-void put32(std::uint8_t* p, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = std::uint8_t(v >> (8 * i));
-}
-void put64(std::uint8_t* p, std::uint64_t v) {
-  for (int i = 0; i < 8; ++i) p[i] = std::uint8_t(v >> (8 * i));
-}
-std::uint32_t get16(const std::uint8_t* p) { return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8; }
-std::uint32_t get32(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
-}
-std::uint64_t get64(const std::uint8_t* p) { return std::uint64_t(get32(p)) | std::uint64_t(get32(p + 4)) << 32; }
+using namespace le;
 
 // 512 voxel values to or from little-endian bytes.
 void putValues(std::uint8_t* p, const float* v) {
