@@ -25,7 +25,6 @@ namespace {
 constexpr int kPad = kBrickSide + 2;  // padded side: the brick and its ring
 constexpr int kPadVoxels = kPad * kPad * kPad;
 constexpr int kStride[3] = {1, kPad, kPad * kPad};
-constexpr int kBrickStride[3] = {1, kBrickSide, kBrickSide * kBrickSide};
 
 constexpr int kPosBits = 14;
 constexpr int kPosMax = (1 << kPosBits) - 1;
