@@ -111,3 +111,18 @@ TEST_CASE("memory grows with surface area, not with the domain", "[volume][memor
   // Area grows 4x from radius 100 to 200: memory must follow the area, not the 8x domain.
   CHECK(double(big.memoryBytes()) / double(small.memoryBytes()) < 4.5);
 }
+
+TEST_CASE("a 1024^3 domain works at its far corner and costs only its surface", "[volume][memory]") {
+  const Vec3 c{990, 1000, 1010};
+  Volume v = makeSphere({1024, 1024, 1024}, c, 10);
+  CHECK(v.at(990, 1000, 1010) < 0);
+  CHECK(v.at(0, 0, 0) == v.band());
+  CHECK(v.sample({1000.0, 1000, 1010}) == Approx(0).margin(0.02));
+  CHECK(insideVolume(v) == Approx(4.0 / 3.0 * 3.14159265 * 1000).epsilon(0.01));
+  CHECK(v.memoryBytes() < std::size_t(2e6));  // the table of 4096 tiles plus a few bricks
+  const Box corner{{1016, 1016, 1016}, {1024, 1024, 1024}};
+  std::vector<float> inside(std::size_t(corner.voxels()), -1.0f);
+  v.scatter(corner, inside.data(), corner);
+  CHECK(v.at(1023, 1023, 1023) == -1.0f);
+  CHECK(v.at(1024, 1023, 1023) == v.band());
+}
