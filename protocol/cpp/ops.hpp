@@ -1,0 +1,147 @@
+// Operation objects: the JSON form of one sculpting operation, shared by `marzipan batch`
+// (one object per line) and the network protocol (`tool.apply`, `volume.morph`, the journal).
+// protocol/PROTOCOL.md, section "Operation objects", is the contract; this is its C++ side.
+//
+// Conventions: coordinates and lengths in vu, as in server/engine/volume.hpp. Parsing is
+// strict: every key must be known for its tool, every value of the right JSON type, finite
+// and in range, or OpError names the key and what is wrong. Ranges are the engine's own, so
+// an op that parses is only refused by the engine for what depends on the volume (a tool
+// whose region misses the domain). toJson writes the canonical form (every field, defaults
+// included, keys in a fixed order), and parseOp(toJson(op)) == op.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/csg.hpp"
+#include "engine/level_set.hpp"
+
+namespace marzipan::protocol {
+
+// One of the four localized level-set tools, applied once in the ROI cube around `center`.
+enum class BrushTool { AddBlob, RemoveBlob, Smooth, Sharpen };
+struct BrushOp {
+  BrushTool tool = BrushTool::AddBlob;
+  BrushParams params;  // radius default 8, strength default 1
+  friend bool operator==(const BrushOp& a, const BrushOp& b) {
+    return a.tool == b.tool && a.params.center == b.params.center && a.params.radius == b.params.radius &&
+           a.params.strength == b.params.strength;
+  }
+};
+
+// Whole-volume mean curvature flow: `iterations` steps of dt = strength / 6.
+struct GlobalSmoothOp {
+  int iterations = 1;
+  double strength = 1;
+  friend bool operator==(const GlobalSmoothOp&, const GlobalSmoothOp&) = default;
+};
+
+struct CsgToolOp {
+  CsgParams params;  // axis and blend default to y and 0
+  friend bool operator==(const CsgToolOp& a, const CsgToolOp& b) {
+    return a.params.op == b.params.op && a.params.shape == b.params.shape && a.params.center == b.params.center &&
+           a.params.radius == b.params.radius && a.params.axis == b.params.axis && a.params.blend == b.params.blend;
+  }
+};
+
+enum class MorphKind { Erode, Dilate, Open, Close };
+struct MorphOp {
+  MorphKind kind = MorphKind::Dilate;
+  double radius = 1;
+  friend bool operator==(const MorphOp&, const MorphOp&) = default;
+};
+
+using Op = std::variant<BrushOp, GlobalSmoothOp, CsgToolOp, MorphOp>;
+
+// A refused operation object. `field` is the offending key ("radius", "center", "tool"), or
+// empty when the object as a whole is wrong (not an object, not JSON); `message` is a whole
+// sentence that names the key too, ready for a person or a JSON-RPC error message.
+class OpError : public std::runtime_error {
+ public:
+  OpError(std::string field, const std::string& message)
+      : std::runtime_error(message), field_(std::move(field)) {}
+  const std::string& field() const { return field_; }
+  std::string message() const { return what(); }
+
+ private:
+  std::string field_;
+};
+
+// --- the names, in one place --------------------------------------------------------------
+template <class E>
+struct NameOf {
+  E value;
+  std::string_view name;
+};
+
+// The "tool" values. A tool is a brush, a CSG operation, or (smooth only) global smoothing.
+inline constexpr std::array<NameOf<BrushTool>, 4> kBrushToolNames{{
+    {BrushTool::AddBlob, "add_blob"},
+    {BrushTool::RemoveBlob, "remove_blob"},
+    {BrushTool::Smooth, "smooth"},
+    {BrushTool::Sharpen, "sharpen"},
+}};
+inline constexpr std::array<NameOf<CsgOp>, 3> kCsgToolNames{{
+    {CsgOp::Add, "csg_add"},
+    {CsgOp::Subtract, "csg_subtract"},
+    {CsgOp::Intersect, "csg_intersect"},
+}};
+// The "op" values: whole-volume operations.
+inline constexpr std::string_view kOpSmooth = "smooth";
+inline constexpr std::string_view kOpMorph = "morph";
+inline constexpr std::array<NameOf<MorphKind>, 4> kMorphKindNames{{
+    {MorphKind::Erode, "erode"},
+    {MorphKind::Dilate, "dilate"},
+    {MorphKind::Open, "open"},
+    {MorphKind::Close, "close"},
+}};
+inline constexpr std::array<NameOf<ToolShape>, 3> kShapeNames{{
+    {ToolShape::Sphere, "sphere"},
+    {ToolShape::Box, "box"},
+    {ToolShape::Cylinder, "cylinder"},
+}};
+inline constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
+
+template <class E, std::size_t N>
+constexpr std::optional<E> fromName(const std::array<NameOf<E>, N>& table, std::string_view name) {
+  for (const auto& entry : table)
+    if (entry.name == name) return entry.value;
+  return std::nullopt;
+}
+template <class E, std::size_t N>
+constexpr std::string_view nameOf(const std::array<NameOf<E>, N>& table, E value) {
+  for (const auto& entry : table)
+    if (entry.value == value) return entry.name;
+  return {};
+}
+
+// --- ranges (the engine's; see level_set.hpp and csg.hpp) -------------------------------
+inline constexpr double kMinToolRadius = 0.5, kMaxToolRadius = 1024;
+inline constexpr double kMinMorphRadius = 0.001, kMaxMorphRadius = 64;
+inline constexpr int kMaxIterations = 100000;
+// No domain is wider than 1024 vu and no tool reaches further than 1024 vu, so a centre
+// beyond this can only miss; the bound keeps coordinates far from int overflow in ROI maths.
+inline constexpr double kMaxCoordinate = 1e6;
+inline constexpr double kDefaultBrushRadius = 8, kDefaultStrength = 1;
+
+// --- parsing and writing --------------------------------------------------------------------
+// One operation object. Throws OpError.
+Op parseOp(const nlohmann::json& object);
+// One operation object as JSON text. Besides parseOp's checks: the text must be one JSON
+// value (OpError with an empty field otherwise), and no object may repeat a key (a JSON
+// reader would silently keep only one of them).
+Op parseOpText(std::string_view text);
+
+// The canonical object, e.g. {"tool":"add_blob","center":[1,2,3],"radius":8,"strength":1}.
+nlohmann::json toJson(const Op& op);
+
+// The name the op is known by: its "tool" value, or "smooth" / "morph" for "op" objects.
+std::string_view opName(const Op& op);
+
+}  // namespace marzipan::protocol

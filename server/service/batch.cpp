@@ -1,0 +1,428 @@
+// `marzipan batch` (see batch.hpp). The order of work is chosen so that a mistake costs as
+// little as possible: arguments, then every ops line (parsed before any is applied), then the
+// starting solid, then the operations, and only then the output files.
+#include "service/batch.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/errors.hpp"
+#include "engine/image_io.hpp"
+#include "engine/marching_cubes.hpp"
+#include "engine/measures.hpp"
+#include "engine/mesh_io.hpp"
+#include "engine/raycast.hpp"
+#include "engine/solids.hpp"
+#include "engine/thread_pool.hpp"
+#include "engine/volume_file.hpp"
+#include "protocol/cpp/ops.hpp"
+#include "service/apply_op.hpp"
+
+namespace marzipan::service {
+namespace {
+
+constexpr int kDefaultSize = 128;
+constexpr int kDefaultQuality = 90;
+
+// Thrown for anything wrong with the command line itself (exit status 2).
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+// Thrown for bad input: the message is complete, with its "FILE:LINE:" or "FILE:" prefix.
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct NumberedOp {
+  int line;
+  protocol::Op op;
+};
+
+struct Options {
+  std::string opsPath;
+  std::optional<int> size;
+  std::optional<SolidKind> solid;
+  std::string load;
+  std::optional<double> fitMargin;
+  std::string out;
+  std::string render;
+  std::optional<Vec3> eye, target;
+  Vec3 up{0, 1, 0};
+  double fov = 40;
+  int width = 512, height = 512;
+  Shading shading = Shading::Lit;
+  std::optional<int> quality;
+  bool stats = false;
+  int statsEvery = 0;
+  int threads = 0;
+};
+
+std::string lowerExtension(const std::string& path) {
+  const auto slash = path.find_last_of("/\\");
+  const auto dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+int parseInt(const std::string& option, const std::string& text, int lo, int hi) {
+  int v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size() || v < lo || v > hi)
+    throw UsageError(option + " takes an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                     ", got \"" + text + "\"");
+  return v;
+}
+
+double parseDouble(const std::string& option, std::string_view text) {
+  double v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v))
+    throw UsageError(option + " takes a finite number, got \"" + std::string(text) + "\"");
+  return v;
+}
+
+Vec3 parseVec3(const std::string& option, const std::string& text) {
+  Vec3 v;
+  std::string_view rest = text;
+  for (int a = 0; a < 3; ++a) {
+    const auto comma = rest.find(',');
+    if ((a < 2) != (comma != std::string_view::npos))
+      throw UsageError(option + " takes three numbers x,y,z, got \"" + text + "\"");
+    v[a] = parseDouble(option, rest.substr(0, comma));
+    rest = a < 2 ? rest.substr(comma + 1) : std::string_view();
+  }
+  return v;
+}
+
+Options parseOptions(const std::vector<std::string>& args) {
+  Options o;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    std::string name = args[i];
+    std::optional<std::string> inlineValue;
+    if (name.starts_with("--")) {
+      if (const auto eq = name.find('='); eq != std::string::npos) {
+        inlineValue = name.substr(eq + 1);
+        name.resize(eq);
+      }
+    } else if (name != "-" && name.starts_with("-")) {
+      throw UsageError("unknown option " + name);
+    }
+    if (!name.starts_with("--")) {
+      if (!o.opsPath.empty()) throw UsageError("one OPS file only, got \"" + o.opsPath + "\" and \"" + name + "\"");
+      o.opsPath = name;
+      continue;
+    }
+    const auto value = [&]() -> std::string {
+      if (inlineValue) return *inlineValue;
+      if (i + 1 >= args.size()) throw UsageError(name + " needs a value");
+      return args[++i];
+    };
+    const auto flag = [&] {
+      if (inlineValue) throw UsageError(name + " takes no value");
+    };
+    if (name == "--size") {
+      o.size = parseInt(name, value(), 8, kMaxDomainSide);
+    } else if (name == "--solid") {
+      const std::string v = value();
+      o.solid = solidKindFromName(v);
+      if (!o.solid)
+        throw UsageError("--solid takes sphere, box, torus, cylinder, dumbbell, pig or empty, got \"" + v + "\"");
+    } else if (name == "--load") {
+      o.load = value();
+    } else if (name == "--fit") {
+      o.fitMargin = parseDouble(name, value());
+      if (*o.fitMargin < 0) throw UsageError("--fit takes a margin of 0 vu or more");
+    } else if (name == "--out") {
+      o.out = value();
+    } else if (name == "--render") {
+      o.render = value();
+    } else if (name == "--camera-eye") {
+      o.eye = parseVec3(name, value());
+    } else if (name == "--camera-target") {
+      o.target = parseVec3(name, value());
+    } else if (name == "--camera-up") {
+      o.up = parseVec3(name, value());
+    } else if (name == "--fov") {
+      o.fov = parseDouble(name, value());
+    } else if (name == "--width") {
+      o.width = parseInt(name, value(), 1, kMaxFrameSide);
+    } else if (name == "--height") {
+      o.height = parseInt(name, value(), 1, kMaxFrameSide);
+    } else if (name == "--shading") {
+      const std::string v = value();
+      if (v == "lit") o.shading = Shading::Lit;
+      else if (v == "normals") o.shading = Shading::Normals;
+      else if (v == "gradient_error") o.shading = Shading::GradientError;
+      else throw UsageError("--shading takes lit, normals or gradient_error, got \"" + v + "\"");
+    } else if (name == "--quality") {
+      o.quality = parseInt(name, value(), 1, 100);
+    } else if (name == "--stats") {
+      flag();
+      o.stats = true;
+    } else if (name == "--stats-every") {
+      o.statsEvery = parseInt(name, value(), 1, 1 << 30);
+      o.stats = true;
+    } else if (name == "--threads") {
+      o.threads = parseInt(name, value(), 0, 1024);
+    } else {
+      throw UsageError("unknown option " + name);
+    }
+  }
+
+  if (o.opsPath.empty()) throw UsageError("missing the OPS file (a path, or - for standard input)");
+  const std::string loadExt = lowerExtension(o.load);
+  if (!o.load.empty()) {
+    if (loadExt != "mzv" && !meshFormatFromName(loadExt))
+      throw UsageError("--load takes a .mzv, .stl, .obj or .ply file, got \"" + o.load + "\"");
+    if (o.solid) throw UsageError("--solid and --load exclude each other");
+    if (loadExt == "mzv" && o.size) throw UsageError("--size does not apply to a .mzv file, which has its own size");
+    if (loadExt == "mzv" && o.fitMargin) throw UsageError("--fit applies to meshes only");
+  } else if (o.fitMargin) {
+    throw UsageError("--fit applies to a mesh given with --load");
+  }
+  if (!o.out.empty()) {
+    const std::string ext = lowerExtension(o.out);
+    if (ext != "mzv" && !meshFormatFromName(ext))
+      throw UsageError("--out takes a .stl, .obj, .ply or .mzv file, got \"" + o.out + "\"");
+  }
+  if (!o.render.empty()) {
+    const std::string ext = lowerExtension(o.render);
+    if (ext != "png" && ext != "jpg" && ext != "jpeg")
+      throw UsageError("--render takes a .png or .jpg file, got \"" + o.render + "\"");
+    if (ext == "png" && o.quality) throw UsageError("--quality applies to JPEG images only");
+  } else if (o.eye || o.target || o.quality) {
+    throw UsageError("camera and image options need --render FILE");
+  }
+  return o;
+}
+
+// Lines are trimmed of surrounding white space (and a CR), so files from any editor work.
+std::vector<NumberedOp> readOps(const std::string& path, std::istream& in) {
+  std::vector<NumberedOp> ops;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const auto last = line.find_last_not_of(" \t\r");
+    try {
+      ops.push_back({number, protocol::parseOpText(std::string_view(line).substr(first, last + 1 - first))});
+    } catch (const protocol::OpError& e) {
+      throw InputError(path + ":" + std::to_string(number) + ": " + e.what());
+    }
+  }
+  if (in.bad()) throw InputError(path + ": cannot be read");
+  return ops;
+}
+
+std::vector<NumberedOp> readOpsFile(const std::string& path) {
+  if (path == "-") return readOps("<stdin>", std::cin);
+  std::ifstream f(path);
+  if (!f) throw InputError(path + ": cannot be opened");
+  return readOps(path, f);
+}
+
+std::vector<std::uint8_t> readBytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InputError(path + ": cannot be opened");
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) throw InputError(path + ": cannot be read");
+  return bytes;
+}
+
+Volume startingVolume(const Options& o, ThreadPool& pool) {
+  const int n = o.size.value_or(kDefaultSize);
+  const Int3 dims{n, n, n};
+  if (o.load.empty()) return makeSolid(o.solid.value_or(SolidKind::Sphere), dims, Volume::kDefaultBand, pool);
+  try {
+    const std::string ext = lowerExtension(o.load);
+    if (ext == "mzv") return loadVolumeFile(o.load);
+    Mesh mesh = parseMesh(readBytes(o.load), *meshFormatFromName(ext));
+    if (o.fitMargin) mesh = fitMeshToDomain(mesh, dims, *o.fitMargin);
+    return importMesh(mesh, dims, Volume::kDefaultBand, pool);
+  } catch (const EngineError& e) {
+    throw InputError(o.load + ": " + e.what());
+  }
+}
+
+// A 3/4 view from the front right and above (the pig faces +x, y is up) that fits the
+// sphere inscribed in the domain into the vertical field of view: the starting solids fill
+// it, whereas fitting the whole cube, corners included, leaves them small.
+Camera makeCamera(const Options& o, Int3 dims) {
+  Camera c;
+  const Vec3 centre{(dims.x - 1) / 2.0, (dims.y - 1) / 2.0, (dims.z - 1) / 2.0};
+  c.target = o.target.value_or(centre);
+  c.fovY_degrees = o.fov;
+  c.up = o.up;
+  c.width = o.width;
+  c.height = o.height;
+  if (o.eye) {
+    c.eye = *o.eye;
+  } else {
+    const double radius = 0.5 * std::max({dims.x, dims.y, dims.z});
+    const double halfFov = std::clamp(o.fov, 1.0, 170.0) * 0.5 * std::numbers::pi / 180.0;
+    c.eye = c.target + normalized(Vec3{0.55, 0.42, 0.72}) * (radius / std::sin(halfFov));
+  }
+  try {
+    c.validate();
+  } catch (const EngineError& e) {
+    throw UsageError(std::string("camera: ") + e.what());
+  }
+  return c;
+}
+
+nlohmann::ordered_json statsLine(const Volume& vol, double ms) {
+  const Measures m = measure(vol);
+  using nlohmann::ordered_json;
+  ordered_json box = nullptr;
+  if (!m.bounds.empty)
+    box = {{"min", {m.bounds.lo.x, m.bounds.lo.y, m.bounds.lo.z}}, {"max", {m.bounds.hi.x, m.bounds.hi.y, m.bounds.hi.z}}};
+  return {{"revision", vol.revision()},
+          {"inside_volume", m.insideVolume},
+          {"surface_area", m.surfaceArea},
+          {"components", m.components},
+          {"bounding_box", box},
+          {"gradient_error", {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}}},
+          {"digest", m.digest},
+          {"ms", std::round(ms * 1000) / 1000}};
+}
+
+void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camera>& camera, ThreadPool& pool) {
+  if (!o.out.empty()) {
+    try {
+      const std::string ext = lowerExtension(o.out);
+      if (ext == "mzv") {
+        saveVolumeFile(vol, o.out);
+      } else {
+        writeFile(o.out, exportMesh(extractMesh(vol, pool), *meshFormatFromName(ext)));
+      }
+    } catch (const EngineError& e) {
+      throw InputError(o.out + ": " + e.what());
+    }
+  }
+  if (camera) {
+    try {
+      const Frame frame = render(vol, *camera, o.shading, pool);
+      const ImageFormat format = lowerExtension(o.render) == "png" ? ImageFormat::Png : ImageFormat::Jpeg;
+      writeFile(o.render,
+                encodeImage(frame.rgb, frame.width, frame.height, format, o.quality.value_or(kDefaultQuality)));
+    } catch (const EngineError& e) {
+      throw InputError(o.render + ": " + e.what());
+    }
+  }
+}
+
+int run(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = parseOptions(args);
+  const std::vector<NumberedOp> ops = readOpsFile(o.opsPath);
+  ThreadPool pool(o.threads);
+  Volume vol = startingVolume(o, pool);
+  std::optional<Camera> camera;
+  if (!o.render.empty()) camera = makeCamera(o, vol.dims());
+
+  double ms = 0;
+  std::size_t applied = 0;
+  bool reported = false;
+  for (const NumberedOp& item : ops) {
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      service::applyOp(vol, item.op, pool);
+    } catch (const EngineError& e) {
+      const std::string path = o.opsPath == "-" ? "<stdin>" : o.opsPath;
+      throw InputError(path + ":" + std::to_string(item.line) + ": " + e.what());
+    }
+    ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    vol.setRevision(vol.revision() + 1);
+    ++applied;
+    reported = false;
+    if (o.statsEvery > 0 && applied % std::size_t(o.statsEvery) == 0) {
+      out << statsLine(vol, ms).dump() << '\n' << std::flush;
+      reported = true;
+    }
+  }
+  if (o.stats && !reported) out << statsLine(vol, ms).dump() << '\n' << std::flush;
+  writeOutputs(o, vol, camera, pool);
+  return kExitOk;
+}
+
+}  // namespace
+
+void printBatchUsage(std::ostream& os) {
+  os << R"(Usage: marzipan batch OPS.jsonl [options]
+
+Applies the operation objects in OPS.jsonl, one JSON object per line, to a solid and writes
+the result. Blank lines and lines starting with # are skipped; OPS "-" reads standard input.
+Every line is checked before the first is applied; output files are written only when every
+operation succeeded.
+
+Operations (coordinates and lengths in vu, the voxel spacing):
+  {"tool":"add_blob"|"remove_blob"|"smooth"|"sharpen","center":[x,y,z],"radius":8,"strength":1}
+  {"op":"smooth","global":true,"iterations":N,"strength":1}   (or "tool":"smooth","global":true)
+  {"tool":"csg_add"|"csg_subtract"|"csg_intersect","shape":"sphere"|"box"|"cylinder",
+   "center":[x,y,z],"radius":R,"blend":0,"axis":"y"}
+  {"op":"morph","kind":"erode"|"dilate"|"open"|"close","radius":K}
+
+Starting solid:
+  --size N              domain of N^3 voxels, 8..1024 (default 128)
+  --solid NAME          sphere|box|torus|cylinder|dumbbell|pig|empty (default sphere)
+  --load FILE           a volume file (.mzv, keeps its own size) or a closed mesh
+                        (.stl, .obj, .ply) in vu, placed as it is in an N^3 domain
+  --fit MARGIN          with a mesh: scale and centre it, MARGIN vu from the tightest sides
+
+Output:
+  --out FILE            .stl, .obj or .ply mesh of the surface, or .mzv volume file
+  --render FILE         .png or .jpg ray-cast image of the result
+  --camera-eye X,Y,Z    default: a 3/4 view from the front right, above, framing the domain
+  --camera-target X,Y,Z default: the domain's centre
+  --camera-up X,Y,Z     default: 0,1,0
+  --fov DEG             vertical field of view, (1, 170) (default 40)
+  --width W, --height H image size, 1..4096 (default 512 x 512)
+  --shading MODE        lit|normals|gradient_error (default lit)
+  --quality Q           JPEG quality 1..100 (default 90)
+
+Reports:
+  --stats               after the last operation, one JSON line on stdout: revision,
+                        inside_volume, surface_area, components, bounding_box {min, max},
+                        gradient_error {max, mean}, digest, ms (time spent in operations)
+  --stats-every K       a stats line after every K operations (and after the last)
+  --threads N           worker threads, 0 = one per core (default); results do not depend on N
+
+Exit status: 0 success; 1 bad input (reported as OPS.jsonl:LINE: reason, or FILE: reason);
+2 usage error.
+)";
+}
+
+int runBatch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  if (std::find(args.begin(), args.end(), "--help") != args.end() ||
+      std::find(args.begin(), args.end(), "-h") != args.end()) {
+    printBatchUsage(out);
+    return kExitOk;
+  }
+  try {
+    return run(args, out);
+  } catch (const UsageError& e) {
+    err << "marzipan batch: " << e.what() << "\n(marzipan batch --help lists the options)\n";
+    return kExitUsage;
+  } catch (const InputError& e) {
+    err << e.what() << '\n';
+    return kExitBadInput;
+  } catch (const EngineError& e) {
+    err << "marzipan batch: " << e.what() << '\n';
+    return kExitBadInput;
+  }
+}
+
+}  // namespace marzipan::service

@@ -1,0 +1,251 @@
+// `marzipan batch` end to end: the built binary (MARZIPAN_CLI) run through the shell in a
+// scratch directory (MARZIPAN_CLI_WORKDIR), as a user would run it.
+#include <catch2/catch.hpp>
+
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// A fresh directory per test case, so cases can run in any order or alone.
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::path(MARZIPAN_CLI_WORKDIR) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string quote(const fs::path& p) {
+  // Appended piece by piece: "'" + string trips GCC 12's false -Wrestrict positive.
+  std::string out = p.string();
+  out.insert(out.begin(), '\'');
+  out.push_back('\'');
+  return out;
+}
+
+std::string readText(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+void writeText(const fs::path& p, const std::string& text) {
+  std::ofstream f(p, std::ios::binary);
+  f << text;
+}
+
+struct Run {
+  int status = -1;
+  std::string out, err;
+};
+
+// Runs `marzipan ARGS` in `dir` and returns its exit status, stdout and stderr.
+Run marzipan(const fs::path& dir, const std::string& args) {
+  const std::string command = "cd " + quote(dir) + " && " + quote(MARZIPAN_CLI) + " " + args + " >stdout.txt 2>stderr.txt";
+  const int raw = std::system(command.c_str());
+  Run r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = readText(dir / "stdout.txt");
+  r.err = readText(dir / "stderr.txt");
+  return r;
+}
+
+std::vector<json> statsLines(const std::string& out) {
+  std::vector<json> lines;
+  std::istringstream s(out);
+  for (std::string line; std::getline(s, line);) lines.push_back(json::parse(line));
+  return lines;
+}
+
+const char* const kOps = R"(# sculpt a 64^3 sphere (radius 22.4 around 31.5)
+{"tool":"add_blob","center":[53.9,31.5,31.5],"radius":8,"strength":1}
+{"tool":"remove_blob","center":[31.5,53.9,31.5],"radius":6}
+
+{"tool":"smooth","center":[53.9,31.5,31.5],"radius":10,"strength":0.5}
+{"tool":"csg_add","shape":"cylinder","center":[31.5,31.5,31.5],"radius":8,"axis":"z","blend":2}
+{"tool":"csg_subtract","shape":"box","center":[31.5,9.1,31.5],"radius":5}
+{"op":"morph","kind":"close","radius":1}
+{"op":"smooth","global":true,"iterations":1}
+)";
+
+std::uint32_t bigEndian32(const std::string& bytes, std::size_t at) {
+  return std::uint32_t(std::uint8_t(bytes[at])) << 24 | std::uint32_t(std::uint8_t(bytes[at + 1])) << 16 |
+         std::uint32_t(std::uint8_t(bytes[at + 2])) << 8 | std::uint32_t(std::uint8_t(bytes[at + 3]));
+}
+
+}  // namespace
+
+TEST_CASE("batch, export STL, import it again: same volume within 2%, stable digests", "[cli]") {
+  const fs::path dir = scratch("roundtrip");
+  writeText(dir / "ops.jsonl", kOps);
+  writeText(dir / "none.jsonl", "");
+
+  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.stl");
+  INFO(sculpt.err);
+  REQUIRE(sculpt.status == 0);
+  const std::vector<json> stats = statsLines(sculpt.out);
+  REQUIRE(stats.size() == 1);
+  const json& s = stats[0];
+  CHECK(s["revision"] == 7);
+  CHECK(s["components"] == 1);
+  CHECK(s["inside_volume"].get<double>() > 30000);
+  CHECK(s["surface_area"].get<double>() > 4000);
+  CHECK(s["bounding_box"]["min"].size() == 3);
+  CHECK(s["bounding_box"]["max"].size() == 3);
+  CHECK(s["gradient_error"]["max"].get<double>() >= s["gradient_error"]["mean"].get<double>());
+  CHECK(s["digest"].get<std::string>().size() == 16);
+  CHECK(s["ms"].get<double>() > 0);
+  REQUIRE(fs::file_size(dir / "out.stl") > 84);
+
+  // The same input gives the same digest, for any thread count.
+  const Run again = marzipan(dir, "batch ops.jsonl --size 64 --stats --threads 1");
+  REQUIRE(again.status == 0);
+  CHECK(statsLines(again.out).at(0)["digest"] == s["digest"]);
+
+  const Run imported = marzipan(dir, "batch none.jsonl --size 64 --load out.stl --stats");
+  INFO(imported.err);
+  REQUIRE(imported.status == 0);
+  const json i = statsLines(imported.out).at(0);
+  CHECK(i["revision"] == 0);
+  CHECK(i["components"] == 1);
+  const double v0 = s["inside_volume"].get<double>(), v1 = i["inside_volume"].get<double>();
+  CHECK(std::abs(v1 - v0) <= 0.02 * v0);
+  for (int a = 0; a < 3; ++a) {
+    CHECK(std::abs(i["bounding_box"]["min"][a].get<double>() - s["bounding_box"]["min"][a].get<double>()) < 0.5);
+    CHECK(std::abs(i["bounding_box"]["max"][a].get<double>() - s["bounding_box"]["max"][a].get<double>()) < 0.5);
+  }
+  const Run importedAgain = marzipan(dir, "batch none.jsonl --size 64 --load out.stl --stats --threads 2");
+  REQUIRE(importedAgain.status == 0);
+  CHECK(statsLines(importedAgain.out).at(0)["digest"] == i["digest"]);
+}
+
+TEST_CASE("a saved volume loads back bit for bit and keeps its revision", "[cli]") {
+  const fs::path dir = scratch("mzv");
+  writeText(dir / "ops.jsonl", kOps);
+  writeText(dir / "more.jsonl", "{\"op\":\"morph\",\"kind\":\"dilate\",\"radius\":1}\n");
+  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.mzv");
+  REQUIRE(sculpt.status == 0);
+  const json s = statsLines(sculpt.out).at(0);
+
+  const Run loaded = marzipan(dir, "batch - --load out.mzv --stats < /dev/null");
+  INFO(loaded.err);
+  REQUIRE(loaded.status == 0);
+  const json l = statsLines(loaded.out).at(0);
+  CHECK(l["digest"] == s["digest"]);
+  CHECK(l["revision"] == 7);
+  CHECK(l["inside_volume"] == s["inside_volume"]);
+
+  const Run more = marzipan(dir, "batch more.jsonl --load out.mzv --stats");
+  REQUIRE(more.status == 0);
+  CHECK(statsLines(more.out).at(0)["revision"] == 8);
+}
+
+TEST_CASE("stats every K ops (--stats-every) and after the last", "[cli]") {
+  const fs::path dir = scratch("every");
+  writeText(dir / "ops.jsonl", kOps);
+  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --stats-every 3");
+  REQUIRE(r.status == 0);
+  const std::vector<json> lines = statsLines(r.out);
+  REQUIRE(lines.size() == 3);
+  CHECK(lines[0]["revision"] == 3);
+  CHECK(lines[1]["revision"] == 6);
+  CHECK(lines[2]["revision"] == 7);
+  CHECK(lines[0]["ms"].get<double>() <= lines[2]["ms"].get<double>());
+}
+
+TEST_CASE("a bad line stops the run with its line number, exit 1 and no output", "[cli]") {
+  const fs::path dir = scratch("bad");
+  writeText(dir / "ops.jsonl",
+            "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n"
+            "# a comment\n"
+            "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5],\"radius\":\"big\"}\n"
+            "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");
+  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.stl --render out.png");
+  CHECK(r.status == 1);
+  CHECK_THAT(r.err, Catch::Contains("ops.jsonl:3:"));
+  CHECK_THAT(r.err, Catch::Contains("\"radius\""));
+  CHECK(r.out.empty());
+  CHECK_FALSE(fs::exists(dir / "out.stl"));
+  CHECK_FALSE(fs::exists(dir / "out.png"));
+
+  writeText(dir / "json.jsonl", "{\"op\":\"morph\",\"kind\":\"open\",\"radius\":1}\n\n{\"op\":\n");
+  const Run broken = marzipan(dir, "batch json.jsonl --size 64 --out out.mzv");
+  CHECK(broken.status == 1);
+  CHECK_THAT(broken.err, Catch::Contains("json.jsonl:3: not valid JSON"));
+  CHECK_FALSE(fs::exists(dir / "out.mzv"));
+
+  // An op the engine refuses (its region misses the domain) is reported the same way.
+  writeText(dir / "engine.jsonl",
+            "{\"op\":\"morph\",\"kind\":\"dilate\",\"radius\":1}\n"
+            "\n"
+            "{\"tool\":\"add_blob\",\"center\":[500,500,500]}\n");
+  const Run refused = marzipan(dir, "batch engine.jsonl --size 64 --out out.obj --stats");
+  CHECK(refused.status == 1);
+  CHECK_THAT(refused.err, Catch::Contains("engine.jsonl:3: center:"));
+  CHECK(refused.out.empty());
+  CHECK_FALSE(fs::exists(dir / "out.obj"));
+}
+
+TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[cli]") {
+  const fs::path dir = scratch("render");
+  writeText(dir / "ops.jsonl", "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");
+  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --solid pig --render frame.png --width 160 --height 90");
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  const std::string png = readText(dir / "frame.png");
+  REQUIRE(png.size() > 33);
+  CHECK(png.substr(0, 8) == std::string("\x89PNG\r\n\x1a\n", 8));
+  CHECK(png.substr(12, 4) == "IHDR");
+  CHECK(bigEndian32(png, 16) == 160);
+  CHECK(bigEndian32(png, 20) == 90);
+
+  const Run jpeg = marzipan(dir,
+                            "batch ops.jsonl --size 64 --render frame.jpg --camera-eye 150,80,120 "
+                            "--camera-target 31.5,31.5,31.5 --camera-up 0,1,0 --fov 30 --width 64 --height 48 "
+                            "--shading normals --quality 75");
+  INFO(jpeg.err);
+  REQUIRE(jpeg.status == 0);
+  const std::string jpg = readText(dir / "frame.jpg");
+  REQUIRE(jpg.size() > 4);
+  CHECK(std::uint8_t(jpg[0]) == 0xFF);
+  CHECK(std::uint8_t(jpg[1]) == 0xD8);
+}
+
+TEST_CASE("usage errors exit with 2, help with 0", "[cli]") {
+  const fs::path dir = scratch("usage");
+  writeText(dir / "ops.jsonl", "");
+  CHECK(marzipan(dir, "").status == 2);
+  CHECK(marzipan(dir, "frobnicate").status == 2);
+  CHECK(marzipan(dir, "batch").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --size 4").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --solid cube").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --out out.xyz").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --render out.gif").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --render out.png --camera-eye 1,2").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --render out.png --camera-eye 31.5,31.5,31.5 --size 64").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --unknown").status == 2);
+  CHECK(marzipan(dir, "batch missing.jsonl").status == 1);
+  CHECK_FALSE(fs::exists(dir / "out.png"));
+
+  const Run help = marzipan(dir, "--help");
+  CHECK(help.status == 0);
+  CHECK_THAT(help.out, Catch::Contains("batch"));
+  const Run batchHelp = marzipan(dir, "batch --help");
+  CHECK(batchHelp.status == 0);
+  CHECK_THAT(batchHelp.out, Catch::Contains("--stats-every"));
+  CHECK_THAT(batchHelp.out, Catch::Contains("csg_intersect"));
+}

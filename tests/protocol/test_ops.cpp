@@ -1,0 +1,281 @@
+// Operation objects (protocol/cpp/ops.cpp): every field's bad input is refused with an OpError
+// that names the field, and toJson / parse round-trips every op exactly.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "protocol/cpp/ops.hpp"
+
+using namespace marzipan;
+using namespace marzipan::protocol;
+using nlohmann::json;
+
+namespace {
+
+// The OpError of parsing `text`; fails the test when the text parses.
+OpError errorOf(const std::string& text) {
+  try {
+    parseOpText(text);
+  } catch (const OpError& e) {
+    return e;
+  }
+  FAIL("parsed, but should have been refused: " << text);
+  return OpError("", "");
+}
+
+OpError errorOf(const json& object) {
+  try {
+    parseOp(object);
+  } catch (const OpError& e) {
+    return e;
+  }
+  FAIL("parsed, but should have been refused: " << object.dump());
+  return OpError("", "");
+}
+
+void requireRefused(const json& object, const std::string& field, const std::string& fragment) {
+  INFO(object.dump());
+  const OpError e = errorOf(object);
+  CHECK(e.field() == field);
+  CHECK_THAT(e.message(), Catch::Contains(fragment));
+  // The message names the key itself, so it reads on its own.
+  if (!field.empty()) CHECK_THAT(e.message(), Catch::Contains("\"" + field + "\""));
+}
+
+json with(json object, const std::string& key, const json& value) {
+  object[key] = value;
+  return object;
+}
+
+json without(json object, const std::string& key) {
+  object.erase(key);
+  return object;
+}
+
+const json kBrush = {{"tool", "add_blob"}, {"center", {10, 20, 30}}, {"radius", 6}, {"strength", 0.5}};
+const json kCsg = {{"tool", "csg_add"}, {"shape", "cylinder"}, {"center", {1, 2, 3}}, {"radius", 5}, {"blend", 1},
+                   {"axis", "z"}};
+const json kGlobal = {{"op", "smooth"}, {"global", true}, {"iterations", 3}, {"strength", 0.25}};
+const json kMorph = {{"op", "morph"}, {"kind", "open"}, {"radius", 3}};
+
+}  // namespace
+
+TEST_CASE("each kind of operation object parses into its typed op", "[ops]") {
+  const BrushOp brush = std::get<BrushOp>(parseOp(kBrush));
+  CHECK(brush.tool == BrushTool::AddBlob);
+  CHECK(brush.params.center == Vec3{10, 20, 30});
+  CHECK(brush.params.radius == 6);
+  CHECK(brush.params.strength == 0.5);
+
+  for (const auto& [tool, name] : kBrushToolNames)
+    CHECK(std::get<BrushOp>(parseOp(with(kBrush, "tool", name))).tool == tool);
+  for (const auto& [op, name] : kCsgToolNames)
+    CHECK(std::get<CsgToolOp>(parseOp(with(kCsg, "tool", name))).params.op == op);
+  for (const auto& [shape, name] : kShapeNames)
+    CHECK(std::get<CsgToolOp>(parseOp(with(without(kCsg, "axis"), "shape", name))).params.shape == shape);
+  for (const auto& [kind, name] : kMorphKindNames)
+    CHECK(std::get<MorphOp>(parseOp(with(kMorph, "kind", name))).kind == kind);
+
+  const CsgToolOp csg = std::get<CsgToolOp>(parseOp(kCsg));
+  CHECK(csg.params.axis == 2);
+  CHECK(csg.params.blend == 1);
+  CHECK(csg.params.radius == 5);
+
+  const GlobalSmoothOp global = std::get<GlobalSmoothOp>(parseOp(kGlobal));
+  CHECK(global.iterations == 3);
+  CHECK(global.strength == 0.25);
+  // The same with "tool":"smooth" and with "global" left implicit on "op":"smooth".
+  CHECK(std::get<GlobalSmoothOp>(parseOp(with(without(kGlobal, "op"), "tool", "smooth"))) == global);
+  CHECK(std::get<GlobalSmoothOp>(parseOp(without(kGlobal, "global"))) == global);
+
+  const MorphOp morph = std::get<MorphOp>(parseOp(kMorph));
+  CHECK(morph.kind == MorphKind::Open);
+  CHECK(morph.radius == 3);
+}
+
+TEST_CASE("optional fields take their documented defaults", "[ops]") {
+  const BrushOp brush = std::get<BrushOp>(parseOp(json{{"tool", "smooth"}, {"center", {1, 2, 3}}}));
+  CHECK(brush.params.radius == kDefaultBrushRadius);
+  CHECK(brush.params.radius == 8);
+  CHECK(brush.params.strength == 1);
+  CHECK(std::get<BrushOp>(parseOp(with(kBrush, "global", false))) == std::get<BrushOp>(parseOp(kBrush)));
+
+  const CsgToolOp csg = std::get<CsgToolOp>(parseOp(without(without(kCsg, "axis"), "blend")));
+  CHECK(csg.params.axis == 1);
+  CHECK(csg.params.blend == 0);
+
+  CHECK(std::get<GlobalSmoothOp>(parseOp(without(kGlobal, "strength"))).strength == 1);
+}
+
+TEST_CASE("missing fields are named", "[ops]") {
+  requireRefused(without(kBrush, "center"), "center", "is missing");
+  requireRefused(without(kCsg, "shape"), "shape", "is missing");
+  requireRefused(without(kCsg, "center"), "center", "is missing");
+  requireRefused(without(kCsg, "radius"), "radius", "is missing");
+  requireRefused(without(kGlobal, "iterations"), "iterations", "is missing");
+  requireRefused(without(kMorph, "kind"), "kind", "is missing");
+  requireRefused(without(kMorph, "radius"), "radius", "is missing");
+  requireRefused(json::object(), "tool", "is missing");
+  requireRefused(json{{"center", {1, 2, 3}}}, "tool", "is missing");
+}
+
+TEST_CASE("values of the wrong type are named", "[ops]") {
+  requireRefused(with(kBrush, "tool", 3), "tool", "must be a string");
+  requireRefused(with(kMorph, "op", true), "op", "must be a string");
+  requireRefused(with(kBrush, "center", "here"), "center", "must be an array of three numbers");
+  requireRefused(with(kBrush, "center", json::object()), "center", "must be an array of three numbers");
+  requireRefused(with(kBrush, "center", {1, "2", 3}), "center", "\"center\"[1] must be a number");
+  requireRefused(with(kBrush, "center", {1, nullptr, 3}), "center", "\"center\"[1] must be a number");
+  requireRefused(with(kBrush, "radius", "8"), "radius", "must be a number");
+  requireRefused(with(kBrush, "radius", nullptr), "radius", "must be a number");
+  requireRefused(with(kBrush, "strength", true), "strength", "must be a number");
+  requireRefused(with(kBrush, "strength", {0.5}), "strength", "must be a number");
+  requireRefused(with(kBrush, "global", 1), "global", "must be true or false");
+  requireRefused(with(kGlobal, "global", "yes"), "global", "must be true or false");
+  requireRefused(with(kCsg, "shape", 1), "shape", "must be a string");
+  requireRefused(with(kCsg, "axis", 0), "axis", "must be a string");
+  requireRefused(with(kCsg, "blend", "0"), "blend", "must be a number");
+  requireRefused(with(kGlobal, "iterations", 2.5), "iterations", "must be an integer");
+  requireRefused(with(kGlobal, "iterations", 2.0), "iterations", "must be an integer");
+  requireRefused(with(kGlobal, "iterations", "2"), "iterations", "must be an integer");
+  requireRefused(with(kGlobal, "strength", "1"), "strength", "must be a number");
+  requireRefused(with(kMorph, "kind", 2), "kind", "must be a string");
+  requireRefused(with(kMorph, "radius", {3}), "radius", "must be a number");
+}
+
+TEST_CASE("numbers out of range, non-finite numbers and unknown names are named", "[ops]") {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+
+  requireRefused(with(kBrush, "center", {1, 2}), "center", "array of 2");
+  requireRefused(with(kBrush, "center", {1, 2, 3, 4}), "center", "array of 4");
+  requireRefused(with(kBrush, "center", {1, 2, nan}), "center", "\"center\"[2] must be a finite number");
+  requireRefused(with(kBrush, "center", {inf, 2, 3}), "center", "\"center\"[0] must be a finite number");
+  requireRefused(with(kBrush, "center", {1, -2e6, 3}), "center", "must be within");
+  requireRefused(with(kBrush, "radius", 0.25), "radius", "between 0.5 and 1024");
+  requireRefused(with(kBrush, "radius", 2000), "radius", "between 0.5 and 1024");
+  requireRefused(with(kBrush, "radius", -8), "radius", "between 0.5 and 1024");
+  requireRefused(with(kBrush, "radius", nan), "radius", "finite");
+  requireRefused(with(kBrush, "strength", 0), "strength", "in (0, 1]");
+  requireRefused(with(kBrush, "strength", 1.5), "strength", "in (0, 1]");
+  requireRefused(with(kBrush, "strength", -0.5), "strength", "in (0, 1]");
+  requireRefused(with(kBrush, "strength", inf), "strength", "finite");
+
+  requireRefused(with(kCsg, "radius", 0.1), "radius", "between 0.5 and 1024");
+  requireRefused(with(kCsg, "blend", -1), "blend", "between 0 and 5");
+  requireRefused(with(kCsg, "blend", 6), "blend", "between 0 and 5");
+  requireRefused(with(kCsg, "shape", "cone"), "shape", "sphere, box, cylinder");
+  requireRefused(with(kCsg, "axis", "w"), "axis", "x, y, z");
+  requireRefused(with(with(kCsg, "shape", "box"), "axis", "x"), "axis", "cylinder");
+
+  requireRefused(with(kGlobal, "iterations", 0), "iterations", "between 1 and 100000");
+  requireRefused(with(kGlobal, "iterations", -3), "iterations", "between 1 and 100000");
+  requireRefused(with(kGlobal, "iterations", 100001), "iterations", "between 1 and 100000");
+  requireRefused(with(kGlobal, "iterations", std::uint64_t(1) << 63), "iterations", "between 1 and 100000");
+  requireRefused(with(kGlobal, "strength", 0), "strength", "in (0, 1]");
+
+  requireRefused(with(kMorph, "radius", 0), "radius", "between 0.001 and 64");
+  requireRefused(with(kMorph, "radius", 65), "radius", "between 0.001 and 64");
+  requireRefused(with(kMorph, "kind", "grow"), "kind", "erode, dilate, open, close");
+
+  requireRefused(with(kBrush, "tool", "add_blobs"), "tool", "must be one of");
+  requireRefused(with(kBrush, "tool", ""), "tool", "must be one of");
+  requireRefused(json{{"op", "explode"}}, "op", "must be \"smooth\" or \"morph\"");
+}
+
+TEST_CASE("unknown keys are refused, also keys that belong to another tool", "[ops]") {
+  requireRefused(with(kBrush, "radius_", 1), "radius_", "unknown key");
+  requireRefused(with(kBrush, "shape", "sphere"), "shape", "for tool \"add_blob\"");
+  requireRefused(with(kBrush, "iterations", 3), "iterations", "unknown key");
+  requireRefused(with(kCsg, "strength", 1), "strength", "for tool \"csg_add\"");
+  requireRefused(with(kCsg, "global", true), "global", "unknown key");
+  requireRefused(with(kGlobal, "center", {1, 2, 3}), "center", "global smoothing");
+  requireRefused(with(kGlobal, "radius", 3), "radius", "unknown key");
+  requireRefused(with(kMorph, "center", {1, 2, 3}), "center", "for op \"morph\"");
+  requireRefused(with(kMorph, "Kind", "open"), "Kind", "unknown key");
+}
+
+TEST_CASE("contradictory objects are refused", "[ops]") {
+  requireRefused(with(kBrush, "op", "morph"), "op", "not both");
+  requireRefused(with(kBrush, "global", true), "global", "only available for tool \"smooth\"");
+  requireRefused(with(kGlobal, "global", false), "global", "must be true");
+}
+
+TEST_CASE("JSON text that is not one object is refused without a field", "[ops]") {
+  for (const char* text : {"", "{", "nonsense", "{\"tool\":\"add_blob\",}", "{} {}", "1e400"}) {
+    INFO(text);
+    const OpError e = errorOf(std::string(text));
+    CHECK(e.field().empty());
+    CHECK_THAT(e.message(), Catch::Contains("not valid JSON"));
+    // The parser's internal exception id is not for users.
+    CHECK_THAT(e.message(), !Catch::Contains("[json.exception"));
+  }
+  for (const char* text : {"[1, 2, 3]", "\"add_blob\"", "null", "7"}) {
+    INFO(text);
+    const OpError e = errorOf(std::string(text));
+    CHECK(e.field().empty());
+    CHECK_THAT(e.message(), Catch::Contains("must be a JSON object"));
+  }
+  const OpError big = errorOf(std::string(R"({"tool":"add_blob","center":[1,2,3],"radius":1e999})"));
+  CHECK_THAT(big.message(), Catch::Contains("not valid JSON"));
+}
+
+TEST_CASE("a repeated key is refused, not silently resolved", "[ops]") {
+  const OpError e = errorOf(std::string(R"({"tool":"add_blob","radius":4,"center":[1,2,3],"radius":40})"));
+  CHECK(e.field() == "radius");
+  CHECK_THAT(e.message(), Catch::Contains("more than once"));
+  const OpError tool = errorOf(std::string(R"({"tool":"add_blob","tool":"remove_blob","center":[1,2,3]})"));
+  CHECK(tool.field() == "tool");
+}
+
+TEST_CASE("toJson writes the canonical form and parsing it gives the same op", "[ops]") {
+  const Op ops[] = {
+      parseOp(kBrush),
+      parseOp(json{{"tool", "sharpen"}, {"center", {0.1, -2.5, 1e-7}}}),
+      parseOp(kCsg),
+      parseOp(json{{"tool", "csg_intersect"}, {"shape", "box"}, {"center", {64, 64, 64}}, {"radius", 30.25}}),
+      parseOp(kGlobal),
+      parseOp(json{{"tool", "smooth"}, {"global", true}, {"iterations", 100000}}),
+      parseOp(kMorph),
+      parseOp(json{{"op", "morph"}, {"kind", "erode"}, {"radius", 0.1 + 0.2}}),
+  };
+  for (const Op& op : ops) {
+    const json canonical = toJson(op);
+    INFO(canonical.dump());
+    CHECK(parseOp(canonical) == op);
+    CHECK(parseOpText(canonical.dump()) == op);
+    CHECK(toJson(parseOpText(canonical.dump())) == canonical);
+  }
+  CHECK(toJson(parseOp(json{{"tool", "remove_blob"}, {"center", {1, 2, 3}}})) ==
+        json{{"tool", "remove_blob"}, {"center", {1.0, 2.0, 3.0}}, {"radius", 8.0}, {"strength", 1.0}});
+  CHECK(toJson(parseOp(json{{"tool", "smooth"}, {"global", true}, {"iterations", 5}})) ==
+        json{{"op", "smooth"}, {"global", true}, {"iterations", 5}, {"strength", 1.0}});
+  CHECK(toJson(parseOp(without(with(kCsg, "shape", "sphere"), "axis"))).contains("axis") == false);
+  CHECK(toJson(parseOp(without(kCsg, "axis")))["axis"] == "y");
+}
+
+TEST_CASE("opName gives the name an op is known by", "[ops]") {
+  CHECK(opName(parseOp(kBrush)) == "add_blob");
+  CHECK(opName(parseOp(kCsg)) == "csg_add");
+  CHECK(opName(parseOp(kGlobal)) == "smooth");
+  CHECK(opName(parseOp(kMorph)) == "morph");
+}
+
+TEST_CASE("messages stay short and valid UTF-8 whatever the input", "[ops]") {
+  const std::string huge(100000, 'x');
+  // A two-byte character straddling the point where quoted input is cut.
+  const std::string straddling = std::string(39, 'a') + "\xC3\xA9" + std::string(1000, 'b');
+  for (const json& object : {with(kBrush, "tool", huge), with(kBrush, "tool", straddling), with(kBrush, "radius", huge),
+                             with(kCsg, "shape", straddling), with(kMorph, "kind", "open\nclose"),
+                             with(kBrush, huge, 1), with(kBrush, straddling, 1)}) {
+    const OpError e = errorOf(object);
+    CHECK(e.message().size() < 300);
+    CHECK(e.field().size() < 50);
+    CHECK(e.message().find('\n') == std::string::npos);
+    // nlohmann refuses to write invalid UTF-8, as any JSON-RPC reply would have to.
+    CHECK_NOTHROW(json(e.message()).dump());
+    CHECK_NOTHROW(json(e.field()).dump());
+  }
+}
