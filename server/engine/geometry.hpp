@@ -66,12 +66,15 @@ struct Box {
   friend bool operator==(const Box& a, const Box& b) = default;
 };
 
-// The smallest voxel box holding every voxel within `radius` of `c` (per axis).
+// The smallest voxel box holding every voxel within `radius` of `c` (per axis). Coordinates
+// are clamped to +-1e9 before they become ints, so a box far outside every domain stays far
+// outside instead of overflowing.
 inline Box boxAround(Vec3 c, Vec3 radius) {
+  constexpr double kFar = 1e9;
   Box b;
   for (int a = 0; a < 3; ++a) {
-    b.lo[a] = int(std::floor(c[a] - radius[a]));
-    b.hi[a] = int(std::ceil(c[a] + radius[a])) + 1;
+    b.lo[a] = int(std::floor(std::clamp(c[a] - radius[a], -kFar, kFar)));
+    b.hi[a] = int(std::ceil(std::clamp(c[a] + radius[a], -kFar, kFar))) + 1;
   }
   return b;
 }

@@ -106,6 +106,7 @@ TEST_CASE("constructive tools refuse bad parameters and change nothing", "[csg][
   bad([](CsgParams& p) { p.axis = 3; });
   bad([](CsgParams& p) { p.center = {500, 24, 24}; });
   bad([](CsgParams& p) { p.center = {500, 24, 24}; p.op = CsgOp::Intersect; });
+  bad([](CsgParams& p) { p.center = {1e300, -1e300, 24}; });
   CHECK(digest(v) == d0);
   CHECK(toolShapeFromName("box") == ToolShape::Box);
   CHECK_FALSE(toolShapeFromName("cone").has_value());

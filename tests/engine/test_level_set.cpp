@@ -290,7 +290,7 @@ TEST_CASE("deformative tools refuse bad parameters and leave the volume untouche
   const BrushParams bad[] = {
       {{nan, 24, 24}, 6, 1}, {{36, inf, 24}, 6, 1}, {ok, -6, 1},  {ok, 0, 1},   {ok, nan, 1}, {ok, inf, 1},
       {ok, 6, 0},            {ok, 6, -1},           {ok, 6, 2},   {ok, 6, nan}, {{500, 24, 24}, 6, 1},
-      {{-30, 24, 24}, 6, 1}, {ok, 1e9, 1},
+      {{-30, 24, 24}, 6, 1}, {ok, 1e9, 1},  {{1e300, 24, 24}, 6, 1}, {{24, -1e300, 24}, 6, 1},
   };
   for (const auto& p : bad) {
     CHECK_THROWS_AS(addBlob(v, p), EngineError);
