@@ -1,0 +1,28 @@
+#!/usr/bin/env python3
+"""Reads marzipan-bench JSON lines on stdin and prints the Table 7.2 reproduction as markdown:
+per ROI side, the reference's seconds per application and Marzipan's milliseconds."""
+import json
+import sys
+
+rows = {}
+for line in sys.stdin:
+    line = line.strip()
+    if not line.startswith("{"):
+        continue
+    j = json.loads(line)
+    if j["scenario"] not in ("table72_add_blob", "table72_smooth"):
+        continue
+    rows.setdefault(j["roi"], {})[j["scenario"]] = j
+
+print("| ROI side | band voxels | add blob: reference (2001) | add blob: Marzipan | speed-up | smoothing: reference | smoothing: Marzipan | speed-up |")
+print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+for roi in sorted(rows):
+    a, s = rows[roi].get("table72_add_blob"), rows[roi].get("table72_smooth")
+    def cells(j):
+        if j is None:
+            return ["", "", ""]
+        seed = f'{j["seed_ms"]:.0f} ms' if "seed_ms" in j else "—"
+        up = f'{j["speedup_vs_seed"]:.0f}x' if "speedup_vs_seed" in j else "—"
+        return [seed, f'{j["median_ms"]:.2f} ms', up]
+    band = (a or s)["band_voxels"]
+    print(f"| {roi}^3 | {band} | " + " | ".join(cells(a) + cells(s)) + " |")
