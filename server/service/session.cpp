@@ -1,0 +1,321 @@
+// One sculpting session (see session.hpp).
+#include "service/session.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <utility>
+
+#include "engine/errors.hpp"
+#include "engine/splats.hpp"
+#include "service/apply_op.hpp"
+
+namespace marzipan::service {
+namespace {
+
+constexpr double kMinMarchStep = 0.1;  // vu
+constexpr double kBisectTolerance = 1e-9;
+
+[[noreturn]] void rethrow(const EngineError& e, const std::string& fieldPrefix) {
+  const std::string field = fieldPrefix.empty() ? e.field()
+                            : e.field().empty() ? fieldPrefix
+                                                : fieldPrefix + "." + e.field();
+  switch (e.kind()) {
+    case ErrorKind::OutOfDomain:
+      throw ServiceError(ServiceErrorCode::OutOfDomain, field, e.what());
+    case ErrorKind::TooLarge:
+      throw ServiceError(ServiceErrorCode::LimitExceeded, field, e.what());
+    case ErrorKind::InvalidArgument:
+    case ErrorKind::Format:
+      break;
+  }
+  throw ServiceError(ServiceErrorCode::InvalidParams, field, e.what());
+}
+
+[[noreturn]] void invalid(const std::string& field, const std::string& what) {
+  throw ServiceError(ServiceErrorCode::InvalidParams, field, field + ": " + what);
+}
+
+void requirePoint(Vec3 p, const std::string& field) {
+  if (!isFinite(p)) invalid(field, "must be three finite numbers");
+  for (int a = 0; a < 3; ++a)
+    if (std::abs(p[a]) > protocol::kMaxCoordinate) invalid(field, "must be within +-1e6 vu on each axis");
+}
+
+void requireRay(const Ray& r, const std::string& field) {
+  requirePoint(r.origin, field + ".origin");
+  if (!isFinite(r.direction)) invalid(field + ".direction", "must be three finite numbers");
+  if (r.direction == Vec3{0, 0, 0}) invalid(field + ".direction", "must not be zero");
+}
+
+// A direction of unit length, robust to components near the double range's ends.
+Vec3 unitDirection(Vec3 d) {
+  const double m = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+  return normalized(d / m);
+}
+
+std::vector<Vec3> mirrorImages(Vec3 p, Symmetry s, Int3 dims) {
+  std::vector<Vec3> out{p};
+  const bool on[3] = {s.x, s.y, s.z};
+  for (int a = 0; a < 3; ++a) {
+    if (!on[a]) continue;
+    const std::size_t n = out.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      Vec3 q = out[i];
+      q[a] = (dims[a] - 1) - q[a];
+      out.push_back(q);
+    }
+  }
+  // A dab on a mirror plane is its own image: apply it once.
+  std::vector<Vec3> distinct;
+  for (const Vec3& q : out)
+    if (std::find(distinct.begin(), distinct.end(), q) == distinct.end()) distinct.push_back(q);
+  return distinct;
+}
+
+bool sameBrick(const BrickRef& a, const BrickRef& b) {
+  if (a == b) return true;
+  return a.data && b.data && std::memcmp(a.data->v, b.data->v, sizeof(a.data->v)) == 0;
+}
+
+}  // namespace
+
+std::optional<Vec3> pickSurface(const Volume& vol, Vec3 origin, Vec3 direction) {
+  if (!isFinite(origin) || !isFinite(direction) || direction == Vec3{0, 0, 0}) return std::nullopt;
+  const Vec3 dir = unitDirection(direction);
+  // The domain grown by one voxel holds every zero of the interpolant (outside reads +band).
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    const double lo = -1, hi = vol.dims()[a];
+    if (dir[a] == 0) {
+      if (origin[a] < lo || origin[a] > hi) return std::nullopt;
+      continue;
+    }
+    double ta = (lo - origin[a]) / dir[a], tb = (hi - origin[a]) / dir[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (!(t0 <= t1)) return std::nullopt;
+  const auto at = [&](double t) { return origin + dir * t; };
+  double t = t0;
+  double d = vol.sample(at(t));
+  if (d <= 0) return at(t);
+  while (t < t1) {
+    const double tn = std::min(t1, t + std::max(kMinMarchStep, 0.5 * d));
+    const double dn = vol.sample(at(tn));
+    if (dn <= 0) {
+      double lo = t, hi = tn;
+      for (int i = 0; i < 64 && hi - lo > kBisectTolerance; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (vol.sample(at(mid)) <= 0 ? hi : lo) = mid;
+      }
+      return at(0.5 * (lo + hi));
+    }
+    t = tn;
+    d = dn;
+  }
+  return std::nullopt;
+}
+
+Session::Session(Volume initial, std::size_t historyBudgetBytes)
+    : volume_(std::move(initial)), history_(historyBudgetBytes), revision_(volume_.revision()) {}
+
+void Session::bump() {
+  ++revision_;
+  volume_.setRevision(revision_);
+}
+
+ApplyResult Session::finish(const Edit& edit) {
+  ApplyResult r;
+  r.roi = edit.region;
+  if (!edit.empty()) {
+    bump();
+    r.changed = true;
+    r.bricks = bricksAroundChanges(volume_, edit.changes);
+  }
+  r.revision = revision_;
+  return r;
+}
+
+ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool) {
+  Edit edit;
+  try {
+    edit = applyOp(volume_, op, pool);
+  } catch (const EngineError& e) {
+    rethrow(e, "");
+  }
+  lastStroke_ = 0;
+  history_.push(edit);
+  return finish(edit);
+}
+
+std::optional<Vec3> Session::pick(const Ray& ray) const {
+  requireRay(ray, "ray");
+  return pickSurface(volume_, ray.origin, ray.direction);
+}
+
+StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry) {
+  const auto known = std::any_of(protocol::kBrushToolNames.begin(), protocol::kBrushToolNames.end(),
+                                 [&](const auto& n) { return n.value == tool; });
+  if (!known) invalid("tool", "is not a brush tool");
+  if (!std::isfinite(radius) || radius < protocol::kMinToolRadius || radius > protocol::kMaxToolRadius)
+    invalid("radius", "must be a number of vu in [0.5, 1024]");
+  if (!std::isfinite(strength) || strength <= 0 || strength > 1) invalid("strength", "must be in (0, 1]");
+  if (strokes_.size() >= kMaxOpenStrokes)
+    throw ServiceError(ServiceErrorCode::LimitExceeded, "stroke",
+                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
+                           "); end one first");
+  const StrokeId id = nextStroke_++;
+  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry});
+  return id;
+}
+
+const Session::Stroke& Session::openStroke(StrokeId id) const {
+  const auto it = strokes_.find(id);
+  if (it != strokes_.end()) return it->second;
+  if (id != 0 && id < nextStroke_)
+    throw ServiceError(ServiceErrorCode::StrokeClosed, "stroke", "stroke " + std::to_string(id) + " has ended");
+  throw ServiceError(ServiceErrorCode::UnknownStroke, "stroke", "no stroke " + std::to_string(id) + " in this session");
+}
+
+ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
+  const Stroke stroke = openStroke(id);
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    const std::string field = "dabs[" + std::to_string(i) + "]";
+    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) requirePoint(*c, field + ".center");
+    else requireRay(std::get<Ray>(dabs[i].at), field + ".ray");
+    if (const auto& p = dabs[i].pressure; p && !(*p >= 0 && *p <= 1)) invalid(field + ".pressure", "must be in [0, 1]");
+  }
+
+  ApplyResult result;
+  Edit message;  // this call's changes, folded: rolled back if the engine refuses a dab
+  try {
+    for (std::size_t i = 0; i < dabs.size(); ++i) {
+      std::optional<Vec3> centre;
+      if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
+        centre = *c;
+      } else {
+        const Ray& ray = std::get<Ray>(dabs[i].at);
+        centre = pickSurface(volume_, ray.origin, ray.direction);
+        if (!centre) ++result.missed;
+      }
+      result.hits.push_back(centre);
+      const double pressure = dabs[i].pressure.value_or(1.0);
+      if (!centre || pressure == 0) continue;
+      for (const Vec3& c : mirrorImages(*centre, stroke.symmetry, volume_.dims())) {
+        const protocol::BrushOp op{stroke.tool, BrushParams{c, stroke.radius, stroke.strength * pressure}};
+        try {
+          const Edit e = applyOp(volume_, op, pool);
+          message.append(e.changes, e.region);
+        } catch (const EngineError& e) {
+          rethrow(e, "dabs[" + std::to_string(i) + "]");
+        }
+      }
+    }
+  } catch (...) {
+    volume_.publish(message.changes, false);
+    throw;
+  }
+
+  if (!message.empty()) {
+    Stroke& s = strokes_.at(id);
+    if (lastStroke_ != id || !history_.amend(s.step, message)) s.step = history_.push(message);
+    lastStroke_ = id;
+  }
+  const ApplyResult done = finish(message);
+  result.revision = done.revision;
+  result.changed = done.changed;
+  result.roi = done.roi;
+  result.bricks = done.bricks;
+  return result;
+}
+
+void Session::endStroke(StrokeId id) {
+  openStroke(id);
+  strokes_.erase(id);
+  if (lastStroke_ == id) lastStroke_ = 0;
+}
+
+HistoryResult Session::undo() {
+  HistoryResult r;
+  if (const Edit* e = history_.undo(volume_)) {
+    lastStroke_ = 0;
+    bump();
+    r.changed = true;
+    r.roi = e->region;
+    r.bricks = bricksAroundChanges(volume_, e->changes);
+  }
+  r.revision = revision_;
+  r.canUndo = history_.canUndo();
+  r.canRedo = history_.canRedo();
+  return r;
+}
+
+HistoryResult Session::redo() {
+  HistoryResult r;
+  if (const Edit* e = history_.redo(volume_)) {
+    lastStroke_ = 0;
+    bump();
+    r.changed = true;
+    r.roi = e->region;
+    r.bricks = bricksAroundChanges(volume_, e->changes);
+  }
+  r.revision = revision_;
+  r.canUndo = history_.canUndo();
+  r.canRedo = history_.canRedo();
+  return r;
+}
+
+ApplyResult Session::load(Volume vol) {
+  lastStroke_ = 0;
+  if (vol.dims() != volume_.dims() || vol.band() != volume_.band()) {
+    volume_ = std::move(vol);
+    history_.clear();
+    bump();
+    ApplyResult r;
+    r.revision = revision_;
+    r.changed = true;
+    r.fullRefresh = true;
+    r.roi = volume_.domain();
+    return r;
+  }
+  Edit edit;
+  edit.region = volume_.domain();
+  const Int3 bd = volume_.brickDims();
+  for (int z = 0; z < bd.z; ++z)
+    for (int y = 0; y < bd.y; ++y)
+      for (int x = 0; x < bd.x; ++x) {
+        const Int3 b{x, y, z};
+        BrickRef before = volume_.brick(b), after = vol.brick(b);
+        if (!sameBrick(before, after)) edit.changes.push_back({b, std::move(before), std::move(after)});
+      }
+  volume_.publish(edit.changes, true);
+  history_.push(edit);
+  ApplyResult r = finish(edit);
+  if (!r.changed) {
+    bump();
+    r.revision = revision_;
+    r.changed = true;
+  }
+  return r;
+}
+
+SessionStats Session::stats() const {
+  SessionStats s;
+  s.measures = measure(volume_);
+  std::from_chars(s.measures.digest.data(), s.measures.digest.data() + s.measures.digest.size(), s.digest, 16);
+  s.revision = revision_;
+  s.canUndo = history_.canUndo();
+  s.canRedo = history_.canRedo();
+  s.undoSteps = history_.undoSteps();
+  s.redoSteps = history_.redoSteps();
+  s.historyBytes = history_.bytes();
+  s.openStrokes = strokes_.size();
+  s.memoryBytes = volume_.memoryBytes();
+  return s;
+}
+
+}  // namespace marzipan::service

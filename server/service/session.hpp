@@ -1,0 +1,197 @@
+// One sculpting session: a volume, its undo history, the revision clients see, and the open
+// strokes. No sockets and no JSON: the network layer parses requests into these types and
+// turns results and ServiceErrors into messages.
+//
+// Conventions:
+// - Threading: a Session is not thread-safe. Every method, const ones included, must be called
+//   from one thread at a time: the session's strand. Heavy work runs on the ThreadPool passed
+//   in. Readers on other threads (renderers, splat extraction for slow clients, saving) take
+//   snapshot() on the strand and then read that copy freely: bricks are copy-on-write, so the
+//   copy costs O(tiles) and later edits never touch it.
+// - Ownership: the Session owns its Volume and History; snapshots share bricks with it.
+// - Revision: starts at the initial volume's revision() (a volume file keeps it) and goes up by
+//   exactly one for every call that changes the field: apply, strokeDabs, undo, redo, load. A
+//   call that changes no voxel (an op with no effect, a message whose rays all miss, undo with
+//   nothing to undo) leaves it alone and says so (`changed`). The volume's own revision() is
+//   kept equal to it, so a saved file carries it.
+// - Errors: every public method validates its input and throws ServiceError before changing
+//   anything; engine errors are turned into ServiceError too. After a throw the field, the
+//   history and the revision are exactly as before.
+// - Units and signs are the engine's (server/engine/volume.hpp): vu, d < 0 inside.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "engine/geometry.hpp"
+#include "engine/measures.hpp"
+#include "engine/thread_pool.hpp"
+#include "engine/volume.hpp"
+#include "protocol/cpp/ops.hpp"
+#include "service/history.hpp"
+
+namespace marzipan::service {
+
+// JSON-RPC error codes of the session model (-32602 is JSON-RPC's own "invalid params").
+enum class ServiceErrorCode : int {
+  InvalidParams = -32602,  // a value is malformed or out of range; `field` names it
+  OutOfDomain = -32030,    // the tool's region misses the volume's domain
+  UnknownStroke = -32031,  // no stroke with this id was begun in this session
+  StrokeClosed = -32032,   // the stroke was ended (or the session was reloaded since)
+  LimitExceeded = -32033,  // too many open strokes, or a size over the engine's limits
+};
+
+class ServiceError : public std::runtime_error {
+ public:
+  ServiceError(ServiceErrorCode code, std::string field, const std::string& message)
+      : std::runtime_error(message), code_(code), field_(std::move(field)) {}
+  ServiceErrorCode code() const { return code_; }
+  // The offending parameter ("stroke", "dabs[3].ray.direction"), or empty.
+  const std::string& field() const { return field_; }
+  std::string message() const { return what(); }
+
+ private:
+  ServiceErrorCode code_;
+  std::string field_;
+};
+
+struct Ray {
+  Vec3 origin, direction;  // direction: finite, non-zero, any length
+};
+
+// The first point where the ray (t >= 0) meets the surface: the zero set of the volume's
+// trilinear interpolant (Volume::sample, what the renderer draws), capped half a voxel beyond
+// the domain like the renderer. An origin inside the solid is its own hit. nullopt when the ray
+// misses, or when origin or direction are not finite or the direction is zero.
+// Method: march from where the ray enters the domain (grown by one voxel) in steps of
+// max(0.1, d/2) vu, then bisect the first step that ends at d <= 0 down to 1e-9 vu. A step of
+// d/2 cannot pass over the surface where |grad d| <= 2 (any distance field); as in the
+// renderer, a sheet thinner than 0.1 vu hit at a grazing angle can be missed.
+std::optional<Vec3> pickSurface(const Volume& vol, Vec3 origin, Vec3 direction);
+
+// Mirror images of a dab across the domain's centre planes: x mirrors p.x to (nx - 1) - p.x,
+// the plane through the middle of the voxels (makeSolid centres its solids on it). Any
+// combination; a dab at p applies at p and at each distinct image, in the order p, x, y, xy,
+// z, xz, yz, xyz. Images whose tool regions overlap are applied one after the other, so the
+// result is exactly symmetric only when they do not overlap.
+struct Symmetry {
+  bool x = false, y = false, z = false;
+};
+
+struct Dab {
+  std::variant<Vec3, Ray> at;       // a centre, or a pick ray (its first surface hit)
+  std::optional<double> pressure;  // in [0, 1], scales the stroke's strength; 1 when absent; 0 = no dab
+};
+
+using StrokeId = std::uint64_t;  // 0 is never a stroke
+
+struct ApplyResult {
+  std::uint64_t revision = 0;
+  bool changed = false;  // false: no voxel changed, the revision is the same
+  Box roi;               // voxels the call may have touched (clipped to the domain); empty if none
+  // Bricks whose splats must be re-extracted (bricksAroundChanges): a splat delta. Ignore when
+  // fullRefresh is set: the domain itself changed and clients need a full buffer.
+  std::vector<Int3> bricks;
+  bool fullRefresh = false;
+  // strokeDabs only, one per dab in order: the centre used (before mirroring), or nullopt for
+  // a ray that missed the surface (that dab did nothing). A centre dab reports its centre.
+  std::vector<std::optional<Vec3>> hits;
+  std::size_t missed = 0;  // how many rays missed
+};
+
+struct HistoryResult {
+  std::uint64_t revision = 0;
+  bool changed = false;  // false: nothing to undo / redo
+  bool canUndo = false, canRedo = false;
+  Box roi;                   // the step's region
+  std::vector<Int3> bricks;  // bricks to re-extract, as in ApplyResult
+};
+
+struct SessionStats {
+  Measures measures;  // measures.digest is the digest in hex
+  std::uint64_t revision = 0;
+  std::uint64_t digest = 0;
+  bool canUndo = false, canRedo = false;
+  std::size_t undoSteps = 0, redoSteps = 0, historyBytes = 0;
+  std::size_t openStrokes = 0;
+  std::size_t memoryBytes = 0;  // the live volume's (Volume::memoryBytes)
+};
+
+class Session {
+ public:
+  static constexpr std::size_t kMaxOpenStrokes = 64;
+
+  explicit Session(Volume initial, std::size_t historyBudgetBytes = History::kDefaultBudgetBytes);
+
+  // One operation object (a brush dab, a CSG tool, global smoothing or morphology) as one
+  // history step. Throws ServiceError (OutOfDomain when its region misses the domain).
+  ApplyResult apply(const protocol::Op& op, ThreadPool& pool);
+
+  // The first surface hit of a ray on the live volume, for `tool.apply` with a ray: the caller
+  // sets the op's centre to it. Throws InvalidParams (field "ray.origin"/"ray.direction") for a
+  // non-finite origin, a zero or non-finite direction, or an origin beyond +-1e6 vu.
+  std::optional<Vec3> pick(const Ray& ray) const;
+
+  // Opens a stroke of one brush tool. radius in [0.5, 1024] vu, strength in (0, 1].
+  StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {});
+  // Applies dabs in order (a ray is picked on the volume as left by the dabs before it). All
+  // dabs of one stroke fold into one history step, which stays open while it is the newest
+  // step: any other change of the session (apply, undo, redo, load, another stroke's dabs)
+  // closes it and the stroke's next dabs start a new step. The whole message is checked
+  // before the first dab is applied, and undone if the engine refuses a dab, so a throw
+  // changes nothing. One revision per call that changed something.
+  ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  // Closes the stroke; its step can no longer grow. Throws UnknownStroke / StrokeClosed.
+  void endStroke(StrokeId id);
+
+  HistoryResult undo();
+  HistoryResult redo();
+
+  // Replaces the field by `vol`'s (a `volume.load`). With the same dims and band it is one
+  // undoable step holding only the bricks that differ; otherwise the domain changes, the
+  // history is cleared (steps of another grid cannot be replayed) and fullRefresh is set.
+  // Open strokes stay open (their next dab starts a new step). The revision goes up by one
+  // (the file's own revision is ignored), even when the field is identical.
+  ApplyResult load(Volume vol);
+
+  // A copy of the current version for readers on other threads (see the conventions above).
+  Volume snapshot() const { return volume_; }
+  const Volume& volume() const { return volume_; }
+  const History& history() const { return history_; }
+  std::uint64_t revision() const { return revision_; }
+  bool canUndo() const { return history_.canUndo(); }
+  bool canRedo() const { return history_.canRedo(); }
+  std::size_t openStrokes() const { return strokes_.size(); }
+
+  // Measures of the live volume (reads every brick: on a large session prefer computing
+  // measure() on a snapshot off the strand and adding the counters from here).
+  SessionStats stats() const;
+
+ private:
+  struct Stroke {
+    protocol::BrushTool tool;
+    double radius, strength;
+    Symmetry symmetry;
+    History::StepId step = 0;  // the history step its dabs last folded into
+  };
+
+  ApplyResult finish(const Edit& edit);
+  void bump();
+  const Stroke& openStroke(StrokeId id) const;
+
+  Volume volume_;
+  History history_;
+  std::uint64_t revision_;
+  std::map<StrokeId, Stroke> strokes_;
+  StrokeId nextStroke_ = 1;
+  // The stroke whose step is the newest change of the session (0: none); only its dabs may
+  // fold into that step.
+  StrokeId lastStroke_ = 0;
+};
+
+}  // namespace marzipan::service

@@ -1,0 +1,414 @@
+// Session (server/service/session.cpp): steps, strokes, undo/redo by digest, revisions,
+// symmetry, surface picking, pressure, snapshots, loading and refused input.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+#include "protocol/cpp/ops.hpp"
+#include "service/session.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+using protocol::BrushTool;
+
+namespace {
+
+constexpr int kN = 48;
+constexpr double kC = (kN - 1) / 2.0;
+const double kR = 0.35 * kN;
+const double kSurface = kC + kR;
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+const Vec3 kCentre{kC, kC, kC};
+
+const Volume& sphere() {
+  static const Volume s = makeSolid(SolidKind::Sphere, {kN, kN, kN});
+  return s;
+}
+
+protocol::Op blob(BrushTool tool, Vec3 c, double radius = 6, double strength = 1) {
+  return protocol::BrushOp{tool, BrushParams{c, radius, strength}};
+}
+
+Dab at(Vec3 c, std::optional<double> pressure = std::nullopt) { return Dab{c, pressure}; }
+Dab ray(Vec3 o, Vec3 d, std::optional<double> pressure = std::nullopt) { return Dab{Ray{o, d}, pressure}; }
+
+// The ray's first hit on the exact sphere |x - c| = r, or nullopt.
+std::optional<Vec3> analyticHit(Vec3 c, double r, Vec3 o, Vec3 d) {
+  d = normalized(d);
+  const Vec3 oc = o - c;
+  const double b = dot(oc, d), q = dot(oc, oc) - r * r;
+  const double disc = b * b - q;
+  if (disc < 0) return std::nullopt;
+  const double t = -b - std::sqrt(disc);
+  if (t < 0) return std::nullopt;
+  return o + d * t;
+}
+
+void requireError(const std::function<void()>& f, ServiceErrorCode code, const std::string& field) {
+  try {
+    f();
+    FAIL("no ServiceError thrown");
+  } catch (const ServiceError& e) {
+    INFO(e.what());
+    CHECK(int(e.code()) == int(code));
+    CHECK(e.field() == field);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke", "[session]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  std::vector<std::uint64_t> digests{digest(s.volume())};
+  std::uint64_t rev = s.revision();
+
+  const auto step = [&](const ApplyResult& r) {
+    CHECK(r.changed);
+    CHECK(r.revision == ++rev);
+    CHECK(s.revision() == rev);
+    CHECK(s.volume().revision() == rev);
+    CHECK_FALSE(r.bricks.empty());
+    CHECK_FALSE(r.roi.empty());
+  };
+  step(s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool));
+  digests.push_back(digest(s.volume()));
+  step(s.apply(protocol::CsgToolOp{{CsgOp::Subtract, ToolShape::Sphere, {kC, kSurface, kC}, 5, 1, 0}}, pool));
+  digests.push_back(digest(s.volume()));
+  step(s.apply(protocol::MorphOp{protocol::MorphKind::Dilate, 1}, pool));
+  digests.push_back(digest(s.volume()));
+
+  // 20 dabs in 4 messages, centres and rays mixed: one step.
+  const StrokeId stroke = s.beginStroke(BrushTool::AddBlob, 4, 0.5);
+  for (int call = 0; call < 4; ++call) {
+    std::vector<Dab> dabs;
+    for (int i = 0; i < 5; ++i) {
+      const double angle = 0.12 * (5 * call + i);
+      const Vec3 dir{std::cos(angle), 0.2, std::sin(angle)};
+      if (i % 2 == 0) dabs.push_back(at(kCentre + normalized(dir) * (kR + 1)));
+      else dabs.push_back(ray(kCentre + dir * 40, -dir, 0.8));
+    }
+    const ApplyResult r = s.strokeDabs(stroke, dabs, pool);
+    step(r);
+    REQUIRE(r.hits.size() == 5);
+    CHECK(r.missed == 0);
+    for (const auto& h : r.hits) CHECK(h.has_value());
+  }
+  s.endStroke(stroke);
+  CHECK(s.history().undoSteps() == 4);
+  digests.push_back(digest(s.volume()));
+  step(s.apply(protocol::GlobalSmoothOp{1, 1}, pool));
+  digests.push_back(digest(s.volume()));
+  REQUIRE(s.history().undoSteps() == 5);
+
+  for (std::size_t i = digests.size() - 1; i > 0; --i) {
+    const HistoryResult u = s.undo();
+    CHECK(u.changed);
+    CHECK(u.revision == ++rev);
+    CHECK(u.canRedo);
+    CHECK(u.canUndo == (i > 1));
+    CHECK_FALSE(u.bricks.empty());
+    CHECK(digest(s.volume()) == digests[i - 1]);
+  }
+  const HistoryResult none = s.undo();
+  CHECK_FALSE(none.changed);
+  CHECK(none.revision == rev);
+  CHECK_FALSE(none.canUndo);
+
+  for (std::size_t i = 1; i < digests.size(); ++i) {
+    const HistoryResult r = s.redo();
+    CHECK(r.changed);
+    CHECK(r.revision == ++rev);
+    CHECK(r.canUndo);
+    CHECK(digest(s.volume()) == digests[i]);
+  }
+  CHECK_FALSE(s.redo().changed);
+  CHECK(s.revision() == rev);
+}
+
+TEST_CASE("session: a new step after undos clears the redo list", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool);
+  s.apply(blob(BrushTool::RemoveBlob, {kC, kSurface, kC}), pool);
+  s.undo();
+  REQUIRE(s.canRedo());
+  s.apply(blob(BrushTool::Smooth, {kC, kC, kSurface}), pool);
+  CHECK_FALSE(s.canRedo());
+  CHECK(s.history().undoSteps() == 2);
+}
+
+TEST_CASE("session: the history budget drops the oldest steps", "[session]") {
+  ThreadPool pool(2);
+  Session s(sphere(), 40 * History::kBytesPerBrick);
+  for (int i = 0; i < 8; ++i) s.apply(blob(BrushTool::AddBlob, {kSurface, kC - 14 + 4 * i, kC}, 4), pool);
+  CHECK(s.history().bytes() <= 40 * History::kBytesPerBrick);
+  CHECK(s.history().droppedSteps() > 0);
+  CHECK(s.history().undoSteps() < 8);
+  while (s.canUndo()) s.undo();
+  CHECK(digest(s.volume()) != digest(sphere()));  // the oldest steps are gone for good
+  CHECK(s.stats().historyBytes == s.history().bytes());
+}
+
+TEST_CASE("session: a stroke interrupted by another change continues as a new step", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  const StrokeId a = s.beginStroke(BrushTool::AddBlob, 4, 1);
+  const StrokeId b = s.beginStroke(BrushTool::RemoveBlob, 4, 1);
+  CHECK(a != b);
+  s.strokeDabs(a, {at({kSurface, kC, kC})}, pool);
+  s.strokeDabs(a, {at({kSurface, kC + 2, kC})}, pool);
+  CHECK(s.history().undoSteps() == 1);
+  s.strokeDabs(b, {at({kC, kSurface, kC})}, pool);
+  CHECK(s.history().undoSteps() == 2);
+  s.strokeDabs(a, {at({kSurface, kC + 4, kC})}, pool);
+  CHECK(s.history().undoSteps() == 3);
+  const std::uint64_t beforeUndo = digest(s.volume());
+  s.undo();
+  s.redo();
+  CHECK(digest(s.volume()) == beforeUndo);
+  s.strokeDabs(a, {at({kSurface, kC + 6, kC})}, pool);
+  CHECK(s.history().undoSteps() == 4);
+  CHECK(s.openStrokes() == 2);
+  s.endStroke(a);
+  s.endStroke(b);
+  CHECK(s.openStrokes() == 0);
+}
+
+TEST_CASE("session: x symmetry changes the field symmetrically", "[session]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  const Volume start = s.snapshot();
+  const StrokeId id = s.beginStroke(BrushTool::AddBlob, 5, 1, Symmetry{true, false, false});
+  const Vec3 p = kCentre + normalized(Vec3{1, 0.6, 0.35}) * kR;
+  const ApplyResult r = s.strokeDabs(id, {at(p)}, pool);
+  REQUIRE(r.changed);
+  const Volume& v = s.volume();
+  const Int3 mp{int(std::lround(kN - 1 - p.x)), int(std::lround(p.y)), int(std::lround(p.z))};
+  CHECK(v.at(mp) < start.at(mp) - 0.3);  // the image really was sculpted
+  double worst = 0;
+  for (int k = 0; k < kN; ++k)
+    for (int j = 0; j < kN; ++j)
+      for (int i = 0; i < kN; ++i) worst = std::max(worst, double(std::abs(v.at(i, j, k) - v.at(kN - 1 - i, j, k))));
+  CHECK(worst <= 1e-5);
+
+  SECTION("combined mirrors give up to eight images, a dab on a plane applies once") {
+    Session t(sphere());
+    const StrokeId all = t.beginStroke(BrushTool::RemoveBlob, 4, 1, Symmetry{true, true, true});
+    t.strokeDabs(all, {at(p)}, pool);
+    const Volume& w = t.volume();
+    for (int sx = 0; sx < 2; ++sx)
+      for (int sy = 0; sy < 2; ++sy)
+        for (int sz = 0; sz < 2; ++sz) {
+          const Int3 q{int(std::lround(sx ? kN - 1 - p.x : p.x)), int(std::lround(sy ? kN - 1 - p.y : p.y)),
+                       int(std::lround(sz ? kN - 1 - p.z : p.z))};
+          CHECK(w.at(q) > start.at(q) + 0.3);
+        }
+  }
+}
+
+TEST_CASE("session: pickSurface meets an analytic sphere", "[session][pick]") {
+  const Int3 dims{64, 56, 60};
+  const Vec3 c{30.3, 27.7, 31.1};
+  const double r = 17.4;
+  const Volume v = makeSphere(dims, c, r);
+  struct Case {
+    Vec3 o, d;
+  };
+  const std::vector<Case> hits{
+      {{-20, 28, 31}, {1, 0, 0}},          {{30, 80, 30}, {0, -1, 0}},     {{100, 100, 100}, c - Vec3{100, 100, 100}},
+      {{30, 30, -5}, {0.1, -0.05, 1}},     {{5, 5, 5}, {1, 1, 1.2}},       {{60, 20, 40}, {-3, 0.5, -0.7}},
+      {{30.3, 27.7, 60}, {0, 0, -1e-200}}, {{30, 10, 31}, {0.2, 1, 0.1}},
+  };
+  for (const auto& h : hits) {
+    const double scale = std::max({std::abs(h.d.x), std::abs(h.d.y), std::abs(h.d.z)});
+    const auto expected = analyticHit(c, r, h.o, h.d / scale);
+    REQUIRE(expected);
+    const auto got = pickSurface(v, h.o, h.d);
+    REQUIRE(got);
+    CHECK(length(*got - *expected) < 0.05);
+  }
+  // Misses: passing beside it, pointing away, outside the domain pointing away, parallel outside.
+  CHECK_FALSE(pickSurface(v, {-20, 28 + r + 2, 31}, {1, 0, 0}));
+  CHECK_FALSE(pickSurface(v, {-20, 28, 31}, {-1, 0, 0}));
+  CHECK_FALSE(pickSurface(v, {500, 500, 500}, {1, 0.2, 0}));
+  CHECK_FALSE(pickSurface(v, {100, 28, 31}, {0, 1, 0}));
+  CHECK_FALSE(pickSurface(makeSolid(SolidKind::Empty, dims), {-20, 28, 31}, {1, 0, 0}));
+  // Degenerate rays give nothing; an origin inside the solid is its own hit.
+  CHECK_FALSE(pickSurface(v, {-20, 28, 31}, {0, 0, 0}));
+  CHECK_FALSE(pickSurface(v, {-20, 28, 31}, {kNaN, 0, 0}));
+  const auto inside = pickSurface(v, c, {1, 0, 0});
+  REQUIRE(inside);
+  CHECK(*inside == c);
+}
+
+TEST_CASE("session: a ray that misses gives no dab and is reported", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  const std::uint64_t d0 = digest(s.volume());
+  const StrokeId id = s.beginStroke(BrushTool::AddBlob, 4, 1);
+  const ApplyResult miss = s.strokeDabs(id, {ray({-10, kC + kR + 3, kC}, {1, 0, 0})}, pool);
+  CHECK_FALSE(miss.changed);
+  CHECK(miss.missed == 1);
+  REQUIRE(miss.hits.size() == 1);
+  CHECK_FALSE(miss.hits[0]);
+  CHECK(miss.revision == s.revision());
+  CHECK(digest(s.volume()) == d0);
+  CHECK_FALSE(s.canUndo());
+
+  const ApplyResult mixed =
+      s.strokeDabs(id, {ray({-10, kC + kR + 3, kC}, {1, 0, 0}), ray({-10, kC, kC}, {1, 0, 0})}, pool);
+  CHECK(mixed.changed);
+  CHECK(mixed.missed == 1);
+  REQUIRE(mixed.hits[1]);
+  CHECK(std::abs(mixed.hits[1]->x - (kC - kR)) < 0.05);
+}
+
+TEST_CASE("session: pressure scales the displacement", "[session]") {
+  ThreadPool pool(1);
+  const Vec3 p{kSurface, kC, kC};
+  const auto displacement = [&](double pressure) {
+    Session s(sphere());
+    const StrokeId id = s.beginStroke(BrushTool::AddBlob, 6, 1);
+    s.strokeDabs(id, {at(p, pressure)}, pool);
+    return sphere().sample(p) - s.volume().sample(p);
+  };
+  const double full = displacement(1), half = displacement(0.5), quarter = displacement(0.25);
+  CHECK(full == Approx(1).margin(0.2));
+  CHECK(half / full == Approx(0.5).margin(0.08));
+  CHECK(quarter / full == Approx(0.25).margin(0.06));
+
+  Session s(sphere());
+  const StrokeId id = s.beginStroke(BrushTool::AddBlob, 6, 1);
+  CHECK_FALSE(s.strokeDabs(id, {at(p, 0.0)}, pool).changed);  // pressure 0: no dab
+}
+
+TEST_CASE("session: bad input is refused with a typed error and changes nothing", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool);
+  const StrokeId id = s.beginStroke(BrushTool::AddBlob, 4, 1);
+  s.strokeDabs(id, {at({kC, kSurface, kC})}, pool);
+  const StrokeId closed = s.beginStroke(BrushTool::Smooth, 4, 1);
+  s.endStroke(closed);
+
+  const std::uint64_t d0 = digest(s.volume()), rev = s.revision();
+  const std::size_t steps = s.history().steps(), bytes = s.history().bytes();
+  const Dab good = at({kSurface, kC + 3, kC});
+  using C = ServiceErrorCode;
+
+  requireError([&] { s.strokeDabs(999, {good}, pool); }, C::UnknownStroke, "stroke");
+  requireError([&] { s.strokeDabs(0, {good}, pool); }, C::UnknownStroke, "stroke");
+  requireError([&] { s.strokeDabs(closed, {good}, pool); }, C::StrokeClosed, "stroke");
+  requireError([&] { s.endStroke(closed); }, C::StrokeClosed, "stroke");
+  requireError([&] { s.strokeDabs(id, {good, ray({0, 0, 0}, {0, 0, 0})}, pool); }, C::InvalidParams,
+               "dabs[1].ray.direction");
+  requireError([&] { s.strokeDabs(id, {good, ray({0, 0, 0}, {kNaN, 1, 0})}, pool); }, C::InvalidParams,
+               "dabs[1].ray.direction");
+  requireError([&] { s.strokeDabs(id, {ray({kNaN, 0, 0}, {1, 0, 0})}, pool); }, C::InvalidParams,
+               "dabs[0].ray.origin");
+  requireError([&] { s.strokeDabs(id, {good, at({kSurface, kC, kC}, 1.5)}, pool); }, C::InvalidParams,
+               "dabs[1].pressure");
+  requireError([&] { s.strokeDabs(id, {at({kSurface, kC, kC}, -0.1)}, pool); }, C::InvalidParams,
+               "dabs[0].pressure");
+  requireError([&] { s.strokeDabs(id, {at({kSurface, kC, kC}, kNaN)}, pool); }, C::InvalidParams,
+               "dabs[0].pressure");
+  requireError([&] { s.strokeDabs(id, {at({kNaN, kC, kC})}, pool); }, C::InvalidParams, "dabs[0].center");
+  // Refused by the engine after two dabs were applied: rolled back.
+  requireError([&] { s.strokeDabs(id, {good, good, at({5000, 0, 0})}, pool); }, C::OutOfDomain,
+               "dabs[2].center");
+  requireError([&] { s.apply(blob(BrushTool::AddBlob, {5000, 0, 0}), pool); }, C::OutOfDomain, "center");
+  requireError([&] { s.apply(protocol::MorphOp{protocol::MorphKind::Erode, -1}, pool); }, C::InvalidParams,
+               "radius");
+  requireError([&] { s.pick(Ray{{0, 0, 0}, {0, 0, 0}}); }, C::InvalidParams, "ray.direction");
+  requireError([&] { s.beginStroke(BrushTool::AddBlob, 0.1, 1); }, C::InvalidParams, "radius");
+  requireError([&] { s.beginStroke(BrushTool::AddBlob, 4, 0); }, C::InvalidParams, "strength");
+  requireError([&] { s.beginStroke(BrushTool::AddBlob, 4, kNaN); }, C::InvalidParams, "strength");
+
+  CHECK(digest(s.volume()) == d0);
+  CHECK(s.revision() == rev);
+  CHECK(s.history().steps() == steps);
+  CHECK(s.history().bytes() == bytes);
+  // The stroke is still open and still folds into its step.
+  CHECK(s.strokeDabs(id, {good}, pool).changed);
+  CHECK(s.history().steps() == steps);
+}
+
+TEST_CASE("session: open strokes are limited", "[session]") {
+  Session s(sphere());
+  for (std::size_t i = 0; i < Session::kMaxOpenStrokes; ++i) s.beginStroke(BrushTool::Smooth, 4, 1);
+  requireError([&] { s.beginStroke(BrushTool::Smooth, 4, 1); }, ServiceErrorCode::LimitExceeded, "stroke");
+}
+
+TEST_CASE("session: a snapshot taken before an edit still reads the old field", "[session]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  const Volume before = s.snapshot();
+  const std::uint64_t d0 = digest(before);
+  const Vec3 p{kSurface, kC, kC};
+  const double old = before.sample(p);
+  s.apply(blob(BrushTool::AddBlob, p), pool);
+  s.apply(protocol::MorphOp{protocol::MorphKind::Erode, 1}, pool);
+  CHECK(before.sample(p) == old);
+  CHECK(digest(before) == d0);
+  CHECK(digest(s.volume()) != d0);
+  s.undo();
+  s.undo();
+  CHECK(digest(s.volume()) == d0);
+}
+
+TEST_CASE("session: load of the same size is one undoable step, of another size a new start", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool);
+  const std::uint64_t sculpted = digest(s.volume());
+  const std::uint64_t rev = s.revision();
+
+  const Volume torus = makeSolid(SolidKind::Torus, {kN, kN, kN});
+  const ApplyResult r = s.load(torus);
+  CHECK(r.changed);
+  CHECK_FALSE(r.fullRefresh);
+  CHECK_FALSE(r.bricks.empty());
+  CHECK(r.revision == rev + 1);
+  CHECK(digest(s.volume()) == digest(torus));
+  s.undo();
+  CHECK(digest(s.volume()) == sculpted);
+  s.redo();
+  CHECK(digest(s.volume()) == digest(torus));
+
+  Volume big = makeSolid(SolidKind::Box, {64, 56, 48});
+  big.setRevision(1000);
+  const ApplyResult other = s.load(big);
+  CHECK(other.fullRefresh);
+  CHECK(other.revision == rev + 4);
+  CHECK(s.volume().dims() == Int3{64, 56, 48});
+  CHECK(digest(s.volume()) == digest(big));
+  CHECK_FALSE(s.canUndo());
+  CHECK_FALSE(s.canRedo());
+}
+
+TEST_CASE("session: stats report measures, revision and digest", "[session]") {
+  ThreadPool pool(1);
+  Volume start = sphere();
+  start.setRevision(41);
+  Session s(start);
+  CHECK(s.revision() == 41);
+  s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool);
+  const SessionStats st = s.stats();
+  CHECK(st.revision == 42);
+  CHECK(st.digest == digest(s.volume()));
+  CHECK(st.measures.digest == digestHex(s.volume()));
+  CHECK(st.measures.components == 1);
+  CHECK(st.measures.insideVolume > 4.0 / 3 * 3.14159 * kR * kR * kR * 0.95);
+  CHECK(st.canUndo);
+  CHECK(st.undoSteps == 1);
+  CHECK(st.memoryBytes == s.volume().memoryBytes());
+}
