@@ -37,13 +37,14 @@
 
 namespace marzipan::service {
 
-// JSON-RPC error codes of the session model (-32602 is JSON-RPC's own "invalid params").
+// JSON-RPC error codes of the session model, as protocol/PROTOCOL.md defines them (-32602 is
+// JSON-RPC's own "invalid params"). Two kinds may share a code; the message tells them apart.
 enum class ServiceErrorCode : int {
   InvalidParams = -32602,  // a value is malformed or out of range; `field` names it
-  OutOfDomain = -32030,    // the tool's region misses the volume's domain
-  UnknownStroke = -32031,  // no stroke with this id was begun in this session
-  StrokeClosed = -32032,   // the stroke was ended (or the session was reloaded since)
-  LimitExceeded = -32033,  // too many open strokes, or a size over the engine's limits
+  OutOfDomain = -32006,    // the engine refused: the tool's region misses the volume's domain
+  UnknownStroke = -32011,  // no such stroke: none with this id was begun in this session
+  StrokeClosed = -32011,   // no such stroke: it was ended (or the session was reloaded since)
+  LimitExceeded = -32004,  // too many open strokes, or a size over the engine's limits
 };
 
 class ServiceError : public std::runtime_error {
