@@ -42,27 +42,38 @@ class Marcher {
     dist_.resize(n);
     flag_.resize(n);
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
+    seeds_.clear();
+    written_.clear();
     std::size_t i = 0;
     for (int z = 0; z < g.size.z; ++z)
       for (int y = 0; y < g.size.y; ++y) {
         const bool yzInterior = z >= 2 && z + 2 < g.size.z && y >= 2 && y + 2 < g.size.y;
         for (int x = 0; x < g.size.x; ++x, ++i) {
           // MarchState's values are its flag bits (Source = known + frozen, Ignored =
-          // ignored + frozen), so this stays free of branches.
+          // ignored + frozen), so the flags are the state plus sign and position bits.
           const std::uint8_t st = std::uint8_t(state[i]);
-          std::uint8_t f = std::uint8_t(st | (g.v[i] < 0 ? kNeg : 0));
+          const float v = g.v[i];
+          std::uint8_t f = std::uint8_t(st | (v < 0 ? kNeg : 0));
           if (yzInterior && x >= 2 && x + 2 < g.size.x) f |= kInterior;
-          dist_[i] = st == std::uint8_t(MarchState::Source) ? std::fabs(g.v[i]) : kInf;
           flag_[i] = f;
+          const float mag = std::fabs(v);
+          if (st == std::uint8_t(MarchState::Source)) {
+            dist_[i] = mag;
+            if (mag < band) seeds_.push_back(std::uint32_t(i));  // only these can lower anything
+          } else {
+            dist_[i] = kInf;
+            // Every unknown voxel not already at +-band must be written even if the march never
+            // reaches it (it becomes +-band); one at +-band stays as it is unless reached.
+            if (st == std::uint8_t(MarchState::Unknown) && mag != band) written_.push_back(std::uint32_t(i));
+          }
         }
       }
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
   }
 
   MarchStats run() {
-    // Only sources next to an unknown voxel can lower anything.
-    for (std::size_t i = 0; i < dist_.size(); ++i) {
-      if ((flag_[i] & (kKnown | kIgnored)) != kKnown || !(dist_[i] < band_)) continue;
+    // Only band sources next to an unknown voxel can lower anything.
+    for (const std::uint32_t i : seeds_) {
       bool feeds = false;
       forNeighbours(i, [&](std::size_t n) { feeds = feeds || !(flag_[n] & kFrozen); });
       if (feeds) push(i, dist_[i], 0);
@@ -84,8 +95,7 @@ class Marcher {
       }
       bucket.clear();
     }
-    for (std::size_t i = 0; i < dist_.size(); ++i)
-      if (!(flag_[i] & kFrozen)) g_.v[i] = (flag_[i] & kNeg) ? -std::min(dist_[i], band_) : std::min(dist_[i], band_);
+    for (const std::uint32_t i : written_) g_.v[i] = (flag_[i] & kNeg) ? -std::min(dist_[i], band_) : std::min(dist_[i], band_);
     return stats_;
   }
 
@@ -167,6 +177,7 @@ class Marcher {
     if (count == 0) return;
     const float u = float(solveEikonal(m, c, count));  // compared as stored, or a root rounded
     if (u < dist_[n] && u < band_) {                    // up would be pushed again forever
+      if (dist_[n] == kInf) written_.push_back(std::uint32_t(n));
       dist_[n] = u;
       push(n, u, current_);
     }
@@ -182,6 +193,8 @@ class Marcher {
     std::vector<float> dist;
     std::vector<std::uint8_t> flag;
     std::vector<std::vector<Entry>> buckets;
+    std::vector<std::uint32_t> seeds;    // sources inside the band
+    std::vector<std::uint32_t> written;  // unknown voxels that were in the band or were reached
   };
   static Scratch& scratch() {
     thread_local Scratch s;
@@ -190,6 +203,8 @@ class Marcher {
   std::vector<float>& dist_ = scratch().dist;
   std::vector<std::uint8_t>& flag_ = scratch().flag;
   std::vector<std::vector<Entry>>& buckets_ = scratch().buckets;
+  std::vector<std::uint32_t>& seeds_ = scratch().seeds;
+  std::vector<std::uint32_t>& written_ = scratch().written;
   std::size_t current_ = 0;
   MarchStats stats_;
 };

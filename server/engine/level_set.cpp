@@ -121,9 +121,11 @@ Edit applyBrush(Volume& vol, const BrushParams& p, Motion m, ThreadPool& pool) {
   m.radius = p.radius;
   const float band = vol.band();
   const Box roi = boxAround(p.center, {p.radius, p.radius, p.radius}).intersect(vol.domain());
-  // Outside the ROI the old field is the source the march continues from: band + 1 voxels
-  // of it, and never less than the stencils' reach.
-  const int margin = std::max(int(std::ceil(band)) + 1, kStencilReach);
+  // Outside the ROI the old field is the source the march continues from. Every read outside
+  // is within two steps of an ROI voxel (the second-order upwind point, the ENO stencil; the
+  // kept-voxel test and normalization need one), and the sources there carry their own
+  // distances, so a margin of the stencils' reach gives the same result as any wider one.
+  const int margin = kStencilReach;
   DenseGrid g = DenseGrid::gather(vol, roi.grown(margin));
   evolve(g, roi, band, m, pool);
   redistanceRegion(g, roi, band, Outside::Source);
