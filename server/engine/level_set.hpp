@@ -46,7 +46,7 @@ Edit meanCurvatureFlow(Volume& vol, int iterations, double strength = 1,
                        ThreadPool& pool = ThreadPool::serial());
 
 // Euclidean morphology with a sphere of radius k vu, as constant-speed level-set motion in
-// applications of at most 1 vu. k in (0, 64].
+// applications of at most 1 vu. k in [0.001, 64].
 Edit dilate(Volume& vol, double k, ThreadPool& pool = ThreadPool::serial());
 Edit erode(Volume& vol, double k, ThreadPool& pool = ThreadPool::serial());
 // open = erode then dilate (removes structure thinner than 2r); close = dilate then erode
