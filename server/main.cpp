@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "net/serve.hpp"
 #include "service/batch.hpp"
 
 namespace {
@@ -20,6 +21,8 @@ struct Command {
 constexpr Command kCommands[] = {
     {"batch", "apply operations from a JSON-lines file offline; write a mesh, volume or image",
      marzipan::service::runBatch},
+    {"serve", "serve the browser client, /healthz and /metrics over HTTP until SIGINT/SIGTERM",
+     marzipan::net::runServe},
 };
 
 void printUsage(std::ostream& os) {

@@ -1,0 +1,415 @@
+// Listener and HTTP sessions on Boost.Beast, after Beast's chat-multi example: a `Listener`
+// accepts, one `HttpSession` per connection reads a request, answers it and reads the next
+// (keep-alive), and `SharedState` is what they share. Every session runs on its own strand and
+// lives exactly as long as its pending operation; every failure goes through `fail()`.
+//
+// Shutdown: stop() marks the state stopping, closes the acceptor and cancels the read of every
+// idle session; a session busy with a response finishes writing it, then closes.
+#include "net/http_server.hpp"
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+
+#include <algorithm>
+#include <condition_variable>
+#include <csignal>
+#include <exception>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string_view>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "net/static_files.hpp"
+
+namespace marzipan::net {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using tcp = asio::ip::tcp;
+
+namespace {
+
+class HttpSession;
+
+std::string endpointText(const tcp::endpoint& ep) {
+  const std::string address = ep.address().to_string();
+  return (ep.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(ep.port());
+}
+
+// What the listener and the sessions share.
+struct SharedState {
+  SharedState(const HttpServerOptions& o, Metrics& m) : options(o), files(o.webRoot), metrics(m) {}
+
+  void log(const std::string& line) const {
+    if (options.log) return options.log(line);
+    static std::mutex stderrMutex;
+    const std::lock_guard lock(stderrMutex);
+    std::cerr << line << '\n';
+  }
+
+  // Registers a new session; false once stopping (the caller drops the connection).
+  bool join(const std::shared_ptr<HttpSession>& session) {
+    const std::lock_guard lock(mutex);
+    if (stopping) return false;
+    if (sessions.size() >= 2 * live + 64) std::erase_if(sessions, [](const auto& w) { return w.expired(); });
+    sessions.push_back(session);
+    ++live;
+    return true;
+  }
+
+  void leave() {
+    const std::lock_guard lock(mutex);
+    --live;
+    if (live == 0) idle.notify_all();
+  }
+
+  bool isStopping() {
+    const std::lock_guard lock(mutex);
+    return stopping;
+  }
+
+  const HttpServerOptions& options;
+  const StaticFiles files;
+  Metrics& metrics;
+  std::mutex mutex;  // guards the five below
+  std::condition_variable idle;  // notified when live drops to 0 and when the acceptor closed
+  bool stopping = false, acceptorClosed = false;
+  std::vector<std::weak_ptr<HttpSession>> sessions;
+  std::size_t live = 0;
+};
+
+bool normalClose(const beast::error_code& ec) {
+  return ec == asio::error::operation_aborted || ec == http::error::end_of_stream || ec == asio::error::eof ||
+         ec == asio::error::connection_reset || ec == asio::error::broken_pipe;
+}
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(tcp::socket&& socket, std::shared_ptr<SharedState> state)
+      : stream_(std::move(socket)), state_(std::move(state)) {
+    beast::error_code ec;
+    const tcp::endpoint remote = stream_.socket().remote_endpoint(ec);
+    peer_ = ec ? std::string("?") : endpointText(remote);
+  }
+
+  ~HttpSession() {
+    if (!joined_) return;
+    state_->log("http: close " + peer_ + " after " + std::to_string(requests_) + " request(s)");
+    state_->leave();
+  }
+
+  // Starts reading unless the server is stopping (then the connection is dropped).
+  void run() {
+    if (!state_->join(shared_from_this())) return;
+    joined_ = true;
+    state_->log("http: accept " + peer_);
+    asio::dispatch(stream_.get_executor(), beast::bind_front_handler(&HttpSession::doRead, shared_from_this()));
+  }
+
+  // Posted by stop(): ends the session now unless a response is on its way.
+  void closeIfIdle() {
+    asio::dispatch(stream_.get_executor(), [self = shared_from_this()] {
+      if (!self->busy_) self->stream_.cancel();
+    });
+  }
+
+ private:
+  void doRead() {
+    busy_ = false;
+    if (state_->isStopping()) return;  // stop() ran before this read could be cancelled
+    parser_.emplace();
+    parser_->header_limit(static_cast<std::uint32_t>(state_->options.maxHeaderBytes));
+    parser_->body_limit(state_->options.maxBodyBytes);
+    stream_.expires_after(state_->options.idleTimeout);
+    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&HttpSession::onRead, shared_from_this()));
+  }
+
+  void onRead(beast::error_code ec, std::size_t) {
+    if (ec == http::error::header_limit) {
+      return sendText(http::status::request_header_fields_too_large, false, "request header too large\n", false);
+    }
+    if (ec == http::error::body_limit) {
+      return sendText(http::status::payload_too_large, false, "request body too large\n", false);
+    }
+    if (ec) return fail(ec, "read");
+    busy_ = true;
+    ++requests_;
+    handle(parser_->release());
+  }
+
+  void handle(const http::request<http::string_body>& req) {
+    const bool head = req.method() == http::verb::head;
+    const bool keepAlive = req.keep_alive();
+    const std::string_view target(req.target().data(), req.target().size());
+    const std::string_view path = target.substr(0, target.find_first_of("?#"));
+    const PathClass pathClass = path == "/healthz" ? PathClass::healthz
+                                : path == "/metrics" ? PathClass::metrics
+                                : path == "/ws"      ? PathClass::websocket
+                                                     : PathClass::staticFile;
+    state_->metrics.countRequest(pathClass);
+
+    if (req.method() != http::verb::get && !head) {
+      return sendText(http::status::method_not_allowed, head, "method not allowed: GET and HEAD only\n", keepAlive);
+    }
+    switch (pathClass) {
+      case PathClass::healthz: return sendText(http::status::ok, head, "ok", keepAlive);
+      case PathClass::metrics:
+        return sendText(http::status::ok, head, state_->metrics.renderPrometheus(), keepAlive,
+                        "text/plain; version=0.0.4; charset=utf-8");
+      case PathClass::websocket: return sendText(http::status::not_found, head, "not found\n", keepAlive);
+      case PathClass::staticFile: return sendFile(state_->files.resolve(target), head, keepAlive);
+    }
+  }
+
+  void sendFile(const StaticFile& file, bool head, bool keepAlive) {
+    if (file.status == StaticStatus::refused) return sendText(http::status::forbidden, head, "forbidden\n", keepAlive);
+    if (file.status == StaticStatus::notFound) return sendText(http::status::not_found, head, "not found\n", keepAlive);
+    http::file_body::value_type body;
+    beast::error_code ec;
+    body.open(file.path.c_str(), beast::file_mode::scan, ec);
+    if (ec) return sendText(http::status::not_found, head, "not found\n", keepAlive);
+    const std::uint64_t size = body.size();
+    if (head) {
+      http::response<http::empty_body> res{http::status::ok, 11};
+      decorate(res, file.mimeType, keepAlive);
+      res.content_length(size);
+      return send(std::move(res));
+    }
+    http::response<http::file_body> res{std::piecewise_construct, std::make_tuple(std::move(body)),
+                                        std::make_tuple(http::status::ok, 11)};
+    decorate(res, file.mimeType, keepAlive);
+    res.content_length(size);
+    send(std::move(res));
+  }
+
+  void sendText(http::status status, bool head, std::string text, bool keepAlive,
+                std::string_view type = "text/plain; charset=utf-8") {
+    if (static_cast<int>(status) >= 400) state_->metrics.countError(static_cast<int>(status));
+    http::response<http::string_body> res{status, 11};
+    decorate(res, type, keepAlive);
+    if (status == http::status::method_not_allowed) res.set(http::field::allow, "GET, HEAD");
+    res.content_length(text.size());
+    if (!head) res.body() = std::move(text);
+    send(std::move(res));
+  }
+
+  template <class Response>
+  void decorate(Response& res, std::string_view type, bool keepAlive) {
+    res.set(http::field::server, "marzipan");
+    res.set(http::field::content_type, beast::string_view(type.data(), type.size()));
+    res.set(http::field::cache_control, "no-cache");
+    res.set("X-Content-Type-Options", "nosniff");
+    res.keep_alive(keepAlive && !state_->isStopping());
+  }
+
+  // One write in flight: the next read starts only after this one completes.
+  template <class Body>
+  void send(http::response<Body>&& res) {
+    auto message = std::make_shared<http::response<Body>>(std::move(res));
+    const bool close = !message->keep_alive();
+    stream_.expires_after(state_->options.idleTimeout);
+    http::async_write(stream_, *message,
+                      [self = shared_from_this(), message, close](beast::error_code ec, std::size_t bytes) {
+                        self->onWrite(close, ec, bytes);
+                      });
+  }
+
+  void onWrite(bool close, beast::error_code ec, std::size_t bytes) {
+    state_->metrics.addBytesSent(bytes);
+    if (ec) return fail(ec, "write");
+    if (close || state_->isStopping()) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      return;
+    }
+    doRead();
+  }
+
+  void fail(beast::error_code ec, std::string_view what) {
+    if (normalClose(ec)) return;
+    state_->log("http: " + peer_ + " " + std::string(what) + ": " + ec.message());
+  }
+
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  std::shared_ptr<SharedState> state_;
+  std::string peer_;
+  bool joined_ = false;  // counted in state_->live
+  bool busy_ = false;  // a request has been read and its response not yet written
+  std::size_t requests_ = 0;
+};
+
+class Listener : public std::enable_shared_from_this<Listener> {
+ public:
+  Listener(asio::io_context& ioc, const tcp::endpoint& endpoint, std::shared_ptr<SharedState> state)
+      : ioc_(ioc), acceptor_(asio::make_strand(ioc)), state_(std::move(state)) {
+    const std::string where = endpointText(endpoint);
+    beast::error_code ec;
+    acceptor_.open(endpoint.protocol(), ec);
+    if (!ec) acceptor_.set_option(asio::socket_base::reuse_address(true), ec);
+    if (!ec) acceptor_.bind(endpoint, ec);
+    if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+    if (ec) throw std::runtime_error("cannot listen on " + where + ": " + ec.message());
+    port_ = acceptor_.local_endpoint().port();
+  }
+
+  std::uint16_t port() const { return port_; }
+
+  void run() { doAccept(); }
+
+  // Closes the acceptor on its strand; state_->acceptorClosed tells when it is done.
+  void stop() {
+    asio::post(acceptor_.get_executor(), [self = shared_from_this()] {
+      self->close();
+      const std::lock_guard lock(self->state_->mutex);
+      self->state_->acceptorClosed = true;
+      self->state_->idle.notify_all();
+    });
+  }
+
+  // On the acceptor's strand, or once no I/O thread runs.
+  void close() {
+    beast::error_code ignored;
+    acceptor_.close(ignored);
+  }
+
+ private:
+  void doAccept() {
+    acceptor_.async_accept(asio::make_strand(ioc_), beast::bind_front_handler(&Listener::onAccept, shared_from_this()));
+  }
+
+  void onAccept(beast::error_code ec, tcp::socket socket) {
+    if (ec == asio::error::operation_aborted) return;
+    if (ec) {
+      state_->log("http: accept: " + ec.message());
+    } else {
+      std::make_shared<HttpSession>(std::move(socket), state_)->run();
+    }
+    if (!state_->isStopping()) doAccept();
+  }
+
+  asio::io_context& ioc_;
+  tcp::acceptor acceptor_;
+  std::shared_ptr<SharedState> state_;
+  std::uint16_t port_ = 0;
+};
+
+}  // namespace
+
+struct HttpServer::Impl {
+  explicit Impl(HttpServerOptions o) : options(std::move(o)), ioc(static_cast<int>(std::max(1u, options.threads))) {}
+
+  HttpServerOptions options;
+  Metrics metrics;  // before ioc: handlers destroyed with ioc may still count
+  asio::io_context ioc;
+  std::shared_ptr<SharedState> state;
+  std::shared_ptr<Listener> listener;
+  std::optional<asio::signal_set> signals;
+  std::vector<std::thread> threads;
+  std::mutex mutex;  // guards the two below
+  std::condition_variable stopRequested;
+  bool stopRequestedFlag = false, stopped = false;
+
+  void requestStop() {
+    const std::lock_guard lock(mutex);
+    stopRequestedFlag = true;
+    stopRequested.notify_all();
+  }
+};
+
+HttpServer::HttpServer(HttpServerOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+
+HttpServer::~HttpServer() { stop(); }
+
+Metrics& HttpServer::metrics() { return impl_->metrics; }
+
+void HttpServer::start() {
+  Impl& s = *impl_;
+  if (s.listener) throw std::logic_error("HttpServer::start called twice");
+  beast::error_code ec;
+  const asio::ip::address address = asio::ip::make_address(s.options.bind, ec);
+  if (ec) throw std::runtime_error("not an IP address: \"" + s.options.bind + "\"");
+  auto state = std::make_shared<SharedState>(s.options, s.metrics);
+  s.listener = std::make_shared<Listener>(s.ioc, tcp::endpoint(address, s.options.port), state);
+  s.state = std::move(state);
+  if (s.options.handleSignals) {
+    s.signals.emplace(s.ioc, SIGINT, SIGTERM);
+    s.signals->async_wait([&s](beast::error_code sigEc, int signal) {
+      if (sigEc) return;
+      s.state->log("http: signal " + std::to_string(signal) + ", shutting down");
+      s.requestStop();
+    });
+  }
+  s.listener->run();
+  const unsigned threads = std::max(1u, s.options.threads);
+  for (unsigned i = 0; i < threads; ++i) {
+    s.threads.emplace_back([&s] {
+      for (;;) {
+        try {
+          s.ioc.run();
+          return;
+        } catch (const std::exception& e) {
+          s.state->log(std::string("http: handler failed: ") + e.what());
+        }
+      }
+    });
+  }
+}
+
+std::uint16_t HttpServer::port() const { return impl_->listener ? impl_->listener->port() : 0; }
+
+void HttpServer::waitForStopRequest() {
+  std::unique_lock lock(impl_->mutex);
+  impl_->stopRequested.wait(lock, [this] { return impl_->stopRequestedFlag; });
+}
+
+void HttpServer::stop() {
+  Impl& s = *impl_;
+  {
+    const std::lock_guard lock(s.mutex);
+    if (s.stopped) return;
+    s.stopped = true;
+    s.stopRequestedFlag = true;
+    s.stopRequested.notify_all();
+  }
+  if (!s.state) return;
+  std::vector<std::weak_ptr<HttpSession>> sessions;
+  {
+    const std::lock_guard lock(s.state->mutex);
+    s.state->stopping = true;
+    sessions = s.state->sessions;
+  }
+  s.listener->stop();
+  if (s.signals) {
+    asio::post(s.ioc, [&s] {
+      beast::error_code ignored;
+      s.signals->cancel(ignored);
+    });
+  }
+  for (const auto& weak : sessions) {
+    if (const auto session = weak.lock()) session->closeIfIdle();
+  }
+  {
+    std::unique_lock lock(s.state->mutex);
+    s.state->idle.wait_for(lock, s.options.shutdownGrace,
+                           [&s] { return s.state->live == 0 && s.state->acceptorClosed; });
+  }
+  s.ioc.stop();
+  for (std::thread& t : s.threads) t.join();
+  s.threads.clear();
+  s.listener->close();  // in case the grace ran out before the posted close ran
+}
+
+}  // namespace marzipan::net

@@ -1,0 +1,61 @@
+// The HTTP side of `marzipan serve`: one port, GET/HEAD only, static files of the web root at
+// "/", "/healthz" (200 "ok") and "/metrics" (Prometheus text). "/ws" answers 404 until the
+// WebSocket layer exists. A narrow, Beast-free interface: Boost.Beast/Asio stay inside
+// http_server.cpp, so including this header costs nothing.
+//
+// Conventions: one log line per connection event (accept, close, error, signal) goes to
+// HttpServerOptions::log, stderr when unset. Refused paths answer 403, missing files 404,
+// other methods 405 with "Allow: GET, HEAD", oversized requests 431/413 and close.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "net/metrics.hpp"
+
+namespace marzipan::net {
+
+struct HttpServerOptions {
+  std::string bind = "127.0.0.1";        // an IPv4 or IPv6 address literal
+  std::uint16_t port = 8080;             // 0 = let the system pick a free port (see HttpServer::port)
+  std::filesystem::path webRoot;         // must be a directory
+  unsigned threads = 1;                  // I/O threads, at least 1
+  std::size_t maxHeaderBytes = 16 * 1024;  // request line + headers; larger → 431
+  std::size_t maxBodyBytes = 64 * 1024;    // request body (read and ignored); larger → 413
+  std::chrono::milliseconds idleTimeout{30'000};    // a connection silent this long is closed
+  std::chrono::milliseconds shutdownGrace{5'000};   // stop() waits this long for requests in flight
+  bool handleSignals = false;            // SIGINT/SIGTERM wake waitForStopRequest()
+  std::function<void(const std::string&)> log;  // one line, no newline; called from I/O threads
+};
+
+class HttpServer {
+ public:
+  explicit HttpServer(HttpServerOptions options);
+  ~HttpServer();  // stop()
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  // Binds, listens and starts the I/O threads. Throws std::runtime_error naming the cause (web
+  // root missing, address invalid or in use); call at most once.
+  void start();
+  // The port it listens on, the chosen one when options.port was 0; valid after start().
+  std::uint16_t port() const;
+  // Blocks until SIGINT/SIGTERM arrives (with options.handleSignals) or stop() is called.
+  void waitForStopRequest();
+  // Stops accepting, closes idle connections, lets requests in flight finish (at most
+  // options.shutdownGrace), then joins the I/O threads. Idempotent; not from a handler.
+  void stop();
+
+  Metrics& metrics();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace marzipan::net

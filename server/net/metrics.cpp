@@ -1,0 +1,76 @@
+// Prometheus text rendering of Metrics (see metrics.hpp for what each series means).
+#include "net/metrics.hpp"
+
+#include <sstream>
+
+namespace marzipan::net {
+
+namespace {
+
+void header(std::ostringstream& os, std::string_view name, std::string_view type, std::string_view help) {
+  os << "# HELP " << name << ' ' << help << "\n# TYPE " << name << ' ' << type << '\n';
+}
+
+}  // namespace
+
+std::string_view pathClassName(PathClass c) {
+  switch (c) {
+    case PathClass::staticFile: return "static";
+    case PathClass::healthz: return "healthz";
+    case PathClass::metrics: return "metrics";
+    case PathClass::websocket: return "ws";
+  }
+  return "static";
+}
+
+void Metrics::countRequest(PathClass c) { requests_[static_cast<std::size_t>(c)].fetch_add(1, std::memory_order_relaxed); }
+
+void Metrics::countError(int code) {
+  const std::lock_guard lock(mutex_);
+  ++errors_[code];
+}
+
+void Metrics::addBytesSent(std::uint64_t bytes) { bytesSent_.fetch_add(bytes, std::memory_order_relaxed); }
+void Metrics::addSessions(std::int64_t delta) { sessions_.fetch_add(delta, std::memory_order_relaxed); }
+void Metrics::addClients(std::int64_t delta) { clients_.fetch_add(delta, std::memory_order_relaxed); }
+
+void Metrics::observeEditLatency(double seconds) {
+  std::size_t bucket = 0;
+  while (bucket < kEditLatencyBuckets.size() && seconds > kEditLatencyBuckets[bucket]) ++bucket;
+  const std::lock_guard lock(mutex_);
+  ++latencyCounts_[bucket];
+  latencySum_ += seconds;
+}
+
+std::string Metrics::renderPrometheus() const {
+  std::ostringstream os;
+  os.precision(12);
+  header(os, "marzipan_http_requests_total", "counter", "HTTP requests by path class.");
+  for (std::size_t i = 0; i < kPathClassCount; ++i) {
+    os << "marzipan_http_requests_total{path=\"" << pathClassName(static_cast<PathClass>(i)) << "\"} "
+       << requests_[i].load(std::memory_order_relaxed) << '\n';
+  }
+  header(os, "marzipan_sessions", "gauge", "Sessions loaded.");
+  os << "marzipan_sessions " << sessions_.load(std::memory_order_relaxed) << '\n';
+  header(os, "marzipan_clients", "gauge", "WebSocket clients connected.");
+  os << "marzipan_clients " << clients_.load(std::memory_order_relaxed) << '\n';
+  header(os, "marzipan_bytes_sent_total", "counter", "Bytes written to clients.");
+  os << "marzipan_bytes_sent_total " << bytesSent_.load(std::memory_order_relaxed) << '\n';
+
+  const std::lock_guard lock(mutex_);
+  header(os, "marzipan_errors_total", "counter", "Error responses by code (HTTP status or JSON-RPC code).");
+  for (const auto& [code, count] : errors_) os << "marzipan_errors_total{code=\"" << code << "\"} " << count << '\n';
+  header(os, "marzipan_edit_latency_seconds", "histogram", "Time from an edit request to its reply.");
+  std::uint64_t cumulative = 0;
+  for (std::size_t i = 0; i < kEditLatencyBuckets.size(); ++i) {
+    cumulative += latencyCounts_[i];
+    os << "marzipan_edit_latency_seconds_bucket{le=\"" << kEditLatencyBuckets[i] << "\"} " << cumulative << '\n';
+  }
+  cumulative += latencyCounts_.back();
+  os << "marzipan_edit_latency_seconds_bucket{le=\"+Inf\"} " << cumulative << '\n';
+  os << "marzipan_edit_latency_seconds_sum " << latencySum_ << '\n';
+  os << "marzipan_edit_latency_seconds_count " << cumulative << '\n';
+  return os.str();
+}
+
+}  // namespace marzipan::net
