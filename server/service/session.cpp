@@ -239,24 +239,13 @@ void Session::endStroke(StrokeId id) {
   if (lastStroke_ == id) lastStroke_ = 0;
 }
 
-HistoryResult Session::undo() {
-  HistoryResult r;
-  if (const Edit* e = history_.undo(volume_)) {
-    lastStroke_ = 0;
-    bump();
-    r.changed = true;
-    r.roi = e->region;
-    r.bricks = bricksAroundChanges(volume_, e->changes);
-  }
-  r.revision = revision_;
-  r.canUndo = history_.canUndo();
-  r.canRedo = history_.canRedo();
-  return r;
-}
+HistoryResult Session::undo() { return historyMoved(history_.undo(volume_)); }
 
-HistoryResult Session::redo() {
+HistoryResult Session::redo() { return historyMoved(history_.redo(volume_)); }
+
+HistoryResult Session::historyMoved(const Edit* e) {
   HistoryResult r;
-  if (const Edit* e = history_.redo(volume_)) {
+  if (e) {
     lastStroke_ = 0;
     bump();
     r.changed = true;

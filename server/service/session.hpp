@@ -183,6 +183,8 @@ class Session {
 
   ApplyResult finish(const Edit& edit);
   void bump();
+  // The result of an undo or redo that published `e` (null: there was nothing to move).
+  HistoryResult historyMoved(const Edit* e);
   const Stroke& openStroke(StrokeId id) const;
 
   Volume volume_;
