@@ -44,24 +44,30 @@ class Marcher {
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
     seeds_.clear();
     written_.clear();
+    // Locals, not members: stores to the byte-typed flags may alias anything, and would make
+    // the compiler reload every member and vector pointer once per voxel.
+    const float* v = g.v.data();
+    const MarchState* states = state.data();
+    std::uint8_t* flags = flag_.data();
+    float* dist = dist_.data();
+    const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     std::size_t i = 0;
-    for (int z = 0; z < g.size.z; ++z)
-      for (int y = 0; y < g.size.y; ++y) {
-        const bool yzInterior = z >= 2 && z + 2 < g.size.z && y >= 2 && y + 2 < g.size.y;
-        for (int x = 0; x < g.size.x; ++x, ++i) {
+    for (int z = 0; z < sz; ++z)
+      for (int y = 0; y < sy; ++y) {
+        const bool yzInterior = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
+        for (int x = 0; x < sx; ++x, ++i) {
           // MarchState's values are its flag bits (Source = known + frozen, Ignored =
           // ignored + frozen), so the flags are the state plus sign and position bits.
-          const std::uint8_t st = std::uint8_t(state[i]);
-          const float v = g.v[i];
-          std::uint8_t f = std::uint8_t(st | (v < 0 ? kNeg : 0));
-          if (yzInterior && x >= 2 && x + 2 < g.size.x) f |= kInterior;
-          flag_[i] = f;
-          const float mag = std::fabs(v);
+          const std::uint8_t st = std::uint8_t(states[i]);
+          std::uint8_t f = std::uint8_t(st | (v[i] < 0 ? kNeg : 0));
+          if (yzInterior && x >= 2 && x + 2 < sx) f |= kInterior;
+          flags[i] = f;
+          const float mag = std::fabs(v[i]);
           if (st == std::uint8_t(MarchState::Source)) {
-            dist_[i] = mag;
+            dist[i] = mag;
             if (mag < band) seeds_.push_back(std::uint32_t(i));  // only these can lower anything
           } else {
-            dist_[i] = kInf;
+            dist[i] = kInf;
             // Every unknown voxel not already at +-band must be written even if the march never
             // reaches it (it becomes +-band); one at +-band stays as it is unless reached.
             if (st == std::uint8_t(MarchState::Unknown) && mag != band) written_.push_back(std::uint32_t(i));

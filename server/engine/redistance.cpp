@@ -13,28 +13,38 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const Box r = region.intersect(g.box);
   std::vector<MarchState> state(g.v.size(), outside == Outside::Source ? MarchState::Source : MarchState::Ignored);
   std::vector<std::size_t> kept;
+  const float* values = g.v.data();
+  MarchState* states = state.data();
+  const int exactSide = options.exactSide;
+  // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
+  auto resetOrExact = [exactSide](float v) {
+    return exactSide != 0 && (v < 0) == (exactSide < 0) ? MarchState::Source : MarchState::Unknown;
+  };
   for (int z = r.lo.z; z < r.hi.z; ++z)
     for (int y = r.lo.y; y < r.hi.y; ++y) {
       std::size_t i = g.index({r.lo.x, y, z});
       for (int x = r.lo.x; x < r.hi.x; ++x, ++i) {
-        const float v = g.v[i];
-        bool adjacent = v == 0;  // on the surface itself (grid-aligned faces, edges, corners)
-        if (!adjacent && std::fabs(v) < 1.75f) {  // a voxel further than sqrt(3) from the surface cannot be adjacent
-          const bool neg = v < 0;
-          const Int3 p{x, y, z};
-          for (int a = 0; a < 3 && !adjacent; ++a) {
-            const std::size_t s = g.stride(a);
-            if (p[a] > g.box.lo[a] && (g.v[i - s] < 0) != neg) adjacent = true;
-            if (p[a] + 1 < g.box.hi[a] && (g.v[i + s] < 0) != neg) adjacent = true;
-          }
+        const float v = values[i];
+        // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
+        if (std::fabs(v) >= 1.75f) {
+          states[i] = resetOrExact(v);
+          continue;
         }
-        if (options.exactSide != 0 && (v < 0) == (options.exactSide < 0)) {
-          state[i] = MarchState::Source;
+        bool adjacent = v == 0;  // on the surface itself (grid-aligned faces, edges, corners)
+        const bool neg = v < 0;
+        const Int3 p{x, y, z};
+        for (int a = 0; a < 3 && !adjacent; ++a) {
+          const std::size_t s = g.stride(a);
+          if (p[a] > g.box.lo[a] && (values[i - s] < 0) != neg) adjacent = true;
+          if (p[a] + 1 < g.box.hi[a] && (values[i + s] < 0) != neg) adjacent = true;
+        }
+        if (resetOrExact(v) == MarchState::Source) {
+          states[i] = MarchState::Source;
         } else if (adjacent) {
-          state[i] = MarchState::Source;
+          states[i] = MarchState::Source;
           kept.push_back(i);
         } else {
-          state[i] = MarchState::Unknown;
+          states[i] = MarchState::Unknown;
         }
       }
     }
