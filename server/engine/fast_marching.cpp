@@ -51,28 +51,30 @@ class Marcher {
     std::uint8_t* flags = flag_.data();
     float* dist = dist_.data();
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
-    std::size_t i = 0;
+    auto init = [&](std::size_t i, std::uint8_t position) {
+      // MarchState's values are its flag bits (Source = known + frozen, Ignored = ignored +
+      // frozen), so the flags are the state plus sign and position bits.
+      const std::uint8_t st = std::uint8_t(states[i]);
+      flags[i] = std::uint8_t(st | position | (v[i] < 0 ? kNeg : 0));
+      const float mag = std::fabs(v[i]);
+      if (st == std::uint8_t(MarchState::Source)) {
+        dist[i] = mag;
+        if (mag < band) seeds_.push_back(std::uint32_t(i));  // only these can lower anything
+      } else {
+        dist[i] = kInf;
+        // Every unknown voxel not already at +-band must be written even if the march never
+        // reaches it (it becomes +-band); one at +-band stays as it is unless reached.
+        if (st == std::uint8_t(MarchState::Unknown) && mag != band) written_.push_back(std::uint32_t(i));
+      }
+    };
+    const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);  // interior columns [xLo, xHi)
+    std::size_t row = 0;
     for (int z = 0; z < sz; ++z)
-      for (int y = 0; y < sy; ++y) {
-        const bool yzInterior = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
-        for (int x = 0; x < sx; ++x, ++i) {
-          // MarchState's values are its flag bits (Source = known + frozen, Ignored =
-          // ignored + frozen), so the flags are the state plus sign and position bits.
-          const std::uint8_t st = std::uint8_t(states[i]);
-          std::uint8_t f = std::uint8_t(st | (v[i] < 0 ? kNeg : 0));
-          if (yzInterior && x >= 2 && x + 2 < sx) f |= kInterior;
-          flags[i] = f;
-          const float mag = std::fabs(v[i]);
-          if (st == std::uint8_t(MarchState::Source)) {
-            dist[i] = mag;
-            if (mag < band) seeds_.push_back(std::uint32_t(i));  // only these can lower anything
-          } else {
-            dist[i] = kInf;
-            // Every unknown voxel not already at +-band must be written even if the march never
-            // reaches it (it becomes +-band); one at +-band stays as it is unless reached.
-            if (st == std::uint8_t(MarchState::Unknown) && mag != band) written_.push_back(std::uint32_t(i));
-          }
-        }
+      for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
+        const std::uint8_t inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy ? kInterior : 0;
+        for (int x = 0; x < xLo; ++x) init(row + std::size_t(x), 0);
+        for (int x = xLo; x < xHi; ++x) init(row + std::size_t(x), inner);
+        for (int x = xHi; x < sx; ++x) init(row + std::size_t(x), 0);
       }
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
   }
