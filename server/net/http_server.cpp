@@ -12,11 +12,13 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <condition_variable>
 #include <csignal>
 #include <exception>
@@ -283,6 +285,7 @@ class Listener : public std::enable_shared_from_this<Listener> {
   void close() {
     beast::error_code ignored;
     acceptor_.close(ignored);
+    retry_.cancel();
   }
 
  private:
@@ -293,15 +296,22 @@ class Listener : public std::enable_shared_from_this<Listener> {
   void onAccept(beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
     if (ec) {
+      // Errors such as running out of file descriptors last a while: accepting again at once
+      // would spin and flood the log, so wait a little first.
       state_->log("http: accept: " + ec.message());
-    } else {
-      std::make_shared<HttpSession>(std::move(socket), state_)->run();
+      retry_.expires_after(std::chrono::milliseconds(100));
+      retry_.async_wait([self = shared_from_this()](beast::error_code waited) {
+        if (!waited && !self->state_->isStopping()) self->doAccept();
+      });
+      return;
     }
+    std::make_shared<HttpSession>(std::move(socket), state_)->run();
     if (!state_->isStopping()) doAccept();
   }
 
   asio::io_context& ioc_;
   tcp::acceptor acceptor_;
+  asio::steady_timer retry_{acceptor_.get_executor()};  // on the acceptor's strand
   std::shared_ptr<SharedState> state_;
   std::uint16_t port_ = 0;
 };
