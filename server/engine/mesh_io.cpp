@@ -537,8 +537,12 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
           m.positions.push_back(float(c));
         }
         if (withNormals)
-          for (const int k : {nx, ny, nz})
-            m.normals.push_back(float(readScalar(p + offset[std::size_t(k)], e.props[std::size_t(k)].type)));
+          for (const int k : {nx, ny, nz}) {
+            const double c = readScalar(p + offset[std::size_t(k)], e.props[std::size_t(k)].type);
+            if (!std::isfinite(c) || std::fabs(c) > std::numeric_limits<float>::max())
+              formatError("vertex " + std::to_string(v) + ": normal is not finite");
+            m.normals.push_back(float(c));
+          }
       }
       sawVertices = true;
     } else if (e.name == "face") {
@@ -909,8 +913,10 @@ Volume importMesh(const Mesh& m, Int3 dims, float band, ThreadPool& pool) {
         bool allIn = true, allOut = true;
         for (int k = 0; k < kBrickVoxels; ++k) {
           float& v = br.v[k];
-          if (std::isnan(v)) v = settle(o + Int3{k & 7, k >> 3 & 7, k >> 6}) ? -band : band;
-          allIn = allIn && v == -band;
+          const Int3 g = o + Int3{k & 7, k >> 3 & 7, k >> 6};
+          if (std::isnan(v)) v = settle(g) ? -band : band;
+          // Voxels past the domain's edge hold +band and do not count for uniformity.
+          allIn = allIn && (v == -band || g.x >= dims.x || g.y >= dims.y || g.z >= dims.z);
           allOut = allOut && v == band;
         }
         if (allIn) {

@@ -190,6 +190,14 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
     getValues(p + at + 8, br->v);
     for (const float v : br->v)
       if (!(std::fabs(v) <= band)) formatError(brickName(b) + " holds a value that is NaN or outside +-band");
+    for (int z = 0; z < kBrickSide; ++z)
+      for (int y = 0; y < kBrickSide; ++y)
+        for (int x = 0; x < kBrickSide; ++x) {
+          const bool past = b.x * kBrickSide + x >= dims.x || b.y * kBrickSide + y >= dims.y ||
+                            b.z * kBrickSide + z >= dims.z;
+          if (past && br->v[x + kBrickSide * (y + kBrickSide * z)] != band)
+            formatError(brickName(b) + " holds a voxel past the domain's edge that is not +band");
+        }
     changes.push_back({b, {}, BrickRef{std::move(br), false}});
   }
   first = true;

@@ -293,3 +293,43 @@ TEST_CASE("open, non-manifold and empty meshes are refused", "[mesh][errors]") {
   CHECK(formatError([&] { importMesh(nan, {16, 16, 16}); }).find("not finite") != std::string::npos);
   CHECK_THROWS_AS(importMesh(tetrahedron(), {4, 16, 16}), EngineError);
 }
+
+TEST_CASE("PLY normals out of float range are refused, not converted", "[mesh][errors]") {
+  // One triangle with double normals; the second vertex's nx is 1e300, beyond any float.
+  std::string header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nproperty double nx\nproperty double ny\nproperty double nz\n"
+      "element face 1\nproperty list uchar uint vertex_indices\nend_header\n";
+  std::vector<std::uint8_t> b(header.begin(), header.end());
+  auto add = [&](const void* p, std::size_t n) {
+    const auto* c = static_cast<const std::uint8_t*>(p);
+    b.insert(b.end(), c, c + n);
+  };
+  const float pos[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  for (int v = 0; v < 3; ++v) {
+    add(pos[v], 12);
+    const double n[3] = {v == 1 ? 1e300 : 0.0, 0.0, 1.0};
+    add(n, 24);
+  }
+  const std::uint8_t count = 3;
+  const std::uint32_t idx[3] = {0, 1, 2};
+  add(&count, 1);
+  add(idx, 12);
+  CHECK(formatError([&] { parsePly(b); }).find("not finite") != std::string::npos);
+}
+
+TEST_CASE("an imported solid that fills the domain's partial edge bricks stores none of them", "[mesh]") {
+  // A box from -20 to 14.5 on every axis in a 12^3 domain: every voxel is more than the band
+  // inside, so the field is uniformly inside. The bricks at 8..15 are partial (voxels 8..11 in
+  // the domain) and lie within reach of the box's faces at 14.5.
+  Mesh cube = parseObj(
+      "v -20 -20 -20\nv 14.5 -20 -20\nv 14.5 14.5 -20\nv -20 14.5 -20\nv -20 -20 14.5\nv 14.5 -20 14.5\n"
+      "v 14.5 14.5 14.5\nv -20 14.5 14.5\n"
+      "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
+  const Volume v = importMesh(cube, {12, 12, 12});
+  CHECK(v.at(11, 11, 11) == -v.band());
+  Volume full({12, 12, 12});
+  full.fill(true);
+  CHECK(v.presentBricks() == 0);
+  CHECK(digest(v) == digest(full));
+}

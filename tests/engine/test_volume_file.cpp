@@ -242,3 +242,20 @@ TEST_CASE("size of the file of a radius-100 sphere", "[file]") {
   CHECK(bytes.size() < std::size_t(9e6));  // 8.37 MB measured
   CHECK(digest(loadVolume(bytes)) == digest(v));
 }
+
+TEST_CASE("voxels past the domain's far edge must be +band in a loaded file", "[file][errors]") {
+  // 20 voxels along x: bricks at x = 2 hold voxels 16..19 in the domain and 20..23 past it.
+  const Volume v = makeSolid(SolidKind::Sphere, {20, 16, 16});
+  auto bytes = saveVolume(v);
+  std::uint32_t present = 0;
+  std::memcpy(&present, bytes.data() + 36, 4);
+  std::size_t edgeBrick = 0;
+  for (std::uint32_t i = 0; i < present && !edgeBrick; ++i) {
+    const std::size_t at = 48 + 2056 * std::size_t(i);
+    if (bytes[at] == 2 && bytes[at + 1] == 0) edgeBrick = at;
+  }
+  REQUIRE(edgeBrick != 0);
+  // Local voxel (7, 3, 3) is x = 23, past the edge; inside the sphere's band it would pass.
+  put32(bytes, edgeBrick + 8 + 4 * (7 + 8 * (3 + 8 * 3)), std::bit_cast<std::uint32_t>(-1.0f));
+  CHECK(contains(formatErrorOf(resealed(bytes)), "past the domain"));
+}
