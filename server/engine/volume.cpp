@@ -1,6 +1,7 @@
 #include "volume.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <sstream>
 
@@ -186,8 +187,11 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             const float* d = old.data ? old.data->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
-            for (int x = 0; x < here.hi.x - here.lo.x; ++x)
+            for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
+              // NaN passes std::clamp and would reach every reader; refuse it before publishing.
+              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
               changed = changed || std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
+            }
           }
         if (!changed) continue;
         auto nb = std::make_shared<Brick>();
@@ -202,7 +206,10 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             float* d = nb->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z);
-            for (int x = 0; x < here.hi.x - here.lo.x; ++x) d[x] = std::clamp(s[x], -band_, band_);
+            for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
+              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+              d[x] = std::clamp(s[x], -band_, band_);
+            }
           }
         // Voxels past the domain's edge are never read; they are kept at +band so that equal
         // fields have equal bricks, and they do not count for uniformity.

@@ -126,3 +126,16 @@ TEST_CASE("a 1024^3 domain works at its far corner and costs only its surface", 
   CHECK(v.at(1023, 1023, 1023) == -1.0f);
   CHECK(v.at(1024, 1023, 1023) == v.band());
 }
+
+TEST_CASE("scatter refuses NaN and changes nothing", "[volume][errors]") {
+  Volume v = makeSphere({32, 32, 32}, {16, 16, 16}, 10);
+  const std::uint64_t d0 = digest(v);
+  const Box b{{20, 8, 8}, {32, 24, 24}};
+  std::vector<float> src(std::size_t(b.voxels()), -1.0f);
+  src.back() = std::nanf("");  // last voxel: found after the brick is already known to change
+  CHECK_THROWS_AS(v.scatter(b, src.data(), b), EngineError);
+  src.back() = -1.0f;
+  src.front() = std::nanf("");
+  CHECK_THROWS_AS(v.scatter(b, src.data(), b), EngineError);
+  CHECK(digest(v) == d0);
+}
