@@ -910,20 +910,12 @@ Volume importMesh(const Mesh& m, Int3 dims, float band, ThreadPool& pool) {
           continue;
         }
         Brick& br = *bricks[std::size_t(ni)];
-        bool allIn = true, allOut = true;
         for (int k = 0; k < kBrickVoxels; ++k) {
           float& v = br.v[k];
-          const Int3 g = o + Int3{k & 7, k >> 3 & 7, k >> 6};
-          if (std::isnan(v)) v = settle(g) ? -band : band;
-          // Voxels past the domain's edge hold +band and do not count for uniformity.
-          allIn = allIn && (v == -band || g.x >= dims.x || g.y >= dims.y || g.z >= dims.z);
-          allOut = allOut && v == band;
+          if (std::isnan(v)) v = settle(o + Int3{k & 7, k >> 3 & 7, k >> 6}) ? -band : band;
         }
-        if (allIn) {
-          changes.push_back({b, {}, {nullptr, true}});
-        } else if (!allOut) {
-          changes.push_back({b, {}, {bricks[std::size_t(ni)], false}});
-        }
+        const BrickRef ref = vol.canonicalBrick(b, bricks[std::size_t(ni)]);
+        if (ref.data || ref.inside) changes.push_back({b, {}, ref});
       }
   vol.publish(changes, true);
   return vol;

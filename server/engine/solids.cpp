@@ -67,24 +67,17 @@ Volume makeFromFunction(Int3 dims, const std::function<double(Vec3)>& f, bool ex
         continue;
       }
       auto brick = std::make_shared<Brick>();
-      bool allOut = true, allIn = true;
       for (int z = 0; z < kBrickSide; ++z)
         for (int y = 0; y < kBrickSide; ++y)
           for (int x = 0; x < kBrickSide; ++x) {
             const Int3 p = o + Int3{x, y, z};
-            float v = band;
-            if (p.x < dims.x && p.y < dims.y && p.z < dims.z) {
+            float v = band;  // past the domain's edge: not evaluated
+            if (p.x < dims.x && p.y < dims.y && p.z < dims.z)
               v = float(std::clamp(f({double(p.x), double(p.y), double(p.z)}), double(-band), double(band)));
-              allOut = allOut && v == band;
-              allIn = allIn && v == -band;
-            }
             brick->v[x + kBrickSide * (y + kBrickSide * z)] = v;
           }
-      if (allIn) {
-        rows[r].push_back({{bx, by, bz}, {}, {nullptr, true}});
-      } else if (!allOut) {
-        rows[r].push_back({{bx, by, bz}, {}, {std::move(brick), false}});
-      }
+      const BrickRef ref = vol.canonicalBrick({bx, by, bz}, std::move(brick));
+      if (ref.data || ref.inside) rows[r].push_back({{bx, by, bz}, {}, ref});
     }
   });
   std::vector<BrickChange> all;

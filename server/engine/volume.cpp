@@ -211,33 +211,32 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
               d[x] = std::clamp(s[x], -band_, band_);
             }
           }
-        // Voxels past the domain's edge are never read; they are kept at +band so that equal
-        // fields have equal bricks, and they do not count for uniformity.
-        const Box inDomain = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(domain());
-        bool allOut = true, allIn = true;
-        for (int z = 0; z < kBrickSide; ++z)
-          for (int y = 0; y < kBrickSide; ++y)
-            for (int x = 0; x < kBrickSide; ++x) {
-              float& v = nb->v[localIndex(x, y, z)];
-              if (!inDomain.contains(o + Int3{x, y, z})) {
-                v = band_;
-                continue;
-              }
-              allOut = allOut && v == band_;
-              allIn = allIn && v == -band_;
-            }
-        BrickRef next;
-        if (allOut || allIn) {
-          next.inside = allIn;
-        } else {
-          next.data = std::move(nb);
-        }
+        const BrickRef next = canonicalBrick(b, std::move(nb));
         const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
                                     : (!old.data && old.inside == next.inside);
         if (same) continue;
         changes.push_back({b, old, next});
       }
   return changes;
+}
+
+BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
+  const Int3 o{brick.x * kBrickSide, brick.y * kBrickSide, brick.z * kBrickSide};
+  const Box inDomain = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(domain());
+  bool allOut = true, allIn = true;
+  for (int z = 0; z < kBrickSide; ++z)
+    for (int y = 0; y < kBrickSide; ++y)
+      for (int x = 0; x < kBrickSide; ++x) {
+        float& v = data->v[localIndex(x, y, z)];
+        if (!inDomain.contains(o + Int3{x, y, z})) {
+          v = band_;
+          continue;
+        }
+        allOut = allOut && v == band_;
+        allIn = allIn && v == -band_;
+      }
+  if (allOut || allIn) return {nullptr, allIn};
+  return {std::move(data), false};
 }
 
 std::vector<BrickChange> Volume::fill(bool inside) {

@@ -103,6 +103,12 @@ class Volume {
   // threads at once on one volume that nobody edits meanwhile.
   std::vector<BrickChange> diff(const Box& region, const float* src, const Box& srcBox) const;
 
+  // The slot a newly computed brick becomes, for anything that builds bricks itself: voxels
+  // past the domain's edge are set to +band (never read; equal fields get equal bricks), and a
+  // brick whose voxels in the domain are all -band or all +band is uniform and stores nothing.
+  // Writes the padding into `data`; safe to call from several threads at once.
+  BrickRef canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const;
+
   // Sets every voxel of the domain to the given uniform side (used for clearing).
   std::vector<BrickChange> fill(bool inside);
 
