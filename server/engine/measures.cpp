@@ -24,6 +24,13 @@ struct Neighbourhood {
   }
   // Local voxel (x,y,z) of the brick, each in [-1, 8].
   float at(int x, int y, int z) const { return v[(x + 1) + kSide * ((y + 1) + kSide * (z + 1))]; }
+  // |grad d| by central differences at local voxel l, each coordinate in [0, 7].
+  double gradientLength(Int3 l) const {
+    const double gx = 0.5 * (at(l.x + 1, l.y, l.z) - at(l.x - 1, l.y, l.z));
+    const double gy = 0.5 * (at(l.x, l.y + 1, l.z) - at(l.x, l.y - 1, l.z));
+    const double gz = 0.5 * (at(l.x, l.y, l.z + 1) - at(l.x, l.y, l.z - 1));
+    return std::sqrt(gx * gx + gy * gy + gz * gz);
+  }
 };
 
 Int3 brickOrigin(Int3 b) { return {b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide}; }
@@ -53,21 +60,98 @@ double insideVolume(const Volume& vol) {
   return sum;
 }
 
-double surfaceArea(const Volume& vol) {
-  constexpr double eps = 1.5;
-  double sum = 0;
+namespace {
+
+// Calls fn(neighbourhood, local, global) for every domain voxel of every stored brick that
+// meets `region` (its voxels outside the region included), gathering each neighbourhood once.
+template <class F>
+void forEachStoredVoxel(const Volume& vol, const Box& region, F&& fn) {
   vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const Int3 o = brickOrigin(b);
+    if (Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(region).empty()) return;
     const Neighbourhood n(vol, b);
-    forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
-      const double d = n.at(l.x, l.y, l.z);
-      if (std::fabs(d) >= eps) return;
-      const double gx = 0.5 * (n.at(l.x + 1, l.y, l.z) - n.at(l.x - 1, l.y, l.z));
-      const double gy = 0.5 * (n.at(l.x, l.y + 1, l.z) - n.at(l.x, l.y - 1, l.z));
-      const double gz = 0.5 * (n.at(l.x, l.y, l.z + 1) - n.at(l.x, l.y, l.z - 1));
-      sum += (1 + std::cos(std::numbers::pi * d / eps)) / (2 * eps) * std::sqrt(gx * gx + gy * gy + gz * gz);
-    });
+    forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) { fn(n, l, p); });
   });
-  return sum;
+}
+
+// The measures that need a voxel's neighbours, each fed voxel by voxel so that measure()
+// can feed all of them from one walk.
+struct AreaSum {
+  static constexpr double kEps = 1.5;  // half width of the raised-cosine delta
+  double sum = 0;
+  void add(const Neighbourhood& n, Int3 l) {
+    const double d = n.at(l.x, l.y, l.z);
+    if (std::fabs(d) >= kEps) return;
+    sum += (1 + std::cos(std::numbers::pi * d / kEps)) / (2 * kEps) * n.gradientLength(l);
+  }
+};
+
+struct BoundsOfZeroSet {
+  Bounds bb;
+  void include(Vec3 p) {
+    if (bb.empty) {
+      bb.lo = bb.hi = p;
+      bb.empty = false;
+      return;
+    }
+    for (int a = 0; a < 3; ++a) bb.lo[a] = std::min(bb.lo[a], p[a]), bb.hi[a] = std::max(bb.hi[a], p[a]);
+  }
+  void add(const Neighbourhood& n, Int3 l, Int3 p) {
+    const double d = n.at(l.x, l.y, l.z);
+    if (d >= 0) return;
+    const Vec3 pv{double(p.x), double(p.y), double(p.z)};
+    include(pv);
+    for (int a = 0; a < 3; ++a)
+      for (int s = -1; s <= 1; s += 2) {
+        Int3 q = l;
+        q[a] += s;
+        const double dq = n.at(q.x, q.y, q.z);
+        if (dq < 0) continue;
+        Vec3 c = pv;
+        c[a] += s * d / (d - dq);
+        include(c);
+      }
+  }
+  // Uniformly inside bricks count with their extent (clipped to the domain).
+  Bounds finish(const Volume& vol) {
+    vol.forEachInsideBrick([&](Int3 b) {
+      const Int3 o = brickOrigin(b);
+      const Int3 d = vol.dims();
+      include({double(o.x), double(o.y), double(o.z)});
+      include({double(std::min(o.x + 7, d.x - 1)), double(std::min(o.y + 7, d.y - 1)), double(std::min(o.z + 7, d.z - 1))});
+    });
+    return bb;
+  }
+};
+
+struct GradientErrorSum {
+  explicit GradientErrorSum(const Box& r) : region(r) {}
+  Box region;
+  GradientError e;
+  double sum = 0;
+  void add(const Neighbourhood& n, Int3 l, Int3 p) {
+    if (!region.contains(p)) return;
+    const float d = n.at(l.x, l.y, l.z);
+    bool adjacent = false;
+    for (const Int3& s : kSix) adjacent = adjacent || ((n.at(l.x + s.x, l.y + s.y, l.z + s.z) < 0) != (d < 0));
+    if (!adjacent) return;
+    const double err = std::fabs(n.gradientLength(l) - 1.0);
+    e.max = std::max(e.max, err);
+    sum += err;
+    ++e.voxels;
+  }
+  GradientError finish() {
+    e.mean = e.voxels ? sum / double(e.voxels) : 0;
+    return e;
+  }
+};
+
+}  // namespace
+
+double surfaceArea(const Volume& vol) {
+  AreaSum area;
+  forEachStoredVoxel(vol, vol.domain(), [&](const Neighbourhood& n, Int3 l, Int3) { area.add(n, l); });
+  return area.sum;
 }
 
 int countComponents(const Volume& vol) {
@@ -134,69 +218,17 @@ int countComponents(const Volume& vol) {
 }
 
 Bounds boundingBox(const Volume& vol) {
-  Bounds bb;
-  auto include = [&](Vec3 p) {
-    if (bb.empty) {
-      bb.lo = bb.hi = p;
-      bb.empty = false;
-      return;
-    }
-    for (int a = 0; a < 3; ++a) bb.lo[a] = std::min(bb.lo[a], p[a]), bb.hi[a] = std::max(bb.hi[a], p[a]);
-  };
-  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
-    const Neighbourhood n(vol, b);
-    forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) {
-      const double d = n.at(l.x, l.y, l.z);
-      if (d >= 0) return;
-      const Vec3 pv{double(p.x), double(p.y), double(p.z)};
-      include(pv);
-      for (int a = 0; a < 3; ++a)
-        for (int s = -1; s <= 1; s += 2) {
-          Int3 q = l;
-          q[a] += s;
-          const double dq = n.at(q.x, q.y, q.z);
-          if (dq < 0) continue;
-          Vec3 c = pv;
-          c[a] += s * d / (d - dq);
-          include(c);
-        }
-    });
-  });
-  vol.forEachInsideBrick([&](Int3 b) {
-    const Int3 o = brickOrigin(b);
-    const Int3 d = vol.dims();
-    include({double(o.x), double(o.y), double(o.z)});
-    include({double(std::min(o.x + 7, d.x - 1)), double(std::min(o.y + 7, d.y - 1)), double(std::min(o.z + 7, d.z - 1))});
-  });
-  return bb;
+  BoundsOfZeroSet bounds;
+  forEachStoredVoxel(vol, vol.domain(), [&](const Neighbourhood& n, Int3 l, Int3 p) { bounds.add(n, l, p); });
+  return bounds.finish(vol);
 }
 
 GradientError gradientError(const Volume& vol) { return gradientError(vol, vol.domain()); }
 
 GradientError gradientError(const Volume& vol, const Box& region) {
-  GradientError e;
-  double sum = 0;
-  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
-    const Int3 o = brickOrigin(b);
-    if (Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(region).empty()) return;
-    const Neighbourhood n(vol, b);
-    forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) {
-      if (!region.contains(p)) return;
-      const float d = n.at(l.x, l.y, l.z);
-      bool adjacent = false;
-      for (const Int3& s : kSix) adjacent = adjacent || ((n.at(l.x + s.x, l.y + s.y, l.z + s.z) < 0) != (d < 0));
-      if (!adjacent) return;
-      const double gx = 0.5 * (n.at(l.x + 1, l.y, l.z) - n.at(l.x - 1, l.y, l.z));
-      const double gy = 0.5 * (n.at(l.x, l.y + 1, l.z) - n.at(l.x, l.y - 1, l.z));
-      const double gz = 0.5 * (n.at(l.x, l.y, l.z + 1) - n.at(l.x, l.y, l.z - 1));
-      const double err = std::fabs(std::sqrt(gx * gx + gy * gy + gz * gz) - 1.0);
-      e.max = std::max(e.max, err);
-      sum += err;
-      ++e.voxels;
-    });
-  });
-  e.mean = e.voxels ? sum / double(e.voxels) : 0;
-  return e;
+  GradientErrorSum error{region};
+  forEachStoredVoxel(vol, region, [&](const Neighbourhood& n, Int3 l, Int3 p) { error.add(n, l, p); });
+  return error.finish();
 }
 
 std::uint64_t digest(const Volume& vol) {
@@ -234,11 +266,19 @@ std::string digestHex(const Volume& vol) {
 
 Measures measure(const Volume& vol) {
   Measures m;
+  AreaSum area;
+  BoundsOfZeroSet bounds;
+  GradientErrorSum error{vol.domain()};
+  forEachStoredVoxel(vol, vol.domain(), [&](const Neighbourhood& n, Int3 l, Int3 p) {
+    area.add(n, l);
+    bounds.add(n, l, p);
+    error.add(n, l, p);
+  });
   m.insideVolume = insideVolume(vol);
-  m.surfaceArea = surfaceArea(vol);
+  m.surfaceArea = area.sum;
   m.components = countComponents(vol);
-  m.bounds = boundingBox(vol);
-  m.gradientError = gradientError(vol);
+  m.bounds = bounds.finish(vol);
+  m.gradientError = error.finish();
   m.digest = digestHex(vol);
   return m;
 }
