@@ -2,6 +2,8 @@
 // throws OpError naming the key; messages quote keys and names the way they appear in JSON.
 #include "ops.hpp"
 
+#include "json_checks.hpp"
+
 #include <cmath>
 #include <cstdint>
 #include <initializer_list>
@@ -14,91 +16,7 @@ namespace marzipan::protocol {
 namespace {
 
 using nlohmann::json;
-
-// Text from the request, cut to a readable length at a UTF-8 character boundary: messages
-// must not grow with the input, and must stay valid UTF-8 for a JSON-RPC reply.
-std::string excerpt(std::string_view s) {
-  constexpr std::size_t kMaxChars = 40;
-  if (s.size() <= kMaxChars) return std::string(s);
-  std::size_t cut = kMaxChars;
-  while (cut > 0 && (static_cast<unsigned char>(s[cut]) & 0xC0) == 0x80) --cut;
-  std::string out(s.substr(0, cut));
-  out.append("...");
-  return out;
-}
-
-// Quoted and escaped as a JSON string, so that control characters cannot garble a log line.
-std::string inQuotes(std::string_view s) {
-  return json(excerpt(s)).dump(-1, ' ', false, json::error_handler_t::replace);
-}
-
-std::string formatNumber(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
-template <class E, std::size_t N>
-std::string listNames(const std::array<NameOf<E>, N>& table) {
-  std::string out;
-  for (const auto& entry : table) out += (out.empty() ? "" : ", ") + std::string(entry.name);
-  return out;
-}
-
-// What a value is, for "got ..." in messages; numbers say which.
-std::string describe(const json& v) {
-  if (v.is_number_float()) return "the number " + formatNumber(v.get<double>());
-  if (v.is_number()) return "the integer " + v.dump();
-  if (v.is_string()) return "the string " + inQuotes(v.get_ref<const std::string&>());
-  return std::string(v.type_name());
-}
-
-[[noreturn]] void fail(std::string_view key, const std::string& what) {
-  throw OpError(std::string(key), inQuotes(key) + " " + what);
-}
-
-// Refuses any key outside `allowed`; `context` says for which tool, so that a key that is
-// valid elsewhere ("shape" on a brush) is explained rather than just called unknown.
-void checkKeys(const json& obj, std::initializer_list<std::string_view> allowed, const std::string& context) {
-  for (const auto& item : obj.items()) {
-    bool known = false;
-    for (std::string_view a : allowed) known = known || item.key() == a;
-    if (known) continue;
-    std::string list;
-    for (std::string_view a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    throw OpError(excerpt(item.key()), "unknown key " + inQuotes(item.key()) + " for " + context + " (allowed: " + list + ")");
-  }
-}
-
-const json* find(const json& obj, std::string_view key) {
-  const auto it = obj.find(key);
-  return it == obj.end() ? nullptr : &*it;
-}
-
-const json& require(const json& obj, std::string_view key, const std::string& context) {
-  const json* v = find(obj, key);
-  if (!v) fail(key, "is missing (required for " + context + ")");
-  return *v;
-}
-
-std::string stringValue(const json& v, std::string_view key) {
-  if (!v.is_string()) fail(key, "must be a string, got " + describe(v));
-  return v.get<std::string>();
-}
-
-double finiteNumber(const json& v, std::string_view key) {
-  if (!v.is_number()) fail(key, "must be a number, got " + describe(v));
-  const double d = v.get<double>();
-  if (!std::isfinite(d)) fail(key, "must be a finite number");
-  return d;
-}
-
-double numberInRange(const json& v, std::string_view key, double lo, double hi) {
-  const double d = finiteNumber(v, key);
-  if (d < lo || d > hi)
-    fail(key, "must be between " + formatNumber(lo) + " and " + formatNumber(hi) + ", got " + formatNumber(d));
-  return d;
-}
+using namespace checks;
 
 double strengthValue(const json& v) {
   const double d = finiteNumber(v, "strength");
@@ -106,38 +24,9 @@ double strengthValue(const json& v) {
   return d;
 }
 
-Vec3 centerValue(const json& v) {
-  if (!v.is_array() || v.size() != 3)
-    fail("center", "must be an array of three numbers [x, y, z], got " +
-                       (v.is_array() ? "an array of " + std::to_string(v.size()) : describe(v)));
-  Vec3 c;
-  for (int a = 0; a < 3; ++a) {
-    const json& x = v[std::size_t(a)];
-    const std::string element = "\"center\"[" + std::to_string(a) + "]";
-    if (!x.is_number()) throw OpError("center", element + " must be a number, got " + describe(x));
-    c[a] = x.get<double>();
-    if (!std::isfinite(c[a])) throw OpError("center", element + " must be a finite number");
-    if (std::abs(c[a]) > kMaxCoordinate)
-      throw OpError("center", element + " must be within +-" + formatNumber(kMaxCoordinate) + " vu, got " +
-                                  formatNumber(c[a]));
-  }
-  return c;
-}
+Vec3 centerValue(const json& v) { return vec3Value(v, "center", kMaxCoordinate); }
 
-int iterationsValue(const json& v) {
-  if (!v.is_number_integer()) fail("iterations", "must be an integer, got " + describe(v));
-  // Unsigned and signed integers are stored apart; compare each without narrowing first.
-  const bool inRange = v.is_number_unsigned()
-                           ? v.get<std::uint64_t>() >= 1 && v.get<std::uint64_t>() <= std::uint64_t(kMaxIterations)
-                           : v.get<std::int64_t>() >= 1 && v.get<std::int64_t>() <= kMaxIterations;
-  if (!inRange) fail("iterations", "must be between 1 and " + std::to_string(kMaxIterations) + ", got " + v.dump());
-  return int(v.get<std::int64_t>());
-}
-
-bool booleanValue(const json& v, std::string_view key) {
-  if (!v.is_boolean()) fail(key, "must be true or false, got " + describe(v));
-  return v.get<bool>();
-}
+int iterationsValue(const json& v) { return int(integerInRange(v, "iterations", 1, kMaxIterations)); }
 
 GlobalSmoothOp parseGlobalSmooth(const json& obj, std::string_view nameKey) {
   const std::string context = "global smoothing";
@@ -224,12 +113,6 @@ Op parseOpName(const json& obj, const std::string& name) {
   fail("op", "must be \"smooth\" or \"morph\", got " + inQuotes(name));
 }
 
-// The parser's error text starts with a bracketed exception id that means nothing to a user.
-std::string jsonErrorText(const std::string& what) {
-  const auto close = what.find("] ");
-  return close != std::string::npos && !what.empty() && what.front() == '[' ? what.substr(close + 2) : what;
-}
-
 }  // namespace
 
 Op parseOp(const json& object) {
@@ -242,35 +125,7 @@ Op parseOp(const json& object) {
   throw OpError("tool", "\"tool\" is missing (an operation names a \"tool\" or an \"op\")");
 }
 
-Op parseOpText(std::string_view text) {
-  std::vector<std::set<std::string>> openObjects;
-  std::string duplicate;
-  const json::parser_callback_t noteKeys = [&](int, json::parse_event_t event, json& parsed) {
-    switch (event) {
-      case json::parse_event_t::object_start:
-        openObjects.emplace_back();
-        break;
-      case json::parse_event_t::object_end:
-        openObjects.pop_back();
-        break;
-      case json::parse_event_t::key:
-        if (!openObjects.back().insert(parsed.get<std::string>()).second && duplicate.empty())
-          duplicate = parsed.get<std::string>();
-        break;
-      default:
-        break;
-    }
-    return true;
-  };
-  json object;
-  try {
-    object = json::parse(text.begin(), text.end(), noteKeys);
-  } catch (const json::exception& e) {
-    throw OpError("", "not valid JSON: " + jsonErrorText(e.what()));
-  }
-  if (!duplicate.empty()) throw OpError(excerpt(duplicate), "key " + inQuotes(duplicate) + " appears more than once");
-  return parseOp(object);
-}
+Op parseOpText(std::string_view text) { return parseOp(parseJsonText(text)); }
 
 json toJson(const Op& op) {
   const auto center = [](Vec3 c) { return json::array({c.x, c.y, c.z}); };

@@ -1,0 +1,58 @@
+// Strict reading of JSON values from untrusted messages, shared by the operation objects
+// (ops.cpp) and the JSON-RPC params (rpc.cpp), so that every refusal reads the same way.
+//
+// Conventions: every check throws OpError(field, message) where `field` is the offending key
+// and `message` a whole sentence that quotes it ("\"radius\" must be between 0.5 and 1024, got
+// 2000"); text taken from the input is cut to 40 characters and JSON-escaped, so a message
+// never grows with the input and is always valid UTF-8.
+#pragma once
+
+#include <cstdint>
+#include <initializer_list>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/geometry.hpp"
+#include "ops.hpp"
+
+namespace marzipan::protocol::checks {
+
+using nlohmann::json;
+
+std::string excerpt(std::string_view s);
+std::string inQuotes(std::string_view s);
+std::string formatNumber(double v);
+// What a value is, for "got ..." in messages.
+std::string describe(const json& v);
+
+// "a, b, c": the names of a table in ops.hpp.
+template <class E, std::size_t N>
+std::string listNames(const std::array<NameOf<E>, N>& table) {
+  std::string out;
+  for (const auto& entry : table) out += (out.empty() ? "" : ", ") + std::string(entry.name);
+  return out;
+}
+
+[[noreturn]] void fail(std::string_view key, const std::string& what);
+
+// Refuses any key of `obj` outside `allowed`; `context` ("tool \"add_blob\"", "params of
+// session.create") explains where.
+void checkKeys(const json& obj, std::initializer_list<std::string_view> allowed, const std::string& context);
+const json* find(const json& obj, std::string_view key);
+const json& require(const json& obj, std::string_view key, const std::string& context);
+
+std::string stringValue(const json& v, std::string_view key);
+double finiteNumber(const json& v, std::string_view key);
+double numberInRange(const json& v, std::string_view key, double lo, double hi);
+bool booleanValue(const json& v, std::string_view key);
+std::int64_t integerInRange(const json& v, std::string_view key, std::int64_t lo, std::int64_t hi);
+// An array of three finite numbers, each within +-bound.
+Vec3 vec3Value(const json& v, std::string_view key, double bound);
+
+// One JSON value from text. Throws OpError with an empty field when the text is not exactly
+// one JSON value or an object repeats a key (a reader would silently keep only one of them).
+json parseJsonText(std::string_view text);
+
+}  // namespace marzipan::protocol::checks

@@ -1,0 +1,407 @@
+// The JSON-RPC envelope and params decoders of rpc.hpp. Every refusal names the field the way
+// it appears in the message (json_checks.hpp).
+#include "rpc.hpp"
+
+#include <cmath>
+
+#include "json_checks.hpp"
+
+namespace marzipan::protocol {
+
+using nlohmann::json;
+using namespace checks;
+
+bool needsFrameId(Method m) {
+  return m == Method::RenderFrame || m == Method::SplatsGet || m == Method::MeshExport || m == Method::VolumeSave ||
+         m == Method::VolumeLoad;
+}
+
+bool isEdit(Method m) {
+  return m == Method::ToolApply || m == Method::StrokeBegin || m == Method::StrokeDabs || m == Method::StrokeEnd ||
+         m == Method::VolumeMorph || m == Method::HistoryUndo || m == Method::HistoryRedo || m == Method::VolumeLoad;
+}
+
+namespace {
+
+constexpr std::int64_t kMaxSafeInteger = (std::int64_t(1) << 53) - 1;
+
+bool idCharsOnly(std::string_view s) {
+  for (const char c : s) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+ParsedRequest refuse(RpcCode code, std::string message, json id = nullptr, bool notification = false,
+                     json data = nullptr) {
+  ParsedRequest out;
+  out.error = RpcError{code, std::move(message), std::move(data), std::move(id), notification};
+  return out;
+}
+
+// An id PROTOCOL.md accepts: a string, or an integer within +-(2^53-1).
+bool validId(const json& id) {
+  if (id.is_string()) return true;
+  if (id.is_number_unsigned()) return id.get<std::uint64_t>() <= std::uint64_t(kMaxSafeInteger);
+  if (id.is_number_integer()) return std::abs(id.get<std::int64_t>()) <= kMaxSafeInteger;
+  return false;
+}
+
+ViewMode viewModeValue(const json& v, bool framesAllowed) {
+  const std::string name = stringValue(v, "view");
+  const auto mode = fromName(kViewModeNames, name);
+  if (!mode || (!framesAllowed && *mode == ViewMode::Frames))
+    fail("view", std::string("must be ") + (framesAllowed ? "\"splats\", \"frames\" or \"none\"" : "\"splats\" or \"none\"") +
+                     ", got " + inQuotes(name));
+  return *mode;
+}
+
+std::optional<int> protocolValue(const json& params) {
+  const json* p = find(params, "protocol");
+  if (!p) return std::nullopt;
+  return int(integerInRange(*p, "protocol", 0, 1 << 30));
+}
+
+RayParam rayValue(const json& v, std::string_view key) {
+  if (!v.is_object()) fail(key, "must be an object {origin, direction}, got " + describe(v));
+  try {
+    checkKeys(v, {"origin", "direction"}, "a ray");
+    RayParam r;
+    r.origin = vec3Value(require(v, "origin", "a ray"), "origin", kMaxCoordinate);
+    r.direction = vec3Value(require(v, "direction", "a ray"), "direction", 1e300);
+    if (r.direction == Vec3{0, 0, 0}) fail("direction", "must not be zero");
+    return r;
+  } catch (const OpError& e) {
+    // Nested values are reported under the top-level key, the message says which part.
+    throw OpError(std::string(key), inQuotes(key) + ": " + e.message());
+  }
+}
+
+Camera cameraValue(const json& params, int maxSide) {
+  const std::string context = "a frame";
+  const json& c = require(params, "camera", context);
+  if (!c.is_object()) fail("camera", "must be an object {eye, target, up?, fov?}, got " + describe(c));
+  Camera cam;
+  try {
+    checkKeys(c, {"eye", "target", "up", "fov"}, "a camera");
+    cam.eye = vec3Value(require(c, "eye", "a camera"), "eye", 1e5);
+    cam.target = vec3Value(require(c, "target", "a camera"), "target", 1e5);
+    if (const json* up = find(c, "up")) cam.up = vec3Value(*up, "up", 1e300);
+    if (const json* fov = find(c, "fov")) {
+      cam.fovY_degrees = finiteNumber(*fov, "fov");
+      if (!(cam.fovY_degrees > 1 && cam.fovY_degrees < 170))
+        fail("fov", "must be in (1, 170) degrees, got " + formatNumber(cam.fovY_degrees));
+    }
+  } catch (const OpError& e) {
+    throw OpError("camera", "\"camera\": " + e.message());
+  }
+  for (const char* key : {"width", "height"}) {
+    const std::int64_t side = integerInRange(require(params, key, context), key, 1, std::int64_t(1) << 31);
+    if (side > maxSide)
+      throw RpcException(RpcCode::LimitExceeded,
+                         inQuotes(key) + " " + std::to_string(side) + " is over the server's max_frame_side " +
+                             std::to_string(maxSide),
+                         {{"limit", "max_frame_side"}, {"value", side}, {"max", maxSide}, {"field", key}});
+    (std::string_view(key) == "width" ? cam.width : cam.height) = int(side);
+  }
+  try {
+    cam.validate();
+  } catch (const std::exception& e) {
+    throw RpcException(RpcCode::EngineRefused, std::string("\"camera\": ") + e.what(), {{"field", "camera"}});
+  }
+  return cam;
+}
+
+std::string paramsContext(Method m) { return "params of " + std::string(nameOf(kMethodNames, m)); }
+
+}  // namespace
+
+bool isSessionId(std::string_view s) { return !s.empty() && s.size() <= 64 && idCharsOnly(s); }
+bool isToken(std::string_view s) { return !s.empty() && s.size() <= 128 && idCharsOnly(s); }
+
+ParsedRequest parseRequest(std::string_view text) {
+  json message;
+  try {
+    message = parseJsonText(text);
+  } catch (const OpError& e) {
+    return refuse(RpcCode::ParseError, "parse error: " + e.message());
+  }
+  if (message.is_array()) return refuse(RpcCode::InvalidRequest, "batches (JSON arrays) are not supported");
+  if (!message.is_object()) return refuse(RpcCode::InvalidRequest, "a request must be a JSON object, got " + describe(message));
+
+  // The id first, so that later refusals can name it.
+  const json* id = find(message, "id");
+  const bool notification = id == nullptr;
+  json replyId = nullptr;
+  if (id) {
+    if (!validId(*id))
+      return refuse(RpcCode::InvalidRequest,
+                    "\"id\" must be a string or an integer within +-(2^53-1), got " + describe(*id));
+    replyId = *id;
+  }
+  for (const auto& item : message.items()) {
+    const std::string& k = item.key();
+    if (k != "jsonrpc" && k != "id" && k != "method" && k != "params")
+      return refuse(RpcCode::InvalidRequest, "unknown key " + inQuotes(k) + " in a request (allowed: jsonrpc, id, method, params)",
+                    replyId, notification);
+  }
+  const json* version = find(message, "jsonrpc");
+  if (!version || *version != "2.0")
+    return refuse(RpcCode::InvalidRequest, "\"jsonrpc\" must be \"2.0\"", replyId, notification);
+  const json* method = find(message, "method");
+  if (!method || !method->is_string())
+    return refuse(RpcCode::InvalidRequest,
+                  method ? "\"method\" must be a string, got " + describe(*method) : "\"method\" is missing", replyId,
+                  notification);
+  const std::string& name = method->get_ref<const std::string&>();
+  const auto m = fromName(kMethodNames, name);
+  if (!m) return refuse(RpcCode::UnknownMethod, "unknown method " + inQuotes(name), replyId, notification);
+
+  Request request;
+  request.id = id ? std::optional<json>(*id) : std::nullopt;
+  request.method = *m;
+  if (const json* params = find(message, "params")) {
+    if (!params->is_object())
+      return refuse(RpcCode::InvalidParams, "\"params\" must be an object (by-name parameters), got " + describe(*params),
+                    replyId, notification, {{"field", "params"}});
+    request.params = *params;
+  }
+  if (needsFrameId(*m) && id) {
+    const bool ok = id->is_number_integer() && !id->is_number_float() &&
+                    (id->is_number_unsigned() ? id->get<std::uint64_t>() >= 1 && id->get<std::uint64_t>() <= 0xFFFFFFFFu
+                                              : id->get<std::int64_t>() >= 1 && id->get<std::int64_t>() <= 0xFFFFFFFF);
+    if (!ok)
+      return refuse(RpcCode::InvalidRequest,
+                    inQuotes(name) + " needs an integer id in [1, 4294967295]: it travels in the binary frame header",
+                    replyId, notification);
+    request.frameId = std::uint32_t(id->get<std::uint64_t>());
+  }
+  ParsedRequest out;
+  out.request = std::move(request);
+  return out;
+}
+
+CreateParams parseCreateParams(const json& params) {
+  const std::string context = paramsContext(Method::SessionCreate);
+  checkKeys(params, {"size", "solid", "session", "protocol", "view"}, context);
+  CreateParams p;
+  const json& size = require(params, "size", context);
+  if (!size.is_array() || size.size() != 3)
+    fail("size", "must be an array of three integers [nx, ny, nz], got " +
+                     (size.is_array() ? "an array of " + std::to_string(size.size()) : describe(size)));
+  for (int a = 0; a < 3; ++a) {
+    try {
+      p.size[a] = int(integerInRange(size[std::size_t(a)], "size", 8, kMaxDomainSide));
+    } catch (const OpError& e) {
+      throw OpError("size", "\"size\"[" + std::to_string(a) + "]" + e.message().substr(6));
+    }
+  }
+  const std::string solid = stringValue(require(params, "solid", context), "solid");
+  const auto kind = solidKindFromName(solid);
+  if (!kind) fail("solid", "must be one of empty, sphere, box, torus, cylinder, dumbbell, pig, got " + inQuotes(solid));
+  p.solid = *kind;
+  if (const json* s = find(params, "session")) {
+    const std::string id = stringValue(*s, "session");
+    if (id.size() < 16 || id.size() > 64 || !idCharsOnly(id))
+      fail("session", "must be 16 to 64 characters of A-Z a-z 0-9 _ -, got " + inQuotes(id));
+    p.session = id;
+  }
+  p.protocol = protocolValue(params);
+  if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
+  return p;
+}
+
+JoinParams parseJoinParams(const json& params) {
+  const std::string context = paramsContext(Method::SessionJoin);
+  checkKeys(params, {"session", "token", "protocol", "view"}, context);
+  JoinParams p;
+  p.session = stringValue(require(params, "session", context), "session");
+  if (!isSessionId(p.session)) fail("session", "must be 1 to 64 characters of A-Z a-z 0-9 _ -, got " + inQuotes(p.session));
+  p.token = stringValue(require(params, "token", context), "token");
+  if (!isToken(p.token)) fail("token", "must be 1 to 128 characters of A-Z a-z 0-9 _ -");
+  p.protocol = protocolValue(params);
+  if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
+  return p;
+}
+
+ToolApplyParams parseToolApplyParams(const json& params) {
+  if (find(params, "op")) fail("op", "is not for tool.apply: operations with \"op\" go to volume.morph, global smoothing is {\"tool\":\"smooth\",\"global\":true,...}");
+  ToolApplyParams p;
+  const json* ray = find(params, "ray");
+  if (!ray) {
+    p.op = parseOp(params);
+    return p;
+  }
+  if (find(params, "center")) fail("center", "and \"ray\" exclude each other: give one");
+  p.ray = rayValue(*ray, "ray");
+  json withCenter = params;
+  withCenter.erase("ray");
+  withCenter["center"] = json::array({0, 0, 0});
+  p.op = parseOp(withCenter);
+  if (std::holds_alternative<GlobalSmoothOp>(p.op)) fail("ray", "is not for global smoothing, which has no centre");
+  return p;
+}
+
+StrokeBeginParams parseStrokeBeginParams(const json& params) {
+  const std::string context = paramsContext(Method::StrokeBegin);
+  checkKeys(params, {"tool", "radius", "strength", "symmetry"}, context);
+  StrokeBeginParams p;
+  const std::string tool = stringValue(require(params, "tool", context), "tool");
+  const auto t = fromName(kBrushToolNames, tool);
+  if (!t) fail("tool", "must be one of " + listNames(kBrushToolNames) + " for a stroke, got " + inQuotes(tool));
+  p.tool = *t;
+  if (const json* r = find(params, "radius")) p.radius = numberInRange(*r, "radius", kMinToolRadius, kMaxToolRadius);
+  if (const json* s = find(params, "strength")) {
+    p.strength = finiteNumber(*s, "strength");
+    if (!(p.strength > 0 && p.strength <= 1)) fail("strength", "must be in (0, 1], got " + formatNumber(p.strength));
+  }
+  if (const json* sym = find(params, "symmetry")) {
+    if (!sym->is_array() || sym->size() > 3) fail("symmetry", "must be an array of axes such as [\"x\", \"z\"], got " + describe(*sym));
+    for (const json& axis : *sym) {
+      const std::string a = axis.is_string() ? axis.get<std::string>() : std::string();
+      bool& flag = a == "x" ? p.mirrorX : a == "y" ? p.mirrorY : p.mirrorZ;
+      if (a != "x" && a != "y" && a != "z") fail("symmetry", "lists axes \"x\", \"y\", \"z\", got " + describe(axis));
+      if (flag) fail("symmetry", "names axis " + inQuotes(a) + " twice");
+      flag = true;
+    }
+  }
+  return p;
+}
+
+StrokeDabsParams parseStrokeDabsParams(const json& params, std::size_t maxDabs) {
+  const std::string context = paramsContext(Method::StrokeDabs);
+  checkKeys(params, {"stroke", "dabs"}, context);
+  StrokeDabsParams p;
+  p.stroke = std::uint64_t(integerInRange(require(params, "stroke", context), "stroke", 1, kMaxSafeInteger));
+  const json& dabs = require(params, "dabs", context);
+  if (!dabs.is_array()) fail("dabs", "must be an array of dabs, got " + describe(dabs));
+  if (dabs.empty()) fail("dabs", "must hold at least one dab");
+  if (dabs.size() > maxDabs)
+    throw RpcException(RpcCode::LimitExceeded,
+                       "\"dabs\" holds " + std::to_string(dabs.size()) + " dabs, over the server's max_dabs " +
+                           std::to_string(maxDabs),
+                       {{"limit", "max_dabs"}, {"value", dabs.size()}, {"max", maxDabs}, {"field", "dabs"}});
+  p.dabs.reserve(dabs.size());
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    const json& d = dabs[i];
+    const std::string where = "\"dabs\"[" + std::to_string(i) + "]";
+    try {
+      if (!d.is_object()) fail("dab", "must be an object {center | ray, pressure?}, got " + describe(d));
+      checkKeys(d, {"center", "ray", "pressure"}, "a dab");
+      const json* center = find(d, "center");
+      const json* ray = find(d, "ray");
+      if ((center != nullptr) == (ray != nullptr)) fail("dab", "needs exactly one of \"center\" and \"ray\"");
+      DabParam dab;
+      if (center) dab.at = vec3Value(*center, "center", kMaxCoordinate);
+      else dab.at = rayValue(*ray, "ray");
+      if (const json* pr = find(d, "pressure")) {
+        dab.pressure = finiteNumber(*pr, "pressure");
+        if (!(dab.pressure > 0 && dab.pressure <= 1)) fail("pressure", "must be in (0, 1], got " + formatNumber(dab.pressure));
+      }
+      p.dabs.push_back(dab);
+    } catch (const OpError& e) {
+      throw OpError("dabs", where + ": " + e.message());
+    }
+  }
+  return p;
+}
+
+std::uint64_t parseStrokeEndParams(const json& params) {
+  const std::string context = paramsContext(Method::StrokeEnd);
+  checkKeys(params, {"stroke"}, context);
+  return std::uint64_t(integerInRange(require(params, "stroke", context), "stroke", 1, kMaxSafeInteger));
+}
+
+MorphOp parseMorphParams(const json& params) {
+  const std::string context = paramsContext(Method::VolumeMorph);
+  checkKeys(params, {"kind", "radius"}, context);
+  json op = params;
+  op["op"] = "morph";
+  return std::get<MorphOp>(parseOp(op));
+}
+
+ViewSetParams parseViewSetParams(const json& params, int maxSide) {
+  const std::string context = paramsContext(Method::ViewSet);
+  checkKeys(params, {"mode", "camera", "width", "height"}, context);
+  ViewSetParams p;
+  const std::string mode = stringValue(require(params, "mode", context), "mode");
+  const auto m = fromName(kViewModeNames, mode);
+  if (!m) fail("mode", "must be \"splats\", \"frames\" or \"none\", got " + inQuotes(mode));
+  p.mode = *m;
+  if (p.mode == ViewMode::Frames) {
+    p.camera = cameraValue(params, maxSide);
+  } else {
+    for (const char* key : {"camera", "width", "height"})
+      if (find(params, key)) fail(key, "is only for mode \"frames\"");
+  }
+  return p;
+}
+
+RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
+  const std::string context = paramsContext(Method::RenderFrame);
+  checkKeys(params, {"camera", "width", "height", "format", "quality", "shading"}, context);
+  RenderFrameParams p;
+  const std::string format = stringValue(require(params, "format", context), "format");
+  if (format == "jpeg") p.format = ImageKind::Jpeg;
+  else if (format == "png") p.format = ImageKind::Png;
+  else fail("format", "must be \"jpeg\" or \"png\", got " + inQuotes(format));
+  if (const json* q = find(params, "quality")) {
+    if (p.format != ImageKind::Jpeg) fail("quality", "applies to format \"jpeg\" only");
+    p.quality = int(integerInRange(*q, "quality", 1, 100));
+  }
+  if (const json* s = find(params, "shading")) {
+    const std::string shading = stringValue(*s, "shading");
+    if (shading == "lit") p.shading = Shading::Lit;
+    else if (shading == "normals") p.shading = Shading::Normals;
+    else if (shading == "gradient_error") p.shading = Shading::GradientError;
+    else fail("shading", "must be \"lit\", \"normals\" or \"gradient_error\", got " + inQuotes(shading));
+  }
+  p.camera = cameraValue(params, maxSide);
+  return p;
+}
+
+std::string parseMeshExportParams(const json& params) {
+  const std::string context = paramsContext(Method::MeshExport);
+  checkKeys(params, {"format"}, context);
+  const std::string format = stringValue(require(params, "format", context), "format");
+  if (format != "stl" && format != "obj" && format != "ply") fail("format", "must be \"stl\", \"obj\" or \"ply\", got " + inQuotes(format));
+  return format;
+}
+
+std::uint64_t parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) {
+  const std::string context = paramsContext(Method::VolumeLoad);
+  checkKeys(params, {"bytes"}, context);
+  const std::int64_t bytes = integerInRange(require(params, "bytes", context), "bytes", 52, kMaxSafeInteger);
+  if (std::uint64_t(bytes) > maxBytes)
+    throw RpcException(RpcCode::LimitExceeded,
+                       "\"bytes\" " + std::to_string(bytes) + " is over the largest upload, " + std::to_string(maxBytes),
+                       {{"limit", "max_binary_bytes"}, {"value", bytes}, {"max", maxBytes}, {"field", "bytes"}});
+  return std::uint64_t(bytes);
+}
+
+void parseNoParams(const json& params, Method m) { checkKeys(params, {}, paramsContext(m) + ", which takes none"); }
+
+std::string resultText(const json& id, const json& result) {
+  return json{{"jsonrpc", "2.0"}, {"id", id}, {"result", result}}.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::string errorText(const json& id, RpcCode code, const std::string& message, const json& data) {
+  json error{{"code", int(code)}, {"message", message}};
+  if (!data.is_null()) error["data"] = data;
+  return json{{"jsonrpc", "2.0"}, {"id", id}, {"error", error}}.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::string notificationText(std::string_view method, const json& params) {
+  return json{{"jsonrpc", "2.0"}, {"method", method}, {"params", params}}.dump(-1, ' ', false,
+                                                                                 json::error_handler_t::replace);
+}
+
+json vec3Json(Vec3 v) { return json::array({v.x, v.y, v.z}); }
+
+json boxJson(const Box& b) {
+  if (b.empty()) return nullptr;
+  return {{"lo", {b.lo.x, b.lo.y, b.lo.z}}, {"hi", {b.hi.x, b.hi.y, b.hi.z}}};
+}
+
+}  // namespace marzipan::protocol

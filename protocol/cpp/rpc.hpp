@@ -1,0 +1,199 @@
+// JSON-RPC 2.0 messages of the Marzipan protocol: the request envelope, the params of every
+// method, and the texts the server sends back. protocol/PROTOCOL.md ("Requests and responses",
+// "Methods", "Errors") is the contract; this is its C++ side. No sockets, no sessions: the
+// service decides what a valid request does.
+//
+// Conventions: everything here reads untrusted text. Envelope problems come back as an
+// RpcError (never thrown past parseRequest); params decoders throw OpError (code -32602,
+// `field` = the top-level params key) or RpcException (other codes, e.g. -32004 for a list
+// over a limit) before any effect. Coordinates in vu of the session grid, as in the engine.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/geometry.hpp"
+#include "engine/raycast.hpp"
+#include "engine/solids.hpp"
+#include "ops.hpp"
+
+namespace marzipan::protocol {
+
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 0;
+
+// Every error code of PROTOCOL.md, section Errors.
+enum class RpcCode : int {
+  ParseError = -32700,
+  InvalidRequest = -32600,
+  UnknownMethod = -32601,
+  InvalidParams = -32602,
+  Internal = -32000,
+  NoSuchSession = -32001,
+  BadToken = -32002,
+  SessionFull = -32003,
+  LimitExceeded = -32004,
+  Busy = -32005,
+  EngineRefused = -32006,
+  ReadOnly = -32007,
+  UnsupportedProtocol = -32008,
+  NotInSession = -32009,
+  AlreadyInSession = -32010,
+  NoSuchStroke = -32011,
+  NothingToUndo = -32012,
+  UploadMissing = -32013,
+  SessionExists = -32014,
+  HeldElsewhere = -32015,
+};
+
+// An error to answer with; `data` is null or an object.
+class RpcException : public std::runtime_error {
+ public:
+  RpcException(RpcCode code, const std::string& message, nlohmann::json data = nullptr)
+      : std::runtime_error(message), code_(code), data_(std::move(data)) {}
+  RpcCode code() const { return code_; }
+  const nlohmann::json& data() const { return data_; }
+
+ private:
+  RpcCode code_;
+  nlohmann::json data_;
+};
+
+enum class Method {
+  SessionCreate, SessionJoin, SessionLeave, SessionStats, ToolApply, StrokeBegin, StrokeDabs, StrokeEnd,
+  VolumeMorph, HistoryUndo, HistoryRedo, ViewSet, RenderFrame, SplatsGet, MeshExport, VolumeSave, VolumeLoad,
+};
+inline constexpr std::array<NameOf<Method>, 17> kMethodNames{{
+    {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
+    {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
+    {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
+    {Method::StrokeDabs, "stroke.dabs"},       {Method::StrokeEnd, "stroke.end"},
+    {Method::VolumeMorph, "volume.morph"},     {Method::HistoryUndo, "history.undo"},
+    {Method::HistoryRedo, "history.redo"},     {Method::ViewSet, "view.set"},
+    {Method::RenderFrame, "render.frame"},     {Method::SplatsGet, "splats.get"},
+    {Method::MeshExport, "mesh.export"},       {Method::VolumeSave, "volume.save"},
+    {Method::VolumeLoad, "volume.load"},
+}};
+// Methods whose id travels in a binary header (answered by a frame, or naming an upload).
+bool needsFrameId(Method m);
+// Methods that change the volume or the history: refused for view tokens.
+bool isEdit(Method m);
+
+struct Request {
+  // The id as sent (an integer within +-(2^53-1) or a string); absent for a notification.
+  std::optional<nlohmann::json> id;
+  Method method = Method::SessionStats;
+  nlohmann::json params = nlohmann::json::object();  // always an object
+  // The id as a binary frame's request id, for methods that need one (else 0).
+  std::uint32_t frameId = 0;
+};
+
+struct RpcError {
+  RpcCode code;
+  std::string message;
+  nlohmann::json data;  // null or an object
+  nlohmann::json id;    // the request's id when it could be read, else null
+  bool notification = false;  // the request had no id: nothing may be sent back
+};
+
+struct ParsedRequest {
+  std::optional<Request> request;
+  std::optional<RpcError> error;
+};
+
+// One text frame. Checks in the order of PROTOCOL.md: one JSON value without repeated keys
+// (-32700), a single object, not a batch (-32600), "jsonrpc" exactly "2.0", only the four
+// envelope keys, a valid id, "method" a string (-32600), a known method (-32601), params an
+// object when present (-32602, field "params"), an integer id in [1, 2^32-1] for methods that
+// need one (-32600).
+ParsedRequest parseRequest(std::string_view text);
+
+// --- params of each method ------------------------------------------------------------------
+enum class ViewMode { Splats, Frames, None };
+inline constexpr std::array<NameOf<ViewMode>, 3> kViewModeNames{
+    {{ViewMode::Splats, "splats"}, {ViewMode::Frames, "frames"}, {ViewMode::None, "none"}}};
+
+struct RayParam {
+  Vec3 origin, direction;  // direction finite, not zero, any length
+};
+
+struct CreateParams {
+  Int3 size;
+  SolidKind solid = SolidKind::Sphere;
+  std::optional<std::string> session;  // the id the client proposes
+  std::optional<int> protocol;
+  ViewMode view = ViewMode::Splats;
+};
+struct JoinParams {
+  std::string session, token;
+  std::optional<int> protocol;
+  ViewMode view = ViewMode::Splats;
+};
+struct ToolApplyParams {
+  Op op;                       // a tool op; its centre is a placeholder when `ray` is set
+  std::optional<RayParam> ray;
+};
+struct StrokeBeginParams {
+  BrushTool tool = BrushTool::AddBlob;
+  double radius = kDefaultBrushRadius, strength = kDefaultStrength;
+  bool mirrorX = false, mirrorY = false, mirrorZ = false;
+};
+struct DabParam {
+  std::variant<Vec3, RayParam> at;
+  double pressure = 1;  // (0, 1]
+};
+struct StrokeDabsParams {
+  std::uint64_t stroke = 0;
+  std::vector<DabParam> dabs;
+};
+struct ViewSetParams {
+  ViewMode mode = ViewMode::Splats;
+  std::optional<Camera> camera;  // with width and height set; present exactly for frames
+};
+enum class ImageKind { Jpeg, Png };
+struct RenderFrameParams {
+  Camera camera;  // with width and height
+  ImageKind format = ImageKind::Jpeg;
+  int quality = 90;
+  Shading shading = Shading::Lit;
+};
+
+// Session ids and tokens as PROTOCOL.md spells them.
+bool isSessionId(std::string_view s);  // [A-Za-z0-9_-]{1,64}
+bool isToken(std::string_view s);      // [A-Za-z0-9_-]{1,128}
+
+// Each throws OpError (-32602) naming the params key. Limits that are the server's are
+// checked by the caller, except maxDabs, which is checked before the dabs are read (-32004).
+CreateParams parseCreateParams(const nlohmann::json& params);
+JoinParams parseJoinParams(const nlohmann::json& params);
+ToolApplyParams parseToolApplyParams(const nlohmann::json& params);
+StrokeBeginParams parseStrokeBeginParams(const nlohmann::json& params);
+StrokeDabsParams parseStrokeDabsParams(const nlohmann::json& params, std::size_t maxDabs);
+std::uint64_t parseStrokeEndParams(const nlohmann::json& params);
+MorphOp parseMorphParams(const nlohmann::json& params);
+// maxSide: the server's max_frame_side (-32004 above it).
+ViewSetParams parseViewSetParams(const nlohmann::json& params, int maxSide);
+RenderFrameParams parseRenderFrameParams(const nlohmann::json& params, int maxSide);
+std::string parseMeshExportParams(const nlohmann::json& params);  // "stl", "obj" or "ply"
+std::uint64_t parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
+// Methods without params: refuses any key.
+void parseNoParams(const nlohmann::json& params, Method m);
+
+// --- what the server sends -------------------------------------------------------------------
+std::string resultText(const nlohmann::json& id, const nlohmann::json& result);
+std::string errorText(const nlohmann::json& id, RpcCode code, const std::string& message,
+                      const nlohmann::json& data = nullptr);
+std::string notificationText(std::string_view method, const nlohmann::json& params);
+
+// {"lo":[x,y,z],"hi":[x,y,z]}, or null for an empty box.
+nlohmann::json boxJson(const Box& b);
+nlohmann::json vec3Json(Vec3 v);
+
+}  // namespace marzipan::protocol
