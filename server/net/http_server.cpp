@@ -3,8 +3,13 @@
 // (keep-alive), and `SharedState` is what they share. Every session runs on its own strand and
 // lives exactly as long as its pending operation; every failure goes through `fail()`.
 //
-// Shutdown: stop() marks the state stopping, closes the acceptor and cancels the read of every
-// idle session; a session busy with a response finishes writing it, then closes.
+// A GET of /ws with an upgrade becomes a `WsSession`: the HTTP session hands over its socket.
+// A WsSession reads whole messages and gives them to the hub; the hub answers through a `Link`
+// (a ClientLink that holds the WsSession weakly and posts onto its strand).
+//
+// Shutdown: stop() marks the state stopping, closes the acceptor, lets the hub finish running
+// edits, closes every WebSocket with 1001 and cancels the read of every idle HTTP session; a
+// session busy with a response finishes writing it, then closes.
 #include "net/http_server.hpp"
 
 #include <boost/asio/dispatch.hpp>
@@ -16,11 +21,13 @@
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <csignal>
+#include <deque>
 #include <exception>
 #include <iostream>
 #include <mutex>
@@ -32,17 +39,21 @@
 #include <vector>
 
 #include "net/static_files.hpp"
+#include "protocol/cpp/frames.hpp"
+#include "service/hub.hpp"
 
 namespace marzipan::net {
 
 namespace asio = boost::asio;
 namespace beast = boost::beast;
 namespace http = beast::http;
+namespace websocket = beast::websocket;
 using tcp = asio::ip::tcp;
 
 namespace {
 
 class HttpSession;
+class WsSession;
 
 std::string endpointText(const tcp::endpoint& ep) {
   const std::string address = ep.address().to_string();
@@ -51,7 +62,9 @@ std::string endpointText(const tcp::endpoint& ep) {
 
 // What the listener and the sessions share.
 struct SharedState {
-  SharedState(const HttpServerOptions& o, Metrics& m) : options(o), files(o.webRoot), metrics(m) {}
+  SharedState(const HttpServerOptions& o, Metrics& m) : options(o), files(o.webRoot), metrics(m) {
+    for (const auto& [prefix, dir] : o.mounts) mounts.emplace_back(prefix, StaticFiles(dir));
+  }
 
   void log(const std::string& line) const {
     if (options.log) return options.log(line);
@@ -81,20 +94,236 @@ struct SharedState {
     return stopping;
   }
 
+  // Registers a WebSocket for the 1001 close at shutdown; false once stopping.
+  bool joinWs(const std::shared_ptr<WsSession>& ws) {
+    const std::lock_guard lock(mutex);
+    if (stopping) return false;
+    if (websockets.size() >= 2 * liveWs + 64) std::erase_if(websockets, [](const auto& w) { return w.expired(); });
+    websockets.push_back(ws);
+    ++liveWs;
+    ++live;
+    return true;
+  }
+
+  void leaveWs() {
+    const std::lock_guard lock(mutex);
+    --liveWs;
+    --live;
+    if (live == 0) idle.notify_all();
+  }
+
   const HttpServerOptions& options;
   const StaticFiles files;
+  std::vector<std::pair<std::string, StaticFiles>> mounts;
   Metrics& metrics;
-  std::mutex mutex;  // guards the five below
+  std::mutex mutex;  // guards the seven below
   std::condition_variable idle;  // notified when live drops to 0 and when the acceptor closed
   bool stopping = false, acceptorClosed = false;
   std::vector<std::weak_ptr<HttpSession>> sessions;
-  std::size_t live = 0;
+  std::vector<std::weak_ptr<WsSession>> websockets;
+  std::size_t live = 0;  // HTTP sessions and WebSockets
+  std::size_t liveWs = 0;
 };
 
 bool normalClose(const beast::error_code& ec) {
   return ec == asio::error::operation_aborted || ec == http::error::end_of_stream || ec == asio::error::eof ||
          ec == asio::error::connection_reset || ec == asio::error::broken_pipe;
 }
+
+// Whether a browser's Origin may open a WebSocket here (see HttpServerOptions::allowedOrigins).
+bool originAllowed(const SharedState& state, std::string_view origin, std::string_view host) {
+  if (origin.empty()) return true;
+  const auto& allowed = state.options.allowedOrigins;
+  if (allowed.empty()) {
+    const std::size_t scheme = origin.find("://");
+    return scheme != std::string_view::npos && origin.substr(scheme + 3) == host;
+  }
+  for (const std::string& a : allowed)
+    if (a == "*" || a == origin) return true;
+  return false;
+}
+
+// A WebSocket connection: reads messages into the hub, writes what the hub sends.
+class WsSession : public std::enable_shared_from_this<WsSession> {
+ public:
+  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer)
+      : ws_(std::move(stream)), state_(std::move(state)), peer_(std::move(peer)) {}
+
+  ~WsSession() {
+    if (!joined_) return;
+    if (client_) state_->options.hub->disconnect(client_);
+    state_->log("ws: close " + peer_);
+    state_->leaveWs();
+  }
+
+  void run(http::request<http::string_body> req) {
+    if (!state_->joinWs(shared_from_this())) return;
+    joined_ = true;
+    const service::HubLimits& limits = state_->options.hub->limits();
+    websocket::stream_base::timeout timeout{};
+    timeout.handshake_timeout = std::chrono::seconds(30);
+    timeout.idle_timeout = std::chrono::seconds(2 * std::max<long long>(1, limits.ping.count()));
+    timeout.keep_alive_pings = true;
+    beast::get_lowest_layer(ws_).expires_never();
+    ws_.set_option(timeout);
+    ws_.set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, "marzipan"); }));
+    ws_.read_message_max(std::max(limits.maxTextBytes, limits.maxBinaryBytes));
+    ws_.auto_fragment(false);
+    ws_.async_accept(req, beast::bind_front_handler(&WsSession::onAccept, shared_from_this()));
+  }
+
+  // From any thread: queue a message (see the write conventions in http_server.hpp).
+  void send(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
+            bool latestWins) {
+    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
+                                        latestWins] { self->enqueue(text, binary, latestWins); });
+  }
+
+  void close(websocket::close_code code, std::string reason) {
+    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), code, reason = std::move(reason)] {
+      self->startClose(code, reason);
+    });
+  }
+
+ private:
+  struct Out {
+    std::shared_ptr<const std::string> text;
+    std::shared_ptr<const std::vector<std::uint8_t>> binary;
+    bool latestWins = false;
+    std::size_t size() const { return text ? text->size() : binary->size(); }
+  };
+
+  // The hub's view of this connection.
+  class Link : public service::ClientLink {
+   public:
+    explicit Link(std::weak_ptr<WsSession> ws) : ws_(std::move(ws)) {}
+    void sendText(std::string text) override {
+      if (const auto ws = ws_.lock()) ws->send(std::make_shared<const std::string>(std::move(text)), nullptr, false);
+    }
+    void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) override {
+      if (const auto ws = ws_.lock()) ws->send(nullptr, std::move(frame), latestWins);
+    }
+    void close(int code, std::string reason) override {
+      if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));
+    }
+
+   private:
+    std::weak_ptr<WsSession> ws_;
+  };
+
+  void onAccept(beast::error_code ec) {
+    if (ec) return fail(ec, "handshake");
+    state_->log("ws: open " + peer_);
+    client_ = state_->options.hub->connect(std::make_shared<Link>(weak_from_this()), peer_);
+    doRead();
+  }
+
+  void doRead() {
+    if (closing_) return;
+    ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::onRead, shared_from_this()));
+  }
+
+  void onRead(beast::error_code ec, std::size_t bytes) {
+    if (ec) return fail(ec, "read");
+    const service::HubLimits& limits = state_->options.hub->limits();
+    const auto data = buffer_.cdata();
+    const auto* begin = static_cast<const std::uint8_t*>(data.data());
+    if (ws_.got_text()) {
+      if (bytes > limits.maxTextBytes)
+        return startClose(websocket::close_code::too_big, "text message over max_text_bytes (" +
+                                                              std::to_string(limits.maxTextBytes) + ")");
+      state_->options.hub->text(client_, std::string(reinterpret_cast<const char*>(begin), bytes));
+    } else {
+      const auto decoded = protocol::decodeFrameHeader({begin, bytes}, limits.maxBinaryBytes);
+      if (!decoded) return startClose(websocket::close_code::policy_error, decoded.error->message.substr(0, 120));
+      if (decoded.frame->header.kind != protocol::FrameKind::VolumeUpload)
+        return startClose(websocket::close_code::policy_error, "clients send binary frames of kind 9 (volume upload) only");
+      state_->options.hub->binary(client_, std::vector<std::uint8_t>(begin, begin + bytes));
+    }
+    buffer_.consume(buffer_.size());
+    doRead();
+  }
+
+  void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
+               bool latestWins) {
+    if (closing_) return;
+    Out out{std::move(text), std::move(binary), latestWins};
+    if (latestWins) {
+      // Replace a pushed image still waiting (never the one being written).
+      for (std::size_t i = writing_ ? 1 : 0; i < queue_.size(); ++i) {
+        if (queue_[i].latestWins) {
+          queue_[i] = std::move(out);
+          return;
+        }
+      }
+    } else {
+      queuedBytes_ += out.size();
+      if (queuedBytes_ > state_->options.hub->limits().maxQueuedBytes) return startClose(websocket::close_code::policy_error, "too far behind");
+    }
+    queue_.push_back(std::move(out));
+    if (!writing_) doWrite();
+  }
+
+  void doWrite() {
+    writing_ = true;
+    const Out& out = queue_.front();
+    ws_.text(out.text != nullptr);
+    if (out.text) {
+      ws_.async_write(asio::buffer(*out.text), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
+    } else {
+      ws_.async_write(asio::buffer(*out.binary), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
+    }
+  }
+
+  void onWrite(beast::error_code ec, std::size_t bytes) {
+    state_->metrics.addBytesSent(bytes);
+    writing_ = false;
+    if (ec) return fail(ec, "write");
+    if (!queue_.front().latestWins) queuedBytes_ -= queue_.front().size();
+    queue_.pop_front();
+    if (closeAfterWrite_) return doClose();
+    if (!queue_.empty() && !closing_) doWrite();
+  }
+
+  void startClose(websocket::close_code code, std::string reason) {
+    if (closing_) return;
+    closing_ = true;
+    closeReason_ = websocket::close_reason(code, beast::string_view(reason.data(), std::min<std::size_t>(reason.size(), 123)));
+    closeReasonText_ = std::move(reason);
+    if (client_) state_->options.hub->disconnect(client_);
+    if (writing_) {
+      closeAfterWrite_ = true;
+      return;
+    }
+    doClose();
+  }
+
+  void doClose() {
+    closeAfterWrite_ = false;
+    queue_.clear();
+    state_->log("ws: closing " + peer_ + " with " + std::to_string(int(closeReason_.code)) + " " + closeReasonText_);
+    ws_.async_close(closeReason_, [self = shared_from_this()](beast::error_code) {});
+  }
+
+  void fail(beast::error_code ec, std::string_view what) {
+    closing_ = true;
+    if (ec == websocket::error::closed || normalClose(ec)) return;
+    state_->log("ws: " + peer_ + " " + std::string(what) + ": " + ec.message());
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  beast::flat_buffer buffer_;
+  std::shared_ptr<SharedState> state_;
+  std::string peer_;
+  std::shared_ptr<service::HubClient> client_;
+  std::deque<Out> queue_;
+  std::size_t queuedBytes_ = 0;  // non-droppable bytes queued, the one in flight included
+  bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
+  websocket::close_reason closeReason_;
+  std::string closeReasonText_;
+};
+
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
@@ -122,7 +351,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   // Posted by stop(): ends the session now unless a response is on its way.
   void closeIfIdle() {
     asio::dispatch(stream_.get_executor(), [self = shared_from_this()] {
-      if (!self->busy_) self->stream_.cancel();
+      if (!self->busy_ && !self->upgraded_) self->stream_.cancel();
     });
   }
 
@@ -150,7 +379,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     handle(parser_->release());
   }
 
-  void handle(const http::request<http::string_body>& req) {
+  void handle(http::request<http::string_body>&& req) {
     const bool head = req.method() == http::verb::head;
     const bool keepAlive = req.keep_alive();
     const std::string_view target(req.target().data(), req.target().size());
@@ -161,6 +390,17 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                                                      : PathClass::staticFile;
     state_->metrics.countRequest(pathClass);
 
+    if (pathClass == PathClass::websocket && state_->options.hub && websocket::is_upgrade(req)) {
+      const auto origin = req[http::field::origin];
+      const auto host = req[http::field::host];
+      if (!originAllowed(*state_, std::string_view(origin.data(), origin.size()), std::string_view(host.data(), host.size()))) {
+        return sendText(http::status::forbidden, false, "WebSocket from origin not allowed\n", false);
+      }
+      busy_ = false;
+      upgraded_ = true;
+      std::make_shared<WsSession>(std::move(stream_), state_, peer_)->run(std::move(req));
+      return;
+    }
     if (req.method() != http::verb::get && !head) {
       return sendText(http::status::method_not_allowed, head, "method not allowed: GET and HEAD only\n", keepAlive);
     }
@@ -170,7 +410,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         return sendText(http::status::ok, head, state_->metrics.renderPrometheus(), keepAlive,
                         "text/plain; version=0.0.4; charset=utf-8");
       case PathClass::websocket: return sendText(http::status::not_found, head, "not found\n", keepAlive);
-      case PathClass::staticFile: return sendFile(state_->files.resolve(target), head, keepAlive);
+      case PathClass::staticFile:
+        for (const auto& [prefix, files] : state_->mounts) {
+          if (path.size() > prefix.size() && path.compare(0, prefix.size(), prefix) == 0)
+            return sendFile(files.resolve(target.substr(prefix.size() - 1)), head, keepAlive);
+        }
+        return sendFile(state_->files.resolve(target), head, keepAlive);
     }
   }
 
@@ -250,6 +495,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::string peer_;
   bool joined_ = false;  // counted in state_->live
   bool busy_ = false;  // a request has been read and its response not yet written
+  bool upgraded_ = false;  // the socket went to a WsSession
   std::size_t requests_ = 0;
 };
 
@@ -345,6 +591,11 @@ HttpServer::~HttpServer() { stop(); }
 
 Metrics& HttpServer::metrics() { return impl_->metrics; }
 
+void HttpServer::setHub(service::Hub* hub) {
+  if (impl_->listener) throw std::logic_error("HttpServer::setHub after start");
+  impl_->options.hub = hub;
+}
+
 void HttpServer::start() {
   Impl& s = *impl_;
   if (s.listener) throw std::logic_error("HttpServer::start called twice");
@@ -396,12 +647,19 @@ void HttpServer::stop() {
   }
   if (!s.state) return;
   std::vector<std::weak_ptr<HttpSession>> sessions;
+  std::vector<std::weak_ptr<WsSession>> websockets;
   {
     const std::lock_guard lock(s.state->mutex);
     s.state->stopping = true;
     sessions = s.state->sessions;
+    websockets = s.state->websockets;
   }
   s.listener->stop();
+  // Running edits finish and answer before their clients are told to go.
+  if (s.options.hub) s.options.hub->shutdown();
+  for (const auto& weak : websockets) {
+    if (const auto ws = weak.lock()) ws->close(websocket::close_code::going_away, "server shutting down");
+  }
   if (s.signals) {
     asio::post(s.ioc, [&s] {
       beast::error_code ignored;

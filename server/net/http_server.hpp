@@ -1,7 +1,15 @@
-// The HTTP side of `marzipan serve`: one port, GET/HEAD only, static files of the web root at
-// "/", "/healthz" (200 "ok") and "/metrics" (Prometheus text). "/ws" answers 404 until the
-// WebSocket layer exists. A narrow, Beast-free interface: Boost.Beast/Asio stay inside
-// http_server.cpp, so including this header costs nothing.
+// The socket side of `marzipan serve`: one port, GET/HEAD only, static files of the web root at
+// "/" (and of each mount under its prefix), "/healthz" (200 "ok"), "/metrics" (Prometheus
+// text), and WebSocket upgrades at "/ws", whose messages go to a service::Hub (404 without
+// one). A narrow, Beast-free interface: Boost.Beast/Asio stay inside http_server.cpp, so
+// including this header costs nothing.
+//
+// WebSocket conventions: one read loop and one write in flight per connection; the outgoing
+// queue keeps responses and splat buffers in order and replaces a queued pushed image by a
+// newer one; a connection whose undelivered non-droppable bytes exceed the hub's
+// maxQueuedBytes is closed with 1008 "too far behind". Text over maxTextBytes closes with 1009,
+// invalid UTF-8 with 1007, an unreadable binary frame or one of another kind than 9 with 1008.
+// Pings every ping period; no answer within two closes the connection.
 //
 // Conventions: one log line per connection event (accept, close, error, signal) goes to
 // HttpServerOptions::log, stderr when unset. Refused paths answer 403, missing files 404,
@@ -15,8 +23,14 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "net/metrics.hpp"
+
+namespace marzipan::service {
+class Hub;
+}
 
 namespace marzipan::net {
 
@@ -30,6 +44,13 @@ struct HttpServerOptions {
   std::chrono::milliseconds idleTimeout{30'000};    // a connection silent this long is closed
   std::chrono::milliseconds shutdownGrace{5'000};   // stop() waits this long for requests in flight
   bool handleSignals = false;            // SIGINT/SIGTERM wake waitForStopRequest()
+  // Further static directories: URL prefix ("/protocol/js/", with both slashes) -> directory.
+  std::vector<std::pair<std::string, std::filesystem::path>> mounts;
+  // Where /ws messages go; not owned, must outlive the server. Null: /ws answers 404.
+  service::Hub* hub = nullptr;
+  // Origins ("http://host:port") a browser may open /ws from; empty: only the page's own
+  // (Origin's host equal to the Host header); "*": any. Requests without Origin (scripts) pass.
+  std::vector<std::string> allowedOrigins;
   std::function<void(const std::string&)> log;  // one line, no newline; called from I/O threads
 };
 
@@ -47,11 +68,14 @@ class HttpServer {
   std::uint16_t port() const;
   // Blocks until SIGINT/SIGTERM arrives (with options.handleSignals) or stop() is called.
   void waitForStopRequest();
-  // Stops accepting, closes idle connections, lets requests in flight finish (at most
-  // options.shutdownGrace), then joins the I/O threads. Idempotent; not from a handler.
+  // Stops accepting, lets the hub finish running edits (Hub::shutdown), closes WebSockets with
+  // 1001 and idle connections, lets requests in flight finish (at most options.shutdownGrace),
+  // then joins the I/O threads. Idempotent; not from a handler.
   void stop();
 
   Metrics& metrics();
+  // Sets options.hub before start() (a hub wired to metrics() is made after the server).
+  void setHub(service::Hub* hub);
 
  private:
   struct Impl;

@@ -25,6 +25,11 @@ std::string_view pathClassName(PathClass c) {
 
 void Metrics::countRequest(PathClass c) { requests_[static_cast<std::size_t>(c)].fetch_add(1, std::memory_order_relaxed); }
 
+void Metrics::countMethod(std::string_view method) {
+  const std::lock_guard lock(mutex_);
+  ++methods_[std::string(method)];
+}
+
 void Metrics::countError(int code) {
   const std::lock_guard lock(mutex_);
   ++errors_[code];
@@ -58,6 +63,8 @@ std::string Metrics::renderPrometheus() const {
   os << "marzipan_bytes_sent_total " << bytesSent_.load(std::memory_order_relaxed) << '\n';
 
   const std::lock_guard lock(mutex_);
+  header(os, "marzipan_rpc_requests_total", "counter", "JSON-RPC requests by method.");
+  for (const auto& [method, count] : methods_) os << "marzipan_rpc_requests_total{method=\"" << method << "\"} " << count << '\n';
   header(os, "marzipan_errors_total", "counter", "Error responses by code (HTTP status or JSON-RPC code).");
   for (const auto& [code, count] : errors_) os << "marzipan_errors_total{code=\"" << code << "\"} " << count << '\n';
   header(os, "marzipan_edit_latency_seconds", "histogram", "Time from an edit request to its reply.");

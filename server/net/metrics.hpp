@@ -3,8 +3,8 @@
 //
 // Conventions: durations in seconds, sizes in bytes; counters only grow, gauges (sessions,
 // clients) move by deltas. The HTTP layer feeds requests, errors (HTTP status >= 400) and
-// bytes sent. Sessions, clients and the edit latency histogram are fed by the WebSocket layer;
-// until that exists they read 0. Errors are labelled by code: HTTP statuses now, JSON-RPC
+// bytes sent; the WebSocket layer feeds sessions, clients (in sessions), requests by method and
+// the edit latency histogram. Errors are labelled by code: HTTP statuses now, JSON-RPC
 // codes (negative) once the WebSocket layer reports them.
 #pragma once
 
@@ -30,6 +30,8 @@ class Metrics {
                                                               0.064, 0.128, 0.256, 0.512, 1.024};
 
   void countRequest(PathClass c);
+  // A JSON-RPC request by its method name (one of PROTOCOL.md's: the label set stays bounded).
+  void countMethod(std::string_view method);
   void countError(int code);
   void addBytesSent(std::uint64_t bytes);
   void addSessions(std::int64_t delta);
@@ -44,6 +46,7 @@ class Metrics {
   std::atomic<std::int64_t> sessions_{0}, clients_{0};
   mutable std::mutex mutex_;  // guards the two below
   std::map<int, std::uint64_t> errors_;
+  std::map<std::string, std::uint64_t, std::less<>> methods_;
   std::array<std::uint64_t, kEditLatencyBuckets.size() + 1> latencyCounts_{};  // per bucket, last = +Inf
   double latencySum_ = 0;
 };

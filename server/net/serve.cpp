@@ -14,12 +14,19 @@
 #include <ostream>
 #include <stdexcept>
 #include <string_view>
+#include <iostream>
+#include <mutex>
 #include <thread>
+#include <type_traits>
 
 #include "net/http_server.hpp"
+#include "service/hub.hpp"
 
 #ifndef MARZIPAN_DEFAULT_WEB_ROOT
 #define MARZIPAN_DEFAULT_WEB_ROOT "web-client"
+#endif
+#ifndef MARZIPAN_DEFAULT_PROTOCOL_JS
+#define MARZIPAN_DEFAULT_PROTOCOL_JS "protocol/js"
 #endif
 
 namespace fs = std::filesystem;
@@ -58,8 +65,21 @@ bool isIpAddress(const std::string& text) {
 int serve(const std::vector<std::string>& args, std::ostream& out) {
   Setting bind{"--bind", "MARZIPAN_BIND", {}}, port{"--port", "MARZIPAN_PORT", {}},
       threads{"--threads", "MARZIPAN_THREADS", {}}, webRoot{"--web-root", "MARZIPAN_WEB_ROOT", {}},
-      dataDir{"--data-dir", "MARZIPAN_DATA_DIR", {}};
-  Setting* const settings[] = {&bind, &port, &threads, &webRoot, &dataDir};
+      protocolJs{"--protocol-js", "MARZIPAN_PROTOCOL_JS", {}}, dataDir{"--data-dir", "MARZIPAN_DATA_DIR", {}},
+      origins{"--allowed-origins", "MARZIPAN_ALLOWED_ORIGINS", {}},
+      maxText{"--max-text-bytes", "MARZIPAN_MAX_TEXT_BYTES", {}},
+      maxBinary{"--max-binary-bytes", "MARZIPAN_MAX_BINARY_BYTES", {}},
+      maxGrid{"--max-grid-side", "MARZIPAN_MAX_GRID_SIDE", {}},
+      maxSessions{"--max-sessions", "MARZIPAN_MAX_SESSIONS", {}},
+      maxClients{"--max-clients-per-session", "MARZIPAN_MAX_CLIENTS_PER_SESSION", {}},
+      maxDabs{"--max-dabs", "MARZIPAN_MAX_DABS", {}}, maxFrame{"--max-frame-side", "MARZIPAN_MAX_FRAME_SIDE", {}},
+      historyMb{"--history-mb", "MARZIPAN_HISTORY_MB", {}},
+      idleSeconds{"--idle-session-seconds", "MARZIPAN_IDLE_SESSION_SECONDS", {}},
+      pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
+      queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}};
+  Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
+                               &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -93,21 +113,73 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   }
   if (port.value) options.port = static_cast<std::uint16_t>(parseUnsigned(port, 65535));
   const unsigned threadCount = threads.value ? parseUnsigned(threads, 1024) : 0;
-  options.threads = threadCount ? threadCount : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  // Sockets need little CPU; geometry runs on the hub's workers.
+  options.threads = std::min(2u, cores);
+
+  service::HubOptions hubOptions;
+  hubOptions.workers = threadCount ? threadCount : cores;
+  service::HubLimits& limits = hubOptions.limits;
+  const auto setLimit = [](const Setting& st, auto& field, unsigned lo, unsigned hi, std::uint64_t scale = 1) {
+    if (!st.value) return;
+    const unsigned v = parseUnsigned(st, hi);
+    if (v < lo) throw UsageError(std::string(st.flag) + " (or " + std::string(st.env) + ") must be at least " + std::to_string(lo));
+    field = static_cast<std::remove_reference_t<decltype(field)>>(v * scale);
+  };
+  setLimit(maxText, limits.maxTextBytes, 1024, 1u << 30);
+  setLimit(maxBinary, limits.maxBinaryBytes, 1024, 4000000000u);
+  setLimit(maxGrid, limits.maxGridSide, 8, 1024);
+  setLimit(maxSessions, limits.maxSessions, 1, 100000);
+  setLimit(maxClients, limits.maxClientsPerSession, 1, 10000);
+  setLimit(maxDabs, limits.maxDabs, 1, 100000);
+  setLimit(maxFrame, limits.maxFrameSide, 16, 4096);
+  setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
+  setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
+  if (idleSeconds.value) limits.idleSession = std::chrono::seconds(parseUnsigned(idleSeconds, 1u << 30));
+  if (pingSeconds.value) {
+    limits.ping = std::chrono::seconds(parseUnsigned(pingSeconds, 3600));
+    if (limits.ping.count() < 1) throw UsageError("--ping-seconds (or MARZIPAN_PING_SECONDS) must be at least 1");
+  }
+  if (origins.value) {
+    std::string_view list = *origins.value;
+    while (!list.empty()) {
+      const std::size_t comma = list.find(',');
+      const std::string_view item = list.substr(0, comma);
+      if (!item.empty()) options.allowedOrigins.emplace_back(item);
+      list = comma == std::string_view::npos ? std::string_view() : list.substr(comma + 1);
+    }
+  }
   options.webRoot = webRoot.value ? fs::path(*webRoot.value) : fs::path(MARZIPAN_DEFAULT_WEB_ROOT);
   if (webRoot.value && webRoot.value->empty()) throw UsageError("--web-root (or MARZIPAN_WEB_ROOT) is empty");
   std::error_code ec;
   if (!fs::is_directory(options.webRoot, ec)) {
     throw std::runtime_error("web root " + options.webRoot.string() + " is not a directory; pass --web-root DIR");
   }
+  const fs::path jsDir = protocolJs.value ? fs::path(*protocolJs.value) : fs::path(MARZIPAN_DEFAULT_PROTOCOL_JS);
+  if (fs::is_directory(jsDir, ec)) options.mounts.emplace_back("/protocol/js/", jsDir);
+  else if (protocolJs.value) throw std::runtime_error("protocol js directory " + jsDir.string() + " is not a directory");
   if (dataDir.value) {
     if (dataDir.value->empty()) throw UsageError("--data-dir (or MARZIPAN_DATA_DIR) is empty");
     fs::create_directories(*dataDir.value, ec);
     if (ec) throw std::runtime_error("cannot create data directory " + *dataDir.value + ": " + ec.message());
+    hubOptions.dataDir = *dataDir.value;
   }
   options.handleSignals = true;
 
   HttpServer server(options);
+  Metrics& metrics = server.metrics();
+  hubOptions.events.log = [](const std::string& line) {
+    static std::mutex stderrMutex;
+    const std::lock_guard lock(stderrMutex);
+    std::cerr << line << '\n';
+  };
+  hubOptions.events.sessions = [&metrics](std::int64_t d) { metrics.addSessions(d); };
+  hubOptions.events.clients = [&metrics](std::int64_t d) { metrics.addClients(d); };
+  hubOptions.events.request = [&metrics](std::string_view m) { metrics.countMethod(m); };
+  hubOptions.events.error = [&metrics](int code) { metrics.countError(code); };
+  hubOptions.events.editLatency = [&metrics](double s) { metrics.observeEditLatency(s); };
+  service::Hub hub(hubOptions);
+  server.setHub(&hub);
   server.start();
   const std::string host = options.bind.find(':') != std::string::npos ? "[" + options.bind + "]" : options.bind;
   out << "listening on http://" << host << ':' << server.port() << std::endl;
@@ -131,21 +203,44 @@ int runServe(const std::vector<std::string>& args, std::ostream& out, std::ostre
 void printServeUsage(std::ostream& os) {
   os << R"(Usage: marzipan serve [options]
 
-Serves the browser client (the files of the web root) at /, /healthz (200 "ok") and /metrics
-(Prometheus text) over HTTP. The WebSocket API at /ws comes with the next step of the server.
+Serves the browser client (the files of the web root) at /, the JavaScript protocol modules at
+/protocol/js/, /healthz (200 "ok"), /metrics (Prometheus text), and the sculpting API as
+JSON-RPC over a WebSocket at /ws (protocol/PROTOCOL.md).
 
 Options (each also read from the environment variable in brackets; a flag wins):
   --bind ADDR       IPv4 or IPv6 address to listen on [MARZIPAN_BIND]; default 127.0.0.1,
                     0.0.0.0 for every interface
   --port N          TCP port, 0 = pick a free one [MARZIPAN_PORT]; default 8080
-  --threads N       I/O threads, 0 = one per core [MARZIPAN_THREADS]; default one per core
+  --threads N       worker threads for sculpting and rendering, 0 = one per core
+                    [MARZIPAN_THREADS]; default one per core
   --web-root DIR    directory served at / [MARZIPAN_WEB_ROOT]; default the source tree's
                     web-client/
-  --data-dir DIR    where sessions will be kept, created if missing [MARZIPAN_DATA_DIR]
+  --protocol-js DIR directory served at /protocol/js/ [MARZIPAN_PROTOCOL_JS]; default the
+                    source tree's protocol/js/
+  --data-dir DIR    where idle sessions are saved and loaded again, created if missing
+                    [MARZIPAN_DATA_DIR]; without it an idle session is discarded
+  --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open
+                    /ws from, * for any [MARZIPAN_ALLOWED_ORIGINS]; default the page's own
+Limits (PROTOCOL.md, "Versions and limits"):
+  --max-text-bytes N         largest text message [MARZIPAN_MAX_TEXT_BYTES]; 1048576
+  --max-binary-bytes N       largest binary message [MARZIPAN_MAX_BINARY_BYTES]; 268435456
+  --max-grid-side N          largest grid side of a session [MARZIPAN_MAX_GRID_SIDE]; 512
+  --max-sessions N           sessions loaded at once [MARZIPAN_MAX_SESSIONS]; 64
+  --max-clients-per-session N  [MARZIPAN_MAX_CLIENTS_PER_SESSION]; 16
+  --max-dabs N               dabs in one stroke.dabs [MARZIPAN_MAX_DABS]; 256
+  --max-frame-side N         largest frame width/height [MARZIPAN_MAX_FRAME_SIDE]; 4096
+  --history-mb N             undo memory per session [MARZIPAN_HISTORY_MB]; 256
+  --idle-session-seconds N   a session without clients this long is saved and unloaded
+                             [MARZIPAN_IDLE_SESSION_SECONDS]; 600
+  --ping-seconds N           WebSocket ping period; two without answer close
+                             [MARZIPAN_PING_SECONDS]; 30
+  --max-queue-mb N           undelivered responses and splat buffers per connection before it
+                             is closed as too far behind [MARZIPAN_MAX_QUEUE_MB]; 64
   --help            this text
 
-Prints "listening on http://HOST:PORT" once it accepts connections and logs connection events
-to stderr. SIGINT or SIGTERM: stops accepting, finishes the requests in flight, exits 0.
+Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and
+session events to stderr. SIGINT or SIGTERM: stops accepting, finishes running edits, saves
+sessions (with --data-dir), closes WebSockets with 1001 and exits 0.
 Exit status: 0 after a signal, 1 when it cannot start (web root missing, port in use),
 2 usage error. Options also take the form --name=value.
 )";

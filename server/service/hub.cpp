@@ -1,0 +1,1065 @@
+// The hub (see hub.hpp): the registry of live sessions, each connection's message queue, the
+// methods of PROTOCOL.md, and the streaming of every change to every client.
+//
+// How a message travels: text()/binary() append it to the connection's queue; one pump task at
+// a time takes the next message, parses it (protocol/cpp/rpc.hpp) and, for a session method,
+// posts the work to the session's strand. Only when that work has sent its answer does the
+// pump take the next message, so a connection's answers come in request order.
+#include "service/hub.hpp"
+
+#include <sys/random.h>
+
+#include <atomic>
+#include <cerrno>
+#include <deque>
+#include <future>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/errors.hpp"
+#include "engine/image_io.hpp"
+#include "engine/marching_cubes.hpp"
+#include "engine/measures.hpp"
+#include "engine/mesh_io.hpp"
+#include "engine/raycast.hpp"
+#include "engine/solids.hpp"
+#include "engine/splats.hpp"
+#include "engine/thread_pool.hpp"
+#include "engine/volume_file.hpp"
+#include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/rpc.hpp"
+#include "service/session.hpp"
+#include "service/session_store.hpp"
+#include "service/workers.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::Method;
+using protocol::RpcCode;
+using protocol::RpcException;
+using protocol::ViewMode;
+using Clock = std::chrono::steady_clock;
+using Bytes = std::vector<std::uint8_t>;
+using SharedBytes = std::shared_ptr<const Bytes>;
+
+namespace {
+
+constexpr std::size_t kSessionIdChars = 22;  // 132 bits
+constexpr std::size_t kTokenChars = 43;      // 258 bits
+
+std::string randomText(std::size_t chars) {
+  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
+  std::vector<unsigned char> bytes(chars);
+  std::size_t got = 0;
+  while (got < chars) {
+    const ssize_t n = ::getrandom(bytes.data() + got, chars - got, 0);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw std::runtime_error("no random bytes from the kernel");
+    got += std::size_t(n);
+  }
+  std::string s(chars, ' ');
+  for (std::size_t i = 0; i < chars; ++i) s[i] = kAlphabet[bytes[i] & 63];
+  return s;
+}
+
+// Compares a secret with what a client sent in time that depends only on the secret's length.
+bool sameSecret(const std::string& secret, const std::string& given) {
+  unsigned diff = secret.size() != given.size() ? 1u : 0u;
+  for (std::size_t i = 0; i < secret.size(); ++i)
+    diff |= unsigned(std::uint8_t(secret[i]) ^ std::uint8_t(i < given.size() ? given[i] : 0));
+  return diff == 0;
+}
+
+json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
+
+SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
+                      std::span<const std::uint8_t> payload) {
+  return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
+}
+
+struct Failure {
+  RpcCode code;
+  std::string message;
+  json data;
+};
+
+// What any exception thrown while handling a request becomes. Validation errors keep their
+// code; anything unexpected is an internal error whose text goes to the log only.
+Failure failureOf(std::exception_ptr e, const std::function<void(const std::string&)>& log) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const RpcException& x) {
+    return {x.code(), x.what(), x.data()};
+  } catch (const protocol::OpError& x) {
+    return {RpcCode::InvalidParams, x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const ServiceError& x) {
+    return {RpcCode(int(x.code())), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const EngineError& x) {
+    return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const std::exception& x) {
+    if (log) log(std::string("internal error: ") + x.what());
+    return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
+  } catch (...) {
+    if (log) log("internal error");
+    return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
+  }
+}
+
+}  // namespace
+
+struct LiveSession;
+
+// Per-connection state. Fields are grouped by the one context that may touch them.
+class HubClient {
+ public:
+  HubClient(std::shared_ptr<ClientLink> l, std::string p) : link(std::move(l)), peer(std::move(p)) {}
+
+  const std::shared_ptr<ClientLink> link;
+  const std::string peer;
+
+  // Guarded by mutex: the queue of messages not yet handled.
+  struct Incoming {
+    std::variant<std::string, Bytes> message;
+    Clock::time_point arrived;
+  };
+  std::mutex mutex;
+  std::deque<Incoming> queue;
+  bool busy = false;    // a pump task owns the connection
+  bool closed = false;  // disconnected: drop everything
+
+  // Pump only (one message at a time, so no lock is needed).
+  std::shared_ptr<LiveSession> session;
+  struct PendingLoad {
+    json id;
+    std::uint32_t frameId;
+    std::uint64_t bytes;
+    Clock::time_point arrived;
+  };
+  std::optional<PendingLoad> load;
+
+  // The session's strand only.
+  int clientId = 0;
+  bool readOnly = false;
+  ViewMode mode = ViewMode::None;
+  Camera camera;
+  Shading shading = Shading::Lit;
+  StrokeId stroke = 0;
+  std::uint64_t frameSeq = 0;     // bumped by every change or camera change
+  bool rendering = false, renderAgain = false;
+};
+
+struct LiveSession {
+  LiveSession(std::string i, SessionSecrets s, Workers& w)
+      : id(std::move(i)), secrets(std::move(s)), strand(std::make_shared<Strand>(w)) {}
+  const std::string id;
+  const SessionSecrets secrets;
+  const std::shared_ptr<Strand> strand;
+
+  // The strand only.
+  std::optional<Session> session;
+  std::vector<std::shared_ptr<HubClient>> clients;
+  int nextClient = 1;
+  bool unloaded = false;
+  // Guarded by the hub's mutex: when the last client left (for the idle timeout).
+  Clock::time_point emptySince = Clock::now();
+  std::size_t clientCount = 0;
+};
+
+struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
+  explicit Impl(HubOptions o)
+      : options(std::move(o)),
+        store(options.dataDir),
+        workers(options.workers, options.events.log),
+        pool(int(workers.threads())) {}
+
+  HubOptions options;
+  SessionStore store;
+  Workers workers;
+  ThreadPool pool;  // for whole-volume kernels and renders; parallelFor serializes its callers
+  mutable std::mutex mutex;  // guards sessions and stopping
+  std::map<std::string, std::shared_ptr<LiveSession>> sessions;
+  bool stopping = false;
+  std::atomic<bool> idleCheckScheduled{false};
+
+  const HubLimits& limits() const { return options.limits; }
+
+  void log(const std::string& line) const {
+    if (options.events.log) options.events.log(line);
+  }
+  static void emit(const std::function<void(std::int64_t)>& f, std::int64_t v) {
+    if (f) f(v);
+  }
+
+  // --- sending -----------------------------------------------------------------------------
+  void sendResult(HubClient& c, const std::optional<json>& id, const json& result) {
+    if (id) c.link->sendText(protocol::resultText(*id, result));
+  }
+  void sendError(HubClient& c, const json& id, bool notification, const Failure& f) {
+    if (options.events.error) options.events.error(int(f.code));
+    if (!notification) c.link->sendText(protocol::errorText(id, f.code, f.message, f.data));
+  }
+  void sendError(HubClient& c, const std::optional<json>& id, const Failure& f) {
+    sendError(c, id ? *id : json(nullptr), !id.has_value(), f);
+  }
+
+  // --- the connection's queue ------------------------------------------------------------------
+  void enqueue(const std::shared_ptr<HubClient>& c, HubClient::Incoming in) {
+    bool start = false;
+    {
+      const std::lock_guard lock(c->mutex);
+      if (c->closed) return;
+      if (c->queue.size() >= limits().maxPendingMessages) {
+        // Throttle: answer at once without queueing. Binary uploads cannot be answered alone.
+        if (const auto* text = std::get_if<std::string>(&in.message)) {
+          const protocol::ParsedRequest p = protocol::parseRequest(*text);
+          const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
+          const bool notification = p.request ? !p.request->id : p.error->notification;
+          sendError(*c, id, notification,
+                    {RpcCode::Busy,
+                     "too many requests in flight on this connection (" + std::to_string(limits().maxPendingMessages) +
+                         "); wait for answers before sending more",
+                     {{"retry_after_ms", 50}}});
+        }
+        return;
+      }
+      c->queue.push_back(std::move(in));
+      if (!c->busy) start = c->busy = true;
+    }
+    if (start) workers.post([self = shared_from_this(), c] { self->pump(c); });
+  }
+
+  // Ends the handling of one message: the next one may start.
+  void finish(const std::shared_ptr<HubClient>& c) {
+    {
+      const std::lock_guard lock(c->mutex);
+      if (!c->closed && c->queue.empty()) {
+        c->busy = false;
+        return;
+      }
+      if (c->closed) return cleanup(c);
+    }
+    workers.post([self = shared_from_this(), c] { self->pump(c); });
+  }
+
+  // After a disconnect, by whoever owns the connection then (busy stays set: nothing more runs).
+  void cleanup(const std::shared_ptr<HubClient>& c) {
+    c->load.reset();
+    const std::shared_ptr<LiveSession> s = c->session;
+    if (!s) return;
+    s->strand->post([self = shared_from_this(), s, c] {
+      if (!s->unloaded && s->session) self->leave(*s, *c);
+      c->session.reset();
+    });
+  }
+
+  void pump(const std::shared_ptr<HubClient>& c) {
+    HubClient::Incoming in;
+    {
+      const std::lock_guard lock(c->mutex);
+      if (c->closed) return cleanup(c);
+      if (c->queue.empty()) {
+        c->busy = false;
+        return;
+      }
+      in = std::move(c->queue.front());
+      c->queue.pop_front();
+    }
+    try {
+      if (auto* bytes = std::get_if<Bytes>(&in.message)) return handleBinary(c, std::move(*bytes));
+      if (c->load) {
+        const HubClient::PendingLoad load = *c->load;
+        c->load.reset();
+        sendError(*c, load.id, false,
+                  {RpcCode::UploadMissing, "volume.load was not followed by its upload (a kind-9 binary frame with request id " +
+                                               std::to_string(load.frameId) + ")", nullptr});
+      }
+      handleText(c, std::get<std::string>(in.message), in.arrived);
+    } catch (...) {
+      sendError(*c, json(nullptr), false, failureOf(std::current_exception(), options.events.log));
+      finish(c);
+    }
+  }
+
+  // --- dispatch ------------------------------------------------------------------------------
+  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived) {
+    const protocol::ParsedRequest parsed = protocol::parseRequest(text);
+    if (!parsed.request) {
+      const protocol::RpcError& e = *parsed.error;
+      sendError(*c, e.id, e.notification, {e.code, e.message, e.data});
+      return finish(c);
+    }
+    const protocol::Request& req = *parsed.request;
+    if (options.events.request) options.events.request(protocol::nameOf(protocol::kMethodNames, req.method));
+    // A binary-answered method sent as a notification has nowhere to put its answer.
+    if (!req.id && protocol::needsFrameId(req.method)) return finish(c);
+    {
+      const std::lock_guard lock(mutex);
+      if (stopping) {
+        sendError(*c, req.id, {RpcCode::Busy, "the server is shutting down", nullptr});
+        return finish(c);
+      }
+    }
+    try {
+      switch (req.method) {
+        case Method::SessionCreate: return create(c, req, arrived);
+        case Method::SessionJoin: return join(c, req, arrived);
+        default: break;
+      }
+      if (!c->session) throw RpcException(RpcCode::NotInSession, "not in a session: session.create or session.join first");
+      if (protocol::isEdit(req.method)) return edit(c, req, arrived);
+      return read(c, req, arrived);
+    } catch (...) {
+      sendError(*c, req.id, failureOf(std::current_exception(), options.events.log));
+      finish(c);
+    }
+  }
+
+  void handleBinary(const std::shared_ptr<HubClient>& c, Bytes bytes) {
+    const auto decoded = protocol::decodeFrameHeader(bytes, limits().maxBinaryBytes);
+    if (!c->load || !decoded || decoded.frame->header.kind != protocol::FrameKind::VolumeUpload ||
+        decoded.frame->header.requestId != c->load->frameId) {
+      // An upload that answers no pending volume.load is dropped; a pending load whose next
+      // message is another frame fails.
+      if (c->load) {
+        sendError(*c, c->load->id, false, {RpcCode::UploadMissing, "volume.load was not followed by its upload", nullptr});
+        c->load.reset();
+      }
+      return finish(c);
+    }
+    const HubClient::PendingLoad load = *c->load;
+    c->load.reset();
+    const std::uint64_t got = decoded.frame->header.payloadLength;
+    if (got != load.bytes) {
+      sendError(*c, load.id, false,
+                {RpcCode::UploadMissing,
+                 "the upload holds " + std::to_string(got) + " bytes, volume.load announced " + std::to_string(load.bytes),
+                 nullptr});
+      return finish(c);
+    }
+    auto payload = std::make_shared<Bytes>(bytes.begin() + protocol::kFrameHeaderBytes, bytes.end());
+    bytes.clear();
+    onStrand(c, load.id, load.arrived, true, [this, c, payload](LiveSession& s, Reply& r) {
+      Volume vol = ::marzipan::loadVolume(*payload);
+      const Int3 d = s.session->volume().dims();
+      if (vol.dims() != d)
+        throw RpcException(RpcCode::EngineRefused,
+                           "the file's grid is " + std::to_string(vol.dims().x) + "x" + std::to_string(vol.dims().y) + "x" +
+                               std::to_string(vol.dims().z) + ", the session's " + std::to_string(d.x) + "x" +
+                               std::to_string(d.y) + "x" + std::to_string(d.z),
+                           {{"field", "file"}});
+      ApplyResult a = s.session->load(std::move(vol));
+      a.fullRefresh = true;
+      r.result = {{"revision", a.revision}, {"digest", digestHex(s.session->volume())}, {"roi", protocol::boxJson(a.roi)},
+                  {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
+      r.after = [this, &s, c, a] { changed(s, *c, "load", a.roi, a.bricks, true); };
+    });
+  }
+
+  // --- running work on a session ---------------------------------------------------------------
+  struct Reply {
+    SharedBytes frame;  // sent before the result
+    json result;
+    std::function<void()> after;  // on the strand, after the response went out
+  };
+
+  // Runs fn on c's session strand, answers, then lets the connection's next message start.
+  void onStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id, Clock::time_point arrived, bool isEdit,
+                std::function<void(LiveSession&, Reply&)> fn) {
+    std::shared_ptr<LiveSession> s = c->session;
+    s->strand->post([self = shared_from_this(), c, s, id, arrived, isEdit, fn = std::move(fn)] {
+      Reply r;
+      try {
+        if (s->unloaded || !s->session) {
+          c->session.reset();
+          throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
+        }
+        fn(*s, r);
+        if (r.frame) c->link->sendBinary(r.frame, false);
+        self->sendResult(*c, id, r.result);
+        if (isEdit && self->options.events.editLatency)
+          self->options.events.editLatency(std::chrono::duration<double>(Clock::now() - arrived).count());
+        if (r.after) r.after();
+      } catch (...) {
+        self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+      }
+      self->finish(c);
+    });
+  }
+
+  // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
+  // exports), answers and lets the connection go on.
+  void offStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id,
+                 std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn) {
+    std::shared_ptr<LiveSession> s = c->session;
+    s->strand->post([self = shared_from_this(), c, s, id, fn = std::move(fn)]() mutable {
+      if (s->unloaded || !s->session) {
+        self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
+        return self->finish(c);
+      }
+      auto snapshot = std::make_shared<Volume>(s->session->snapshot());
+      const std::uint64_t revision = s->session->revision();
+      self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn)] {
+        Reply r;
+        try {
+          fn(*snapshot, revision, r);
+          if (r.frame) c->link->sendBinary(r.frame, false);
+          self->sendResult(*c, id, r.result);
+        } catch (...) {
+          self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+        }
+        self->finish(c);
+      });
+    });
+  }
+
+  void checkProtocol(const std::optional<int>& major) {
+    if (major && *major != protocol::kProtocolMajor)
+      throw RpcException(RpcCode::UnsupportedProtocol,
+                         "protocol major version " + std::to_string(*major) + " is not supported; this server speaks " +
+                             std::to_string(protocol::kProtocolMajor) + "." + std::to_string(protocol::kProtocolMinor),
+                         {{"field", "protocol"},
+                          {"supported", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}}});
+  }
+
+  json limitsJson() const {
+    const HubLimits& l = limits();
+    return {{"max_text_bytes", l.maxTextBytes},
+            {"max_binary_bytes", l.maxBinaryBytes},
+            {"max_grid_side", l.maxGridSide},
+            {"max_sessions", l.maxSessions},
+            {"max_clients_per_session", l.maxClientsPerSession},
+            {"max_dabs", l.maxDabs},
+            {"max_frame_side", l.maxFrameSide},
+            {"history_bytes", l.historyBytes},
+            {"idle_session_seconds", l.idleSession.count()},
+            {"ping_seconds", l.ping.count()}};
+  }
+
+  static json clientsJson(const LiveSession& s) {
+    json list = json::array();
+    for (const auto& c : s.clients) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
+    return list;
+  }
+
+  json sessionInfo(const LiveSession& s, const HubClient& c) const {
+    const Session& ss = *s.session;
+    return {{"session", s.id},
+            {"client", c.clientId},
+            {"size", sizeJson(ss.volume().dims())},
+            {"revision", ss.revision()},
+            {"digest", digestHex(ss.volume())},
+            {"protocol", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}},
+            {"limits", limitsJson()},
+            {"can_undo", ss.canUndo()},
+            {"can_redo", ss.canRedo()},
+            {"read_only", c.readOnly},
+            {"clients", clientsJson(s)}};
+  }
+
+  // On the strand: c becomes a client of s and gets the full buffer after its response.
+  void admit(LiveSession& s, const std::shared_ptr<HubClient>& c, bool readOnly, ViewMode view, Reply& r) {
+    if (s.clients.size() >= limits().maxClientsPerSession)
+      throw RpcException(RpcCode::SessionFull,
+                         "the session has its " + std::to_string(limits().maxClientsPerSession) + " clients",
+                         {{"limit", "max_clients_per_session"}, {"max", limits().maxClientsPerSession}});
+    c->clientId = s.nextClient++;
+    c->readOnly = readOnly;
+    c->mode = view;
+    c->stroke = 0;
+    s.clients.push_back(c);
+    {
+      const std::lock_guard lock(mutex);
+      ++s.clientCount;
+    }
+    emit(options.events.clients, 1);
+    r.result = sessionInfo(s, *c);
+    auto self = shared_from_this();
+    r.after = [self, &s, c] {
+      if (c->mode == ViewMode::Splats) self->sendFullSplats(s, *c, 0);
+      self->broadcastClients(s, c.get());
+    };
+  }
+
+  void broadcastClients(LiveSession& s, const HubClient* except) {
+    const std::string text = protocol::notificationText("session.clients", {{"clients", clientsJson(s)}});
+    for (const auto& other : s.clients)
+      if (other.get() != except) other->link->sendText(text);
+  }
+
+  // On the strand: c leaves s (ending its stroke); the others hear of it.
+  void leave(LiveSession& s, HubClient& c) {
+    const auto it = std::find_if(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; });
+    if (it == s.clients.end()) return;
+    if (c.stroke) {
+      try {
+        s.session->endStroke(c.stroke);
+      } catch (const ServiceError&) {
+        // Already closed by the session (a reload); nothing left to end.
+      }
+      c.stroke = 0;
+    }
+    s.clients.erase(it);
+    c.mode = ViewMode::None;
+    {
+      const std::lock_guard lock(mutex);
+      --s.clientCount;
+      if (s.clientCount == 0) s.emptySince = Clock::now();
+    }
+    emit(options.events.clients, -1);
+    log("session " + s.id + ": client " + std::to_string(c.clientId) + " (" + c.peer + ") left, " +
+        std::to_string(s.clients.size()) + " remain");
+    broadcastClients(s, nullptr);
+    scheduleIdleCheck();
+  }
+
+  // --- session.create / session.join ------------------------------------------------------------
+  void create(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
+    const protocol::CreateParams p = protocol::parseCreateParams(req.params);
+    checkProtocol(p.protocol);
+    if (c->session) throw RpcException(RpcCode::AlreadyInSession, "already in a session: session.leave first");
+    for (int a = 0; a < 3; ++a)
+      if (p.size[a] > limits().maxGridSide)
+        throw RpcException(RpcCode::LimitExceeded,
+                           "\"size\"[" + std::to_string(a) + "] " + std::to_string(p.size[a]) +
+                               " is over the server's max_grid_side " + std::to_string(limits().maxGridSide),
+                           {{"limit", "max_grid_side"}, {"value", p.size[a]}, {"max", limits().maxGridSide}, {"field", "size"}});
+    const std::string id = p.session.value_or(randomText(kSessionIdChars));
+    auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, workers);
+    {
+      const std::lock_guard lock(mutex);
+      if (sessions.count(id) || store.exists(id))
+        throw RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
+                           {{"field", "session"}});
+      if (sessions.size() >= limits().maxSessions)
+        throw RpcException(RpcCode::LimitExceeded,
+                           "the server holds its " + std::to_string(limits().maxSessions) + " sessions; try later",
+                           {{"limit", "max_sessions"}, {"max", limits().maxSessions}});
+      sessions[id] = s;
+    }
+    emit(options.events.sessions, 1);
+    const ViewMode view = p.view;
+    const Int3 dims = p.size;
+    const SolidKind solid = p.solid;
+    auto self = shared_from_this();
+    // The volume is built on the strand, before anything else can reach the new session.
+    s->strand->post([self, s, dims, solid] {
+      try {
+        s->session.emplace(makeSolid(solid, dims, Volume::kDefaultBand, self->pool), self->limits().historyBytes);
+      } catch (const std::exception& e) {
+        self->log("session " + s->id + ": creating the solid failed: " + e.what());
+        s->unloaded = true;
+        {
+          const std::lock_guard lock(self->mutex);
+          self->sessions.erase(s->id);
+        }
+        emit(self->options.events.sessions, -1);
+      }
+    });
+    c->session = s;
+    onStrand(c, req.id, arrived, false, [self, c, view, dims, solid](LiveSession& ls, Reply& r) {
+      self->admit(ls, c, false, view, r);
+      r.result["token"] = ls.secrets.token;
+      r.result["view_token"] = ls.secrets.viewToken;
+      self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) + "x" +
+                std::to_string(dims.y) + "x" + std::to_string(dims.z) + ") by " + c->peer);
+    });
+  }
+
+  void join(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
+    const protocol::JoinParams p = protocol::parseJoinParams(req.params);
+    checkProtocol(p.protocol);
+    if (c->session) throw RpcException(RpcCode::AlreadyInSession, "already in a session: session.leave first");
+    std::shared_ptr<LiveSession> s = findOrLoad(p.session, p.token);
+    bool readOnly = false;
+    if (sameSecret(s->secrets.token, p.token)) readOnly = false;
+    else if (sameSecret(s->secrets.viewToken, p.token)) readOnly = true;
+    else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
+    c->session = s;
+    const ViewMode view = p.view;
+    auto self = shared_from_this();
+    std::shared_ptr<LiveSession> joined = s;
+    onStrand(c, req.id, arrived, false, [self, c, view, readOnly](LiveSession& ls, Reply& r) {
+      self->admit(ls, c, readOnly, view, r);
+      self->log("session " + ls.id + ": client " + std::to_string(c->clientId) + " (" + c->peer + ") joined" +
+                (readOnly ? " read-only" : "") + ", " + std::to_string(ls.clients.size()) + " in all");
+    });
+  }
+
+  // The live session of this id, loading it from the data directory when it sleeps there.
+  std::shared_ptr<LiveSession> findOrLoad(const std::string& id, const std::string& token) {
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
+    }
+    const std::optional<SessionSecrets> secrets = store.secrets(id);
+    if (!secrets) throw RpcException(RpcCode::NoSuchSession, "no session with id \"" + id + "\"", {{"field", "session"}});
+    if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
+      throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
+    Volume vol = store.load(id);
+    auto s = std::make_shared<LiveSession>(id, *secrets, workers);
+    s->session.emplace(std::move(vol), limits().historyBytes);
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
+      if (sessions.size() >= limits().maxSessions)
+        throw RpcException(RpcCode::LimitExceeded,
+                           "the server holds its " + std::to_string(limits().maxSessions) + " sessions; try later",
+                           {{"limit", "max_sessions"}, {"max", limits().maxSessions}});
+      sessions[id] = s;
+    }
+    emit(options.events.sessions, 1);
+    log("session " + id + ": loaded from " + options.dataDir.string());
+    return s;
+  }
+
+  // --- edits ---------------------------------------------------------------------------------------
+  void edit(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived);
+  void read(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived);
+
+  // On the strand, after a change: the notification, then each client's delta or frame.
+  void changed(LiveSession& s, const HubClient& by, std::string_view cause, const Box& roi, const std::vector<Int3>& bricks,
+               bool full) {
+    const Session& ss = *s.session;
+    const std::string text = protocol::notificationText(
+        "session.changed", {{"revision", ss.revision()},
+                            {"by", by.clientId},
+                            {"cause", cause},
+                            {"roi", protocol::boxJson(roi)},
+                            {"digest", digestHex(ss.volume())},
+                            {"can_undo", ss.canUndo()},
+                            {"can_redo", ss.canRedo()}});
+    for (const auto& c : s.clients) c->link->sendText(text);
+    SharedBytes delta;
+    for (const auto& c : s.clients) {
+      if (c->mode == ViewMode::Splats) {
+        if (full) {
+          sendFullSplats(s, *c, 0);
+          continue;
+        }
+        if (!delta) {
+          const Bytes payload = encodeSplats(extractSplats(ss.volume(), bricks));
+          delta = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
+        }
+        c->link->sendBinary(delta, false);
+      } else if (c->mode == ViewMode::Frames) {
+        requestFrame(s, c);
+      }
+    }
+  }
+
+  SharedBytes fullSplatsFrame(const Volume& vol, std::uint32_t requestId, std::uint64_t revision, std::size_t* bricks,
+                              std::size_t* points) {
+    const std::vector<BrickSplats> all = extractAllSplats(vol, pool);
+    if (bricks) *bricks = all.size();
+    if (points) {
+      *points = 0;
+      for (const BrickSplats& b : all) *points += b.points.size();
+    }
+    return makeFrame(protocol::FrameKind::SplatsFull, requestId, revision, encodeSplats(all));
+  }
+
+  void sendFullSplats(LiveSession& s, HubClient& c, std::uint32_t requestId) {
+    c.link->sendBinary(fullSplatsFrame(s.session->volume(), requestId, s.session->revision(), nullptr, nullptr), false);
+  }
+
+  // On the strand: a pushed frame for a frames-mode client, latest wins; a still one follows
+  // once nothing changed for stillDelay.
+  void requestFrame(LiveSession& s, const std::shared_ptr<HubClient>& c) {
+    ++c->frameSeq;
+    if (c->rendering) {
+      c->renderAgain = true;
+      return;
+    }
+    startRender(s, c, false);
+  }
+
+  void startRender(LiveSession& s, const std::shared_ptr<HubClient>& c, bool still) {
+    c->rendering = true;
+    auto snapshot = std::make_shared<Volume>(s.session->snapshot());
+    const std::uint64_t revision = s.session->revision(), seq = c->frameSeq;
+    const Camera camera = c->camera;
+    const Shading shading = c->shading;
+    const int quality = still ? options.stillQuality : options.interactiveQuality;
+    std::weak_ptr<LiveSession> weak = c->session;
+    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, quality, still] {
+      try {
+        const Frame f = render(*snapshot, camera, shading, self->pool);
+        const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
+        c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
+      } catch (const std::exception& e) {
+        self->log(std::string("frame render failed: ") + e.what());
+      }
+      const auto live = weak.lock();
+      if (!live) return;
+      live->strand->post([self, s = live, c, seq, still] {
+        c->rendering = false;
+        if (c->mode != ViewMode::Frames || c->session != s) return;
+        if (c->renderAgain) {
+          c->renderAgain = false;
+          return self->startRender(*s, c, false);
+        }
+        if (still) return;
+        self->workers.postAfter(self->options.stillDelay, [self, s, c, seq] {
+          s->strand->post([self, s, c, seq] {
+            if (c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq && c->session == s)
+              self->startRender(*s, c, true);
+          });
+        });
+      });
+    });
+  }
+
+  // --- idle sessions ---------------------------------------------------------------------------------
+  void scheduleIdleCheck() {
+    if (idleCheckScheduled.exchange(true)) return;
+    const auto delay = std::max<std::chrono::milliseconds>(std::chrono::milliseconds(100),
+                                                          std::chrono::duration_cast<std::chrono::milliseconds>(limits().idleSession) / 4);
+    workers.postAfter(delay, [self = shared_from_this()] {
+      self->idleCheckScheduled = false;
+      self->unloadIdle();
+    });
+  }
+
+  void unloadIdle() {
+    std::vector<std::shared_ptr<LiveSession>> idle;
+    bool more = false;
+    {
+      const std::lock_guard lock(mutex);
+      for (const auto& [id, s] : sessions) {
+        if (s->clientCount != 0) continue;
+        if (Clock::now() - s->emptySince >= limits().idleSession) idle.push_back(s);
+        else more = true;
+      }
+    }
+    for (const auto& s : idle) s->strand->post([self = shared_from_this(), s] { self->unload(*s, "idle"); });
+    if (more) scheduleIdleCheck();
+  }
+
+  // On the strand: saves (when there is a data directory) and forgets a session without clients.
+  void unload(LiveSession& s, const char* why) {
+    if (s.unloaded || !s.clients.empty() || !s.session) return;
+    if (store.enabled()) {
+      try {
+        store.save(s.id, s.secrets, s.session->volume());
+      } catch (const std::exception& e) {
+        log("session " + s.id + ": not unloaded, saving failed: " + e.what());
+        return;
+      }
+    }
+    s.unloaded = true;
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(s.id); it != sessions.end() && it->second.get() == &s) sessions.erase(it);
+    }
+    emit(options.events.sessions, -1);
+    log("session " + s.id + ": " + why + ", " + (store.enabled() ? "saved and unloaded" : "discarded (no --data-dir)"));
+    s.session.reset();
+  }
+};
+
+void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
+  // Params are checked before the read-only test so that a malformed request says what is wrong.
+  const HubLimits& l = limits();
+  auto self = shared_from_this();
+  const auto refuseReadOnly = [c](LiveSession&) {
+    if (c->readOnly) throw RpcException(RpcCode::ReadOnly, "this client joined with the view token: edits are refused");
+  };
+  switch (req.method) {
+    case Method::ToolApply: {
+      const protocol::ToolApplyParams p = protocol::parseToolApplyParams(req.params);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        protocol::Op op = p.op;
+        std::optional<Vec3> hit;
+        if (p.ray) {
+          hit = s.session->pick(Ray{p.ray->origin, p.ray->direction});
+          if (!hit) {
+            r.result = {{"revision", s.session->revision()}, {"roi", nullptr}, {"hit", nullptr}};
+            return;
+          }
+          if (auto* b = std::get_if<protocol::BrushOp>(&op)) b->params.center = *hit;
+          if (auto* g = std::get_if<protocol::CsgToolOp>(&op)) g->params.center = *hit;
+        }
+        const bool brush = std::holds_alternative<protocol::BrushOp>(op);
+        const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
+        r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+        if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
+        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "tool", a.roi, a.bricks, a.fullRefresh); };
+      });
+    }
+    case Method::VolumeMorph: {
+      const protocol::MorphOp op = protocol::parseMorphParams(req.params);
+      return onStrand(c, req.id, arrived, true, [self, c, op, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        const ApplyResult a = s.session->apply(op, self->pool);
+        r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
+      });
+    }
+    case Method::StrokeBegin: {
+      const protocol::StrokeBeginParams p = protocol::parseStrokeBeginParams(req.params);
+      return onStrand(c, req.id, arrived, false, [c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        if (c->stroke) {
+          try {
+            s.session->endStroke(c->stroke);
+          } catch (const ServiceError&) {
+            // The session closed it already (a reload); nothing to end.
+          }
+          c->stroke = 0;
+        }
+        c->stroke = s.session->beginStroke(p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ});
+        r.result = {{"stroke", c->stroke}};
+      });
+    }
+    case Method::StrokeDabs: {
+      const protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(req.params, l.maxDabs);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        if (p.stroke != c->stroke)
+          throw RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(p.stroke) + " is not this connection's open stroke",
+                             {{"field", "stroke"}});
+        std::vector<Dab> dabs;
+        dabs.reserve(p.dabs.size());
+        for (const protocol::DabParam& d : p.dabs) {
+          Dab dab;
+          if (const auto* center = std::get_if<Vec3>(&d.at)) dab.at = *center;
+          else {
+            const auto& ray = std::get<protocol::RayParam>(d.at);
+            dab.at = Ray{ray.origin, ray.direction};
+          }
+          dab.pressure = d.pressure;
+          dabs.push_back(dab);
+        }
+        const ApplyResult a = s.session->strokeDabs(p.stroke, dabs, ThreadPool::serial());
+        r.result = {{"revision", a.revision},
+                    {"applied", a.changed ? dabs.size() - a.missed : 0},
+                    {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
+      });
+    }
+    case Method::StrokeEnd: {
+      const std::uint64_t stroke = protocol::parseStrokeEndParams(req.params);
+      return onStrand(c, req.id, arrived, false, [c, stroke, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        if (stroke != c->stroke)
+          throw RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(stroke) + " is not this connection's open stroke",
+                             {{"field", "stroke"}});
+        try {
+          s.session->endStroke(stroke);
+        } catch (const ServiceError&) {
+          // Closed by a reload of the session: ending it again is what the client asked.
+        }
+        c->stroke = 0;
+        r.result = {{"revision", s.session->revision()}, {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
+      });
+    }
+    case Method::HistoryUndo:
+    case Method::HistoryRedo: {
+      protocol::parseNoParams(req.params, req.method);
+      const bool undo = req.method == Method::HistoryUndo;
+      return onStrand(c, req.id, arrived, true, [self, c, undo, refuseReadOnly](LiveSession& s, Reply& r) {
+        refuseReadOnly(s);
+        const HistoryResult h = undo ? s.session->undo() : s.session->redo();
+        if (!h.changed)
+          throw RpcException(RpcCode::NothingToUndo, undo ? "nothing to undo" : "nothing to redo");
+        r.result = {{"revision", h.revision}, {"can_undo", h.canUndo}, {"can_redo", h.canRedo}};
+        r.after = [self, &s, c, h, undo] { self->changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
+      });
+    }
+    case Method::VolumeLoad: {
+      const std::uint64_t bytes = protocol::parseVolumeLoadParams(req.params, l.maxBinaryBytes - protocol::kFrameHeaderBytes);
+      if (c->session) {
+        // The read-only test needs the strand; a view client's upload is then dropped as unanswered.
+        auto s = c->session;
+        s->strand->post([self, c, s, req, bytes, arrived] {
+          if (c->readOnly) {
+            self->sendError(*c, req.id, {RpcCode::ReadOnly, "this client joined with the view token: edits are refused", nullptr});
+          } else {
+            c->load = HubClient::PendingLoad{*req.id, req.frameId, bytes, arrived};
+          }
+          self->finish(c);
+        });
+      }
+      return;
+    }
+    default:
+      throw RpcException(RpcCode::Internal, "unhandled method");
+  }
+}
+
+void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
+  const HubLimits& l = limits();
+  auto self = shared_from_this();
+  switch (req.method) {
+    case Method::SessionLeave: {
+      protocol::parseNoParams(req.params, req.method);
+      return onStrand(c, req.id, arrived, false, [self, c](LiveSession& s, Reply& r) {
+        self->leave(s, *c);
+        r.result = {{"session", s.id}};
+        c->session.reset();
+      });
+    }
+    case Method::SessionStats: {
+      protocol::parseNoParams(req.params, req.method);
+      return onStrand(c, req.id, arrived, false, [](LiveSession& s, Reply& r) {
+        const SessionStats st = s.session->stats();
+        const Measures& m = st.measures;
+        json clients = json::array();
+        for (const auto& other : s.clients) clients.push_back({{"client", other->clientId}, {"read_only", other->readOnly}});
+        r.result = {{"session", s.id},
+                    {"size", sizeJson(s.session->volume().dims())},
+                    {"revision", st.revision},
+                    {"digest", m.digest},
+                    {"clients", clients},
+                    {"inside_volume", m.insideVolume},
+                    {"surface_area", m.surfaceArea},
+                    {"components", m.components},
+                    {"bounds", {{"empty", m.bounds.empty}, {"lo", protocol::vec3Json(m.bounds.lo)}, {"hi", protocol::vec3Json(m.bounds.hi)}}},
+                    {"gradient_error", {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}, {"voxels", m.gradientError.voxels}}},
+                    {"memory_bytes", st.memoryBytes},
+                    {"history_bytes", st.historyBytes},
+                    {"can_undo", st.canUndo},
+                    {"can_redo", st.canRedo}};
+      });
+    }
+    case Method::ViewSet: {
+      const protocol::ViewSetParams p = protocol::parseViewSetParams(req.params, l.maxFrameSide);
+      return onStrand(c, req.id, arrived, false, [self, c, p](LiveSession& s, Reply& r) {
+        c->mode = p.mode;
+        if (p.camera) c->camera = *p.camera;
+        r.result = {{"mode", protocol::nameOf(protocol::kViewModeNames, p.mode)}, {"revision", s.session->revision()}};
+        r.after = [self, &s, c] {
+          if (c->mode == ViewMode::Splats) self->sendFullSplats(s, *c, 0);
+          if (c->mode == ViewMode::Frames) self->requestFrame(s, c);
+        };
+      });
+    }
+    case Method::RenderFrame: {
+      const protocol::RenderFrameParams p = protocol::parseRenderFrameParams(req.params, l.maxFrameSide);
+      const std::uint32_t frameId = req.frameId;
+      return offStrand(c, req.id, [self, p, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const Frame f = render(vol, p.camera, p.shading, self->pool);
+        const bool png = p.format == protocol::ImageKind::Png;
+        const Bytes file = png ? encodePng(f.rgb, f.width, f.height) : encodeJpeg(f.rgb, f.width, f.height, p.quality);
+        r.frame = makeFrame(png ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg, frameId, revision, file);
+        r.result = {{"revision", revision}, {"width", f.width}, {"height", f.height}, {"format", png ? "png" : "jpeg"},
+                    {"bytes", file.size()}};
+      });
+    }
+    case Method::SplatsGet: {
+      protocol::parseNoParams(req.params, req.method);
+      const std::uint32_t frameId = req.frameId;
+      return offStrand(c, req.id, [self, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        std::size_t bricks = 0, points = 0;
+        r.frame = self->fullSplatsFrame(vol, frameId, revision, &bricks, &points);
+        r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
+                    {"bytes", r.frame->size() - protocol::kFrameHeaderBytes}};
+      });
+    }
+    case Method::MeshExport: {
+      const std::string format = protocol::parseMeshExportParams(req.params);
+      const std::uint32_t frameId = req.frameId;
+      return offStrand(c, req.id, [self, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const Mesh mesh = extractMesh(vol, self->pool);
+        const MeshFormat f = *meshFormatFromName(format);
+        const Bytes file = exportMesh(mesh, f);
+        if (file.size() > protocol::kMaxFramePayload)
+          throw RpcException(RpcCode::LimitExceeded, "the mesh file is larger than one frame can carry (4 GiB)",
+                             {{"limit", "frame_payload"}, {"max", protocol::kMaxFramePayload}});
+        const auto kind = format == "stl" ? protocol::FrameKind::MeshStl
+                          : format == "obj" ? protocol::FrameKind::MeshObj
+                                            : protocol::FrameKind::MeshPly;
+        r.frame = makeFrame(kind, frameId, revision, file);
+        r.result = {{"revision", revision}, {"format", format}, {"vertices", mesh.vertexCount()},
+                    {"triangles", mesh.triangleCount()}, {"bytes", file.size()}};
+      });
+    }
+    case Method::VolumeSave: {
+      protocol::parseNoParams(req.params, req.method);
+      const std::uint32_t frameId = req.frameId;
+      return offStrand(c, req.id, [frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const Bytes file = saveVolume(vol);
+        r.frame = makeFrame(protocol::FrameKind::VolumeFile, frameId, revision, file);
+        r.result = {{"revision", revision}, {"digest", digestHex(vol)}, {"bytes", file.size()}};
+      });
+    }
+    default:
+      throw RpcException(RpcCode::Internal, "unhandled method");
+  }
+}
+
+Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {}
+
+Hub::~Hub() { shutdown(); }
+
+const HubLimits& Hub::limits() const { return impl_->limits(); }
+
+std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::string peer) {
+  return std::make_shared<HubClient>(std::move(link), std::move(peer));
+}
+
+void Hub::text(const std::shared_ptr<HubClient>& client, std::string message) {
+  impl_->enqueue(client, {std::move(message), Clock::now()});
+}
+
+void Hub::binary(const std::shared_ptr<HubClient>& client, std::vector<std::uint8_t> message) {
+  impl_->enqueue(client, {std::move(message), Clock::now()});
+}
+
+void Hub::disconnect(const std::shared_ptr<HubClient>& client) {
+  {
+    const std::lock_guard lock(client->mutex);
+    if (client->closed) return;
+    client->closed = true;
+    client->queue.clear();
+    if (client->busy) return;  // the running pump cleans up when it finishes
+    client->busy = true;
+  }
+  impl_->workers.post([impl = impl_, client] { impl->cleanup(client); });
+}
+
+void Hub::shutdown() {
+  Impl& s = *impl_;
+  std::vector<std::shared_ptr<LiveSession>> all;
+  {
+    const std::lock_guard lock(s.mutex);
+    if (s.stopping) return;
+    s.stopping = true;
+    for (const auto& [id, live] : s.sessions) all.push_back(live);
+  }
+  // Let running edits finish (bounded: a global operation may take a while).
+  const auto deadline = Clock::now() + std::chrono::seconds(30);
+  for (const auto& live : all)
+    while (live->strand->pending() > 0 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  if (s.store.enabled()) {
+    for (const auto& live : all) {
+      std::promise<void> done;
+      live->strand->post([&s, live, &done] {
+        if (!live->unloaded && live->session) {
+          try {
+            s.store.save(live->id, live->secrets, live->session->volume());
+          } catch (const std::exception& e) {
+            s.log("session " + live->id + ": saving at shutdown failed: " + e.what());
+          }
+        }
+        done.set_value();
+      });
+      done.get_future().wait();
+    }
+  }
+  s.workers.stop();
+}
+
+std::size_t Hub::sessionCount() const {
+  const std::lock_guard lock(impl_->mutex);
+  return impl_->sessions.size();
+}
+
+}  // namespace marzipan::service

@@ -1,0 +1,114 @@
+// The service side of `marzipan serve`: every live session, every connected client, and the
+// JSON-RPC methods of protocol/PROTOCOL.md carried out on them. Transport-free: the network
+// layer (server/net) hands in whole WebSocket messages and gets messages to send back through
+// a ClientLink, so everything here runs and is tested without sockets.
+//
+// Conventions:
+// - Threads: text()/binary()/disconnect() may be called from any thread and only enqueue. A
+//   connection's messages are handled one after the other, in arrival order, on the workers;
+//   everything that touches a session (its volume, its clients, their view state) runs on that
+//   session's strand; renders run on the workers off the strand, from a snapshot.
+// - Order of what one edit sends: the requester's response, then `session.changed` to every
+//   client, then each client's splat delta or frame. Binary answers precede their response.
+// - Ownership: the hub owns sessions; a HubClient is owned by the network connection (and by
+//   tasks in flight); sessions hold their clients until they leave or disconnect.
+// - Units: sizes in bytes, durations as std::chrono types, coordinates in vu.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace marzipan::service {
+
+// The configurable limits (PROTOCOL.md, "Versions and limits"), plus the connection bounds.
+struct HubLimits {
+  std::size_t maxTextBytes = std::size_t(1) << 20;
+  std::size_t maxBinaryBytes = std::size_t(256) << 20;
+  int maxGridSide = 512;
+  std::size_t maxSessions = 64;
+  std::size_t maxClientsPerSession = 16;
+  std::size_t maxDabs = 256;
+  int maxFrameSide = 4096;
+  std::size_t historyBytes = std::size_t(256) << 20;
+  std::chrono::seconds idleSession{600};
+  std::chrono::seconds ping{30};
+  // Messages of one connection waiting to be handled; beyond it requests get -32005 (busy).
+  std::size_t maxPendingMessages = 64;
+  // Bytes of non-droppable data (responses, splat buffers) queued for one connection; beyond
+  // it the connection is closed with 1008 "too far behind" (enforced by the network layer).
+  std::size_t maxQueuedBytes = std::size_t(64) << 20;
+};
+
+// What the hub reports, for /metrics and the log. Any member may be empty; called from worker
+// threads.
+struct HubEvents {
+  std::function<void(const std::string&)> log;          // one line, no newline
+  std::function<void(std::int64_t)> sessions, clients;  // gauge deltas
+  std::function<void(std::string_view)> request;        // a request's method name
+  std::function<void(int)> error;                       // a JSON-RPC error code sent
+  std::function<void(double)> editLatency;              // seconds from arrival to response
+};
+
+struct HubOptions {
+  HubLimits limits;
+  unsigned workers = 0;               // 0: one per core
+  std::filesystem::path dataDir;      // empty: sessions are never saved
+  HubEvents events;
+  // Still frames follow the last change of a frames-mode client after this pause.
+  std::chrono::milliseconds stillDelay{250};
+  int interactiveQuality = 70, stillQuality = 92;  // JPEG qualities of pushed frames
+};
+
+// One connection as the hub sees it. Implemented by the network layer; the hub calls it from
+// worker threads, never while holding a session's strand for long.
+class ClientLink {
+ public:
+  virtual ~ClientLink() = default;
+  // A JSON-RPC text message; never dropped.
+  virtual void sendText(std::string text) = 0;
+  // A binary frame (header + payload). latestWins: a pushed image that a newer one may replace
+  // while it still waits in the queue; otherwise never dropped.
+  virtual void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) = 0;
+  // Close the WebSocket with this code and reason (<= 123 bytes).
+  virtual void close(int code, std::string reason) = 0;
+};
+
+class HubClient;  // a connection's state, opaque to the network layer
+
+class Hub {
+ public:
+  explicit Hub(HubOptions options);
+  ~Hub();  // shutdown()
+  Hub(const Hub&) = delete;
+  Hub& operator=(const Hub&) = delete;
+
+  const HubLimits& limits() const;
+
+  std::shared_ptr<HubClient> connect(std::shared_ptr<ClientLink> link, std::string peer);
+  // One text message (already checked for size and UTF-8 by the transport).
+  void text(const std::shared_ptr<HubClient>& client, std::string message);
+  // One binary message (already checked by decodeFrameHeader, kind 9).
+  void binary(const std::shared_ptr<HubClient>& client, std::vector<std::uint8_t> message);
+  // The connection is gone: leaves its session, drops its queued messages.
+  void disconnect(const std::shared_ptr<HubClient>& client);
+
+  // Refuses new requests (-32005), lets running edits finish, saves every session to the data
+  // directory (when set) and stops the workers. Idempotent.
+  void shutdown();
+
+  std::size_t sessionCount() const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<Impl> impl_;
+};
+
+}  // namespace marzipan::service
