@@ -1,0 +1,605 @@
+// The hub without sockets: every method's success path and its refusals, two clients on one
+// session, undo digests, splat deltas against a fresh full buffer, frames, uploads, limits and
+// idle unloading. A CaptureLink records what the hub sends; every wait times out (20 s) so a
+// hang fails the test instead of the run.
+#include <catch2/catch.hpp>
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/solids.hpp"
+#include "engine/splats.hpp"
+#include "engine/volume_file.hpp"
+#include "protocol/cpp/frames.hpp"
+#include "service/hub.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+using nlohmann::json;
+using Bytes = std::vector<std::uint8_t>;
+
+namespace {
+
+constexpr auto kWait = std::chrono::seconds(20);
+
+// What one connection received, in order.
+struct CaptureLink : ClientLink {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::vector<std::variant<json, Bytes>> messages;
+  int closeCode = 0;
+
+  void sendText(std::string text) override {
+    const std::lock_guard lock(mutex);
+    messages.emplace_back(json::parse(text));
+    cv.notify_all();
+  }
+  void sendBinary(std::shared_ptr<const Bytes> frame, bool) override {
+    const std::lock_guard lock(mutex);
+    messages.emplace_back(*frame);
+    cv.notify_all();
+  }
+  void close(int code, std::string) override {
+    const std::lock_guard lock(mutex);
+    closeCode = code;
+    cv.notify_all();
+  }
+
+  // Waits until pred holds for the message list; returns the index it found.
+  template <class Pred>
+  std::size_t waitFor(Pred pred, std::size_t from = 0) {
+    std::unique_lock lock(mutex);
+    std::size_t found = SIZE_MAX;
+    const bool ok = cv.wait_for(lock, kWait, [&] {
+      for (std::size_t i = from; i < messages.size(); ++i)
+        if (pred(messages[i])) {
+          found = i;
+          return true;
+        }
+      return false;
+    });
+    if (!ok) FAIL("timed out waiting for a message");
+    return found;
+  }
+
+  std::size_t size() {
+    const std::lock_guard lock(mutex);
+    return messages.size();
+  }
+  std::variant<json, Bytes> at(std::size_t i) {
+    const std::lock_guard lock(mutex);
+    return messages.at(i);
+  }
+};
+
+bool isResponse(const std::variant<json, Bytes>& m, const json& id) {
+  const json* j = std::get_if<json>(&m);
+  return j && j->contains("id") && (*j)["id"] == id;
+}
+
+bool isNotification(const std::variant<json, Bytes>& m, const std::string& method) {
+  const json* j = std::get_if<json>(&m);
+  return j && !j->contains("id") && j->value("method", "") == method;
+}
+
+protocol::FrameHeader headerOf(const Bytes& b) {
+  const auto d = protocol::decodeFrameHeader(b);
+  REQUIRE(d);
+  return d.frame->header;
+}
+
+bool isFrame(const std::variant<json, Bytes>& m, protocol::FrameKind kind) {
+  const Bytes* b = std::get_if<Bytes>(&m);
+  return b && headerOf(*b).kind == kind;
+}
+
+std::span<const std::uint8_t> payloadOf(const Bytes& b) { return {b.data() + protocol::kFrameHeaderBytes, b.size() - protocol::kFrameHeaderBytes}; }
+
+struct TestClient {
+  Hub& hub;
+  std::shared_ptr<CaptureLink> link = std::make_shared<CaptureLink>();
+  std::shared_ptr<HubClient> client;
+  int nextId = 1;
+
+  explicit TestClient(Hub& h) : hub(h), client(h.connect(link, "test")) {}
+  ~TestClient() { hub.disconnect(client); }
+
+  // Sends a request and returns its response (the whole message).
+  json call(const std::string& method, const json& params = json::object()) {
+    const int id = nextId++;
+    const std::size_t mark = link->size();
+    hub.text(client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+    return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
+  }
+  json result(const std::string& method, const json& params = json::object()) {
+    const json r = call(method, params);
+    INFO(r.dump());
+    REQUIRE(r.contains("result"));
+    return r["result"];
+  }
+  int error(const std::string& method, const json& params = json::object()) {
+    const json r = call(method, params);
+    INFO(r.dump());
+    REQUIRE(r.contains("error"));
+    return r["error"]["code"].get<int>();
+  }
+  json rawResponse(const std::string& text, const json& id) {
+    const std::size_t mark = link->size();
+    hub.text(client, text);
+    return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
+  }
+};
+
+HubOptions smallOptions() {
+  HubOptions o;
+  o.workers = 2;
+  o.limits.maxGridSide = 128;
+  o.stillDelay = std::chrono::milliseconds(50);
+  return o;
+}
+
+const json kCreate64 = {{"size", {64, 64, 64}}, {"solid", "sphere"}};
+
+// The splat points a client holds after applying full buffers and deltas, per brick.
+using Held = std::map<std::array<int, 3>, std::vector<std::uint64_t>>;
+
+void applySplats(Held& held, const Bytes& frame) {
+  const protocol::FrameHeader h = headerOf(frame);
+  const auto payload = payloadOf(frame);
+  if (h.kind == protocol::FrameKind::SplatsFull) held.clear();
+  // Walk the MZSP blocks directly: 16-byte header, then per brick 8 bytes + 8 per point.
+  std::size_t at = 16;
+  while (at < payload.size()) {
+    const auto u16 = [&](std::size_t o) { return int(payload[o] | payload[o + 1] << 8); };
+    const std::array<int, 3> brick{u16(at), u16(at + 2), u16(at + 4)};
+    const int n = u16(at + 6);
+    std::vector<std::uint64_t> points(std::size_t(n), 0);
+    for (int i = 0; i < n; ++i)
+      for (int b = 0; b < 8; ++b) points[std::size_t(i)] |= std::uint64_t(payload[at + 8 + 8 * std::size_t(i) + std::size_t(b)]) << (8 * b);
+    if (n == 0) held.erase(brick);
+    else held[brick] = std::move(points);
+    at += 8 + 8 * std::size_t(n);
+  }
+}
+
+// PNG: the IHDR chunk; JPEG: the first SOFn marker.
+std::pair<int, int> imageSize(std::span<const std::uint8_t> f) {
+  if (f.size() > 24 && f[0] == 0x89 && f[1] == 'P')
+    return {int(f[16] << 24 | f[17] << 16 | f[18] << 8 | f[19]), int(f[20] << 24 | f[21] << 16 | f[22] << 8 | f[23])};
+  if (f.size() > 4 && f[0] == 0xFF && f[1] == 0xD8) {
+    std::size_t i = 2;
+    while (i + 9 < f.size()) {
+      if (f[i] != 0xFF) return {0, 0};
+      const int marker = f[i + 1];
+      const std::size_t len = std::size_t(f[i + 2] << 8 | f[i + 3]);
+      if (marker >= 0xC0 && marker <= 0xC3) return {int(f[i + 7] << 8 | f[i + 8]), int(f[i + 5] << 8 | f[i + 6])};
+      i += 2 + len;
+    }
+  }
+  return {0, 0};
+}
+
+}  // namespace
+
+TEST_CASE("session.create answers with ids, limits and the version, then a full splat buffer", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  const json r = a.result("session.create", kCreate64);
+  CHECK(r["session"].get<std::string>().size() == 22);
+  CHECK(r["token"].get<std::string>().size() == 43);
+  CHECK(r["view_token"].get<std::string>() != r["token"].get<std::string>());
+  CHECK(r["size"] == json({64, 64, 64}));
+  CHECK(r["revision"] == 0);
+  CHECK(r["client"] == 1);
+  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 0}}));
+  CHECK(r["limits"]["max_grid_side"] == 128);
+  CHECK(r["limits"]["max_dabs"] == 256);
+  CHECK(r["read_only"] == false);
+  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}}}));
+  const std::size_t full = a.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsFull); });
+  const Bytes frame = std::get<Bytes>(a.link->at(full));
+  CHECK(headerOf(frame).requestId == 0);
+  const auto decoded = decodeSplats(payloadOf(frame));
+  std::size_t points = 0;
+  for (const auto& b : decoded) points += b.points.size();
+  // A sphere of radius 0.35 * 64 = 22.4 has about 4 pi r^2 ~ 6300 surface voxels.
+  CHECK(points > 4000);
+  CHECK(points < 12000);
+  CHECK(hub.sessionCount() == 1);
+}
+
+TEST_CASE("the envelope's refusals carry the right codes and never close", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  CHECK(a.rawResponse("{\"jsonrpc\":\"2.0\",\"id\":1,", nullptr)["error"]["code"] == -32700);
+  CHECK(a.rawResponse("[{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"session.stats\"}]", nullptr)["error"]["code"] == -32600);
+  CHECK(a.rawResponse(R"({"jsonrpc":"1.0","id":2,"method":"session.stats"})", 2)["error"]["code"] == -32600);
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":3,"method":"session.stats","extra":1})", 3)["error"]["code"] == -32600);
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":4,"method":"volume.explode"})", 4)["error"]["code"] == -32601);
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":5,"method":"session.stats","params":[1]})", 5)["error"]["data"]["field"] ==
+        "params");
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":"s","method":"splats.get"})", "s")["error"]["code"] == -32600);
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":6,"method":"session.create","params":{"size":[64,64,64],"solid":"sphere","solid":"box"}})", nullptr)["error"]["code"] == -32700);
+  CHECK(a.rawResponse(R"({"jsonrpc":"2.0","id":7,"method":"tool.apply","params":{"tool":"add_blob","center":[NaN,0,0]}})", nullptr)["error"]["code"] == -32700);
+  CHECK(a.error("session.stats") == -32009);
+  CHECK(a.error("tool.apply", {{"tool", "add_blob"}, {"center", {1, 2, 3}}}) == -32009);
+  // A notification gets nothing back, not even an error.
+  const std::size_t before = a.link->size();
+  a.hub.text(a.client, R"({"jsonrpc":"2.0","method":"session.stats"})");
+  a.result("session.create", kCreate64);
+  for (std::size_t i = before; i < a.link->size(); ++i) {
+    const auto m = a.link->at(i);
+    if (const json* j = std::get_if<json>(&m)) CHECK(j->contains("result"));
+  }
+  CHECK(a.link->closeCode == 0);
+}
+
+TEST_CASE("session.create refuses bad params naming the field", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  const json tooBig = a.call("session.create", {{"size", {64, 64, 200}}, {"solid", "sphere"}});
+  CHECK(tooBig["error"]["code"] == -32004);
+  CHECK(tooBig["error"]["data"]["limit"] == "max_grid_side");
+  const json small = a.call("session.create", {{"size", {4, 64, 64}}, {"solid", "sphere"}});
+  CHECK(small["error"]["code"] == -32602);
+  CHECK(small["error"]["data"]["field"] == "size");
+  CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "cube"}})["error"]["data"]["field"] == "solid");
+  CHECK(a.call("session.create", {{"size", {64, 64, 64.5}}, {"solid", "box"}})["error"]["data"]["field"] == "size");
+  CHECK(a.call("session.create", {{"solid", "box"}})["error"]["data"]["field"] == "size");
+  CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"protocol", 2}})["error"]["code"] == -32008);
+  CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"session", "short"}})["error"]["data"]["field"] ==
+        "session");
+  CHECK(hub.sessionCount() == 0);
+  a.result("session.create", kCreate64);
+  CHECK(a.error("session.create", kCreate64) == -32010);
+}
+
+TEST_CASE("a proposed session id is used, and a taken one refused", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub), b(hub);
+  json params = kCreate64;
+  params["session"] = "my-own-session-id-0001";
+  CHECK(a.result("session.create", params)["session"] == "my-own-session-id-0001");
+  CHECK(b.error("session.create", params) == -32014);
+}
+
+TEST_CASE("two clients see each other's edits; a view token cannot edit", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub), b(hub), v(hub);
+  const json created = a.result("session.create", kCreate64);
+  CHECK(b.error("session.join", {{"session", created["session"]}, {"token", "wrong"}}) == -32002);
+  CHECK(b.error("session.join", {{"session", "nosuchsession"}, {"token", created["token"]}}) == -32001);
+  const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  CHECK(joined["client"] == 2);
+  CHECK(joined["read_only"] == false);
+  CHECK(joined.count("token") == 0);
+  a.link->waitFor([](const auto& m) {
+    return isNotification(m, "session.clients") && std::get<json>(m)["params"]["clients"].size() == 2;
+  });
+  const json viewer = v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});
+  CHECK(viewer["read_only"] == true);
+
+  const std::size_t mark = b.link->size();
+  const json applied = a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+  CHECK(applied["revision"] == 1);
+  const std::size_t note = b.link->waitFor([](const auto& m) { return isNotification(m, "session.changed"); }, mark);
+  const json changed = std::get<json>(b.link->at(note))["params"];
+  CHECK(changed["by"] == 1);
+  CHECK(changed["cause"] == "tool");
+  CHECK(changed["revision"] == 1);
+  CHECK(changed["roi"] == applied["roi"]);
+  const std::size_t delta = b.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, note);
+  CHECK(headerOf(std::get<Bytes>(b.link->at(delta))).revision == 1);
+
+  CHECK(v.error("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}}) == -32007);
+  CHECK(v.error("history.undo") == -32007);
+  CHECK(v.result("session.stats")["revision"] == 1);
+}
+
+TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  a.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsFull); });
+  const std::size_t mark = a.link->size();
+  const int id = a.nextId;
+  a.result("tool.apply", {{"tool", "remove_blob"}, {"center", {32, 54, 32}}});
+  const std::size_t delta = a.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, mark);
+  const std::size_t response = a.link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark);
+  const std::size_t note = a.link->waitFor([](const auto& m) { return isNotification(m, "session.changed"); }, mark);
+  CHECK(response < note);
+  CHECK(note < delta);
+}
+
+TEST_CASE("undo and redo restore exact digests; splat deltas add up to a fresh full buffer", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  const std::string d0 = a.result("session.stats")["digest"];
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+  const json stroke = a.result("stroke.begin", {{"tool", "remove_blob"}, {"radius", 5}, {"symmetry", {"x"}}});
+  const json dabs = a.result("stroke.dabs", {{"stroke", stroke["stroke"]},
+                                             {"dabs", {{{"center", {20, 40, 32}}},
+                                                       {{"ray", {{"origin", {32, 32, 200}}, {"direction", {0, 0, -1}}}}, {"pressure", 0.5}},
+                                                       {{"ray", {{"origin", {32, 200, 200}}, {"direction", {0, 0, 1}}}}}}}});
+  CHECK(dabs["applied"] == 2);  // the last ray points away from the solid
+  CHECK(dabs["revision"] == 2);
+  CHECK(a.error("stroke.dabs", {{"stroke", 999}, {"dabs", {{{"center", {1, 1, 1}}}}}}) == -32011);
+  const json ended = a.result("stroke.end", {{"stroke", stroke["stroke"]}});
+  CHECK(ended["can_undo"] == true);
+  const std::string d2 = a.result("session.stats")["digest"];
+  a.result("volume.morph", {{"kind", "dilate"}, {"radius", 1}});
+  const std::string d3 = a.result("session.stats")["digest"];
+
+  // One undo step per apply, stroke and morph.
+  CHECK(a.result("history.undo")["revision"] == 4);
+  CHECK(a.result("session.stats")["digest"] == d2);
+  a.result("history.undo");
+  a.result("history.undo");
+  const json last = a.call("history.undo");
+  CHECK(last["error"]["code"] == -32012);
+  CHECK(a.result("session.stats")["digest"] == d0);
+  a.result("history.redo");
+  a.result("history.redo");
+  const json redone = a.result("history.redo");
+  CHECK(redone["can_redo"] == false);
+  CHECK(a.result("session.stats")["digest"] == d3);
+
+  Held held;
+  for (std::size_t i = 0; i < a.link->size(); ++i) {
+    const auto m = a.link->at(i);
+    if (const Bytes* b = std::get_if<Bytes>(&m)) applySplats(held, *b);
+  }
+  Held fresh;
+  const int id = a.nextId;
+  a.result("splats.get");
+  const std::size_t f = a.link->waitFor([&](const auto& m) {
+    return std::holds_alternative<Bytes>(m) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+  });
+  applySplats(fresh, std::get<Bytes>(a.link->at(f)));
+  CHECK(held.size() == fresh.size());
+  CHECK(held == fresh);
+}
+
+TEST_CASE("tool.apply with a ray reports the hit, or changes nothing when it misses", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  const json hit = a.result("tool.apply", {{"tool", "add_blob"}, {"ray", {{"origin", {31.5, 31.5, 200}}, {"direction", {0, 0, -2}}}}});
+  // The sphere of radius 22.4 around (31.5, 31.5, 31.5): the ray meets it at z = 53.9.
+  CHECK(hit["hit"][2].get<double>() == Approx(53.9).margin(0.1));
+  CHECK(hit["revision"] == 1);
+  const json miss = a.result("tool.apply", {{"tool", "add_blob"}, {"ray", {{"origin", {0, 200, 200}}, {"direction", {0, 1, 0}}}}});
+  CHECK(miss["hit"].is_null());
+  CHECK(miss["roi"].is_null());
+  CHECK(miss["revision"] == 1);
+  CHECK(a.call("tool.apply", {{"tool", "add_blob"}, {"center", {1, 2, 3}}, {"ray", {{"origin", {0, 0, 0}}, {"direction", {0, 0, 1}}}}})
+            ["error"]["data"]["field"] == "center");
+  CHECK(a.call("tool.apply", {{"tool", "add_blob"}, {"ray", {{"origin", {0, 0, 0}}, {"direction", {0, 0, 0}}}}})["error"]["data"]["field"] ==
+        "ray");
+  CHECK(a.call("tool.apply", {{"op", "morph"}, {"kind", "erode"}, {"radius", 1}})["error"]["data"]["field"] == "op");
+  CHECK(a.error("tool.apply", {{"tool", "add_blob"}, {"center", {500, 500, 500}}}) == -32006);
+  CHECK(a.call("tool.apply", {{"tool", "add_blob"}, {"center", {1, 2, 3}}, {"strength", 0}})["error"]["data"]["field"] == "strength");
+  CHECK(a.call("tool.apply", {{"tool", "warp"}, {"center", {1, 2, 3}}})["error"]["data"]["field"] == "tool");
+  CHECK(a.result("session.stats")["revision"] == 1);
+}
+
+TEST_CASE("stroke.dabs refuses more than max_dabs and zero pressure", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxDabs = 3;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  const json s = a.result("stroke.begin", {{"tool", "smooth"}});
+  json four = json::array();
+  for (int i = 0; i < 4; ++i) four.push_back({{"center", {32, 54, 32}}});
+  const json over = a.call("stroke.dabs", {{"stroke", s["stroke"]}, {"dabs", four}});
+  CHECK(over["error"]["code"] == -32004);
+  CHECK(over["error"]["data"]["limit"] == "max_dabs");
+  CHECK(a.call("stroke.dabs", {{"stroke", s["stroke"]}, {"dabs", {{{"center", {32, 54, 32}}, {"pressure", 0}}}}})["error"]["code"] ==
+        -32602);
+  CHECK(a.result("session.stats")["revision"] == 0);
+}
+
+TEST_CASE("render.frame sends an image of the requested size before its response", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  const json camera = {{"eye", {32, 40, 150}}, {"target", {32, 32, 32}}};
+  for (const char* format : {"png", "jpeg"}) {
+    const int id = a.nextId;
+    const json r = a.result("render.frame", {{"camera", camera}, {"width", 96}, {"height", 64}, {"format", format}});
+    CHECK(r["width"] == 96);
+    const std::size_t response = a.link->waitFor([&](const auto& m) { return isResponse(m, id); });
+    const std::size_t frame = a.link->waitFor([&](const auto& m) {
+      return std::holds_alternative<Bytes>(m) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+    });
+    CHECK(frame < response);
+    const Bytes f = std::get<Bytes>(a.link->at(frame));
+    CHECK(headerOf(f).kind == (std::string(format) == "png" ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg));
+    CHECK(f.size() - protocol::kFrameHeaderBytes == r["bytes"].get<std::size_t>());
+    CHECK(imageSize(payloadOf(f)) == std::pair<int, int>{96, 64});
+  }
+  CHECK(a.call("render.frame", {{"camera", camera}, {"width", 5000}, {"height", 64}, {"format", "png"}})["error"]["code"] == -32004);
+  CHECK(a.call("render.frame", {{"camera", {{"eye", {1, 1, 1}}, {"target", {1, 1, 1}}}}, {"width", 8}, {"height", 8}, {"format", "png"}})
+            ["error"]["code"] == -32006);
+  CHECK(a.call("render.frame", {{"camera", camera}, {"width", 8}, {"height", 8}, {"format", "png"}, {"quality", 50}})["error"]["data"]
+            ["field"] == "quality");
+}
+
+TEST_CASE("frames mode pushes a frame at once and after every change, then a still one", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  const json r = a.result("view.set", {{"mode", "frames"}, {"camera", {{"eye", {32, 40, 150}}, {"target", {32, 32, 32}}}}, {"width", 80}, {"height", 60}});
+  CHECK(r["mode"] == "frames");
+  const auto pushedJpeg = [](const auto& m) {
+    return isFrame(m, protocol::FrameKind::FrameJpeg) && headerOf(std::get<Bytes>(m)).requestId == 0;
+  };
+  const std::size_t first = a.link->waitFor(pushedJpeg);
+  CHECK(imageSize(payloadOf(std::get<Bytes>(a.link->at(first)))) == std::pair<int, int>{80, 60});
+  // The still frame follows the interactive one when nothing changes.
+  a.link->waitFor(pushedJpeg, first + 1);
+  const std::size_t mark = a.link->size();
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  const std::size_t after = a.link->waitFor(pushedJpeg, mark);
+  CHECK(headerOf(std::get<Bytes>(a.link->at(after))).revision == 1);
+  // No splat buffers in frames mode.
+  for (std::size_t i = mark; i < a.link->size(); ++i)
+    CHECK_FALSE(isFrame(a.link->at(i), protocol::FrameKind::SplatsDelta));
+}
+
+TEST_CASE("mesh.export and volume.save send files; volume.load takes one back as one undo step", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  int id = a.nextId;
+  const json stl = a.result("mesh.export", {{"format", "stl"}});
+  Bytes file = std::get<Bytes>(a.link->at(a.link->waitFor([&](const auto& m) {
+    return isFrame(m, protocol::FrameKind::MeshStl) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+  })));
+  CHECK(file.size() - protocol::kFrameHeaderBytes == 84 + 50 * stl["triangles"].get<std::size_t>());
+  CHECK(stl["triangles"].get<int>() > 1000);
+  CHECK(a.call("mesh.export", {{"format", "fbx"}})["error"]["data"]["field"] == "format");
+
+  id = a.nextId;
+  const json saved = a.result("volume.save");
+  const Bytes mzv = std::get<Bytes>(a.link->at(a.link->waitFor([&](const auto& m) {
+    return isFrame(m, protocol::FrameKind::VolumeFile) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+  })));
+  const std::vector<std::uint8_t> payload(mzv.begin() + protocol::kFrameHeaderBytes, mzv.end());
+  CHECK(payload.size() == saved["bytes"].get<std::size_t>());
+
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  CHECK(a.result("session.stats")["digest"] != saved["digest"]);
+  const auto upload = [&](std::uint32_t requestId, std::span<const std::uint8_t> bytes) {
+    a.hub.binary(a.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, requestId, 0, bytes));
+  };
+  id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", payload.size()}}}}.dump());
+  upload(std::uint32_t(id), payload);
+  const json loaded = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+  INFO(loaded.dump());
+  CHECK(loaded["result"]["digest"] == saved["digest"]);
+  CHECK(loaded["result"]["can_undo"] == true);
+  a.result("history.undo");
+  CHECK(a.result("session.stats")["digest"] != saved["digest"]);
+
+  // An upload of another length, and a load not followed by its upload, fail with -32013.
+  id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", payload.size() + 4}}}}.dump());
+  upload(std::uint32_t(id), payload);
+  CHECK(std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })))["error"]["code"] == -32013);
+  id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", payload.size()}}}}.dump());
+  CHECK(a.result("session.stats")["revision"] == 3);
+  CHECK(std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })))["error"]["code"] == -32013);
+
+  // A truncated file and a file of another grid are refused by the engine; nothing changes.
+  const std::string before = a.result("session.stats")["digest"];
+  const std::vector<std::uint8_t> truncated(payload.begin(), payload.end() - 9);
+  id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", truncated.size()}}}}.dump());
+  upload(std::uint32_t(id), truncated);
+  const json bad = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+  CHECK(bad["error"]["code"] == -32006);
+  const std::vector<std::uint8_t> other = saveVolume(makeSolid(SolidKind::Box, {32, 32, 32}));
+  id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", other.size()}}}}.dump());
+  upload(std::uint32_t(id), other);
+  const json wrongGrid = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+  CHECK(wrongGrid["error"]["code"] == -32006);
+  CHECK(wrongGrid["error"]["data"]["field"] == "file");
+  CHECK(a.result("session.stats")["digest"] == before);
+}
+
+TEST_CASE("limits: sessions, clients per session, and requests in flight", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxSessions = 1;
+  o.limits.maxClientsPerSession = 1;
+  o.limits.maxPendingMessages = 2;
+  Hub hub(o);
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", {{"size", {128, 128, 128}}, {"solid", "sphere"}});
+  const json full = b.call("session.create", kCreate64);
+  CHECK(full["error"]["code"] == -32004);
+  CHECK(full["error"]["data"]["limit"] == "max_sessions");
+  const json crowded = b.call("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  CHECK(crowded["error"]["code"] == -32003);
+
+  // A long global operation holds the connection; what arrives beyond the bound is refused.
+  for (int i = 0; i < 6; ++i) {
+    const json params = i == 0 ? json{{"tool", "smooth"}, {"global", true}, {"iterations", 8}} : json::object();
+    a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", 100 + i}, {"method", i == 0 ? "tool.apply" : "session.stats"}, {"params", params}}.dump());
+  }
+  int busy = 0;
+  for (int i = 0; i < 6; ++i) {
+    const json r = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, 100 + i); })));
+    if (r.contains("error")) {
+      CHECK(r["error"]["code"] == -32005);
+      ++busy;
+    }
+  }
+  CHECK(busy >= 3);
+}
+
+TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded on join", "[hub]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-idle";
+  std::filesystem::remove_all(dir);
+  HubOptions o = smallOptions();
+  o.dataDir = dir;
+  o.limits.idleSession = std::chrono::seconds(1);
+  json created;
+  std::string digest;
+  {
+    Hub hub(o);
+    TestClient a(hub);
+    created = a.result("session.create", kCreate64);
+    a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+    digest = a.result("session.stats")["digest"];
+    a.result("session.leave");
+    const auto deadline = std::chrono::steady_clock::now() + kWait;
+    while (hub.sessionCount() > 0 && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    CHECK(hub.sessionCount() == 0);
+    CHECK(std::filesystem::exists(dir / "sessions" / created["session"].get<std::string>() / "volume.mzv"));
+    TestClient b(hub);
+    CHECK(b.error("session.join", {{"session", created["session"]}, {"token", "nope"}}) == -32002);
+    const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});
+    CHECK(joined["digest"] == digest);
+    CHECK(joined["revision"] == 1);
+    CHECK(joined["read_only"] == true);
+  }
+  // A second hub on the same directory (another server, or a restart) serves it too.
+  Hub again(o);
+  TestClient c(again);
+  CHECK(c.result("session.join", {{"session", created["session"]}, {"token", created["token"]}})["digest"] == digest);
+  TestClient d(again);
+  CHECK(d.error("session.create", json{{"size", {64, 64, 64}}, {"solid", "box"}, {"session", created["session"]}}) == -32014);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("leaving and disconnecting update the others' client lists", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate64);
+  {
+    TestClient b(hub);
+    b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+    a.link->waitFor([](const auto& m) {
+      return isNotification(m, "session.clients") && std::get<json>(m)["params"]["clients"].size() == 2;
+    });
+  }
+  a.link->waitFor([](const auto& m) {
+    return isNotification(m, "session.clients") && std::get<json>(m)["params"]["clients"].size() == 1;
+  });
+  CHECK(a.result("session.leave")["session"] == created["session"]);
+  CHECK(a.error("session.stats") == -32009);
+}
