@@ -3,6 +3,8 @@
 
 #include <sstream>
 
+#include "service/hub.hpp"
+
 namespace marzipan::net {
 
 namespace {
@@ -78,6 +80,16 @@ std::string Metrics::renderPrometheus() const {
   os << "marzipan_edit_latency_seconds_sum " << latencySum_ << '\n';
   os << "marzipan_edit_latency_seconds_count " << cumulative << '\n';
   return os.str();
+}
+
+service::HubEvents hubEventsFor(Metrics& metrics) {
+  service::HubEvents e;
+  e.sessions = [&metrics](std::int64_t d) { metrics.addSessions(d); };
+  e.clients = [&metrics](std::int64_t d) { metrics.addClients(d); };
+  e.request = [&metrics](std::string_view m) { metrics.countMethod(m); };
+  e.error = [&metrics](int code) { metrics.countError(code); };
+  e.editLatency = [&metrics](double s) { metrics.observeEditLatency(s); };
+  return e;
 }
 
 }  // namespace marzipan::net

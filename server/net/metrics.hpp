@@ -16,6 +16,10 @@
 #include <string>
 #include <string_view>
 
+namespace marzipan::service {
+struct HubEvents;
+}
+
 namespace marzipan::net {
 
 // What a request asked for, as a bounded label (never the raw path).
@@ -50,5 +54,9 @@ class Metrics {
   std::array<std::uint64_t, kEditLatencyBuckets.size() + 1> latencyCounts_{};  // per bucket, last = +Inf
   double latencySum_ = 0;
 };
+
+// The hub's events wired to these counters (sessions, clients, requests by method, errors,
+// edit latency); `log` is left to the caller. The metrics must outlive the hub.
+service::HubEvents hubEventsFor(Metrics& metrics);
 
 }  // namespace marzipan::net

@@ -167,17 +167,12 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   options.handleSignals = true;
 
   HttpServer server(options);
-  Metrics& metrics = server.metrics();
+  hubOptions.events = hubEventsFor(server.metrics());
   hubOptions.events.log = [](const std::string& line) {
     static std::mutex stderrMutex;
     const std::lock_guard lock(stderrMutex);
     std::cerr << line << '\n';
   };
-  hubOptions.events.sessions = [&metrics](std::int64_t d) { metrics.addSessions(d); };
-  hubOptions.events.clients = [&metrics](std::int64_t d) { metrics.addClients(d); };
-  hubOptions.events.request = [&metrics](std::string_view m) { metrics.countMethod(m); };
-  hubOptions.events.error = [&metrics](int code) { metrics.countError(code); };
-  hubOptions.events.editLatency = [&metrics](double s) { metrics.observeEditLatency(s); };
   service::Hub hub(hubOptions);
   server.setHub(&hub);
   server.start();

@@ -1,0 +1,238 @@
+// The WebSocket side of HttpServer with a real Hub, driven by a synchronous Beast client over
+// loopback: the round trip, the close codes for unreadable or oversized frames, the Origin
+// check, a reader that stops reading, the /protocol/js/ mount and the 1001 close at shutdown.
+// Every client socket read times out after 20 s, so a hang fails instead of blocking the run.
+#include <catch2/catch.hpp>
+
+#include <sys/socket.h>
+#include <sys/time.h>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <chrono>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "net/http_server.hpp"
+#include "net/metrics.hpp"
+#include "protocol/cpp/frames.hpp"
+#include "service/hub.hpp"
+#include "support.hpp"
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using nlohmann::json;
+using marzipan::net::HttpServer;
+using marzipan::net::HttpServerOptions;
+using marzipan::service::Hub;
+using marzipan::service::HubOptions;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Server {
+  explicit Server(const std::string& name, HubOptions hubOptions = {}, std::vector<std::string> origins = {}) {
+    const fs::path dir = marzipan::test::scratch(name);
+    fs::create_directories(dir / "root");
+    fs::create_directories(dir / "js");
+    marzipan::test::writeText(dir / "root" / "index.html", "<!DOCTYPE html><title>t</title>");
+    marzipan::test::writeText(dir / "js" / "frames.js", "export const kind = 1;\n");
+    HttpServerOptions options;
+    options.port = 0;
+    options.webRoot = dir / "root";
+    options.mounts.emplace_back("/protocol/js/", dir / "js");
+    options.threads = 2;
+    options.allowedOrigins = std::move(origins);
+    options.log = [](const std::string&) {};
+    server.emplace(options);
+    hubOptions.workers = 2;
+    if (hubOptions.limits.maxGridSide == 512) hubOptions.limits.maxGridSide = 128;
+    hubOptions.events = marzipan::net::hubEventsFor(server->metrics());
+    hub.emplace(hubOptions);
+    server->setHub(&*hub);
+    server->start();
+  }
+  std::optional<Hub> hub;
+  std::optional<HttpServer> server;  // destroyed first
+  ~Server() { server.reset(); }
+};
+
+class Client {
+ public:
+  explicit Client(std::uint16_t port, const std::string& origin = "") : ws_(ioc_) {
+    tcp::socket& s = ws_.next_layer();
+    s.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    timeval timeout{20, 0};
+    ::setsockopt(s.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    if (!origin.empty())
+      ws_.set_option(websocket::stream_base::decorator(
+          [origin](websocket::request_type& req) { req.set(beast::http::field::origin, origin); }));
+    ws_.read_message_max(std::size_t(512) << 20);
+    ws_.handshake("127.0.0.1:" + std::to_string(port), "/ws?session=test");
+  }
+
+  void sendText(const std::string& text) {
+    ws_.text(true);
+    ws_.write(asio::buffer(text));
+  }
+  void sendBinary(const std::vector<std::uint8_t>& bytes) {
+    ws_.binary(true);
+    ws_.write(asio::buffer(bytes));
+  }
+
+  // The next message: text as json, binary as its bytes; nullopt when the connection closed.
+  struct Message {
+    bool text;
+    std::string data;
+  };
+  std::optional<Message> read() {
+    beast::flat_buffer buffer;
+    beast::error_code ec;
+    ws_.read(buffer, ec);
+    if (ec) {
+      error = ec;
+      return std::nullopt;
+    }
+    return Message{ws_.got_text(), beast::buffers_to_string(buffer.data())};
+  }
+
+  // Reads until the response with this id; returns it.
+  json response(int id) {
+    while (auto m = read()) {
+      if (!m->text) continue;
+      const json j = json::parse(m->data);
+      if (j.contains("id") && j["id"] == id) return j;
+    }
+    FAIL("connection closed before response " << id << ": " << error.message());
+    return nullptr;
+  }
+  json call(int id, const std::string& method, const json& params = json::object()) {
+    sendText(json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+    return response(id);
+  }
+
+  // Reads until the connection closes; the close code the server sent.
+  int closeCode() {
+    while (read()) {
+    }
+    return ws_.reason().code;
+  }
+
+  beast::error_code error;
+
+ private:
+  asio::io_context ioc_;
+  websocket::stream<tcp::socket> ws_;
+};
+
+const json kCreate = {{"size", {64, 64, 64}}, {"solid", "sphere"}};
+
+}  // namespace
+
+TEST_CASE("ws: a session over a real socket, and the protocol modules over HTTP", "[net][ws]") {
+  Server s("ws-roundtrip");
+  Client c(s.server->port());
+  const json created = c.call(1, "session.create", kCreate);
+  REQUIRE(created.contains("result"));
+  const json applied = c.call(2, "tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  CHECK(applied["result"]["revision"] == 1);
+  // A bad request is answered and the connection stays open.
+  c.sendText("{not json");
+  CHECK(c.call(3, "session.stats")["result"]["revision"] == 1);
+  const auto js = marzipan::test::request(s.server->port(), "GET", "/protocol/js/frames.js");
+  CHECK(js.status == 200);
+  CHECK(js.headers.at("content-type").find("javascript") != std::string::npos);
+  CHECK(marzipan::test::request(s.server->port(), "GET", "/protocol/js/../secret").status == 403);
+  const std::string metrics = marzipan::test::request(s.server->port(), "GET", "/metrics").body;
+  CHECK(metrics.find("marzipan_rpc_requests_total{method=\"tool.apply\"} 1") != std::string::npos);
+  CHECK(metrics.find("marzipan_errors_total{code=\"-32700\"} 1") != std::string::npos);
+}
+
+TEST_CASE("ws: unreadable or oversized frames close with 1008 / 1009 / 1007", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxTextBytes = 4096;
+  o.limits.maxBinaryBytes = 1 << 16;
+  Server s("ws-close-codes", o);
+  {
+    Client c(s.server->port());
+    c.sendText(std::string(5000, ' '));
+    CHECK(c.closeCode() == 1009);
+  }
+  {
+    Client c(s.server->port());
+    c.sendBinary(std::vector<std::uint8_t>(100, 0x42));
+    CHECK(c.closeCode() == 1008);
+  }
+  {
+    Client c(s.server->port());
+    c.sendBinary(marzipan::protocol::encodeFrame(marzipan::protocol::FrameKind::SplatsFull, 1, 0, {}));
+    CHECK(c.closeCode() == 1008);
+  }
+  {
+    Client c(s.server->port());
+    c.sendBinary(std::vector<std::uint8_t>(70000, 0));
+    CHECK(c.closeCode() == 1009);
+  }
+  {
+    Client c(s.server->port());
+    c.sendText(std::string("\xff\xfe", 2));
+    CHECK(c.closeCode() == 1007);
+  }
+}
+
+TEST_CASE("ws: browsers from another origin are refused", "[net][ws]") {
+  {
+    Server s("ws-origin");
+    const std::string self = "http://127.0.0.1:" + std::to_string(s.server->port());
+    CHECK_NOTHROW(Client(s.server->port(), self));
+    CHECK_THROWS(Client(s.server->port(), "http://evil.example"));
+  }
+  Server s("ws-origin-list", {}, {"http://studio.example"});
+  CHECK_NOTHROW(Client(s.server->port(), "http://studio.example"));
+  CHECK_THROWS(Client(s.server->port(), "http://evil.example"));
+}
+
+TEST_CASE("ws: a client that stops reading neither stalls the others nor grows memory", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxQueuedBytes = std::size_t(1) << 20;
+  Server s("ws-slow-reader", o);
+  Client fast(s.server->port());
+  const json created = fast.call(1, "session.create", {{"size", {128, 128, 128}}, {"solid", "sphere"}});
+  Client slow(s.server->port());
+  slow.sendText(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "session.join"},
+                     {"params", {{"session", created["result"]["session"]}, {"token", created["result"]["token"]}}}}
+                    .dump());
+  // Large changes: each undo or redo of a big CSG sphere re-sends thousands of points.
+  const json added = fast.call(2, "tool.apply", {{"tool", "csg_add"}, {"shape", "sphere"}, {"center", {64, 64, 64}}, {"radius", 55}});
+  REQUIRE(added.contains("result"));
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 60; ++i) REQUIRE(fast.call(10 + i, i % 2 ? "history.redo" : "history.undo").contains("result"));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  CHECK(seconds < 30);
+  // The slow client was dropped once its queue passed the bound.
+  CHECK(slow.closeCode() == 1008);
+  CHECK(fast.call(100, "session.stats")["result"]["clients"].size() == 1);
+}
+
+TEST_CASE("ws: stop() lets running edits answer, then closes with 1001", "[net][ws]") {
+  Server s("ws-shutdown");
+  Client c(s.server->port());
+  c.call(1, "session.create", kCreate);
+  c.sendText(json{{"jsonrpc", "2.0"}, {"id", 2}, {"method", "tool.apply"},
+                  {"params", {{"tool", "smooth"}, {"global", true}, {"iterations", 4}}}}
+                 .dump());
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::thread stopper([&] { s.server->stop(); });
+  const json answered = c.response(2);
+  CHECK((answered.contains("result") || answered["error"]["code"] == -32005));
+  CHECK(c.closeCode() == 1001);
+  stopper.join();
+}
