@@ -113,6 +113,14 @@ Camera cameraValue(const json& params, int maxSide) {
   return cam;
 }
 
+Shading shadingValue(const json& v) {
+  const std::string shading = stringValue(v, "shading");
+  if (shading == "lit") return Shading::Lit;
+  if (shading == "normals") return Shading::Normals;
+  if (shading == "gradient_error") return Shading::GradientError;
+  fail("shading", "must be \"lit\", \"normals\" or \"gradient_error\", got " + inQuotes(shading));
+}
+
 std::string paramsContext(Method m) { return "params of " + std::string(nameOf(kMethodNames, m)); }
 
 }  // namespace
@@ -323,7 +331,7 @@ MorphOp parseMorphParams(const json& params) {
 
 ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   const std::string context = paramsContext(Method::ViewSet);
-  checkKeys(params, {"mode", "camera", "width", "height"}, context);
+  checkKeys(params, {"mode", "camera", "width", "height", "shading"}, context);
   ViewSetParams p;
   const std::string mode = stringValue(require(params, "mode", context), "mode");
   const auto m = fromName(kViewModeNames, mode);
@@ -331,8 +339,9 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   p.mode = *m;
   if (p.mode == ViewMode::Frames) {
     p.camera = cameraValue(params, maxSide);
+    if (const json* s = find(params, "shading")) p.shading = shadingValue(*s);
   } else {
-    for (const char* key : {"camera", "width", "height"})
+    for (const char* key : {"camera", "width", "height", "shading"})
       if (find(params, key)) fail(key, "is only for mode \"frames\"");
   }
   return p;
@@ -350,13 +359,7 @@ RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
     if (p.format != ImageKind::Jpeg) fail("quality", "applies to format \"jpeg\" only");
     p.quality = int(integerInRange(*q, "quality", 1, 100));
   }
-  if (const json* s = find(params, "shading")) {
-    const std::string shading = stringValue(*s, "shading");
-    if (shading == "lit") p.shading = Shading::Lit;
-    else if (shading == "normals") p.shading = Shading::Normals;
-    else if (shading == "gradient_error") p.shading = Shading::GradientError;
-    else fail("shading", "must be \"lit\", \"normals\" or \"gradient_error\", got " + inQuotes(shading));
-  }
+  if (const json* s = find(params, "shading")) p.shading = shadingValue(*s);
   p.camera = cameraValue(params, maxSide);
   return p;
 }

@@ -156,6 +156,7 @@ struct StrokeDabsParams {
 struct ViewSetParams {
   ViewMode mode = ViewMode::Splats;
   std::optional<Camera> camera;  // with width and height set; present exactly for frames
+  Shading shading = Shading::Lit;  // of pushed frames
 };
 enum class ImageKind { Jpeg, Png };
 struct RenderFrameParams {

@@ -934,6 +934,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       return onStrand(c, req.id, arrived, false, [self, c, p](LiveSession& s, Reply& r) {
         c->mode = p.mode;
         if (p.camera) c->camera = *p.camera;
+        c->shading = p.shading;
         r.result = {{"mode", protocol::nameOf(protocol::kViewModeNames, p.mode)}, {"revision", s.session->revision()}};
         r.after = [self, &s, c] {
           if (c->mode == ViewMode::Splats) self->sendFullSplats(s, *c, 0);

@@ -451,6 +451,9 @@ TEST_CASE("frames mode pushes a frame at once and after every change, then a sti
   a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
   const std::size_t after = a.link->waitFor(pushedJpeg, mark);
   CHECK(headerOf(std::get<Bytes>(a.link->at(after))).revision == 1);
+  CHECK(a.call("view.set", {{"mode", "none"}, {"shading", "normals"}})["error"]["data"]["field"] == "shading");
+  CHECK(a.result("view.set", {{"mode", "frames"}, {"camera", {{"eye", {32, 40, 150}}, {"target", {32, 32, 32}}}}, {"width", 8},
+                              {"height", 8}, {"shading", "gradient_error"}})["mode"] == "frames");
   // No splat buffers in frames mode.
   for (std::size_t i = mark; i < a.link->size(); ++i)
     CHECK_FALSE(isFrame(a.link->at(i), protocol::FrameKind::SplatsDelta));
