@@ -231,38 +231,66 @@ GradientError gradientError(const Volume& vol, const Box& region) {
   return error.finish();
 }
 
-std::uint64_t digest(const Volume& vol) {
-  std::uint64_t h = 0x6a09e667f3bcc908ull;
-  auto mix = [&](std::uint64_t w) {
-    h ^= w * 0x9e3779b97f4a7c15ull;
-    h = std::rotl(h, 29) * 0xbf58476d1ce4e5b9ull;
-  };
-  const Int3 d = vol.dims();
-  mix(std::uint64_t(d.x) | std::uint64_t(d.y) << 20 | std::uint64_t(d.z) << 40);
-  mix(std::bit_cast<std::uint32_t>(vol.band()));
-  auto key = [](Int3 b) { return std::uint64_t(b.x) | std::uint64_t(b.y) << 20 | std::uint64_t(b.z) << 40; };
-  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
-    mix(key(b) | 1ull << 62);
-    for (int i = 0; i < kBrickVoxels; i += 2) {
-      std::uint64_t w;
-      std::memcpy(&w, br.v + i, sizeof w);
-      mix(w);
-    }
-  });
-  vol.forEachInsideBrick([&](Int3 b) { mix(key(b) | 2ull << 62); });
+namespace {
+
+std::uint64_t mixWord(std::uint64_t h, std::uint64_t w) {
+  h ^= w * 0x9e3779b97f4a7c15ull;
+  return std::rotl(h, 29) * 0xbf58476d1ce4e5b9ull;
+}
+
+std::uint64_t finalMix(std::uint64_t h) {
   h ^= h >> 31;
   h *= 0x94d049bb133111ebull;
   h ^= h >> 29;
   return h;
 }
 
-std::string digestHex(const Volume& vol) {
+std::uint64_t brickKey(Int3 b) { return std::uint64_t(b.x) | std::uint64_t(b.y) << 20 | std::uint64_t(b.z) << 40; }
+
+}  // namespace
+
+std::uint64_t brickDigestTerm(Int3 brick, const BrickRef& ref) {
+  if (!ref.data && !ref.inside) return 0;
+  std::uint64_t h = mixWord(0x6a09e667f3bcc908ull, brickKey(brick) | (ref.data ? 1ull : 2ull) << 62);
+  if (ref.data) {
+    for (int i = 0; i < kBrickVoxels; i += 2) {
+      std::uint64_t w;
+      std::memcpy(&w, ref.data->v + i, sizeof w);
+      h = mixWord(h, w);
+    }
+  }
+  // Terms are summed: each must be well spread on its own.
+  return finalMix(h);
+}
+
+std::uint64_t digestFromTerms(Int3 dims, float band, std::uint64_t termSum) {
+  std::uint64_t h = mixWord(0xbb67ae8584caa73bull, std::uint64_t(dims.x) | std::uint64_t(dims.y) << 20 | std::uint64_t(dims.z) << 40);
+  h = mixWord(h, std::bit_cast<std::uint32_t>(band));
+  h = mixWord(h, termSum);
+  return finalMix(h);
+}
+
+std::uint64_t digest(const Volume& vol) { return digestFromTerms(vol.dims(), vol.band(), digestTermSum(vol)); }
+
+std::uint64_t digestTermSum(const Volume& vol) {
+  std::uint64_t sum = 0;
+  vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
+    BrickRef ref;
+    ref.data = std::shared_ptr<const Brick>(std::shared_ptr<const Brick>(), &br);
+    sum += brickDigestTerm(b, ref);
+  });
+  vol.forEachInsideBrick([&](Int3 b) { sum += brickDigestTerm(b, BrickRef{nullptr, true}); });
+  return sum;
+}
+
+std::string digestText(std::uint64_t h) {
   static const char* hex = "0123456789abcdef";
-  std::uint64_t h = digest(vol);
   std::string s(16, '0');
   for (int i = 15; i >= 0; --i, h >>= 4) s[std::size_t(i)] = hex[h & 15];
   return s;
 }
+
+std::string digestHex(const Volume& vol) { return digestText(digest(vol)); }
 
 Measures measure(const Volume& vol) {
   Measures m;

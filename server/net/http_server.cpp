@@ -551,6 +551,10 @@ class Listener : public std::enable_shared_from_this<Listener> {
       });
       return;
     }
+    // Responses, notifications and splat deltas are written back to back: Nagle's algorithm
+    // would hold the later ones for the client's delayed ACK (about 40 ms per edit).
+    beast::error_code noDelay;
+    socket.set_option(tcp::no_delay(true), noDelay);
     std::make_shared<HttpSession>(std::move(socket), state_)->run();
     if (!state_->isStopping()) doAccept();
   }

@@ -34,6 +34,7 @@
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/rpc.hpp"
 #include "service/session.hpp"
+#include "service/journal.hpp"
 #include "service/session_store.hpp"
 #include "service/workers.hpp"
 
@@ -52,6 +53,8 @@ namespace {
 
 constexpr std::size_t kSessionIdChars = 22;  // 132 bits
 constexpr std::size_t kTokenChars = 43;      // 258 bits
+// A server that stops renewing (a crash) lets another take its sessions after this long.
+constexpr std::chrono::milliseconds kLeaseTtl{30'000};
 
 std::string randomText(std::size_t chars) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
@@ -162,7 +165,9 @@ struct LiveSession {
   const std::shared_ptr<Strand> strand;
 
   // The strand only.
-  std::optional<Session> session;
+  std::unique_ptr<Session> session;
+  std::unique_ptr<Journal> journal;  // with a data directory
+  std::string failure;               // why the session could not be created
   std::vector<std::shared_ptr<HubClient>> clients;
   int nextClient = 1;
   bool unloaded = false;
@@ -174,9 +179,10 @@ struct LiveSession {
 struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   explicit Impl(HubOptions o)
       : options(std::move(o)),
-        store(options.dataDir),
+        store(options.dataDir, options.fsyncInterval, options.events.log),
         workers(options.workers, options.events.log),
-        pool(int(workers.threads())) {}
+        pool(int(workers.threads())),
+        owner(randomText(16)) {}
 
   HubOptions options;
   SessionStore store;
@@ -186,6 +192,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   std::map<std::string, std::shared_ptr<LiveSession>> sessions;
   bool stopping = false;
   std::atomic<bool> idleCheckScheduled{false};
+  const std::string owner;  // this server's name in leases
+  std::atomic<bool> leaseRenewalScheduled{false};
 
   const HubLimits& limits() const { return options.limits; }
 
@@ -355,7 +363,10 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                            {{"field", "file"}});
       ApplyResult a = s.session->load(std::move(vol));
       a.fullRefresh = true;
-      r.result = {{"revision", a.revision}, {"digest", digestHex(s.session->volume())}, {"roi", protocol::boxJson(a.roi)},
+      r.record = [this, &s, payload, rev = a.revision] {
+        return json{{"r", rev}, {"load", store.enabled() ? store.saveUpload(s.id, rev, *payload) : std::string()}};
+      };
+      r.result = {{"revision", a.revision}, {"digest", digestText(s.session->digest())}, {"roi", protocol::boxJson(a.roi)},
                   {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
       r.after = [this, &s, c, a] { changed(s, *c, "load", a.roi, a.bricks, true); };
     });
@@ -366,7 +377,74 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     SharedBytes frame;  // sent before the result
     json result;
     std::function<void()> after;  // on the strand, after the response went out
+    // The journal record(s) of a change (an object or an array of them), written before the
+    // response; may write files of its own (an upload).
+    std::function<json()> record;
   };
+
+  // On the strand: appends a change's records to the journal before it is acknowledged. When
+  // that fails the session goes back to what the journal holds (the change is dropped) and the
+  // request gets an error; if even that fails the session is closed, its acknowledged state
+  // intact on disk.
+  void persist(LiveSession& s, const json& records) {
+    if (!s.journal) return;
+    try {
+      if (records.is_array())
+        for (const json& r : records) s.journal->append(r);
+      else
+        s.journal->append(records);
+    } catch (const std::exception& e) {
+      log("session " + s.id + ": " + e.what() + "; rolling back to the journal");
+      s.journal.reset();
+      try {
+        Recovered rec = store.recover(s.id, limits().historyBytes, pool);
+        s.session = std::move(rec.session);
+        s.journal = std::move(rec.journal);
+      } catch (const std::exception& again) {
+        log("session " + s.id + ": cannot reopen its journal (" + again.what() + "); closing it");
+        closeBroken(s);
+      }
+      for (const auto& c : s.clients) c->stroke = 0;
+      throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
+                                                "); it was not kept. The session is as it was");
+    }
+    if (s.journal->records() >= options.snapshotEvery) {
+      try {
+        s.journal = store.snapshot(s.id, s.session->volume());
+      } catch (const std::exception& e) {
+        log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
+      }
+    }
+  }
+
+  // On the strand: forgets a session whose in-memory state may be ahead of its journal.
+  void closeBroken(LiveSession& s) {
+    s.unloaded = true;
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(s.id); it != sessions.end() && it->second.get() == &s) sessions.erase(it);
+    }
+    emit(options.events.sessions, -1);
+    emit(options.events.clients, -std::int64_t(s.clients.size()));
+    for (const auto& c : s.clients) c->link->close(1011, "the session's storage failed");
+    s.clients.clear();
+  }
+
+  void scheduleLeaseRenewal() {
+    if (!store.enabled() || leaseRenewalScheduled.exchange(true)) return;
+    workers.postAfter(kLeaseTtl / 3, [self = shared_from_this()] {
+      self->leaseRenewalScheduled = false;
+      std::vector<std::string> ids;
+      {
+        const std::lock_guard lock(self->mutex);
+        for (const auto& [id, live] : self->sessions) ids.push_back(id);
+      }
+      for (const std::string& id : ids)
+        if (!self->store.takeLease(id, self->owner, kLeaseTtl))
+          self->log("session " + id + ": another server took its lease");
+      if (!ids.empty()) self->scheduleLeaseRenewal();
+    });
+  }
 
   // Runs fn on c's session strand, answers, then lets the connection's next message start.
   void onStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id, Clock::time_point arrived, bool isEdit,
@@ -377,9 +455,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       try {
         if (s->unloaded || !s->session) {
           c->session.reset();
+          if (!s->failure.empty()) throw RpcException(RpcCode::Internal, s->failure);
           throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
         }
         fn(*s, r);
+        if (r.record) self->persist(*s, r.record());
         if (r.frame) c->link->sendBinary(r.frame, false);
         self->sendResult(*c, id, r.result);
         if (isEdit && self->options.events.editLatency)
@@ -453,7 +533,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"client", c.clientId},
             {"size", sizeJson(ss.volume().dims())},
             {"revision", ss.revision()},
-            {"digest", digestHex(ss.volume())},
+            {"digest", digestText(ss.digest())},
             {"protocol", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}},
             {"limits", limitsJson()},
             {"can_undo", ss.canUndo()},
@@ -499,8 +579,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (c.stroke) {
       try {
         s.session->endStroke(c.stroke);
-      } catch (const ServiceError&) {
-        // Already closed by the session (a reload); nothing left to end.
+        if (s.journal) s.journal->append({{"stroke_end", c.stroke}});
+      } catch (const std::exception& e) {
+        // Already closed by the session (a reload), or not journaled: replay then ends the
+        // stroke at the end of the journal, which folds the same dabs into the same step.
+        log("session " + s.id + ": ending client " + std::to_string(c.clientId) + "'s stroke: " + e.what());
       }
       c.stroke = 0;
     }
@@ -550,9 +633,18 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     // The volume is built on the strand, before anything else can reach the new session.
     s->strand->post([self, s, dims, solid] {
       try {
-        s->session.emplace(makeSolid(solid, dims, Volume::kDefaultBand, self->pool), self->limits().historyBytes);
+        s->session = std::make_unique<Session>(makeSolid(solid, dims, Volume::kDefaultBand, self->pool),
+                                               self->limits().historyBytes);
+        if (self->store.enabled()) {
+          if (!self->store.takeLease(s->id, self->owner, kLeaseTtl))
+            throw RpcException(RpcCode::HeldElsewhere, "another server holds this session id");
+          s->journal = self->store.create(s->id, s->secrets, s->session->volume());
+          self->scheduleLeaseRenewal();
+        }
       } catch (const std::exception& e) {
-        self->log("session " + s->id + ": creating the solid failed: " + e.what());
+        self->log("session " + s->id + ": creating it failed: " + e.what());
+        s->failure = std::string("the session could not be created: ") + e.what();
+        s->session.reset();
         s->unloaded = true;
         {
           const std::lock_guard lock(self->mutex);
@@ -601,9 +693,21 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (!secrets) throw RpcException(RpcCode::NoSuchSession, "no session with id \"" + id + "\"", {{"field", "session"}});
     if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
       throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
-    Volume vol = store.load(id);
+    if (!store.takeLease(id, owner, kLeaseTtl))
+      throw RpcException(RpcCode::HeldElsewhere,
+                         "another server has session \"" + id + "\" loaded; connect with /ws?session=" + id +
+                             " through the load balancer");
+    Recovered rec;
+    try {
+      rec = store.recover(id, limits().historyBytes, pool);
+    } catch (...) {
+      store.releaseLease(id, owner);
+      throw;
+    }
     auto s = std::make_shared<LiveSession>(id, *secrets, workers);
-    s->session.emplace(std::move(vol), limits().historyBytes);
+    s->session = std::move(rec.session);
+    s->journal = std::move(rec.journal);
+    scheduleLeaseRenewal();
     {
       const std::lock_guard lock(mutex);
       if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
@@ -614,7 +718,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);
-    log("session " + id + ": loaded from " + options.dataDir.string());
+    log("session " + id + ": loaded from " + options.dataDir.string() + " at revision " +
+        std::to_string(s->session->revision()) + " (" + std::to_string(rec.replayed) + " journal records replayed)");
     return s;
   }
 
@@ -631,7 +736,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                             {"by", by.clientId},
                             {"cause", cause},
                             {"roi", protocol::boxJson(roi)},
-                            {"digest", digestHex(ss.volume())},
+                            {"digest", digestText(ss.digest())},
                             {"can_undo", ss.canUndo()},
                             {"can_redo", ss.canRedo()}});
     for (const auto& c : s.clients) c->link->sendText(text);
@@ -744,14 +849,17 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // On the strand: saves (when there is a data directory) and forgets a session without clients.
   void unload(LiveSession& s, const char* why) {
     if (s.unloaded || !s.clients.empty() || !s.session) return;
-    if (store.enabled()) {
+    if (store.enabled() && s.journal) {
       try {
-        store.save(s.id, s.secrets, s.session->volume());
+        s.journal = store.snapshot(s.id, s.session->volume());
+        s.journal.reset();
       } catch (const std::exception& e) {
-        log("session " + s.id + ": not unloaded, saving failed: " + e.what());
-        return;
+        // The journal holds every acknowledged change: the session is safe without the snapshot.
+        log("session " + s.id + ": snapshot at unload failed: " + e.what());
       }
+      store.releaseLease(s.id, owner);
     }
+    s.journal.reset();
     s.unloaded = true;
     {
       const std::lock_guard lock(mutex);
@@ -790,7 +898,10 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
         const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
         if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
-        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "tool", a.roi, a.bricks, a.fullRefresh); };
+        if (a.changed) {
+          r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(op)}}; };
+          r.after = [self, &s, c, a] { self->changed(s, *c, "tool", a.roi, a.bricks, a.fullRefresh); };
+        }
       });
     }
     case Method::VolumeMorph: {
@@ -799,22 +910,34 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
         refuseReadOnly(s);
         const ApplyResult a = s.session->apply(op, self->pool);
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
-        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
+        if (a.changed) {
+          r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}}; };
+          r.after = [self, &s, c, a] { self->changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
+        }
       });
     }
     case Method::StrokeBegin: {
       const protocol::StrokeBeginParams p = protocol::parseStrokeBeginParams(req.params);
       return onStrand(c, req.id, arrived, false, [c, p, refuseReadOnly](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
+        json records = json::array();
         if (c->stroke) {
           try {
             s.session->endStroke(c->stroke);
+            records.push_back({{"stroke_end", c->stroke}});
           } catch (const ServiceError&) {
             // The session closed it already (a reload); nothing to end.
           }
           c->stroke = 0;
         }
         c->stroke = s.session->beginStroke(p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ});
+        std::string symmetry = std::string(p.mirrorX ? "x" : "") + (p.mirrorY ? "y" : "") + (p.mirrorZ ? "z" : "");
+        records.push_back({{"stroke_begin", c->stroke},
+                           {"tool", protocol::nameOf(protocol::kBrushToolNames, p.tool)},
+                           {"radius", p.radius},
+                           {"strength", p.strength},
+                           {"symmetry", symmetry}});
+        r.record = [records] { return records; };
         r.result = {{"stroke", c->stroke}};
       });
     }
@@ -841,7 +964,15 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
         r.result = {{"revision", a.revision},
                     {"applied", a.changed ? dabs.size() - a.missed : 0},
                     {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
-        if (a.changed) r.after = [self, &s, c, a] { self->changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
+        if (a.changed) {
+          json applied = json::array();
+          for (std::size_t i = 0; i < a.hits.size(); ++i)
+            if (a.hits[i]) applied.push_back({a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure});
+          r.record = [stroke = p.stroke, applied, rev = a.revision] {
+            return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}};
+          };
+          r.after = [self, &s, c, a] { self->changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
+        }
       });
     }
     case Method::StrokeEnd: {
@@ -857,6 +988,7 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           // Closed by a reload of the session: ending it again is what the client asked.
         }
         c->stroke = 0;
+        r.record = [stroke] { return json{{"stroke_end", stroke}}; };
         r.result = {{"revision", s.session->revision()}, {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
       });
     }
@@ -870,6 +1002,10 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
         if (!h.changed)
           throw RpcException(RpcCode::NothingToUndo, undo ? "nothing to undo" : "nothing to redo");
         r.result = {{"revision", h.revision}, {"can_undo", h.canUndo}, {"can_redo", h.canRedo}};
+        r.record = [self, &s, undo, h] {
+          const std::string step = self->store.enabled() ? self->store.saveStep(s.id, h.revision, h.restored) : std::string();
+          return json{{"r", h.revision}, {undo ? "undo" : "redo", step}};
+        };
         r.after = [self, &s, c, h, undo] { self->changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
       });
     }
@@ -1043,12 +1179,14 @@ void Hub::shutdown() {
     for (const auto& live : all) {
       std::promise<void> done;
       live->strand->post([&s, live, &done] {
-        if (!live->unloaded && live->session) {
+        if (!live->unloaded && live->session && live->journal) {
           try {
-            s.store.save(live->id, live->secrets, live->session->volume());
+            live->journal = s.store.snapshot(live->id, live->session->volume());
           } catch (const std::exception& e) {
-            s.log("session " + live->id + ": saving at shutdown failed: " + e.what());
+            s.log("session " + live->id + ": snapshot at shutdown failed (the journal has every change): " + e.what());
           }
+          live->journal.reset();
+          s.store.releaseLease(live->id, s.owner);
         }
         done.set_value();
       });

@@ -8,6 +8,10 @@
 //   connection's messages are handled one after the other, in arrival order, on the workers;
 //   everything that touches a session (its volume, its clients, their view state) runs on that
 //   session's strand; renders run on the workers off the strand, from a snapshot.
+// - Durability (with a data directory, service/session_store.hpp): every change is in the
+//   session's journal before its response is sent; a session lives on one server at a time
+//   (its lease), and is recovered from snapshot + journal when it is joined after an unload,
+//   a restart or a crash.
 // - Order of what one edit sends: the requester's response, then `session.changed` to every
 //   client, then each client's splat delta or frame. Binary answers precede their response.
 // - Ownership: the hub owns sessions; a HubClient is owned by the network connection (and by
@@ -65,6 +69,10 @@ struct HubOptions {
   // Still frames follow the last change of a frames-mode client after this pause.
   std::chrono::milliseconds stillDelay{250};
   int interactiveQuality = 70, stillQuality = 92;  // JPEG qualities of pushed frames
+  // Journal durability: 0 = fsync every change before its response; else at most this often.
+  std::chrono::milliseconds fsyncInterval{0};
+  // A snapshot (and a fresh journal) after this many journal records.
+  std::size_t snapshotEvery = 2000;
 };
 
 // One connection as the hub sees it. Implemented by the network layer; the hub calls it from
@@ -100,8 +108,8 @@ class Hub {
   // The connection is gone: leaves its session, drops its queued messages.
   void disconnect(const std::shared_ptr<HubClient>& client);
 
-  // Refuses new requests (-32005), lets running edits finish, saves every session to the data
-  // directory (when set) and stops the workers. Idempotent.
+  // Refuses new requests (-32005), lets running edits finish, snapshots every session in the
+  // data directory (when set), releases their leases and stops the workers. Idempotent.
   void shutdown();
 
   std::size_t sessionCount() const;

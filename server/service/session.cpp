@@ -121,7 +121,17 @@ std::optional<Vec3> pickSurface(const Volume& vol, Vec3 origin, Vec3 direction) 
 }
 
 Session::Session(Volume initial, std::size_t historyBudgetBytes)
-    : volume_(std::move(initial)), history_(historyBudgetBytes), revision_(volume_.revision()) {}
+    : volume_(std::move(initial)),
+      history_(historyBudgetBytes),
+      revision_(volume_.revision()),
+      digestTerms_(digestTermSum(volume_)) {}
+
+void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward) {
+  for (const BrickChange& c : changes) {
+    digestTerms_ -= brickDigestTerm(c.brick, forward ? c.before : c.after);
+    digestTerms_ += brickDigestTerm(c.brick, forward ? c.after : c.before);
+  }
+}
 
 void Session::bump() {
   ++revision_;
@@ -132,6 +142,7 @@ ApplyResult Session::finish(const Edit& edit) {
   ApplyResult r;
   r.roi = edit.region;
   if (!edit.empty()) {
+    trackDigest(edit.changes, true);
     bump();
     r.changed = true;
     r.bricks = bricksAroundChanges(volume_, edit.changes);
@@ -147,7 +158,8 @@ ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool) {
   } catch (const EngineError& e) {
     rethrow(e, "");
   }
-  lastStroke_ = 0;
+  // An op that changed nothing is not a change of the session: an open stroke keeps folding.
+  if (!edit.empty()) lastStroke_ = 0;
   history_.push(edit);
   return finish(edit);
 }
@@ -239,9 +251,17 @@ void Session::endStroke(StrokeId id) {
   if (lastStroke_ == id) lastStroke_ = 0;
 }
 
-HistoryResult Session::undo() { return historyMoved(history_.undo(volume_)); }
+HistoryResult Session::undo() {
+  const Edit* e = history_.undo(volume_);
+  if (e) trackDigest(e->changes, false);
+  return historyMoved(e);
+}
 
-HistoryResult Session::redo() { return historyMoved(history_.redo(volume_)); }
+HistoryResult Session::redo() {
+  const Edit* e = history_.redo(volume_);
+  if (e) trackDigest(e->changes, true);
+  return historyMoved(e);
+}
 
 HistoryResult Session::historyMoved(const Edit* e) {
   HistoryResult r;
@@ -251,6 +271,7 @@ HistoryResult Session::historyMoved(const Edit* e) {
     r.changed = true;
     r.roi = e->region;
     r.bricks = bricksAroundChanges(volume_, e->changes);
+    for (const BrickChange& c : e->changes) r.restored.emplace_back(c.brick, volume_.brick(c.brick));
   }
   r.revision = revision_;
   r.canUndo = history_.canUndo();
@@ -258,10 +279,32 @@ HistoryResult Session::historyMoved(const Edit* e) {
   return r;
 }
 
+HistoryResult Session::restore(const std::vector<std::pair<Int3, BrickRef>>& bricks) {
+  const Int3 bd = volume_.brickDims();
+  std::vector<BrickChange> changes;
+  for (const auto& [b, ref] : bricks) {
+    if (b.x < 0 || b.y < 0 || b.z < 0 || b.x >= bd.x || b.y >= bd.y || b.z >= bd.z)
+      invalid("bricks", "a brick lies outside the grid");
+    changes.push_back({b, volume_.brick(b), ref});
+  }
+  volume_.publish(changes, true);
+  trackDigest(changes, true);
+  history_.clear();
+  lastStroke_ = 0;
+  bump();
+  HistoryResult r;
+  r.changed = true;
+  r.revision = revision_;
+  r.roi = volume_.domain();
+  r.bricks = bricksAroundChanges(volume_, changes);
+  return r;
+}
+
 ApplyResult Session::load(Volume vol) {
   lastStroke_ = 0;
   if (vol.dims() != volume_.dims() || vol.band() != volume_.band()) {
     volume_ = std::move(vol);
+    digestTerms_ = digestTermSum(volume_);
     history_.clear();
     bump();
     ApplyResult r;

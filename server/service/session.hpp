@@ -111,6 +111,9 @@ struct HistoryResult {
   bool canUndo = false, canRedo = false;
   Box roi;                   // the step's region
   std::vector<Int3> bricks;  // bricks to re-extract, as in ApplyResult
+  // The bricks the step put in place, as they are now: enough to redo this move on a copy of
+  // the volume whose history is gone (the journal keeps them for replay after a snapshot).
+  std::vector<std::pair<Int3, BrickRef>> restored;
 };
 
 struct SessionStats {
@@ -152,6 +155,10 @@ class Session {
 
   HistoryResult undo();
   HistoryResult redo();
+  // Puts these bricks in place as one change that cannot be undone (the history is cleared):
+  // an undo or redo replayed from the journal after the step it moves was lost to a snapshot.
+  // Throws InvalidParams for a brick outside the grid; a change of nothing still counts.
+  HistoryResult restore(const std::vector<std::pair<Int3, BrickRef>>& bricks);
 
   // Replaces the field by `vol`'s (a `volume.load`). With the same dims and band it is one
   // undoable step holding only the bricks that differ; otherwise the domain changes, the
@@ -165,6 +172,8 @@ class Session {
   const Volume& volume() const { return volume_; }
   const History& history() const { return history_; }
   std::uint64_t revision() const { return revision_; }
+  // digest(volume()), kept up to date brick by brick (engine/measures.hpp) instead of read.
+  std::uint64_t digest() const { return digestFromTerms(volume_.dims(), volume_.band(), digestTerms_); }
   bool canUndo() const { return history_.canUndo(); }
   bool canRedo() const { return history_.canRedo(); }
   std::size_t openStrokes() const { return strokes_.size(); }
@@ -182,6 +191,8 @@ class Session {
   };
 
   ApplyResult finish(const Edit& edit);
+  // Swaps the digest terms of bricks that went from `from` to what the volume now holds.
+  void trackDigest(const std::vector<BrickChange>& changes, bool forward);
   void bump();
   // The result of an undo or redo that published `e` (null: there was nothing to move).
   HistoryResult historyMoved(const Edit* e);
@@ -190,6 +201,7 @@ class Session {
   Volume volume_;
   History history_;
   std::uint64_t revision_;
+  std::uint64_t digestTerms_;  // sum of brickDigestTerm over the live volume
   std::map<StrokeId, Stroke> strokes_;
   StrokeId nextStroke_ = 1;
   // The stroke whose step is the newest change of the session (0: none); only its dabs may

@@ -1,19 +1,33 @@
-// Sessions at rest in the data directory, so that an idle session can be unloaded and loaded
-// again on join, and a session saved by one server can be loaded by another that shares the
-// directory.
+// Sessions at rest in the data directory: what makes them survive a crash, an idle unload, a
+// restart, or a move to another server that shares the directory.
 //
-// Layout: DATA/sessions/ID/session.json ({"token", "view_token"}) and DATA/sessions/ID/volume.mzv
-// (the native file, engine/volume_file.hpp, which keeps the revision). Both are written to a
-// temporary name, flushed to disk and renamed, so a crash leaves the old or the new version,
-// never a torn one. The directory holds secrets: it is created with mode 0700.
+// Layout of DATA/sessions/ID/ (mode 0700: it holds the tokens):
+//   session.json          {"token", "view_token"}
+//   snapshot-R.mzv        the volume at revision R (engine/volume_file.hpp, CRC-checked)
+//   journal-R.log         the changes after revision R (service/journal.hpp)
+//   load-R.mzv            a file a volume.load brought in at revision R (named by a journal)
+//   step-R.bin            the bricks an undo or redo at revision R put in place (see saveStep)
+//   lease                 "OWNER EXPIRY_MS": the server that has the session loaded (scale-out)
+// The newest snapshot and the one before it are kept, with the journals from the older one
+// on: a snapshot that fails its CRC falls back to the previous one and replays both journals.
+// Files are written to a temporary name, fsynced and renamed, so a crash leaves the old or
+// the new version, never a torn one (the journal's torn last line is dropped on reading).
 // Errors: std::runtime_error naming the path (I/O), EngineError from the volume loader.
 #pragma once
 
+#include <chrono>
+#include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string>
 
+#include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
+#include "service/journal.hpp"
+#include "service/session.hpp"
 
 namespace marzipan::service {
 
@@ -21,20 +35,49 @@ struct SessionSecrets {
   std::string token, viewToken;
 };
 
+struct Recovered {
+  std::unique_ptr<Session> session;  // at the last revision the journal acknowledged
+  std::unique_ptr<Journal> journal;  // open for appending after it
+  std::size_t replayed = 0;          // records replayed
+};
+
 class SessionStore {
  public:
-  explicit SessionStore(std::filesystem::path dataDir);
+  // An empty dataDir disables the store (nothing is written, nothing exists).
+  SessionStore(std::filesystem::path dataDir, std::chrono::milliseconds syncInterval = {},
+               std::function<void(const std::string&)> log = {});
 
   bool enabled() const { return !dir_.empty(); }
-  // Whether a session of this id exists at rest (always false when disabled).
   bool exists(const std::string& id) const;
   std::optional<SessionSecrets> secrets(const std::string& id) const;
-  Volume load(const std::string& id) const;
-  void save(const std::string& id, const SessionSecrets& secrets, const Volume& volume) const;
+
+  // A new session at rest: session.json, its first snapshot and an empty journal.
+  std::unique_ptr<Journal> create(const std::string& id, const SessionSecrets& secrets, const Volume& volume) const;
+  // A snapshot of `volume` at its revision and a fresh journal after it; files older than the
+  // previous snapshot are deleted.
+  std::unique_ptr<Journal> snapshot(const std::string& id, const Volume& volume) const;
+  // Keeps the bricks an undo or redo put in place, for the journal record {"undo"/"redo": name};
+  // returns the name ("step-R.bin": "MZBK", u32 count, per brick i32 x y z, u8 0 outside /
+  // 1 inside / 2 data + 512 f32, then the CRC-32 of all before it; little-endian).
+  std::string saveStep(const std::string& id, std::uint64_t revision,
+                       const std::vector<std::pair<Int3, BrickRef>>& bricks) const;
+  // Keeps an uploaded .mzv for the journal record {"load": name}; returns the name.
+  std::string saveUpload(const std::string& id, std::uint64_t revision, std::span<const std::uint8_t> file) const;
+  // The session as last acknowledged: the newest readable snapshot plus its journals.
+  Recovered recover(const std::string& id, std::size_t historyBytes, ThreadPool& pool) const;
+
+  // The lease: false when another owner holds an unexpired one. Taking it again renews it.
+  bool takeLease(const std::string& id, const std::string& owner, std::chrono::milliseconds ttl) const;
+  void releaseLease(const std::string& id, const std::string& owner) const;
 
  private:
   std::filesystem::path sessionDir(const std::string& id) const;
+  void warn(const std::string& line) const {
+    if (log_) log_(line);
+  }
   std::filesystem::path dir_;
+  std::chrono::milliseconds syncInterval_;
+  std::function<void(const std::string&)> log_;
 };
 
 // Writes bytes to path through path + ".tmp", fsync and rename.

@@ -572,7 +572,7 @@ TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded 
     while (hub.sessionCount() > 0 && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     CHECK(hub.sessionCount() == 0);
-    CHECK(std::filesystem::exists(dir / "sessions" / created["session"].get<std::string>() / "volume.mzv"));
+    CHECK(std::filesystem::exists(dir / "sessions" / created["session"].get<std::string>() / "snapshot-1.mzv"));
     TestClient b(hub);
     CHECK(b.error("session.join", {{"session", created["session"]}, {"token", "nope"}}) == -32002);
     const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});

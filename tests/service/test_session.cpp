@@ -78,6 +78,8 @@ TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke
     CHECK(s.volume().revision() == rev);
     CHECK_FALSE(r.bricks.empty());
     CHECK_FALSE(r.roi.empty());
+    // The digest followed brick by brick equals the one read from the whole volume.
+    CHECK(s.digest() == digest(s.volume()));
   };
   step(s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool));
   digests.push_back(digest(s.volume()));
@@ -117,6 +119,7 @@ TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke
     CHECK(u.canUndo == (i > 1));
     CHECK_FALSE(u.bricks.empty());
     CHECK(digest(s.volume()) == digests[i - 1]);
+    CHECK(s.digest() == digests[i - 1]);
   }
   const HistoryResult none = s.undo();
   CHECK_FALSE(none.changed);
@@ -129,6 +132,7 @@ TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke
     CHECK(r.revision == ++rev);
     CHECK(r.canUndo);
     CHECK(digest(s.volume()) == digests[i]);
+    CHECK(s.digest() == digests[i]);
   }
   CHECK_FALSE(s.redo().changed);
   CHECK(s.revision() == rev);

@@ -1,0 +1,66 @@
+// A session's journal: every acknowledged change, appended before its response is sent, so
+// that the last snapshot plus the journal gives back exactly the last acknowledged revision.
+//
+// Format: text, one record per line: 8 lower-case hex digits of the CRC-32 (IEEE) of the JSON
+// that follows, one space, one JSON object, "\n". Records (R = the revision after the change;
+// S = the session's stroke id; positions in vu, already resolved: a ray's hit, not the ray):
+//   {"r":R,"op":{...}}                       tool.apply / volume.morph: the canonical op object
+//   {"r":R,"stroke":S,"dabs":[[x,y,z,p],...]} stroke.dabs: the centres that applied, pressure p
+//   {"stroke_begin":S,"tool":T,"radius":r,"strength":s,"symmetry":"xz"}
+//   {"stroke_end":S}
+//   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a
+//                                            replay whose history lost the step to a snapshot
+//   {"r":R,"load":"load-R.mzv"}              volume.load: the file, stored beside the journal
+// Stroke begin/end records change no revision; they are kept so that replay folds dabs into
+// the same undo steps as the original.
+// A line that is cut short or fails its CRC ends the journal: a crash can only tear the last
+// record, which was never acknowledged; reading truncates the file there.
+// Durability: with syncEach every append is fsynced before it returns; otherwise at most every
+// syncInterval (and on close), so a crash may lose that much acknowledged work.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace marzipan::service {
+
+class Journal {
+ public:
+  // Opens (creating if missing) for appending. Throws std::runtime_error naming the path.
+  Journal(std::filesystem::path path, std::chrono::milliseconds syncInterval);
+  ~Journal();
+  Journal(const Journal&) = delete;
+  Journal& operator=(const Journal&) = delete;
+
+  // Appends one record; throws std::runtime_error (with the system's reason: "No space left
+  // on device") when it cannot be written or synced. A failed append may leave a torn line,
+  // which the next read drops.
+  void append(const nlohmann::json& record);
+  void sync();
+  std::size_t records() const { return records_; }
+  const std::filesystem::path& path() const { return path_; }
+
+  // The valid records of a journal file, in order. A torn or corrupt line and everything after
+  // it are dropped and, when truncate is set, cut from the file; `warn` hears of it.
+  static std::vector<nlohmann::json> read(const std::filesystem::path& path, bool truncate,
+                                          const std::function<void(const std::string&)>& warn);
+
+ private:
+  std::filesystem::path path_;
+  int fd_ = -1;
+  std::chrono::milliseconds syncInterval_;
+  std::chrono::steady_clock::time_point lastSync_;
+  bool dirty_ = false;
+  std::size_t records_ = 0;
+};
+
+// The line of one record (CRC, space, JSON, newline).
+std::string journalLine(const nlohmann::json& record);
+
+}  // namespace marzipan::service

@@ -1,0 +1,159 @@
+// Sessions at rest: after every acknowledged change the data directory alone recovers the exact
+// digest (the directory is copied at that moment, as a crash would leave it); a corrupt newest
+// snapshot falls back to the one before; leases keep a session on one server.
+#include <catch2/catch.hpp>
+
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/measures.hpp"
+#include "engine/thread_pool.hpp"
+#include "service/hub.hpp"
+#include "service/session_store.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Responses by id, nothing else.
+struct Responses : ClientLink {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::map<int, json> byId;
+  void sendText(std::string text) override {
+    const json j = json::parse(text);
+    if (!j.contains("id") || !j["id"].is_number_integer()) return;
+    const std::lock_guard lock(mutex);
+    byId[j["id"].get<int>()] = j;
+    cv.notify_all();
+  }
+  void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>>, bool) override {}
+  void close(int, std::string) override {}
+};
+
+struct Driver {
+  Hub& hub;
+  std::shared_ptr<Responses> link = std::make_shared<Responses>();
+  std::shared_ptr<HubClient> client = hub.connect(link, "test");
+  int id = 1;
+  explicit Driver(Hub& h) : hub(h) {}
+  ~Driver() { hub.disconnect(client); }
+  json call(const std::string& method, const json& params = json::object()) {
+    const int my = id++;
+    hub.text(client, json{{"jsonrpc", "2.0"}, {"id", my}, {"method", method}, {"params", params}}.dump());
+    std::unique_lock lock(link->mutex);
+    REQUIRE(link->cv.wait_for(lock, std::chrono::seconds(20), [&] { return link->byId.count(my) > 0; }));
+    const json r = link->byId[my];
+    INFO(r.dump());
+    REQUIRE(r.contains("result"));
+    return r["result"];
+  }
+};
+
+fs::path freshDir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("marzipan-store-" + name);
+  fs::remove_all(d);
+  return d;
+}
+
+std::string recoveredDigest(const fs::path& dataDir, const std::string& id, std::uint64_t* revision = nullptr) {
+  SessionStore store(dataDir);
+  const Recovered r = store.recover(id, std::size_t(64) << 20, ThreadPool::serial());
+  if (revision) *revision = r.session->revision();
+  return digestHex(r.session->volume());
+}
+
+}  // namespace
+
+TEST_CASE("every acknowledged change is recoverable from the data directory alone", "[store]") {
+  const fs::path dir = freshDir("every"), copy = freshDir("every-copy");
+  HubOptions o;
+  o.workers = 2;
+  o.dataDir = dir;
+  o.snapshotEvery = 5;  // several snapshots and journals along the way
+  Hub hub(o);
+  Driver a(hub);
+  const json created = a.call("session.create", {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}});
+  const std::string id = created["session"];
+  const json steps[] = {
+      {"tool.apply", {{"tool", "add_blob"}, {"center", {24, 41, 24}}, {"radius", 5}}},
+      {"stroke.begin", {{"tool", "remove_blob"}, {"radius", 4}, {"symmetry", {"x"}}}},
+      {"stroke.dabs", {{"stroke", 1}, {"dabs", {{{"center", {14, 30, 24}}}, {{"ray", {{"origin", {23.5, 23.5, 100}}, {"direction", {0, 0, -1}}}}, {"pressure", 0.5}}}}}},
+      {"stroke.dabs", {{"stroke", 1}, {"dabs", {{{"center", {16, 34, 24}}}}}}},
+      {"stroke.end", {{"stroke", 1}}},
+      {"history.undo", json::object()},
+      {"history.redo", json::object()},
+      {"volume.morph", {{"kind", "dilate"}, {"radius", 1}}},
+      {"history.undo", json::object()},
+      {"tool.apply", {{"tool", "csg_subtract"}, {"shape", "box"}, {"center", {24, 24, 40}}, {"radius", 6}}},
+      {"tool.apply", {{"tool", "smooth"}, {"global", true}, {"iterations", 2}}},
+  };
+  for (const json& step : steps) {
+    a.call(step[0], step[1]);
+    const json stats = a.call("session.stats");
+    fs::remove_all(copy);
+    fs::copy(dir, copy, fs::copy_options::recursive);
+    std::uint64_t revision = 0;
+    INFO(step.dump());
+    CHECK(recoveredDigest(copy, id, &revision) == stats["digest"].get<std::string>());
+    CHECK(revision == stats["revision"].get<std::uint64_t>());
+  }
+  fs::remove_all(dir);
+  fs::remove_all(copy);
+}
+
+TEST_CASE("a corrupt newest snapshot falls back to the previous one and both journals", "[store]") {
+  const fs::path dir = freshDir("corrupt");
+  HubOptions o;
+  o.workers = 2;
+  o.dataDir = dir;
+  o.snapshotEvery = 3;
+  std::string id, digest;
+  {
+    Hub hub(o);
+    Driver a(hub);
+    id = a.call("session.create", {{"size", {40, 40, 40}}, {"solid", "torus"}, {"view", "none"}})["session"];
+    for (int i = 0; i < 4; ++i) a.call("tool.apply", {{"tool", "add_blob"}, {"ray", {{"origin", {19.5, 19.5 + i, 100}}, {"direction", {0, 0, -1}}}}});
+    digest = a.call("session.stats")["digest"];
+  }
+  const fs::path sdir = dir / "sessions" / id;
+  std::vector<fs::path> snaps;
+  for (const auto& e : fs::directory_iterator(sdir))
+    if (e.path().filename().string().rfind("snapshot-", 0) == 0) snaps.push_back(e.path());
+  REQUIRE(snaps.size() == 2);
+  const fs::path newest = fs::file_size(snaps[0]) && snaps[0].string() > snaps[1].string() ? snaps[0] : snaps[1];
+  {
+    std::fstream f(newest, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(100);
+    f.put('\x5a');
+  }
+  std::vector<std::string> warnings;
+  SessionStore store(dir, {}, [&](const std::string& w) { warnings.push_back(w); });
+  const Recovered r = store.recover(id, std::size_t(64) << 20, ThreadPool::serial());
+  CHECK(digestHex(r.session->volume()) == digest);
+  CHECK(warnings.size() >= 1);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("a lease keeps a session on one server until it expires or is released", "[store]") {
+  const fs::path dir = freshDir("lease");
+  SessionStore store(dir);
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  store.releaseLease("abc", "server-b");
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  store.releaseLease("abc", "server-a");
+  CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  fs::remove_all(dir);
+}
