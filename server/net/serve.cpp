@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <csignal>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -76,10 +77,10 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       historyMb{"--history-mb", "MARZIPAN_HISTORY_MB", {}},
       idleSeconds{"--idle-session-seconds", "MARZIPAN_IDLE_SESSION_SECONDS", {}},
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
-      queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}};
+      queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -135,6 +136,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(maxFrame, limits.maxFrameSide, 16, 4096);
   setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
   setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
+  if (fsyncMs.value) hubOptions.fsyncInterval = std::chrono::milliseconds(parseUnsigned(fsyncMs, 60'000));
   if (idleSeconds.value) limits.idleSession = std::chrono::seconds(parseUnsigned(idleSeconds, 1u << 30));
   if (pingSeconds.value) {
     limits.ping = std::chrono::seconds(parseUnsigned(pingSeconds, 3600));
@@ -165,6 +167,9 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     hubOptions.dataDir = *dataDir.value;
   }
   options.handleSignals = true;
+  // A write past a file size limit (ulimit -f) must fail with EFBIG and be refused like a full
+  // disk, not kill the server.
+  std::signal(SIGXFSZ, SIG_IGN);
 
   HttpServer server(options);
   hubOptions.events = hubEventsFor(server.metrics());
@@ -212,8 +217,11 @@ Options (each also read from the environment variable in brackets; a flag wins):
                     web-client/
   --protocol-js DIR directory served at /protocol/js/ [MARZIPAN_PROTOCOL_JS]; default the
                     source tree's protocol/js/
-  --data-dir DIR    where idle sessions are saved and loaded again, created if missing
-                    [MARZIPAN_DATA_DIR]; without it an idle session is discarded
+  --data-dir DIR    where sessions are journaled, snapshotted and loaded again, created if
+                    missing [MARZIPAN_DATA_DIR]; without it sessions live in memory only and an
+                    idle one is discarded
+  --fsync-ms N      0: every change is fsynced before its response (default); N: at most
+                    every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open
                     /ws from, * for any [MARZIPAN_ALLOWED_ORIGINS]; default the page's own
 Limits (PROTOCOL.md, "Versions and limits"):
