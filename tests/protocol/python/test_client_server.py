@@ -1,0 +1,406 @@
+"""protocol/python/marzipan/client.py against `marzipan serve` ($MARZIPAN_BIN, started on a free
+port for this file): every method, the typed errors the contract lists, two clients of one
+session, and the exact numbers the server reports (digests, byte counts, splat geometry)."""
+
+import asyncio
+import math
+import re
+import struct
+import unittest
+import zlib
+
+from support import ServerProcess, needs_server
+
+from marzipan import rpc
+from marzipan.client import Client, new_session_id
+from marzipan.frames import FrameKind
+from marzipan.png import decode_png
+from marzipan.rpc import Notification
+from marzipan.splats import decode_splats
+
+HEX16 = re.compile(r"^[0-9a-f]{16}$")
+LIMIT_KEYS = {"max_text_bytes", "max_binary_bytes", "max_grid_side", "max_sessions", "max_clients_per_session",
+              "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds"}
+
+
+def run(coroutine, timeout=120):
+    return asyncio.run(asyncio.wait_for(coroutine, timeout))
+
+
+async def take_until(client, predicate, timeout=10):
+    """The updates up to and including the first one that satisfies `predicate`."""
+    taken = []
+    while True:
+        update = await client.next_update(timeout=timeout)
+        if update is None:
+            raise AssertionError(f"the connection closed; updates so far: {taken}")
+        taken.append(update)
+        if predicate(update):
+            return taken
+
+
+@needs_server
+class AgainstServer(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.server = ServerProcess().start()
+        cls.url = cls.server.ws_url
+
+    @classmethod
+    def tearDownClass(cls):
+        code = cls.server.stop()
+        if code not in (0, None):
+            raise AssertionError(f"marzipan serve exited with {code} after SIGTERM")
+
+    def test_create_answers_every_documented_field(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                proposed = client._route
+                return proposed, await client.create_session([40, 32, 24], "sphere")
+
+        proposed, r = run(go())
+        self.assertEqual(r["session"], proposed)
+        self.assertRegex(r["token"], r"^[A-Za-z0-9_-]{1,128}$")
+        self.assertRegex(r["view_token"], r"^[A-Za-z0-9_-]{1,128}$")
+        self.assertNotEqual(r["token"], r["view_token"])
+        self.assertEqual((r["client"], r["size"], r["revision"]), (1, [40, 32, 24], 0))
+        self.assertRegex(r["digest"], HEX16)
+        self.assertEqual(r["protocol"], {"major": 1, "minor": 0})
+        self.assertEqual(set(r["limits"]), LIMIT_KEYS)
+        self.assertEqual((r["can_undo"], r["can_redo"], r["read_only"]), (False, False, False))
+        self.assertEqual(r["clients"], [{"client": 1, "read_only": False}])
+
+    def test_edits_undo_and_redo_move_revision_and_digest_exactly(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                start = await client.create_session(48, "sphere")
+                applied = await client.apply("add_blob", center=[23.5, 40, 23.5], radius=6)
+                after = await client.stats()
+                undone = await client.undo()
+                back = await client.stats()
+                redone = await client.redo()
+                again = await client.stats()
+                with self.assertRaises(rpc.NothingToUndoRedo):
+                    await client.redo()
+                morphed = await client.morph("dilate", 1)
+                grown = await client.stats()
+                return start, applied, after, undone, back, redone, again, morphed, grown
+
+        start, applied, after, undone, back, redone, again, morphed, grown = run(go())
+        self.assertEqual(applied["revision"], 1)
+        self.assertEqual(set(applied["roi"]), {"lo", "hi"})
+        self.assertNotEqual(after["digest"], start["digest"])
+        self.assertEqual(undone, {"revision": 2, "can_undo": False, "can_redo": True})
+        self.assertEqual(back["digest"], start["digest"])
+        self.assertEqual(redone, {"revision": 3, "can_undo": True, "can_redo": False})
+        self.assertEqual(again["digest"], after["digest"])
+        self.assertEqual(morphed["revision"], 4)
+        # Dilation by 1 vu grows a sphere of radius R = 0.35 * 48 by 4/3 pi ((R + 1)^3 - R^3) vu^3;
+        # the blob on it adds a little area, hence 1%.
+        radius = 0.35 * 48
+        shell = 4 / 3 * math.pi * ((radius + 1) ** 3 - radius ** 3)
+        self.assertAlmostEqual((grown["inside_volume"] - again["inside_volume"]) / shell, 1, delta=0.01)
+        self.assertEqual(grown["components"], 1)
+
+    def test_errors_come_as_the_class_of_their_code(self):
+        async def go():
+            errors = {}
+            async with Client.connect(self.url) as client:
+                with self.assertRaises(rpc.NotInSession) as e:
+                    await client.stats()
+                errors["not in session"] = e.exception
+                with self.assertRaises(rpc.UnsupportedProtocolVersion) as e:
+                    await client.create_session(16, "sphere", protocol=2)
+                errors["protocol"] = e.exception
+                with self.assertRaises(rpc.InvalidParams) as e:
+                    await client.create_session(16, "teapot")
+                errors["solid"] = e.exception
+                created = await client.create_session(32, "sphere")
+                with self.assertRaises(rpc.InvalidParams) as e:
+                    await client.apply("add_blob", center=[16, 16, 16], radius=2000)
+                errors["radius"] = e.exception
+                with self.assertRaises(rpc.EngineRefused) as e:
+                    await client.apply("add_blob", center=[500, 16, 16], radius=4)
+                errors["outside"] = e.exception
+                with self.assertRaises(rpc.InvalidParams) as e:
+                    await client.apply({"op": "morph", "kind": "open", "radius": 3})
+                errors["op in tool.apply"] = e.exception
+                with self.assertRaises(rpc.UnknownMethod) as e:
+                    await client.call("volume.explode", {})
+                errors["method"] = e.exception
+                with self.assertRaises(rpc.AlreadyInSession) as e:
+                    await client.create_session(16, "sphere")
+                errors["already"] = e.exception
+                with self.assertRaises(rpc.NoSuchStroke) as e:
+                    await client.end_stroke(12345)
+                errors["stroke"] = e.exception
+                with self.assertRaises(rpc.LimitExceeded) as e:
+                    await client.frame({"eye": [50, 50, 50], "target": [16, 16, 16]}, 5000, 10)
+                errors["frame side"] = e.exception
+                stats = await client.stats()
+            async with Client.connect(self.url) as other:
+                with self.assertRaises(rpc.SessionExists) as e:
+                    await other.create_session(16, "sphere", session=created["session"])
+                errors["exists"] = e.exception
+                with self.assertRaises(rpc.NoSuchSession) as e:
+                    await other.join(new_session_id(), "whatever")
+                errors["no session"] = e.exception
+                with self.assertRaises(rpc.BadToken) as e:
+                    await other.join(created["session"], "not-the-token")
+                errors["token"] = e.exception
+            async with Client.connect(self.url) as big:
+                limits = created["limits"]
+                with self.assertRaises(rpc.LimitExceeded) as e:
+                    await big.create_session(limits["max_grid_side"] + 8, "sphere")
+                errors["grid"] = e.exception
+            return errors, stats
+
+        errors, stats = run(go())
+        self.assertEqual(stats["revision"], 0, "no refused request changed anything")
+        self.assertEqual(errors["radius"].field, "radius")
+        self.assertIn('"radius"', errors["radius"].message)
+        self.assertEqual(errors["outside"].field, "center")
+        self.assertEqual(errors["op in tool.apply"].field, "op")
+        self.assertEqual(errors["solid"].field, "solid")
+        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 0})
+        self.assertEqual(errors["exists"].code, -32014)
+        self.assertEqual(errors["grid"].data.get("limit"), "max_grid_side")
+        self.assertEqual(errors["frame side"].data.get("limit"), "max_frame_side")
+        for name, error in errors.items():
+            self.assertTrue(error.message, name)
+
+    def test_frames_meshes_and_files_carry_what_their_results_announce(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "pig")
+                camera = {"eye": [120, 90, 140], "target": [31.5, 31.5, 31.5]}
+                png = await client.frame(camera, 160, 120, "png")
+                error_png = await client.frame(camera, 160, 120, "png", shading="gradient_error")
+                jpeg = await client.frame(camera, 160, 120, "jpeg", quality=80)
+                stl_result, stl = await client.call("mesh.export", {"format": "stl"})
+                obj = await client.export_mesh("obj")
+                ply = await client.export_mesh("ply")
+                return png, error_png, jpeg, stl_result, bytes(stl.payload), obj, ply
+
+        png, error_png, jpeg, stl_result, stl, obj, ply = run(go())
+        width, height, channels, pixels = decode_png(png)
+        self.assertEqual((width, height, channels), (160, 120, 3))
+        self.assertGreater(len(set(pixels)), 20, "a lit picture, not a blank one")
+        _, _, _, grey = decode_png(error_png)
+        self.assertTrue(any(grey[i] == grey[i + 1] == grey[i + 2] for i in range(0, len(grey), 3)))
+        self.assertEqual((jpeg[:2], jpeg[-2:]), (b"\xff\xd8", b"\xff\xd9"))
+        triangles = stl_result["triangles"]
+        self.assertGreater(triangles, 1000)
+        self.assertEqual(len(stl), 84 + 50 * triangles)
+        self.assertEqual(struct.unpack_from("<I", stl, 80)[0], triangles)
+        text = obj.decode("ascii")
+        self.assertEqual(sum(1 for line in text.splitlines() if line.startswith("f ")), triangles)
+        self.assertEqual(sum(1 for line in text.splitlines() if line.startswith("v ")), stl_result["vertices"])
+        self.assertTrue(ply.startswith(b"ply\nformat binary_little_endian 1.0\n"))
+        self.assertIn(f"element face {triangles}\n".encode(), ply[:400])
+
+    def test_messages_over_websockets_default_limit_of_1_mib_arrive(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(128, "sphere")
+                result, frame = await client.call("volume.save", {})
+                return result, len(frame.payload)
+
+        result, size = run(go())
+        self.assertGreater(size, 1 << 20)
+        self.assertEqual(result["bytes"], size)
+
+    def test_save_and_load_give_back_the_volume(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(32, "torus")
+                await client.apply("add_blob", center=[16, 24, 16], radius=5)
+                saved_stats = await client.stats()
+                saved_result, saved = await client.call("volume.save", {})
+                await client.apply("csg_subtract", shape="sphere", center=[16, 16, 16], radius=9)
+                changed = await client.stats()
+                loaded = await client.load(bytes(saved.payload))
+                after = await client.stats()
+                undone = await client.undo()
+                before_load = await client.stats()
+                with self.assertRaises(rpc.EngineRefused) as refused:
+                    await client.load(b"MZVF" + bytes(60))
+                return (saved_stats, saved_result, bytes(saved.payload), changed, loaded, after, undone,
+                        before_load, refused.exception)
+
+        saved_stats, saved_result, data, changed, loaded, after, undone, before_load, refused = run(go())
+        self.assertEqual(saved_result["bytes"], len(data))
+        self.assertEqual(saved_result["digest"], saved_stats["digest"])
+        self.assertEqual(data[:4], b"MZVF")
+        self.assertEqual(struct.unpack_from("<4I", data, 4), (1, 32, 32, 32))
+        stored, inside = struct.unpack_from("<2I", data, 36)
+        self.assertEqual(len(data), 48 + 2056 * stored + 8 * inside + 4)
+        self.assertEqual(struct.unpack_from("<I", data, len(data) - 4)[0], zlib.crc32(data[:-4]))
+        self.assertNotEqual(changed["digest"], saved_stats["digest"])
+        self.assertEqual(loaded["digest"], saved_stats["digest"])
+        self.assertEqual(loaded["revision"], changed["revision"] + 1)
+        self.assertEqual(after["digest"], saved_stats["digest"])
+        self.assertTrue(undone["can_redo"])
+        self.assertEqual(before_load["digest"], changed["digest"])
+        self.assertEqual(refused.field, "file")
+
+    def test_a_load_not_followed_by_its_upload_fails_and_the_next_request_is_served(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(16, "sphere")
+                load = asyncio.ensure_future(client.call("volume.load", {"bytes": 100}))
+                await asyncio.sleep(0)
+                stats = await client.stats()
+                with self.assertRaises(rpc.UploadMissing):
+                    await load
+                return stats
+
+        self.assertEqual(run(go())["revision"], 0)
+
+    def test_splats_lie_on_the_sphere(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "sphere")
+                result, frame = await client.call("splats.get", {})
+                return result, decode_splats(frame.payload), frame
+
+        result, buffer, frame = run(go())
+        self.assertEqual(frame.kind, FrameKind.SPLATS_FULL)
+        self.assertEqual((buffer.point_count, len(buffer.bricks)), (result["points"], result["bricks"]))
+        self.assertGreater(buffer.point_count, 4 * math.pi * 22 ** 2 * 0.5)
+        centre, radius = 31.5, 0.35 * 64
+        worst_distance = worst_normal = 0.0
+        p, n = buffer.positions, buffer.normals
+        for k in range(0, len(p), 3):
+            d = [p[k] - centre, p[k + 1] - centre, p[k + 2] - centre]
+            r = math.sqrt(sum(c * c for c in d))
+            worst_distance = max(worst_distance, abs(r - radius))
+            worst_normal = max(worst_normal, 1 - sum(n[k + i] * d[i] / r for i in range(3)))
+        self.assertLess(worst_distance, 0.05)
+        self.assertLess(worst_normal, 1 - math.cos(math.radians(3)))
+
+    def test_rays_pick_the_surface_and_a_miss_changes_nothing(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "sphere")
+                hit = await client.apply("remove_blob", ray=([31.5, 31.5, 200], [0, 0, -1]), radius=4)
+                miss = await client.apply("remove_blob", ray=([31.5, 31.5, 200], [0, 0, 1]), radius=4)
+                stats = await client.stats()
+                return hit, miss, stats
+
+        hit, miss, stats = run(go())
+        self.assertEqual(hit["revision"], 1)
+        self.assertAlmostEqual(hit["hit"][2], 31.5 + 0.35 * 64, delta=0.05)
+        self.assertAlmostEqual(hit["hit"][0], 31.5, delta=1e-6)
+        self.assertEqual(miss, {"revision": 1, "roi": None, "hit": None})
+        self.assertEqual(stats["revision"], 1)
+
+    def test_a_stroke_is_one_undo_step(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(48, "box")
+                before = await client.stats()
+                face = before["bounds"]["hi"][0]
+                stroke = await client.stroke("add_blob", [[face, 20, 20], [face, 24, 24], {"center": [face, 28, 28],
+                                                                                         "pressure": 0.5}],
+                                             radius=4, symmetry=["z"])
+                after = await client.stats()
+                await client.undo()
+                undone = await client.stats()
+                return before, stroke, after, undone
+
+        before, stroke, after, undone = run(go())
+        self.assertEqual(stroke["applied"], 3)
+        self.assertEqual((stroke["revision"], stroke["can_undo"]), (1, True))
+        self.assertGreater(after["inside_volume"], before["inside_volume"])
+        self.assertEqual(undone["digest"], before["digest"])
+        self.assertFalse(undone["can_undo"])
+
+    def test_two_clients_see_each_others_changes(self):
+        async def go():
+            async with Client.connect(self.url) as owner:
+                created = await owner.create_session(48, "sphere")
+                async with Client.connect(self.url, session=created["session"]) as viewer:
+                    joined = await viewer.join(created["session"], created["view_token"], view="splats")
+                    full = await take_until(viewer, lambda u: getattr(u, "kind", None) == FrameKind.SPLATS_FULL)
+                    clients = await take_until(owner, lambda u: getattr(u, "method", None) == "session.clients")
+                    with self.assertRaises(rpc.ReadOnlyToken):
+                        await viewer.apply("add_blob", center=[23.5, 40, 23.5])
+                    applied = await owner.apply("add_blob", center=[23.5, 40, 23.5], radius=5)
+                    seen = await take_until(viewer, lambda u: getattr(u, "kind", None) == FrameKind.SPLATS_DELTA)
+                    own = await take_until(owner, lambda u: getattr(u, "method", None) == "session.changed")
+                    return created, joined, full, clients, applied, seen, own
+
+        created, joined, full, clients, applied, seen, own = run(go())
+        self.assertEqual((joined["read_only"], joined["client"], joined["session"]), (True, 2, created["session"]))
+        self.assertNotIn("token", joined)
+        self.assertEqual(full[-1].request_id, 0)
+        self.assertGreater(decode_splats(full[-1].payload).point_count, 1000)
+        self.assertEqual(clients[-1].params["clients"], [{"client": 1, "read_only": False},
+                                                         {"client": 2, "read_only": True}])
+        changed = [u for u in seen if isinstance(u, Notification) and u.method == "session.changed"]
+        self.assertEqual(len(changed), 1)
+        params = changed[0].params
+        self.assertEqual((params["revision"], params["by"], params["cause"]), (applied["revision"], 1, "tool"))
+        self.assertEqual(params["roi"], applied["roi"])
+        self.assertLess(seen.index(changed[0]), len(seen) - 1, "the notification comes before the delta")
+        delta = seen[-1]
+        self.assertEqual((delta.request_id, delta.revision), (0, applied["revision"]))
+        bricks = decode_splats(delta.payload).bricks
+        lo, hi = applied["roi"]["lo"], applied["roi"]["hi"]
+        for b in bricks:
+            # A changed brick or one of its face neighbours (splats read six neighbours).
+            for axis in range(3):
+                self.assertLessEqual(8 * b.brick[axis], hi[axis] + 8)
+                self.assertGreaterEqual(8 * b.brick[axis] + 8, lo[axis] - 8)
+        self.assertEqual(own[-1].params["by"], 1)
+
+    def test_frames_mode_pushes_a_frame_of_every_change(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(48, "sphere")
+                camera = {"eye": [100, 80, 120], "target": [23.5, 23.5, 23.5]}
+                mode = await client.view("frames", camera, 64, 48, shading="normals")
+                first = await take_until(client, lambda u: getattr(u, "request_id", None) == 0)
+                applied = await client.apply("add_blob", center=[23.5, 40, 23.5], radius=5)
+                pushed = await take_until(client, lambda u: getattr(u, "revision", -1) == applied["revision"]
+                                          and getattr(u, "request_id", None) == 0)
+                left = await client.leave()
+                with self.assertRaises(rpc.NotInSession):
+                    await client.stats()
+                return mode, first[-1], pushed[-1], left
+
+        mode, first, pushed, left = run(go())
+        self.assertEqual(mode, {"mode": "frames", "revision": 0})
+        for frame in (first, pushed):
+            self.assertEqual(frame.kind, FrameKind.FRAME_JPEG)  # pushed frames are JPEG
+            self.assertEqual((bytes(frame.payload[:2]), bytes(frame.payload[-2:])), (b"\xff\xd8", b"\xff\xd9"))
+        self.assertEqual(first.revision, 0)
+        self.assertEqual(set(left), {"session"})
+
+
+@needs_server
+class ServerPings(unittest.TestCase):
+    """The server pings every --ping-seconds and closes after two unanswered: the client, which
+    sends no pings of its own, must answer them (websockets does) and stay connected."""
+
+    def test_an_idle_connection_stays_open_across_pings(self):
+        server = ServerProcess("--ping-seconds", "1").start()
+        try:
+            async def go():
+                async with Client.connect(server.ws_url) as client:
+                    created = await client.create_session(16, "sphere")
+                    await asyncio.sleep(3.5)
+                    stats = await client.stats()
+                    return created, stats, client.closed
+
+            created, stats, closed = run(go())
+        finally:
+            server.stop()
+        self.assertEqual(created["limits"]["ping_seconds"], 1)
+        self.assertFalse(closed)
+        self.assertEqual(stats["revision"], 0)
+
+
+if __name__ == "__main__":
+    unittest.main()
