@@ -4,8 +4,10 @@
 #include "net/serve.hpp"
 
 #include <arpa/inet.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <csignal>
 #include <cstdint>
@@ -77,10 +79,11 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       historyMb{"--history-mb", "MARZIPAN_HISTORY_MB", {}},
       idleSeconds{"--idle-session-seconds", "MARZIPAN_IDLE_SESSION_SECONDS", {}},
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
-      queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}};
+      queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}},
+      serverId{"--server-id", "MARZIPAN_SERVER_ID", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -136,6 +139,17 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(maxFrame, limits.maxFrameSide, 16, 4096);
   setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
   setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
+  if (serverId.value) {
+    const bool ok = std::all_of(serverId.value->begin(), serverId.value->end(), [](char ch) {
+      return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == ':' || ch == '-';
+    });
+    if (!ok) throw UsageError("--server-id (or MARZIPAN_SERVER_ID): only letters, digits and . _ : - are allowed");
+    hubOptions.serverId = *serverId.value;
+  } else if (options.port != 0) {
+    // Stable across restarts of this server, distinct between servers of one host.
+    char host[256] = {};
+    if (::gethostname(host, sizeof host - 1) == 0) hubOptions.serverId = std::string(host) + ":" + std::to_string(options.port);
+  }
   if (fsyncMs.value) hubOptions.fsyncInterval = std::chrono::milliseconds(parseUnsigned(fsyncMs, 60'000));
   if (idleSeconds.value) limits.idleSession = std::chrono::seconds(parseUnsigned(idleSeconds, 1u << 30));
   if (pingSeconds.value) {
@@ -220,6 +234,9 @@ Options (each also read from the environment variable in brackets; a flag wins):
   --data-dir DIR    where sessions are journaled, snapshotted and loaded again, created if
                     missing [MARZIPAN_DATA_DIR]; without it sessions live in memory only and an
                     idle one is discarded
+  --server-id NAME  this server's name in session leases [MARZIPAN_SERVER_ID]; default
+                    HOSTNAME:PORT (random with --port 0). Restarted under the same name it
+                    takes its sessions back at once; other servers wait for the lease (30 s)
   --fsync-ms N      0: every change is fsynced before its response (default); N: at most
                     every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open

@@ -182,7 +182,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         store(options.dataDir, options.fsyncInterval, options.events.log),
         workers(options.workers, options.events.log),
         pool(int(workers.threads())),
-        owner(randomText(16)) {}
+        owner(options.serverId.empty() ? randomText(16) : options.serverId) {}
 
   HubOptions options;
   SessionStore store;

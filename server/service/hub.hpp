@@ -73,6 +73,10 @@ struct HubOptions {
   std::chrono::milliseconds fsyncInterval{0};
   // A snapshot (and a fresh journal) after this many journal records.
   std::size_t snapshotEvery = 2000;
+  // This server's name in session leases ([A-Za-z0-9._:-], no spaces). A server restarted with
+  // the same name takes its own leases back at once; another waits for them to expire (30 s).
+  // Empty: a random name.
+  std::string serverId;
 };
 
 // One connection as the hub sees it. Implemented by the network layer; the hub calls it from
