@@ -80,10 +80,11 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       idleSeconds{"--idle-session-seconds", "MARZIPAN_IDLE_SESSION_SECONDS", {}},
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
       queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}},
-      serverId{"--server-id", "MARZIPAN_SERVER_ID", {}};
+      serverId{"--server-id", "MARZIPAN_SERVER_ID", {}},
+      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -138,6 +139,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(maxDabs, limits.maxDabs, 1, 100000);
   setLimit(maxFrame, limits.maxFrameSide, 16, 4096);
   setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
+  setLimit(maxRate, limits.maxRequestsPerSecond, 1, 1000000);
   setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
   if (serverId.value) {
     const bool ok = std::all_of(serverId.value->begin(), serverId.value->end(), [](char ch) {
@@ -254,6 +256,8 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              [MARZIPAN_IDLE_SESSION_SECONDS]; 600
   --ping-seconds N           WebSocket ping period; two without answer close
                              [MARZIPAN_PING_SECONDS]; 30
+  --max-requests-per-second N  per connection, bursts of twice that; beyond: busy (-32005)
+                             [MARZIPAN_MAX_REQUESTS_PER_SECOND]; 400
   --max-queue-mb N           undelivered responses and splat buffers per connection before it
                              is closed as too far behind [MARZIPAN_MAX_QUEUE_MB]; 64
   --help            this text

@@ -135,6 +135,9 @@ class HubClient {
   std::deque<Incoming> queue;
   bool busy = false;    // a pump task owns the connection
   bool closed = false;  // disconnected: drop everything
+  std::size_t queuedBytes = 0;
+  double tokens = 1e9;  // requests it may still send now (capped at the first refill)
+  Clock::time_point refilled = Clock::now();
 
   // Pump only (one message at a time, so no lock is needed).
   std::shared_ptr<LiveSession> session;
@@ -219,23 +222,37 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // --- the connection's queue ------------------------------------------------------------------
   void enqueue(const std::shared_ptr<HubClient>& c, HubClient::Incoming in) {
     bool start = false;
+    const std::size_t size = std::visit([](const auto& m) { return m.size(); }, in.message);
     {
       const std::lock_guard lock(c->mutex);
       if (c->closed) return;
-      if (c->queue.size() >= limits().maxPendingMessages) {
-        // Throttle: answer at once without queueing. Binary uploads cannot be answered alone.
+      // Refill the connection's request budget (a token bucket: a burst of two seconds' worth).
+      const double rate = double(limits().maxRequestsPerSecond);
+      const auto now = Clock::now();
+      c->tokens = std::min(2 * rate, c->tokens + rate * std::chrono::duration<double>(now - c->refilled).count());
+      c->refilled = now;
+      std::string refusal;
+      if (c->queue.size() >= limits().maxPendingMessages)
+        refusal = "too many requests in flight on this connection (" + std::to_string(limits().maxPendingMessages) +
+                  "); wait for answers before sending more";
+      else if (c->tokens < 1)
+        refusal = "more than " + std::to_string(limits().maxRequestsPerSecond) +
+                  " requests per second on this connection; slow down";
+      else if (c->queuedBytes + size > limits().maxBinaryBytes + limits().maxTextBytes)
+        refusal = "too many bytes waiting on this connection; wait for answers before sending more";
+      if (!refusal.empty()) {
+        // Answered at once without queueing. An upload cannot be answered alone: its volume.load
+        // then fails with -32013.
         if (const auto* text = std::get_if<std::string>(&in.message)) {
           const protocol::ParsedRequest p = protocol::parseRequest(*text);
           const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
           const bool notification = p.request ? !p.request->id : p.error->notification;
-          sendError(*c, id, notification,
-                    {RpcCode::Busy,
-                     "too many requests in flight on this connection (" + std::to_string(limits().maxPendingMessages) +
-                         "); wait for answers before sending more",
-                     {{"retry_after_ms", 50}}});
+          sendError(*c, id, notification, {RpcCode::Busy, refusal, {{"retry_after_ms", 100}}});
         }
         return;
       }
+      c->tokens -= 1;
+      c->queuedBytes += size;
       c->queue.push_back(std::move(in));
       if (!c->busy) start = c->busy = true;
     }
@@ -277,6 +294,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       }
       in = std::move(c->queue.front());
       c->queue.pop_front();
+      c->queuedBytes -= std::visit([](const auto& m) { return m.size(); }, in.message);
     }
     try {
       if (auto* bytes = std::get_if<Bytes>(&in.message)) return handleBinary(c, std::move(*bytes));

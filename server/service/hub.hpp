@@ -46,6 +46,8 @@ struct HubLimits {
   std::chrono::seconds ping{30};
   // Messages of one connection waiting to be handled; beyond it requests get -32005 (busy).
   std::size_t maxPendingMessages = 64;
+  // Requests one connection may send per second (bursts of twice that); beyond: -32005.
+  std::size_t maxRequestsPerSecond = 400;
   // Bytes of non-droppable data (responses, splat buffers) queued for one connection; beyond
   // it the connection is closed with 1008 "too far behind" (enforced by the network layer).
   std::size_t maxQueuedBytes = std::size_t(64) << 20;

@@ -553,6 +553,34 @@ TEST_CASE("limits: sessions, clients per session, and requests in flight", "[hub
   CHECK(busy >= 3);
 }
 
+TEST_CASE("a connection that floods requests is throttled; another one is not", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxRequestsPerSecond = 5;
+  Hub hub(o);
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate64);
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  const std::size_t mark = a.link->size();
+  for (int i = 0; i < 30; ++i)
+    a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", 500 + i}, {"method", "session.stats"}}.dump());
+  int busy = 0, answered = 0;
+  for (int i = 0; i < 30; ++i) {
+    const json r = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, 500 + i); }, mark)));
+    if (r.contains("error")) {
+      CHECK(r["error"]["code"] == -32005);
+      ++busy;
+    } else {
+      ++answered;
+    }
+  }
+  // A burst of two seconds' worth (10, one of them spent on session.create) passes, the rest
+  // is refused at once.
+  CHECK(answered >= 9);
+  CHECK(answered <= 12);
+  CHECK(busy == 30 - answered);
+  CHECK(b.result("session.stats")["revision"] == 0);
+}
+
 TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded on join", "[hub]") {
   const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-idle";
   std::filesystem::remove_all(dir);
