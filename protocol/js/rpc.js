@@ -62,6 +62,8 @@ export const RpcErrorCode = Object.freeze({
   NoSuchStroke: -32011,
   NothingToUndoRedo: -32012,
   UploadMissing: -32013,
+  SessionExists: -32014,
+  SessionHeldElsewhere: -32015,
 });
 
 const ERROR_NAMES = new Map(Object.entries(RpcErrorCode).map(([name, code]) => [code, name]));

@@ -29,7 +29,9 @@ test("RpcErrorCode holds exactly the codes of PROTOCOL.md's error table", () => 
   assert.deepEqual(Object.values(RpcErrorCode).sort(), documented.sort());
   for (const code of documented) assert.notEqual(rpcErrorName(code), "");
   assert.equal(rpcErrorName(-32602), "InvalidParams");
-  assert.equal(rpcErrorName(-32014), "");
+  assert.equal(rpcErrorName(-32014), "SessionExists");
+  assert.equal(rpcErrorName(-32015), "SessionHeldElsewhere");
+  assert.equal(rpcErrorName(-32016), "");
 });
 
 test("responses with a result are classified as results", () => {
