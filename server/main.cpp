@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "net/healthcheck.hpp"
 #include "net/serve.hpp"
 #include "service/batch.hpp"
 
@@ -21,13 +22,15 @@ struct Command {
 constexpr Command kCommands[] = {
     {"batch", "apply operations from a JSON-lines file offline; write a mesh, volume or image",
      marzipan::service::runBatch},
-    {"serve", "serve the browser client, /healthz and /metrics over HTTP until SIGINT/SIGTERM",
+    {"healthcheck", "exit 0 when a running server answers GET /healthz with 200 \"ok\" (containers)",
+     marzipan::net::runHealthcheck},
+    {"serve", "serve the browser client and the sculpting API (WebSocket /ws) until SIGINT/SIGTERM",
      marzipan::net::runServe},
 };
 
 void printUsage(std::ostream& os) {
   os << "Usage: marzipan COMMAND [options]\n\nCommands:\n";
-  for (const Command& c : kCommands) os << "  " << c.name << std::string(10 - c.name.size(), ' ') << c.summary << '\n';
+  for (const Command& c : kCommands) os << "  " << c.name << std::string(13 - c.name.size(), ' ') << c.summary << '\n';
   os << "\n`marzipan COMMAND --help` describes a command.\n";
 }
 

@@ -2,7 +2,6 @@
 // by one deadline for the whole exchange.
 #include "net/healthcheck.hpp"
 
-#include <fcntl.h>
 #include <netdb.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -60,8 +59,7 @@ Url parseUrl(const std::string& url) {
     u.host = authority.substr(1, close - 1);
     const std::string_view after = authority.substr(close + 1);
     if (!after.empty() && !after.starts_with(':')) throw std::invalid_argument("\"" + url + "\": junk after ']'");
-    if (!after.empty()) portText = after.substr(1);
-    else portText = "80";
+    portText = after.empty() ? std::string_view("80") : after.substr(1);
   } else {
     const std::size_t colon = authority.find(':');
     u.host = authority.substr(0, colon);
@@ -98,7 +96,6 @@ class Socket {
   }
   Socket(const Socket&) = delete;
   Socket& operator=(const Socket&) = delete;
-  int fd() const { return fd_; }
 
  private:
   int fd_;

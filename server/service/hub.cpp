@@ -444,7 +444,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     }
     emit(options.events.sessions, -1);
     emit(options.events.clients, -std::int64_t(s.clients.size()));
-    for (const auto& c : s.clients) c->link->close(1011, "the session's storage failed");
+    for (const auto& c : s.clients) c->link->close(1011, "the session is no longer served here; join it again");
     s.clients.clear();
   }
 
@@ -457,9 +457,31 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         const std::lock_guard lock(self->mutex);
         for (const auto& [id, live] : self->sessions) ids.push_back(id);
       }
-      for (const std::string& id : ids)
-        if (!self->store.takeLease(id, self->owner, kLeaseTtl))
-          self->log("session " + id + ": another server took its lease");
+      for (const std::string& id : ids) {
+        bool held = false;
+        try {
+          held = self->store.takeLease(id, self->owner, kLeaseTtl);
+        } catch (const std::exception& e) {
+          self->log("session " + id + ": renewing its lease failed: " + e.what());
+          continue;  // a storage hiccup; the lease still has most of its time
+        }
+        if (held) continue;
+        // Another server took it (this one stalled past the expiry): two servers must never
+        // write one journal, so this copy goes, unsaved; its clients reconnect through the
+        // balancer to the new holder.
+        self->log("session " + id + ": another server took its lease; closing it here");
+        std::shared_ptr<LiveSession> live;
+        {
+          const std::lock_guard lock(self->mutex);
+          if (const auto it = self->sessions.find(id); it != self->sessions.end()) live = it->second;
+        }
+        if (live)
+          live->strand->post([self, live] {
+            if (live->unloaded) return;
+            live->journal.reset();
+            self->closeBroken(*live);
+          });
+      }
       if (!ids.empty()) self->scheduleLeaseRenewal();
     });
   }

@@ -188,6 +188,7 @@ std::unique_ptr<Journal> SessionStore::create(const std::string& id, const Sessi
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
+  ::chmod(dir.c_str(), 0700);
   auto journal = snapshot(id, volume);
   // session.json last: a session exists at rest only once it can be recovered.
   const std::string meta = json{{"token", secrets.token}, {"view_token", secrets.viewToken}}.dump();
@@ -300,21 +301,39 @@ bool SessionStore::takeLease(const std::string& id, const std::string& owner, st
   const auto nowMs = std::chrono::duration_cast<std::chrono::milliseconds>(
                          std::chrono::system_clock::now().time_since_epoch())
                          .count();
-  const auto holder = [&]() -> std::pair<std::string, long long> {
-    std::ifstream in(lease);
+  const auto read = [](const fs::path& p) -> std::pair<std::string, long long> {
+    std::ifstream in(p);
     std::string who;
     long long expires = 0;
     if (!(in >> who >> expires)) return {"", 0};
     return {who, expires};
   };
-  const auto [who, expires] = holder();
-  if (!who.empty() && who != owner && expires > nowMs) return false;
   std::error_code ec;
   fs::create_directories(dir, ec);
+  ::chmod(dir.c_str(), 0700);
   const std::string text = owner + " " + std::to_string(nowMs + ttl.count()) + "\n";
-  writeFileAtomically(lease, text.data(), text.size());
-  // Two servers may have written at once: the rename that came last wins, and only it may go on.
-  return holder().first == owner;
+  const auto [who, expires] = read(lease);
+  if (who == owner) {
+    // Only the holder rewrites a live lease, so replacing it is safe.
+    writeFileAtomically(lease, text.data(), text.size());
+    return read(lease).first == owner;
+  }
+  if (!who.empty() && expires > nowMs) return false;
+  if (!who.empty()) {
+    // An expired lease: move it aside first. Of several servers doing so at once only one
+    // rename finds it; the others then lose the race to create the new one below.
+    const fs::path stale = dir / ("lease.stale." + owner);
+    if (::rename(lease.c_str(), stale.c_str()) != 0) return false;
+    const auto [staleWho, staleExpires] = read(stale);
+    fs::remove(stale, ec);
+    if (staleWho != who || staleExpires != expires) return false;  // it was renewed meanwhile
+  }
+  // Create it exclusively: link() fails when another server made one first.
+  const fs::path mine = dir / ("lease.new." + owner);
+  writeFileAtomically(mine, text.data(), text.size());
+  const bool won = ::link(mine.c_str(), lease.c_str()) == 0;
+  fs::remove(mine, ec);
+  return won;
 }
 
 void SessionStore::releaseLease(const std::string& id, const std::string& owner) const {
