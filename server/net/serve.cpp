@@ -251,7 +251,7 @@ Limits (PROTOCOL.md, "Versions and limits"):
   --max-clients-per-session N  [MARZIPAN_MAX_CLIENTS_PER_SESSION]; 16
   --max-dabs N               dabs in one stroke.dabs [MARZIPAN_MAX_DABS]; 256
   --max-frame-side N         largest frame width/height [MARZIPAN_MAX_FRAME_SIDE]; 4096
-  --history-mb N             undo memory per session [MARZIPAN_HISTORY_MB]; 256
+  --history-mb N             undo memory per session [MARZIPAN_HISTORY_MB]; 64
   --idle-session-seconds N   a session without clients this long is saved and unloaded
                              [MARZIPAN_IDLE_SESSION_SECONDS]; 600
   --ping-seconds N           WebSocket ping period; two without answer close

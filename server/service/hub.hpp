@@ -41,7 +41,9 @@ struct HubLimits {
   std::size_t maxClientsPerSession = 16;
   std::size_t maxDabs = 256;
   int maxFrameSide = 4096;
-  std::size_t historyBytes = std::size_t(256) << 20;
+  // Undo memory per session. Busy sessions fill it (a 1-2 s stroke on 128^3 keeps ~1 MiB), so
+  // the server's worst case is max_sessions times this.
+  std::size_t historyBytes = std::size_t(64) << 20;
   std::chrono::seconds idleSession{600};
   std::chrono::seconds ping{30};
   // Messages of one connection waiting to be handled; beyond it requests get -32005 (busy).

@@ -1,0 +1,928 @@
+#!/usr/bin/python3
+"""Load on a Marzipan server: N sculpting clients on M sessions, and optionally a client that
+stops reading. Reports throughput, latency, errors and the server's memory as one JSON object.
+
+Each session is a --size^3 solid (128^3 pig by default). Client i works in session i mod M; the first
+client of a session creates it, the others join with its token, all in `splats` view, so every
+client receives every splat delta of its session. Each client sculpts strokes as a pointer
+drag would: stroke.begin (add_blob, remove_blob, smooth in turn, radius 4-10), stroke.dabs
+messages of 1-4 `ray` dabs sweeping across the model at a steady rate (open loop: a message
+is sent when it is due, whether or not the previous ones were answered), stroke.end after
+1-2 s, then the next stroke.
+
+Latency of one stroke.dabs: from sending it until its response ("response"), and until the
+first splat delta that shows its revision arrives ("delta", what a user sees). The server's
+own view of edit latency (request arrival to response) comes from its /metrics histogram.
+Server memory: VmRSS and VmHWM from /proc/PID/status every second, during and after the run.
+
+With --marzipan BIN the tool starts `BIN serve --port 0 --threads 2` itself (and stops it);
+with --url it uses a running server (--server-pid PID then gives its memory). The clients run
+in several processes (--processes), each an asyncio loop, because one Python process cannot
+receive the ~10,000 messages per second of 64 clients; the client side's CPU is reported so
+that a saturated client is told apart from a slow server.
+
+--slow-client adds one client that joins session 0 a little after the start and then stops
+reading; the server should close it with 1008 "too far behind" once its queue passes
+--max-queue-mb, without slowing the others or growing without bound. At the end the slow
+client reads again to learn how it was closed.
+
+Exit status: 0 when no request got an error or went unanswered, no sculpting client's
+connection closed, every client saw its session's last delta and at least one dab was applied;
+1 otherwise; 2 usage. Latency does not decide it: the JSON's "goals" says whether the issue's
+targets were met.
+
+Conventions: times are time.monotonic() (system-wide on Linux, so comparable between the
+processes); latencies in milliseconds, memory in MiB (2^20 bytes) and called _mb like the
+server's --max-queue-mb; coordinates in vu of the session's grid, y up. Standard library and
+Debian's python3-websockets only: run it with /usr/bin/python3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import collections
+import json
+import math
+import multiprocessing
+import os
+import random
+import re
+import resource
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import websockets
+
+# The project's Python client package, for the frame decoder and session URLs.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "protocol" / "python"))
+from marzipan.client import new_session_id, session_url  # noqa: E402
+from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
+
+TOOLS = ("add_blob", "remove_blob", "smooth")
+GOAL_P99_MS = 50.0  # issue 7: p99 edit round trip on the 2-core machine
+# Deltas of a 128^3 session are tens of KiB, full buffers a few hundred; 64 MiB covers far larger grids.
+MAX_MESSAGE_BYTES = 64 << 20
+SETUP_TIMEOUT_S = 60.0
+DRAIN_TIMEOUT_S = 10.0  # for the answers still due after the run, and then the last deltas
+SLOW_CLIENT_DRAIN_S = 5.0  # reading the few MiB still in flight takes well under a second
+SLOW_CLIENT_RCVBUF = 64 << 10
+
+
+def percentiles(values) -> dict:
+    """p50, p99 and max (nearest rank) of latencies in seconds, as milliseconds; n the count."""
+    if not values:
+        return {"n": 0, "p50": None, "p99": None, "max": None}
+    ordered = sorted(values)
+
+    def rank(p):
+        return ordered[min(len(ordered) - 1, max(0, math.ceil(p * len(ordered)) - 1))]
+
+    return {"n": len(ordered), "p50": round(rank(0.50) * 1e3, 2), "p99": round(rank(0.99) * 1e3, 2),
+            "max": round(ordered[-1] * 1e3, 2)}
+
+
+# ------------------------------------------------------------------------------------ strokes
+
+def _normalize(v):
+    n = math.sqrt(sum(c * c for c in v))
+    return [c / n for c in v]
+
+
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+class Drag:
+    """A pointer drag across the model seen from a random side: the screen point moves on a
+    straight line across the model's middle, each pick a ray from the screen plane straight
+    into the scene (an orthographic camera), as a browser client casts them."""
+
+    def __init__(self, rng: random.Random, size: int):
+        centre = [(size - 1) / 2.0] * 3
+        azimuth = rng.uniform(0, 2 * math.pi)
+        elevation = math.radians(rng.uniform(-15, 45))
+        towards_eye = [math.cos(elevation) * math.cos(azimuth), math.sin(elevation),
+                       math.cos(elevation) * math.sin(azimuth)]
+        right = _normalize(_cross([0.0, 1.0, 0.0], towards_eye))
+        up = _cross(towards_eye, right)
+        # Within the pig's and the sphere's silhouette from most sides (both span about
+        # +-0.3 N around the middle), so most picks hit; a miss just skips its dab.
+        reach = 0.22 * size
+        u0, u1 = (-reach, reach) if rng.random() < 0.5 else (reach, -reach)
+        v0, v1 = rng.uniform(-0.12, 0.15) * size, rng.uniform(-0.12, 0.15) * size
+        distance = 1.5 * size
+        self._eye = [centre[i] + distance * towards_eye[i] for i in range(3)]
+        self._right, self._up = right, up
+        self._line = (u0, v0, u1, v1)
+        self.direction = [round(-c, 4) for c in towards_eye]
+
+    def ray(self, t: float) -> dict:
+        u0, v0, u1, v1 = self._line
+        u, v = u0 + (u1 - u0) * t, v0 + (v1 - v0) * t
+        origin = [round(self._eye[i] + u * self._right[i] + v * self._up[i], 2) for i in range(3)]
+        return {"origin": origin, "direction": self.direction}
+
+
+# ------------------------------------------------------------------------------------ clients
+
+class SessionState:
+    """What the clients of one session (all in one process) share."""
+
+    def __init__(self, index: int, session_id: str):
+        self.index = index
+        self.id = session_id
+        self.token = None
+        self.created = asyncio.get_running_loop().create_future()
+        self.last_revision = 0  # newest revision any of its clients' dabs made
+
+
+class LoadClient:
+    """One sculpting connection. A reader task takes every message as it arrives and stamps
+    it; the sculpting task sends on its own schedule."""
+
+    def __init__(self, index: int, session: SessionState, args: dict, stats: "WorkerStats", creator: bool):
+        self.index = index
+        self.creator = creator
+        self.session = session
+        self.args = args
+        self.stats = stats
+        self.rng = random.Random(args["seed"] * 100003 + index)
+        self.ws = None
+        self.reader = None
+        self.next_id = 1
+        self.pending = {}  # request id -> (method, sent at, future or None)
+        self.awaiting_delta = collections.deque()  # (revision, sent at) of dabs that applied, in order
+        self.last_delta_revision = 0
+        self.delta_seen = None  # an asyncio.Event while someone waits for a revision
+        self.closed_unexpectedly = None
+        self.stroke = None  # the open stroke's id
+
+    async def connect(self):
+        self.ws = await websockets.connect(
+            session_url(self.args["url"], self.session.id), max_size=MAX_MESSAGE_BYTES,
+            # The server pings; websockets answers. Compression would cost both sides CPU on
+            # splat buffers, which hardly compress.
+            ping_interval=None, compression=None, open_timeout=SETUP_TIMEOUT_S)
+        self.reader = asyncio.create_task(self.read())
+
+    async def read(self):
+        try:
+            async for message in self.ws:
+                now = time.monotonic()
+                if isinstance(message, str):
+                    self.on_text(message, now)
+                else:
+                    self.on_binary(message, now)
+        except websockets.exceptions.ConnectionClosed:
+            pass
+        if not self.stats.closing:
+            self.closed_unexpectedly = (self.ws.close_code, self.ws.close_reason)
+            self.stats.unexpected_closes[str(self.ws.close_code)] += 1
+        for method, _, future in self.pending.values():
+            if future is not None and not future.done():
+                future.set_exception(ConnectionError(f"connection closed during {method}"))
+        if self.delta_seen is not None:
+            self.delta_seen.set()
+
+    def on_text(self, text: str, now: float):
+        message = json.loads(text)
+        if "id" not in message:
+            method = message.get("method", "?")
+            self.stats.notifications[method] += 1
+            if method == "session.clients" and self.session.index == self.stats.slow_session:
+                self.stats.slow_session_clients.append((now, len(message["params"]["clients"])))
+            return
+        entry = self.pending.pop(message["id"], None)
+        if entry is None:
+            self.stats.anomalies["response to no request"] += 1
+            return
+        method, sent, future = entry
+        latency = now - sent
+        error = message.get("error")
+        self.stats.answered += 1
+        if error is not None:
+            code = str(error.get("code"))
+            self.stats.errors[code] += 1
+            if len(self.stats.error_samples) < 5:
+                self.stats.error_samples.append({"method": method, "error": error})
+            if future is not None and not future.done():
+                future.set_exception(RuntimeError(f"{method}: {error.get('code')} {error.get('message')}"))
+            return
+        result = message["result"]
+        if method == "stroke.dabs":
+            self.stats.dabs_latency.append(latency)
+            self.stats.dabs_sent.append(sent)
+            self.stats.session_dabs_latency[self.session.index].append(latency)
+            applied = result["applied"]
+            self.stats.dabs_applied += applied
+            if applied > 0:
+                revision = result["revision"]
+                self.session.last_revision = max(self.session.last_revision, revision)
+                if self.last_delta_revision >= revision:
+                    self.stats.anomalies["delta before its response"] += 1
+                else:
+                    self.awaiting_delta.append((revision, sent))
+        else:
+            self.stats.other_latency[method].append(latency)
+        if future is not None and not future.done():
+            future.set_result(result)
+
+    def on_binary(self, data: bytes, now: float):
+        try:
+            frame = decode_frame(data, MAX_MESSAGE_BYTES)
+        except FrameError as e:
+            self.stats.anomalies[f"bad frame: {e.code.value}"] += 1
+            return
+        if frame.kind == FrameKind.SPLATS_FULL:
+            self.stats.full_buffers += 1
+            self.last_delta_revision = max(self.last_delta_revision, frame.revision)
+            return
+        if frame.kind != FrameKind.SPLATS_DELTA or frame.request_id != 0:
+            self.stats.anomalies[f"unexpected frame kind {frame.kind}"] += 1
+            return
+        self.stats.deltas += 1
+        self.stats.delta_bytes += len(data)
+        if frame.revision <= self.last_delta_revision:
+            self.stats.anomalies["delta revision did not grow"] += 1
+        self.last_delta_revision = max(self.last_delta_revision, frame.revision)
+        while self.awaiting_delta and self.awaiting_delta[0][0] <= frame.revision:
+            _, sent = self.awaiting_delta.popleft()
+            self.stats.delta_latency.append(now - sent)
+            self.stats.session_delta_latency[self.session.index].append(now - sent)
+        if self.delta_seen is not None:
+            self.delta_seen.set()
+
+    async def send(self, method: str, params: dict, want_result: bool = False):
+        """Sends a request; returns a future of its result when asked for, else None."""
+        request_id = self.next_id
+        self.next_id += 1
+        future = asyncio.get_running_loop().create_future() if want_result else None
+        self.pending[request_id] = (method, time.monotonic(), future)
+        self.stats.sent[method] += 1
+        await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params},
+                                      separators=(",", ":")))
+        return future
+
+    async def call(self, method: str, params: dict):
+        return await asyncio.wait_for(await self.send(method, params, want_result=True), SETUP_TIMEOUT_S)
+
+    async def enter(self):
+        """Creates the session (first client) or joins it, in splats view (a full buffer follows)."""
+        await self.connect()
+        if self.creator:
+            size = self.args["size"]
+            result = await self.call("session.create", {"size": [size] * 3, "solid": self.args["solid"],
+                                                        "session": self.session.id, "view": "splats"})
+            self.session.token = result["token"]
+            self.session.created.set_result(None)
+        else:
+            await self.session.created
+            await self.call("session.join", {"session": self.session.id, "token": self.session.token,
+                                             "view": "splats"})
+
+    async def sculpt(self, end: float):
+        rate = self.args["rate"]
+        period = 1.0 / rate
+        stroke_number = 0
+        while time.monotonic() < end:
+            tool = TOOLS[(self.index + stroke_number) % len(TOOLS)]
+            stroke_number += 1
+            params = {"tool": tool, "radius": round(self.rng.uniform(4, 10), 2),
+                      "strength": round(self.rng.uniform(0.3, 0.8), 2)}
+            begun = await self.send("stroke.begin", params, want_result=True)
+            self.stroke = (await begun)["stroke"]
+            drag = Drag(self.rng, self.args["size"])
+            messages = max(1, round(self.rng.uniform(1.0, 2.0) * rate))
+            due = time.monotonic()
+            for k in range(messages):
+                now = time.monotonic()
+                if due > now:
+                    await asyncio.sleep(due - now)
+                    now = time.monotonic()
+                if now >= end:
+                    break
+                self.stats.send_lag.append(now - due)
+                count = self.rng.randint(1, 4)
+                dabs = [{"ray": drag.ray((k + (j + 1) / count) / messages),
+                         "pressure": round(self.rng.uniform(0.5, 1.0), 2)} for j in range(count)]
+                await self.send("stroke.dabs", {"stroke": self.stroke, "dabs": dabs})
+                due += period
+            # The pointer is released one period after its last move, so that a client sends
+            # `rate` messages a second over whole strokes, short ones too.
+            await asyncio.sleep(max(0.0, min(due, end) - time.monotonic()))
+            await self.send("stroke.end", {"stroke": self.stroke})
+            self.stroke = None
+
+    async def answered(self, deadline: float) -> bool:
+        """Waits until every request sent was answered (the reader pops them)."""
+        while self.pending and self.closed_unexpectedly is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+        return not self.pending
+
+    async def saw_revision(self, revision: int, deadline: float) -> bool:
+        self.delta_seen = asyncio.Event()
+        while self.last_delta_revision < revision and self.closed_unexpectedly is None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            self.delta_seen.clear()
+            try:
+                await asyncio.wait_for(self.delta_seen.wait(), remaining)
+            except asyncio.TimeoutError:
+                break
+        return self.last_delta_revision >= revision
+
+
+class SlowClient:
+    """Joins a busy session in splats view, then stops reading: websockets stops taking bytes
+    off the socket once one message waits unread (max_queue=1) and its small read buffer is
+    full, so the server's writes to it back up into its queue."""
+
+    def __init__(self, session: SessionState, args: dict):
+        self.session = session
+        self.args = args
+        self.report = {"session": session.index}
+
+    async def run(self, join_at: float, end: float):
+        await asyncio.sleep(max(0.0, join_at - time.monotonic()))
+        await self.session.created
+        ws = await websockets.connect(session_url(self.args["url"], self.session.id), max_size=MAX_MESSAGE_BYTES,
+                                      ping_interval=None, compression=None, max_queue=1, read_limit=1 << 12,
+                                      open_timeout=SETUP_TIMEOUT_S)
+        # A small receive buffer keeps the backlog in the server's queue, the bound under test,
+        # rather than in this socket's (loopback autotunes it to megabytes).
+        ws.transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SLOW_CLIENT_RCVBUF)
+        await ws.send(json.dumps({"jsonrpc": "2.0", "id": 1, "method": "session.join",
+                                  "params": {"session": self.session.id, "token": self.session.token,
+                                             "view": "splats"}}))
+        while True:
+            message = await asyncio.wait_for(ws.recv(), SETUP_TIMEOUT_S)
+            answer = json.loads(message) if isinstance(message, str) else {}
+            if answer.get("id") == 1:
+                if "error" in answer:
+                    raise RuntimeError(f"session.join: {answer['error']}")
+                break
+        self.report["joined_at_s"] = round(time.monotonic() - self.args["t0"], 3)
+        await asyncio.sleep(max(0.0, end - time.monotonic()))
+        # Reading again shows how the server ended the connection: the close frame comes after
+        # whatever was still in flight when it gave up on this client.
+        read_bytes = 0
+        deadline = time.monotonic() + SLOW_CLIENT_DRAIN_S
+        try:
+            while time.monotonic() < deadline:
+                message = await asyncio.wait_for(ws.recv(), deadline - time.monotonic())
+                read_bytes += len(message)
+        except (websockets.exceptions.ConnectionClosed, asyncio.TimeoutError):
+            pass
+        self.report.update(read_after_resuming_mb=round(read_bytes / 2**20, 2), close_code=ws.close_code,
+                           close_reason=ws.close_reason)
+        if ws.close_code is None:
+            await ws.close()
+
+
+class WorkerStats:
+    def __init__(self, sessions, slow_session):
+        self.closing = False
+        # When the session with the slow client changed its list of clients, and how many it had:
+        # the server drops a client from its session when it gives up on it.
+        self.slow_session = slow_session
+        self.slow_session_clients = []
+        self.sent = collections.Counter()
+        self.answered = 0
+        self.errors = collections.Counter()
+        self.error_samples = []
+        self.notifications = collections.Counter()
+        self.anomalies = collections.Counter()
+        self.unexpected_closes = collections.Counter()
+        self.dabs_latency = []
+        self.dabs_sent = []  # when each of dabs_latency's messages was sent
+        self.delta_latency = []
+        self.session_dabs_latency = {s: [] for s in sessions}
+        self.session_delta_latency = {s: [] for s in sessions}
+        self.other_latency = collections.defaultdict(list)
+        self.send_lag = []
+        self.loop_lag = []
+        self.dabs_applied = 0
+        self.deltas = 0
+        self.delta_bytes = 0
+        self.full_buffers = 0
+
+
+async def measure_loop_lag(stats: WorkerStats, end: float):
+    """How late a 10 ms timer fires: the event loop's backlog, i.e. whether this process keeps up."""
+    while time.monotonic() < end:
+        due = time.monotonic() + 0.01
+        await asyncio.sleep(0.01)
+        stats.loop_lag.append(time.monotonic() - due)
+
+
+async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
+    args = spec["args"]
+    stats = WorkerStats([s["index"] for s in spec["sessions"]], spec.get("slow_session"))
+    sessions = {s["index"]: SessionState(s["index"], s["id"]) for s in spec["sessions"]}
+    clients = [LoadClient(c, sessions[s["index"]], args, stats, creator=(c == s["clients"][0]))
+               for s in spec["sessions"] for c in s["clients"]]
+    failures = []
+    try:
+        await asyncio.gather(*(c.enter() for c in clients))
+    except Exception as e:  # noqa: BLE001  reported to the parent, which fails the run
+        conn.send(("failed", f"setup: {e!r}"))
+        return {}
+    conn.send(("ready", None))
+    await asyncio.get_running_loop().run_in_executor(None, start_event.wait)
+    t0 = start_time.value
+    end = t0 + args["duration"]
+    cpu0, wall0, wait0 = resource.getrusage(resource.RUSAGE_SELF), time.monotonic(), runqueue_wait_s("self")
+    slow = None
+    tasks = [asyncio.create_task(measure_loop_lag(stats, end))]
+    if spec.get("slow_session") is not None:
+        slow = SlowClient(sessions[spec["slow_session"]], dict(args, t0=t0))
+        tasks.append(asyncio.create_task(slow.run(t0 + min(2.0, args["duration"] / 4), end)))
+    outcomes = await asyncio.gather(*(c.sculpt(end) for c in clients), return_exceptions=True)
+    for client, outcome in zip(clients, outcomes):
+        if isinstance(outcome, BaseException):
+            failures.append(f"client {client.index}: {outcome!r}")
+    deadline = time.monotonic() + DRAIN_TIMEOUT_S
+    answered = await asyncio.gather(*(c.answered(deadline) for c in clients))
+    unanswered = sum(len(c.pending) for c, ok in zip(clients, answered) if not ok)
+    deadline = time.monotonic() + DRAIN_TIMEOUT_S
+    saw = await asyncio.gather(*(c.saw_revision(c.session.last_revision, deadline) for c in clients))
+    for c, ok in zip(clients, saw):
+        if not ok:
+            failures.append(f"client {c.index}: last delta seen at revision {c.last_delta_revision}, "
+                            f"session {c.session.index} reached {c.session.last_revision}")
+    drained = time.monotonic()
+    cpu1, wait1 = resource.getrusage(resource.RUSAGE_SELF), runqueue_wait_s("self")
+    answered_in_run, sent_in_run = stats.answered, dict(stats.sent)
+    for outcome in await asyncio.gather(*tasks, return_exceptions=True):
+        if isinstance(outcome, BaseException):
+            failures.append(f"slow client: {outcome!r}")
+    # What the sessions hold after the run (volume and undo history), to explain the server's RSS.
+    session_stats = []
+    for c in clients:
+        if c.creator and c.closed_unexpectedly is None:
+            try:
+                stats_result = await c.call("session.stats", {})
+                session_stats.append({k: stats_result[k] for k in ("revision", "memory_bytes", "history_bytes")})
+            except (RuntimeError, ConnectionError, asyncio.TimeoutError, websockets.exceptions.ConnectionClosed) as e:
+                failures.append(f"session.stats of session {c.session.index}: {e!r}")
+    if slow is not None and "joined_at_s" in slow.report:
+        joined = t0 + slow.report["joined_at_s"]
+        after = [(t, n) for t, n in stats.slow_session_clients if t >= joined - 0.5]
+        peak = max((n for _, n in after), default=None)
+        dropped = next((t for t, n in after if peak is not None and n < peak), None)
+        slow.report["dropped_from_session_after_s"] = None if dropped is None else round(dropped - t0, 2)
+    stats.closing = True
+    for c in clients:
+        await c.ws.close()
+        await c.reader
+    return {
+        "clients": len(clients),
+        "cpu_s": (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime),
+        "wall_s": drained - wall0,
+        "runqueue_wait_s": None if wait0 is None or wait1 is None else wait1 - wait0,
+        "drained_at": drained,
+        "sent": sent_in_run, "answered": answered_in_run, "unanswered": unanswered,
+        "errors": dict(stats.errors), "error_samples": stats.error_samples,
+        "notifications": dict(stats.notifications), "anomalies": dict(stats.anomalies),
+        "unexpected_closes": dict(stats.unexpected_closes), "failures": failures,
+        "dabs_latency": stats.dabs_latency, "dabs_sent": stats.dabs_sent, "delta_latency": stats.delta_latency,
+        "session_dabs_latency": stats.session_dabs_latency, "session_delta_latency": stats.session_delta_latency,
+        "other_latency": dict(stats.other_latency), "send_lag": stats.send_lag, "loop_lag": stats.loop_lag,
+        "dabs_applied": stats.dabs_applied, "deltas": stats.deltas, "delta_bytes": stats.delta_bytes,
+        "full_buffers": stats.full_buffers, "slow_client": slow.report if slow else None,
+        "session_stats": session_stats,
+    }
+
+
+def worker_entry(spec: dict, conn, start_event, start_time):
+    """A client process: its sessions' clients on one asyncio loop; the result goes back on conn."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    try:
+        result = asyncio.run(worker_main(spec, conn, start_event, start_time))
+        if result:
+            conn.send(("result", result))
+    except Exception as e:  # noqa: BLE001  reported to the parent, which fails the run
+        conn.send(("failed", repr(e)))
+    finally:
+        conn.close()
+
+
+# ------------------------------------------------------------------------------ the server side
+
+class ServerProcess:
+    """`marzipan serve` started by the tool; its stderr lines are kept with their arrival time."""
+
+    def __init__(self, binary: str, threads: int, max_queue_mb, extra):
+        command = [binary, "serve", "--port", "0", "--threads", str(threads)]
+        if max_queue_mb is not None:
+            command += ["--max-queue-mb", str(max_queue_mb)]
+        command += extra
+        env = {k: v for k, v in os.environ.items() if not k.startswith("MARZIPAN_")}
+        try:
+            self.proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        except OSError as e:
+            raise RuntimeError(f"cannot start {binary}: {e.strerror}") from None
+        self.log = []
+        threading.Thread(target=self._keep_log, daemon=True).start()
+        line = self.proc.stdout.readline()
+        match = re.fullmatch(r"listening on http://(\S+):(\d+)\n", line)
+        if not match:
+            self.stop()
+            raise RuntimeError(f"{binary} serve: expected 'listening on http://HOST:PORT', got {line!r}; "
+                               f"stderr: {''.join(l for _, l in self.log[-5:])}")
+        self.url = f"ws://{match.group(1)}:{match.group(2)}/ws"
+        self.pid = self.proc.pid
+
+    def _keep_log(self):
+        for line in self.proc.stderr:
+            self.log.append((time.monotonic(), line.rstrip("\n")))
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode
+
+
+def runqueue_wait_s(pid) -> float | None:
+    """Seconds the threads of process `pid` ("self" too) have spent runnable but waiting for a
+    core (/proc/PID/task/TID/schedstat, second field): on a shared machine, the latency that
+    is nobody's work. None where the kernel keeps no schedstat."""
+    total = 0
+    try:
+        for task in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{task}/schedstat") as f:
+                total += int(f.read().split()[1])
+    except (OSError, IndexError, ValueError):
+        return None
+    return total / 1e9
+
+
+class ProcessSampler:
+    """VmRSS, VmHWM, CPU seconds and run-queue wait of the server's process, once a second in a thread."""
+
+    def __init__(self, pid):
+        self.pid = pid
+        self.samples = []  # (monotonic time, rss MiB, hwm MiB, cpu s, run-queue wait s or None)
+        self._stop = threading.Event()
+        self._thread = None
+
+    def sample(self):
+        if self.pid is None:
+            return None
+        try:
+            with open(f"/proc/{self.pid}/status") as f:
+                fields = dict(line.split(":", 1) for line in f if ":" in line)
+            with open(f"/proc/{self.pid}/stat") as f:
+                stat = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            return None
+        cpu = (int(stat[11]) + int(stat[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+        kib = lambda name: int(fields[name].split()[0]) / 1024  # noqa: E731
+        entry = (time.monotonic(), kib("VmRSS"), kib("VmHWM"), cpu, runqueue_wait_s(self.pid))
+        self.samples.append(entry)
+        return entry
+
+    def start(self):
+        def loop():
+            while not self._stop.wait(1.0):
+                self.sample()
+
+        self._thread = threading.Thread(target=loop, daemon=True)
+        self._thread.start()
+
+    def stop(self):
+        self._stop.set()
+        if self._thread:
+            self._thread.join()
+
+
+def scrape_edit_latency(url: str):
+    """The server's marzipan_edit_latency_seconds histogram from /metrics: {le: cumulative count}."""
+    http = re.sub(r"^ws", "http", url.split("/ws")[0]) + "/metrics"
+    try:
+        with urllib.request.urlopen(http, timeout=5) as response:
+            text = response.read().decode()
+    except OSError:
+        return None
+    buckets = {}
+    for match in re.finditer(r'^marzipan_edit_latency_seconds_bucket\{le="([^"]+)"\} (\d+)$', text, re.M):
+        buckets[match.group(1)] = int(match.group(2))
+    return buckets
+
+
+def histogram_summary(before, after):
+    """Edits of the run per server-side latency bucket, and p50/p99 as the bucket bounds they fall in."""
+    if before is None or after is None:
+        return None
+    bounds = list(after)
+    counts = {le: after[le] - before.get(le, 0) for le in bounds}
+    total = counts.get("+Inf", 0)
+    summary = {"edits": total, "cumulative": counts}
+    for name, p in (("p50_at_most_ms", 0.5), ("p99_at_most_ms", 0.99)):
+        bound = next((le for le in bounds if total and counts[le] >= p * total), None)
+        if bound == "+Inf":
+            summary[name] = f"over {round(float(bounds[-2]) * 1e3)}"
+        else:
+            summary[name] = None if bound is None else round(float(bound) * 1e3, 1)
+    return summary
+
+
+# ---------------------------------------------------------------------------------------- run
+
+def plan(args):
+    """Session ids, clients per session, and which process hosts which sessions (a session's
+    clients always share a process, so its token never crosses a process boundary)."""
+    sessions = [{"index": s, "id": new_session_id(), "clients": []} for s in range(args.sessions)]
+    for c in range(args.clients):
+        sessions[c % args.sessions]["clients"].append(c)
+    processes = args.processes or min(args.sessions, max(1, math.ceil(args.clients / 16)))
+    processes = max(1, min(processes, args.sessions))
+    specs = [{"sessions": [s for s in sessions if s["index"] % processes == p]} for p in range(processes)]
+    return specs
+
+
+def receive(conn, timeout: float, what: str):
+    """The next message of a client process; a process that died or hangs fails the run."""
+    try:
+        if conn.poll(timeout):
+            return conn.recv()
+    except (EOFError, OSError):
+        raise RuntimeError(f"a client process ended before it could {what}") from None
+    raise RuntimeError(f"a client process did not {what} within {timeout:.0f} s")
+
+
+def run(args) -> tuple[dict, int]:
+    server = ServerProcess(args.marzipan, args.threads, args.max_queue_mb, args.server_arg) if args.marzipan else None
+    url = server.url if server else args.url
+    sampler = ProcessSampler(server.pid if server else args.server_pid)
+    specs = plan(args)
+    shared = {"url": url, "size": args.size, "solid": args.solid, "rate": args.rate, "duration": args.duration,
+              "seed": args.seed}
+    if args.slow_client:
+        specs[0]["slow_session"] = 0
+    context = multiprocessing.get_context("spawn")
+    start_event, start_time = context.Event(), context.Value("d", 0.0)
+    workers = []
+    try:
+        for spec in specs:
+            parent_end, child_end = context.Pipe(duplex=False)
+            proc = context.Process(target=worker_entry, args=(dict(spec, args=shared), child_end, start_event,
+                                                              start_time), daemon=True)
+            proc.start()
+            child_end.close()
+            workers.append((proc, parent_end))
+        failures = []
+        for proc, conn in workers:
+            kind, detail = receive(conn, SETUP_TIMEOUT_S + 30, "set up its sessions")
+            if kind != "ready":
+                raise RuntimeError(f"a client process failed: {detail}")
+        idle = sampler.sample()
+        metrics_before = scrape_edit_latency(url)
+        load_before = os.getloadavg()
+        sampler.start()
+        start_time.value = t0 = time.monotonic() + 0.2
+        start_event.set()
+        results = []
+        for proc, conn in workers:
+            kind, detail = receive(conn, args.duration + 2 * DRAIN_TIMEOUT_S + SLOW_CLIENT_DRAIN_S + 60, "finish")
+            if kind != "result":
+                failures.append(f"client process: {detail}")
+            else:
+                results.append(detail)
+            proc.join(30)
+        load_after = os.getloadavg()
+        metrics_after = scrape_edit_latency(url)
+        # The clients are gone, the sessions stay loaded (until --idle-session-seconds): the
+        # memory the server keeps after the load.
+        time.sleep(1.0)
+        sampler.stop()
+        final = sampler.sample()
+    finally:
+        for proc, _ in workers:
+            if proc.is_alive():
+                proc.kill()
+        server_status = server.stop() if server else None
+    return report(args, specs, results, failures, sampler, idle, final, t0, load_before, load_after,
+                  histogram_summary(metrics_before, metrics_after), server, server_status)
+
+
+def merged(results, key):
+    out = []
+    for r in results:
+        out.extend(r[key])
+    return out
+
+
+def counter_sum(results, key):
+    total = collections.Counter()
+    for r in results:
+        total.update(r[key])
+    return dict(total)
+
+
+def report(args, specs, results, failures, sampler, idle, final, t0, load_before, load_after, server_hist,
+           server, server_status) -> tuple[dict, int]:
+    failures = failures + [f for r in results for f in r["failures"]]
+    drained = max((r["drained_at"] for r in results), default=t0)
+    wall = max(drained - t0, 1e-9)
+    answered = sum(r["answered"] for r in results)
+    sent = counter_sum(results, "sent")
+    errors = counter_sum(results, "errors")
+    unexpected = counter_sum(results, "unexpected_closes")
+    unanswered = sum(r["unanswered"] for r in results)
+    dabs_applied = sum(r["dabs_applied"] for r in results)
+    client_cpu = sum(r["cpu_s"] for r in results)
+    during = [s for s in sampler.samples if s[0] >= t0]
+    rss_max = max((s[1] for s in during), default=None)
+    server_cpu = server_cpu_s = server_wait = None
+    if during and idle:
+        last = max((s for s in during if s[0] <= drained), key=lambda s: s[0], default=during[-1])
+        server_cpu_s = last[3] - idle[3]
+        server_cpu = round(server_cpu_s / max(last[0] - idle[0], 1e-9), 2)
+        if last[4] is not None and idle[4] is not None:
+            server_wait = round((last[4] - idle[4]) / max(last[0] - idle[0], 1e-9), 2)
+    client_waits = [r["runqueue_wait_s"] for r in results]
+    client_wait = None if None in client_waits or not results else round(sum(client_waits) / wall, 2)
+    dabs_messages = len(merged(results, "dabs_latency"))
+    # CPU per stroke.dabs message on each side: what the machine's cores can sustain, whatever
+    # else was running (the latencies depend on that, these hardly do).
+    per_message = lambda cpu: None if cpu is None or not dabs_messages else round(cpu / dabs_messages * 1e3, 2)  # noqa: E731
+    slow = next((r["slow_client"] for r in results if r["slow_client"]), None)
+    if slow is not None and server is not None:
+        # The server logs the close once the write in flight is done, i.e. after the client
+        # reads again; dropped_from_session_after_s tells when it gave up on the client.
+        closes = [(t, line) for t, line in server.log if "too far behind" in line]
+        slow["close_logged_after_s"] = round(closes[0][0] - t0, 2) if closes else None
+        slow["server_log"] = closes[0][1] if closes else None
+    per_session = []
+    for spec in specs:
+        for s in spec["sessions"]:
+            dabs = [x for r in results for x in r["session_dabs_latency"].get(s["index"], [])]
+            deltas = [x for r in results for x in r["session_delta_latency"].get(s["index"], [])]
+            per_session.append({"session": s["index"], "clients": len(s["clients"]),
+                                "response_ms": percentiles(dabs), "delta_ms": percentiles(deltas)})
+    per_session.sort(key=lambda s: s["session"])
+    response = percentiles(merged(results, "dabs_latency"))
+    # p99 and max of the responses per second of the run, to tell a spike from a steady tail.
+    by_second = collections.defaultdict(list)
+    for sent_at, latency in zip(merged(results, "dabs_sent"), merged(results, "dabs_latency")):
+        by_second[int(sent_at - t0)].append(latency)
+    seconds = [percentiles(by_second[i]) for i in range(max(by_second, default=-1) + 1)]
+    delta = percentiles(merged(results, "delta_latency"))
+    other = {}
+    for r in results:
+        for method, values in r["other_latency"].items():
+            other.setdefault(method, []).extend(values)
+    mb = lambda v: None if v is None else round(v, 1)  # noqa: E731
+    out = {
+        "clients": args.clients,
+        "sessions": args.sessions,
+        "size": args.size,
+        "solid": args.solid,
+        "rate_per_client": args.rate,
+        "processes": len(specs),
+        "duration_s": args.duration,
+        "elapsed_s": round(wall, 2),
+        "requests": {"sent": sum(sent.values()), "answered": answered, "unanswered": unanswered, "by_method": sent},
+        "errors": errors,
+        "error_samples": [e for r in results for e in r["error_samples"]][:5],
+        "unexpected_closes": unexpected,
+        "anomalies": counter_sum(results, "anomalies"),
+        "failures": failures[:20],
+        "throughput_req_s": round(answered / wall, 1),
+        "dabs_messages_per_s": round(dabs_messages / wall, 1),
+        "dabs_applied": dabs_applied,
+        "dabs_applied_per_s": round(dabs_applied / wall, 1),
+        "latency_ms": {"response": response, "delta": delta,
+                       "response_p99_by_second": [s["p99"] for s in seconds],
+                       "response_max_by_second": [s["max"] for s in seconds],
+                       "other": {m: percentiles(v) for m, v in sorted(other.items())}},
+        "server_edit_latency": server_hist,
+        "deltas_received": sum(r["deltas"] for r in results),
+        "delta_mb_received": round(sum(r["delta_bytes"] for r in results) / 2**20, 1),
+        "full_buffers_received": sum(r["full_buffers"] for r in results),
+        "notifications": counter_sum(results, "notifications"),
+        "per_session": per_session,
+        "server": {
+            "pid": sampler.pid,
+            "rss_mb_idle": mb(idle[1]) if idle else None,
+            "rss_mb_max": mb(rss_max),
+            "rss_mb_final": mb(final[1]) if final else None,
+            "hwm_mb": mb(final[2]) if final else None,
+            "rss_mb_series": [round(s[1], 1) for s in during],
+            "sessions_memory_mb": mb(sum(x["memory_bytes"] for r in results for x in r["session_stats"]) / 2**20),
+            "sessions_history_mb": mb(sum(x["history_bytes"] for r in results for x in r["session_stats"]) / 2**20),
+            "cpu_cores": server_cpu,
+            "cpu_ms_per_dabs_message": per_message(server_cpu_s),
+            "runqueue_wait_s_per_s": server_wait,
+            "exit_status": server_status,
+        },
+        "client_side": {
+            "cpu_s": round(client_cpu, 2),
+            "cpu_cores": round(client_cpu / wall, 2),
+            "cpu_cores_per_process": [round(r["cpu_s"] / max(r["wall_s"], 1e-9), 2) for r in results],
+            "cpu_ms_per_dabs_message": per_message(client_cpu),
+            "runqueue_wait_s_per_s": client_wait,
+            "send_lag_ms": percentiles(merged(results, "send_lag")),
+            "loop_lag_ms": percentiles(merged(results, "loop_lag")),
+        },
+        "load_average": {"before": [round(x, 2) for x in load_before], "after": [round(x, 2) for x in load_after]},
+        "slow_client": slow,
+        "goals": {"zero_errors": not errors and not unexpected and not unanswered and not failures,
+                  "p99_target_ms": GOAL_P99_MS,
+                  "p99_response_met": response["p99"] is not None and response["p99"] < GOAL_P99_MS,
+                  "p99_delta_met": delta["p99"] is not None and delta["p99"] < GOAL_P99_MS},
+    }
+    # The slow client's close is expected and not counted: only the sculpting clients' are.
+    ok = (not errors and not unexpected and not unanswered and not failures and dabs_applied > 0
+          and server_status in (None, 0))
+    return out, 0 if ok else 1
+
+
+def summary(out: dict) -> str:
+    r, d, s, c = out["latency_ms"]["response"], out["latency_ms"]["delta"], out["server"], out["client_side"]
+    lines = [
+        f"{out['clients']} clients on {out['sessions']} sessions of {out['size']}^3 {out['solid']}, "
+        f"{out['duration_s']} s at {out['rate_per_client']} dab messages/s each, {out['processes']} client processes",
+        f"requests {out['requests']['answered']} answered ({out['throughput_req_s']}/s), "
+        f"{out['dabs_applied']} dabs applied ({out['dabs_applied_per_s']}/s), errors {out['errors'] or 0}, "
+        f"unexpected closes {out['unexpected_closes'] or 0}, unanswered {out['requests']['unanswered']}",
+        f"stroke.dabs response p50 {r['p50']} / p99 {r['p99']} / max {r['max']} ms; "
+        f"its splat delta p50 {d['p50']} / p99 {d['p99']} / max {d['max']} ms ({out['deltas_received']} deltas)",
+        f"server RSS idle {s['rss_mb_idle']} MiB, max {s['rss_mb_max']}, final {s['rss_mb_final']} "
+        f"(undo history {s['sessions_history_mb']})",
+        f"CPU: server {s['cpu_cores']} cores ({s['cpu_ms_per_dabs_message']} ms per dabs message), clients "
+        f"{c['cpu_cores']} cores ({c['cpu_ms_per_dabs_message']} ms; per process {c['cpu_cores_per_process']}), "
+        f"client loop lag p99 {c['loop_lag_ms']['p99']} ms",
+        f"waiting for a core (s per s): server {s['runqueue_wait_s_per_s']}, clients {c['runqueue_wait_s_per_s']}",
+        f"load average before {out['load_average']['before'][0]}, after {out['load_average']['after'][0]}",
+    ]
+    if out["slow_client"]:
+        sc = out["slow_client"]
+        lines.append(f"slow client in session {sc['session']}: joined at {sc.get('joined_at_s')} s, dropped from "
+                     f"its session at {sc.get('dropped_from_session_after_s')} s, closed {sc.get('close_code')} "
+                     f"{sc.get('close_reason')!r}")
+    if out["failures"]:
+        lines.append("failures: " + "; ".join(out["failures"][:3]))
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    target = p.add_mutually_exclusive_group(required=True)
+    target.add_argument("--marzipan", help="the marzipan binary: the tool starts and stops its own server")
+    target.add_argument("--url", help="a running server's WebSocket URL (ws://HOST:PORT/ws)")
+    p.add_argument("--server-pid", type=int, help="with --url: the server's pid, for its memory and CPU")
+    p.add_argument("--clients", type=int, default=64, help="sculpting clients (default %(default)s)")
+    p.add_argument("--sessions", type=int, default=16, help="sessions (default %(default)s)")
+    p.add_argument("--duration", type=float, default=60.0, help="seconds of sculpting (default %(default)s)")
+    p.add_argument("--rate", type=float, default=20.0, help="stroke.dabs messages per second per client (default %(default)s)")
+    p.add_argument("--size", type=int, default=128, help="grid side of each session (default %(default)s)")
+    p.add_argument("--solid", default="pig", choices=("pig", "sphere"), help="starting solid (default %(default)s)")
+    p.add_argument("--processes", type=int, default=0,
+                   help="client processes, 0 = one per 16 clients, at most one per session (default %(default)s)")
+    p.add_argument("--slow-client", action="store_true", help="add a client in session 0 that stops reading")
+    p.add_argument("--threads", type=int, default=2, help="--threads of the server started (default %(default)s)")
+    p.add_argument("--max-queue-mb", type=int, help="--max-queue-mb of the server started (default: the server's)")
+    p.add_argument("--server-arg", action="append", default=[], help="a further argument for `marzipan serve`")
+    p.add_argument("--seed", type=int, default=1, help="seed of the strokes (default %(default)s)")
+    p.add_argument("--json", help="write the JSON object to this file instead of stdout")
+    args = p.parse_args(argv)
+    if args.clients < args.sessions or args.sessions < 1:
+        p.error("need at least one session and one client per session")
+    if args.rate <= 0 or args.duration <= 0:
+        p.error("--rate and --duration must be positive")
+    if args.marzipan is None and (args.max_queue_mb is not None or args.server_arg):
+        p.error("--max-queue-mb and --server-arg need --marzipan")
+    try:
+        out, status = run(args)
+    except RuntimeError as e:
+        print(f"marzipan_load: {e}", file=sys.stderr)
+        return 1
+    text = json.dumps(out, separators=(",", ":"))
+    if args.json:
+        Path(args.json).write_text(text + "\n")
+    else:
+        print(text)
+    print(summary(out), file=sys.stderr)
+    if status:
+        print("marzipan_load: FAILED (errors, unexpected closes, unanswered requests, missing deltas, "
+              "or no dab applied)", file=sys.stderr)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
