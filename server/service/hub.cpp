@@ -404,9 +404,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // that fails the session goes back to what the journal holds (the change is dropped) and the
   // request gets an error; if even that fails the session is closed, its acknowledged state
   // intact on disk.
-  void persist(LiveSession& s, const json& records) {
+  void persist(LiveSession& s, const std::function<json()>& makeRecords) {
     if (!s.journal) return;
     try {
+      // Inside the try: making the records may write files (an undo's bricks, an upload).
+      const json records = makeRecords();
       if (records.is_array())
         for (const json& r : records) s.journal->append(r);
       else
@@ -429,9 +431,23 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (s.journal->records() >= options.snapshotEvery) {
       try {
         s.journal = store.snapshot(s.id, s.session->volume());
+        announceOpenStrokes(s);
       } catch (const std::exception& e) {
         log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
       }
+    }
+  }
+
+  // On the strand: a fresh journal starts with the strokes still open, so that their next dabs
+  // replay without the journal that began them.
+  void announceOpenStrokes(LiveSession& s) {
+    for (const auto& [id, st] : s.session->openStrokeList()) {
+      const std::string symmetry = std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
+      s.journal->append({{"stroke_begin", id},
+                         {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+                         {"radius", st.radius},
+                         {"strength", st.strength},
+                         {"symmetry", symmetry}});
     }
   }
 
@@ -499,7 +515,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
           throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
         }
         fn(*s, r);
-        if (r.record) self->persist(*s, r.record());
+        if (r.record) self->persist(*s, r.record);
         if (r.frame) c->link->sendBinary(r.frame, false);
         self->sendResult(*c, id, r.result);
         if (isEdit && self->options.events.editLatency)

@@ -46,6 +46,17 @@ Journal::~Journal() {
 
 void Journal::append(const nlohmann::json& record) {
   const std::string line = journalLine(record);
+  // A record that fails to be written or synced must not stay: the change it describes is
+  // refused, and a later read must not find it.
+  const off_t before = ::lseek(fd_, 0, SEEK_END);
+  struct Undo {
+    int fd;
+    off_t at;
+    bool armed = true;
+    ~Undo() {
+      if (armed && at >= 0 && ::ftruncate(fd, at) == 0) ::fsync(fd);
+    }
+  } undo{fd_, before};
   std::size_t done = 0;
   while (done < line.size()) {
     const ssize_t n = ::write(fd_, line.data() + done, line.size() - done);
@@ -57,8 +68,9 @@ void Journal::append(const nlohmann::json& record) {
     done += std::size_t(n);
   }
   dirty_ = true;
-  ++records_;
   if (syncInterval_.count() == 0 || std::chrono::steady_clock::now() - lastSync_ >= syncInterval_) sync();
+  undo.armed = false;
+  ++records_;
 }
 
 void Journal::sync() {

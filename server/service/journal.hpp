@@ -39,8 +39,8 @@ class Journal {
   Journal& operator=(const Journal&) = delete;
 
   // Appends one record; throws std::runtime_error (with the system's reason: "No space left
-  // on device") when it cannot be written or synced. A failed append may leave a torn line,
-  // which the next read drops.
+  // on device") when it cannot be written or synced; the file is then cut back to where it
+  // was, so the refused record is not replayed.
   void append(const nlohmann::json& record);
   void sync();
   std::size_t records() const { return records_; }

@@ -245,6 +245,12 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   return result;
 }
 
+std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList() const {
+  std::vector<std::pair<StrokeId, StrokeParams>> out;
+  for (const auto& [id, st] : strokes_) out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry}});
+  return out;
+}
+
 void Session::endStroke(StrokeId id) {
   openStroke(id);
   strokes_.erase(id);

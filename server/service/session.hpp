@@ -177,6 +177,13 @@ class Session {
   bool canUndo() const { return history_.canUndo(); }
   bool canRedo() const { return history_.canRedo(); }
   std::size_t openStrokes() const { return strokes_.size(); }
+  struct StrokeParams {
+    protocol::BrushTool tool;
+    double radius, strength;
+    Symmetry symmetry;
+  };
+  // The open strokes and their parameters, by id.
+  std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
 
   // Measures of the live volume (reads every brick: on a large session prefer computing
   // measure() on a snapshot off the strand and adding the counters from here).

@@ -123,6 +123,11 @@ void replayRecord(Session& s, const json& rec, std::map<std::uint64_t, StrokeId>
   if (rec.contains("op")) {
     s.apply(protocol::parseOp(rec["op"]), pool);
   } else if (rec.contains("stroke_begin")) {
+    // A stroke announced again at the head of a journal after a snapshot replaces its entry.
+    if (const auto it = strokes.find(rec["stroke_begin"].get<std::uint64_t>()); it != strokes.end()) {
+      s.endStroke(it->second);
+      strokes.erase(it);
+    }
     const auto tool = protocol::fromName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
     if (!tool) throw std::runtime_error("unknown stroke tool");
     const std::string sym = rec.value("symmetry", "");
@@ -141,9 +146,10 @@ void replayRecord(Session& s, const json& rec, std::map<std::uint64_t, StrokeId>
     for (const json& d : rec.at("dabs")) dabs.push_back(Dab{Vec3{d[0], d[1], d[2]}, d[3].get<double>()});
     s.strokeDabs(strokes.at(rec["stroke"].get<std::uint64_t>()), dabs, pool);
   } else if (rec.contains("undo") || rec.contains("redo")) {
+    // From the bricks it put in place, not from the replayed history: that history starts at
+    // the snapshot and may hold only part of a stroke that began before it.
     const bool undo = rec.contains("undo");
-    // The step is in the replayed history unless a snapshot came between it and this move.
-    if (!(undo ? s.undo() : s.redo()).changed) s.restore(readStep(dir / rec[undo ? "undo" : "redo"].get<std::string>()));
+    s.restore(readStep(dir / rec[undo ? "undo" : "redo"].get<std::string>()));
   } else if (rec.contains("load")) {
     s.load(loadVolumeFile((dir / rec["load"].get<std::string>()).string()));
   } else {
