@@ -1,0 +1,465 @@
+// The web client end to end: `marzipan serve` on a free port, the page in Debian's headless
+// Chromium (SwiftShader WebGL2), driven like a person would through playwright-core.
+// What must hold: the canvas shows the model; a drag sculpts (picture, revision and digest
+// change); undo brings back the digest; a second page on the share link sees the same
+// session and the first page's later edits; a view link cannot edit; the frame view shows
+// server frames (clay and gradient-error shading); STL export downloads a valid file; a
+// dropped connection reconnects and resyncs. A second test measures the frame time of a 256^3
+// session holding a radius-100 sphere.
+// Conventions: pixel positions in CSS pixels of the page; screenshots, downloads and the frame
+// time go to MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
+
+import { test, before, after } from "node:test";
+import assert from "node:assert/strict";
+import { readFileSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
+
+import { ensureArtifactsDir, startBrowser, startServer } from "./harness.mjs";
+import { decodePng } from "./png.mjs";
+
+const artifacts = ensureArtifactsDir();
+let server;
+let browser;
+
+before(async () => {
+  server = await startServer();
+  browser = await startBrowser({ hasTouch: true });
+});
+
+after(async () => {
+  if (browser) await browser.close();
+  if (server) {
+    const { code, signal } = await server.close();
+    assert.equal(code, 0, `marzipan serve exited with ${code} (${signal}); its log:\n${server.log()}`);
+  }
+});
+
+// --- reading the page ------------------------------------------------------------------------
+
+const text = (page, id) => page.locator(`#${id}`).textContent();
+const data = (page, id, key) => page.evaluate(([i, k]) => document.getElementById(i).dataset[k], [id, key]);
+const revision = async (page) => Number(await data(page, "revision", "revision"));
+const digest = (page) => text(page, "stat-digest");
+
+// Waits until the session is connected, the splats shown are those of the session's revision
+// and no stroke is still on the wire: the picture is settled.
+async function settled(page, timeout = 30000) {
+  await page.waitForFunction(
+    () => {
+      const $ = (id) => document.getElementById(id);
+      const rev = $("revision").dataset.revision;
+      return (
+        $("connection").dataset.state === "connected" &&
+        Number($("stat-points").dataset.points || 0) > 0 &&
+        $("stat-points").dataset.revision === rev &&
+        ($("view").dataset.strokes || "0") === "0"
+      );
+    },
+    null,
+    { timeout },
+  );
+  await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
+}
+
+async function shot(page, name) {
+  const png = await page.locator("#view").screenshot();
+  writeFileSync(join(artifacts, `${name}.png`), png);
+  return decodePng(png);
+}
+
+// Pixels of the canvas that differ from the backdrop. The backdrop is a vertical gradient, the
+// same along each row, so each row's first pixel (left edge, never the model here) is its
+// reference.
+function modelFraction(img, box = [0, 0, 1, 1]) {
+  const [x0, y0, x1, y1] = [box[0] * img.width, box[1] * img.height, box[2] * img.width, box[3] * img.height].map(Math.round);
+  let model = 0;
+  for (let y = y0; y < y1; ++y) {
+    const ref = y * img.width * 4;
+    for (let x = x0; x < x1; ++x) {
+      const o = (y * img.width + x) * 4;
+      const d = Math.max(...[0, 1, 2].map((c) => Math.abs(img.rgba[o + c] - img.rgba[ref + c])));
+      if (d > 12) ++model;
+    }
+  }
+  return model / Math.max(1, (x1 - x0) * (y1 - y0));
+}
+
+function changedPixels(a, b, threshold = 24) {
+  assert.equal(a.width, b.width);
+  assert.equal(a.height, b.height);
+  let n = 0;
+  for (let i = 0; i < a.rgba.length; i += 4) {
+    const d = Math.max(Math.abs(a.rgba[i] - b.rgba[i]), Math.abs(a.rgba[i + 1] - b.rgba[i + 1]), Math.abs(a.rgba[i + 2] - b.rgba[i + 2]));
+    if (d > threshold) ++n;
+  }
+  return n;
+}
+
+// Where a ray {origin, direction} first meets a sphere, or null.
+function sphereHit({ origin, direction }, center, radius) {
+  const len = Math.hypot(...direction);
+  const d = direction.map((v) => v / len);
+  const o = origin.map((v, i) => v - center[i]);
+  const b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+  const c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - radius * radius;
+  const disc = b * b - c;
+  if (disc < 0) return null;
+  const t = -b - Math.sqrt(disc);
+  return origin.map((v, i) => v + t * d[i]);
+}
+
+// The canvas's centre in page coordinates.
+async function canvasCenter(page) {
+  const box = await page.locator("#view").boundingBox();
+  return [box.x + box.width / 2, box.y + box.height / 2];
+}
+
+async function drag(page, from, to, steps = 20) {
+  await page.mouse.move(from[0], from[1]);
+  await page.mouse.down();
+  for (let i = 1; i <= steps; ++i)
+    await page.mouse.move(from[0] + ((to[0] - from[0]) * i) / steps, from[1] + ((to[1] - from[1]) * i) / steps);
+  await page.mouse.up();
+}
+
+async function createSession(page, size, solid) {
+  await page.goto(`${server.url}/`);
+  await page.selectOption("#create-size", String(size));
+  await page.selectOption("#create-solid", solid);
+  await page.click("#create-button");
+  await settled(page, 60000);
+}
+
+function collectErrors(page, into) {
+  page.on("pageerror", (e) => into.push(`page error: ${e.message}`));
+  page.on("console", (m) => {
+    if (m.type() === "error") into.push(`console: ${m.text()}`);
+  });
+}
+
+// Binary STL: an 80-byte header, u32 n, n triangles of 50 bytes (normal, three vertices as
+// float32, u16 attribute). Checks the length and that every vertex lies within the grid.
+function checkStl(bytes, size) {
+  assert.ok(bytes.length >= 84, `an STL file of ${bytes.length} bytes`);
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const n = view.getUint32(80, true);
+  assert.equal(bytes.length, 84 + 50 * n, "STL length is 84 + 50 n");
+  assert.ok(n > 1000, `a sphere of radius 45 vu has more than 1000 triangles, got ${n}`);
+  for (let t = 0; t < n; ++t)
+    for (let k = 3; k < 12; ++k) {
+      const v = view.getFloat32(84 + 50 * t + 4 * k, true);
+      assert.ok(Number.isFinite(v) && v >= -1 && v <= size, `vertex coordinate ${v} of triangle ${t}`);
+    }
+  return n;
+}
+
+// --- the tests ---------------------------------------------------------------------------------
+
+test("create, sculpt, undo, share, watch frames, export and reconnect", { timeout: 300000 }, async (t) => {
+  const errors = [];
+  const page = await browser.context.newPage();
+  collectErrors(page, errors);
+  // Every WebSocket of this page goes through a proxy the test holds, so it can cut the
+  // connection the way a network drop does.
+  const sockets = [];
+  const sent = []; // every text message the page sent, parsed
+  await page.routeWebSocket(/\/ws\?session=/, (ws) => {
+    const server = ws.connectToServer();
+    ws.onMessage((m) => {
+      if (typeof m === "string") sent.push(JSON.parse(m));
+      server.send(m);
+    });
+    sockets.push({ ws, server });
+  });
+  const sentSince = (from, method) => sent.slice(from).filter((m) => m.method === method);
+
+  await createSession(page, 128, "sphere");
+  const hash = await page.evaluate(() => location.hash);
+  assert.match(hash, /^#session=[A-Za-z0-9_-]{22}&token=[A-Za-z0-9_-]+$/, "the link is in the fragment");
+  assert.equal(sockets.length, 1);
+  assert.match(sockets[0].ws.url(), new RegExp(`/ws\\?session=${hash.slice(9, 31)}$`), "the socket URL names the session");
+
+  const before = await shot(page, "01-created");
+  const center = modelFraction(before, [0.4, 0.4, 0.6, 0.6]);
+  const corners = modelFraction(before, [0, 0, 0.1, 0.1]);
+  t.diagnostic(`model pixels: ${(100 * center).toFixed(1)}% of the centre, ${(100 * corners).toFixed(1)}% of a corner`);
+  assert.ok(center > 0.95, `the centre of the canvas shows the sphere (${center})`);
+  assert.equal(corners, 0, "the corner shows the backdrop");
+  assert.ok(modelFraction(before) > 0.1, "the sphere covers a good part of the canvas");
+
+  // A stroke of the add-blob brush across the middle.
+  const r0 = await revision(page);
+  const d0 = await digest(page);
+  await page.click('label:has(input[value="add_blob"])');
+  await page.locator("#radius").fill("12");
+  await page.locator("#strength").fill("1");
+  const [cx, cy] = await canvasCenter(page);
+  const strokeFrom = sent.length;
+  await drag(page, [cx - 100, cy], [cx + 100, cy], 30);
+  await settled(page);
+  const [begin] = sentSince(strokeFrom, "stroke.begin");
+  assert.deepEqual(begin.params, { tool: "add_blob", radius: 12, strength: 1 });
+  const dabs = sentSince(strokeFrom, "stroke.dabs").flatMap((m) => m.params.dabs);
+  assert.equal(sentSince(strokeFrom, "stroke.end").length, 1, "one stroke.end");
+  // Each dab is a pick ray; where it meets the starting sphere (centre 63.5, radius 44.8) the
+  // dabs must lie DAB_SPACING * radius = 3 vu apart along the path.
+  const hits = dabs.map((d) => sphereHit(d.ray, [63.5, 63.5, 63.5], 0.35 * 128));
+  assert.ok(hits.every(Boolean), "every dab ray points at the model");
+  const gaps = hits.slice(1).map((h, i) => Math.hypot(h[0] - hits[i][0], h[1] - hits[i][1], h[2] - hits[i][2]));
+  gaps.sort((a, b) => a - b);
+  t.diagnostic(`${dabs.length} dabs, median gap ${gaps[gaps.length >> 1].toFixed(2)} vu`);
+  assert.ok(dabs.length >= 8, `a drag across the sphere makes dabs (${dabs.length})`);
+  // Measured on the starting sphere while the dabs land on the growing bulge, the gaps come out
+  // a little short of 3 vu; one dab per pointer event would be about 1 vu apart.
+  assert.ok(gaps[gaps.length >> 1] > 2.2 && gaps[gaps.length >> 1] < 3.6, `dabs are 3 vu apart (median ${gaps[gaps.length >> 1]})`);
+  assert.ok(dabs.every((d) => d.pressure === 1), "a mouse presses with 1");
+  const r1 = await revision(page);
+  const d1 = await digest(page);
+  assert.ok(r1 > r0, `the stroke made new revisions (${r0} -> ${r1})`);
+  assert.notEqual(d1, d0, "the stroke changed the volume");
+  const sculpted = await shot(page, "02-sculpted");
+  const changed = changedPixels(before, sculpted);
+  t.diagnostic(`the stroke changed ${changed} pixels`);
+  assert.ok(changed > 500, `the picture shows the stroke (${changed} pixels changed)`);
+  assert.equal(await page.locator("#undo").isDisabled(), false, "undo is offered");
+
+  // Ctrl+Z: a new revision whose volume is the one before the stroke.
+  await page.locator("#view").focus();
+  await page.keyboard.press("Control+z");
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) === r + 1, r1);
+  await settled(page);
+  assert.equal(await digest(page), d0, "undo restores the digest of before the stroke");
+  assert.equal(await page.locator("#redo").isDisabled(), false, "redo is offered after undo");
+  const undone = await shot(page, "03-undone");
+  assert.ok(changedPixels(before, undone) < changed / 4, "the picture is back to the sphere");
+  await page.click("#redo");
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) === r + 2, r1);
+  await settled(page);
+  assert.equal(await digest(page), d1, "redo brings the stroke back");
+  assert.equal(await page.locator("#redo").isDisabled(), true, "nothing left to redo");
+
+  // A second page on the share link joins the same session.
+  await page.click("#share");
+  const editLink = await page.locator("#share-edit").inputValue();
+  const viewLink = await page.locator("#share-view").inputValue();
+  await page.keyboard.press("Escape");
+  assert.ok(editLink.startsWith(`${server.url}/#session=`), editLink);
+  const second = await browser.context.newPage();
+  collectErrors(second, errors);
+  await second.goto(editLink);
+  await settled(second);
+  assert.equal(await revision(second), await revision(page), "the second page shows the same revision");
+  assert.equal(await digest(second), await digest(page), "and the same volume");
+  await page.waitForFunction(() => document.getElementById("clients").dataset.count === "2");
+  assert.equal(await data(second, "clients", "count"), "2", "both pages see two clients");
+  const secondBefore = await shot(second, "04-second-page");
+
+  // The first page carves with a CSG click; the second page sees it.
+  const r2 = await revision(page);
+  await page.click('label:has(input[value="csg_subtract"])');
+  await page.locator("#radius").fill("16");
+  await page.mouse.click(cx, cy);
+  await second.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, r2);
+  await settled(page);
+  await settled(second);
+  assert.equal(await digest(second), await digest(page), "the second page has the first page's edit");
+  const secondAfter = await shot(second, "05-second-page-after-edit");
+  assert.ok(changedPixels(secondBefore, secondAfter) > 500, "the second page's picture shows the edit");
+
+  // A view link joins read-only: it can look, not edit. This page is on a high-density
+  // screen: its canvas must have twice its CSS size in pixels.
+  const viewer = await browser.context.newPage();
+  collectErrors(viewer, errors);
+  const cdp = await browser.context.newCDPSession(viewer);
+  await cdp.send("Emulation.setDeviceMetricsOverride", { width: 900, height: 640, deviceScaleFactor: 2, mobile: false });
+  await viewer.goto(viewLink);
+  await settled(viewer);
+  const dims = await viewer.evaluate(() => {
+    const c = document.getElementById("view");
+    return [c.width, c.height, c.clientWidth, c.clientHeight, devicePixelRatio];
+  });
+  assert.equal(dims[4], 2);
+  assert.deepEqual(dims.slice(0, 2), [2 * dims[2], 2 * dims[3]], `canvas ${dims}`);
+  assert.match(await text(viewer, "stat-session"), /view only/);
+  assert.equal(await viewer.locator("#undo").isDisabled(), true, "a viewer cannot undo");
+  const r3 = await revision(page);
+  const [vx, vy] = await canvasCenter(viewer);
+  await drag(viewer, [vx - 40, vy], [vx + 40, vy]);
+  await viewer.waitForTimeout(500);
+  assert.equal(await revision(page), r3, "a viewer's drag orbits instead of sculpting");
+  await viewer.close();
+
+  // The frame view: the server's ray-cast frames, clay, then gradient error.
+  await page.click('label:has(input[value="frames"])');
+  await page.waitForFunction(() => Number(document.getElementById("stat-frame").dataset.received || 0) > 0, null, { timeout: 30000 });
+  await page.waitForTimeout(600); // the still frame follows the interactive one
+  const frame = await shot(page, "06-frame-view");
+  assert.ok(modelFraction(frame, [0.4, 0.4, 0.6, 0.6]) > 0.9, "the frame shows the model in the middle");
+  assert.equal(modelFraction(frame, [0, 0, 0.1, 0.1]), 0, "and the backdrop in the corner");
+  const received = Number(await data(page, "stat-frame", "received"));
+  await page.selectOption("#shading", "gradient_error");
+  await page.waitForFunction(
+    (n) => {
+      const el = document.getElementById("stat-frame");
+      return Number(el.dataset.received) > n && el.dataset.format === "png";
+    },
+    received,
+    { timeout: 30000 },
+  );
+  await page.waitForTimeout(200);
+  const gradient = await shot(page, "07-gradient-error");
+  assert.ok(changedPixels(frame, gradient) > 1000, "gradient-error shading differs from clay");
+  await page.selectOption("#shading", "lit");
+  await page.click('label:has(input[value="splats"])');
+  await settled(page);
+
+  // Export: a binary STL of the current volume.
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click('[data-export="stl"]')]);
+  const stlPath = join(artifacts, "export.stl");
+  await download.saveAs(stlPath);
+  assert.match(download.suggestedFilename(), /^marzipan-.*\.stl$/);
+  const triangles = checkStl(readFileSync(stlPath), 128);
+  t.diagnostic(`exported ${triangles} triangles`);
+
+  // Brush size from the keyboard and from a Ctrl+drag.
+  await page.locator("#view").focus();
+  const radiusText = () => text(page, "radius-value");
+  await page.locator("#radius").fill("12");
+  await page.keyboard.press("]");
+  assert.equal(await radiusText(), "14.5 vu", "] grows the radius by a fifth");
+  await page.keyboard.press("[");
+  assert.equal(await radiusText(), "12 vu");
+  await page.keyboard.down("Control");
+  await drag(page, [cx, cy], [cx + 100, cy], 5);
+  await page.keyboard.up("Control");
+  assert.equal(await radiusText(), "32.5 vu", "Ctrl+drag 100 px to the right scales the radius by e");
+  await page.locator("#radius").fill("8");
+
+  // A pen: its pressure goes with each dab.
+  const penFrom = sent.length;
+  const rPen = await revision(page);
+  await page.click('label:has(input[value="add_blob"])');
+  await page.evaluate(([x, y]) => {
+    const canvas = document.getElementById("view");
+    const send = (type, i, pressure) =>
+      canvas.dispatchEvent(new PointerEvent(type, { pointerId: 7, pointerType: "pen", isPrimary: true, bubbles: true, button: type === "pointermove" ? -1 : 0, buttons: type === "pointerup" ? 0 : 1, clientX: x - 40 + 8 * i, clientY: y - 40, pressure }));
+    send("pointerdown", 0, 0.3);
+    for (let i = 1; i <= 10; ++i) send("pointermove", i, 0.3 + 0.06 * i);
+    send("pointerup", 10, 0);
+  }, [cx, cy]);
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rPen);
+  await settled(page);
+  const pressures = sentSince(penFrom, "stroke.dabs").flatMap((m) => m.params.dabs.map((d) => d.pressure));
+  assert.ok(pressures.length >= 3, `the pen stroke sent dabs (${pressures.length})`);
+  assert.ok(pressures.every((p) => p >= 0.3 && p <= 0.9), `pen pressures within what the pen pressed: ${pressures}`);
+  assert.ok(pressures[pressures.length - 1] > pressures[0], "and rising as the pen pressed harder");
+
+  // Every error the server returns is shown: an upload that is not a volume file.
+  const rBad = await revision(page);
+  await page.setInputFiles("#load-volume", { name: "bad.mzv", mimeType: "application/octet-stream", buffer: Buffer.alloc(100, 7) });
+  const message = page.locator(".message.error", { hasText: "volume.load" });
+  await message.waitFor();
+  t.diagnostic(`shown: ${await message.textContent()}`);
+  assert.match(await message.textContent(), /-32006 EngineRefused/);
+  assert.equal(await revision(page), rBad, "a refused load changes nothing");
+
+  // Save the volume, change it, load the saved file back: the saved digest returns.
+  const dSaved = await digest(page);
+  const [saved] = await Promise.all([page.waitForEvent("download"), page.click("#save-volume")]);
+  const mzvPath = join(artifacts, "saved.mzv");
+  await saved.saveAs(mzvPath);
+  const mzv = readFileSync(mzvPath);
+  assert.equal(mzv.subarray(0, 4).toString("latin1"), "MZVF");
+  await page.click('label:has(input[value="remove_blob"])');
+  await drag(page, [cx - 20, cy - 20], [cx + 20, cy - 20]);
+  await settled(page);
+  assert.notEqual(await digest(page), dSaved);
+  const rLoad = await revision(page);
+  await page.setInputFiles("#load-volume", mzvPath);
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rLoad);
+  await settled(page);
+  assert.equal(await digest(page), dSaved, "loading the saved file restores its volume");
+
+  // A PNG snapshot of the view, at the canvas's size in device pixels.
+  const [snap] = await Promise.all([page.waitForEvent("download"), page.click("#snapshot")]);
+  const snapPath = join(artifacts, "snapshot.png");
+  await snap.saveAs(snapPath);
+  const snapshot = decodePng(readFileSync(snapPath));
+  const size = await page.evaluate(() => [document.getElementById("view").width, document.getElementById("view").height]);
+  assert.deepEqual([snapshot.width, snapshot.height], size);
+  assert.ok(modelFraction(snapshot, [0.4, 0.4, 0.6, 0.6]) > 0.9, "the snapshot shows the model");
+
+  // Touch: a pinch that begins on the model zooms without a dab; one finger on it sculpts.
+  const touchScreen = await browser.context.newCDPSession(page);
+  const touch = (type, points) =>
+    touchScreen.send("Input.dispatchTouchEvent", { type, touchPoints: points.map(([x, y], id) => ({ x, y, id })) });
+  const rTouch = await revision(page);
+  const distance = () => page.evaluate(() => window.marzipan.camera.distance);
+  const before2 = await distance();
+  await touch("touchStart", [[cx - 40, cy], [cx + 40, cy]]);
+  for (let i = 1; i <= 8; ++i) await touch("touchMove", [[cx - 40 - 5 * i, cy], [cx + 40 + 5 * i, cy]]);
+  await touch("touchEnd", []);
+  const ratio = (await distance()) / before2;
+  assert.ok(Math.abs(ratio - 0.5) < 0.01, `spreading two fingers from 80 to 160 px halves the distance (${ratio})`);
+  await page.waitForTimeout(300);
+  assert.equal(await revision(page), rTouch, "the pinch did not sculpt");
+  await touch("touchStart", [[cx, cy + 20]]);
+  for (let i = 1; i <= 8; ++i) await touch("touchMove", [[cx + 5 * i, cy + 20]]);
+  await touch("touchEnd", []);
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rTouch);
+  await settled(page);
+
+  // A dropped connection: the page reconnects by itself and resyncs.
+  const rBefore = await revision(page);
+  const dBefore = await digest(page);
+  sockets[0].ws.close({ code: 4000, reason: "network dropped by the test" });
+  sockets[0].server.close();
+  await page.waitForFunction(() => document.getElementById("connection").dataset.state === "reconnecting");
+  await page.waitForFunction(() => document.getElementById("connection").dataset.state === "connected", null, { timeout: 20000 });
+  await settled(page);
+  assert.equal(sockets.length, 2, "one new WebSocket");
+  assert.equal(await revision(page), rBefore, "the same session, at the same revision");
+  assert.equal(await digest(page), dBefore);
+  const [dx, dy] = await canvasCenter(page);
+  await page.click('label:has(input[value="add_blob"])');
+  await drag(page, [dx - 30, dy + 30], [dx + 30, dy + 30]);
+  await settled(page);
+  assert.ok((await revision(page)) > rBefore, "sculpting works after the reconnect");
+  await second.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rBefore);
+  await shot(page, "08-after-reconnect");
+
+  assert.deepEqual(errors, [], "no script errors on any page");
+  const shown = (p) => p.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").map((m) => m.text));
+  const firstErrors = await shown(page);
+  assert.equal(firstErrors.length, 2, `the errors shown are the refused upload and the dropped connection: ${firstErrors}`);
+  assert.match(firstErrors[0], /^volume\.load: .*\[-32006 EngineRefused\]$/);
+  assert.match(firstErrors[1], /^connection lost \(code 4000: network dropped by the test\); reconnecting$/);
+  assert.deepEqual(await shown(second), [], "the second page showed no error");
+  await second.close();
+  await page.close();
+});
+
+test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000 }, async (t) => {
+  const errors = [];
+  const page = await browser.context.newPage();
+  collectErrors(page, errors);
+  await createSession(page, 256, "sphere"); // radius 0.35 * 256 = 89.6 vu
+  await page.selectOption("#global-op", "dilate");
+  await page.locator("#global-amount").fill("10.4");
+  await page.click("#global-apply");
+  await page.waitForFunction(() => document.getElementById("revision").dataset.revision === "1", null, { timeout: 120000 });
+  await settled(page, 120000);
+  const points = Number(await data(page, "stat-points", "points"));
+  assert.ok(points > 150000 && points < 300000, `a radius-100 sphere has about 200k splats, got ${points}`);
+  await shot(page, "09-sphere-256");
+  await page.click("#stats-panel summary");
+  await page.click("#measure-fps");
+  await page.waitForFunction(() => document.getElementById("stat-frame-time").dataset.meanMs, null, { timeout: 240000 });
+  const m = await page.evaluate(() => window.marzipan.lastMeasure);
+  t.diagnostic(`frame time: ${JSON.stringify(m)}`);
+  writeFileSync(join(artifacts, "frame-time.json"), `${JSON.stringify(m, null, 2)}\n`);
+  assert.equal(m.points, points);
+  assert.ok(m.meanMs > 0 && Number.isFinite(m.meanMs));
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});

@@ -1,0 +1,101 @@
+// What the browser tests and scripts share: a `marzipan serve` process on a free port, and
+// Debian's Chromium driven by playwright-core with a fresh profile.
+// Conventions: MARZIPAN (the marzipan executable), CHROMIUM (the browser binary) and
+// MARZIPAN_BROWSER_ARTIFACTS (where screenshots and downloads go) come from the environment,
+// with this checkout's defaults; both processes are ended by the returned close functions.
+
+import { spawn } from "node:child_process";
+import { mkdirSync, mkdtempSync, rmSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { dirname, join, resolve } from "node:path";
+import { fileURLToPath } from "node:url";
+import { chromium } from "playwright-core";
+
+export const repoRoot = resolve(dirname(fileURLToPath(import.meta.url)), "../..");
+export const marzipanPath = process.env.MARZIPAN || join(repoRoot, "build/server/marzipan");
+export const chromiumPath = process.env.CHROMIUM || "/usr/lib/chromium/chromium";
+export const artifactsDir = process.env.MARZIPAN_BROWSER_ARTIFACTS || join(repoRoot, "build/browser-artifacts");
+
+// Flags for headless Chromium on a machine without a GPU or network: SwiftShader's WebGL2, and
+// none of the background traffic that a closed network refuses.
+export const CHROMIUM_ARGS = [
+  "--headless=new",
+  "--no-sandbox",
+  "--use-angle=swiftshader",
+  "--enable-unsafe-swiftshader",
+  "--disable-background-networking",
+  "--disable-component-update",
+  "--disable-sync",
+  "--no-first-run",
+];
+
+// Starts `marzipan serve --port 0` with the web client of this checkout; resolves with
+// {url, close, log()} once it prints "listening on http://HOST:PORT".
+export function startServer(extraArgs = []) {
+  const args = ["serve", "--port", "0", "--web-root", join(repoRoot, "web-client"), "--protocol-js", join(repoRoot, "protocol/js"), ...extraArgs];
+  const child = spawn(marzipanPath, args, { stdio: ["ignore", "pipe", "pipe"] });
+  let stderr = "";
+  child.stderr.on("data", (d) => {
+    stderr = (stderr + d).slice(-20000);
+  });
+  const exited = new Promise((res) => child.on("exit", (code, signal) => res({ code, signal })));
+  return new Promise((resolvePromise, reject) => {
+    let out = "";
+    const timer = setTimeout(() => {
+      child.kill("SIGKILL");
+      reject(new Error(`marzipan serve printed no "listening on" within 20 s; stderr:\n${stderr}`));
+    }, 20000);
+    child.on("error", (e) => {
+      clearTimeout(timer);
+      reject(new Error(`cannot start ${marzipanPath}: ${e.message}`));
+    });
+    child.on("exit", (code) => {
+      clearTimeout(timer);
+      reject(new Error(`marzipan serve exited with ${code} before listening; stderr:\n${stderr}`));
+    });
+    child.stdout.on("data", (d) => {
+      out += d;
+      const m = out.match(/listening on (http:\/\/\S+)/);
+      if (!m) return;
+      clearTimeout(timer);
+      resolvePromise({
+        url: m[1].replace(/\/$/, ""),
+        log: () => stderr,
+        async close() {
+          child.kill("SIGTERM");
+          const t = setTimeout(() => child.kill("SIGKILL"), 5000);
+          const r = await exited;
+          clearTimeout(t);
+          return r;
+        },
+      });
+    });
+  });
+}
+
+// Chromium with a fresh profile directory; resolves with {context, close}. The context saves
+// downloads and allows them; hasTouch gives its pages a touch screen besides the mouse.
+export async function startBrowser({ width = 1100, height = 760, deviceScaleFactor = 1, hasTouch = false } = {}) {
+  const profile = mkdtempSync(join(tmpdir(), "marzipan-chromium-"));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: chromiumPath,
+    headless: true,
+    args: CHROMIUM_ARGS,
+    viewport: { width, height },
+    deviceScaleFactor,
+    hasTouch,
+    acceptDownloads: true,
+  });
+  return {
+    context,
+    async close() {
+      await context.close();
+      rmSync(profile, { recursive: true, force: true });
+    },
+  };
+}
+
+export function ensureArtifactsDir() {
+  mkdirSync(artifactsDir, { recursive: true });
+  return artifactsDir;
+}

@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Runs the browser tests (client.test.mjs) the way ctest does, refusing to start without what
+# they need rather than skipping: Debian's chromium, the npm dependency installed by
+# tests/install-build-test.sh, and a built marzipan.
+# Usage: MARZIPAN=build/server/marzipan bash tests/browser/run.sh
+#        (MARZIPAN_BROWSER_ARTIFACTS=DIR for the screenshots; default build/browser-artifacts)
+set -euo pipefail
+cd "$(dirname "$0")"
+chromium="${CHROMIUM:-/usr/lib/chromium/chromium}"
+marzipan="${MARZIPAN:-../../build/server/marzipan}"
+fail() { echo "tests/browser: $*" >&2; exit 1; }
+[ -x "$chromium" ] || fail "no Chromium at $chromium: apt-get install chromium (tests/debian-packages.sh lists it)"
+[ -d node_modules/playwright-core ] || fail "playwright-core is not installed: npm ci --prefix tests/browser (tests/install-build-test.sh does it)"
+[ -x "$marzipan" ] || fail "no marzipan executable at $marzipan: build it, or set MARZIPAN"
+export MARZIPAN="$(cd "$(dirname "$marzipan")" && pwd)/$(basename "$marzipan")"
+export CHROMIUM="$chromium"
+exec node --test --test-concurrency=1 client.test.mjs

@@ -1,0 +1,346 @@
+// The web client: wires the session (net/), the picture (render/), the controls (ui/) and the
+// camera (math/) together. It holds no protocol or drawing logic of its own, only what
+// happens when: joining, splats arriving, views switching, buttons pressed.
+// Conventions: world in vu of the session grid, y up. The page's URL fragment carries the
+// session link (#session=ID&token=TOKEN) once a session is open, so reloading the page rejoins
+// it. `window.marzipan` is this App, for looking at its state from the browser's console.
+
+import { decodeSplats } from "/protocol/js/splats.js";
+import { OrbitCamera } from "./math/orbit-camera.js";
+import { RpcError } from "./net/rpc-error.js";
+import { FrameFeed } from "./net/frame-feed.js";
+import { SessionClient } from "./net/session-client.js";
+import { parseSessionLink, sessionLink } from "./net/session-link.js";
+import { Renderer } from "./render/renderer.js";
+import { SplatStore } from "./render/splat-store.js";
+import { Controls } from "./ui/controls.js";
+import { download, fileName, readFile } from "./ui/files.js";
+import { Messages } from "./ui/messages.js";
+import { PointerInput } from "./ui/pointer-input.js";
+import { Sculpt } from "./ui/sculpt.js";
+import { ShareDialog } from "./ui/share-dialog.js";
+import { installShortcuts } from "./ui/shortcuts.js";
+import { StartScreen } from "./ui/start-screen.js";
+import { StatusBar } from "./ui/status-bar.js";
+import { GLOBAL_OPS } from "./ui/tools.js";
+
+const STATUS_REFRESH_MS = 500;
+const FRAME_TIME_FRAMES = 60;
+
+export class App {
+  constructor(doc, win) {
+    this.doc = doc;
+    this.win = win;
+    this.store = new SplatStore();
+    this.camera = new OrbitCamera();
+    this.canvas = doc.getElementById("view");
+    this.renderer = new Renderer(this.canvas, this.store, this.camera);
+    this.session = new SessionClient(win.location.href);
+    this.messages = new Messages(doc);
+    this.status = new StatusBar(doc);
+    this.startScreen = new StartScreen(doc);
+    this.shareDialog = new ShareDialog(doc);
+    this.frameFeed = new FrameFeed(this.session, this.camera, this.renderer, () =>
+      this.status.frame(this.frameFeed.last, this.frameFeed.received),
+    );
+    this.renderer.onBeforeDraw.push(() => this.frameFeed.tick());
+    this.controls = new Controls(doc, this.#controlHandlers());
+    this.sculpt = new Sculpt({
+      session: this.session,
+      store: this.store,
+      camera: this.camera,
+      renderer: this.renderer,
+      controls: this.controls,
+      messages: this.messages,
+    });
+    this.input = new PointerInput(this.canvas, this.camera, {
+      hover: (x, y) => this.sculpt.hover(x, y),
+      leave: () => this.sculpt.leave(),
+      sculptGestureAt: (x, y) => this.sculpt.sculptGestureAt(x, y),
+      strokeStart: (x, y, p) => this.sculpt.strokeStart(x, y, p),
+      strokeMove: (x, y, p) => this.sculpt.strokeMove(x, y, p),
+      strokeEnd: () => this.sculpt.strokeEnd(),
+      click: (x, y) => this.sculpt.click(x, y),
+      brushDrag: (dx, dy) => this.sculpt.brushDrag(dx, dy),
+      cameraChanged: () => this.#cameraChanged(),
+    });
+    installShortcuts(doc, this.#shortcutActions());
+    this.#listen();
+    this.joinToken = null; // the token this client holds (edit or view)
+    this.fitOnNextFull = false;
+    this.lastMeasure = null;
+    win.setInterval(() => this.status.fps(this.renderer.fps, this.renderer.lastDrawMs), STATUS_REFRESH_MS);
+    this.#updateAvailability();
+  }
+
+  // Joins the session of the page's link, or asks what to do.
+  async start() {
+    const link = parseSessionLink(this.win.location.hash);
+    if (link) {
+      try {
+        await this.#open({ join: link });
+        return;
+      } catch (e) {
+        this.startScreen.showError(`Could not join the session of this link: ${describe(e)}`);
+      }
+    }
+    await this.#chooseSession(false);
+  }
+
+  async #chooseSession(closable) {
+    for (;;) {
+      const choice = await this.startScreen.choose({ closable });
+      if (!choice) return;
+      try {
+        await this.#open(choice);
+        this.startScreen.close();
+        return;
+      } catch (e) {
+        this.startScreen.showError(describe(e));
+      }
+    }
+  }
+
+  // Leaves any open session, then creates or joins one.
+  async #open(choice) {
+    this.input.cancel();
+    if (this.session.info) {
+      this.session.leave();
+      this.store.clear();
+    }
+    this.fitOnNextFull = true;
+    if (choice.create) {
+      const result = await this.session.create(choice.create);
+      this.joinToken = result.token;
+    } else {
+      await this.session.join(choice.join);
+      this.joinToken = choice.join.token;
+    }
+    this.win.history.replaceState(null, "", sessionLink(this.win.location.href, this.session.info.session, this.joinToken));
+    if (this.controls.settings.view === "frames") await this.frameFeed.start(this.controls.settings.shading);
+  }
+
+  #listen() {
+    const s = this.session;
+    s.addEventListener("connection", (e) => {
+      this.status.connection(e.detail);
+      if (e.detail.state !== "connected") this.input.cancel();
+      this.#updateAvailability();
+    });
+    s.addEventListener("joined", (e) => {
+      const { info, rejoined } = e.detail;
+      this.camera.setDomain(info.size);
+      this.status.session(info);
+      this.status.clients(s.clients, info.client);
+      if (rejoined) {
+        this.messages.notice(`Reconnected to the session at revision ${info.revision}.`);
+        this.frameFeed.rejoined();
+      } else {
+        this.#fitModel();
+      }
+      this.#updateAvailability();
+      this.renderer.requestRedraw();
+    });
+    s.addEventListener("state", (e) => {
+      this.status.state(e.detail);
+      this.doc.title = `Marzipan · rev ${e.detail.revision}`;
+      this.frameFeed.sessionChanged();
+      this.#updateAvailability();
+    });
+    s.addEventListener("clients", (e) => this.status.clients(e.detail.clients, s.info && s.info.client));
+    s.addEventListener("rtt", (e) => this.status.rtt(e.detail.method, e.detail.ms));
+    s.addEventListener("splats", (e) => this.#splats(e.detail));
+    s.addEventListener("frame", (e) => {
+      const { kind, revision, payload } = e.detail;
+      this.frameFeed.show(kind, revision, payload);
+    });
+    s.addEventListener("error", (e) => {
+      const { error, context } = e.detail;
+      // A lost connection fails every pending request at once; the connection message says it once.
+      if (error.name !== "ConnectionLost" && error.name !== "ConnectionRefused") this.messages.error(error, context);
+    });
+    s.addEventListener("lost", (e) => {
+      this.messages.error(e.detail.error, "rejoining");
+      this.#chooseSession(false);
+    });
+  }
+
+  #splats({ full, revision, payload }) {
+    const decoded = decodeSplats(payload);
+    if (!decoded.ok) {
+      this.messages.error(new Error(`splat buffer refused (${decoded.code}): ${decoded.message}`));
+      return;
+    }
+    if (full) this.store.applyFull(decoded, revision);
+    else this.store.applyDelta(decoded, revision);
+    if (full && this.fitOnNextFull) {
+      this.fitOnNextFull = false;
+      this.#fitModel();
+      this.#cameraChanged();
+    }
+    this.status.splats(this.store.pointCount, this.store.bricks.size, this.store.revision);
+    this.sculpt.refresh();
+  }
+
+  // Frames the model (its splats), or the whole domain when it has none.
+  #fitModel() {
+    const aspect = this.canvas.clientWidth / Math.max(1, this.canvas.clientHeight);
+    if (this.store.pointCount) this.camera.fitPoints([...this.store.bricks.values()].map((b) => b.positions), aspect);
+    else this.camera.fit(null, null, aspect);
+  }
+
+  #cameraChanged() {
+    this.frameFeed.cameraMoved();
+    this.sculpt.refresh();
+  }
+
+  #updateAvailability() {
+    const s = this.session;
+    this.controls.setAvailability({ connected: s.connected, readOnly: s.readOnly, canUndo: s.canUndo, canRedo: s.canRedo });
+  }
+
+  // Runs an edit that answers by itself through "error" events; the promise's rejection is
+  // already reported, so it is swallowed here.
+  #quietly(promise) {
+    return promise.catch(() => undefined);
+  }
+
+  #controlHandlers() {
+    return {
+      onSettings: () => this.sculpt && this.sculpt.refresh(),
+      onUndo: () => this.session.connected && this.#quietly(this.session.undo()),
+      onRedo: () => this.session.connected && this.#quietly(this.session.redo()),
+      onGlobal: (op, amount) => this.#global(op, amount),
+      onCamera: (name) => this.#cameraPreset(name),
+      onView: (view, shading) => this.#setView(view, shading),
+      onExport: (format) => this.#exportMesh(format),
+      onSaveVolume: () => this.#saveVolume(),
+      onLoadVolume: (file) => this.#loadVolume(file),
+      onSnapshot: () => this.#snapshot(),
+      onStats: () => this.#stats(),
+      onMeasure: () => this.measureFrameTime(),
+      onShare: () => this.shareDialog.open(this.win.location.href, this.session.info, this.joinToken),
+      onNewSession: () => this.#chooseSession(Boolean(this.session.info)),
+    };
+  }
+
+  #shortcutActions() {
+    const c = () => this.controls;
+    return {
+      canvas: this.canvas,
+      undo: () => this.controls.handlers.onUndo(),
+      redo: () => this.controls.handlers.onRedo(),
+      tool: (id) => c().setTool(id),
+      radiusBy: (k) => c().setRadius(c().settings.radius * k),
+      strengthBy: (d) => c().setStrength(c().secondValue + d),
+      toggleView: () => c().setView(c().settings.view === "splats" ? "frames" : "splats"),
+      toggleGradientError: () => c().setShading(c().settings.shading === "gradient_error" ? "lit" : "gradient_error"),
+      camera: (name) => this.#cameraPreset(name),
+      zoom: (k) => {
+        this.camera.zoom(k);
+        this.#cameraChanged();
+      },
+      orbit: (dx, dy) => {
+        this.camera.orbit(dx, dy, this.canvas.clientHeight);
+        this.#cameraChanged();
+      },
+      cancel: () => this.input.cancel(),
+    };
+  }
+
+  #cameraPreset(name) {
+    this.camera.setPreset(name);
+    if (name === "home") this.#fitModel();
+    this.#cameraChanged();
+  }
+
+  async #setView(view, shading) {
+    this.renderer.view = view;
+    this.renderer.shading = shading === "normals" ? "normals" : "lit";
+    try {
+      if (view === "frames") await this.frameFeed.start(shading);
+      else if (this.frameFeed.active) await this.frameFeed.stop();
+    } catch {
+      // reported by the session's "error" event
+    }
+    this.renderer.requestRedraw();
+  }
+
+  async #global(op, amount) {
+    const spec = GLOBAL_OPS[op];
+    if (!(amount >= spec.min && amount <= spec.max)) {
+      this.messages.error(new Error(`${spec.amount} must be between ${spec.min} and ${spec.max}`));
+      return;
+    }
+    const work =
+      op === "smooth"
+        ? this.session.applyTool({ tool: "smooth", global: true, iterations: Math.round(amount), strength: this.controls.settings.strength })
+        : this.session.morph(op, amount);
+    await this.#quietly(this.messages.during(`${spec.label} the whole volume`, work));
+  }
+
+  async #exportMesh(format) {
+    try {
+      const { result, frame } = await this.messages.during(`Exporting ${format.toUpperCase()}`, this.session.exportMesh(format));
+      download(frame.payload, fileName(this.session.info.session, result.revision, format));
+      this.messages.notice(`${format.toUpperCase()}: ${result.triangles.toLocaleString("en")} triangles, ${formatBytes(result.bytes)}.`);
+    } catch {
+      // reported by the session's "error" event
+    }
+  }
+
+  async #saveVolume() {
+    try {
+      const { result, frame } = await this.messages.during("Saving the volume", this.session.saveVolume());
+      download(frame.payload, fileName(this.session.info.session, result.revision, "mzv"));
+    } catch {
+      // reported by the session's "error" event
+    }
+  }
+
+  async #loadVolume(file) {
+    const bytes = await readFile(file);
+    const limit = this.session.info.limits && this.session.info.limits.max_binary_bytes;
+    if (limit && bytes.byteLength + 24 > limit) {
+      this.messages.error(new Error(`${file.name} is ${formatBytes(bytes.byteLength)}, over the server's upload limit of ${formatBytes(limit - 24)}`));
+      return;
+    }
+    await this.#quietly(this.messages.during(`Loading ${file.name}`, this.session.loadVolume(bytes)));
+  }
+
+  async #snapshot() {
+    const blob = await this.renderer.snapshot();
+    const info = this.session.info;
+    download(blob, fileName(info ? info.session : "nosession", this.session.revision, "png"));
+  }
+
+  async #stats() {
+    try {
+      this.status.stats(await this.messages.during("Measuring the volume", this.session.stats()));
+    } catch {
+      // reported by the session's "error" event
+    }
+  }
+
+  // Orbits once and times every frame (render/renderer.js, measure()); the result shows in the
+  // session details.
+  async measureFrameTime(frames = FRAME_TIME_FRAMES) {
+    const m = await this.messages.during("Measuring the frame time", this.renderer.measure(frames));
+    this.lastMeasure = m;
+    this.status.frameTime(m);
+    this.messages.notice(`Frame time ${m.meanMs.toFixed(1)} ms (p95 ${m.p95Ms.toFixed(1)} ms) for ${m.points.toLocaleString("en")} points.`);
+    return m;
+  }
+}
+
+function describe(e) {
+  if (e instanceof RpcError) return `${e.message} [${e.code} ${e.codeName}]`;
+  if (e && e.name === "ConnectionLost") return "the connection closed before the server answered";
+  return e && e.message ? e.message : String(e);
+}
+
+function formatBytes(n) {
+  if (n < 1024) return `${n} B`;
+  if (n < 1048576) return `${(n / 1024).toFixed(1)} KiB`;
+  return `${(n / 1048576).toFixed(1)} MiB`;
+}

@@ -1,0 +1,194 @@
+// An orbit camera around a target point, the one camera of both views: the splat view draws
+// with its matrices, the frame view sends it to the server as a ray-cast camera.
+// Conventions: world in vu of the session grid, y up; angles in radians. yaw 0 and pitch 0 put
+// the eye on the +z side of the target (the "front" view); yaw turns it towards +x ("side"),
+// pitch towards +y ("top"). Pitch stays within [-pi/2, pi/2], so the camera never rolls over;
+// `up` is the camera's own up vector, never parallel to the view direction (the server refuses
+// such cameras). Pixel coordinates have y down from the top-left, as in pointer events.
+
+import * as mat4 from "./mat4.js";
+import { addScaled, cross, length, normalize, sub } from "./vec3.js";
+
+export const DEFAULT_FOV_DEGREES = 40; // the server's default, so both views frame alike
+const HALF_PI = Math.PI / 2;
+const FIT_MARGIN = 0.8; // a fitted box fills at most this much of the view's half-extent
+
+export const VIEW_PRESETS = Object.freeze({
+  front: { yaw: 0, pitch: 0 },
+  side: { yaw: HALF_PI, pitch: 0 },
+  top: { yaw: 0, pitch: HALF_PI },
+  home: { yaw: Math.PI / 5, pitch: Math.PI / 7 },
+});
+
+export class OrbitCamera {
+  constructor(dims = [128, 128, 128]) {
+    this.fovDegrees = DEFAULT_FOV_DEGREES;
+    this.target = [0, 0, 0];
+    this.distance = 1;
+    this.yaw = VIEW_PRESETS.home.yaw;
+    this.pitch = VIEW_PRESETS.home.pitch;
+    this.setDomain(dims);
+    this.view = mat4.create();
+    this.projection = mat4.create();
+    this.viewProjection = mat4.create();
+  }
+
+  // The session grid: limits zoom and sets the clip planes so that nothing inside the domain is
+  // ever clipped, whatever the orbit.
+  setDomain(dims) {
+    this.dims = [...dims];
+    this.domainCenter = dims.map((n) => (n - 1) / 2);
+    // Foot points may sit up to 2 vu outside the outermost voxels.
+    this.domainRadius = 0.5 * Math.hypot(dims[0], dims[1], dims[2]) + 2;
+    this.minDistance = Math.max(1, 0.02 * Math.max(...dims));
+    this.maxDistance = 8 * this.domainRadius;
+    this.distance = clamp(this.distance, this.minDistance, this.maxDistance);
+  }
+
+  get fovY() {
+    return (this.fovDegrees * Math.PI) / 180;
+  }
+
+  // Unit vector from the target towards the eye.
+  get backward() {
+    const cp = Math.cos(this.pitch);
+    return [cp * Math.sin(this.yaw), Math.sin(this.pitch), cp * Math.cos(this.yaw)];
+  }
+
+  get eye() {
+    return addScaled(this.target, this.backward, this.distance);
+  }
+
+  get up() {
+    const sp = Math.sin(this.pitch);
+    return [-sp * Math.sin(this.yaw), Math.cos(this.pitch), -sp * Math.cos(this.yaw)];
+  }
+
+  get right() {
+    return normalize(cross(this.up, this.backward));
+  }
+
+  // Frames the box [lo, hi] (vu) as seen from the current direction in a viewport of the given
+  // aspect (width / height): the target goes to the box's centre and the eye just far enough
+  // back that all eight corners are in view with a margin. No box frames the whole domain.
+  fit(lo, hi, aspect = 1) {
+    const box = lo && hi ? [lo, hi] : [[0, 0, 0], this.dims.map((n) => n - 1)];
+    const corners = new Float32Array(24);
+    for (let c = 0; c < 8; ++c) for (let k = 0; k < 3; ++k) corners[3 * c + k] = box[(c >> k) & 1][k];
+    this.fitPoints([corners], aspect);
+  }
+
+  // The same for a cloud of points (Float32Arrays of x, y, z per point): the target goes to the
+  // centre of their box and every point is in view, so the model itself fills the view rather
+  // than its bounding box. Nothing happens for no points.
+  fitPoints(arrays, aspect = 1) {
+    const lo = [Infinity, Infinity, Infinity];
+    const hi = [-Infinity, -Infinity, -Infinity];
+    for (const a of arrays)
+      for (let i = 0; i < a.length; i += 3)
+        for (let k = 0; k < 3; ++k) {
+          lo[k] = Math.min(lo[k], a[i + k]);
+          hi[k] = Math.max(hi[k], a[i + k]);
+        }
+    if (!(lo[0] <= hi[0])) return;
+    const t = lo.map((v, k) => (v + hi[k]) / 2);
+    const tanV = FIT_MARGIN * Math.tan(this.fovY / 2);
+    const tanH = tanV * aspect;
+    const [r, u, b] = [this.right, this.up, this.backward];
+    let distance = 1;
+    for (const a of arrays)
+      for (let i = 0; i < a.length; i += 3) {
+        const x = a[i] - t[0], y = a[i + 1] - t[1], z = a[i + 2] - t[2];
+        const along = x * b[0] + y * b[1] + z * b[2];
+        const sideways = Math.abs(x * r[0] + y * r[1] + z * r[2]) / tanH;
+        const upwards = Math.abs(x * u[0] + y * u[1] + z * u[2]) / tanV;
+        distance = Math.max(distance, along + sideways, along + upwards);
+      }
+    this.target = t;
+    this.distance = clamp(distance, this.minDistance, this.maxDistance);
+  }
+
+  setPreset(name) {
+    const p = VIEW_PRESETS[name];
+    this.yaw = p.yaw;
+    this.pitch = p.pitch;
+  }
+
+  // Drag by (dx, dy) pixels in a viewport `height` pixels tall: a full height turns by 180 deg.
+  orbit(dx, dy, height) {
+    const k = Math.PI / Math.max(1, height);
+    this.yaw = wrapAngle(this.yaw - dx * k);
+    this.pitch = clamp(this.pitch + dy * k, -HALF_PI, HALF_PI);
+  }
+
+  // Moves the target so that the point under the cursor follows it (at the target's depth).
+  pan(dx, dy, height) {
+    const perPixel = this.worldPerPixel(height);
+    this.target = addScaled(addScaled(this.target, this.right, -dx * perPixel), this.up, dy * perPixel);
+    this.target = this.target.map((v, i) => clamp(v, -this.dims[i], 2 * this.dims[i]));
+  }
+
+  // factor < 1 moves closer.
+  zoom(factor) {
+    this.distance = clamp(this.distance * factor, this.minDistance, this.maxDistance);
+  }
+
+  // Size of one pixel at the target's depth, in vu.
+  worldPerPixel(height) {
+    return (2 * this.distance * Math.tan(this.fovY / 2)) / Math.max(1, height);
+  }
+
+  // Clip planes that hold the whole domain: beyond its far side is nothing to draw, and the
+  // near plane comes as close as depth precision allows when the eye is inside the domain.
+  clipPlanes() {
+    const dc = length(sub(this.eye, this.domainCenter));
+    const far = dc + this.domainRadius;
+    const near = Math.max(dc - this.domainRadius, far / 4000, 0.05);
+    return { near, far };
+  }
+
+  // Updates view, projection and viewProjection for a viewport of width x height pixels.
+  update(width, height) {
+    const { near, far } = this.clipPlanes();
+    mat4.lookAt(this.view, this.eye, this.target, this.up);
+    mat4.perspective(this.projection, this.fovY, width / Math.max(1, height), near, far);
+    mat4.multiply(this.viewProjection, this.projection, this.view);
+    return this;
+  }
+
+  // The ray through pixel (x, y) of a width x height viewport (continuous coordinates: the
+  // centre of pixel (i, j) is (i + 0.5, j + 0.5)): {origin, direction (unit)}.
+  ray(x, y, width, height) {
+    const t = Math.tan(this.fovY / 2);
+    const sx = ((2 * x) / width - 1) * t * (width / height);
+    const sy = (1 - (2 * y) / height) * t;
+    const forward = this.backward.map((v) => -v);
+    const dir = addScaled(addScaled(forward, this.right, sx), this.up, sy);
+    return { origin: this.eye, direction: normalize(dir) };
+  }
+
+  // The camera object of PROTOCOL.md (view.set, render.frame).
+  toProtocol() {
+    return { eye: this.eye, target: [...this.target], up: this.up, fov: this.fovDegrees };
+  }
+
+  // A plain copy of the orbit state, and back: for change detection and resets.
+  state() {
+    return { target: [...this.target], distance: this.distance, yaw: this.yaw, pitch: this.pitch };
+  }
+
+  setState(s) {
+    this.target = [...s.target];
+    this.distance = clamp(s.distance, this.minDistance, this.maxDistance);
+    this.yaw = s.yaw;
+    this.pitch = clamp(s.pitch, -HALF_PI, HALF_PI);
+  }
+}
+
+function clamp(v, lo, hi) {
+  return Math.min(hi, Math.max(lo, v));
+}
+
+function wrapAngle(a) {
+  return a - 2 * Math.PI * Math.floor((a + Math.PI) / (2 * Math.PI));
+}

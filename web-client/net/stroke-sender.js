@@ -1,0 +1,83 @@
+// One brush stroke on the wire: stroke.begin, dabs as they happen, stroke.end
+// (PROTOCOL.md, "stroke.begin / stroke.dabs / stroke.end").
+// Conventions: a dab is {ray: {origin, direction}, pressure} in vu; the server picks the
+// surface along each ray on the live volume, so dabs land on the surface as it is when they
+// apply, even if this client's splats lag behind. Dabs queue until stroke.begin has answered
+// with the stroke's id, and go out at most once per display frame (flush()), in one
+// stroke.dabs of up to max_dabs; while MAX_IN_FLIGHT messages are unanswered, dabs wait and
+// merge into the next message, so a slow server gets fewer, larger messages rather than a
+// growing backlog. Every message has an id: failures come back and are shown.
+
+const MAX_IN_FLIGHT = 3;
+
+export class StrokeSender {
+  // session: net/session-client.js; maxDabs: the server's max_dabs limit.
+  constructor(session, { tool, radius, strength, symmetry }, maxDabs = 256) {
+    this.session = session;
+    this.maxDabs = maxDabs;
+    this.queue = [];
+    this.inFlight = 0;
+    this.ended = false;
+    this.failed = false;
+    this.applied = 0; // dabs the server reported as applied
+    this.stroke = null;
+    const params = { tool, radius, strength };
+    if (symmetry && symmetry.length) params.symmetry = symmetry;
+    this.begun = session.beginStroke(params).then(
+      (id) => {
+        this.stroke = id;
+        this.flush();
+      },
+      () => {
+        this.failed = true;
+        this.queue.length = 0;
+        this.#maybeEnd();
+      },
+    );
+  }
+
+  add(dab) {
+    if (!this.failed && !this.ended) this.queue.push(dab);
+  }
+
+  // Sends what is queued, if the stroke has its id and the pipe is not full.
+  flush() {
+    if (this.stroke === null || this.failed) return;
+    while (this.queue.length && this.inFlight < MAX_IN_FLIGHT) {
+      const dabs = this.queue.splice(0, this.maxDabs);
+      ++this.inFlight;
+      this.session.strokeDabs(this.stroke, dabs).then(
+        (result) => {
+          this.applied += result.applied;
+        },
+        () => {
+          this.failed = true;
+          this.queue.length = 0;
+        },
+      ).finally(() => {
+        --this.inFlight;
+        this.flush();
+        this.#maybeEnd();
+      });
+    }
+    this.#maybeEnd();
+  }
+
+  // Ends the stroke once every queued dab is out; resolves when stroke.end has answered.
+  end() {
+    this.ended = true;
+    this.done = new Promise((resolve) => {
+      this.resolveDone = resolve;
+    });
+    this.begun.then(() => this.flush());
+    return this.done;
+  }
+
+  #maybeEnd() {
+    if (!this.ended || this.sentEnd || this.queue.length || this.inFlight) return;
+    if (this.stroke === null && !this.failed) return;
+    this.sentEnd = true;
+    if (this.stroke === null) return this.resolveDone(null);
+    this.session.endStroke(this.stroke).then(this.resolveDone, () => this.resolveDone(null));
+  }
+}

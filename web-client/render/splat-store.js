@@ -1,0 +1,130 @@
+// The client's copy of the session's splats, brick by brick, and the record of what the GPU
+// buffer must change to match it.
+// Conventions: positions in vu, normals unit (render/../protocol/js/splats.js decodes them);
+// a brick's key is x + 65536 (y + 65536 z) of its brick coordinates. A full buffer replaces
+// everything; a delta replaces the listed bricks and removes those with 0 points
+// (PROTOCOL.md, "Binary frames"). The store keeps the decoded arrays it is given (views into
+// the decoded message), so a brick costs no copy on the CPU side.
+// Ownership: SplatBuffer (render/splat-buffer.js) consumes the changes with takeChanges().
+
+import { SlotAllocator } from "./slot-allocator.js";
+
+const BRICK = 8;
+// Extra points of room for a brick that a delta moves to a new slot: edits come in runs.
+const DELTA_HEADROOM = 16;
+
+export function brickKey(b) {
+  return b[0] + 65536 * (b[1] + 65536 * b[2]);
+}
+
+export class SplatStore {
+  constructor() {
+    this.allocator = new SlotAllocator();
+    this.bricks = new Map(); // key -> {brick, count, positions, normals, slot}
+    this.pointCount = 0;
+    this.revision = 0; // revision of the newest buffer applied (a Number)
+    this.version = 0; // grows with every change, for views that cache derived data
+    this.repack = true; // the next takeChanges() is a full upload
+    this.writes = new Set(); // entries whose points must be uploaded
+    this.clears = []; // slots released since the last takeChanges()
+  }
+
+  // Decoded kind-1 payload (protocol/js/splats.js): replaces everything.
+  applyFull(decoded, revision) {
+    this.bricks.clear();
+    this.pointCount = 0;
+    for (const b of decoded.bricks) {
+      if (b.count === 0) continue;
+      this.bricks.set(brickKey(b.brick), { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, slot: null });
+      this.pointCount += b.count;
+    }
+    this.#packAll();
+    this.revision = revision;
+    ++this.version;
+  }
+
+  // Decoded kind-2 payload: each listed brick replaces its old points; 0 points removes it.
+  applyDelta(decoded, revision) {
+    for (const b of decoded.bricks) {
+      const key = brickKey(b.brick);
+      const old = this.bricks.get(key);
+      if (old) {
+        this.pointCount -= old.count;
+        if (b.count === 0 || !this.allocator.fits(old.slot, b.count)) {
+          this.#release(old);
+        }
+      }
+      if (b.count === 0) {
+        this.bricks.delete(key);
+        continue;
+      }
+      const entry = { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, slot: null };
+      entry.slot = old && old.slot && this.allocator.fits(old.slot, b.count) ? old.slot : this.allocator.allocate(b.count, DELTA_HEADROOM);
+      if (old) this.writes.delete(old);
+      this.bricks.set(key, entry);
+      this.writes.add(entry);
+      this.pointCount += b.count;
+    }
+    if (this.allocator.fragmented()) this.#packAll();
+    this.revision = Math.max(this.revision, revision);
+    ++this.version;
+  }
+
+  // The GPU copy is gone (a lost context): the next takeChanges() uploads everything again.
+  requestRepack() {
+    this.repack = true;
+  }
+
+  clear() {
+    this.bricks.clear();
+    this.pointCount = 0;
+    this.#packAll();
+    ++this.version;
+  }
+
+  // What changed since the last call: {repack: true} means "upload every brick at its slot and
+  // draw nothing else"; otherwise `clears` are slots to mark invalid (before the writes, which
+  // may reuse them) and `writes` are bricks to upload.
+  takeChanges() {
+    const changes = { repack: this.repack, clears: this.clears, writes: [...this.writes] };
+    this.repack = false;
+    this.clears = [];
+    this.writes.clear();
+    return changes;
+  }
+
+  // Point slots the GPU must draw (live or not): the allocator's high-water mark.
+  get slotCount() {
+    return this.allocator.highWater;
+  }
+
+  // The box of the voxels of every brick with points, {lo, hi} in vu, or null when empty.
+  bounds() {
+    if (this.bricks.size === 0) return null;
+    const lo = [Infinity, Infinity, Infinity];
+    const hi = [-Infinity, -Infinity, -Infinity];
+    for (const { brick } of this.bricks.values())
+      for (let k = 0; k < 3; ++k) {
+        lo[k] = Math.min(lo[k], BRICK * brick[k]);
+        hi[k] = Math.max(hi[k], BRICK * brick[k] + BRICK - 1);
+      }
+    return { lo, hi };
+  }
+
+  #release(entry) {
+    if (!entry.slot) return;
+    this.allocator.release(entry.slot);
+    this.clears.push(entry.slot);
+    this.writes.delete(entry);
+    entry.slot = null;
+  }
+
+  // Every brick into a fresh, gapless run of slots (in map order).
+  #packAll() {
+    this.allocator.reset();
+    for (const entry of this.bricks.values()) entry.slot = this.allocator.allocate(entry.count);
+    this.repack = true;
+    this.clears = [];
+    this.writes.clear();
+  }
+}

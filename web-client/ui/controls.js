@@ -1,0 +1,173 @@
+// The side panel: the tool palette, brush settings, whole-volume operations, history, view,
+// files and session details. It owns `settings`, which the sculpting code reads, and calls the
+// app's handlers for actions; it never talks to the server itself.
+// Conventions: radius in vu (0.5 to 1024, the server's range; the slider covers 1 to 64 and
+// the keys go beyond); strength in (0, 1] for brushes; for CSG tools the same slider sets the
+// blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x", "y", "z").
+
+import { GLOBAL_OPS, TOOLS, toolById } from "./tools.js";
+
+export const RADIUS_MIN = 0.5;
+export const RADIUS_MAX = 1024;
+
+export class Controls {
+  constructor(doc, handlers) {
+    this.doc = doc;
+    this.handlers = handlers;
+    this.settings = {
+      tool: "add_blob",
+      radius: 8,
+      strength: 0.5,
+      blend: 0.2,
+      shape: "sphere",
+      symmetry: [],
+      view: "splats",
+      shading: "lit",
+    };
+    const $ = (id) => doc.getElementById(id);
+    this.$ = $;
+    this.#buildPalette();
+
+    this.radius = $("radius");
+    this.strength = $("strength");
+    this.radius.addEventListener("input", () => this.setRadius(Number(this.radius.value)));
+    this.strength.addEventListener("input", () => this.setStrength(Number(this.strength.value)));
+    $("shape").addEventListener("change", (e) => (this.settings.shape = e.target.value));
+    for (const axis of ["x", "y", "z"])
+      $(`mirror-${axis}`).addEventListener("change", () => {
+        this.settings.symmetry = ["x", "y", "z"].filter((a) => $(`mirror-${a}`).checked);
+        handlers.onSettings();
+      });
+
+    const op = $("global-op");
+    op.addEventListener("change", () => this.#globalOpChanged());
+    $("global-apply").addEventListener("click", () => {
+      const amount = Number($("global-amount").value);
+      handlers.onGlobal(op.value, amount);
+    });
+    this.#globalOpChanged();
+
+    $("undo").addEventListener("click", () => handlers.onUndo());
+    $("redo").addEventListener("click", () => handlers.onRedo());
+    for (const input of doc.querySelectorAll('input[name="view"]'))
+      input.addEventListener("change", () => input.checked && this.setView(input.value));
+    $("shading").addEventListener("change", (e) => this.setShading(e.target.value));
+    for (const b of doc.querySelectorAll("[data-camera]")) b.addEventListener("click", () => handlers.onCamera(b.dataset.camera));
+    for (const b of doc.querySelectorAll("[data-export]")) b.addEventListener("click", () => handlers.onExport(b.dataset.export));
+    $("save-volume").addEventListener("click", () => handlers.onSaveVolume());
+    $("load-volume").addEventListener("change", (e) => {
+      const file = e.target.files[0];
+      e.target.value = "";
+      if (file) handlers.onLoadVolume(file);
+    });
+    $("snapshot").addEventListener("click", () => handlers.onSnapshot());
+    $("stats-refresh").addEventListener("click", () => handlers.onStats());
+    $("measure-fps").addEventListener("click", () => handlers.onMeasure());
+    $("share").addEventListener("click", () => handlers.onShare());
+    $("new-session").addEventListener("click", () => handlers.onNewSession());
+    this.#syncBrush();
+  }
+
+  get tool() {
+    return toolById(this.settings.tool);
+  }
+
+  #buildPalette() {
+    const list = this.$("tool-list");
+    for (const tool of TOOLS) {
+      const label = this.doc.createElement("label");
+      label.title = `${tool.label} (key ${tool.key.toUpperCase()})`;
+      const input = this.doc.createElement("input");
+      input.type = "radio";
+      input.name = "tool";
+      input.value = tool.id;
+      input.checked = tool.id === this.settings.tool;
+      input.setAttribute("aria-keyshortcuts", tool.key.toUpperCase());
+      input.addEventListener("change", () => input.checked && this.setTool(tool.id));
+      const kbd = this.doc.createElement("kbd");
+      kbd.textContent = tool.key.toUpperCase();
+      label.append(input, tool.label, kbd);
+      list.append(label);
+    }
+  }
+
+  setTool(id) {
+    this.settings.tool = toolById(id).id;
+    for (const input of this.doc.querySelectorAll('input[name="tool"]')) input.checked = input.value === this.settings.tool;
+    this.#syncBrush();
+    this.handlers.onSettings();
+  }
+
+  setRadius(r) {
+    this.settings.radius = Math.min(RADIUS_MAX, Math.max(RADIUS_MIN, Math.round(r * 2) / 2));
+    this.#syncBrush();
+    this.handlers.onSettings();
+  }
+
+  // The second slider: strength for brushes, blend for CSG tools.
+  setStrength(s) {
+    if (this.tool.kind === "click") this.settings.blend = Math.min(1, Math.max(0, s));
+    else this.settings.strength = Math.min(1, Math.max(0.05, Math.round(s * 20) / 20));
+    this.#syncBrush();
+    this.handlers.onSettings();
+  }
+
+  get secondValue() {
+    return this.tool.kind === "click" ? this.settings.blend : this.settings.strength;
+  }
+
+  setView(view) {
+    this.settings.view = view;
+    for (const input of this.doc.querySelectorAll('input[name="view"]')) input.checked = input.value === view;
+    if (view === "splats" && this.settings.shading === "gradient_error") this.#setShadingControl("lit");
+    this.handlers.onView(view, this.settings.shading);
+  }
+
+  setShading(shading) {
+    this.#setShadingControl(shading);
+    // Gradient error exists only in the server's frames.
+    if (shading === "gradient_error" && this.settings.view !== "frames") return this.setView("frames");
+    this.handlers.onView(this.settings.view, shading);
+  }
+
+  #setShadingControl(shading) {
+    this.settings.shading = shading;
+    this.$("shading").value = shading;
+  }
+
+  #syncBrush() {
+    const s = this.settings;
+    const click = this.tool.kind === "click";
+    this.radius.value = String(Math.min(64, s.radius));
+    this.$("radius-value").textContent = `${s.radius} vu`;
+    this.$("strength-name").textContent = click ? "Blend" : "Strength";
+    this.strength.min = click ? "0" : "0.05";
+    this.strength.value = String(this.secondValue);
+    this.$("strength-value").textContent = click ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
+    this.$("shape-row").hidden = !click;
+    this.doc.querySelector(".symmetry").hidden = click;
+  }
+
+  #globalOpChanged() {
+    const spec = GLOBAL_OPS[this.$("global-op").value];
+    const amount = this.$("global-amount");
+    this.$("global-amount-name").textContent = spec.amount;
+    amount.min = String(spec.min);
+    amount.max = String(spec.max);
+    amount.step = String(spec.step);
+    amount.value = String(spec.value);
+  }
+
+  // Enables or disables what needs a connection, edit rights, or history.
+  setAvailability({ connected, readOnly, canUndo, canRedo }) {
+    const edit = connected && !readOnly;
+    const $ = this.$;
+    for (const id of ["global-apply", "load-volume"]) $(id).disabled = !edit;
+    $("load-volume-label").setAttribute("aria-disabled", String(!edit));
+    $("undo").disabled = !edit || !canUndo;
+    $("redo").disabled = !edit || !canRedo;
+    for (const b of this.doc.querySelectorAll("[data-export]")) b.disabled = !connected;
+    for (const id of ["save-volume", "stats-refresh", "share"]) $(id).disabled = !connected;
+    this.doc.querySelector(".panel").setAttribute("aria-disabled", String(!edit));
+  }
+}

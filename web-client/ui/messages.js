@@ -1,0 +1,90 @@
+// What the person is told: error messages (every error the server returns, every lost
+// connection), short notices, and the progress indicator of long operations.
+// Conventions: messages stack in the viewport's corner and dismiss themselves after a while
+// (errors later than notices); the list is an aria-live region so screen readers announce
+// them. The server sends no progress of an operation (PROTOCOL.md has none), so the progress
+// indicator shows that something runs and for how long, not how far it has come.
+
+import { RpcError } from "../net/rpc-error.js";
+
+const ERROR_MS = 12000;
+const NOTICE_MS = 4000;
+const MAX_SHOWN = 5;
+const HISTORY = 100;
+
+export class Messages {
+  constructor(doc) {
+    this.list = doc.getElementById("messages");
+    this.progress = doc.getElementById("progress");
+    this.progressText = doc.getElementById("progress-text");
+    this.running = new Map(); // token -> {label, started}
+    this.tick = 0;
+    this.history = []; // the last HISTORY messages, {kind, text}, for the console and tests
+  }
+
+  // An Error, RpcError or ConnectionLost, in one sentence for a person.
+  error(error, context = "") {
+    let text;
+    if (error instanceof RpcError) {
+      const field = error.data && error.data.field ? ` (field "${error.data.field}")` : "";
+      text = `${error.method}: ${error.message}${field} [${error.code} ${error.codeName}]`;
+    } else {
+      text = context && context !== "protocol" && context !== "connection" ? `${context}: ${error.message}` : error.message;
+    }
+    this.#show(text, "error", ERROR_MS);
+  }
+
+  notice(text) {
+    this.#show(text, "info", NOTICE_MS);
+  }
+
+  #show(text, kind, ms) {
+    this.history.push({ kind, text });
+    if (this.history.length > HISTORY) this.history.shift();
+    const item = this.list.ownerDocument.createElement("div");
+    item.className = `message ${kind}`;
+    item.setAttribute("role", kind === "error" ? "alert" : "status");
+    const p = item.ownerDocument.createElement("p");
+    p.textContent = text;
+    const close = item.ownerDocument.createElement("button");
+    close.type = "button";
+    close.textContent = "×";
+    close.setAttribute("aria-label", "Dismiss");
+    close.addEventListener("click", () => item.remove());
+    item.append(p, close);
+    this.list.append(item);
+    while (this.list.children.length > MAX_SHOWN) this.list.firstElementChild.remove();
+    setTimeout(() => item.remove(), ms);
+  }
+
+  // Shows the progress indicator while `promise` runs; resolves and rejects as it does.
+  async during(label, promise) {
+    const token = {};
+    this.running.set(token, { label, started: performance.now() });
+    this.#updateProgress();
+    try {
+      return await promise;
+    } finally {
+      this.running.delete(token);
+      this.#updateProgress();
+    }
+  }
+
+  #updateProgress() {
+    if (!this.running.size) {
+      this.progress.hidden = true;
+      clearInterval(this.tick);
+      this.tick = 0;
+      return;
+    }
+    const render = () => {
+      const [first] = this.running.values();
+      const seconds = (performance.now() - first.started) / 1000;
+      const more = this.running.size > 1 ? ` (+${this.running.size - 1} more)` : "";
+      this.progressText.textContent = `${first.label}… ${seconds.toFixed(1)} s${more}`;
+    };
+    render();
+    this.progress.hidden = false;
+    if (!this.tick) this.tick = setInterval(render, 100);
+  }
+}

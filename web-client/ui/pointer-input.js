@@ -1,0 +1,196 @@
+// Mouse, pen, touch and trackpad on the canvas, turned into camera moves and sculpting.
+// Gestures (primary button, pen tip or one finger):
+//   on the model with a brush tool: a stroke; with a CSG tool: a click applies it (a click
+//   that drags becomes an orbit); beside the model: orbit.
+//   Alt+drag or right drag: orbit; Shift+drag or middle drag: pan; Ctrl/Cmd+drag: change the
+//   brush (sideways: radius, up and down: strength); wheel: zoom (a trackpad pinch arrives as
+//   Ctrl+wheel); two fingers: pinch to zoom and move to pan.
+// Conventions: positions in CSS pixels relative to the canvas's top-left corner (y down);
+// pressure in (0, 1]: the pen's, 1 for a mouse (whose Pointer Events pressure is a constant
+// 0.5 while a button is down), and 1 for touch screens that report none. A finger's stroke
+// starts when it moves CLICK_SLOP_PX, stays TOUCH_HOLD_MS, or lifts (a tap is one dab), so a
+// pinch that begins on the model does not dab.
+
+const CLICK_SLOP_PX = 4;
+const MIN_PRESSURE = 0.05;
+const MAX_COALESCED = 16;
+const TOUCH_HOLD_MS = 120; // a finger that stays this long on the model starts its stroke
+
+export class PointerInput {
+  constructor(canvas, camera, handlers) {
+    this.canvas = canvas;
+    this.camera = camera;
+    this.h = handlers;
+    this.gesture = null; // {kind, pointerId, x, y, startX, startY}
+    this.touches = new Map(); // pointerId -> [x, y]
+    canvas.addEventListener("pointerdown", (e) => this.#down(e));
+    canvas.addEventListener("pointermove", (e) => this.#move(e));
+    canvas.addEventListener("pointerup", (e) => this.#up(e, false));
+    canvas.addEventListener("pointercancel", (e) => this.#up(e, true));
+    canvas.addEventListener("pointerleave", (e) => {
+      if (!this.gesture && e.pointerType !== "touch") this.h.leave();
+    });
+    canvas.addEventListener("wheel", (e) => this.#wheel(e), { passive: false });
+    canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  }
+
+  // Ends whatever gesture runs (Escape, a lost connection, a second finger).
+  cancel() {
+    if (this.gesture && this.gesture.kind === "stroke") this.h.strokeEnd();
+    if (this.gesture) clearTimeout(this.gesture.timer);
+    this.#setGesture(null);
+  }
+
+  #pos(e) {
+    const r = this.canvas.getBoundingClientRect();
+    return [e.clientX - r.left, e.clientY - r.top];
+  }
+
+  #pressure(e) {
+    if (e.pointerType === "mouse" || !(e.pressure > 0)) return 1;
+    return Math.min(1, Math.max(MIN_PRESSURE, e.pressure));
+  }
+
+  #setGesture(g) {
+    this.gesture = g;
+    this.canvas.dataset.gesture = g ? g.kind : "";
+  }
+
+  #down(e) {
+    this.canvas.focus({ preventScroll: true });
+    const [x, y] = this.#pos(e);
+    if (e.pointerType === "touch") {
+      this.touches.set(e.pointerId, [x, y]);
+      if (this.touches.size === 2) {
+        this.cancel();
+        this.#setGesture({ kind: "pinch", ...this.#pinchState() });
+        return;
+      }
+      if (this.touches.size > 2) return;
+    }
+    if (this.gesture) return;
+    const g = { pointerId: e.pointerId, x, y, startX: x, startY: y };
+    if (e.button === 1) g.kind = "pan";
+    else if (e.button === 2) g.kind = e.shiftKey ? "pan" : "orbit";
+    else if (e.button !== 0) return;
+    else if (e.ctrlKey || e.metaKey) g.kind = "brush";
+    else if (e.altKey) g.kind = "orbit";
+    else if (e.shiftKey) g.kind = "pan";
+    else g.kind = this.h.sculptGestureAt(x, y) || "orbit";
+    try {
+      this.canvas.setPointerCapture(e.pointerId);
+    } catch {
+      // A pointer the browser no longer tracks cannot be captured; the gesture still works
+      // while the pointer stays over the canvas.
+    }
+    // A finger on the model may be the first of a pinch: its stroke starts only once it moves
+    // or stays, so that a second finger arriving first makes a pinch without a dab.
+    if (g.kind === "stroke" && e.pointerType === "touch") {
+      g.kind = "touch-pending";
+      g.pressure = this.#pressure(e);
+      g.timer = setTimeout(() => this.#startPendingStroke(), TOUCH_HOLD_MS);
+    }
+    this.#setGesture(g);
+    if (g.kind === "stroke") this.h.strokeStart(x, y, this.#pressure(e));
+    e.preventDefault();
+  }
+
+  #move(e) {
+    const [x, y] = this.#pos(e);
+    if (e.pointerType === "touch" && this.touches.has(e.pointerId)) this.touches.set(e.pointerId, [x, y]);
+    const g = this.gesture;
+    if (!g) {
+      if (e.pointerType !== "touch") this.h.hover(x, y);
+      return;
+    }
+    if (g.kind === "pinch") return this.#pinch();
+    if (e.pointerId !== g.pointerId) return;
+    const dx = x - g.x, dy = y - g.y;
+    g.x = x;
+    g.y = y;
+    const height = this.canvas.clientHeight;
+    switch (g.kind) {
+      case "orbit":
+        this.camera.orbit(dx, dy, height);
+        this.h.cameraChanged();
+        break;
+      case "pan":
+        this.camera.pan(dx, dy, height);
+        this.h.cameraChanged();
+        break;
+      case "brush":
+        this.h.brushDrag(dx, dy);
+        break;
+      case "click":
+        if (Math.hypot(x - g.startX, y - g.startY) > CLICK_SLOP_PX) g.kind = "orbit";
+        break;
+      case "touch-pending":
+        if (Math.hypot(x - g.startX, y - g.startY) > CLICK_SLOP_PX) {
+          this.#startPendingStroke();
+          this.h.strokeMove(x, y, this.#pressure(e));
+        }
+        break;
+      case "stroke": {
+        const samples = e.getCoalescedEvents ? e.getCoalescedEvents().slice(-MAX_COALESCED) : [];
+        if (!samples.length) samples.push(e);
+        for (const s of samples) {
+          const [sx, sy] = this.#pos(s);
+          this.h.strokeMove(sx, sy, this.#pressure(s));
+        }
+        break;
+      }
+    }
+  }
+
+  #up(e, cancelled) {
+    if (e.pointerType === "touch") {
+      this.touches.delete(e.pointerId);
+      if (this.gesture && this.gesture.kind === "pinch") {
+        if (this.touches.size < 2) this.#setGesture(null);
+        return;
+      }
+    }
+    const g = this.gesture;
+    if (!g || e.pointerId !== g.pointerId) return;
+    if (this.canvas.hasPointerCapture(e.pointerId)) this.canvas.releasePointerCapture(e.pointerId);
+    if (g.kind === "touch-pending" && !cancelled) this.#startPendingStroke(); // a tap: one dab
+    clearTimeout(g.timer);
+    this.#setGesture(null);
+    if (g.kind === "stroke") this.h.strokeEnd();
+    else if (g.kind === "click" && !cancelled) this.h.click(g.startX, g.startY);
+    if (e.pointerType !== "touch") this.h.hover(...this.#pos(e));
+  }
+
+  #startPendingStroke() {
+    const g = this.gesture;
+    if (!g || g.kind !== "touch-pending") return;
+    clearTimeout(g.timer);
+    g.kind = "stroke";
+    this.canvas.dataset.gesture = "stroke";
+    this.h.strokeStart(g.startX, g.startY, g.pressure);
+  }
+
+  #pinchState() {
+    const [a, b] = [...this.touches.values()];
+    return { distance: Math.hypot(a[0] - b[0], a[1] - b[1]), mid: [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2] };
+  }
+
+  #pinch() {
+    if (this.touches.size < 2) return;
+    const g = this.gesture;
+    const now = this.#pinchState();
+    if (g.distance > 0 && now.distance > 0) this.camera.zoom(g.distance / now.distance);
+    this.camera.pan(now.mid[0] - g.mid[0], now.mid[1] - g.mid[1], this.canvas.clientHeight);
+    g.distance = now.distance;
+    g.mid = now.mid;
+    this.h.cameraChanged();
+  }
+
+  #wheel(e) {
+    e.preventDefault();
+    const unit = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? this.canvas.clientHeight : 1;
+    const delta = e.deltaY * unit;
+    this.camera.zoom(Math.exp(delta * (e.ctrlKey ? 0.01 : 0.0015)));
+    this.h.cameraChanged();
+  }
+}

@@ -1,0 +1,160 @@
+// Sculpting with the pointer: the brush cursor under the pointer, strokes of brush dabs, and
+// clicks of CSG tools.
+// Conventions: pointer positions in CSS pixels of the canvas; world in vu. The surface under
+// the pointer is found on the client's splats (math/splat-pick.js): that places the cursor and
+// spaces the dabs (DAB_SPACING of the radius apart along the surface), but each dab goes to
+// the server as the pointer's ray, so it lands on the surface as the server has it when the
+// dab applies. Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
+// mirrored images, x' = nx - 1 - x for a mirror across x.
+
+import { DabSpacer } from "../math/dab-spacer.js";
+import { pickSplats } from "../math/splat-pick.js";
+import { LINE_PIXELS } from "../render/brush-cursor.js";
+import { DISC_RADIUS } from "../render/splat-renderer.js";
+import { StrokeSender } from "../net/stroke-sender.js";
+
+export const DAB_SPACING = 0.25;
+
+export class Sculpt {
+  constructor({ session, store, camera, renderer, controls, messages }) {
+    Object.assign(this, { session, store, camera, renderer, controls, messages });
+    this.hoverAt = null; // [x, y] of the pointer over the canvas, or null
+    this.hit = null; // the surface under it
+    this.stroke = null; // {sender, spacer}
+    this.openStrokes = 0; // strokes whose stroke.end has not answered yet
+    renderer.onBeforeDraw.push(() => this.stroke && this.stroke.sender.flush());
+  }
+
+  get editable() {
+    return this.session.connected && !this.session.readOnly;
+  }
+
+  // The surface under the pointer at (x, y): {t, point, normal} or null.
+  pick(x, y) {
+    const { origin, direction } = this.#ray(x, y);
+    return pickSplats(this.store.bricks.values(), origin, direction, DISC_RADIUS);
+  }
+
+  #ray(x, y) {
+    return this.camera.ray(x, y, this.renderer.canvas.clientWidth, this.renderer.canvas.clientHeight);
+  }
+
+  hover(x, y) {
+    this.hoverAt = [x, y];
+    this.hit = this.pick(x, y);
+    this.#updateCursor();
+  }
+
+  leave() {
+    this.hoverAt = null;
+    this.hit = null;
+    this.#updateCursor();
+  }
+
+  // The settings or the view changed: the cursor follows.
+  refresh() {
+    if (this.hoverAt) this.hit = this.pick(...this.hoverAt);
+    this.#updateCursor();
+  }
+
+  // "stroke" or "click" when a press at (x, y) sculpts, null when it should orbit instead.
+  sculptGestureAt(x, y) {
+    if (!this.editable) return null;
+    this.hit = this.pick(x, y);
+    if (!this.hit) return null;
+    return this.controls.tool.kind;
+  }
+
+  strokeStart(x, y, pressure) {
+    const s = this.controls.settings;
+    const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
+    this.stroke = {
+      sender: new StrokeSender(this.session, { tool: s.tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry }, maxDabs),
+      spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
+    };
+    this.#setOpenStrokes(this.openStrokes + 1);
+    this.strokeMove(x, y, pressure);
+  }
+
+  strokeMove(x, y, pressure) {
+    if (!this.stroke) return;
+    this.hoverAt = [x, y];
+    this.hit = this.pick(x, y);
+    for (const dab of this.stroke.spacer.add(this.hit && this.hit.point, [x, y], pressure)) {
+      const { origin, direction } = this.#ray(dab.screen[0], dab.screen[1]);
+      this.stroke.sender.add({ ray: { origin, direction }, pressure: round(dab.pressure) });
+    }
+    this.#updateCursor();
+  }
+
+  strokeEnd() {
+    if (!this.stroke) return;
+    const { sender } = this.stroke;
+    this.stroke = null;
+    sender.end().finally(() => this.#setOpenStrokes(this.openStrokes - 1));
+    this.renderer.requestRedraw();
+  }
+
+  // A CSG tool applied where the ray under (x, y) meets the surface.
+  async click(x, y) {
+    if (!this.editable) return;
+    const s = this.controls.settings;
+    const { origin, direction } = this.#ray(x, y);
+    const op = { tool: s.tool, shape: s.shape, radius: s.radius, blend: round(s.blend * s.radius), ray: { origin, direction } };
+    try {
+      const result = await this.session.applyTool(op);
+      if (result.hit === null) this.messages.notice("The click missed the surface: nothing changed.");
+    } catch {
+      // the session's "error" event has shown it
+    }
+  }
+
+  // Ctrl+drag: sideways scales the radius, up and down the strength (blend for CSG tools).
+  brushDrag(dx, dy) {
+    this.controls.setRadius(this.controls.settings.radius * Math.exp(dx * 0.01));
+    this.controls.setStrength(this.controls.secondValue - dy * 0.005);
+  }
+
+  // The canvas's data-strokes attribute says how many strokes are still on the wire.
+  #setOpenStrokes(n) {
+    this.openStrokes = n;
+    this.renderer.canvas.dataset.strokes = String(n);
+  }
+
+  #updateCursor() {
+    const rings = [];
+    const hit = this.hit;
+    if (hit && this.editable) {
+      const s = this.controls.settings;
+      const perPixel = (2 * hit.t * Math.tan(this.camera.fovY / 2)) / Math.max(1, this.renderer.canvas.clientHeight);
+      const width = LINE_PIXELS * perPixel;
+      rings.push({ center: hit.point, normal: hit.normal, radius: s.radius, width, primary: true });
+      if (this.controls.tool.kind === "stroke")
+        for (const image of mirrorImages(hit.point, hit.normal, s.symmetry, this.session.info.size))
+          rings.push({ ...image, radius: s.radius, width, primary: false });
+    }
+    this.renderer.rings = rings;
+    this.renderer.requestRedraw();
+  }
+}
+
+// The distinct mirror images of a point and its normal across the domain's middle planes of
+// the listed axes, the point itself excluded.
+export function mirrorImages(point, normal, axes, size) {
+  const images = [{ center: point, normal }];
+  for (const axis of axes) {
+    const k = "xyz".indexOf(axis);
+    for (const img of [...images]) {
+      const center = [...img.center];
+      const n = [...img.normal];
+      center[k] = size[k] - 1 - center[k];
+      n[k] = -n[k];
+      images.push({ center, normal: n });
+    }
+  }
+  return images.slice(1);
+}
+
+function round(v) {
+  return Math.round(v * 1e4) / 1e4;
+}

@@ -1,0 +1,29 @@
+// The sculpting tools of the server, as the palette shows them.
+// kind "stroke": a pointer drag is one stroke of dabs (stroke.begin / dabs / end), the brush
+// tools of PROTOCOL.md; kind "click": a click applies the tool once where the pointer ray meets
+// the surface (tool.apply with a ray), the CSG tools. Global operations are in GLOBAL_OPS.
+// `key` is the keyboard shortcut that selects the tool.
+
+export const TOOLS = Object.freeze([
+  { id: "add_blob", label: "Add blob", key: "a", kind: "stroke" },
+  { id: "remove_blob", label: "Remove blob", key: "r", kind: "stroke" },
+  { id: "smooth", label: "Smooth", key: "s", kind: "stroke" },
+  { id: "sharpen", label: "Sharpen", key: "h", kind: "stroke" },
+  { id: "csg_add", label: "CSG add", key: "c", kind: "click" },
+  { id: "csg_subtract", label: "CSG subtract", key: "x", kind: "click" },
+  { id: "csg_intersect", label: "CSG intersect", key: "i", kind: "click" },
+]);
+
+export function toolById(id) {
+  return TOOLS.find((t) => t.id === id) || TOOLS[0];
+}
+
+// The whole-volume operations: morphology (volume.morph, a radius in vu) and global smoothing
+// (tool.apply {"tool":"smooth","global":true}, a number of iterations).
+export const GLOBAL_OPS = Object.freeze({
+  dilate: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Dilating" },
+  erode: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Eroding" },
+  open: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Opening" },
+  close: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Closing" },
+  smooth: { amount: "Iterations", min: 1, max: 100000, step: 1, value: 10, label: "Smoothing" },
+});
