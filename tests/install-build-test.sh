@@ -5,13 +5,23 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 . tests/debian-packages.sh
 install_debian_packages
+# ---- Web client (tests/browser) ----------------------------------------------------------------
 # The browser tests' one npm dependency, playwright-core (pinned by tests/browser/package-lock.json);
 # reinstalled only when the lock file is newer than what node_modules holds.
 if [ ! -f tests/browser/node_modules/.package-lock.json ] ||
    [ tests/browser/package-lock.json -nt tests/browser/node_modules/.package-lock.json ]; then
   npm ci --prefix tests/browser --no-audit --no-fund
 fi
+# ---- end of Web client --------------------------------------------------------------------------
 build="${BUILD_DIR:-build}"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build" -j "$(nproc)"
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)"
+
+# ---- Hostile input (tests/sanitize.sh, tests/fuzz) -------------------------------------------
+# The engine and protocol suites under ASan + UBSan, then every fuzz target for 12 s. The whole
+# suite under ASan + UBSan is `bash tests/sanitize.sh`, under TSan `bash tests/tsan.sh`; longer
+# fuzzing is `bash tests/fuzz/run.sh 300` (tests/fuzz/README.md).
+SUITES="engine protocol" BUILD_DIR="${build}-asan" bash tests/sanitize.sh
+BUILD_DIR="${build}-fuzz" bash tests/fuzz/run.sh 12
+# ---- end of Hostile input --------------------------------------------------------------------

@@ -120,17 +120,49 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound) {
 }
 
 namespace {
-// The parser's error text starts with a bracketed exception id that means nothing to a user.
+// Far more levels than any message has (a request's dab ray is 6 deep).
+constexpr int kMaxJsonDepth = 64;
+
+// What nlohmann may append after the token it quotes: "; expected " and a token type name.
+constexpr std::string_view kExpected = "; expected ";
+constexpr std::string_view kTokenTypeNames[] = {
+    "true literal", "false literal", "null literal", "string literal", "number literal", "'['", "'{'", "']'", "'}'",
+    "':'", "','", "<parse error>", "end of input", "'[', '{', or a literal", "<uninitialized>", "unknown token"};
+
+// The parser's error text for a user: without its bracketed exception id, and with the input
+// token it quotes ("last read: '...'", "number overflow parsing '...'") cut and escaped like any
+// other quoted input, since that token is as long as the input makes it and need not be UTF-8.
 std::string jsonErrorText(const std::string& what) {
   const auto close = what.find("] ");
-  return close != std::string::npos && !what.empty() && what.front() == '[' ? what.substr(close + 2) : what;
+  const std::string text = close != std::string::npos && !what.empty() && what.front() == '[' ? what.substr(close + 2) : what;
+  for (const std::string_view open : {"last read: '", "parsing '"}) {
+    const std::size_t at = text.find(open);
+    if (at == std::string::npos) continue;
+    std::string_view token = std::string_view(text).substr(at + open.size());
+    std::string_view tail;
+    const std::size_t expected = token.rfind(kExpected);
+    if (expected != std::string_view::npos && expected > 0 && token[expected - 1] == '\'') {
+      const std::string_view name = token.substr(expected + kExpected.size());
+      for (const std::string_view known : kTokenTypeNames)
+        if (name == known) tail = token.substr(expected), token = token.substr(0, expected - 1);
+    }
+    if (tail.empty() && !token.empty() && token.back() == '\'') token.remove_suffix(1);
+    return text.substr(0, at + open.size() - 1) + inQuotes(token) + std::string(tail);
+  }
+  return text;
 }
 }  // namespace
 
 json parseJsonText(std::string_view text) {
   std::vector<std::set<std::string>> openObjects;
   std::string duplicate;
-  const json::parser_callback_t noteKeys = [&](int, json::parse_event_t event, json& parsed) {
+  const json::parser_callback_t noteKeys = [&](int depth, json::parse_event_t event, json& parsed) {
+    // The parser itself does not recurse, but copying, comparing or writing a value does, once
+    // per level: a 1 MiB frame of brackets would overflow the stack. Refused while reading,
+    // before the levels exist.
+    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
+        depth >= kMaxJsonDepth)
+      throw OpError("", "not valid JSON: nested deeper than " + std::to_string(kMaxJsonDepth) + " arrays and objects");
     switch (event) {
       case json::parse_event_t::object_start:
         openObjects.emplace_back();

@@ -52,7 +52,8 @@ std::int64_t integerInRange(const json& v, std::string_view key, std::int64_t lo
 Vec3 vec3Value(const json& v, std::string_view key, double bound);
 
 // One JSON value from text. Throws OpError with an empty field when the text is not exactly
-// one JSON value or an object repeats a key (a reader would silently keep only one of them).
+// one JSON value or an object repeats a key (a reader would silently keep only one of them),
+// and when arrays and objects nest deeper than 64 levels (values are copied recursively).
 json parseJsonText(std::string_view text);
 
 }  // namespace marzipan::protocol::checks

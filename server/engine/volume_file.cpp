@@ -61,10 +61,11 @@ std::string brickName(Int3 b) {
 std::uint64_t orderKey(Int3 b) { return std::uint64_t(b.z) << 32 | std::uint64_t(b.y) << 16 | std::uint64_t(b.x); }
 
 // Reads the 8-byte brick address (u16 x, y, z, reserved) and checks it against the grid and
-// the z, y, x order that makes files canonical.
+// the z, y, x order that makes files canonical. `what` ("stored", "inside") names the section.
 Int3 readAddress(const std::uint8_t* p, Int3 grid, std::uint64_t& lastKey, bool& first, const char* what) {
   const Int3 b{int(get16(p)), int(get16(p + 2)), int(get16(p + 4))};
-  if (get16(p + 6) != 0) formatError(std::string("reserved bytes of a ") + what + " must be 0");
+  if (get16(p + 6) != 0)
+    formatError("reserved bytes of the address of " + std::string(what) + " " + brickName(b) + " must be 0");
   if (b.x >= grid.x || b.y >= grid.y || b.z >= grid.z)
     formatError(std::string(what) + " " + brickName(b) + " is outside the brick grid " + std::to_string(grid.x) + "x" +
                 std::to_string(grid.y) + "x" + std::to_string(grid.z));
@@ -184,7 +185,7 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
   std::uint64_t lastKey = 0;
   bool first = true;
   for (std::uint64_t i = 0; i < present; ++i, at += kVolumeFileBrickBytes) {
-    const Int3 b = readAddress(p + at, grid, lastKey, first, "stored brick");
+    const Int3 b = readAddress(p + at, grid, lastKey, first, "stored");
     seen[slot(b)] = 1;
     auto br = std::make_shared<Brick>();
     getValues(p + at + 8, br->v);
@@ -198,11 +199,17 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
           if (past && br->v[x + kBrickSide * (y + kBrickSide * z)] != band)
             formatError(brickName(b) + " holds a voxel past the domain's edge that is not +band");
         }
-    changes.push_back({b, {}, BrickRef{std::move(br), false}});
+    // Volume keeps such a brick as a uniform slot; storing it would give the same field another
+    // digest than it has when built any other way.
+    BrickRef ref = vol.canonicalBrick(b, std::move(br));
+    if (!ref.data)
+      formatError(brickName(b) + " is stored but uniformly " + (ref.inside ? "inside" : "outside") +
+                  " (list it as inside or leave it out)");
+    changes.push_back({b, {}, std::move(ref)});
   }
   first = true;
   for (std::uint64_t i = 0; i < inside; ++i, at += kVolumeFileInsideBytes) {
-    const Int3 b = readAddress(p + at, grid, lastKey, first, "inside brick");
+    const Int3 b = readAddress(p + at, grid, lastKey, first, "inside");
     if (seen[slot(b)]) formatError(brickName(b) + " is listed both as stored and as inside");
     changes.push_back({b, {}, BrickRef{nullptr, true}});
   }

@@ -31,7 +31,9 @@
 // Every brick not listed is uniformly outside (+band). The file size is exactly
 // 48 + 2056 P + 8 I + 4 bytes. Every value is finite and within [-band, band] (voxels of a
 // brick past the domain's far edge included: Volume keeps them at +band); each section is in
-// strictly increasing z, y, x order, and no brick is both stored and inside. Loading checks
+// strictly increasing z, y, x order, no brick is both stored and inside, and no stored brick
+// is uniform (its voxels in the domain all -band or all +band: it is listed as inside or left
+// out, as Volume keeps it, so that equal fields give equal files and digests). Loading checks
 // all of it and rebuilds the very bricks that were saved, so it preserves digest()
 // (measures.hpp) and revision(); saving equal volumes gives equal files.
 #pragma once
@@ -58,7 +60,8 @@ std::size_t savedVolumeSize(const Volume& vol);
 
 // Throws EngineError Format (field "file") for anything but a valid file as described above:
 // wrong magic, unknown version, wrong size, checksum mismatch, out-of-range header values,
-// bricks outside the grid, out of order or listed twice, values NaN or beyond +-band. Never reads out of bounds
+// bricks outside the grid, out of order or listed twice, uniform stored bricks, values NaN or
+// beyond +-band. Never reads out of bounds
 // and allocates nothing from the header's counts before the file's size has confirmed them.
 Volume loadVolume(std::span<const std::uint8_t> bytes);
 

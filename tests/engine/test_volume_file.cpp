@@ -259,3 +259,26 @@ TEST_CASE("voxels past the domain's far edge must be +band in a loaded file", "[
   put32(bytes, edgeBrick + 8 + 4 * (7 + 8 * (3 + 8 * 3)), std::bit_cast<std::uint32_t>(-1.0f));
   CHECK(contains(formatErrorOf(resealed(bytes)), "past the domain"));
 }
+
+TEST_CASE("a stored brick that is uniformly inside or outside is refused", "[file][errors]") {
+  // Volume stores such a brick as a uniform slot (canonicalBrick); a file that stores it anyway
+  // would load into a volume whose digest differs from that of the same field built any other way.
+  const Volume v = makeSolid(SolidKind::Sphere, {20, 16, 16});
+  const auto good = saveVolume(v);
+  std::uint32_t present = 0;
+  std::memcpy(&present, good.data() + 36, 4);
+  const float band = v.band();
+  for (const float side : {band, -band}) {
+    for (std::uint32_t i = 0; i < present; ++i) {
+      const std::size_t at = 48 + 2056 * std::size_t(i);
+      auto bytes = good;
+      // Every voxel of the domain takes `side`; voxels past the far x edge (x >= 20) stay +band.
+      for (int k = 0; k < 512; ++k) {
+        const bool past = int(bytes[at]) * 8 + (k & 7) >= 20;
+        put32(bytes, at + 8 + 4 * std::size_t(k), std::bit_cast<std::uint32_t>(past ? band : side));
+      }
+      INFO("stored brick " << i << ", value " << side);
+      CHECK(contains(formatErrorOf(resealed(bytes)), "uniform"));
+    }
+  }
+}

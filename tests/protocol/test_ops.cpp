@@ -7,6 +7,7 @@
 #include <string>
 
 #include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/rpc.hpp"
 
 using namespace marzipan;
 using namespace marzipan::protocol;
@@ -278,4 +279,42 @@ TEST_CASE("messages stay short and valid UTF-8 whatever the input", "[ops]") {
     CHECK_NOTHROW(json(e.message()).dump());
     CHECK_NOTHROW(json(e.field()).dump());
   }
+}
+
+TEST_CASE("a JSON syntax error quotes only an excerpt of the token it stopped in", "[ops]") {
+  // The JSON parser's own message quotes the whole token it was reading, which the input can
+  // make as long as a frame and fill with bytes that are not UTF-8.
+  const std::string unterminated = R"({"tool":"add_blob","center":[1,2,3],"x":")" + std::string(100000, 'x');
+  const std::string badUtf8 = R"({"tool":"add_blob","x":")" + std::string(10, '\xFF') + R"("})";
+  const std::string longNumber = R"({"tool":"add_blob","center":[1,2,3],"radius":)" + std::string(5000, '9') + "}";
+  const std::string badLiteral = "[" + std::string(1000, 't') + "]";
+  const std::string quoteInToken = R"({"a":"x'; expected ':')" + std::string(500, '\xC3');
+  for (const std::string& text : {unterminated, badUtf8, longNumber, badLiteral, quoteInToken}) {
+    INFO(text.substr(0, 60));
+    const OpError e = errorOf(text);
+    CHECK(e.field().empty());
+    CHECK_THAT(e.message(), Catch::StartsWith("not valid JSON: "));
+    CHECK(e.message().size() < 300);
+    CHECK_NOTHROW(json(e.message()).dump());
+  }
+  // What the parser says stays readable: where it stopped, why, and the start of the token.
+  const OpError e = errorOf(unterminated);
+  CHECK_THAT(e.message(), Catch::Contains("missing closing quote") && Catch::Contains("xxxxxxxx..."));
+  CHECK_THAT(errorOf(std::string(R"({"tool" "add_blob"})")).message(), Catch::Contains("expected ':'"));
+}
+
+TEST_CASE("JSON nested deeper than 64 arrays and objects is refused while it is read", "[ops]") {
+  const auto nested = [](int depth) { return std::string(std::size_t(depth), '[') + std::string(std::size_t(depth), ']'); };
+  // 64 levels, more than any message needs, are read; the 65th is refused.
+  CHECK_THAT(errorOf(R"({"tool":"add_blob","center":)" + nested(63) + "}").message(), Catch::Contains("\"center\""));
+  const OpError deep = errorOf(R"({"tool":"add_blob","center":)" + nested(64) + "}");
+  CHECK(deep.field().empty());
+  CHECK_THAT(deep.message(), Catch::Contains("not valid JSON") && Catch::Contains("64"));
+  // A request of one text frame (max_text_bytes, 1 MiB) nested 500000 deep: copying its params
+  // recursed once per level and overflowed the stack.
+  const std::string frame =
+      R"({"jsonrpc":"2.0","id":1,"method":"session.stats","params":{"a":)" + nested(500000) + "}}";
+  const ParsedRequest r = parseRequest(frame);
+  REQUIRE(r.error);
+  CHECK(r.error->code == RpcCode::ParseError);
 }

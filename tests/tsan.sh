@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Builds everything with clang++ under ThreadSanitizer and runs the test suite (or the ctest
+# filter given, e.g. `-R "service|net"`): the thread pool, copy-on-write volumes read on other
+# threads, sessions and the server's I/O threads.
+# Usage: bash tests/tsan.sh [ctest arguments...]   (BUILD_DIR=... to build elsewhere)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. tests/debian-packages.sh
+MARZIPAN_PACKAGES+=(clang libclang-rt-14-dev)
+install_debian_packages
+build="${BUILD_DIR:-build-tsan}"
+CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMARZIPAN_SANITIZE=thread
+cmake --build "$build" -j "$(nproc)"
+# halt_on_error: a race fails its test instead of only printing a report.
+export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
+ctest --test-dir "$build" --output-on-failure -j "$(nproc)" "$@"
