@@ -563,6 +563,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                           {"supported", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}}});
   }
 
+  RpcException sessionsFull() const {
+    return RpcException(RpcCode::LimitExceeded,
+                        "the server holds its " + std::to_string(limits().maxSessions) + " sessions; try later",
+                        {{"limit", "max_sessions"}, {"max", limits().maxSessions}});
+  }
+
   json limitsJson() const {
     const HubLimits& l = limits();
     return {{"max_text_bytes", l.maxTextBytes},
@@ -675,10 +681,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       if (sessions.count(id) || store.exists(id))
         throw RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
                            {{"field", "session"}});
-      if (sessions.size() >= limits().maxSessions)
-        throw RpcException(RpcCode::LimitExceeded,
-                           "the server holds its " + std::to_string(limits().maxSessions) + " sessions; try later",
-                           {{"limit", "max_sessions"}, {"max", limits().maxSessions}});
+      if (sessions.size() >= limits().maxSessions) throw sessionsFull();
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);
@@ -767,10 +770,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     {
       const std::lock_guard lock(mutex);
       if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
-      if (sessions.size() >= limits().maxSessions)
-        throw RpcException(RpcCode::LimitExceeded,
-                           "the server holds its " + std::to_string(limits().maxSessions) + " sessions; try later",
-                           {{"limit", "max_sessions"}, {"max", limits().maxSessions}});
+      if (sessions.size() >= limits().maxSessions) {
+        s->journal.reset();
+        store.releaseLease(id, owner);
+        throw sessionsFull();
+      }
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);
