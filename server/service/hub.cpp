@@ -1254,6 +1254,14 @@ void Hub::shutdown() {
     }
   }
   s.workers.stop();
+  // Sessions hold their clients and clients their session: break those cycles now that no
+  // task can run.
+  const std::lock_guard lock(s.mutex);
+  for (const auto& [id, live] : s.sessions) {
+    for (const auto& c : live->clients) c->session.reset();
+    live->clients.clear();
+  }
+  s.sessions.clear();
 }
 
 std::size_t Hub::sessionCount() const {

@@ -70,8 +70,13 @@ void Workers::loop() {
       continue;
     }
     if (stopping_) return;
-    if (delayed_.empty()) wake_.wait(lock);
-    else wake_.wait_until(lock, delayed_.begin()->first);
+    if (delayed_.empty()) {
+      wake_.wait(lock);
+    } else {
+      // A copy: stop() or another worker may erase that entry while this one waits.
+      const auto due = delayed_.begin()->first;
+      wake_.wait_until(lock, due);
+    }
   }
 }
 
