@@ -79,6 +79,17 @@ bool sameSecret(const std::string& secret, const std::string& given) {
   return diff == 0;
 }
 
+// The journal record of a stroke's start (journal.hpp), read back by session_store.cpp.
+json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
+  const std::string symmetry =
+      std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
+  return {{"stroke_begin", id},
+          {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+          {"radius", st.radius},
+          {"strength", st.strength},
+          {"symmetry", symmetry}};
+}
+
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
@@ -441,14 +452,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // On the strand: a fresh journal starts with the strokes still open, so that their next dabs
   // replay without the journal that began them.
   void announceOpenStrokes(LiveSession& s) {
-    for (const auto& [id, st] : s.session->openStrokeList()) {
-      const std::string symmetry = std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
-      s.journal->append({{"stroke_begin", id},
-                         {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
-                         {"radius", st.radius},
-                         {"strength", st.strength},
-                         {"symmetry", symmetry}});
-    }
+    for (const auto& [id, st] : s.session->openStrokeList()) s.journal->append(strokeBeginRecord(id, st));
   }
 
   // On the strand: forgets a session whose in-memory state may be ahead of its journal.
@@ -990,13 +994,9 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           }
           c->stroke = 0;
         }
-        c->stroke = s.session->beginStroke(p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ});
-        std::string symmetry = std::string(p.mirrorX ? "x" : "") + (p.mirrorY ? "y" : "") + (p.mirrorZ ? "z" : "");
-        records.push_back({{"stroke_begin", c->stroke},
-                           {"tool", protocol::nameOf(protocol::kBrushToolNames, p.tool)},
-                           {"radius", p.radius},
-                           {"strength", p.strength},
-                           {"symmetry", symmetry}});
+        const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ}};
+        c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry);
+        records.push_back(strokeBeginRecord(c->stroke, params));
         r.record = [records] { return records; };
         r.result = {{"stroke", c->stroke}};
       });

@@ -26,6 +26,19 @@ std::string crcHex(std::string_view text) {
 
 }  // namespace
 
+void writeAll(int fd, std::string_view bytes, const std::filesystem::path& path) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int e = n < 0 ? errno : ENOSPC;  // a write of 0 bytes: the device took nothing
+      throw std::runtime_error("cannot write " + path.string() + ": " + std::strerror(e));
+    }
+    done += std::size_t(n);
+  }
+}
+
 std::string journalLine(const nlohmann::json& record) {
   const std::string text = record.dump();
   return crcHex(text) + " " + text + "\n";
@@ -57,16 +70,7 @@ void Journal::append(const nlohmann::json& record) {
       if (armed && at >= 0 && ::ftruncate(fd, at) == 0) ::fsync(fd);
     }
   } undo{fd_, before};
-  std::size_t done = 0;
-  while (done < line.size()) {
-    const ssize_t n = ::write(fd_, line.data() + done, line.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int e = n < 0 ? errno : ENOSPC;
-      throw std::runtime_error("cannot write journal " + path_.string() + ": " + std::strerror(e));
-    }
-    done += std::size_t(n);
-  }
+  writeAll(fd_, line, path_);
   dirty_ = true;
   if (syncInterval_.count() == 0 || std::chrono::steady_clock::now() - lastSync_ >= syncInterval_) sync();
   undo.armed = false;

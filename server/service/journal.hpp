@@ -24,6 +24,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -62,5 +63,9 @@ class Journal {
 
 // The line of one record (CRC, space, JSON, newline).
 std::string journalLine(const nlohmann::json& record);
+
+// Writes all of bytes to fd (retrying short writes and EINTR); throws std::runtime_error
+// "cannot write PATH: reason" naming `path`.
+void writeAll(int fd, std::string_view bytes, const std::filesystem::path& path);
 
 }  // namespace marzipan::service
