@@ -15,8 +15,11 @@ import { Renderer } from "./render/renderer.js";
 import { SplatStore } from "./render/splat-store.js";
 import { Controls } from "./ui/controls.js";
 import { download, fileName, readFile } from "./ui/files.js";
+import { HelpDialog } from "./ui/help-dialog.js";
 import { Messages } from "./ui/messages.js";
+import { OfflineBanner } from "./ui/offline-banner.js";
 import { PointerInput } from "./ui/pointer-input.js";
+import { RecentSessions } from "./ui/recent-sessions.js";
 import { Sculpt } from "./ui/sculpt.js";
 import { ShareDialog } from "./ui/share-dialog.js";
 import { installShortcuts } from "./ui/shortcuts.js";
@@ -38,7 +41,10 @@ export class App {
     this.session = new SessionClient(win.location.href);
     this.messages = new Messages(doc);
     this.status = new StatusBar(doc);
-    this.startScreen = new StartScreen(doc);
+    this.recent = new RecentSessions(localStorageOf(win));
+    this.startScreen = new StartScreen(doc, this.recent);
+    this.offline = new OfflineBanner(doc);
+    this.help = new HelpDialog(doc);
     this.shareDialog = new ShareDialog(doc);
     this.frameFeed = new FrameFeed(this.session, this.camera, this.renderer, () =>
       this.status.frame(this.frameFeed.last, this.frameFeed.received),
@@ -57,14 +63,17 @@ export class App {
       hover: (x, y) => this.sculpt.hover(x, y),
       leave: () => this.sculpt.leave(),
       sculptGestureAt: (x, y) => this.sculpt.sculptGestureAt(x, y),
-      strokeStart: (x, y, p) => this.sculpt.strokeStart(x, y, p),
+      strokeStart: (x, y, p, modifier) => this.sculpt.strokeStart(x, y, p, modifier),
       strokeMove: (x, y, p) => this.sculpt.strokeMove(x, y, p),
       strokeEnd: () => this.sculpt.strokeEnd(),
-      click: (x, y) => this.sculpt.click(x, y),
+      click: (x, y, modifier) => this.sculpt.click(x, y, modifier),
+      brushStart: () => this.sculpt.brushStart(),
       brushDrag: (dx, dy) => this.sculpt.brushDrag(dx, dy),
       cameraChanged: () => this.#cameraChanged(),
     });
     installShortcuts(doc, this.#shortcutActions());
+    doc.getElementById("help").addEventListener("click", () => this.help.open());
+    doc.getElementById("hint-close").addEventListener("click", () => (doc.getElementById("hint").hidden = true));
     this.#listen();
     this.joinToken = null; // the token this client holds (edit or view)
     this.fitOnNextFull = false;
@@ -117,6 +126,8 @@ export class App {
       this.joinToken = choice.join.token;
     }
     this.win.history.replaceState(null, "", sessionLink(this.win.location.href, this.session.info.session, this.joinToken));
+    const info = this.session.info;
+    this.recent.remember({ session: info.session, token: this.joinToken, readOnly: Boolean(info.read_only), size: info.size });
     if (this.controls.settings.view === "frames") await this.frameFeed.start(this.controls.settings.shading);
   }
 
@@ -124,6 +135,7 @@ export class App {
     const s = this.session;
     s.addEventListener("connection", (e) => {
       this.status.connection(e.detail);
+      this.offline.show(e.detail);
       if (e.detail.state !== "connected") this.input.cancel();
       this.#updateAvailability();
     });
@@ -197,6 +209,9 @@ export class App {
   #updateAvailability() {
     const s = this.session;
     this.controls.setAvailability({ connected: s.connected, readOnly: s.readOnly, canUndo: s.canUndo, canRedo: s.canRedo });
+    this.doc.getElementById("hint-text").textContent = s.readOnly
+      ? "View only: drag to orbit · middle-drag to pan · wheel or pinch to zoom · ? for all shortcuts"
+      : "Drag on the model to sculpt · Space+drag or right-drag to orbit · middle-drag to pan · wheel or pinch to zoom · ? for all shortcuts";
   }
 
   // Runs an edit that answers by itself through "error" events; the promise's rejection is
@@ -208,8 +223,8 @@ export class App {
   #controlHandlers() {
     return {
       onSettings: () => this.sculpt && this.sculpt.refresh(),
-      onUndo: () => this.session.connected && this.#quietly(this.session.undo()),
-      onRedo: () => this.session.connected && this.#quietly(this.session.redo()),
+      onUndo: () => this.sculpt.editable && this.#quietly(this.session.undo()),
+      onRedo: () => this.sculpt.editable && this.#quietly(this.session.redo()),
       onGlobal: (op, amount) => this.#global(op, amount),
       onCamera: (name) => this.#cameraPreset(name),
       onView: (view, shading) => this.#setView(view, shading),
@@ -245,6 +260,7 @@ export class App {
         this.#cameraChanged();
       },
       cancel: () => this.input.cancel(),
+      help: () => this.help.open(),
     };
   }
 
@@ -330,6 +346,15 @@ export class App {
     this.status.frameTime(m);
     this.messages.notice(`Frame time ${m.meanMs.toFixed(1)} ms (p95 ${m.p95Ms.toFixed(1)} ms) for ${m.points.toLocaleString("en")} points.`);
     return m;
+  }
+}
+
+// The browser's localStorage, or null where it is refused (private modes, sandboxed frames).
+function localStorageOf(win) {
+  try {
+    return win.localStorage;
+  } catch {
+    return null;
   }
 }
 

@@ -133,6 +133,19 @@ export class OrbitCamera {
     this.distance = clamp(this.distance * factor, this.minDistance, this.maxDistance);
   }
 
+  // Zooms by `factor` towards the pixel (x, y) of a width x height viewport: the point under it
+  // at the target's depth stays under it, so a sculptor zooms into the detail under the pointer.
+  zoomAt(factor, x, y, width, height) {
+    const perPixel = this.worldPerPixel(height);
+    const before = this.distance;
+    this.zoom(factor);
+    const moved = 1 - this.distance / before;
+    const sx = (x - width / 2) * perPixel * moved;
+    const sy = (y - height / 2) * perPixel * moved;
+    this.target = addScaled(addScaled(this.target, this.right, sx), this.up, -sy);
+    this.target = this.target.map((v, i) => clamp(v, -this.dims[i], 2 * this.dims[i]));
+  }
+
   // Size of one pixel at the target's depth, in vu.
   worldPerPixel(height) {
     return (2 * this.distance * Math.tan(this.fovY / 2)) / Math.max(1, height);

@@ -6,7 +6,8 @@
 // deltas after every change); so does a rejoin after a dropped connection, whose full buffer
 // resyncs the client (the frame view asks for its mode again on "joined" with rejoined).
 // Events (EventTarget, detail in event.detail):
-//   "connection" {state: connecting|connected|reconnecting|closed, attempt?, delayMs?}
+//   "connection" {state: connecting|connected|reconnecting|closed, because, attempt?, delayMs?}:
+//   `because` says why the connection of an open session dropped ("code 1006"), null while it holds
 //   "joined" {info, rejoined}; "state" {revision, digest, canUndo, canRedo, cause?, by?};
 //   "clients" {clients}; "splats" {full, revision, payload}; "frame" {kind, revision, payload};
 //   "rtt" {method, ms}; "error" {error, context}: every error a request got (RpcError) and
@@ -39,6 +40,7 @@ export class SessionClient extends EventTarget {
     this.canRedo = false;
     this.clients = [];
     this.connectionState = "closed";
+    this.lostBecause = null; // why the open session's connection dropped, until it is back
   }
 
   get connected() {
@@ -229,10 +231,8 @@ export class SessionClient extends EventTarget {
     if (connection !== this.#connection || intentional) return;
     this.#connection = null;
     if (!this.#credentials) return this.#setConnection("closed");
-    this.#emit("error", {
-      error: new Error(`connection lost (code ${code}${reason ? `: ${reason}` : ""}); reconnecting`),
-      context: "connection",
-    });
+    // Said once, by the connection state (the app's offline banner), not as an error per attempt.
+    if (!this.lostBecause) this.lostBecause = `code ${code}${reason ? `: ${reason}` : ""}`;
     this.#scheduleRejoin();
   }
 
@@ -272,6 +272,7 @@ export class SessionClient extends EventTarget {
 
   #joined(result, rejoined) {
     this.#attempt = 0;
+    this.lostBecause = null;
     this.info = { ...(this.info || {}), ...result };
     this.revision = result.revision;
     this.digest = result.digest;
@@ -285,7 +286,7 @@ export class SessionClient extends EventTarget {
 
   #setConnection(state, extra = {}) {
     this.connectionState = state;
-    this.#emit("connection", { state, ...extra });
+    this.#emit("connection", { state, because: this.lostBecause, ...extra });
   }
 
   #setClients(clients) {

@@ -3,7 +3,8 @@
 // app's handlers for actions; it never talks to the server itself.
 // Conventions: radius in vu (0.5 to 1024, the server's range; the slider covers 1 to 64 and
 // the keys go beyond); strength in (0, 1] for brushes; for CSG tools the same slider sets the
-// blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x", "y", "z").
+// blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x", "y", "z");
+// lazy: the stroke stabiliser's slack in CSS pixels (0 = off).
 
 import { GLOBAL_OPS, TOOLS, toolById } from "./tools.js";
 
@@ -23,6 +24,7 @@ export class Controls {
       symmetry: [],
       view: "splats",
       shading: "lit",
+      lazy: 0,
     };
     const $ = (id) => doc.getElementById(id);
     this.$ = $;
@@ -33,6 +35,10 @@ export class Controls {
     this.radius.addEventListener("input", () => this.setRadius(Number(this.radius.value)));
     this.strength.addEventListener("input", () => this.setStrength(Number(this.strength.value)));
     $("shape").addEventListener("change", (e) => (this.settings.shape = e.target.value));
+    $("lazy").addEventListener("input", (e) => {
+      this.settings.lazy = Number(e.target.value);
+      this.#syncBrush();
+    });
     for (const axis of ["x", "y", "z"])
       $(`mirror-${axis}`).addEventListener("change", () => {
         this.settings.symmetry = ["x", "y", "z"].filter((a) => $(`mirror-${a}`).checked);
@@ -145,6 +151,7 @@ export class Controls {
     this.strength.value = String(this.secondValue);
     this.$("strength-value").textContent = click ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
     this.$("shape-row").hidden = !click;
+    this.$("lazy-value").textContent = s.lazy ? `${s.lazy} px` : "off";
     this.doc.querySelector(".symmetry").hidden = click;
   }
 
@@ -158,7 +165,9 @@ export class Controls {
     amount.value = String(spec.value);
   }
 
-  // Enables or disables what needs a connection, edit rights, or history.
+  // Enables or disables what needs a connection, edit rights, or history. A view-only client
+  // keeps View and Files (and they are not marked disabled); its sculpting controls are off and
+  // a badge in the top bar says why.
   setAvailability({ connected, readOnly, canUndo, canRedo }) {
     const edit = connected && !readOnly;
     const $ = this.$;
@@ -168,6 +177,11 @@ export class Controls {
     $("redo").disabled = !edit || !canRedo;
     for (const b of this.doc.querySelectorAll("[data-export]")) b.disabled = !connected;
     for (const id of ["save-volume", "stats-refresh", "share"]) $(id).disabled = !connected;
-    this.doc.querySelector(".panel").setAttribute("aria-disabled", String(!edit));
+    for (const id of ["tool-palette", "brush", "global", "history"]) {
+      $(id).disabled = Boolean(readOnly);
+      $(id).setAttribute("aria-disabled", String(!edit));
+    }
+    $("role-badge").hidden = !readOnly;
+    this.doc.querySelector(".panel").removeAttribute("aria-disabled");
   }
 }

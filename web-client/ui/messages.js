@@ -1,11 +1,13 @@
-// What the person is told: error messages (every error the server returns, every lost
-// connection), short notices, and the progress indicator of long operations.
+// What the person is told: error messages (every error the server returns, in plain language
+// with the protocol's words folded away as a detail), short notices, and the progress
+// indicator of long operations. A lost connection is not a message: the offline banner
+// (ui/offline-banner.js) says it once, for as long as it lasts.
 // Conventions: messages stack in the viewport's corner and dismiss themselves after a while
 // (errors later than notices); the list is an aria-live region so screen readers announce
 // them. The server sends no progress of an operation (PROTOCOL.md has none), so the progress
 // indicator shows that something runs and for how long, not how far it has come.
 
-import { RpcError } from "../net/rpc-error.js";
+import { plainError } from "../net/plain-errors.js";
 
 const ERROR_MS = 12000;
 const NOTICE_MS = 4000;
@@ -22,36 +24,43 @@ export class Messages {
     this.history = []; // the last HISTORY messages, {kind, text}, for the console and tests
   }
 
-  // An Error, RpcError or ConnectionLost, in one sentence for a person.
+  // An Error, RpcError or ConnectionLost, in one sentence for a person; `context` names what
+  // was being done when an error other than the server's answer happened.
   error(error, context = "") {
-    let text;
-    if (error instanceof RpcError) {
-      const field = error.data && error.data.field ? ` (field "${error.data.field}")` : "";
-      text = `${error.method}: ${error.message}${field} [${error.code} ${error.codeName}]`;
-    } else {
-      text = context && context !== "protocol" && context !== "connection" ? `${context}: ${error.message}` : error.message;
-    }
-    this.#show(text, "error", ERROR_MS);
+    let { text, detail } = plainError(error);
+    if (error && error.name !== "RpcError" && context && context !== "protocol" && context !== "connection") text = `${context}: ${text}`;
+    this.#show(text, "error", ERROR_MS, detail);
   }
 
   notice(text) {
-    this.#show(text, "info", NOTICE_MS);
+    this.#show(text, "info", NOTICE_MS, "");
   }
 
-  #show(text, kind, ms) {
-    this.history.push({ kind, text });
+  #show(text, kind, ms, detail) {
+    this.history.push({ kind, text, detail });
     if (this.history.length > HISTORY) this.history.shift();
     const item = this.list.ownerDocument.createElement("div");
     item.className = `message ${kind}`;
     item.setAttribute("role", kind === "error" ? "alert" : "status");
     const p = item.ownerDocument.createElement("p");
     p.textContent = text;
+    const body = item.ownerDocument.createElement("div");
+    body.append(p);
+    if (detail) {
+      const more = item.ownerDocument.createElement("details");
+      const summary = item.ownerDocument.createElement("summary");
+      summary.textContent = "Details";
+      const code = item.ownerDocument.createElement("code");
+      code.textContent = detail;
+      more.append(summary, code);
+      body.append(more);
+    }
     const close = item.ownerDocument.createElement("button");
     close.type = "button";
     close.textContent = "×";
     close.setAttribute("aria-label", "Dismiss");
     close.addEventListener("click", () => item.remove());
-    item.append(p, close);
+    item.append(body, close);
     this.list.append(item);
     while (this.list.children.length > MAX_SHOWN) this.list.firstElementChild.remove();
     setTimeout(() => item.remove(), ms);

@@ -1,20 +1,26 @@
-// Mouse, pen, touch and trackpad on the canvas, turned into camera moves and sculpting.
-// Gestures (primary button, pen tip or one finger):
-//   on the model with a brush tool: a stroke; with a CSG tool: a click applies it (a click
-//   that drags becomes an orbit); beside the model: orbit.
-//   Alt+drag or right drag: orbit; Shift+drag or middle drag: pan; Ctrl/Cmd+drag: change the
-//   brush (sideways: radius, up and down: strength); wheel: zoom (a trackpad pinch arrives as
-//   Ctrl+wheel); two fingers: pinch to zoom and move to pan.
+// Mouse, pen, touch and trackpad on the canvas, turned into camera moves and sculpting. Which
+// press starts which gesture is ui/gesture-map.js (sculpt on the model, with Ctrl/Alt to
+// invert and Shift to smooth; Space+drag or right drag orbits anywhere; middle drag pans;
+// F+drag sizes the brush); the wheel zooms towards the point under the pointer (a trackpad
+// pinch arrives as Ctrl+wheel); two fingers pinch to zoom and move to pan.
 // Conventions: positions in CSS pixels relative to the canvas's top-left corner (y down);
 // pressure in (0, 1]: the pen's, 1 for a mouse (whose Pointer Events pressure is a constant
 // 0.5 while a button is down), and 1 for touch screens that report none. A finger's stroke
 // starts when it moves CLICK_SLOP_PX, stays TOUCH_HOLD_MS, or lifts (a tap is one dab), so a
 // pinch that begins on the model does not dab.
 
+import { pressGesture } from "./gesture-map.js";
+
 const CLICK_SLOP_PX = 4;
 const MIN_PRESSURE = 0.05;
 const MAX_COALESCED = 16;
 const TOUCH_HOLD_MS = 120; // a finger that stays this long on the model starts its stroke
+const HELD_KEYS = new Set(["Space", "KeyF"]);
+const TYPING = new Set(["text", "url", "number", "search", "email", "password"]);
+
+function typing(t) {
+  return t && (t.tagName === "TEXTAREA" || t.tagName === "SELECT" || (t.tagName === "INPUT" && TYPING.has(t.type)));
+}
 
 export class PointerInput {
   constructor(canvas, camera, handlers) {
@@ -32,6 +38,16 @@ export class PointerInput {
     });
     canvas.addEventListener("wheel", (e) => this.#wheel(e), { passive: false });
     canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+    // Keys held for a gesture: Space (orbit or pan anywhere) and F (brush size).
+    this.held = new Set();
+    const doc = canvas.ownerDocument;
+    doc.addEventListener("keydown", (e) => {
+      if (!HELD_KEYS.has(e.code) || typing(e.target)) return;
+      this.held.add(e.code);
+      if (e.target === canvas || e.target === doc.body) e.preventDefault(); // Space would scroll
+    });
+    doc.addEventListener("keyup", (e) => this.held.delete(e.code));
+    doc.defaultView.addEventListener("blur", () => this.held.clear());
   }
 
   // Ends whatever gesture runs (Escape, a lost connection, a second finger).
@@ -69,14 +85,19 @@ export class PointerInput {
       if (this.touches.size > 2) return;
     }
     if (this.gesture) return;
-    const g = { pointerId: e.pointerId, x, y, startX: x, startY: y };
-    if (e.button === 1) g.kind = "pan";
-    else if (e.button === 2) g.kind = e.shiftKey ? "pan" : "orbit";
-    else if (e.button !== 0) return;
-    else if (e.ctrlKey || e.metaKey) g.kind = "brush";
-    else if (e.altKey) g.kind = "orbit";
-    else if (e.shiftKey) g.kind = "pan";
-    else g.kind = this.h.sculptGestureAt(x, y) || "orbit";
+    const press = {
+      button: e.button,
+      ctrl: e.ctrlKey || e.metaKey,
+      alt: e.altKey,
+      shift: e.shiftKey,
+      space: this.held.has("Space"),
+      brushKey: this.held.has("KeyF"),
+    };
+    const needsSurface = e.button === 0 && !press.space && !press.brushKey;
+    const chosen = pressGesture(press, needsSurface ? this.h.sculptGestureAt(x, y) : null);
+    if (!chosen) return;
+    const g = { pointerId: e.pointerId, x, y, startX: x, startY: y, kind: chosen.kind, modifier: chosen.modifier };
+    if (g.kind === "brush") this.h.brushStart();
     try {
       this.canvas.setPointerCapture(e.pointerId);
     } catch {
@@ -91,7 +112,7 @@ export class PointerInput {
       g.timer = setTimeout(() => this.#startPendingStroke(), TOUCH_HOLD_MS);
     }
     this.#setGesture(g);
-    if (g.kind === "stroke") this.h.strokeStart(x, y, this.#pressure(e));
+    if (g.kind === "stroke") this.h.strokeStart(x, y, this.#pressure(e), g.modifier);
     e.preventDefault();
   }
 
@@ -119,7 +140,7 @@ export class PointerInput {
         this.h.cameraChanged();
         break;
       case "brush":
-        this.h.brushDrag(dx, dy);
+        this.h.brushDrag(x - g.startX, y - g.startY);
         break;
       case "click":
         if (Math.hypot(x - g.startX, y - g.startY) > CLICK_SLOP_PX) g.kind = "orbit";
@@ -157,7 +178,7 @@ export class PointerInput {
     clearTimeout(g.timer);
     this.#setGesture(null);
     if (g.kind === "stroke") this.h.strokeEnd();
-    else if (g.kind === "click" && !cancelled) this.h.click(g.startX, g.startY);
+    else if (g.kind === "click" && !cancelled) this.h.click(g.startX, g.startY, g.modifier);
     if (e.pointerType !== "touch") this.h.hover(...this.#pos(e));
   }
 
@@ -167,7 +188,7 @@ export class PointerInput {
     clearTimeout(g.timer);
     g.kind = "stroke";
     this.canvas.dataset.gesture = "stroke";
-    this.h.strokeStart(g.startX, g.startY, g.pressure);
+    this.h.strokeStart(g.startX, g.startY, g.pressure, g.modifier);
   }
 
   #pinchState() {
@@ -190,7 +211,8 @@ export class PointerInput {
     e.preventDefault();
     const unit = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? this.canvas.clientHeight : 1;
     const delta = e.deltaY * unit;
-    this.camera.zoom(Math.exp(delta * (e.ctrlKey ? 0.01 : 0.0015)));
+    const [x, y] = this.#pos(e);
+    this.camera.zoomAt(Math.exp(delta * (e.ctrlKey ? 0.01 : 0.0015)), x, y, this.canvas.clientWidth, this.canvas.clientHeight);
     this.h.cameraChanged();
   }
 }

@@ -5,13 +5,18 @@
 // spaces the dabs (DAB_SPACING of the radius apart along the surface), but each dab goes to
 // the server as the pointer's ray, so it lands on the surface as the server has it when the
 // dab applies. Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
-// mirrored images, x' = nx - 1 - x for a mirror across x.
+// mirrored images, x' = nx - 1 - x for a mirror across x. A modifier held at the press (ui/
+// gesture-map.js) inverts the tool or makes it smooth for that stroke; with the stabiliser on
+// (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
 
 import { DabSpacer } from "../math/dab-spacer.js";
+import { LazyMouse } from "../math/lazy-mouse.js";
 import { pickSplats } from "../math/splat-pick.js";
 import { LINE_PIXELS } from "../render/brush-cursor.js";
 import { DISC_RADIUS } from "../render/splat-renderer.js";
 import { StrokeSender } from "../net/stroke-sender.js";
+import { BrushDrag } from "./brush-drag.js";
+import { toolWithModifier } from "./tools.js";
 
 export const DAB_SPACING = 0.25;
 
@@ -57,27 +62,35 @@ export class Sculpt {
     this.#updateCursor();
   }
 
-  // "stroke" or "click" when a press at (x, y) sculpts, null when it should orbit instead.
+  // "stroke" or "click" when a press at (x, y) sculpts, "blocked" when it lands on the model
+  // of a session that is open with edit rights but offline (it does nothing then, not even
+  // orbit), null when it should orbit instead.
   sculptGestureAt(x, y) {
-    if (!this.editable) return null;
+    const info = this.session.info;
+    if (!info || this.session.readOnly) return null;
     this.hit = this.pick(x, y);
     if (!this.hit) return null;
-    return this.controls.tool.kind;
+    return this.session.connected ? this.controls.tool.kind : "blocked";
   }
 
-  strokeStart(x, y, pressure) {
+  strokeStart(x, y, pressure, modifier = null) {
     const s = this.controls.settings;
     const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
+    const tool = toolWithModifier(s.tool, modifier);
     this.stroke = {
-      sender: new StrokeSender(this.session, { tool: s.tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry }, maxDabs),
+      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry }, maxDabs),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
+      lazy: new LazyMouse(s.lazy || 0),
     };
     this.#setOpenStrokes(this.openStrokes + 1);
     this.strokeMove(x, y, pressure);
   }
 
-  strokeMove(x, y, pressure) {
+  strokeMove(px, py, pressure) {
     if (!this.stroke) return;
+    const at = this.stroke.lazy.follow(px, py);
+    if (!at) return;
+    const [x, y] = at;
     this.hoverAt = [x, y];
     this.hit = this.pick(x, y);
     for (const dab of this.stroke.spacer.add(this.hit && this.hit.point, [x, y], pressure)) {
@@ -96,11 +109,11 @@ export class Sculpt {
   }
 
   // A CSG tool applied where the ray under (x, y) meets the surface.
-  async click(x, y) {
+  async click(x, y, modifier = null) {
     if (!this.editable) return;
     const s = this.controls.settings;
     const { origin, direction } = this.#ray(x, y);
-    const op = { tool: s.tool, shape: s.shape, radius: s.radius, blend: round(s.blend * s.radius), ray: { origin, direction } };
+    const op = { tool: toolWithModifier(s.tool, modifier), shape: s.shape, radius: s.radius, blend: round(s.blend * s.radius), ray: { origin, direction } };
     try {
       const result = await this.session.applyTool(op);
       if (result.hit === null) this.messages.notice("The click missed the surface: nothing changed.");
@@ -109,10 +122,17 @@ export class Sculpt {
     }
   }
 
-  // Ctrl+drag: sideways scales the radius, up and down the strength (blend for CSG tools).
+  // F+drag (ui/brush-drag.js): sideways scales the radius, up and down the strength (blend
+  // for CSG tools); (dx, dy) is the whole drag since brushStart().
+  brushStart() {
+    this.brushDragging = new BrushDrag(this.controls.settings.radius, this.controls.secondValue);
+  }
+
   brushDrag(dx, dy) {
-    this.controls.setRadius(this.controls.settings.radius * Math.exp(dx * 0.01));
-    this.controls.setStrength(this.controls.secondValue - dy * 0.005);
+    if (!this.brushDragging) this.brushStart();
+    const { radius, second } = this.brushDragging.at(dx, dy);
+    this.controls.setRadius(radius);
+    this.controls.setStrength(second);
   }
 
   // The canvas's data-strokes attribute says how many strokes are still on the wire.

@@ -3,9 +3,27 @@
 //   intersect); [ ]: brush radius down / up; { }: strength (blend) down / up;
 //   Ctrl+Z: undo; Ctrl+Shift+Z or Ctrl+Y: redo (Cmd on macOS); V: splats / frames view;
 //   G: gradient-error shading; 0 or Home: reset view; 1 front, 3 side, 7 top;
-//   arrow keys (on the canvas): orbit; + and -: zoom; Escape: cancel the gesture.
+//   arrow keys (on the canvas): orbit; + and -: zoom; Escape: cancel the gesture; ?: the
+//   shortcuts overlay. KEY_HELP lists them for that overlay. Space and F are held during a
+//   drag (ui/gesture-map.js), not pressed.
 
 import { TOOLS } from "./tools.js";
+
+export const KEY_HELP = Object.freeze([
+  ...TOOLS.map((t) => [t.key.toUpperCase(), t.label]),
+  ["[  ]", "brush radius smaller / larger"],
+  ["{  }", "strength (blend) lower / higher"],
+  ["Ctrl+Z", "undo"],
+  ["Ctrl+Shift+Z, Ctrl+Y", "redo"],
+  ["V", "splats / frames view"],
+  ["G", "gradient-error shading"],
+  ["0 or Home", "reset the view to the model"],
+  ["1  3  7", "front, side, top"],
+  ["arrow keys", "orbit (with the model focused)"],
+  ["+  −", "zoom"],
+  ["Escape", "cancel the gesture"],
+  ["?", "this overlay"],
+]);
 
 const TYPING = new Set(["text", "url", "number", "search", "email", "password"]);
 const ORBIT_STEP_PX = 24;
@@ -36,6 +54,7 @@ export function installShortcuts(doc, actions) {
     else if (key === "+" || key === "=") actions.zoom(1 / 1.15);
     else if (key === "-" || key === "_") actions.zoom(1.15);
     else if (key === "Escape") actions.cancel();
+    else if (key === "?") actions.help();
     else if (t === actions.canvas && key.startsWith("Arrow")) {
       const dx = key === "ArrowLeft" ? -ORBIT_STEP_PX : key === "ArrowRight" ? ORBIT_STEP_PX : 0;
       const dy = key === "ArrowUp" ? -ORBIT_STEP_PX : key === "ArrowDown" ? ORBIT_STEP_PX : 0;

@@ -1,12 +1,16 @@
-// The start screen: create a session (grid size, starting solid) or join one by its link.
-// It resolves with what the person chose; the app does the connecting and reports failures
-// back with showError(), leaving the screen open for another try.
+// The start screen: create a session (grid size, starting solid), join one by its link, or
+// reopen one of the recent sessions this browser keeps (ui/recent-sessions.js). It resolves
+// with what the person chose; the app does the connecting and reports failures back with
+// showError(), leaving the screen open for another try. Opened while a session is open, it
+// says that choosing leaves that session.
 
 import { parseSessionLink } from "../net/session-link.js";
 
 export class StartScreen {
-  constructor(doc) {
+  // recent: a RecentSessions.
+  constructor(doc, recent) {
     this.doc = doc;
+    this.recent = recent;
     this.dialog = doc.getElementById("start");
     this.error = doc.getElementById("start-error");
     this.dialog.addEventListener("cancel", (e) => {
@@ -23,8 +27,10 @@ export class StartScreen {
     this.closable = closable;
     this.error.textContent = "";
     this.#setBusy(false);
+    $("start-leaving").hidden = !closable;
     if (!this.dialog.open) this.dialog.showModal();
     return new Promise((resolve) => {
+      this.#listRecent((link) => finish({ join: link }));
       const create = (e) => {
         e.preventDefault();
         finish({ create: { size: Number($("create-size").value), solid: $("create-solid").value } });
@@ -50,6 +56,37 @@ export class StartScreen {
       $("join-form").addEventListener("submit", join);
       this.dialog.addEventListener("close", cancel);
     });
+  }
+
+  // The recent sessions as buttons that reopen them (and forget them).
+  #listRecent(open) {
+    const doc = this.doc;
+    const entries = this.recent.list();
+    const list = doc.getElementById("recent-list");
+    list.replaceChildren();
+    doc.getElementById("recent").hidden = entries.length === 0;
+    for (const e of entries) {
+      const li = doc.createElement("li");
+      const button = doc.createElement("button");
+      button.type = "button";
+      button.className = "recent-open";
+      button.dataset.session = e.session;
+      const when = new Date(e.openedAt).toLocaleString();
+      button.textContent = `${e.size.join("×")} · ${e.readOnly ? "view only" : "edit"} · ${when}`;
+      button.title = `Session ${e.session}`;
+      button.addEventListener("click", () => open({ session: e.session, token: e.token }));
+      const forget = doc.createElement("button");
+      forget.type = "button";
+      forget.textContent = "×";
+      forget.setAttribute("aria-label", "Forget this session in this browser");
+      forget.addEventListener("click", () => {
+        this.recent.forget(e.session);
+        li.remove();
+        doc.getElementById("recent").hidden = this.recent.list().length === 0;
+      });
+      li.append(button, forget);
+      list.append(li);
+    }
   }
 
   showError(text) {

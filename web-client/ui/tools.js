@@ -27,3 +27,13 @@ export const GLOBAL_OPS = Object.freeze({
   close: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Closing" },
   smooth: { amount: "Iterations", min: 1, max: 100000, step: 1, value: 10, label: "Smoothing" },
 });
+
+const INVERSES = { add_blob: "remove_blob", remove_blob: "add_blob", smooth: "sharpen", sharpen: "smooth", csg_add: "csg_subtract", csg_subtract: "csg_add" };
+
+// The tool a modifier turns `id` into: "invert" swaps a tool with its opposite (CSG intersect
+// has none and stays), "smooth" is the smoothing brush for strokes; null keeps the tool.
+export function toolWithModifier(id, modifier) {
+  if (modifier === "invert") return INVERSES[id] || id;
+  if (modifier === "smooth" && toolById(id).kind === "stroke") return "smooth";
+  return id;
+}

@@ -122,3 +122,25 @@ test("fitPoints frames the points themselves, not their box", () => {
   c.fitPoints([new Float32Array(0)], 1);
   assert.deepEqual(c.state(), before, "no points: no change");
 });
+
+test("zoomAt keeps the point under the pointer (at the target's depth) under the pointer", () => {
+  const c = new OrbitCamera([128, 128, 128]);
+  c.target = [64, 64, 64];
+  c.distance = 200;
+  c.setPreset("home");
+  const [w, h, x, y] = [800, 600, 610, 150];
+  const before = c.ray(x, y, w, h);
+  const forward = normalize(sub(c.target, c.eye));
+  const t = c.distance / dot(before.direction, forward); // to the plane through the target
+  const point = addScaled(before.origin, before.direction, t);
+  c.zoomAt(0.5, x, y, w, h);
+  assert.equal(c.distance, 100);
+  const after = c.ray(x, y, w, h);
+  const off = sub(point, after.origin);
+  const miss = length(sub(off, after.direction.map((v) => v * dot(off, after.direction))));
+  assert.ok(miss < 1e-9, `the point is ${miss} vu off the new ray`);
+  const target = [...c.target];
+  c.zoomAt(2, w / 2, h / 2, w, h);
+  assert.equal(c.distance, 200);
+  close(c.target, target, 1e-12, "a zoom at the centre keeps the target");
+});
