@@ -281,12 +281,22 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(dims[4], 2);
   assert.deepEqual(dims.slice(0, 2), [2 * dims[2], 2 * dims[3]], `canvas ${dims}`);
   assert.match(await text(viewer, "stat-session"), /view only/);
+  assert.equal(await viewer.locator("#role-badge").isVisible(), true, "a view-only page says so");
   assert.equal(await viewer.locator("#undo").isDisabled(), true, "a viewer cannot undo");
+  assert.equal(await viewer.locator('input[value="add_blob"]').isDisabled(), true, "nor pick a sculpting tool");
+  assert.equal(await viewer.locator('[data-export="stl"]').isDisabled(), false, "but can download");
+  assert.equal(await viewer.locator("#files").getAttribute("aria-disabled"), null, "Files is not marked disabled");
+  assert.equal(await viewer.locator(".panel").getAttribute("aria-disabled"), null, "nor is the panel");
+  await viewer.locator("#view").focus();
+  await viewer.keyboard.press("Control+z");
+  await viewer.waitForTimeout(300);
   const r3 = await revision(page);
   const [vx, vy] = await canvasCenter(viewer);
   await drag(viewer, [vx - 40, vy], [vx + 40, vy]);
   await viewer.waitForTimeout(500);
   assert.equal(await revision(page), r3, "a viewer's drag orbits instead of sculpting");
+  const viewerErrors = await viewer.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").length);
+  assert.equal(viewerErrors, 0, "Ctrl+Z on a view-only page does nothing, without a protocol error");
   await viewer.close();
 
   // The frame view: the server's ray-cast frames, clay, then gradient error.
@@ -321,7 +331,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const triangles = checkStl(readFileSync(stlPath), 128);
   t.diagnostic(`exported ${triangles} triangles`);
 
-  // Brush size from the keyboard and from a Ctrl+drag.
+  // Brush size from the keyboard and from an F+drag, fast or slow.
   await page.locator("#view").focus();
   const radiusText = () => text(page, "radius-value");
   await page.locator("#radius").fill("12");
@@ -329,11 +339,49 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(await radiusText(), "14.5 vu", "] grows the radius by a fifth");
   await page.keyboard.press("[");
   assert.equal(await radiusText(), "12 vu");
-  await page.keyboard.down("Control");
+  const rBrush = await revision(page);
+  await page.keyboard.down("f");
   await drag(page, [cx, cy], [cx + 100, cy], 5);
-  await page.keyboard.up("Control");
-  assert.equal(await radiusText(), "32.5 vu", "Ctrl+drag 100 px to the right scales the radius by e");
+  await page.keyboard.up("f");
+  assert.equal(await radiusText(), "32.5 vu", "F+drag 100 px to the right scales the radius by e");
+  await page.locator("#radius").fill("12");
+  await page.locator("#view").focus();
+  await page.keyboard.down("f");
+  await drag(page, [cx, cy], [cx + 100, cy], 100);
+  await page.keyboard.up("f");
+  assert.equal(await radiusText(), "32.5 vu", "the same drag in 1 px steps ends at the same radius");
+  assert.equal(await revision(page), rBrush, "sizing the brush sculpts nothing");
   await page.locator("#radius").fill("8");
+
+  // Modifiers: Ctrl+drag on the model inverts add blob into remove blob, Shift+drag smooths,
+  // and Space+drag orbits even on the model.
+  await page.click('label:has(input[value="add_blob"])');
+  await page.locator("#view").focus();
+  const modFrom = sent.length;
+  const rMod = await revision(page);
+  await page.keyboard.down("Control");
+  await drag(page, [cx - 30, cy + 10], [cx + 30, cy + 10], 8);
+  await page.keyboard.up("Control");
+  await page.keyboard.down("Shift");
+  await drag(page, [cx - 30, cy + 10], [cx + 30, cy + 10], 8);
+  await page.keyboard.up("Shift");
+  await settled(page);
+  assert.deepEqual(sentSince(modFrom, "stroke.begin").map((m) => m.params.tool), ["remove_blob", "smooth"]);
+  const yaw = () => page.evaluate(() => window.marzipan.camera.yaw);
+  const yaw0 = await yaw();
+  const rOrbit = await revision(page);
+  assert.ok(rOrbit > rMod);
+  await page.locator("#view").focus();
+  await page.keyboard.down("Space");
+  await drag(page, [cx - 30, cy], [cx + 30, cy], 6);
+  await page.keyboard.up("Space");
+  await page.waitForTimeout(300);
+  assert.notEqual(await yaw(), yaw0, "Space+drag on the model orbits");
+  assert.equal(await revision(page), rOrbit, "and does not sculpt");
+  await page.keyboard.press("?");
+  assert.equal(await page.locator("#help-dialog").isVisible(), true, "? opens the shortcuts overlay");
+  assert.match(await page.locator("#help-dialog").textContent(), /Space \+ drag/);
+  await page.keyboard.press("Escape");
 
   // A pen: its pressure goes with each dab.
   const penFrom = sent.length;
@@ -360,7 +408,8 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const message = page.locator(".message.error", { hasText: "volume.load" });
   await message.waitFor();
   t.diagnostic(`shown: ${await message.textContent()}`);
-  assert.match(await message.textContent(), /-32006 EngineRefused/);
+  assert.match(await message.locator("p").textContent(), /^This file is not a Marzipan volume \(\.mzv\)/, "said in plain language");
+  assert.match(await message.locator("details code").textContent(), /^volume\.load: .*\[-32006 EngineRefused\]$/, "the protocol's words are the detail");
   assert.equal(await revision(page), rBad, "a refused load changes nothing");
 
   // Save the volume, change it, load the saved file back: the saved digest returns.
@@ -415,7 +464,10 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   sockets[0].ws.close({ code: 4000, reason: "network dropped by the test" });
   sockets[0].server.close();
   await page.waitForFunction(() => document.getElementById("connection").dataset.state === "reconnecting");
+  assert.equal(await page.locator("#offline").isVisible(), true, "one offline banner while the connection is down");
+  assert.match(await text(page, "offline-text"), /code 4000: network dropped by the test.*Sculpting is paused/);
   await page.waitForFunction(() => document.getElementById("connection").dataset.state === "connected", null, { timeout: 20000 });
+  assert.equal(await page.locator("#offline").isVisible(), false, "the banner goes once the session is back");
   await settled(page);
   assert.equal(sockets.length, 2, "one new WebSocket");
   assert.equal(await revision(page), rBefore, "the same session, at the same revision");
@@ -431,9 +483,16 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.deepEqual(errors, [], "no script errors on any page");
   const shown = (p) => p.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").map((m) => m.text));
   const firstErrors = await shown(page);
-  assert.equal(firstErrors.length, 2, `the errors shown are the refused upload and the dropped connection: ${firstErrors}`);
-  assert.match(firstErrors[0], /^volume\.load: .*\[-32006 EngineRefused\]$/);
-  assert.match(firstErrors[1], /^connection lost \(code 4000: network dropped by the test\); reconnecting$/);
+  assert.equal(firstErrors.length, 1, `the one error shown is the refused upload (the drop is the banner's): ${firstErrors}`);
+  assert.match(firstErrors[0], /^This file is not a Marzipan volume/);
+
+  // The start screen lists this session among the recent ones and says that choosing leaves it.
+  await page.click("#new-session");
+  assert.equal(await page.locator("#start-leaving").isVisible(), true, "New… warns before leaving the session");
+  const recent = await page.locator("#recent-list .recent-open").evaluateAll((b) => b.map((x) => x.dataset.session));
+  assert.equal(recent[0], hash.slice(9, 31), "the open session is the first recent one");
+  await page.keyboard.press("Escape");
+  assert.equal(await page.locator("#start").isVisible(), false, "Escape keeps the session");
   assert.deepEqual(await shown(second), [], "the second page showed no error");
   await second.close();
   await page.close();
