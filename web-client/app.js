@@ -9,6 +9,7 @@ import { decodeSplats } from "/protocol/js/splats.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
 import { RpcError } from "./net/rpc-error.js";
 import { FrameFeed } from "./net/frame-feed.js";
+import { PickSync } from "./net/pick-sync.js";
 import { SessionClient } from "./net/session-client.js";
 import { parseSessionLink, sessionLink } from "./net/session-link.js";
 import { Renderer } from "./render/renderer.js";
@@ -50,6 +51,7 @@ export class App {
       this.status.frame(this.frameFeed.last, this.frameFeed.received),
     );
     this.renderer.onBeforeDraw.push(() => this.frameFeed.tick());
+    this.pickSync = new PickSync(this.session, () => this.store.revision, (buffer) => this.#splats(buffer));
     this.controls = new Controls(doc, this.#controlHandlers());
     this.sculpt = new Sculpt({
       session: this.session,
@@ -157,6 +159,7 @@ export class App {
       this.status.state(e.detail);
       this.doc.title = `Marzipan · rev ${e.detail.revision}`;
       this.frameFeed.sessionChanged();
+      this.pickSync.changed();
       this.#updateAvailability();
     });
     s.addEventListener("clients", (e) => this.status.clients(e.detail.clients, s.info && s.info.client));
@@ -273,6 +276,7 @@ export class App {
   async #setView(view, shading) {
     this.renderer.view = view;
     this.renderer.shading = shading === "normals" ? "normals" : "lit";
+    this.pickSync.setActive(view === "frames");
     try {
       if (view === "frames") await this.frameFeed.start(shading);
       else if (this.frameFeed.active) await this.frameFeed.stop();

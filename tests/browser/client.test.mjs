@@ -258,6 +258,12 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const r2 = await revision(page);
   await page.click('label:has(input[value="csg_subtract"])');
   await page.locator("#radius").fill("16");
+  await page.mouse.move(cx, cy);
+  await page.waitForFunction(() => !document.getElementById("brush-readout").hidden);
+  assert.equal(await text(page, "brush-readout"), "CSG subtract · sphere 16 vu", "the cursor names the tool, shape and size");
+  const ghost = await page.evaluate(() => window.marzipan.renderer.cursorShape);
+  assert.equal(ghost.rings.filter((r) => r.radius === 16).length, 3, "a CSG sphere shows as its ghost");
+  assert.deepEqual(ghost.color, [0.96, 0.48, 0.42], "in the colour of removing");
   await page.mouse.click(cx, cy);
   await second.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, r2);
   await settled(page);
@@ -306,6 +312,20 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const frame = await shot(page, "06-frame-view");
   assert.ok(modelFraction(frame, [0.4, 0.4, 0.6, 0.6]) > 0.9, "the frame shows the model in the middle");
   assert.equal(modelFraction(frame, [0, 0, 0.1, 0.1]), 0, "and the backdrop in the corner");
+  // Picking stays current in the frame view: after a stroke there, the client's own splats
+  // (which place the brush ring and decide stroke or orbit) reach the session's revision.
+  await page.click('label:has(input[value="add_blob"])');
+  const rFrames = await revision(page);
+  const pointsBefore = Number(await data(page, "stat-points", "points"));
+  await drag(page, [cx - 30, cy - 30], [cx + 30, cy - 30], 8);
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rFrames);
+  await page.waitForFunction(
+    () => Number(document.getElementById("stat-points").dataset.revision) >= Number(document.getElementById("revision").dataset.revision),
+    null,
+    { timeout: 15000 },
+  );
+  assert.notEqual(Number(await data(page, "stat-points", "points")), pointsBefore, "the splats picked on are the new ones");
+  await page.click('label:has(input[value="csg_subtract"])');
   const received = Number(await data(page, "stat-frame", "received"));
   await page.selectOption("#shading", "gradient_error");
   await page.waitForFunction(

@@ -178,6 +178,12 @@ export class SessionClient extends EventTarget {
     return this.request("render.frame", params);
   }
 
+  // The whole splat buffer now: {revision, payload} (a kind-1 payload).
+  async splatsSnapshot() {
+    const { result, frame } = await this.request("splats.get", {});
+    return { revision: result.revision, payload: frame.payload };
+  }
+
   exportMesh(format) {
     return this.request("mesh.export", { format });
   }

@@ -1,8 +1,10 @@
-// The brush cursor: a ring on the surface where the brush would act, as wide as the brush
-// radius, turned to lie in the surface's tangent plane, and a dot at its centre; mirrored
-// images of the dab (symmetry) get fainter rings. Drawn over everything so it is never hidden.
+// The brush cursor: rings (a circle of a centre, normal and radius, e.g. the brush's ring in the
+// surface's tangent plane, with a dot at its centre for the primary one) and straight segments
+// (the edges of a CSG tool's ghost shape), in the tool's colour; mirrored images of the dab
+// (symmetry) and inner rings are fainter. Drawn over everything so it is never hidden. The
+// geometry comes from math/brush-ghost.js by way of ui/sculpt.js.
 // Conventions: centres and radii in vu; ring line width in vu, computed by the caller from the
-// pixel size at the hit so the line stays about LINE_PIXELS wide on screen.
+// pixel size at the hit so the line stays about LINE_PIXELS wide on screen; colours RGB 0..1.
 
 import { createProgram } from "./gl-program.js";
 
@@ -22,6 +24,13 @@ void main() {
   vec3 b = cross(n, t);
   float r = max(0.0, u_radius + (a_ring.z - 0.5) * u_width);
   gl_Position = u_viewProjection * vec4(u_center + r * (a_ring.x * t + a_ring.y * b), 1.0);
+}`;
+
+const LINE_VERTEX = `#version 300 es
+layout(location = 0) in vec3 a_position;
+uniform mat4 u_viewProjection;
+void main() {
+  gl_Position = u_viewProjection * vec4(a_position, 1.0);
 }`;
 
 const FRAGMENT = `#version 300 es
@@ -51,11 +60,21 @@ export class BrushCursor {
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
     gl.bindVertexArray(null);
+    this.lines = createProgram(gl, LINE_VERTEX, FRAGMENT, ["u_viewProjection", "u_color"]);
+    this.lineVao = gl.createVertexArray();
+    gl.bindVertexArray(this.lineVao);
+    this.lineBuffer = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.lineBuffer);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    gl.bindVertexArray(null);
+    this.lineData = new Float32Array(0);
   }
 
-  // rings: [{center, normal, radius, width, primary}].
-  draw(camera, rings) {
-    if (!rings.length) return;
+  // cursor: {rings: [{center, normal, radius, width, color, alpha, primary}], segments: [[a, b]],
+  // color}: the segments are drawn as 1-pixel lines in `color`.
+  draw(camera, { rings, segments, color }) {
+    if (!rings.length && !segments.length) return;
     const gl = this.gl;
     const { program, uniforms } = this.program;
     gl.useProgram(program);
@@ -67,13 +86,26 @@ export class BrushCursor {
     for (const ring of rings) {
       gl.uniform3fv(uniforms.u_center, ring.center);
       gl.uniform3fv(uniforms.u_normal, ring.normal);
-      gl.uniform4fv(uniforms.u_color, ring.primary ? [1, 1, 1, 0.9] : [0.6, 0.8, 1, 0.55]);
+      gl.uniform4fv(uniforms.u_color, [...ring.color, ring.alpha]);
       gl.uniform1f(uniforms.u_radius, ring.radius);
       gl.uniform1f(uniforms.u_width, ring.width);
       gl.drawArrays(gl.TRIANGLE_STRIP, 0, 2 * (SEGMENTS + 1));
+      if (!ring.primary) continue;
       gl.uniform1f(uniforms.u_radius, ring.width);
       gl.uniform1f(uniforms.u_width, 2 * ring.width);
       gl.drawArrays(gl.TRIANGLE_STRIP, 0, 2 * (SEGMENTS + 1));
+    }
+    if (segments.length) {
+      const n = segments.length * 6;
+      if (this.lineData.length < n) this.lineData = new Float32Array(n);
+      segments.forEach(([a, b], i) => this.lineData.set([...a, ...b], 6 * i));
+      gl.useProgram(this.lines.program);
+      gl.bindVertexArray(this.lineVao);
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.lineBuffer);
+      gl.bufferData(gl.ARRAY_BUFFER, this.lineData.subarray(0, n), gl.DYNAMIC_DRAW);
+      gl.uniformMatrix4fv(this.lines.uniforms.u_viewProjection, false, camera.viewProjection);
+      gl.uniform4fv(this.lines.uniforms.u_color, [...color, 0.9]);
+      gl.drawArrays(gl.LINES, 0, 2 * segments.length);
     }
     gl.disable(gl.BLEND);
     gl.bindVertexArray(null);

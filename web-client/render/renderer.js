@@ -23,7 +23,7 @@ export class Renderer {
     this.camera = camera;
     this.view = "splats";
     this.shading = "lit";
-    this.rings = [];
+    this.cursorShape = { rings: [], segments: [], color: [1, 1, 1] }; // ui/sculpt.js sets it
     this.onBeforeDraw = [];
     this.onAfterDraw = [];
     this.width = 1;
@@ -139,7 +139,7 @@ export class Renderer {
       this.backdrop.draw();
       if (this.view === "splats") this.splats.draw(this.camera, this.shading);
     }
-    this.cursor.draw(this.camera, this.rings);
+    this.cursor.draw(this.camera, this.cursorShape);
     this.lastDrawMs = performance.now() - start;
     ++this.frameCount;
     this.drawTimes[this.drawTimesNext] = start;

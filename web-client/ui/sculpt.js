@@ -10,7 +10,9 @@
 // (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
 
 import { DabSpacer } from "../math/dab-spacer.js";
+import { brushGhost } from "../math/brush-ghost.js";
 import { LazyMouse } from "../math/lazy-mouse.js";
+import { transformPoint } from "../math/mat4.js";
 import { pickSplats } from "../math/splat-pick.js";
 import { LINE_PIXELS } from "../render/brush-cursor.js";
 import { DISC_RADIUS } from "../render/splat-renderer.js";
@@ -141,20 +143,43 @@ export class Sculpt {
     this.renderer.canvas.dataset.strokes = String(n);
   }
 
+  // The brush cursor in the tool's colour (math/brush-ghost.js: ring and strength ring for
+  // brushes, the shape's ghost for CSG tools), fainter rings at the mirrored dabs, and the size
+  // readout beside the pointer.
   #updateCursor() {
-    const rings = [];
+    const tool = this.controls.tool;
+    const cursor = { rings: [], segments: [], color: tool.color };
     const hit = this.hit;
+    const readout = this.renderer.canvas.ownerDocument.getElementById("brush-readout");
     if (hit && this.editable) {
       const s = this.controls.settings;
       const perPixel = (2 * hit.t * Math.tan(this.camera.fovY / 2)) / Math.max(1, this.renderer.canvas.clientHeight);
       const width = LINE_PIXELS * perPixel;
-      rings.push({ center: hit.point, normal: hit.normal, radius: s.radius, width, primary: true });
-      if (this.controls.tool.kind === "stroke")
+      const ghost = brushGhost({ kind: tool.kind, shape: s.shape, strength: s.strength }, hit.point, hit.normal, s.radius);
+      cursor.segments = ghost.segments;
+      for (const r of ghost.rings) cursor.rings.push({ ...r, width, color: tool.color, alpha: r.inner ? 0.6 : 0.95, primary: !r.inner && tool.kind === "stroke" });
+      if (tool.kind === "click") cursor.rings.push({ center: hit.point, normal: hit.normal, radius: 0, width, color: tool.color, alpha: 0.95, primary: true });
+      if (tool.kind === "stroke")
         for (const image of mirrorImages(hit.point, hit.normal, s.symmetry, this.session.info.size))
-          rings.push({ ...image, radius: s.radius, width, primary: false });
+          cursor.rings.push({ ...image, radius: s.radius, width, color: tool.color, alpha: 0.45, primary: false });
+      this.#placeReadout(readout, hit.point, tool.kind === "click" ? `${tool.label} · ${s.shape} ${s.radius} vu` : `${tool.label} · ${s.radius} vu · ${s.strength.toFixed(2)}`);
+    } else if (readout) {
+      readout.hidden = true;
     }
-    this.renderer.rings = rings;
+    this.renderer.cursorShape = cursor;
     this.renderer.requestRedraw();
+  }
+
+  // The readout sits just right of and below the brush centre on screen.
+  #placeReadout(readout, point, text) {
+    if (!readout) return;
+    const canvas = this.renderer.canvas;
+    this.camera.update(canvas.clientWidth, canvas.clientHeight);
+    const [nx, ny, nz] = transformPoint(this.camera.viewProjection, point);
+    readout.hidden = !(Math.abs(nx) <= 1 && Math.abs(ny) <= 1 && Math.abs(nz) <= 1);
+    readout.textContent = text;
+    readout.style.left = `${((nx + 1) / 2) * canvas.clientWidth + 14}px`;
+    readout.style.top = `${((1 - ny) / 2) * canvas.clientHeight + 14}px`;
   }
 }
 
