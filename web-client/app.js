@@ -70,6 +70,9 @@ export class App {
       strokeEnd: () => this.sculpt.strokeEnd(),
       click: (x, y, modifier) => this.sculpt.click(x, y, modifier),
       brushStart: () => this.sculpt.brushStart(),
+      pivotAt: (x, y) => this.sculpt.pivotAt(x, y),
+      focusAt: (x, y) => this.#focusAt(x, y),
+      twoFingerTap: () => this.controls.handlers.onUndo(),
       brushDrag: (dx, dy) => this.sculpt.brushDrag(dx, dy),
       cameraChanged: () => this.#cameraChanged(),
     });
@@ -267,9 +270,17 @@ export class App {
     };
   }
 
+  // Presets look along their axis at the model itself, framed as a whole.
   #cameraPreset(name) {
     this.camera.setPreset(name);
-    if (name === "home") this.#fitModel();
+    this.#fitModel();
+    this.#cameraChanged();
+  }
+
+  #focusAt(x, y) {
+    const hit = this.sculpt.pick(x, y);
+    if (!hit) return;
+    this.camera.focus(hit.point);
     this.#cameraChanged();
   }
 

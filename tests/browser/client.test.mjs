@@ -478,6 +478,44 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) > r, rTouch);
   await settled(page);
 
+  // Two fingers turning orbit (a model filling the view can still be turned on a touch screen),
+  // and a quick two-finger tap undoes the stroke just made.
+  const yawBefore = await page.evaluate(() => window.marzipan.camera.yaw);
+  await touch("touchStart", [[cx - 60, cy], [cx + 60, cy]]);
+  for (let i = 1; i <= 6; ++i) {
+    const a = (i * Math.PI) / 24;
+    await touch("touchMove", [[cx - 60 * Math.cos(a), cy - 60 * Math.sin(a)], [cx + 60 * Math.cos(a), cy + 60 * Math.sin(a)]]);
+  }
+  await touch("touchEnd", []);
+  const turned = (await page.evaluate(() => window.marzipan.camera.yaw)) - yawBefore;
+  assert.ok(Math.abs(Math.abs(turned) - Math.PI / 4) < 0.05, `turning two fingers by 45 degrees orbits by 45 degrees (${turned})`);
+  const rTap = await revision(page);
+  const undos = sentSince(0, "history.undo").length;
+  // Dispatched in one task: CDP touches wait for each other behind a software-rendered frame
+  // (about a second here), which would make any tap too slow to be one.
+  await page.evaluate(([x, y]) => {
+    const canvas = document.getElementById("view");
+    const send = (type, id, dx) =>
+      canvas.dispatchEvent(new PointerEvent(type, { pointerId: id, pointerType: "touch", isPrimary: id === 21, bubbles: true, button: 0, buttons: type === "pointerup" ? 0 : 1, clientX: x + dx, clientY: y }));
+    send("pointerdown", 21, -30);
+    send("pointerdown", 22, 30);
+    send("pointerup", 21, -30);
+    send("pointerup", 22, 30);
+  }, [cx, cy]);
+  await page.waitForFunction((r) => Number(document.getElementById("revision").dataset.revision) === r + 1, rTap);
+  await settled(page);
+  assert.equal(sentSince(0, "history.undo").length, undos + 1, "the two-finger tap sent one undo");
+
+  // A double right-click centres the view on the surface point under the pointer.
+  const [fx, fy] = [cx + 40, cy - 25];
+  const aim = await page.evaluate(([x, y]) => {
+    const r = document.getElementById("view").getBoundingClientRect();
+    return window.marzipan.sculpt.pick(x - r.left, y - r.top).point;
+  }, [fx, fy]);
+  await page.mouse.click(fx, fy, { button: "right", clickCount: 2 });
+  const target = await page.evaluate(() => window.marzipan.camera.target);
+  assert.ok(Math.hypot(...target.map((v, i) => v - aim[i])) < 1e-6, `the view is centred on the point (${target} vs ${aim})`);
+
   // A dropped connection: the page reconnects by itself and resyncs.
   const rBefore = await revision(page);
   const dBefore = await digest(page);

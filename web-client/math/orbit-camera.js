@@ -115,10 +115,29 @@ export class OrbitCamera {
   }
 
   // Drag by (dx, dy) pixels in a viewport `height` pixels tall: a full height turns by 180 deg.
-  orbit(dx, dy, height) {
+  // With a `pivot` (vu), the camera turns around that point instead of the target, and the
+  // pivot stays where it is on screen (the point a sculptor orbits to look at stays put).
+  orbit(dx, dy, height, pivot = null) {
+    const before = pivot && this.#cameraCoordinates(pivot);
     const k = Math.PI / Math.max(1, height);
     this.yaw = wrapAngle(this.yaw - dx * k);
     this.pitch = clamp(this.pitch + dy * k, -HALF_PI, HALF_PI);
+    if (before) {
+      const [r, u, b] = [this.right, this.up, this.backward];
+      const eye = pivot.map((p, i) => p - (before[0] * r[i] + before[1] * u[i] + before[2] * b[i]));
+      this.target = addScaled(eye, b, -this.distance);
+    }
+  }
+
+  // (pivot − eye) in the camera's right, up, backward axes.
+  #cameraCoordinates(p) {
+    const d = sub(p, this.eye);
+    return [this.right, this.up, this.backward].map((a) => d[0] * a[0] + d[1] * a[1] + d[2] * a[2]);
+  }
+
+  // Centres the view on `point` (vu) from the same direction and distance (double-click focus).
+  focus(point) {
+    this.target = point.map((v, i) => clamp(v, -this.dims[i], 2 * this.dims[i]));
   }
 
   // Moves the target so that the point under the cursor follows it (at the target's depth).

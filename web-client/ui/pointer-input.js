@@ -1,8 +1,12 @@
 // Mouse, pen, touch and trackpad on the canvas, turned into camera moves and sculpting. Which
 // press starts which gesture is ui/gesture-map.js (sculpt on the model, with Ctrl/Alt to
 // invert and Shift to smooth; Space+drag or right drag orbits anywhere; middle drag pans;
-// F+drag sizes the brush); the wheel zooms towards the point under the pointer (a trackpad
-// pinch arrives as Ctrl+wheel); two fingers pinch to zoom and move to pan.
+// F+drag sizes the brush); an orbit turns around the surface point under the pointer where
+// the press began (or the last point the brush was on); a double press that orbits without
+// moving (a double right-click, Space+double-click, or a double-click beside the model)
+// centres the view on the point under the pointer; the wheel zooms towards the point under the
+// pointer (a trackpad pinch arrives as Ctrl+wheel); two fingers pinch to zoom, move together
+// to pan and turn to orbit; a quick two-finger tap undoes.
 // Conventions: positions in CSS pixels relative to the canvas's top-left corner (y down);
 // pressure in (0, 1]: the pen's, 1 for a mouse (whose Pointer Events pressure is a constant
 // 0.5 while a button is down), and 1 for touch screens that report none. A finger's stroke
@@ -16,6 +20,9 @@ const MIN_PRESSURE = 0.05;
 const MAX_COALESCED = 16;
 const TOUCH_HOLD_MS = 120; // a finger that stays this long on the model starts its stroke
 const HELD_KEYS = new Set(["Space", "KeyF"]);
+// Times are the events' own (timeStamp), not when a busy page got round to handling them.
+const DOUBLE_MS = 400; // two still camera presses this close in time are a double press
+const TAP_MS = 250; // two fingers down and up within this, without moving: a two-finger tap
 const TYPING = new Set(["text", "url", "number", "search", "email", "password"]);
 
 function typing(t) {
@@ -79,7 +86,8 @@ export class PointerInput {
       this.touches.set(e.pointerId, [x, y]);
       if (this.touches.size === 2) {
         this.cancel();
-        this.#setGesture({ kind: "pinch", ...this.#pinchState() });
+        const state = this.#pinchState();
+        this.#setGesture({ kind: "pinch", ...state, at: e.timeStamp, startDistance: state.distance, startMid: state.mid, moved: false });
         return;
       }
       if (this.touches.size > 2) return;
@@ -96,7 +104,8 @@ export class PointerInput {
     const needsSurface = e.button === 0 && !press.space && !press.brushKey;
     const chosen = pressGesture(press, needsSurface ? this.h.sculptGestureAt(x, y) : null);
     if (!chosen) return;
-    const g = { pointerId: e.pointerId, x, y, startX: x, startY: y, kind: chosen.kind, modifier: chosen.modifier };
+    const g = { pointerId: e.pointerId, x, y, startX: x, startY: y, kind: chosen.kind, modifier: chosen.modifier, at: e.timeStamp };
+    if (g.kind === "orbit") g.pivot = this.h.pivotAt(x, y);
     if (g.kind === "brush") this.h.brushStart();
     try {
       this.canvas.setPointerCapture(e.pointerId);
@@ -132,7 +141,7 @@ export class PointerInput {
     const height = this.canvas.clientHeight;
     switch (g.kind) {
       case "orbit":
-        this.camera.orbit(dx, dy, height);
+        this.camera.orbit(dx, dy, height, g.pivot);
         this.h.cameraChanged();
         break;
       case "pan":
@@ -166,8 +175,12 @@ export class PointerInput {
   #up(e, cancelled) {
     if (e.pointerType === "touch") {
       this.touches.delete(e.pointerId);
-      if (this.gesture && this.gesture.kind === "pinch") {
-        if (this.touches.size < 2) this.#setGesture(null);
+      const pinch = this.gesture && this.gesture.kind === "pinch" ? this.gesture : null;
+      if (pinch) {
+        if (this.touches.size < 2) {
+          this.#setGesture(null);
+          if (!cancelled && !pinch.moved && e.timeStamp - pinch.at < TAP_MS) this.h.twoFingerTap();
+        }
         return;
       }
     }
@@ -179,7 +192,21 @@ export class PointerInput {
     this.#setGesture(null);
     if (g.kind === "stroke") this.h.strokeEnd();
     else if (g.kind === "click" && !cancelled) this.h.click(g.startX, g.startY, g.modifier);
+    else if ((g.kind === "orbit" || g.kind === "pan") && !cancelled) this.#stillPress(g);
     if (e.pointerType !== "touch") this.h.hover(...this.#pos(e));
+  }
+
+  // A camera press that did not move: two in a row, close in time and place, focus the view on
+  // the surface point under the pointer.
+  #stillPress(g) {
+    if (Math.hypot(g.x - g.startX, g.y - g.startY) > CLICK_SLOP_PX) return (this.lastStill = null);
+    const last = this.lastStill;
+    if (last && g.at - last.at < DOUBLE_MS && Math.hypot(g.startX - last.x, g.startY - last.y) <= 2 * CLICK_SLOP_PX) {
+      this.lastStill = null;
+      this.h.focusAt(g.startX, g.startY);
+    } else {
+      this.lastStill = { at: g.at, x: g.startX, y: g.startY };
+    }
   }
 
   #startPendingStroke() {
@@ -193,7 +220,11 @@ export class PointerInput {
 
   #pinchState() {
     const [a, b] = [...this.touches.values()];
-    return { distance: Math.hypot(a[0] - b[0], a[1] - b[1]), mid: [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2] };
+    return {
+      distance: Math.hypot(a[0] - b[0], a[1] - b[1]),
+      mid: [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2],
+      angle: Math.atan2(b[1] - a[1], b[0] - a[0]),
+    };
   }
 
   #pinch() {
@@ -202,8 +233,14 @@ export class PointerInput {
     const now = this.#pinchState();
     if (g.distance > 0 && now.distance > 0) this.camera.zoom(g.distance / now.distance);
     this.camera.pan(now.mid[0] - g.mid[0], now.mid[1] - g.mid[1], this.canvas.clientHeight);
+    // Turning the two fingers orbits: a quarter turn of the fingers is a quarter turn of the model.
+    const twist = wrapAngle(now.angle - g.angle);
+    if (twist) this.camera.orbit((-twist * this.canvas.clientHeight) / Math.PI, 0, this.canvas.clientHeight);
+    if (Math.abs(now.distance - g.startDistance) > CLICK_SLOP_PX || Math.hypot(now.mid[0] - g.startMid[0], now.mid[1] - g.startMid[1]) > CLICK_SLOP_PX)
+      g.moved = true;
     g.distance = now.distance;
     g.mid = now.mid;
+    g.angle = now.angle;
     this.h.cameraChanged();
   }
 
@@ -215,4 +252,8 @@ export class PointerInput {
     this.camera.zoomAt(Math.exp(delta * (e.ctrlKey ? 0.01 : 0.0015)), x, y, this.canvas.clientWidth, this.canvas.clientHeight);
     this.h.cameraChanged();
   }
+}
+
+function wrapAngle(a) {
+  return a - 2 * Math.PI * Math.floor((a + Math.PI) / (2 * Math.PI));
 }

@@ -27,6 +27,7 @@ export class Sculpt {
     Object.assign(this, { session, store, camera, renderer, controls, messages });
     this.hoverAt = null; // [x, y] of the pointer over the canvas, or null
     this.hit = null; // the surface under it
+    this.lastPoint = null; // the last surface point the pointer was on (the orbit pivot beside the model)
     this.stroke = null; // {sender, spacer}
     this.openStrokes = 0; // strokes whose stroke.end has not answered yet
     renderer.onBeforeDraw.push(() => this.stroke && this.stroke.sender.flush());
@@ -49,7 +50,16 @@ export class Sculpt {
   hover(x, y) {
     this.hoverAt = [x, y];
     this.hit = this.pick(x, y);
+    if (this.hit) this.lastPoint = this.hit.point;
     this.#updateCursor();
+  }
+
+  // The point an orbit starting at (x, y) turns around: the surface under the pointer, else
+  // the last surface point the pointer was on, else none (the camera's target).
+  pivotAt(x, y) {
+    const hit = this.pick(x, y);
+    if (hit) this.lastPoint = hit.point;
+    return hit ? hit.point : this.lastPoint || null;
   }
 
   leave() {

@@ -144,3 +144,30 @@ test("zoomAt keeps the point under the pointer (at the target's depth) under the
   assert.equal(c.distance, 200);
   close(c.target, target, 1e-12, "a zoom at the centre keeps the target");
 });
+
+test("an orbit around a pivot keeps the pivot where it was on screen and turns the view as a plain orbit does", () => {
+  const c = new OrbitCamera([128, 128, 128]);
+  c.target = [64, 64, 64];
+  c.distance = 150;
+  c.setPreset("home");
+  const pivot = [80, 70, 90];
+  const [w, h] = [800, 600];
+  const screen = (p) => {
+    c.update(w, h);
+    const n = transformPoint(c.viewProjection, p);
+    return [((n[0] + 1) / 2) * w, ((1 - n[1]) / 2) * h];
+  };
+  const before = screen(pivot);
+  const plain = new OrbitCamera([128, 128, 128]);
+  plain.setState(c.state());
+  c.orbit(120, -45, h, pivot);
+  plain.orbit(120, -45, h);
+  close(screen(pivot), before, 1e-3, "pivot on screen (float32 matrices)");
+  assert.equal(c.yaw, plain.yaw);
+  assert.equal(c.pitch, plain.pitch);
+  assert.equal(c.distance, 150);
+  assert.ok(length(sub(c.target, [64, 64, 64])) > 1, "the target moved around the pivot");
+  c.focus([10, 20, 30]);
+  close(c.target, [10, 20, 30], 0, "focus centres the view on the point");
+  assert.equal(c.distance, 150, "from the same distance");
+});
