@@ -305,6 +305,26 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(viewerErrors, 0, "Ctrl+Z on a view-only page does nothing, without a protocol error");
   await viewer.close();
 
+  // Layout: on this 1100×760 window the tools, brush, undo/redo and the view switch need no
+  // scrolling; a phone gets a compact toolbar of tools and undo over the view.
+  for (const id of ["tool-palette", "brush", "history", "view-controls"]) {
+    const box = await page.locator(`#${id}`).boundingBox();
+    assert.ok(box.y + box.height <= 760, `#${id} is on screen without scrolling (bottom ${box.y + box.height})`);
+  }
+  assert.equal(await page.locator("#quickbar").isVisible(), false, "no compact toolbar on a wide screen");
+  const phone = await browser.context.newPage();
+  collectErrors(phone, errors);
+  await phone.setViewportSize({ width: 390, height: 844 });
+  await phone.goto(editLink);
+  await settled(phone);
+  assert.equal(await phone.locator("#quickbar").isVisible(), true, "a phone shows the compact toolbar");
+  await phone.click('#quickbar [data-tool="remove_blob"]');
+  assert.equal(await phone.locator('input[value="remove_blob"]').isChecked(), true, "its tool buttons pick the tool");
+  assert.equal(await phone.locator("#quick-undo").isDisabled(), await phone.locator("#undo").isDisabled(), "its undo is the panel's");
+  const qb = await phone.locator("#quickbar").boundingBox();
+  assert.ok(qb.y + qb.height <= 844, "and it is on screen");
+  await phone.close();
+
   // The frame view: the server's ray-cast frames, clay, then gradient error.
   await page.click('label:has(input[value="frames"])');
   await page.waitForFunction(() => Number(document.getElementById("stat-frame").dataset.received || 0) > 0, null, { timeout: 30000 });

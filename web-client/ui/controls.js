@@ -29,6 +29,7 @@ export class Controls {
     const $ = (id) => doc.getElementById(id);
     this.$ = $;
     this.#buildPalette();
+    this.#buildQuickbar();
 
     this.radius = $("radius");
     this.strength = $("strength");
@@ -97,9 +98,35 @@ export class Controls {
     }
   }
 
+  // Small screens (style.css) show a compact toolbar over the view instead of scrolling to the
+  // panel: the tools and undo/redo, the same actions as the panel's.
+  #buildQuickbar() {
+    const bar = this.$("quickbar");
+    for (const tool of TOOLS) {
+      const b = this.doc.createElement("button");
+      b.type = "button";
+      b.dataset.tool = tool.id;
+      b.textContent = tool.short;
+      b.title = tool.label;
+      b.setAttribute("aria-pressed", String(tool.id === this.settings.tool));
+      b.addEventListener("click", () => this.setTool(tool.id));
+      bar.append(b);
+    }
+    for (const [id, label, action] of [["quick-undo", "Undo", () => this.handlers.onUndo()], ["quick-redo", "Redo", () => this.handlers.onRedo()]]) {
+      const b = this.doc.createElement("button");
+      b.type = "button";
+      b.id = id;
+      b.textContent = label;
+      b.disabled = true;
+      b.addEventListener("click", action);
+      bar.append(b);
+    }
+  }
+
   setTool(id) {
     this.settings.tool = toolById(id).id;
     for (const input of this.doc.querySelectorAll('input[name="tool"]')) input.checked = input.value === this.settings.tool;
+    for (const b of this.doc.querySelectorAll("#quickbar [data-tool]")) b.setAttribute("aria-pressed", String(b.dataset.tool === this.settings.tool));
     this.#syncBrush();
     this.handlers.onSettings();
   }
@@ -173,8 +200,9 @@ export class Controls {
     const $ = this.$;
     for (const id of ["global-apply", "load-volume"]) $(id).disabled = !edit;
     $("load-volume-label").setAttribute("aria-disabled", String(!edit));
-    $("undo").disabled = !edit || !canUndo;
-    $("redo").disabled = !edit || !canRedo;
+    $("undo").disabled = $("quick-undo").disabled = !edit || !canUndo;
+    $("redo").disabled = $("quick-redo").disabled = !edit || !canRedo;
+    $("quickbar").hidden = Boolean(readOnly);
     for (const b of this.doc.querySelectorAll("[data-export]")) b.disabled = !connected;
     for (const id of ["save-volume", "stats-refresh", "share"]) $(id).disabled = !connected;
     for (const id of ["tool-palette", "brush", "global", "history"]) {

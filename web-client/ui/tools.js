@@ -2,20 +2,21 @@
 // kind "stroke": a pointer drag is one stroke of dabs (stroke.begin / dabs / end), the brush
 // tools of PROTOCOL.md; kind "click": a click applies the tool once where the pointer ray meets
 // the surface (tool.apply with a ray), the CSG tools. Global operations are in GLOBAL_OPS.
-// `key` is the keyboard shortcut that selects the tool.
+// `key` is the keyboard shortcut that selects the tool; `short` its name on the compact toolbar
+// of small screens.
 
 // `color` ([r, g, b] in 0..1) is the brush cursor's, one per effect: adding green, removing red,
 // smoothing blue, sharpening amber, intersecting violet.
 const ADD = [0.5, 0.86, 0.5];
 const REMOVE = [0.96, 0.48, 0.42];
 export const TOOLS = Object.freeze([
-  { id: "add_blob", label: "Add blob", key: "a", kind: "stroke", color: ADD },
-  { id: "remove_blob", label: "Remove blob", key: "r", kind: "stroke", color: REMOVE },
-  { id: "smooth", label: "Smooth", key: "s", kind: "stroke", color: [0.45, 0.74, 0.96] },
-  { id: "sharpen", label: "Sharpen", key: "h", kind: "stroke", color: [0.96, 0.78, 0.36] },
-  { id: "csg_add", label: "CSG add", key: "c", kind: "click", color: ADD },
-  { id: "csg_subtract", label: "CSG subtract", key: "x", kind: "click", color: REMOVE },
-  { id: "csg_intersect", label: "CSG intersect", key: "i", kind: "click", color: [0.76, 0.56, 0.96] },
+  { id: "add_blob", label: "Add blob", short: "Add", key: "a", kind: "stroke", color: ADD },
+  { id: "remove_blob", label: "Remove blob", short: "Remove", key: "r", kind: "stroke", color: REMOVE },
+  { id: "smooth", label: "Smooth", short: "Smooth", key: "s", kind: "stroke", color: [0.45, 0.74, 0.96] },
+  { id: "sharpen", label: "Sharpen", short: "Sharpen", key: "h", kind: "stroke", color: [0.96, 0.78, 0.36] },
+  { id: "csg_add", label: "CSG add", short: "∪", key: "c", kind: "click", color: ADD },
+  { id: "csg_subtract", label: "CSG subtract", short: "−", key: "x", kind: "click", color: REMOVE },
+  { id: "csg_intersect", label: "CSG intersect", short: "∩", key: "i", kind: "click", color: [0.76, 0.56, 0.96] },
 ]);
 
 export function toolById(id) {
