@@ -13,9 +13,10 @@
 // - Storage: the newest undo step stays as the Edit it was recorded as (shared brick buffers),
 //   so that a stroke can amend() it; every other step is packed: its bricks' coordinates, a
 //   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 3) of the
-//   data bricks' voxels, each as its difference from a prediction along x, split into 4 byte
-//   planes (history.cpp). Packing is lossless: an unpacked brick holds the same bits; about
-//   2.9x smaller than the floats on the pig's sculpted bricks. A step is packed when a newer one is
+//   data bricks' voxels, each as its difference from the same voxel of the other side (the
+//   volume's when the step moves; a prediction along x where that brick is uniform), split
+//   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
+//   bits; about 4.5x smaller than the floats on the pig's strokes. A step is packed when a newer one is
 //   pushed, and repacked with its other side when it moves between the lists.
 // - Memory: bytes() is what the stored steps hold: for the unpacked step kBytesPerBrick per
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
@@ -39,20 +40,25 @@
 
 namespace marzipan::service {
 
-// One side (all `before` or all `after` bricks) of a step, losslessly compressed.
+// One side (all `before` or all `after` bricks) of a step, losslessly compressed against the
+// other side (its references), which the volume holds when the step is unpacked.
 struct PackedBricks {
   std::vector<Int3> bricks;
   std::vector<std::uint8_t> kinds;     // per brick: kOutside, kInside or kData
   std::vector<unsigned char> frame;    // zstd frame of the kData bricks' byte planes, in order
+  std::uint64_t against = 0;           // fingerprint of the references
   static constexpr std::uint8_t kOutside = 0, kInside = 1, kData = 2;
 
   std::size_t bytes() const;
 };
 
-// Packs the given refs (one per brick, in order). Throws std::runtime_error only if zstd fails.
-PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const BrickRef*>& refs);
-// The refs packBricks() was given, as new buffers with the same bits.
-std::vector<BrickRef> unpackBricks(const PackedBricks& p);
+// Packs refs (one per brick, in order) against the same bricks' other side. Throws
+// std::runtime_error only if zstd fails.
+PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const BrickRef*>& refs,
+                        const std::vector<const BrickRef*>& against);
+// The refs packBricks() was given, as new buffers with the same bits, given the same references;
+// throws std::runtime_error for other references or a damaged frame.
+std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<const BrickRef*>& against);
 
 class History {
  public:

@@ -702,6 +702,8 @@ class ProcessSampler:
                 stat = f.read().rsplit(")", 1)[1].split()
         except OSError:
             return None
+        if "VmRSS" not in fields:
+            return None  # exited: a zombie has no memory lines
         cpu = (int(stat[11]) + int(stat[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
         kib = lambda name: int(fields[name].split()[0]) / 1024  # noqa: E731
         entry = (time.monotonic(), kib("VmRSS"), kib("VmHWM"), cpu, runqueue_wait_s(self.pid))

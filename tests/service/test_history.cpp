@@ -108,11 +108,21 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     }
     refs.push_back(std::move(r));
   }
-  std::vector<const BrickRef*> ptrs;
+  // The other side: brick 0 and 5 against a changed copy of themselves, the rest against
+  // uniform bricks (the prediction along x).
+  std::vector<BrickRef> others(refs.size());
+  for (const std::size_t i : {0, 5}) {
+    auto b = std::make_shared<Brick>(*refs[i].data);
+    for (int k = 0; k < kBrickVoxels; k += 3) b->v[k] = -b->v[k];
+    others[i].data = std::move(b);
+  }
+  others[2].inside = true;
+  std::vector<const BrickRef*> ptrs, against;
   for (const auto& r : refs) ptrs.push_back(&r);
-  const service::PackedBricks p = service::packBricks(coords, ptrs);
+  for (const auto& r : others) against.push_back(&r);
+  const service::PackedBricks p = service::packBricks(coords, ptrs, against);
   CHECK(p.bricks.size() == 6);
-  const std::vector<BrickRef> back = service::unpackBricks(p);
+  const std::vector<BrickRef> back = service::unpackBricks(p, against);
   REQUIRE(back.size() == refs.size());
   for (std::size_t i = 0; i < refs.size(); ++i) {
     INFO("brick " << i);
@@ -128,11 +138,21 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
   SECTION("a damaged frame is refused, not unpacked into wrong bricks") {
     service::PackedBricks bad = p;
     bad.frame.resize(bad.frame.size() / 2);
-    CHECK_THROWS_AS(service::unpackBricks(bad), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(bad, against), std::runtime_error);
+  }
+  SECTION("other references are refused, not unpacked into wrong bricks") {
+    auto changed = std::make_shared<Brick>(*others[0].data);
+    changed->v[0] += 1.0f;
+    std::vector<BrickRef> wrong = others;
+    wrong[0].data = std::move(changed);
+    std::vector<const BrickRef*> wrongPtrs;
+    for (const auto& r : wrong) wrongPtrs.push_back(&r);
+    CHECK_THROWS_AS(service::unpackBricks(p, wrongPtrs), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(p, {against.begin(), against.end() - 1}), std::runtime_error);
   }
 }
 
-TEST_CASE("history: steps are held packed 2.5x smaller than their bricks, and the budget counts that", "[history]") {
+TEST_CASE("history: steps are held packed 4x smaller than their bricks, and the budget counts that", "[history]") {
   ThreadPool pool(2);
   // What the load tool's sculptors leave on the 128^3 pig: strokes of blobs along its back,
   // each step one stroke.dabs message.
@@ -174,8 +194,8 @@ TEST_CASE("history: steps are held packed 2.5x smaller than their bricks, and th
   h.redo(v);  // every step packed now
   CHECK(digest(v) == digests.back());
   INFO("before bricks " << raw << ", both sides " << bothSides << ", packed " << h.bytes());
-  CHECK(h.bytes() * 5 <= raw * 2);
-  CHECK(h.bytes() * 3 <= bothSides);
+  CHECK(h.bytes() * 4 <= raw);
+  CHECK(h.bytes() * 4 <= bothSides);
 
   // A budget the raw bricks would overflow twice holds every packed step: the accounting is
   // the packed size (the newest step, unpacked, included).
@@ -239,16 +259,23 @@ TEST_CASE("history: over budget the oldest steps are dropped first", "[history]"
   ThreadPool pool(2);
   constexpr int kSteps = 12;
   const auto blob = [](int i) { return BrushParams{{kSurface, kC - 11 + 2 * i, kC}, 4, 1}; };
-  // All of them, measured with an unlimited budget; 60% of that must drop some.
-  std::size_t total = 0;
+  // All of them, measured with an unlimited budget: the newest step unpacked (its shared
+  // buffers), the older ones packed. Room for the newest and about half of the others.
+  std::size_t total = 0, newest = 0;
   {
     Volume v = sphere();
     History h(SIZE_MAX);
-    for (int i = 0; i < kSteps; ++i) h.push(addBlob(v, blob(i), pool));
+    for (int i = 0; i < kSteps; ++i) {
+      Edit e = addBlob(v, blob(i), pool);
+      newest = e.changes.size() * sizeof(BrickChange);
+      for (const auto& c : e.changes) newest += History::kBytesPerBrick * (!!c.before.data + !!c.after.data);
+      h.push(std::move(e));
+    }
     total = h.bytes();
     REQUIRE(h.droppedSteps() == 0);
   }
-  const std::size_t budget = total * 6 / 10;
+  REQUIRE(total > newest);
+  const std::size_t budget = newest + (total - newest) / 2;
   Volume v = sphere();
   History h(budget);
   std::vector<std::uint64_t> digests{digest(v)};
