@@ -12,7 +12,7 @@
 //   other side is read off the volume when the step moves.
 // - Storage: the newest undo step stays as the Edit it was recorded as (shared brick buffers),
 //   so that a stroke can amend() it; every other step is packed: its bricks' coordinates, a
-//   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 3) of the
+//   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 1) of the
 //   data bricks' voxels, each as its difference from the same voxel of the other side (the
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
 //   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
