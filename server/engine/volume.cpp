@@ -224,6 +224,17 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
   const Int3 o{brick.x * kBrickSide, brick.y * kBrickSide, brick.z * kBrickSide};
   const Box inDomain = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(domain());
   bool allOut = true, allIn = true;
+  if (inDomain.size() == Int3{kBrickSide, kBrickSide, kBrickSide}) {
+    // Every brick of a domain whose sides are multiples of 8: no voxel to blank, and most
+    // bricks an edit writes are mixed, which the first few voxels tell (2% of a loaded server's
+    // CPU went to the general loop below).
+    for (int i = 0; i < kBrickVoxels && (allOut || allIn); ++i) {
+      allOut = allOut && data->v[i] == band_;
+      allIn = allIn && data->v[i] == -band_;
+    }
+    if (allOut || allIn) return {nullptr, allIn};
+    return {std::move(data), false};
+  }
   for (int z = 0; z < kBrickSide; ++z)
     for (int y = 0; y < kBrickSide; ++y)
       for (int x = 0; x < kBrickSide; ++x) {

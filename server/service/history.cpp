@@ -1,46 +1,223 @@
 // Undo/redo of whole steps (see history.hpp).
 #include "service/history.hpp"
 
+#include <zstd.h>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
 #include <utility>
 
 namespace marzipan::service {
 
+namespace {
+
+constexpr std::size_t kBrickBytes = sizeof(Brick);
+static_assert(kBrickBytes == kBrickVoxels * 4, "a brick is 512 floats of 4 bytes");
+// A step is packed on its session's strand between two edits: level 1 packs these differences
+// as small as level 3 (4.53x against 4.50x on the pig's strokes) in a sixth of the time, and
+// packing was 9% of a loaded server's CPU at level 3 with a fresh context per step.
+constexpr int kZstdLevel = 1;
+// The clamp of the prediction: any bound works (prediction and its inverse use the same), this
+// one keeps 2a - b finite for any finite a, b of a field clamped to its band (at most 8 vu).
+constexpr float kMaxBand = 8.0f;
+
+// A brick of one side is stored against the same brick of the other side (its reference),
+// which the volume holds whenever the step moves: an edit changes some voxels of a brick and
+// leaves the rest, so most differences are zero or small. Where the reference is uniform, a
+// voxel is predicted instead by linear extrapolation of the two before it along x (clamped
+// to +-kMaxBand; far voxels are exactly +-band and predict themselves). Differences are taken
+// on the floats' order-preserving 32-bit integers and zigzagged so that small ones of either
+// sign have zero high bytes; byte p of every word goes to plane p, and the planes of a step
+// become one zstd frame. Each step is a bijection on 32-bit words given the reference and the
+// voxels already decoded: unpacking is exact. On the pig, 30-dab strokes: 4.5x against the
+// other side, 2.6x with the predictor alone, 2.57x for raw floats.
+std::uint32_t ordered(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+float unordered(std::uint32_t u) {
+  u = (u & 0x80000000u) ? (u & 0x7fffffffu) : ~u;
+  float f;
+  std::memcpy(&f, &u, 4);
+  return f;
+}
+
+std::uint32_t zigzag(std::uint32_t d) { return (d << 1) ^ static_cast<std::uint32_t>(static_cast<std::int32_t>(d) >> 31); }
+std::uint32_t unzigzag(std::uint32_t z) { return (z >> 1) ^ (0u - (z & 1u)); }
+
+// The prediction of voxel i of v: the reference's voxel, or from the voxels before it in its row.
+std::uint32_t predict(const float* v, const float* reference, int i) {
+  if (reference) return ordered(reference[i]);
+  const int x = i % kBrickSide;
+  if (x == 0) return ordered(0.0f);
+  if (x == 1) return ordered(v[i - 1]);
+  return ordered(std::clamp(2.0f * v[i - 1] - v[i - 2], -kMaxBand, kMaxBand));
+}
+
+void splitPlanes(const Brick& b, const float* reference, unsigned char* out) {
+  for (int i = 0; i < kBrickVoxels; ++i) {
+    const std::uint32_t z = zigzag(ordered(b.v[i]) - predict(b.v, reference, i));
+    for (int p = 0; p < 4; ++p) out[p * kBrickVoxels + i] = static_cast<unsigned char>(z >> (8 * p));
+  }
+}
+
+void joinPlanes(const unsigned char* in, const float* reference, Brick& b) {
+  for (int i = 0; i < kBrickVoxels; ++i) {
+    std::uint32_t z = 0;
+    for (int p = 0; p < 4; ++p) z |= std::uint32_t(in[p * kBrickVoxels + i]) << (8 * p);
+    b.v[i] = unordered(predict(b.v, reference, i) + unzigzag(z));
+  }
+}
+
+// A cheap fingerprint of the references a step was packed against: unpacking against other
+// bricks (a history out of step with its volume, a logic error) is refused, not decoded into
+// wrong floats.
+std::uint64_t fingerprint(const std::vector<const BrickRef*>& refs) {
+  std::uint64_t h = 0;
+  for (const BrickRef* r : refs) {
+    h = h * 1099511628211ull + (r->data ? 2 : r->inside);
+    if (!r->data) continue;
+    for (int i = 0; i < kBrickVoxels; i += 8) {
+      std::uint32_t u;
+      std::memcpy(&u, &r->data->v[i], 4);
+      h = h * 31 + u;
+    }
+  }
+  return h;
+}
+
+// Buffers of up to this size stay with their thread (a stroke of 128^3 packs ~1 MiB).
+constexpr std::size_t kKeptScratchBytes = std::size_t(8) << 20;
+
+// One compression context and buffers per thread, reused: a fresh context costs its tables'
+// initialisation, and fresh buffers page faults and zeroing, on every step.
+struct Scratch {
+  std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx{ZSTD_createCCtx(), &ZSTD_freeCCtx};
+  std::vector<unsigned char> planes, frame;
+};
+
+Scratch& scratch() {
+  thread_local Scratch s;
+  if (!s.cctx) throw std::runtime_error("zstd: cannot create a compression context");
+  return s;
+}
+
+std::vector<const BrickRef*> pointers(const std::vector<BrickRef>& refs) {
+  std::vector<const BrickRef*> out;
+  for (const auto& r : refs) out.push_back(&r);
+  return out;
+}
+
+}  // namespace
+
+std::size_t PackedBricks::bytes() const {
+  return bricks.capacity() * sizeof(Int3) + kinds.capacity() + frame.capacity();
+}
+
+PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const BrickRef*>& refs,
+                        const std::vector<const BrickRef*>& against) {
+  PackedBricks p;
+  p.bricks = bricks;
+  p.kinds.reserve(refs.size());
+  p.against = fingerprint(against);
+  std::size_t dataBricks = 0;
+  for (const BrickRef* r : refs) dataBricks += r->data != nullptr;
+  if (dataBricks == 0) {
+    for (const BrickRef* r : refs) p.kinds.push_back(r->inside ? PackedBricks::kInside : PackedBricks::kOutside);
+    return p;
+  }
+  Scratch& z = scratch();
+  const std::size_t size = dataBricks * kBrickBytes;
+  if (z.planes.size() < size) z.planes.resize(size);
+  std::size_t next = 0;
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    const BrickRef* r = refs[i];
+    if (!r->data) {
+      p.kinds.push_back(r->inside ? PackedBricks::kInside : PackedBricks::kOutside);
+      continue;
+    }
+    p.kinds.push_back(PackedBricks::kData);
+    splitPlanes(*r->data, against[i]->data ? against[i]->data->v : nullptr, z.planes.data() + kBrickBytes * next++);
+  }
+  if (z.frame.size() < ZSTD_compressBound(size)) z.frame.resize(ZSTD_compressBound(size));
+  const std::size_t n =
+      ZSTD_compressCCtx(z.cctx.get(), z.frame.data(), z.frame.size(), z.planes.data(), size, kZstdLevel);
+  if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
+  p.frame.assign(z.frame.begin(), z.frame.begin() + std::ptrdiff_t(n));  // exactly n bytes, no slack
+  if (size > kKeptScratchBytes) {
+    // A whole-volume step: do not keep its buffers for the life of the thread.
+    z.planes = {};
+    z.frame = {};
+  }
+  return p;
+}
+
+std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<const BrickRef*>& against) {
+  if (against.size() != p.kinds.size() || fingerprint(against) != p.against)
+    throw std::runtime_error("undo history: a step unpacked against other bricks than it was packed against");
+  std::size_t dataBricks = 0;
+  for (const auto k : p.kinds) dataBricks += k == PackedBricks::kData;
+  std::vector<unsigned char> planes(dataBricks * kBrickBytes);
+  if (dataBricks) {
+    const std::size_t n = ZSTD_decompress(planes.data(), planes.size(), p.frame.data(), p.frame.size());
+    if (ZSTD_isError(n) || n != planes.size())
+      throw std::runtime_error("zstd: an undo step does not unpack to its bricks");
+  }
+  std::vector<BrickRef> out;
+  out.reserve(p.kinds.size());
+  std::size_t next = 0;
+  for (std::size_t i = 0; i < p.kinds.size(); ++i) {
+    BrickRef r;
+    if (p.kinds[i] == PackedBricks::kData) {
+      auto b = std::make_shared<Brick>();
+      joinPlanes(planes.data() + kBrickBytes * next++, against[i]->data ? against[i]->data->v : nullptr, *b);
+      r.data = std::move(b);
+    } else {
+      r.inside = p.kinds[i] == PackedBricks::kInside;
+    }
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+std::size_t History::Step::bytes() const {
+  if (!edit) return packed.bytes();
+  std::size_t buffers = 0;
+  for (const auto& c : edit->changes) buffers += (c.before.data != nullptr) + (c.after.data != nullptr);
+  return buffers * kBytesPerBrick + edit->changes.size() * sizeof(BrickChange);
+}
+
 History::History(std::size_t budgetBytes) : budget_(budgetBytes) {}
 
-void History::retain(const Edit& e) {
-  changeCount_ += e.changes.size();
-  for (const auto& c : e.changes) {
-    if (c.before.data) ++refs_[c.before.data.get()];
-    if (c.after.data) ++refs_[c.after.data.get()];
+void History::pack(Step& s) {
+  if (!s.edit) return;
+  std::vector<Int3> bricks;
+  std::vector<const BrickRef*> before, after;
+  for (const auto& c : s.edit->changes) {
+    bricks.push_back(c.brick);
+    before.push_back(&c.before);
+    after.push_back(&c.after);
   }
-}
-
-void History::release(const Edit& e) {
-  changeCount_ -= e.changes.size();
-  const auto drop = [&](const BrickRef& r) {
-    if (!r.data) return;
-    const auto it = refs_.find(r.data.get());
-    if (--it->second == 0) refs_.erase(it);
-  };
-  for (const auto& c : e.changes) {
-    drop(c.before);
-    drop(c.after);
-  }
-}
-
-std::size_t History::bytes() const {
-  return refs_.size() * kBytesPerBrick + changeCount_ * sizeof(BrickChange);
+  PackedBricks packed = packBricks(bricks, before, after);
+  remove(s);
+  s.packed = std::move(packed);
+  s.edit.reset();
+  add(s);
 }
 
 void History::enforceBudget() {
-  while (!undo_.empty() && bytes() > budget_) {
-    release(undo_.front().edit);
+  while (!undo_.empty() && bytes_ > budget_) {
+    remove(undo_.front());
     undo_.pop_front();
     ++dropped_;
   }
   // Only a smaller budget can leave redo steps over it: the furthest future goes first.
-  while (!redo_.empty() && bytes() > budget_) {
-    release(redo_.front().edit);
+  while (!redo_.empty() && bytes_ > budget_) {
+    remove(redo_.front());
     redo_.pop_front();
     ++dropped_;
   }
@@ -48,51 +225,97 @@ void History::enforceBudget() {
 
 History::StepId History::push(Edit step) {
   if (step.empty()) return 0;
-  for (const auto& s : redo_) release(s.edit);
+  for (const auto& s : redo_) remove(s);
   redo_.clear();
+  if (!undo_.empty()) pack(undo_.back());
   const StepId id = nextId_++;
-  retain(step);
-  undo_.push_back({id, std::move(step)});
+  const Box region = step.region;
+  undo_.push_back({id, region, std::move(step), {}});
+  add(undo_.back());
   enforceBudget();
   return id;
 }
 
 bool History::amend(StepId id, const Edit& more) {
-  if (id == 0 || undo_.empty() || !redo_.empty() || undo_.back().id != id) return false;
-  Edit& e = undo_.back().edit;
-  release(e);
-  e.append(more.changes, more.region);
-  if (e.empty()) {
+  if (id == 0 || undo_.empty() || !redo_.empty() || undo_.back().id != id || !undo_.back().edit) return false;
+  Step& s = undo_.back();
+  remove(s);
+  s.edit->append(more.changes, more.region);
+  s.region = s.edit->region;
+  if (s.edit->empty()) {
     // The step now ends where it started: nothing is left to undo.
     undo_.pop_back();
     return true;
   }
-  retain(e);
+  add(s);
   enforceBudget();
   return true;
 }
 
+// Both moves build the step's other side and the new packing before changing anything, so a
+// failure (out of memory) leaves the history and the volume as they were.
 const Edit* History::undo(Volume& vol) {
   if (undo_.empty()) return nullptr;
-  redo_.push_back(std::move(undo_.back()));
+  Step& s = undo_.back();
+  Edit e;
+  e.region = s.region;
+  if (s.edit) {
+    e = *s.edit;
+  } else {
+    std::vector<BrickRef> live;
+    for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
+    const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(live));
+    for (std::size_t i = 0; i < before.size(); ++i) e.changes.push_back({s.packed.bricks[i], before[i], live[i]});
+  }
+  std::vector<Int3> bricks;
+  std::vector<const BrickRef*> before, after;
+  for (const auto& c : e.changes) {
+    bricks.push_back(c.brick);
+    before.push_back(&c.before);
+    after.push_back(&c.after);
+  }
+  PackedBricks packed = packBricks(bricks, after, before);
+  remove(s);
+  s.edit.reset();
+  s.packed = std::move(packed);
+  redo_.push_back(std::move(s));
   undo_.pop_back();
-  vol.publish(redo_.back().edit.changes, false);
-  return &redo_.back().edit;
+  add(redo_.back());
+  vol.publish(e.changes, false);
+  moved_ = std::move(e);
+  return &moved_;
 }
 
 const Edit* History::redo(Volume& vol) {
   if (redo_.empty()) return nullptr;
-  undo_.push_back(std::move(redo_.back()));
+  Step& s = redo_.back();
+  Edit e;
+  e.region = s.region;
+  std::vector<BrickRef> live;
+  for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
+  const std::vector<BrickRef> after = unpackBricks(s.packed, pointers(live));
+  for (std::size_t i = 0; i < after.size(); ++i) e.changes.push_back({s.packed.bricks[i], live[i], after[i]});
+  std::vector<const BrickRef*> before, afterRefs;
+  for (const auto& c : e.changes) {
+    before.push_back(&c.before);
+    afterRefs.push_back(&c.after);
+  }
+  PackedBricks packed = packBricks(s.packed.bricks, before, afterRefs);
+  remove(s);
+  s.packed = std::move(packed);
+  undo_.push_back(std::move(s));
   redo_.pop_back();
-  vol.publish(undo_.back().edit.changes, true);
-  return &undo_.back().edit;
+  add(undo_.back());
+  vol.publish(e.changes, true);
+  moved_ = std::move(e);
+  return &moved_;
 }
 
 void History::clear() {
   undo_.clear();
   redo_.clear();
-  refs_.clear();
-  changeCount_ = 0;
+  bytes_ = 0;
+  moved_ = Edit{};
 }
 
 void History::setBudget(std::size_t budgetBytes) {

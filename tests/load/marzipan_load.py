@@ -67,6 +67,12 @@ from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
 
 TOOLS = ("add_blob", "remove_blob", "smooth")
 GOAL_P99_MS = 50.0  # issue 7: p99 edit round trip on the 2-core machine
+# web-client/net/stroke-sender.js and the browser's pointer events
+WEB_CLIENT_FRAME_HZ = 60.0
+WEB_CLIENT_MAX_IN_FLIGHT = 3
+WEB_CLIENT_MAX_DABS = 256  # the server's default --max-dabs, which the client adopts
+WEB_CLIENT_STROKE_S = 1.5  # each stroke lasts 0.8-1.2 times this
+WEB_CLIENT_PAUSE_S = 0.25  # between a stroke's end and the next one's begin
 # Deltas of a 128^3 session are tens of KiB, full buffers a few hundred; 64 MiB covers far larger grids.
 MAX_MESSAGE_BYTES = 64 << 20
 SETUP_TIMEOUT_S = 60.0
@@ -158,7 +164,9 @@ class LoadClient:
         self.reader = None
         self.next_id = 1
         self.pending = {}  # request id -> (method, sent at, future or None)
-        self.awaiting_delta = collections.deque()  # (revision, sent at) of dabs that applied, in order
+        # (revision, sent at, pointer times of its dabs or None) of dabs messages that applied, in order
+        self.awaiting_delta = collections.deque()
+        self.dab_times = {}  # request id -> pointer times of its dabs (web-client mode)
         self.last_delta_revision = 0
         self.delta_seen = None  # an asyncio.Event while someone waits for a revision
         self.closed_unexpectedly = None
@@ -205,6 +213,7 @@ class LoadClient:
             return
         method, sent, future = entry
         latency = now - sent
+        dab_times = self.dab_times.pop(message["id"], None)
         error = message.get("error")
         self.stats.answered += 1
         if error is not None:
@@ -228,7 +237,7 @@ class LoadClient:
                 if self.last_delta_revision >= revision:
                     self.stats.anomalies["delta before its response"] += 1
                 else:
-                    self.awaiting_delta.append((revision, sent))
+                    self.awaiting_delta.append((revision, sent, dab_times))
         else:
             self.stats.other_latency[method].append(latency)
         if future is not None and not future.done():
@@ -253,18 +262,23 @@ class LoadClient:
             self.stats.anomalies["delta revision did not grow"] += 1
         self.last_delta_revision = max(self.last_delta_revision, frame.revision)
         while self.awaiting_delta and self.awaiting_delta[0][0] <= frame.revision:
-            _, sent = self.awaiting_delta.popleft()
+            _, sent, dab_times = self.awaiting_delta.popleft()
             self.stats.delta_latency.append(now - sent)
             self.stats.session_delta_latency[self.session.index].append(now - sent)
+            if dab_times:
+                self.stats.dab_delta_latency.extend(now - t for t in dab_times)
         if self.delta_seen is not None:
             self.delta_seen.set()
 
-    async def send(self, method: str, params: dict, want_result: bool = False):
-        """Sends a request; returns a future of its result when asked for, else None."""
+    async def send(self, method: str, params: dict, want_result: bool = False, dab_times=None):
+        """Sends a request; returns a future of its result when asked for, else None. dab_times:
+        for stroke.dabs, when the pointer made each dab (for the dab->delta latency)."""
         request_id = self.next_id
         self.next_id += 1
         future = asyncio.get_running_loop().create_future() if want_result else None
         self.pending[request_id] = (method, time.monotonic(), future)
+        if dab_times is not None:
+            self.dab_times[request_id] = dab_times
         self.stats.sent[method] += 1
         await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params},
                                       separators=(",", ":")))
@@ -288,6 +302,102 @@ class LoadClient:
                                              "view": "splats"})
 
     async def sculpt(self, end: float):
+        if self.args["mode"] == "web-client":
+            await self.sculpt_like_web_client(end)
+        else:
+            await self.sculpt_open_loop(end)
+
+    async def sculpt_like_web_client(self, end: float):
+        """Strokes as web-client/net/stroke-sender.js sends them: a pointer event every display
+        frame (60 Hz) for ~1.5 s makes one dab each; dabs queue until stroke.begin has answered,
+        then every frame and every answer sends all that wait as one stroke.dabs, unless
+        WEB_CLIENT_MAX_IN_FLIGHT messages are unanswered, in which case they wait and merge
+        into a later message. stroke.end follows once the queue is empty and nothing is in
+        flight; the next stroke starts after a short pause (pointer up, move, down)."""
+        loop = asyncio.get_running_loop()
+        stroke_number = 0
+        while time.monotonic() < end:
+            tool = TOOLS[(self.index + stroke_number) % len(TOOLS)]
+            stroke_number += 1
+            params = {"tool": tool, "radius": round(self.rng.uniform(4, 10), 2),
+                      "strength": round(self.rng.uniform(0.3, 0.8), 2)}
+            drag = Drag(self.rng, self.args["size"])
+            frames = max(1, round(self.rng.uniform(0.8, 1.2) * WEB_CLIENT_STROKE_S * WEB_CLIENT_FRAME_HZ))
+            queue = []  # (dab, pointer time)
+            in_flight = 0
+            stroke = None
+            failed = False  # stroke.begin or a stroke.dabs failed: the stroke is abandoned
+            idle = asyncio.Event()  # set whenever nothing is in flight
+            idle.set()
+
+            def answered(future):
+                nonlocal in_flight, failed
+                in_flight -= 1
+                if future.cancelled() or future.exception() is not None:
+                    failed = True
+                    queue.clear()
+                flush()
+
+            def sent(task):
+                if task.cancelled() or task.exception() is not None:
+                    answered(task)
+                else:
+                    task.result().add_done_callback(answered)
+
+            def begun_done(future):
+                nonlocal stroke, failed
+                if future.cancelled() or future.exception() is not None:
+                    failed = True
+                    queue.clear()
+                else:
+                    stroke = future.result()["stroke"]
+                    flush()
+
+            def flush():
+                nonlocal in_flight
+                while stroke is not None and queue and in_flight < WEB_CLIENT_MAX_IN_FLIGHT \
+                        and self.closed_unexpectedly is None:
+                    batch = queue[:WEB_CLIENT_MAX_DABS]
+                    del queue[:WEB_CLIENT_MAX_DABS]
+                    in_flight += 1
+                    idle.clear()
+                    self.stats.dabs_per_message.append(len(batch))
+                    task = loop.create_task(self.send("stroke.dabs", {"stroke": stroke, "dabs": [d for d, _ in batch]},
+                                                      want_result=True, dab_times=[t for _, t in batch]))
+                    task.add_done_callback(sent)
+                if in_flight == 0:
+                    idle.set()
+
+            begun = loop.create_task(self.call("stroke.begin", params))
+            begun.add_done_callback(begun_done)
+            due = time.monotonic()
+            for k in range(frames):
+                now = time.monotonic()
+                if due > now:
+                    await asyncio.sleep(due - now)
+                    now = time.monotonic()
+                if now >= end:
+                    break
+                self.stats.send_lag.append(now - due)
+                if not failed:
+                    queue.append(({"ray": drag.ray((k + 1) / frames),
+                                   "pressure": round(self.rng.uniform(0.5, 1.0), 2)}, now))
+                flush()
+                due += 1.0 / WEB_CLIENT_FRAME_HZ
+            try:
+                await begun
+            except (RuntimeError, ConnectionError, asyncio.TimeoutError):
+                pass  # counted as an error by the reader
+            while (queue or in_flight) and self.closed_unexpectedly is None:
+                flush()
+                await idle.wait()
+            if self.closed_unexpectedly is not None:
+                return
+            if stroke is not None:
+                await self.send("stroke.end", {"stroke": stroke})
+            await asyncio.sleep(WEB_CLIENT_PAUSE_S)
+
+    async def sculpt_open_loop(self, end: float):
         rate = self.args["rate"]
         period = 1.0 / rate
         stroke_number = 0
@@ -404,6 +514,8 @@ class WorkerStats:
         self.dabs_latency = []
         self.dabs_sent = []  # when each of dabs_latency's messages was sent
         self.delta_latency = []
+        self.dab_delta_latency = []  # web-client mode: pointer event until the delta showing its dab
+        self.dabs_per_message = []  # web-client mode
         self.session_dabs_latency = {s: [] for s in sessions}
         self.session_delta_latency = {s: [] for s in sessions}
         self.other_latency = collections.defaultdict(list)
@@ -494,6 +606,7 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
         "notifications": dict(stats.notifications), "anomalies": dict(stats.anomalies),
         "unexpected_closes": dict(stats.unexpected_closes), "failures": failures,
         "dabs_latency": stats.dabs_latency, "dabs_sent": stats.dabs_sent, "delta_latency": stats.delta_latency,
+        "dab_delta_latency": stats.dab_delta_latency, "dabs_per_message": stats.dabs_per_message,
         "session_dabs_latency": stats.session_dabs_latency, "session_delta_latency": stats.session_delta_latency,
         "other_latency": dict(stats.other_latency), "send_lag": stats.send_lag, "loop_lag": stats.loop_lag,
         "dabs_applied": stats.dabs_applied, "deltas": stats.deltas, "delta_bytes": stats.delta_bytes,
@@ -589,6 +702,8 @@ class ProcessSampler:
                 stat = f.read().rsplit(")", 1)[1].split()
         except OSError:
             return None
+        if "VmRSS" not in fields:
+            return None  # exited: a zombie has no memory lines
         cpu = (int(stat[11]) + int(stat[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
         kib = lambda name: int(fields[name].split()[0]) / 1024  # noqa: E731
         entry = (time.monotonic(), kib("VmRSS"), kib("VmHWM"), cpu, runqueue_wait_s(self.pid))
@@ -670,7 +785,7 @@ def run(args) -> tuple[dict, int]:
     sampler = ProcessSampler(server.pid if server else args.server_pid)
     specs = plan(args)
     shared = {"url": url, "size": args.size, "solid": args.solid, "rate": args.rate, "duration": args.duration,
-              "seed": args.seed}
+              "seed": args.seed, "mode": args.mode}
     if args.slow_client:
         specs[0]["slow_session"] = 0
     context = multiprocessing.get_context("spawn")
@@ -782,6 +897,9 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         by_second[int(sent_at - t0)].append(latency)
     seconds = [percentiles(by_second[i]) for i in range(max(by_second, default=-1) + 1)]
     delta = percentiles(merged(results, "delta_latency"))
+    dab_delta = percentiles(merged(results, "dab_delta_latency"))
+    dabs_per_message = merged(results, "dabs_per_message")
+    dabs_sent = sum(dabs_per_message)
     other = {}
     for r in results:
         for method, values in r["other_latency"].items():
@@ -792,7 +910,8 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "sessions": args.sessions,
         "size": args.size,
         "solid": args.solid,
-        "rate_per_client": args.rate,
+        "mode": args.mode,
+        "rate_per_client": args.rate if args.mode == "open-loop" else None,
         "processes": len(specs),
         "duration_s": args.duration,
         "elapsed_s": round(wall, 2),
@@ -806,7 +925,9 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "dabs_messages_per_s": round(dabs_messages / wall, 1),
         "dabs_applied": dabs_applied,
         "dabs_applied_per_s": round(dabs_applied / wall, 1),
-        "latency_ms": {"response": response, "delta": delta,
+        "dabs_per_message": None if not dabs_per_message else
+        {"mean": round(dabs_sent / len(dabs_per_message), 2), "max": max(dabs_per_message)},
+        "latency_ms": {"response": response, "delta": delta, "dab_delta": dab_delta,
                        "response_p99_by_second": [s["p99"] for s in seconds],
                        "response_max_by_second": [s["max"] for s in seconds],
                        "other": {m: percentiles(v) for m, v in sorted(other.items())}},
@@ -827,6 +948,8 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
             "sessions_history_mb": mb(sum(x["history_bytes"] for r in results for x in r["session_stats"]) / 2**20),
             "cpu_cores": server_cpu,
             "cpu_ms_per_dabs_message": per_message(server_cpu_s),
+            "cpu_ms_per_dab_applied": None if server_cpu_s is None or not dabs_applied else
+            round(server_cpu_s / dabs_applied * 1e3, 3),
             "runqueue_wait_s_per_s": server_wait,
             "exit_status": server_status,
         },
@@ -844,7 +967,9 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "goals": {"zero_errors": not errors and not unexpected and not unanswered and not failures,
                   "p99_target_ms": GOAL_P99_MS,
                   "p99_response_met": response["p99"] is not None and response["p99"] < GOAL_P99_MS,
-                  "p99_delta_met": delta["p99"] is not None and delta["p99"] < GOAL_P99_MS},
+                  "p99_delta_met": delta["p99"] is not None and delta["p99"] < GOAL_P99_MS,
+                  "p99_dab_delta_met": None if args.mode != "web-client" else
+                  dab_delta["p99"] is not None and dab_delta["p99"] <= GOAL_P99_MS},
     }
     # The slow client's close is expected and not counted: only the sculpting clients' are.
     ok = (not errors and not unexpected and not unanswered and not failures and dabs_applied > 0
@@ -854,17 +979,23 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
 
 def summary(out: dict) -> str:
     r, d, s, c = out["latency_ms"]["response"], out["latency_ms"]["delta"], out["server"], out["client_side"]
+    pace = (f"at {out['rate_per_client']} dab messages/s each" if out["mode"] == "open-loop" else
+            "like the web client (60 Hz pointer, <= 3 messages in flight)")
     lines = [
         f"{out['clients']} clients on {out['sessions']} sessions of {out['size']}^3 {out['solid']}, "
-        f"{out['duration_s']} s at {out['rate_per_client']} dab messages/s each, {out['processes']} client processes",
+        f"{out['duration_s']} s {pace}, {out['processes']} client processes",
         f"requests {out['requests']['answered']} answered ({out['throughput_req_s']}/s), "
         f"{out['dabs_applied']} dabs applied ({out['dabs_applied_per_s']}/s), errors {out['errors'] or 0}, "
         f"unexpected closes {out['unexpected_closes'] or 0}, unanswered {out['requests']['unanswered']}",
         f"stroke.dabs response p50 {r['p50']} / p99 {r['p99']} / max {r['max']} ms; "
         f"its splat delta p50 {d['p50']} / p99 {d['p99']} / max {d['max']} ms ({out['deltas_received']} deltas)",
+        *([f"dab->delta p50 {dd['p50']} / p99 {dd['p99']} / max {dd['max']} ms over {dd['n']} dabs, "
+           f"{out['dabs_per_message']['mean']} dabs per message"]
+          if (dd := out["latency_ms"]["dab_delta"])["n"] and out["dabs_per_message"] else []),
         f"server RSS idle {s['rss_mb_idle']} MiB, max {s['rss_mb_max']}, final {s['rss_mb_final']} "
         f"(undo history {s['sessions_history_mb']})",
-        f"CPU: server {s['cpu_cores']} cores ({s['cpu_ms_per_dabs_message']} ms per dabs message), clients "
+        f"CPU: server {s['cpu_cores']} cores ({s['cpu_ms_per_dabs_message']} ms per dabs message, "
+        f"{s['cpu_ms_per_dab_applied']} per dab applied), clients "
         f"{c['cpu_cores']} cores ({c['cpu_ms_per_dabs_message']} ms; per process {c['cpu_cores_per_process']}), "
         f"client loop lag p99 {c['loop_lag_ms']['p99']} ms",
         f"waiting for a core (s per s): server {s['runqueue_wait_s_per_s']}, clients {c['runqueue_wait_s_per_s']}",
@@ -889,7 +1020,11 @@ def main(argv=None) -> int:
     p.add_argument("--clients", type=int, default=64, help="sculpting clients (default %(default)s)")
     p.add_argument("--sessions", type=int, default=16, help="sessions (default %(default)s)")
     p.add_argument("--duration", type=float, default=60.0, help="seconds of sculpting (default %(default)s)")
-    p.add_argument("--rate", type=float, default=20.0, help="stroke.dabs messages per second per client (default %(default)s)")
+    p.add_argument("--mode", choices=("open-loop", "web-client"), default="open-loop",
+                   help="open-loop: stroke.dabs at --rate whatever happens; web-client: 60 Hz pointer "
+                        "dabs merged into messages, at most 3 in flight (default %(default)s)")
+    p.add_argument("--rate", type=float, default=20.0,
+                   help="open-loop: stroke.dabs messages per second per client (default %(default)s)")
     p.add_argument("--size", type=int, default=128, help="grid side of each session (default %(default)s)")
     p.add_argument("--solid", default="pig", choices=("pig", "sphere"), help="starting solid (default %(default)s)")
     p.add_argument("--processes", type=int, default=0,

@@ -1,8 +1,12 @@
-// History (server/service/history.cpp): undo and redo restore exact digests, the memory budget
-// drops the oldest steps first, and a new step clears the redo list.
+// History (server/service/history.cpp): undo and redo restore exact digests through packed
+// (zstd) steps, bytes() counts the packed sizes, the memory budget drops the oldest steps
+// first, and a new step clears the redo list.
 #include <catch2/catch.hpp>
 
 #include <cstdint>
+#include <cstring>
+#include <random>
+#include <set>
 #include <vector>
 
 #include "engine/csg.hpp"
@@ -50,7 +54,8 @@ TEST_CASE("history: undo and redo restore the exact digests of a mix of steps", 
   History h;
   const auto digests = runMix(v, h, pool);
   REQUIRE(h.undoSteps() == 5);
-  CHECK(h.bytes() > 0);
+  const std::size_t recorded = h.bytes();
+  CHECK(recorded > 0);
   for (std::size_t i = 1; i < digests.size(); ++i) CHECK(digests[i] != digests[i - 1]);
 
   for (std::size_t i = digests.size() - 1; i > 0; --i) {
@@ -61,7 +66,6 @@ TEST_CASE("history: undo and redo restore the exact digests of a mix of steps", 
   CHECK_FALSE(h.canUndo());
   CHECK(h.undo(v) == nullptr);
   CHECK(h.redoSteps() == 5);
-  const std::size_t bytes = h.bytes();
 
   for (std::size_t i = 1; i < digests.size(); ++i) {
     REQUIRE(h.redo(v) != nullptr);
@@ -69,7 +73,142 @@ TEST_CASE("history: undo and redo restore the exact digests of a mix of steps", 
   }
   CHECK_FALSE(h.canRedo());
   CHECK(h.redo(v) == nullptr);
-  CHECK(h.bytes() == bytes);  // moving steps between the lists costs nothing
+  // The newest step was held unpacked (shared buffers) until it moved; now every step is packed.
+  CHECK(h.bytes() < recorded);
+
+  // Undo and redo again, now all from packed steps both ways.
+  for (std::size_t i = digests.size() - 1; i > 0; --i) {
+    REQUIRE(h.undo(v) != nullptr);
+    CHECK(digest(v) == digests[i - 1]);
+  }
+  for (std::size_t i = 1; i < digests.size(); ++i) {
+    REQUIRE(h.redo(v) != nullptr);
+    CHECK(digest(v) == digests[i]);
+  }
+}
+
+TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
+  std::mt19937 rng(7);
+  std::vector<Int3> coords;
+  std::vector<BrickRef> refs;
+  for (int i = 0; i < 6; ++i) {
+    coords.push_back({i, 2 * i, 3});
+    BrickRef r;
+    if (i == 1) {
+      r.inside = true;  // uniform inside
+    } else if (i != 4) {  // 4: uniform outside
+      auto b = std::make_shared<Brick>();
+      for (int k = 0; k < kBrickVoxels; ++k) {
+        // Any bit pattern, negative zero and denormals included, but also runs of +-band.
+        const std::uint32_t bits = i == 2 ? 0x80000000u + k : rng();
+        std::memcpy(&b->v[k], &bits, 4);
+        if (i == 3 && k % 3) b->v[k] = (k % 2) ? 3.0f : -3.0f;
+      }
+      r.data = std::move(b);
+    }
+    refs.push_back(std::move(r));
+  }
+  // The other side: brick 0 and 5 against a changed copy of themselves, the rest against
+  // uniform bricks (the prediction along x).
+  std::vector<BrickRef> others(refs.size());
+  for (const std::size_t i : {0, 5}) {
+    auto b = std::make_shared<Brick>(*refs[i].data);
+    for (int k = 0; k < kBrickVoxels; k += 3) b->v[k] = -b->v[k];
+    others[i].data = std::move(b);
+  }
+  others[2].inside = true;
+  std::vector<const BrickRef*> ptrs, against;
+  for (const auto& r : refs) ptrs.push_back(&r);
+  for (const auto& r : others) against.push_back(&r);
+  const service::PackedBricks p = service::packBricks(coords, ptrs, against);
+  CHECK(p.bricks.size() == 6);
+  const std::vector<BrickRef> back = service::unpackBricks(p, against);
+  REQUIRE(back.size() == refs.size());
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    INFO("brick " << i);
+    REQUIRE(back[i].uniform() == refs[i].uniform());
+    if (refs[i].uniform()) {
+      CHECK(back[i].inside == refs[i].inside);
+    } else {
+      CHECK(back[i].data != refs[i].data);  // a buffer of its own
+      CHECK(std::memcmp(back[i].data->v, refs[i].data->v, sizeof(Brick)) == 0);
+    }
+  }
+
+  SECTION("a damaged frame is refused, not unpacked into wrong bricks") {
+    service::PackedBricks bad = p;
+    bad.frame.resize(bad.frame.size() / 2);
+    CHECK_THROWS_AS(service::unpackBricks(bad, against), std::runtime_error);
+  }
+  SECTION("other references are refused, not unpacked into wrong bricks") {
+    auto changed = std::make_shared<Brick>(*others[0].data);
+    changed->v[0] += 1.0f;
+    std::vector<BrickRef> wrong = others;
+    wrong[0].data = std::move(changed);
+    std::vector<const BrickRef*> wrongPtrs;
+    for (const auto& r : wrong) wrongPtrs.push_back(&r);
+    CHECK_THROWS_AS(service::unpackBricks(p, wrongPtrs), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(p, {against.begin(), against.end() - 1}), std::runtime_error);
+  }
+}
+
+TEST_CASE("history: steps are held packed 4x smaller than their bricks, and the budget counts that", "[history]") {
+  ThreadPool pool(2);
+  // What the load tool's sculptors leave on the 128^3 pig: strokes of blobs along its back,
+  // each step one stroke.dabs message.
+  static const Volume pig = makeSolid(SolidKind::Pig, {128, 128, 128});
+  std::vector<Vec3> centres;
+  for (int x = 40; x <= 88; x += 4) {
+    int y = 127;
+    while (y > 0 && pig.at(x, y, 64) > 0) --y;
+    REQUIRE(y > 0);
+    centres.push_back({double(x), double(y), 64});
+  }
+  const auto sculpt = [&](Volume& v, History& h, std::vector<std::uint64_t>* digests,
+                          std::size_t* bothSides) {
+    // The before bricks as shared 2 KB buffers would cost (what undo needs), and what the
+    // history charged when it kept both sides as shared buffers (each distinct buffer once).
+    std::size_t rawBefore = 0;
+    std::set<const Brick*> buffers;
+    std::vector<Edit> alive;  // packing frees the buffers: keep them so that addresses stay distinct
+    for (const Vec3& c : centres) {
+      Edit e = addBlob(v, {c, 8, 0.7}, pool);
+      for (const auto& ch : e.changes) {
+        rawBefore += ch.before.data ? History::kBytesPerBrick : 0;
+        for (const BrickRef* r : {&ch.before, &ch.after})
+          if (r->data) buffers.insert(r->data.get());
+      }
+      alive.push_back(e);
+      REQUIRE(h.push(std::move(e)) != 0);
+      if (digests) digests->push_back(digest(v));
+    }
+    if (bothSides) *bothSides = buffers.size() * History::kBytesPerBrick;
+    return rawBefore;
+  };
+  Volume v = pig;
+  History h(SIZE_MAX);
+  std::vector<std::uint64_t> digests{digest(v)};
+  std::size_t bothSides = 0;
+  const std::size_t raw = sculpt(v, h, &digests, &bothSides);
+  h.undo(v);
+  h.redo(v);  // every step packed now
+  CHECK(digest(v) == digests.back());
+  INFO("before bricks " << raw << ", both sides " << bothSides << ", packed " << h.bytes());
+  CHECK(h.bytes() * 4 <= raw);
+  CHECK(h.bytes() * 4 <= bothSides);
+
+  // A budget the raw bricks would overflow twice holds every packed step: the accounting is
+  // the packed size (the newest step, unpacked, included).
+  Volume w = pig;
+  History capped(raw / 2);
+  sculpt(w, capped, nullptr, nullptr);
+  CHECK(capped.droppedSteps() == 0);
+  CHECK(capped.undoSteps() == centres.size());
+  CHECK(capped.bytes() <= raw / 2);
+  for (std::size_t i = digests.size() - 1; i > 0; --i) {
+    REQUIRE(capped.undo(w) != nullptr);
+    CHECK(digest(w) == digests[i - 1]);
+  }
 }
 
 TEST_CASE("history: a new step after undos clears the redo list", "[history]") {
@@ -118,36 +257,41 @@ TEST_CASE("history: amend folds later changes into the newest step only", "[hist
 
 TEST_CASE("history: over budget the oldest steps are dropped first", "[history]") {
   ThreadPool pool(2);
-  // Each step's size, measured with an unlimited budget.
-  std::vector<std::size_t> sizes;
+  constexpr int kSteps = 12;
+  const auto blob = [](int i) { return BrushParams{{kSurface, kC - 11 + 2 * i, kC}, 4, 1}; };
+  // All of them, measured with an unlimited budget: the newest step unpacked (its shared
+  // buffers), the older ones packed. Room for the newest and about half of the others.
+  std::size_t total = 0, newest = 0;
   {
     Volume v = sphere();
     History h(SIZE_MAX);
-    for (int i = 0; i < 6; ++i) {
-      const std::size_t before = h.bytes();
-      h.push(addBlob(v, {{kSurface, kC - 15 + 6 * i, kC}, 4, 1}, pool));
-      sizes.push_back(h.bytes() - before);
-      REQUIRE(sizes.back() > 0);
+    for (int i = 0; i < kSteps; ++i) {
+      Edit e = addBlob(v, blob(i), pool);
+      newest = e.changes.size() * sizeof(BrickChange);
+      for (const auto& c : e.changes) newest += History::kBytesPerBrick * (!!c.before.data + !!c.after.data);
+      h.push(std::move(e));
     }
+    total = h.bytes();
+    REQUIRE(h.droppedSteps() == 0);
   }
-  // Room for about the last three.
-  const std::size_t budget = sizes[3] + sizes[4] + sizes[5] + History::kBytesPerBrick;
+  REQUIRE(total > newest);
+  const std::size_t budget = newest + (total - newest) / 2;
   Volume v = sphere();
   History h(budget);
   std::vector<std::uint64_t> digests{digest(v)};
-  for (int i = 0; i < 6; ++i) {
-    h.push(addBlob(v, {{kSurface, kC - 15 + 6 * i, kC}, 4, 1}, pool));
+  for (int i = 0; i < kSteps; ++i) {
+    h.push(addBlob(v, blob(i), pool));
     digests.push_back(digest(v));
     CHECK(h.bytes() <= budget);
   }
-  CHECK(h.droppedSteps() >= 2);
-  CHECK(h.undoSteps() + h.droppedSteps() == 6);
+  CHECK(h.droppedSteps() >= 1);
+  CHECK(h.undoSteps() + h.droppedSteps() == kSteps);
   const std::size_t kept = h.undoSteps();
   REQUIRE(kept >= 1);
   for (std::size_t i = 0; i < kept; ++i) REQUIRE(h.undo(v) != nullptr);
   CHECK_FALSE(h.canUndo());
   // The kept steps are the newest: undoing them all lands on the state after the dropped ones.
-  CHECK(digest(v) == digests[6 - kept]);
+  CHECK(digest(v) == digests[kSteps - kept]);
 
   SECTION("a smaller budget drops more, even the newest") {
     h.setBudget(0);
