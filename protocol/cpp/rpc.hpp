@@ -20,9 +20,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/geometry.hpp"
-#include "engine/raycast.hpp"
-#include "engine/solids.hpp"
+#include "common/geometry.hpp"
+#include "common/values.hpp"
 #include "ops.hpp"
 
 namespace marzipan::protocol {
