@@ -28,7 +28,7 @@ client reads again to learn how it was closed.
 
 Exit status: 0 when no request got an error or went unanswered, no sculpting client's
 connection closed, every client saw its session's last delta and at least one dab was applied;
-1 otherwise; 2 usage. Latency does not decide it: the JSON's "goals" says whether the issue's
+1 otherwise; 2 usage. Latency does not decide it: the JSON's "goals" says whether the
 targets were met.
 
 Conventions: times are time.monotonic() (system-wide on Linux, so comparable between the
@@ -66,7 +66,7 @@ from marzipan.client import new_session_id, session_url  # noqa: E402
 from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
 
 TOOLS = ("add_blob", "remove_blob", "smooth")
-GOAL_P99_MS = 50.0  # issue 7: p99 edit round trip on the 2-core machine
+GOAL_P99_MS = 50.0  # the target p99 of an edit's round trip
 # Deltas of a 128^3 session are tens of KiB, full buffers a few hundred; 64 MiB covers far larger grids.
 MAX_MESSAGE_BYTES = 64 << 20
 SETUP_TIMEOUT_S = 60.0
