@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . tests/debian-packages.sh
-install_debian_packages
+install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
 # ---- Web client (tests/browser) ----------------------------------------------------------------
 # The browser tests' one npm dependency, playwright-core (pinned by tests/browser/package-lock.json);
 # reinstalled only when the lock file is newer than what node_modules holds.
@@ -14,7 +14,7 @@ if [ ! -f tests/browser/node_modules/.package-lock.json ] ||
 fi
 # ---- end of Web client --------------------------------------------------------------------------
 build="${BUILD_DIR:-build}"
-cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DMARZIPAN_BUILD_TESTS=ON
 cmake --build "$build" -j "$(nproc)"
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)"
 

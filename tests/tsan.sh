@@ -9,8 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . tests/debian-packages.sh
-MARZIPAN_PACKAGES+=(clang libclang-rt-14-dev)
-install_debian_packages
+install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
 build="${BUILD_DIR:-build-tsan}"
 CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMARZIPAN_SANITIZE=thread
 cmake --build "$build" -j "$(nproc)"

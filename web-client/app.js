@@ -5,6 +5,7 @@
 // session link (#session=ID&token=TOKEN) once a session is open, so reloading the page rejoins
 // it. `window.marzipan` is this App, for looking at its state from the browser's console.
 
+import { FRAME_HEADER_BYTES } from "/protocol/js/frames.js";
 import { decodeSplats } from "/protocol/js/splats.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
 import { RpcError } from "./net/rpc-error.js";
@@ -332,8 +333,8 @@ export class App {
   async #loadVolume(file) {
     const bytes = await readFile(file);
     const limit = this.session.info.limits && this.session.info.limits.max_binary_bytes;
-    if (limit && bytes.byteLength + 24 > limit) {
-      this.messages.error(new Error(`${file.name} is ${formatBytes(bytes.byteLength)}, over the server's upload limit of ${formatBytes(limit - 24)}`));
+    if (limit && bytes.byteLength + FRAME_HEADER_BYTES > limit) {
+      this.messages.error(new Error(`${file.name} is ${formatBytes(bytes.byteLength)}, over the server's upload limit of ${formatBytes(limit - FRAME_HEADER_BYTES)}`));
       return;
     }
     await this.#quietly(this.messages.during(`Loading ${file.name}`, this.session.loadVolume(bytes)));

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "engine/little_endian.hpp"
+#include "protocol/cpp/little_endian.hpp"
 
 namespace marzipan::protocol {
 namespace {

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/geometry.hpp"
+#include "protocol/cpp/geometry.hpp"
 #include "ops.hpp"
 
 namespace marzipan::protocol::checks {

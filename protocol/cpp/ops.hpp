@@ -19,8 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/csg.hpp"
-#include "engine/level_set.hpp"
+#include "protocol/cpp/values.hpp"
 
 namespace marzipan::protocol {
 

@@ -115,9 +115,7 @@ Camera cameraValue(const json& params, int maxSide) {
 
 Shading shadingValue(const json& v) {
   const std::string shading = stringValue(v, "shading");
-  if (shading == "lit") return Shading::Lit;
-  if (shading == "normals") return Shading::Normals;
-  if (shading == "gradient_error") return Shading::GradientError;
+  if (const auto s = shadingFromName(shading)) return *s;
   fail("shading", "must be \"lit\", \"normals\" or \"gradient_error\", got " + inQuotes(shading));
 }
 

@@ -20,9 +20,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/geometry.hpp"
-#include "engine/raycast.hpp"
-#include "engine/solids.hpp"
+#include "protocol/cpp/geometry.hpp"
+#include "protocol/cpp/values.hpp"
 #include "ops.hpp"
 
 namespace marzipan::protocol {

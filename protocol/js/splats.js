@@ -1,5 +1,5 @@
 // Splat buffers: the payload of binary frames of kind 1 (splats full) and 2 (splats delta).
-// server/engine/splats.hpp specifies the format byte by byte; this decoder mirrors its C++
+// protocol/cpp/splats.hpp specifies the format byte by byte; this decoder mirrors its C++
 // decodeSplats check for check, and gives the same float values (each step rounded to float32
 // as the C++ code does).
 //

@@ -9,13 +9,6 @@
 
 namespace marzipan {
 
-std::optional<ToolShape> toolShapeFromName(std::string_view name) {
-  if (name == "sphere") return ToolShape::Sphere;
-  if (name == "box") return ToolShape::Box;
-  if (name == "cylinder") return ToolShape::Cylinder;
-  return std::nullopt;
-}
-
 double toolDistance(const CsgParams& p, Vec3 x) {
   switch (p.shape) {
     case ToolShape::Sphere:

@@ -1,4 +1,4 @@
-// Redistancing by the Fast Marching Method on a dense grid (METHOD.md section 4).
+// Redistancing by the Fast Marching Method on a dense grid (docs/method.md §5).
 //
 // Each side of the surface is marched outward from its Source voxels: a voxel's distance is
 // computed only from known voxels of its own sign. The priority queue is an exact bucket

@@ -1,4 +1,4 @@
-// Deformative tools by the level-set method (METHOD.md section 3): phi_t + F |grad phi| = 0,
+// Deformative tools by the level-set method (docs/method.md §3): phi_t + F |grad phi| = 0,
 // followed after every application by keep / reset / fast-marching redistance.
 //
 // Local tools act inside a region of interest (ROI), the cube of half side `radius` around
@@ -17,14 +17,9 @@
 #include "geometry.hpp"
 #include "thread_pool.hpp"
 #include "volume.hpp"
+#include "protocol/cpp/values.hpp"  // BrushParams
 
 namespace marzipan {
-
-struct BrushParams {
-  Vec3 center;            // tool centre, vu; the ROI must meet the domain
-  double radius = 8;      // half side of the ROI cube, vu, in (0, 1024]
-  double strength = 1;    // in (0, 1]: see each tool
-};
 
 // F0 = 1. One application moves the surface outward (add) or inward (remove) by `strength`
 // vu at the tool centre, less towards the ROI boundary. Two upwind (Godunov, second-order

@@ -27,7 +27,7 @@ struct Bounds {
 Bounds boundingBox(const Volume& vol);
 
 // | |grad d| - 1 | by central differences at voxels adjacent to the surface (a 6-neighbour of
-// the other sign): the reference's distance-field error (section 7.6.0.4).
+// the other sign): the distance-field error of Bærentzen 2002, section 7.6.0.4 (docs/method.md).
 struct GradientError {
   double max = 0, mean = 0;
   std::size_t voxels = 0;

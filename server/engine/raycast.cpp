@@ -33,7 +33,6 @@ namespace marzipan {
 namespace {
 
 constexpr int kTile = 16;
-constexpr double kMaxCameraCoordinate = 1e5;
 constexpr int kGroup = 4;  // rays traced together, interleaved
 constexpr float kMinStep = 0.3f;
 constexpr float kJumpNudge = 1e-3f;
@@ -108,42 +107,6 @@ View makeView(const Camera& c) {
 }
 
 }  // namespace
-
-void Camera::validate() const {
-  for (const auto& [v, name] : {std::pair{eye, "eye"}, std::pair{target, "target"}, std::pair{up, "up"}})
-    if (!isFinite(v)) throw EngineError(ErrorKind::InvalidArgument, name, "must be three finite numbers");
-  // The kernel works in float: keep positions where a voxel is still well resolved.
-  for (const auto& [v, name] : {std::pair{eye, "eye"}, std::pair{target, "target"}})
-    for (int a = 0; a < 3; ++a)
-      if (std::fabs(v[a]) > kMaxCameraCoordinate) {
-        std::ostringstream s;
-        s << "must be within " << kMaxCameraCoordinate << " vu of the origin on each axis";
-        throw EngineError(ErrorKind::InvalidArgument, name, s.str());
-      }
-  requireFinite(fovY_degrees, "fovY_degrees");
-  if (!(fovY_degrees > 1 && fovY_degrees < 170)) {
-    std::ostringstream s;
-    s << "must be strictly between 1 and 170 degrees (got " << fovY_degrees << ")";
-    throw EngineError(ErrorKind::InvalidArgument, "fovY_degrees", s.str());
-  }
-  for (const auto& [v, name] : {std::pair{width, "width"}, std::pair{height, "height"}}) {
-    if (v < 1 || v > kMaxFrameSide) {
-      std::ostringstream s;
-      s << "must be between 1 and " << kMaxFrameSide << " pixels (got " << v << ")";
-      throw EngineError(v > kMaxFrameSide ? ErrorKind::TooLarge : ErrorKind::InvalidArgument, name, s.str());
-    }
-  }
-  const Vec3 view = target - eye;
-  const double dist = length(view);
-  if (!(dist > 1e-9) || !std::isfinite(dist))
-    throw EngineError(ErrorKind::InvalidArgument, "target", "must differ from eye");
-  const double upLength = length(up);
-  if (!(upLength > 0) || !std::isfinite(upLength))
-    throw EngineError(ErrorKind::InvalidArgument, "up", "must not be the zero vector");
-  // sin of the angle between up and the view direction; below ~0.06 degree the roll is undefined.
-  if (length(cross(view / dist, up / upLength)) < 1e-3)
-    throw EngineError(ErrorKind::InvalidArgument, "up", "must not be parallel to the view direction");
-}
 
 RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(volume) {
   const Int3 bd = volume_.brickDims();

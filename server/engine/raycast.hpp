@@ -21,27 +21,9 @@
 #include "geometry.hpp"
 #include "thread_pool.hpp"
 #include "volume.hpp"
+#include "protocol/cpp/values.hpp"  // Camera (and its validate()), Shading, kMaxFrameSide
 
 namespace marzipan {
-
-inline constexpr int kMaxFrameSide = 4096;
-
-struct Camera {
-  Vec3 eye, target, up{0, 1, 0};
-  double fovY_degrees = 40;
-  int width = 512, height = 512;
-
-  // Throws EngineError unless every number is finite, eye and target are within 1e5 vu of the
-  // origin on each axis, width and height are in [1, kMaxFrameSide], the field of view is in
-  // (1, 170) degrees, eye != target and up is not parallel to the view direction.
-  void validate() const;
-};
-
-enum class Shading {
-  Lit,            // clay: warm albedo, soft key and hemisphere fill, faint specular, SDF ambient occlusion
-  Normals,        // RGB = (n + 1) / 2 for the outward unit normal n (world axes)
-  GradientError,  // grey level = max | |grad d| - 1 | over the hit cell's 8 corners, 0.1 -> white
-};
 
 struct Frame {
   int width = 0, height = 0;

@@ -1,4 +1,4 @@
-// Redistancing after an edit (METHOD.md sections 3 and 4): keep the voxels adjacent to the
+// Redistancing after an edit (docs/method.md §3, §5): keep the voxels adjacent to the
 // zero set, reset every other voxel of the edited region, and march distances out from the
 // kept ones. Resetting everything is what keeps vanished parts from leaving stray voxels.
 #pragma once

@@ -10,15 +10,6 @@ namespace marzipan {
 
 namespace {
 
-struct NamedKind {
-  SolidKind kind;
-  const char* name;
-};
-constexpr NamedKind kKinds[] = {{SolidKind::Empty, "empty"},       {SolidKind::Sphere, "sphere"},
-                                {SolidKind::Box, "box"},           {SolidKind::Torus, "torus"},
-                                {SolidKind::Cylinder, "cylinder"}, {SolidKind::Dumbbell, "dumbbell"},
-                                {SolidKind::Pig, "pig"}};
-
 // The marzipan pig in units of N, centred at the origin.
 double pig(Vec3 p) {
   using namespace sdf;
@@ -37,18 +28,6 @@ double pig(Vec3 p) {
 }
 
 }  // namespace
-
-std::optional<SolidKind> solidKindFromName(std::string_view name) {
-  for (const auto& k : kKinds)
-    if (name == k.name) return k.kind;
-  return std::nullopt;
-}
-
-const char* solidKindName(SolidKind kind) {
-  for (const auto& k : kKinds)
-    if (k.kind == kind) return k.name;
-  return "unknown";
-}
 
 Volume makeFromFunction(Int3 dims, const std::function<double(Vec3)>& f, bool exact, float band, ThreadPool& pool) {
   Volume vol(dims, band);

@@ -10,14 +10,9 @@
 #include "geometry.hpp"
 #include "thread_pool.hpp"
 #include "volume.hpp"
+#include "protocol/cpp/values.hpp"  // SolidKind and its names
 
 namespace marzipan {
-
-enum class SolidKind { Empty, Sphere, Box, Torus, Cylinder, Dumbbell, Pig };
-
-// "empty", "sphere", "box", "torus", "cylinder", "dumbbell", "pig".
-std::optional<SolidKind> solidKindFromName(std::string_view name);
-const char* solidKindName(SolidKind kind);
 
 // Centred in the domain, N = smallest side:
 //  sphere radius 0.35N; box half side 0.25N; torus (around y) radii 0.28N and 0.1N;

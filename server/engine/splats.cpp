@@ -1,4 +1,4 @@
-// Splat extraction and encoding. Conventions and the byte layout: see splats.hpp.
+// Splat extraction. Conventions: see splats.hpp.
 //
 // Speed: a brick that provably has no splat (one side of the surface and |d| >= kSurfaceNear
 // throughout, neighbours' faces on the same side) is skipped after one counting pass. Others
@@ -16,7 +16,6 @@
 #include <tuple>
 
 #include "errors.hpp"
-#include "little_endian.hpp"
 
 namespace marzipan {
 
@@ -26,13 +25,11 @@ constexpr int kPad = kBrickSide + 2;  // padded side: the brick and its ring
 constexpr int kPadVoxels = kPad * kPad * kPad;
 constexpr int kStride[3] = {1, kPad, kPad * kPad};
 
-constexpr int kPosBits = 14;
-constexpr int kPosMax = (1 << kPosBits) - 1;
-constexpr float kPosLow = -2.0f;                          // range start, vu from the brick origin
-constexpr float kPosStep = 12.0f / float(1 << kPosBits);  // exactly 3/4096 vu
-constexpr int kOctBits = 11;
-constexpr int kOctMax = (1 << kOctBits) - 1;
-constexpr int kMaxPointsPerBrick = kBrickVoxels;
+// Foot points are clamped to what the wire encoding can carry (protocol/cpp/values.hpp).
+constexpr int kPosMax = kSplatPositionMax;
+constexpr float kPosLow = kSplatPositionLow;
+constexpr float kPosStep = kSplatPositionStep;
+static_assert(kBrickSide == kSplatBrickSide, "splat buffers address bricks of 8^3 voxels");
 
 // Index in the padded array of local voxel (x, y, z), each in [-1, 8].
 constexpr int padIndex(int x, int y, int z) { return (x + 1) + kPad * ((y + 1) + kPad * (z + 1)); }
@@ -222,72 +219,6 @@ void checkBrick(const Volume& vol, Int3 b) {
   }
 }
 
-std::uint64_t brickKey(Int3 b) {
-  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
-         std::uint64_t(std::uint32_t(b.z)) << 42;
-}
-
-using namespace le;
-
-constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'S', 'P'};
-
-float signOrPlus(float v) { return v < 0 ? -1.0f : 1.0f; }
-
-std::uint32_t positionCode(float q, float origin) {
-  const float t = std::clamp((q - origin - kPosLow) * (1 / kPosStep), 0.0f, float(kPosMax));
-  return std::uint32_t(t + 0.5f);
-}
-
-std::uint64_t encodePoint(const Splat& s, Int3 origin) {
-  float u = 0, v = 0;
-  const float l1 = std::fabs(s.nx) + std::fabs(s.ny) + std::fabs(s.nz);
-  if (l1 > 0) {
-    const float inv = 1 / l1;
-    u = s.nx * inv;
-    v = s.ny * inv;
-    if (s.nz < 0) {
-      const float fu = (1 - std::fabs(v)) * signOrPlus(u), fv = (1 - std::fabs(u)) * signOrPlus(v);
-      u = fu;
-      v = fv;
-    }
-  }
-  const auto oct = [](float c) {
-    return std::uint64_t(std::clamp((c + 1) * (float(kOctMax) / 2), 0.0f, float(kOctMax)) + 0.5f);
-  };
-  return std::uint64_t(positionCode(s.x, float(origin.x))) |
-         std::uint64_t(positionCode(s.y, float(origin.y))) << kPosBits |
-         std::uint64_t(positionCode(s.z, float(origin.z))) << (2 * kPosBits) | oct(u) << (3 * kPosBits) |
-         oct(v) << (3 * kPosBits + kOctBits);
-}
-
-Splat decodePoint(std::uint64_t w, Int3 origin) {
-  Splat s;
-  s.x = float(origin.x) + kPosLow + float(w & kPosMax) * kPosStep;
-  s.y = float(origin.y) + kPosLow + float((w >> kPosBits) & kPosMax) * kPosStep;
-  s.z = float(origin.z) + kPosLow + float((w >> (2 * kPosBits)) & kPosMax) * kPosStep;
-  // (2U - 2047) / 2047 rather than 2U / 2047 - 1: the same value, but codes mirrored around
-  // the middle give exactly opposite floats, so both codes of the folded seam decode alike.
-  float u = float(2 * int((w >> (3 * kPosBits)) & kOctMax) - kOctMax) / float(kOctMax);
-  float v = float(2 * int(w >> (3 * kPosBits + kOctBits)) - kOctMax) / float(kOctMax);
-  const float z = 1 - std::fabs(u) - std::fabs(v);
-  if (z < 0) {
-    const float fu = (1 - std::fabs(v)) * signOrPlus(u), fv = (1 - std::fabs(u)) * signOrPlus(v);
-    u = fu;
-    v = fv;
-  }
-  const float inv = 1 / std::sqrt(u * u + v * v + z * z);
-  s.nx = u * inv;
-  s.ny = v * inv;
-  s.nz = z * inv;
-  return s;
-}
-
-[[noreturn]] void formatError(const std::string& message) { throw EngineError(ErrorKind::Format, "splats", message); }
-
-}  // namespace
-
-namespace {
-
 BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   const Volume& vol = look.volume();
   BrickSplats out{b, {}};
@@ -407,103 +338,6 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
   auto order = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };
   std::sort(out.begin(), out.end(), order);
   out.erase(std::unique(out.begin(), out.end()), out.end());
-  return out;
-}
-
-std::size_t encodedSplatsSize(const std::vector<BrickSplats>& bricks) {
-  std::size_t n = kSplatHeaderBytes;
-  for (const auto& b : bricks) n += kSplatBrickHeaderBytes + kSplatPointBytes * b.points.size();
-  return n;
-}
-
-std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks) {
-  std::vector<std::uint64_t> keys;
-  keys.reserve(bricks.size());
-  std::size_t points = 0;
-  for (const auto& b : bricks) {
-    for (int a = 0; a < 3; ++a)
-      if (b.brick[a] < 0 || b.brick[a] > 0xffff)
-        throw EngineError(ErrorKind::InvalidArgument, "brick", "coordinates must be in [0, 65535]");
-    if (b.points.size() > std::size_t(kMaxPointsPerBrick))
-      throw EngineError(ErrorKind::InvalidArgument, "points", "a brick holds at most 512 points");
-    for (const Splat& s : b.points)
-      if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z) || !std::isfinite(s.nx) ||
-          !std::isfinite(s.ny) || !std::isfinite(s.nz))
-        throw EngineError(ErrorKind::InvalidArgument, "points", "positions and normals must be finite");
-    keys.push_back(brickKey(b.brick));
-    points += b.points.size();
-  }
-  std::sort(keys.begin(), keys.end());
-  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end())
-    throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
-  if (bricks.size() > 0xffffffffu || points > 0xffffffffu)
-    throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
-
-  std::vector<std::uint8_t> out(encodedSplatsSize(bricks));
-  std::uint8_t* p = out.data();
-  std::memcpy(p, kMagic, 4);
-  put16(p + 4, kSplatFormatVersion);
-  put16(p + 6, 0);
-  put32(p + 8, std::uint32_t(bricks.size()));
-  put32(p + 12, std::uint32_t(points));
-  p += kSplatHeaderBytes;
-  for (const auto& b : bricks) {
-    put16(p, std::uint32_t(b.brick.x));
-    put16(p + 2, std::uint32_t(b.brick.y));
-    put16(p + 4, std::uint32_t(b.brick.z));
-    put16(p + 6, std::uint32_t(b.points.size()));
-    p += kSplatBrickHeaderBytes;
-    const Int3 o{b.brick.x * kBrickSide, b.brick.y * kBrickSide, b.brick.z * kBrickSide};
-    for (const Splat& s : b.points) {
-      put64(p, encodePoint(s, o));
-      p += kSplatPointBytes;
-    }
-  }
-  return out;
-}
-
-std::vector<BrickSplats> decodeSplats(std::span<const std::uint8_t> bytes) {
-  const std::size_t size = bytes.size();
-  const std::uint8_t* p = bytes.data();
-  if (size < kSplatHeaderBytes) formatError("truncated: " + std::to_string(size) + " bytes, the header alone takes 16");
-  if (std::memcmp(p, kMagic, 4) != 0) formatError("not a splat buffer (wrong magic bytes)");
-  const std::uint32_t version = get16(p + 4);
-  if (version != kSplatFormatVersion)
-    formatError("unsupported version " + std::to_string(version) + " (this build reads version 1)");
-  if (get16(p + 6) != 0) formatError("reserved header bytes must be 0");
-  const std::uint32_t brickCount = get32(p + 8), pointCount = get32(p + 12);
-  const std::size_t room = (size - kSplatHeaderBytes) / kSplatBrickHeaderBytes;
-  if (brickCount > room || pointCount > room)
-    formatError("counts (" + std::to_string(brickCount) + " bricks, " + std::to_string(pointCount) +
-                " points) exceed what " + std::to_string(size) + " bytes can hold");
-
-  std::vector<BrickSplats> out;
-  out.reserve(brickCount);
-  std::vector<std::uint64_t> keys;
-  keys.reserve(brickCount);
-  std::size_t at = kSplatHeaderBytes, points = 0;
-  for (std::uint32_t i = 0; i < brickCount; ++i) {
-    if (size - at < kSplatBrickHeaderBytes) formatError("truncated in the header of brick block " + std::to_string(i));
-    const Int3 b{int(get16(p + at)), int(get16(p + at + 2)), int(get16(p + at + 4))};
-    const std::uint32_t n = get16(p + at + 6);
-    at += kSplatBrickHeaderBytes;
-    if (n > std::uint32_t(kMaxPointsPerBrick))
-      formatError("brick block " + std::to_string(i) + " claims " + std::to_string(n) + " points (at most 512)");
-    if ((size - at) / kSplatPointBytes < n) formatError("truncated in the points of brick block " + std::to_string(i));
-    BrickSplats bs{b, {}};
-    bs.points.reserve(n);
-    const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
-    for (std::uint32_t k = 0; k < n; ++k, at += kSplatPointBytes) bs.points.push_back(decodePoint(get64(p + at), o));
-    points += n;
-    keys.push_back(brickKey(b));
-    out.push_back(std::move(bs));
-  }
-  if (at != size) formatError(std::to_string(size - at) + " trailing bytes after the last brick block");
-  if (points != pointCount)
-    formatError("the header announces " + std::to_string(pointCount) + " points, the blocks hold " +
-                std::to_string(points));
-  std::sort(keys.begin(), keys.end());
-  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end()) formatError("a brick is listed twice");
   return out;
 }
 

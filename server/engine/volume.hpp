@@ -21,12 +21,12 @@
 #include <vector>
 
 #include "geometry.hpp"
+#include "protocol/cpp/values.hpp"  // kMaxDomainSide
 
 namespace marzipan {
 
 inline constexpr int kBrickSide = 8;
 inline constexpr int kBrickVoxels = kBrickSide * kBrickSide * kBrickSide;
-inline constexpr int kMaxDomainSide = 1024;
 
 struct Brick {
   float v[kBrickVoxels];  // index x + 8*(y + 8*z), local voxel coordinates

@@ -44,6 +44,12 @@
 
 namespace marzipan::net {
 
+void logToStderr(const std::string& line) {
+  static std::mutex stderrMutex;
+  const std::lock_guard lock(stderrMutex);
+  std::cerr << line << '\n';
+}
+
 namespace asio = boost::asio;
 namespace beast = boost::beast;
 namespace http = beast::http;
@@ -68,9 +74,7 @@ struct SharedState {
 
   void log(const std::string& line) const {
     if (options.log) return options.log(line);
-    static std::mutex stderrMutex;
-    const std::lock_guard lock(stderrMutex);
-    std::cerr << line << '\n';
+    logToStderr(line);
   }
 
   // Registers a new session; false once stopping (the caller drops the connection).

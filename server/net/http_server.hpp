@@ -54,6 +54,10 @@ struct HttpServerOptions {
   std::function<void(const std::string&)> log;  // one line, no newline; called from I/O threads
 };
 
+// Writes one line (no newline) to stderr under the process's one logging lock, so that lines of
+// the server and of the hub never interleave. HttpServerOptions::log defaults to it.
+void logToStderr(const std::string& line);
+
 class HttpServer {
  public:
   explicit HttpServer(HttpServerOptions options);

@@ -17,8 +17,6 @@
 #include <ostream>
 #include <stdexcept>
 #include <string_view>
-#include <iostream>
-#include <mutex>
 #include <thread>
 #include <type_traits>
 
@@ -189,11 +187,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
 
   HttpServer server(options);
   hubOptions.events = hubEventsFor(server.metrics());
-  hubOptions.events.log = [](const std::string& line) {
-    static std::mutex stderrMutex;
-    const std::lock_guard lock(stderrMutex);
-    std::cerr << line << '\n';
-  };
+  hubOptions.events.log = logToStderr;
   service::Hub hub(hubOptions);
   server.setHub(&hub);
   server.start();

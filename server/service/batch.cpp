@@ -164,9 +164,7 @@ Options parseOptions(const std::vector<std::string>& args) {
       o.height = parseInt(name, value(), 1, kMaxFrameSide);
     } else if (name == "--shading") {
       const std::string v = value();
-      if (v == "lit") o.shading = Shading::Lit;
-      else if (v == "normals") o.shading = Shading::Normals;
-      else if (v == "gradient_error") o.shading = Shading::GradientError;
+      if (const auto s = shadingFromName(v)) o.shading = *s;
       else throw UsageError("--shading takes lit, normals or gradient_error, got \"" + v + "\"");
     } else if (name == "--quality") {
       o.quality = parseInt(name, value(), 1, 100);

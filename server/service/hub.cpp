@@ -32,6 +32,7 @@
 #include "engine/thread_pool.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "protocol/cpp/rpc.hpp"
 #include "service/session.hpp"
 #include "service/journal.hpp"

@@ -28,7 +28,7 @@
 #include <variant>
 #include <vector>
 
-#include "engine/geometry.hpp"
+#include "protocol/cpp/geometry.hpp"
 #include "engine/measures.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"

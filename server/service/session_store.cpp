@@ -18,7 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/little_endian.hpp"
+#include "protocol/cpp/little_endian.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/ops.hpp"
 

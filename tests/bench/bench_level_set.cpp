@@ -1,4 +1,4 @@
-// Level-set scenarios: the reference's Table 7.2 (add blob and smoothing on ROIs of side
+// Level-set scenarios: Table 7.2 of Bærentzen's thesis (docs/method.md) (add blob and smoothing on ROIs of side
 // 10..70, and 100, 150, on the surface of a radius-100 sphere), one whole-volume curvature
 // iteration and dilation, and the memory the volume takes.
 #include <cmath>
@@ -14,7 +14,7 @@ namespace marzipan::bench {
 
 namespace {
 
-// The reference's seconds per application (Athlon, 2001), by ROI side.
+// The thesis's seconds per application (Athlon, 2001), by ROI side.
 struct SeedRow {
   int side;
   double addBlobMs, smoothMs;
@@ -57,7 +57,7 @@ void table72(const Options& opt, const char* scenario, bool addBlobTool) {
         reps,
         [&] {
           // A random point of the surface; the surface there moves with the tools, which is
-          // what the reference's random applications did too.
+          // what the thesis's random applications did too.
           const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
           p.center = s.centre + dir * s.radius;
           band = bandVoxelsIn(v, boxAround(p.center, {p.radius, p.radius, p.radius}));

@@ -9,6 +9,7 @@
 #include "bench.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "engine/thread_pool.hpp"
 
 namespace {

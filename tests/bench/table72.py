@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Reads marzipan-bench JSON lines on stdin and prints the Table 7.2 reproduction as markdown:
-per ROI side, the reference's seconds per application and Marzipan's milliseconds."""
+per ROI side, the seconds per application of Bærentzen's thesis (2002) and Marzipan's milliseconds."""
 import json
 import sys
 
@@ -14,7 +14,7 @@ for line in sys.stdin:
         continue
     rows.setdefault(j["roi"], {})[j["scenario"]] = j
 
-print("| ROI side | band voxels | add blob: reference (2001) | add blob: Marzipan | speed-up | smoothing: reference | smoothing: Marzipan | speed-up |")
+print("| ROI side | band voxels | add blob: thesis (Athlon, 2001) | add blob: Marzipan | speed-up | smoothing: thesis | smoothing: Marzipan | speed-up |")
 print("| --- | --- | --- | --- | --- | --- | --- | --- |")
 for roi in sorted(rows):
     a, s = rows[roi].get("table72_add_blob"), rows[roi].get("table72_smooth")

@@ -28,7 +28,7 @@ double maxErrorNear(const Volume& v, const Box& box, double within, F exact) {
 }
 
 // Band voxels with no surface near them: |d| < 0.9 band but no voxel of the other sign within
-// |d| + 1.5 vu. A true distance field has none; spurious voxels (reference Fig. 7.11) do.
+// |d| + 1.5 vu. A true distance field has none; spurious voxels (Bærentzen 2002, Fig. 7.11; docs/method.md) do.
 inline int strayBandVoxels(const Volume& v) {
   int stray = 0;
   const Int3 n = v.dims();

@@ -1,4 +1,4 @@
-// The reference's experiments (sections 7.6.0.2-7.6.0.4) and the deformative tools' contract.
+// The experiments of Bærentzen's thesis (sections 7.6.0.2-7.6.0.4; docs/method.md) and the deformative tools' contract.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -96,7 +96,7 @@ TEST_CASE("a dumbbell pinches off at the handle before the spheres vanish, leavi
   // Both spheres are still there, each far from vanishing (radius 0.17 N = 10.9 at start).
   CHECK(equivalentRadius(v) > 10);
   // Right after the pinch and while the stubs retract, every band voxel has a surface near
-  // it: the reset left nothing of the vanished handle behind (reference Fig. 7.11).
+  // it: the reset left nothing of the vanished handle behind (thesis Fig. 7.11).
   for (int i = 0; i < 3; ++i) {
     CHECK(test::strayBandVoxels(v) == 0);
     meanCurvatureFlow(v, 4);
@@ -158,10 +158,10 @@ TEST_CASE("closing with r = 3 fills a 4 vu gap between two boxes", "[level_set][
   CHECK(v.at(32, 20, 28) < 0);
 }
 
-TEST_CASE("800 random add-blob and smoothing applications keep a distance field (reference 7.6.0.4)",
+TEST_CASE("800 random add-blob and smoothing applications keep a distance field (thesis 7.6.0.4)",
           "[level_set][preservation]") {
   // A cube in 64^3; the tools work on its +x face (x = 52). The error is measured on the middle
-  // of the face, which every application's window covers evenly (the reference's condition of
+  // of the face, which every application's window covers evenly (the thesis's condition of
   // "little high curvature"); where the sculpted patch meets the untouched cube edges the
   // crease is sharp and central differences read up to 0.1-0.25 there.
   Volume v = makeBox({64, 64, 64}, {32, 32, 32}, {20, 20, 20});
@@ -179,7 +179,7 @@ TEST_CASE("800 random add-blob and smoothing applications keep a distance field 
   const GradientError e = gradientError(v, {{40, 24, 24}, {64, 40, 40}});
   INFO("max " << e.max << " mean " << e.mean << " over " << e.voxels << " voxels");
   CHECK(e.voxels > 400);
-  CHECK(e.max <= 0.05);  // reference: 0.07
+  CHECK(e.max <= 0.05);  // thesis: 0.07
   CHECK(e.mean <= 0.01);
   CHECK(boundingBox(v).hi.x > 53);  // the face really was sculpted outward
 }

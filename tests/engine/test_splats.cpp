@@ -17,6 +17,7 @@
 #include "engine/level_set.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 

@@ -1,4 +1,4 @@
-// Fuzz target: splat buffers (server/engine/splats.hpp, decodeSplats). What decodes must hold
+// Fuzz target: splat buffers (protocol/cpp/splats.hpp, decodeSplats). What decodes must hold
 // unit normals and positions inside each brick's encodable range, and encode again to a
 // buffer of the same size that decodes to the same points.
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/splats.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "engine_checks.hpp"
 
 using namespace marzipan;

@@ -26,6 +26,7 @@
 #include "engine/splats.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/splats.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

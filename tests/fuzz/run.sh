@@ -11,8 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 . tests/debian-packages.sh
-MARZIPAN_PACKAGES+=(clang libclang-rt-14-dev)
-install_debian_packages
+install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
 seconds="${1:-10}"
 shift || true
 build="${BUILD_DIR:-build-fuzz}"

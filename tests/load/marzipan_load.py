@@ -28,7 +28,7 @@ client reads again to learn how it was closed.
 
 Exit status: 0 when no request got an error or went unanswered, no sculpting client's
 connection closed, every client saw its session's last delta and at least one dab was applied;
-1 otherwise; 2 usage. Latency does not decide it: the JSON's "goals" says whether the issue's
+1 otherwise; 2 usage. Latency does not decide it: the JSON's "goals" says whether the
 targets were met.
 
 Conventions: times are time.monotonic() (system-wide on Linux, so comparable between the
@@ -66,7 +66,7 @@ from marzipan.client import new_session_id, session_url  # noqa: E402
 from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
 
 TOOLS = ("add_blob", "remove_blob", "smooth")
-GOAL_P99_MS = 50.0  # issue 7: p99 edit round trip on the 2-core machine
+GOAL_P99_MS = 50.0  # the target p99 of an edit's round trip
 # web-client/net/stroke-sender.js and the browser's pointer events
 WEB_CLIENT_FRAME_HZ = 60.0
 WEB_CLIENT_MAX_IN_FLIGHT = 3

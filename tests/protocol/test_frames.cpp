@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/little_endian.hpp"
-#include "engine/splats.hpp"
+#include "protocol/cpp/little_endian.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/ops.hpp"
 

@@ -18,6 +18,7 @@
 #include "engine/splats.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "service/hub.hpp"
 
 using namespace marzipan;

@@ -1,11 +1,11 @@
-"""The reference's Fig. 7.10: a dumbbell (two spheres joined by a cylinder) under mean curvature
-flow pinches off at the handle before the spheres vanish. The reference shows it after 0, 34,
-35 and 44 applications, the handle parting at the 35th.
+"""Fig. 7.10 of Bærentzen's thesis (2002, docs/method.md): a dumbbell (two spheres joined by a
+cylinder) under mean curvature flow pinches off at the handle before the spheres vanish. The thesis
+shows it after 0, 34, 35 and 44 applications, the handle parting at the 35th.
 
 Applies global smoothing one application at a time (`tool.apply {"tool":"smooth","global":true,
 "iterations":1}`), counts the solid's 6-connected components after each (`session.stats`), and
 reports the application at which the count goes from 1 to 2. Writes dumbbell_NNN.png after 0,
-pinch - 1 (by undo), pinch (by redo) and pinch + 9 applications (the reference's spacing), and
+pinch - 1 (by undo), pinch (by redo) and pinch + 9 applications (the thesis's spacing), and
 checks that the two parts are still there 9 applications later.
 
     python3 examples/fig710_dumbbell.py --url ws://127.0.0.1:8080/ws
@@ -58,7 +58,7 @@ async def main(a):
     print(f"Fig. 7.10: the dumbbell ({a.size}^3) under mean curvature flow")
     _common.print_table(["applications", "components", "volume vu^3"],
                         [[n, c, round(v, 1)] for n, c, v in history if n in (0, pinch - 1, pinch, pinch + 9)])
-    print(f"the handle pinches off at application {pinch} (reference: 35); "
+    print(f"the handle pinches off at application {pinch} (thesis: 35); "
           f"{last['components']} components 9 applications later; each part then holds a sphere of "
           f"radius {radius:.1f} vu (the spheres started at {0.17 * a.size:.1f})")
     _common.print_summary({"figure": "7.10", "size": a.size, "pinch_application": pinch,

@@ -1,8 +1,9 @@
-"""The reference's Fig. 7.12: the marzipan pig as it is, opened with a sphere of radius 3 (three
-erosions by 1 vu, then three dilations by 1 vu: removes structure thinner than 6 vu) and closed
-with it (the inverse: fills gaps narrower than 6 vu; the reference saw changes around the eyes).
+"""Fig. 7.12 of Bærentzen's thesis (2002, docs/method.md): the marzipan pig as it is, opened with a
+sphere of radius 3 (three erosions by 1 vu, then three dilations by 1 vu: removes structure thinner
+than 6 vu) and closed with it (the inverse: fills gaps narrower than 6 vu; the thesis saw changes
+around the eyes).
 
-Uses `volume.morph` open / close with radius 3 (or, with --stepwise, the reference's own three
+Uses `volume.morph` open / close with radius 3 (or, with --stepwise, the thesis's own three
 erode-1 and three dilate-1 calls), undo between them so both start from the same pig, and
 measures each result: volume, area, components, and how much of the picture changed (pixels
 whose colour moved by more than 8 levels out of 255 against the original frame).
@@ -89,5 +90,5 @@ if __name__ == "__main__":
     p = _common.parser("Fig. 7.12: the pig opened and closed with a sphere of radius 3", "fig712", 128)
     p.add_argument("--radius", type=float, default=3.0, help="the sphere's radius, vu (default %(default)s)")
     p.add_argument("--stepwise", action="store_true",
-                   help="erode and dilate by 1 vu radius times each, as the reference did")
+                   help="erode and dilate by 1 vu radius times each, as the thesis did")
     _common.run(main(p.parse_args()))

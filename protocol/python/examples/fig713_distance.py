@@ -1,15 +1,15 @@
-"""The reference's Fig. 7.13 and section 7.6.0.4: 400 add-blob and 400 smoothing applications at
-random on one face of a cube, after which the field should still be a distance field: the
-reference found | |grad d| - 1 | nowhere above 0.07 vu, largest near the edges.
+"""Fig. 7.13 of Bærentzen's thesis (2002, docs/method.md) and section 7.6.0.4: 400 add-blob and 400
+smoothing applications at random on one face of a cube, after which the field should still be a
+distance field: the thesis found | |grad d| - 1 | nowhere above 0.07 vu, largest near the edges.
 
 The cube is the `box` solid (half side 0.25 N; N = 80 gives the 20 vu of the engine's own test),
 the tools work on its +x face at random centres within 10 vu of the face's middle, radius 4-8,
 strength 0.2-1, add blob and smoothing in turn. Then the server renders the face head-on twice:
 lit (fig713_lit.png) and with `shading: gradient_error` (fig713_gradient_error.png), where each
 pixel is the largest | |grad d| - 1 | at the 8 corners of the cell its ray hits, as a grey level
-(0 black, 0.1 vu and more white), the reference's measure. The figures read from that image:
+(0 black, 0.1 vu and more white), the thesis's measure. The figures read from that image:
 the largest and mean error over the middle of the face (within 8 vu of its centre, which every
-application's window covers evenly: the reference's condition of little curvature), and over
+application's window covers evenly: the thesis's condition of little curvature), and over
 every pixel of the solid (where the cube's untouched sharp edges saturate it); plus the
 session's own gradient_error over every voxel next to the surface.
 
@@ -100,7 +100,7 @@ async def main(a):
         ["every voxel next to the surface (session.stats)", figures["volume_gradient_error_max"],
          figures["volume_gradient_error_mean"]],
     ])
-    print(f"reference: nowhere above 0.07 vu; {100 * figures['solid_pixels_at_or_over_0.07']:.1f}% of the solid's "
+    print(f"thesis: nowhere above 0.07 vu; {100 * figures['solid_pixels_at_or_over_0.07']:.1f}% of the solid's "
           f"pixels reach 0.07 (the cube's sharp edges); the face moved out by {figures['face_moved_out']} vu; "
           f"{figures['ms_per_application']} ms per application")
     _common.print_summary(figures)

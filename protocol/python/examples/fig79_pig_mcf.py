@@ -1,6 +1,7 @@
-"""The reference's Fig. 7.9: the marzipan pig under mean curvature flow, after 0, 2, 9 and 100
-applications of the smoothing tool with the whole volume as its region (one application =
-one `tool.apply {"tool":"smooth","global":true,"iterations":1}`, one time step dt = 1/6).
+"""Fig. 7.9 of Bærentzen's thesis (2002, docs/method.md): the marzipan pig under mean curvature
+flow, after 0, 2, 9 and 100 applications of the smoothing tool with the whole volume as its region
+(one application = one `tool.apply {"tool":"smooth","global":true,"iterations":1}`, one time step dt
+= 1/6).
 
 Writes pig_mcf_NNN.png for each checkpoint and prints, per checkpoint, the volume (vu^3), the
 area (vu^2), the sphericity (1 for a sphere: the pig should approach it), the components and

@@ -1,6 +1,7 @@
-"""The reference's Table 7.2 through the network: seconds per application of the add-blob and
-smoothing tools for regions of interest of side 10 to 70 vu, here as the wall-clock round trip
-of one `tool.apply` seen by this client (request out, engine work, response back).
+"""Table 7.2 of Bærentzen's thesis (2002, docs/method.md) through the network: seconds per
+application of the add-blob and smoothing tools for regions of interest of side 10 to 70 vu, here as
+the wall-clock round trip of one `tool.apply` seen by this client (request out, engine work,
+response back).
 
 A sphere session (radius 0.35 N; N = 256 gives 89.6 vu) takes, for each side S, --reps add
 blobs and then --reps smoothings of radius S / 2 (the half side of the cubic ROI) and strength 1,
@@ -20,7 +21,7 @@ import _common
 
 from marzipan.frames import FrameKind
 
-# Table 7.2 of the reference: seconds per application on an Athlon (2001), by ROI side.
+# Table 7.2 of the thesis: seconds per application on an Athlon (2001), by ROI side.
 REFERENCE = {
     "add_blob": {10: 0.044, 20: 0.134, 30: 0.307, 40: 0.703, 50: 0.973, 60: 1.246, 70: 1.744},
     "smooth": {10: 0.047, 20: 0.153, 30: 0.352, 40: 0.878, 50: 1.109, 60: 1.293, 70: 1.453},
@@ -94,7 +95,7 @@ async def main(a):
                          "-" if reference is None else f"{reference * 1000 / row['median_ms']:.0f}x"])
     print(f"Table 7.2 through the network: a radius-{radius:g} sphere in {a.size}^3, {a.reps} applications "
           f"per tool and side, round trips in ms")
-    _common.print_table(["ROI", "tool", "median", "min", "median with splat delta", "reference (2001)",
+    _common.print_table(["ROI", "tool", "median", "min", "median with splat delta", "thesis (2001)",
                          "speed-up"], rows)
     _common.print_summary({"table": "7.2", "size": a.size, "radius": radius, "rows": figures, "frame": path})
 

@@ -1,5 +1,5 @@
 """Reading the PNG frames the server renders (render.frame with format "png"), with the
-standard library only: enough to measure a frame (the gradient-error image of the reference's
+standard library only: enough to measure a frame (the gradient-error image of Bærentzen's
 Fig. 7.13 stores | |grad d| - 1 | as a grey level) without an imaging package.
 
 Supports what a PNG writer of 8-bit images produces: bit depth 8, colour types grey (0), RGB

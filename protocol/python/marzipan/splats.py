@@ -1,6 +1,6 @@
 """Splat buffers: the payload of binary frames of kind 1 (splats full) and 2 (splats delta).
 
-server/engine/splats.hpp specifies the format byte by byte; this decoder makes the checks of its
+protocol/cpp/splats.hpp specifies the format byte by byte; this decoder makes the checks of its
 C++ decodeSplats in the same order and gives the same float32 values (each arithmetic step is
 rounded to float32 as the C++ code rounds it).
 

@@ -7,7 +7,7 @@ import { decodeSplats } from "../../../protocol/js/splats.js";
 import { SplatStore } from "../../../web-client/render/splat-store.js";
 import { MAX_SLOT, SLOT_STEP, SlotAllocator, slotClass } from "../../../web-client/render/slot-allocator.js";
 
-// A splat buffer (server/engine/splats.hpp) of bricks [{brick, count}] with points at the
+// A splat buffer (protocol/cpp/splats.hpp) of bricks [{brick, count}] with points at the
 // brick's origin and normal +z.
 function encode(bricks) {
   const points = bricks.reduce((n, b) => n + b.count, 0);

@@ -1,5 +1,5 @@
 // protocol/js/splats.js: the splat payloads of the golden vectors, round trips through an
-// encoder written here from the description in server/engine/splats.hpp, and every refusal.
+// encoder written here from the description in protocol/cpp/splats.hpp, and every refusal.
 import { test } from "node:test";
 import assert from "node:assert/strict";
 

@@ -1,7 +1,7 @@
-"""protocol/python/examples: each example of the reference's experiments runs, shortened, as a
-script against `marzipan serve` ($MARZIPAN_BIN), writes its PNG frames, and prints figures that
-say what the reference says (the pig grows rounder, the dumbbell parts in two, opening takes
-volume away and closing adds it, the sculpted face keeps a distance field)."""
+"""protocol/python/examples: each example of the thesis's experiments (docs/method.md) runs,
+shortened, as a script against `marzipan serve` ($MARZIPAN_BIN), writes its PNG frames, and prints
+figures that say what the thesis says (the pig grows rounder, the dumbbell parts in two, opening
+takes volume away and closing adds it, the sculpted face keeps a distance field)."""
 
 import json
 import subprocess
@@ -60,7 +60,7 @@ class Examples(unittest.TestCase):
     def test_fig710_the_dumbbell_pinches_off(self):
         summary, out_dir = self.example("fig710_dumbbell", "--size", "64")
         # The engine's own test of the same dumbbell finds the pinch at application 45
-        # (server/engine/README.md, "The reference's experiments, as tests").
+        # (server/engine/README.md, "The thesis's experiments, as tests").
         self.assertEqual(summary["pinch_application"], 45)
         self.assertEqual((summary["components_before"], summary["components_at_pinch"],
                           summary["components_after_9"]), (1, 2, 2))

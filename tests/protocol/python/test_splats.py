@@ -1,5 +1,5 @@
 """protocol/python/marzipan/splats.py: the splat payloads of the golden vectors, round trips
-through an encoder written here from the description in server/engine/splats.hpp, every
+through an encoder written here from the description in protocol/cpp/splats.hpp, every
 refusal, and bit-equality with the JavaScript decoder (protocol/js/splats.js), which mirrors the
 C++ one, when node is installed."""
 
