@@ -14,15 +14,33 @@ namespace {
 
 // How the band moves during one application.
 struct Motion {
-  enum class Kind { Advect, Curvature } kind;
-  double speed;      // s: signed; advection speed in vu per unit time, or curvature scale
-  double dt;         // time step of one sub-step
-  int substeps;
-  bool windowed;     // W(q) of the ROI around center/radius, else W = 1
-  Vec3 center;
-  double radius;
+  enum class Kind { Advect, Curvature };
+  Kind kind = Kind::Advect;
+  double speed = 0;      // s: signed; advection speed in vu per unit time, or curvature scale
+  double dt = 0;         // time step of one sub-step
+  int substeps = 1;
+  bool windowed = false; // W(q) of the ROI around center/radius, else W = 1
+  Vec3 center{};
+  double radius = 0;
   double curvatureLimit = std::numeric_limits<double>::infinity();
 };
+
+// Advection: two sub-steps of dt |F| <= 0.5 vu (the CFL bound of the upwind scheme), so one
+// application at speed 1 moves the surface 1 vu.
+constexpr double kAdvectDt = 0.5;
+constexpr int kAdvectSubsteps = 2;
+// Curvature flow: one explicit step at the 7-point Laplacian's stability limit dt = 1/6.
+constexpr double kCurvatureDt = 1.0 / 6.0;
+// Sharpening runs the flow backwards; |L| <= 1 per voxel keeps noise from blowing up.
+constexpr double kSharpenCurvatureLimit = 1.0;
+
+Motion advection(double speed) {
+  return {.kind = Motion::Kind::Advect, .speed = speed, .dt = kAdvectDt, .substeps = kAdvectSubsteps};
+}
+
+Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::infinity()) {
+  return {.kind = Motion::Kind::Curvature, .speed = scale, .dt = kCurvatureDt, .substeps = 1, .curvatureLimit = limit};
+}
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
 constexpr int kStencilReach = 2;
@@ -121,17 +139,24 @@ Edit applyBrush(Volume& vol, const BrushParams& p, Motion m, ThreadPool& pool) {
   m.radius = p.radius;
   const float band = vol.band();
   const Box roi = boxAround(p.center, {p.radius, p.radius, p.radius}).intersect(vol.domain());
-  // Outside the ROI the old field is the source the march continues from. Every read outside
-  // is within two steps of an ROI voxel (the second-order upwind point, the ENO stencil; the
-  // kept-voxel test and normalization need one), and the sources there carry their own
-  // distances, so a margin of the stencils' reach gives the same result as any wider one.
-  const int margin = kStencilReach;
-  DenseGrid g = DenseGrid::gather(vol, roi.grown(margin));
+  // The surface moves only inside the ROI (W = 0 on its boundary, voxels outside are not
+  // evolved), so the new zero set lies within one voxel of it: every voxel further than
+  // band + 1 from the ROI keeps its distance, and every band voxel nearer may now be closer to
+  // the moved surface than to the old one. That shell is reset and marched too, from the kept
+  // voxels inside and outside the ROI; the old field beyond it is the source the march
+  // continues from (its distances are still right there).
+  const int reach = int(std::ceil(band)) + 1;
+  const Box region = roi.grown(reach).intersect(vol.domain());
+  // One more voxel for the kept-voxel test at the region's edge, and the stencils' reach
+  // around the ROI.
+  DenseGrid g = DenseGrid::gather(vol, roi.grown(std::max(reach + 1, kStencilReach)));
   evolve(g, roi, band, m, pool);
-  redistanceRegion(g, roi, band, Outside::Source);
+  RedistanceOptions options;
+  options.normalizeOnly = roi;
+  redistanceRegion(g, region, band, Outside::Source, options);
   Edit e;
-  e.region = roi;
-  e.changes = vol.scatter(roi, g.v.data(), g.box);
+  e.region = region;
+  e.changes = vol.scatter(region, g.v.data(), g.box);
   return e;
 }
 
@@ -153,7 +178,7 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
 
 Edit morph(Volume& vol, double k, double sign, ThreadPool& pool) {
   const int steps = int(std::ceil(k - 1e-9));
-  const Motion m{Motion::Kind::Advect, sign * k / steps, 0.5, 2, false, {}, 0};
+  const Motion m = advection(sign * k / steps);
   Edit total;
   for (int s = 0; s < steps; ++s) {
     Edit e = applyGlobal(vol, m, pool);
@@ -167,26 +192,26 @@ void checkMorphRadius(double k, const char* field) { requireRange(k, 1e-3, 64, f
 }  // namespace
 
 Edit addBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Advect, p.strength, 0.5, 2, true, {}, 0}, pool);
+  return applyBrush(vol, p, advection(p.strength), pool);
 }
 
 Edit removeBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Advect, -p.strength, 0.5, 2, true, {}, 0}, pool);
+  return applyBrush(vol, p, advection(-p.strength), pool);
 }
 
 Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Curvature, p.strength, 1.0 / 6.0, 1, true, {}, 0}, pool);
+  return applyBrush(vol, p, curvatureFlow(p.strength), pool);
 }
 
 Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Curvature, -p.strength, 1.0 / 6.0, 1, true, {}, 0, 1.0}, pool);
+  return applyBrush(vol, p, curvatureFlow(-p.strength, kSharpenCurvatureLimit), pool);
 }
 
 Edit meanCurvatureFlow(Volume& vol, int iterations, double strength, ThreadPool& pool) {
   requireRange(iterations, 1, 100000, "iterations");
   requireFinite(strength, "strength");
   if (!(strength > 0 && strength <= 1)) throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
-  const Motion m{Motion::Kind::Curvature, strength, 1.0 / 6.0, 1, false, {}, 0};
+  const Motion m = curvatureFlow(strength);
   Edit total;
   for (int it = 0; it < iterations; ++it) {
     Edit e = applyGlobal(vol, m, pool);

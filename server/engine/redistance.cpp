@@ -49,6 +49,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       }
     }
   if (options.normalizeKept) {
+    if (!options.normalizeOnly.empty())
+      std::erase_if(kept, [&](std::size_t i) { return !options.normalizeOnly.contains(g.point(i)); });
     std::vector<float> scaled(kept.size());
     for (std::size_t k = 0; k < kept.size(); ++k) {
       const std::size_t i = kept[k];
