@@ -266,6 +266,114 @@ TEST_CASE("thirty add blobs at one centre: the bump meets its ROI's face in a cr
   CHECK(e.mean <= 0.005);
 }
 
+// Strokes: one application per message, a swept brush over its dabs, with a memory.
+
+namespace {
+
+// A slab whose top face is y = 16, long in x.
+Volume strokeSlab() { return makeBox({80, 40, 40}, {39.5, 12, 19.5}, {36, 4, 16}); }
+
+// Dabs along the slab's top from x0 to x1 at z = 19.5, `spacing` apart.
+std::vector<StrokeDab> strokeLine(double x0, double x1, double spacing) {
+  std::vector<StrokeDab> dabs;
+  const int n = int(std::round((x1 - x0) / spacing));
+  for (int i = 0; i <= n; ++i) dabs.push_back({{x0 + (x1 - x0) * i / n, 16, 19.5}, 1.0});
+  return dabs;
+}
+
+// Sends the dabs as `messages` consecutive applications of one stroke that remembers them.
+void sendStroke(Volume& v, const StrokeSettings& st, const std::vector<StrokeDab>& dabs, std::size_t messages,
+                bool accumulate = false) {
+  std::vector<StrokeDab> memory;
+  for (std::size_t m = 0; m < messages; ++m) {
+    const std::size_t lo = dabs.size() * m / messages, hi = dabs.size() * (m + 1) / messages;
+    const std::span<const StrokeDab> part(dabs.data() + lo, hi - lo);
+    applyStroke(v, st, part, memory);
+    if (!accumulate) memory.insert(memory.end(), part.begin(), part.end());
+  }
+}
+
+// Height of the surface above y = 16 at (x, z = 19.5), by bisection of the interpolant.
+double ridgeHeight(const Volume& v, double x) {
+  double lo = 10, hi = 30;  // inside, outside
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (v.sample({x, mid, 19.5}) < 0 ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi) - 16;
+}
+
+}  // namespace
+
+TEST_CASE("a stroke of one dab and no memory is the brush itself, bit for bit", "[level_set][stroke]") {
+  Volume a = makeSolid(SolidKind::Torus, {64, 64, 64}), b = a;
+  addBlob(a, {{50, 32, 32}, 7, 0.8});
+  const StrokeDab dab{{50, 32, 32}, 0.8};
+  applyStroke(b, {Brush::AddBlob, 7, 1.0}, {&dab, 1}, {});
+  // weight 0.8 at strength 1 is the same speed as strength 0.8, up to rounding
+  CHECK(std::fabs(insideVolume(a) - insideVolume(b)) < 1e-3);
+  Volume c = makeSolid(SolidKind::Torus, {64, 64, 64});
+  const StrokeDab full{{50, 32, 32}, 1.0};
+  applyStroke(c, {Brush::AddBlob, 7, 0.8}, {&full, 1}, {});
+  CHECK(digest(c) == digest(a));
+}
+
+TEST_CASE("a straight stroke leaves a ridge of even height: no beads at dabs or message boundaries",
+          "[level_set][stroke]") {
+  const StrokeSettings st{Brush::AddBlob, 6, 1};
+  for (const std::size_t messages : {std::size_t(1), std::size_t(4), std::size_t(31)}) {
+    Volume v = strokeSlab();
+    sendStroke(v, st, strokeLine(16, 62.5, 1.5), messages);  // dabs r/4 apart
+    double lo = 1e9, hi = -1e9, sum = 0;
+    int n = 0;
+    for (double x = 26; x <= 52; x += 0.25, ++n) {  // the interior, a radius and more from the ends
+      const double h = ridgeHeight(v, x);
+      lo = std::min(lo, h), hi = std::max(hi, h), sum += h;
+    }
+    INFO(messages << " messages: ridge height " << lo << " .. " << hi);
+    CHECK(sum / n > 0.8);  // one application moves the surface ~1 vu under the stroke
+    CHECK((hi - lo) / (sum / n) <= 0.10);
+  }
+}
+
+TEST_CASE("a stroke adds the same volume however its dabs are grouped or spaced", "[level_set][stroke]") {
+  const StrokeSettings st{Brush::AddBlob, 6, 1};
+  const double before = insideVolume(strokeSlab());
+  auto added = [&](double spacing, std::size_t messages) {
+    Volume v = strokeSlab();
+    const auto dabs = strokeLine(16, 61, spacing);
+    sendStroke(v, st, dabs, std::min(messages, dabs.size()));
+    return insideVolume(v) - before;
+  };
+  const double one = added(1.5, 1);
+  INFO("one message: " << one << " vu^3");
+  CHECK(one > 200);
+  for (const auto& [spacing, messages] : std::vector<std::pair<double, std::size_t>>{
+           {1.5, 4}, {1.5, 32}, {0.75, 1}, {0.75, 32}, {3.0, 1}, {3.0, 16}}) {
+    const double a = added(spacing, messages);
+    INFO("spacing " << spacing << ", " << messages << " messages: " << a << " vu^3");
+    CHECK(std::fabs(a - one) <= 0.05 * one);
+  }
+  // Accumulating, every message adds: 32 messages build up far more than one.
+  Volume v = strokeSlab();
+  sendStroke(v, st, strokeLine(16, 61, 1.5), 31, true);
+  CHECK(insideVolume(v) - before > 2 * one);
+}
+
+TEST_CASE("strokes refuse bad dabs and change nothing", "[level_set][stroke][errors]") {
+  Volume v = strokeSlab();
+  const std::uint64_t d0 = digest(v);
+  const StrokeSettings st{Brush::Smooth, 6, 1};
+  const StrokeDab good{{30, 16, 19.5}, 1}, far{{500, 16, 19.5}, 1}, heavy{{30, 16, 19.5}, 1.5}, none{{30, 16, 19.5}, 0};
+  for (const StrokeDab& bad : {far, heavy, none}) {
+    const StrokeDab dabs[] = {good, bad};
+    CHECK_THROWS_AS(applyStroke(v, st, dabs, {}), EngineError);
+  }
+  CHECK_THROWS_AS(applyStroke(v, {Brush::Smooth, 6, 0}, {&good, 1}, {}), EngineError);
+  CHECK(digest(v) == d0);
+  CHECK(applyStroke(v, st, {}, {}).empty());
+}
+
 TEST_CASE("remove blob drills a hole through a slab", "[level_set][topology]") {
   Volume v = makeBox({48, 48, 48}, {23.5, 23.5, 23.5}, {3, 16, 16});  // slab x in [20.5, 26.5]
   REQUIRE(v.at(23, 23, 23) < 0);
