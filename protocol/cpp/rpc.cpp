@@ -251,7 +251,7 @@ ToolApplyParams parseToolApplyParams(const json& params) {
 
 StrokeBeginParams parseStrokeBeginParams(const json& params) {
   const std::string context = paramsContext(Method::StrokeBegin);
-  checkKeys(params, {"tool", "radius", "strength", "symmetry"}, context);
+  checkKeys(params, {"tool", "radius", "strength", "symmetry", "accumulate"}, context);
   StrokeBeginParams p;
   const std::string tool = stringValue(require(params, "tool", context), "tool");
   const auto t = fromName(kBrushToolNames, tool);
@@ -272,6 +272,7 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
       flag = true;
     }
   }
+  if (const json* a = find(params, "accumulate")) p.accumulate = booleanValue(*a, "accumulate");
   return p;
 }
 

@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 0;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 1;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {
@@ -143,6 +143,7 @@ struct StrokeBeginParams {
   BrushTool tool = BrushTool::AddBlob;
   double radius = kDefaultBrushRadius, strength = kDefaultStrength;
   bool mirrorX = false, mirrorY = false, mirrorZ = false;
+  bool accumulate = false;  // every stroke.dabs adds (build-up), see PROTOCOL.md
 };
 struct DabParam {
   std::variant<Vec3, RayParam> at;

@@ -7,7 +7,7 @@
 // header carries the id as a u32), can use them; after 2^32 - 1 they start again at 1.
 
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 0 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 1 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 

@@ -1,6 +1,7 @@
 #include "level_set.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <limits>
 
 #include "chunked_pass.hpp"
@@ -14,15 +15,30 @@ namespace {
 
 // How the band moves during one application.
 struct Motion {
-  enum class Kind { Advect, Curvature } kind;
-  double speed;      // s: signed; advection speed in vu per unit time, or curvature scale
-  double dt;         // time step of one sub-step
-  int substeps;
-  bool windowed;     // W(q) of the ROI around center/radius, else W = 1
-  Vec3 center;
-  double radius;
+  enum class Kind { Advect, Curvature };
+  Kind kind = Kind::Advect;
+  double speed = 0;      // s: signed; advection speed in vu per unit time, or curvature scale
+  double dt = 0;         // time step of one sub-step
+  int substeps = 1;
   double curvatureLimit = std::numeric_limits<double>::infinity();
 };
+
+// Advection: two sub-steps of dt |F| <= 0.5 vu (the CFL bound of the upwind scheme), so one
+// application at speed 1 moves the surface 1 vu.
+constexpr double kAdvectDt = 0.5;
+constexpr int kAdvectSubsteps = 2;
+// Curvature flow: one explicit step at the 7-point Laplacian's stability limit dt = 1/6.
+constexpr double kCurvatureDt = 1.0 / 6.0;
+// Sharpening runs the flow backwards; |L| <= 1 per voxel keeps noise from blowing up.
+constexpr double kSharpenCurvatureLimit = 1.0;
+
+Motion advection(double speed) {
+  return {.kind = Motion::Kind::Advect, .speed = speed, .dt = kAdvectDt, .substeps = kAdvectSubsteps};
+}
+
+Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::infinity()) {
+  return {.kind = Motion::Kind::Curvature, .speed = scale, .dt = kCurvatureDt, .substeps = 1, .curvatureLimit = limit};
+}
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
 constexpr int kStencilReach = 2;
@@ -54,9 +70,48 @@ float upwindGradient(const float* v, std::size_t i, const std::size_t stride[3],
   return std::sqrt(g2);
 }
 
-// Moves the band voxels of `region` (|phi| < band) by m. region must lie kStencilReach inside
-// the grid. Work is split in fixed blocks, each voxel computed alone: thread-count independent.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, ThreadPool& pool) {
+// A brush stroke's dab, prepared: its ROI (clipped to the domain) and window.
+struct PreparedDab {
+  Vec3 center;
+  double weight;
+  Box roi;
+};
+
+// The speed scale of a swept brush at a band voxel p with foot point q: the largest window
+// weight * W(q) over the message's dabs whose ROI holds p, less the largest the stroke already
+// applied there (memory), or 0. With one dab and no memory it is W(q) itself.
+class SweptWindow {
+ public:
+  SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory)
+      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {}
+
+  double at(Int3 p, Vec3 q) const {
+    const double w = strongest(dabs_, p, q);
+    if (w <= 0 || memory_.empty()) return w;
+    return w - strongest(memory_, p, q);
+  }
+
+ private:
+  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q) const {
+    double best = 0;
+    for (const PreparedDab& d : dabs) {
+      if (!d.roi.contains(p)) continue;
+      double w = d.weight;
+      for (int a = 0; a < 3 && w > 0; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
+      best = std::max(best, w);
+    }
+    return best;
+  }
+
+  double inverseRadius_;
+  std::vector<PreparedDab> dabs_, memory_;
+};
+
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1). region must lie kStencilReach inside the grid. Work is split in
+// fixed blocks, each voxel computed alone: thread-count independent.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            ThreadPool& pool) {
   std::vector<std::uint32_t> list;
   std::vector<float> speed;
   const std::size_t stride[3] = {1, g.sx, g.sxy};
@@ -67,13 +122,13 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, Thread
         const float d = g.v[i];
         if (!(std::fabs(d) < band)) continue;
         double w = 1;
-        if (m.windowed) {
+        if (window) {
           // Foot point by the central-difference gradient: the window is constant along normals.
           Vec3 n{0.5 * (g.v[i + 1] - g.v[i - 1]), 0.5 * (g.v[i + g.sx] - g.v[i - g.sx]),
                  0.5 * (g.v[i + g.sxy] - g.v[i - g.sxy])};
           n = normalized(n);
           const Vec3 q = Vec3{double(x), double(y), double(z)} - n * d;
-          for (int a = 0; a < 3 && w > 0; ++a) w *= window1(std::fabs(q[a] - m.center[a]) / m.radius);
+          w = window->at({x, y, z}, q);
           if (w <= 0) continue;
         }
         list.push_back(std::uint32_t(i));
@@ -104,36 +159,115 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, Thread
   }
 }
 
-void checkBrush(const Volume& vol, const BrushParams& p) {
-  if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
-  requireRange(p.radius, 0.5, kMaxDomainSide, "radius");
-  requireFinite(p.strength, "strength");
-  if (!(p.strength > 0 && p.strength <= 1))
+void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
+  requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
+  requireFinite(st.strength, "strength");
+  if (!(st.strength > 0 && st.strength <= 1))
     throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
-  if (boxAround(p.center, {p.radius, p.radius, p.radius}).intersect(vol.domain()).empty())
-    throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
+  for (const StrokeDab& d : dabs) {
+    if (!isFinite(d.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+    if (!(d.weight > 0 && d.weight <= 1)) throw EngineError(ErrorKind::InvalidArgument, "weight", "must be in (0, 1]");
+    if (boxAround(d.center, {st.radius, st.radius, st.radius}).intersect(vol.domain()).empty())
+      throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
+  }
 }
 
-Edit applyBrush(Volume& vol, const BrushParams& p, Motion m, ThreadPool& pool) {
-  checkBrush(vol, p);
-  m.windowed = true;
-  m.center = p.center;
-  m.radius = p.radius;
-  const float band = vol.band();
-  const Box roi = boxAround(p.center, {p.radius, p.radius, p.radius}).intersect(vol.domain());
-  // Outside the ROI the old field is the source the march continues from. Every read outside
-  // is within two steps of an ROI voxel (the second-order upwind point, the ENO stencil; the
-  // kept-voxel test and normalization need one), and the sources there carry their own
-  // distances, so a margin of the stencils' reach gives the same result as any wider one.
-  const int margin = kStencilReach;
-  DenseGrid g = DenseGrid::gather(vol, roi.grown(margin));
-  evolve(g, roi, band, m, pool);
-  redistanceRegion(g, roi, band, Outside::Source);
-  Edit e;
-  e.region = roi;
-  e.changes = vol.scatter(roi, g.v.data(), g.box);
-  return e;
+Motion strokeMotion(const StrokeSettings& st) {
+  switch (st.tool) {
+    case Brush::AddBlob: return advection(st.strength);
+    case Brush::RemoveBlob: return advection(-st.strength);
+    case Brush::Smooth: return curvatureFlow(st.strength);
+    case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
+  }
+  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
 }
+
+}  // namespace
+
+void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab) {
+  checkStroke(vol, st, {&dab, 1});
+}
+
+Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs,
+                 std::span<const StrokeDab> memory, ThreadPool& pool) {
+  checkStroke(vol, st, dabs);
+  const Motion m = strokeMotion(st);
+  const float band = vol.band();
+  const double r = st.radius;
+  // The surface moves only inside the dabs' ROIs (W = 0 on their boundaries, voxels outside
+  // are not evolved), so the new zero set lies within one voxel of them: every voxel further
+  // than band + 1 from every ROI keeps its distance, and every band voxel nearer may now be
+  // closer to the moved surface than to the old one. That shell is reset and marched too, from
+  // the kept voxels inside and outside the ROIs; the old field beyond it is the source the
+  // march continues from (its distances are still right there).
+  const int reach = int(std::ceil(band)) + 1;
+  // One more voxel for the kept-voxel test at the region's edge, and the stencils' reach.
+  const int gatherMargin = std::max(reach + 1, kStencilReach);
+  std::vector<PreparedDab> prepared;
+  for (const StrokeDab& d : dabs)
+    prepared.push_back({d.center, d.weight, boxAround(d.center, {r, r, r}).intersect(vol.domain())});
+
+  // Dabs far apart (mirror images, a fast stroke) are worked on in separate grids: groups whose
+  // gathered boxes do not meet the others' written regions are independent, so this is the
+  // same as one grid over all of them.
+  struct Group {
+    Box box;  // bounding box of the group's ROIs
+    std::vector<std::size_t> dabs;
+  };
+  std::vector<Group> groups;
+  for (std::size_t i = 0; i < prepared.size(); ++i) {
+    Group g{prepared[i].roi, {i}};
+    for (bool merged = true; merged;) {
+      merged = false;
+      for (std::size_t k = 0; k < groups.size(); ++k) {
+        if (groups[k].box.grown(reach + gatherMargin).intersect(g.box).empty()) continue;
+        for (int a = 0; a < 3; ++a) {
+          g.box.lo[a] = std::min(g.box.lo[a], groups[k].box.lo[a]);
+          g.box.hi[a] = std::max(g.box.hi[a], groups[k].box.hi[a]);
+        }
+        g.dabs.insert(g.dabs.begin(), groups[k].dabs.begin(), groups[k].dabs.end());
+        groups.erase(groups.begin() + std::ptrdiff_t(k));
+        merged = true;
+        break;
+      }
+    }
+    std::sort(g.dabs.begin(), g.dabs.end());
+    groups.push_back(std::move(g));
+  }
+
+  Edit total;
+  for (const Group& group : groups) {
+    std::vector<PreparedDab> mine, remembered;
+    for (const std::size_t i : group.dabs) mine.push_back(prepared[i]);
+    for (const StrokeDab& d : memory) {
+      const Box roi = boxAround(d.center, {r, r, r}).intersect(vol.domain());
+      if (!roi.intersect(group.box).empty()) remembered.push_back({d.center, d.weight, roi});
+    }
+    const Box region = group.box.grown(reach).intersect(vol.domain());
+    DenseGrid g = DenseGrid::gather(vol, group.box.grown(gatherMargin));
+    std::vector<std::uint8_t> mask(g.v.size(), 0);
+    auto mark = [&](const Box& b, std::uint8_t bits) {
+      for (int z = b.lo.z; z < b.hi.z; ++z)
+        for (int y = b.lo.y; y < b.hi.y; ++y) {
+          const std::size_t row = g.index({b.lo.x, y, z});
+          for (int x = 0; x < b.hi.x - b.lo.x; ++x) mask[row + std::size_t(x)] |= bits;
+        }
+    };
+    for (const PreparedDab& d : mine) {
+      mark(d.roi.grown(reach).intersect(vol.domain()), kRedistanceReset);
+      mark(d.roi, kRedistanceNormalize);
+    }
+    const SweptWindow window(r, std::move(mine), std::move(remembered));
+    evolve(g, group.box, band, m, &window, pool);
+    RedistanceOptions options;
+    options.mask = &mask;
+    redistanceRegion(g, region, band, Outside::Source, options);
+    total.append(vol.scatter(region, g.v.data(), g.box), region);
+  }
+  return total;
+}
+
+namespace {
 
 // One global application: every chunk evolves its whole grid but a stencil-wide ghost ring,
 // then redistances it. The margin covers the sub-steps' stencils, the kept voxels' neighbours
@@ -145,7 +279,7 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
   e.region = vol.domain();
   e.changes = chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool& inner) {
     const Box region = g.box.grown(-kStencilReach);
-    evolve(g, region, band, m, inner);
+    evolve(g, region, band, m, nullptr, inner);
     redistanceRegion(g, region, band, Outside::Ignored);
   });
   return e;
@@ -153,7 +287,7 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
 
 Edit morph(Volume& vol, double k, double sign, ThreadPool& pool) {
   const int steps = int(std::ceil(k - 1e-9));
-  const Motion m{Motion::Kind::Advect, sign * k / steps, 0.5, 2, false, {}, 0};
+  const Motion m = advection(sign * k / steps);
   Edit total;
   for (int s = 0; s < steps; ++s) {
     Edit e = applyGlobal(vol, m, pool);
@@ -166,27 +300,35 @@ void checkMorphRadius(double k, const char* field) { requireRange(k, 1e-3, 64, f
 
 }  // namespace
 
+namespace {
+
+Edit applyBrush(Volume& vol, Brush tool, const BrushParams& p, ThreadPool& pool) {
+  if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+  const StrokeDab dab{p.center, 1.0};
+  return applyStroke(vol, {tool, p.radius, p.strength}, {&dab, 1}, {}, pool);
+}
+
+}  // namespace
+
 Edit addBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Advect, p.strength, 0.5, 2, true, {}, 0}, pool);
+  return applyBrush(vol, Brush::AddBlob, p, pool);
 }
 
 Edit removeBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Advect, -p.strength, 0.5, 2, true, {}, 0}, pool);
+  return applyBrush(vol, Brush::RemoveBlob, p, pool);
 }
 
-Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Curvature, p.strength, 1.0 / 6.0, 1, true, {}, 0}, pool);
-}
+Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool) { return applyBrush(vol, Brush::Smooth, p, pool); }
 
 Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool) {
-  return applyBrush(vol, p, {Motion::Kind::Curvature, -p.strength, 1.0 / 6.0, 1, true, {}, 0, 1.0}, pool);
+  return applyBrush(vol, Brush::Sharpen, p, pool);
 }
 
 Edit meanCurvatureFlow(Volume& vol, int iterations, double strength, ThreadPool& pool) {
   requireRange(iterations, 1, 100000, "iterations");
   requireFinite(strength, "strength");
   if (!(strength > 0 && strength <= 1)) throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
-  const Motion m{Motion::Kind::Curvature, strength, 1.0 / 6.0, 1, false, {}, 0};
+  const Motion m = curvatureFlow(strength);
   Edit total;
   for (int it = 0; it < iterations; ++it) {
     Edit e = applyGlobal(vol, m, pool);

@@ -5,13 +5,18 @@
 // `center`, with the scaling-windowing speed F = s * W(q) * F0, W = prod_a (1 - t_a^2)^2,
 // t_a = |q_a - c_a| / radius, evaluated at each voxel's foot point q = p - d grad d (the
 // velocity extension: F is constant along normals, so phi - t F stays a distance field).
-// W is 0 on the ROI boundary, so the field outside the ROI never changes.
+// W is 0 on the ROI boundary, so the surface moves only inside the ROI; the band voxels
+// within band + 1 vu of the ROI are redistanced too, so that after every application the
+// whole band is a distance field to the new surface. The returned Edit's region is that
+// grown box (clipped to the domain); nothing beyond it changes.
 //
 // Global tools use W = 1 over the whole volume. All tools: sign and units as in volume.hpp;
 // the volume is modified in place and the returned Edit holds the replaced bricks; invalid
 // parameters throw EngineError before anything changes. Results do not depend on the pool's
 // thread count.
 #pragma once
+
+#include <span>
 
 #include "edit.hpp"
 #include "geometry.hpp"
@@ -34,6 +39,35 @@ Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::se
 // Negative smoothing: the same step backwards in time. Curvature is limited to |L| <= 1 per
 // voxel so that noise cannot blow up; one application moves the surface <= strength/6 vu.
 Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::serial());
+
+// --- strokes: a swept brush --------------------------------------------------------------
+// One application of a brush over several dabs at once: at each band voxel the speed scale is
+// the largest weight * W over the dabs whose ROI holds it (a voxel outside every ROI does not
+// move), evolved once and redistanced once over the union of the ROIs (grown by the band as
+// above). A stroke that remembers what it applied passes its earlier dabs as `memory`: each
+// voxel then moves only by the excess of this application's window over the largest earlier
+// one, so a stroke moves each point of the surface by its strongest dab, however its dabs were
+// grouped into applications. An empty memory lets every application add (build-up).
+enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen };
+
+struct StrokeSettings {
+  Brush tool = Brush::AddBlob;
+  double radius = 8;    // as BrushParams::radius
+  double strength = 1;  // as BrushParams::strength
+};
+
+struct StrokeDab {
+  Vec3 center;        // vu; the dab's ROI must meet the domain
+  double weight = 1;  // in (0, 1]: scales the dab's window (a pen's pressure)
+};
+
+// Throws EngineError (field "center", "weight", "radius" or "strength") for a dab that
+// applyStroke would refuse; the volume is not read beyond its domain.
+void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab);
+// Applies `dabs` as one application (nothing when empty). Every dab is checked before
+// anything changes. With one dab and no memory it is the brush tool above, bit for bit.
+Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs,
+                 std::span<const StrokeDab> memory, ThreadPool& pool = ThreadPool::serial());
 
 // Whole-volume mean curvature flow: `iterations` applications (each redistanced) of
 // dt = strength / 6. A sphere of radius R0 follows R^2 = R0^2 - 4 t, t = iterations * dt.

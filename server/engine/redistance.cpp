@@ -16,6 +16,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const float* values = g.v.data();
   MarchState* states = state.data();
   const int exactSide = options.exactSide;
+  const std::uint8_t* mask = options.mask ? options.mask->data() : nullptr;
   // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
   auto resetOrExact = [exactSide](float v) {
     return exactSide != 0 && (v < 0) == (exactSide < 0) ? MarchState::Source : MarchState::Unknown;
@@ -24,6 +25,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     for (int y = r.lo.y; y < r.hi.y; ++y) {
       std::size_t i = g.index({r.lo.x, y, z});
       for (int x = r.lo.x; x < r.hi.x; ++x, ++i) {
+        if (mask && !(mask[i] & kRedistanceReset)) continue;  // stays a source
         const float v = values[i];
         // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
         if (std::fabs(v) >= 1.75f) {
@@ -49,6 +51,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       }
     }
   if (options.normalizeKept) {
+    if (options.mask)
+      std::erase_if(kept, [&](std::size_t i) { return !((*options.mask)[i] & kRedistanceNormalize); });
     std::vector<float> scaled(kept.size());
     for (std::size_t k = 0; k < kept.size(); ++k) {
       const std::size_t i = kept[k];

@@ -16,6 +16,9 @@ enum class Outside {
   Ignored,  // they are a stale ghost layer (one chunk of a global operation)
 };
 
+inline constexpr std::uint8_t kRedistanceReset = 1;
+inline constexpr std::uint8_t kRedistanceNormalize = 2;
+
 // How to treat the voxels of the region before marching.
 struct RedistanceOptions {
   // Each kept value d is first replaced by d / |grad d| (central differences), bounded by the
@@ -23,6 +26,12 @@ struct RedistanceOptions {
   // leave in kept voxels do not accumulate. Without it, the mean curvature flow of a sphere
   // runs 1.5% fast after a few hundred applications (R^2 = R0^2 - 4.06 t instead of 4 t).
   bool normalizeKept = true;
+  // When set: one byte per grid voxel (same index), kRedistance* bits. Voxels of the region
+  // without kRedistanceReset are sources like those outside it, and only kept voxels with
+  // kRedistanceNormalize are normalized. A local tool resets the band around its ROIs (a union
+  // of boxes) and normalizes only where it moved the surface, so that the zero set around it
+  // stays exactly where it was.
+  const std::vector<std::uint8_t>* mask = nullptr;
   // +1 / -1: the values on the outside / inside are already exact distances (a union's
   // outside, an intersection's inside) and are kept; only the other side is marched.
   int exactSide = 0;

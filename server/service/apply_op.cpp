@@ -52,4 +52,14 @@ Edit applyOp(Volume& vol, const Op& op, ThreadPool& pool) {
   return std::visit([&](const auto& o) { return apply(vol, o, pool); }, op);
 }
 
+Brush engineBrush(protocol::BrushTool tool) {
+  switch (tool) {
+    case protocol::BrushTool::AddBlob: return Brush::AddBlob;
+    case protocol::BrushTool::RemoveBlob: return Brush::RemoveBlob;
+    case protocol::BrushTool::Smooth: return Brush::Smooth;
+    case protocol::BrushTool::Sharpen: return Brush::Sharpen;
+  }
+  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
+}
+
 }  // namespace marzipan::service

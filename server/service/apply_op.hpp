@@ -6,6 +6,7 @@
 #pragma once
 
 #include "engine/edit.hpp"
+#include "engine/level_set.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
@@ -13,5 +14,8 @@
 namespace marzipan::service {
 
 Edit applyOp(Volume& vol, const protocol::Op& op, ThreadPool& pool);
+
+// The engine's name of a brush tool (for strokes, which call the engine's applyStroke).
+Brush engineBrush(protocol::BrushTool tool);
 
 }  // namespace marzipan::service

@@ -84,11 +84,18 @@ bool sameSecret(const std::string& secret, const std::string& given) {
 json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
   const std::string symmetry =
       std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
-  return {{"stroke_begin", id},
-          {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
-          {"radius", st.radius},
-          {"strength", st.strength},
-          {"symmetry", symmetry}};
+  json record{{"stroke_begin", id},
+              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+              {"radius", st.radius},
+              {"strength", st.strength},
+              {"symmetry", symmetry}};
+  if (st.accumulate) record["accumulate"] = true;
+  if (!st.memory.empty()) {
+    json applied = json::array();
+    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
+    record["applied"] = std::move(applied);
+  }
+  return record;
 }
 
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
@@ -995,8 +1002,10 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           }
           c->stroke = 0;
         }
-        const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ}};
-        c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry);
+        const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
+                                           p.accumulate, {}};
+        c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry,
+                                           params.accumulate);
         records.push_back(strokeBeginRecord(c->stroke, params));
         r.record = [records] { return records; };
         r.result = {{"stroke", c->stroke}};

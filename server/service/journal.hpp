@@ -6,7 +6,9 @@
 // S = the session's stroke id; positions in vu, already resolved: a ray's hit, not the ray):
 //   {"r":R,"op":{...}}                       tool.apply / volume.morph: the canonical op object
 //   {"r":R,"stroke":S,"dabs":[[x,y,z,p],...]} stroke.dabs: the centres that applied, pressure p
-//   {"stroke_begin":S,"tool":T,"radius":r,"strength":s,"symmetry":"xz"}
+//   {"stroke_begin":S,"tool":T,"radius":r,"strength":s,"symmetry":"xz"[,"accumulate":true]
+//    [,"applied":[[x,y,z,w],...]]}          "applied": the dab images an open stroke had applied
+//                                            (its memory), when re-announced after a snapshot
 //   {"stroke_end":S}
 //   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a
 //                                            replay whose history lost the step to a snapshot

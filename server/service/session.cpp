@@ -169,7 +169,8 @@ std::optional<Vec3> Session::pick(const Ray& ray) const {
   return pickSurface(volume_, ray.origin, ray.direction);
 }
 
-StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry) {
+StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry,
+                              bool accumulate) {
   const auto known = std::any_of(protocol::kBrushToolNames.begin(), protocol::kBrushToolNames.end(),
                                  [&](const auto& n) { return n.value == tool; });
   if (!known) invalid("tool", "is not a brush tool");
@@ -181,7 +182,7 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
                        "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
                            "); end one first");
   const StrokeId id = nextStroke_++;
-  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry});
+  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}});
   return id;
 }
 
@@ -194,7 +195,7 @@ const Session::Stroke& Session::openStroke(StrokeId id) const {
 }
 
 ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
-  const Stroke stroke = openStroke(id);
+  const Stroke& stroke = openStroke(id);
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     const std::string field = "dabs[" + std::to_string(i) + "]";
     if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) requirePoint(*c, field + ".center");
@@ -203,33 +204,41 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   }
 
   ApplyResult result;
-  Edit message;  // this call's changes, folded: rolled back if the engine refuses a dab
-  try {
-    for (std::size_t i = 0; i < dabs.size(); ++i) {
-      std::optional<Vec3> centre;
-      if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
-        centre = *c;
-      } else {
-        const Ray& ray = std::get<Ray>(dabs[i].at);
-        centre = pickSurface(volume_, ray.origin, ray.direction);
-        if (!centre) ++result.missed;
-      }
-      result.hits.push_back(centre);
-      const double pressure = dabs[i].pressure.value_or(1.0);
-      if (!centre || pressure == 0) continue;
-      for (const Vec3& c : mirrorImages(*centre, stroke.symmetry, volume_.dims())) {
-        const protocol::BrushOp op{stroke.tool, BrushParams{c, stroke.radius, stroke.strength * pressure}};
-        try {
-          const Edit e = applyOp(volume_, op, pool);
-          message.append(e.changes, e.region);
-        } catch (const EngineError& e) {
-          rethrow(e, "dabs[" + std::to_string(i) + "]");
-        }
-      }
+  const StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength};
+  std::vector<StrokeDab> images;
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    std::optional<Vec3> centre;
+    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
+      centre = *c;
+    } else {
+      const Ray& ray = std::get<Ray>(dabs[i].at);
+      centre = pickSurface(volume_, ray.origin, ray.direction);
+      if (!centre) ++result.missed;
     }
-  } catch (...) {
-    volume_.publish(message.changes, false);
-    throw;
+    result.hits.push_back(centre);
+    const double pressure = dabs[i].pressure.value_or(1.0);
+    if (!centre || pressure == 0) continue;
+    for (const Vec3& c : mirrorImages(*centre, stroke.symmetry, volume_.dims())) {
+      const StrokeDab dab{c, pressure};
+      try {
+        checkStrokeDab(volume_, settings, dab);
+      } catch (const EngineError& e) {
+        rethrow(e, "dabs[" + std::to_string(i) + "]");
+      }
+      images.push_back(dab);
+    }
+  }
+  Edit message;
+  try {
+    message = applyStroke(volume_, settings, images, stroke.memory, pool);
+  } catch (const EngineError& e) {
+    rethrow(e, "dabs");
+  }
+  if (!stroke.accumulate) {
+    std::vector<StrokeDab>& memory = strokes_.at(id).memory;
+    memory.insert(memory.end(), images.begin(), images.end());
+    if (memory.size() > kMaxStrokeMemory)
+      memory.erase(memory.begin(), memory.end() - std::ptrdiff_t(kMaxStrokeMemory));
   }
 
   if (!message.empty()) {
@@ -247,8 +256,17 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 
 std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList() const {
   std::vector<std::pair<StrokeId, StrokeParams>> out;
-  for (const auto& [id, st] : strokes_) out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry}});
+  for (const auto& [id, st] : strokes_)
+    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory}});
   return out;
+}
+
+void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
+  openStroke(id);
+  Stroke& s = strokes_.at(id);
+  if (s.accumulate) return;
+  if (applied.size() > kMaxStrokeMemory) applied.erase(applied.begin(), applied.end() - std::ptrdiff_t(kMaxStrokeMemory));
+  s.memory = std::move(applied);
 }
 
 void Session::endStroke(StrokeId id) {

@@ -77,9 +77,8 @@ std::optional<Vec3> pickSurface(const Volume& vol, Vec3 origin, Vec3 direction);
 
 // Mirror images of a dab across the domain's centre planes: x mirrors p.x to (nx - 1) - p.x,
 // the plane through the middle of the voxels (makeSolid centres its solids on it). Any
-// combination; a dab at p applies at p and at each distinct image, in the order p, x, y, xy,
-// z, xz, yz, xyz. Images whose tool regions overlap are applied one after the other, so the
-// result is exactly symmetric only when they do not overlap.
+// combination; a dab at p applies at p and at each distinct image (p, x, y, xy, z, xz, yz,
+// xyz), all in the same application as the message's other dabs.
 struct Symmetry {
   bool x = false, y = false, z = false;
 };
@@ -142,14 +141,26 @@ class Session {
   std::optional<Vec3> pick(const Ray& ray) const;
 
   // Opens a stroke of one brush tool. radius in [0.5, 1024] vu, strength in (0, 1].
-  StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {});
-  // Applies dabs in order (a ray is picked on the volume as left by the dabs before it). All
-  // dabs of one stroke fold into one history step, which stays open while it is the newest
-  // step: any other change of the session (apply, undo, redo, load, another stroke's dabs)
-  // closes it and the stroke's next dabs start a new step. The whole message is checked
-  // before the first dab is applied, and undone if the engine refuses a dab, so a throw
-  // changes nothing. One revision per call that changed something.
+  // accumulate: every message adds (build-up) instead of only what exceeds the stroke's
+  // earlier dabs (see strokeDabs).
+  StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {},
+                       bool accumulate = false);
+  // One message of dabs is one application of the brush swept over them (engine applyStroke):
+  // each point moves by the strongest dab over it (pressure scales a dab's window; mirror
+  // images included), evolved and redistanced once. Rays are picked on the volume as it was
+  // before the message. Unless the stroke accumulates it remembers the dabs it applied (its
+  // newest kMaxStrokeMemory images), and a later message moves a point only by what exceeds
+  // them, so the result does not depend on how the stroke's dabs were grouped into messages.
+  // All dabs of one stroke fold into one history step, which stays open while it is the
+  // newest step: any other change of the session (apply, undo, redo, load, another stroke's
+  // dabs) closes it and the stroke's next dabs start a new step. The whole message is checked
+  // before anything changes, so a throw changes nothing. One revision per call that changed
+  // something.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  // Replaces what an open stroke remembers having applied (a journal replayed after a snapshot
+  // that cut the stroke in two). Throws UnknownStroke / StrokeClosed.
+  void setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied);
+  static constexpr std::size_t kMaxStrokeMemory = 4096;
   // Closes the stroke; its step can no longer grow. Throws UnknownStroke / StrokeClosed.
   void endStroke(StrokeId id);
 
@@ -181,6 +192,8 @@ class Session {
     protocol::BrushTool tool;
     double radius, strength;
     Symmetry symmetry;
+    bool accumulate = false;
+    std::vector<StrokeDab> memory;  // the dab images it applied, oldest first
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -194,7 +207,9 @@ class Session {
     protocol::BrushTool tool;
     double radius, strength;
     Symmetry symmetry;
-    History::StepId step = 0;  // the history step its dabs last folded into
+    bool accumulate = false;
+    std::vector<StrokeDab> memory;  // empty when accumulating
+    History::StepId step = 0;       // the history step its dabs last folded into
   };
 
   ApplyResult finish(const Edit& edit);

@@ -126,8 +126,19 @@ void replayRecord(Session& s, const json& rec, std::map<std::uint64_t, StrokeId>
     const std::string sym = rec.value("symmetry", "");
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
                             sym.find('z') != std::string::npos};
-    strokes[rec["stroke_begin"].get<std::uint64_t>()] =
-        s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry);
+    const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
+                                      rec.value("accumulate", false));
+    strokes[rec["stroke_begin"].get<std::uint64_t>()] = id;
+    if (const auto it = rec.find("applied"); it != rec.end()) {
+      // What the stroke had applied before the snapshot: its next dabs add only the excess.
+      std::vector<StrokeDab> applied;
+      for (const json& d : *it) {
+        const StrokeDab dab{Vec3{d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>()}, d.at(3).get<double>()};
+        if (!isFinite(dab.center) || !(dab.weight > 0 && dab.weight <= 1)) throw std::runtime_error("bad stroke memory");
+        applied.push_back(dab);
+      }
+      s.setStrokeMemory(id, std::move(applied));
+    }
   } else if (rec.contains("stroke_end")) {
     const auto it = strokes.find(rec["stroke_end"].get<std::uint64_t>());
     if (it != strokes.end()) {

@@ -87,6 +87,47 @@ void table72(const Options& opt, const char* scenario, bool addBlobTool) {
 MARZIPAN_BENCH("table72_add_blob") { table72(opt, "table72_add_blob", true); }
 MARZIPAN_BENCH("table72_smooth") { table72(opt, "table72_smooth", false); }
 
+// Dabs at random points of the sphere (add blob, strength 1), by radius: the cost should grow
+// with the band under the dab (r^2), not with its box (r^3).
+MARZIPAN_BENCH("dab") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{5};
+  std::normal_distribution<double> gauss;
+  for (const double r : opt.quick ? std::vector<double>{8} : std::vector<double>{5, 8, 10, 15, 35}) {
+    BrushParams p{{}, r, 1};
+    const Timing t = measure(
+        opt.quick ? 5 : 101, [&] { p.center = s.centre + normalized({gauss(rng), gauss(rng), gauss(rng)}) * s.radius; },
+        [&] { addBlob(v, p, pool); });
+    emit("dab", opt.threads, t, {{"radius", r}});
+  }
+}
+
+// One stroke.dabs message of 16 dabs r/4 apart along a line on the sphere (one application of
+// the swept brush), next to a single dab of the same radius: the target is <= 2x.
+MARZIPAN_BENCH("stroke16") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{6};
+  std::normal_distribution<double> gauss;
+  constexpr double r = 8;
+  const StrokeSettings st{Brush::AddBlob, r, 1};
+  std::vector<StrokeDab> dabs;
+  auto place = [&](int n) {
+    const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+    const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
+    dabs.clear();
+    for (int i = 0; i < n; ++i) dabs.push_back({s.centre + dir * s.radius + along * (r / 4 * (i - (n - 1) / 2.0)), 1.0});
+  };
+  const int reps = opt.quick ? 5 : 101;
+  const Timing one = measure(reps, [&] { place(1); }, [&] { applyStroke(v, st, dabs, {}, pool); });
+  const Timing sixteen = measure(reps, [&] { place(16); }, [&] { applyStroke(v, st, dabs, {}, pool); });
+  emit("stroke16", opt.threads, sixteen,
+       {{"radius", r}, {"dabs", 16}, {"one_dab_ms", one.median_ms}, {"ratio_to_one_dab", sixteen.median_ms / one.median_ms}});
+}
+
 MARZIPAN_BENCH("mcf_global") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);

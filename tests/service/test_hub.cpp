@@ -199,7 +199,7 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   CHECK(r["size"] == json({64, 64, 64}));
   CHECK(r["revision"] == 0);
   CHECK(r["client"] == 1);
-  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 0}}));
+  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 1}}));
   CHECK(r["limits"]["max_grid_side"] == 128);
   CHECK(r["limits"]["max_dabs"] == 256);
   CHECK(r["read_only"] == false);
@@ -406,6 +406,8 @@ TEST_CASE("stroke.dabs refuses more than max_dabs and zero pressure", "[hub]") {
   CHECK(over["error"]["data"]["limit"] == "max_dabs");
   CHECK(a.call("stroke.dabs", {{"stroke", s["stroke"]}, {"dabs", {{{"center", {32, 54, 32}}, {"pressure", 0}}}}})["error"]["code"] ==
         -32602);
+  CHECK(a.error("stroke.begin", {{"tool", "smooth"}, {"accumulate", "yes"}}) == -32602);
+  CHECK(a.result("stroke.begin", {{"tool", "smooth"}, {"accumulate", true}})["stroke"] == 2);
   CHECK(a.result("session.stats")["revision"] == 0);
 }
 

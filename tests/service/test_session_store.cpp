@@ -110,6 +110,37 @@ TEST_CASE("every acknowledged change is recoverable from the data directory alon
   fs::remove_all(copy);
 }
 
+TEST_CASE("a stroke cut by snapshots recovers its memory: the same digest after every message", "[store]") {
+  // A snapshot after every 3 journal records (the re-announced stroke and two messages), so that the stroke's messages fall on both sides
+  // of them; its overlapping dabs only add what exceeds the earlier ones, so a replay that
+  // forgot them would build up and read another digest.
+  const fs::path dir = freshDir("stroke"), copy = freshDir("stroke-copy");
+  HubOptions o;
+  o.workers = 2;
+  o.dataDir = dir;
+  o.snapshotEvery = 3;
+  Hub hub(o);
+  Driver a(hub);
+  const json created = a.call("session.create", {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}});
+  const std::string id = created["session"];
+  for (const bool accumulate : {false, true}) {
+    const json begun = a.call("stroke.begin", {{"tool", "add_blob"}, {"radius", 5}, {"symmetry", {"x"}}, {"accumulate", accumulate}});
+    const std::uint64_t stroke = begun["stroke"];
+    for (int m = 0; m < 6; ++m) {
+      const double x = 18 + m;
+      a.call("stroke.dabs", {{"stroke", stroke}, {"dabs", {{{"center", {x, 40.5, 24}}}, {{"center", {x + 0.5, 40.5, 24}}, {"pressure", 0.7}}}}});
+      const json stats = a.call("session.stats");
+      fs::remove_all(copy);
+      fs::copy(dir, copy, fs::copy_options::recursive);
+      INFO("accumulate " << accumulate << ", message " << m);
+      CHECK(recoveredDigest(copy, id) == stats["digest"].get<std::string>());
+    }
+    a.call("stroke.end", {{"stroke", stroke}});
+  }
+  fs::remove_all(dir);
+  fs::remove_all(copy);
+}
+
 TEST_CASE("a corrupt newest snapshot falls back to the previous one and both journals", "[store]") {
   const fs::path dir = freshDir("corrupt");
   HubOptions o;

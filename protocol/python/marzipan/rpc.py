@@ -13,7 +13,7 @@ import enum
 import json
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 0}
+PROTOCOL_VERSION = {"major": 1, "minor": 1}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (
