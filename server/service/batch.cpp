@@ -315,7 +315,7 @@ void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camer
   }
   if (camera) {
     try {
-      const Frame frame = render(vol, *camera, o.shading, pool);
+      const Frame frame = render(vol, *camera, o.shading, pool, FrameQuality::Still);
       const ImageFormat format = lowerExtension(o.render) == "png" ? ImageFormat::Png : ImageFormat::Jpeg;
       writeFile(o.render,
                 encodeImage(frame.rgb, frame.width, frame.height, format, o.quality.value_or(kDefaultQuality)));

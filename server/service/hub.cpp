@@ -858,7 +858,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     std::weak_ptr<LiveSession> weak = c->session;
     workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, quality, still] {
       try {
-        const Frame f = render(*snapshot, camera, shading, self->pool);
+        const Frame f = render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive);
         const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
         c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
       } catch (const std::exception& e) {
@@ -1142,7 +1142,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       const protocol::RenderFrameParams p = protocol::parseRenderFrameParams(req.params, l.maxFrameSide);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, p, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-        const Frame f = render(vol, p.camera, p.shading, self->pool);
+        const Frame f = render(vol, p.camera, p.shading, self->pool, FrameQuality::Still);
         const bool png = p.format == protocol::ImageKind::Png;
         const Bytes file = png ? encodePng(f.rgb, f.width, f.height) : encodeJpeg(f.rgb, f.width, f.height, p.quality);
         r.frame = makeFrame(png ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg, frameId, revision, file);
