@@ -364,12 +364,20 @@ RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
   return p;
 }
 
-std::string parseMeshExportParams(const json& params) {
+MeshExportParams parseMeshExportParams(const json& params) {
   const std::string context = paramsContext(Method::MeshExport);
-  checkKeys(params, {"format"}, context);
-  const std::string format = stringValue(require(params, "format", context), "format");
-  if (format != "stl" && format != "obj" && format != "ply") fail("format", "must be \"stl\", \"obj\" or \"ply\", got " + inQuotes(format));
-  return format;
+  checkKeys(params, {"format", "max_triangles", "max_error"}, context);
+  MeshExportParams p;
+  p.format = stringValue(require(params, "format", context), "format");
+  if (p.format != "stl" && p.format != "obj" && p.format != "ply" && p.format != "glb")
+    fail("format", "must be \"stl\", \"obj\", \"ply\" or \"glb\", got " + inQuotes(p.format));
+  if (const json* t = find(params, "max_triangles"))
+    p.maxTriangles = std::uint32_t(integerInRange(*t, "max_triangles", 1, 0xFFFFFFFFll));
+  if (const json* e = find(params, "max_error")) {
+    p.maxError = finiteNumber(*e, "max_error");
+    if (!(*p.maxError > 0 && *p.maxError <= 1e6)) fail("max_error", "must be a number of vu above 0 and at most 1e6");
+  }
+  return p;
 }
 
 std::uint64_t parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) {

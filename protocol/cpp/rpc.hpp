@@ -159,6 +159,13 @@ struct ViewSetParams {
   Shading shading = Shading::Lit;  // of pushed frames
 };
 enum class ImageKind { Jpeg, Png };
+// mesh.export: the file format and the optional decimation (server/engine/decimate.hpp).
+struct MeshExportParams {
+  std::string format;                       // "stl", "obj", "ply" or "glb"
+  std::optional<std::uint32_t> maxTriangles;  // >= 1
+  std::optional<double> maxError;             // vu, > 0 and at most 1e6
+};
+
 struct RenderFrameParams {
   Camera camera;  // with width and height
   ImageKind format = ImageKind::Jpeg;
@@ -182,7 +189,7 @@ MorphOp parseMorphParams(const nlohmann::json& params);
 // maxSide: the server's max_frame_side (-32004 above it).
 ViewSetParams parseViewSetParams(const nlohmann::json& params, int maxSide);
 RenderFrameParams parseRenderFrameParams(const nlohmann::json& params, int maxSide);
-std::string parseMeshExportParams(const nlohmann::json& params);  // "stl", "obj" or "ply"
+MeshExportParams parseMeshExportParams(const nlohmann::json& params);
 std::uint64_t parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
 // Methods without params: refuses any key.
 void parseNoParams(const nlohmann::json& params, Method m);

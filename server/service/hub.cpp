@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/decimate.hpp"
 #include "engine/errors.hpp"
 #include "engine/image_io.hpp"
 #include "engine/marching_cubes.hpp"
@@ -1161,21 +1162,32 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       });
     }
     case Method::MeshExport: {
-      const std::string format = protocol::parseMeshExportParams(req.params);
+      const protocol::MeshExportParams p = protocol::parseMeshExportParams(req.params);
+      const std::string format = p.format;
       const std::uint32_t frameId = req.frameId;
-      return offStrand(c, req.id, [self, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-        const Mesh mesh = extractMesh(vol, self->pool);
+      return offStrand(c, req.id, [self, p, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        Mesh mesh = extractMesh(vol, self->pool);
+        std::optional<DecimateResult> decimated;
+        if (p.maxTriangles || p.maxError) {
+          decimated = decimateMesh(mesh, vol, {p.maxTriangles, p.maxError}, self->pool);
+          mesh = std::move(decimated->mesh);
+        }
         const MeshFormat f = *meshFormatFromName(format);
         const Bytes file = exportMesh(mesh, f);
         if (file.size() > protocol::kMaxFramePayload)
           throw RpcException(RpcCode::LimitExceeded, "the mesh file is larger than one frame can carry (4 GiB)",
                              {{"limit", "frame_payload"}, {"max", protocol::kMaxFramePayload}});
-        const auto kind = format == "stl" ? protocol::FrameKind::MeshStl
+        const auto kind = format == "stl"   ? protocol::FrameKind::MeshStl
                           : format == "obj" ? protocol::FrameKind::MeshObj
+                          : format == "glb" ? protocol::FrameKind::MeshGlb
                                             : protocol::FrameKind::MeshPly;
         r.frame = makeFrame(kind, frameId, revision, file);
         r.result = {{"revision", revision}, {"format", format}, {"vertices", mesh.vertexCount()},
                     {"triangles", mesh.triangleCount()}, {"bytes", file.size()}};
+        if (decimated) {
+          r.result["source_triangles"] = decimated->sourceTriangles;
+          r.result["max_error"] = decimated->maxError;
+        }
       });
     }
     case Method::VolumeSave: {

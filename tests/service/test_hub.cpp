@@ -471,6 +471,22 @@ TEST_CASE("mesh.export and volume.save send files; volume.load takes one back as
   CHECK(file.size() - protocol::kFrameHeaderBytes == 84 + 50 * stl["triangles"].get<std::size_t>());
   CHECK(stl["triangles"].get<int>() > 1000);
   CHECK(a.call("mesh.export", {{"format", "fbx"}})["error"]["data"]["field"] == "format");
+  CHECK(a.call("mesh.export", {{"format", "glb"}, {"max_triangles", 0}})["error"]["data"]["field"] == "max_triangles");
+  CHECK(a.call("mesh.export", {{"format", "glb"}, {"max_error", -1}})["error"]["data"]["field"] == "max_error");
+
+  // glTF, decimated to a budget: the result reports what was reached and how far it strays.
+  id = a.nextId;
+  const json glb = a.result("mesh.export", {{"format", "glb"}, {"max_triangles", 500}});
+  file = std::get<Bytes>(a.link->at(a.link->waitFor([&](const auto& m) {
+    return isFrame(m, protocol::FrameKind::MeshGlb) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+  })));
+  CHECK(std::string(file.begin() + protocol::kFrameHeaderBytes, file.begin() + protocol::kFrameHeaderBytes + 4) == "glTF");
+  CHECK(glb["source_triangles"] == stl["triangles"]);
+  CHECK(glb["triangles"].get<int>() <= 500);
+  CHECK(glb["triangles"].get<int>() > 400);
+  CHECK(glb["max_error"].get<double>() > 0);
+  CHECK(glb["max_error"].get<double>() < 3);
+  CHECK_FALSE(stl.contains("max_error"));
 
   id = a.nextId;
   const json saved = a.result("volume.save");
