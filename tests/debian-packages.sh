@@ -1,5 +1,5 @@
 # Sourced by the install scripts: the Debian packages Marzipan builds and tests with.
-MARZIPAN_PACKAGES=(g++ cmake ninja-build ccache pkg-config catch2 libboost-dev nlohmann-json3-dev libstb-dev libturbojpeg0-dev libmeshoptimizer-dev nodejs haproxy python3-websockets openssl chromium clang libclang-rt-14-dev)
+MARZIPAN_PACKAGES=(g++ cmake ninja-build ccache pkg-config catch2 libboost-dev nlohmann-json3-dev libstb-dev libturbojpeg0-dev libmeshoptimizer-dev admesh nodejs haproxy python3-websockets openssl chromium clang libclang-rt-14-dev)
 
 install_debian_packages() {
   local missing=()
