@@ -27,6 +27,7 @@
 #include <sstream>
 
 #include "errors.hpp"
+#include "thickness.hpp"
 
 namespace marzipan {
 
@@ -677,13 +678,15 @@ struct Shader {
   Shading shading;
   bool still;
   float height;
+  const Volume& volume;
+  double thicknessMin;
 
   F3 backgroundAt(float y) const {
     const float along = y / std::max(1.0f, height - 1);
     F3 c{background.top[0] + along * (background.bottom[0] - background.top[0]),
          background.top[1] + along * (background.bottom[1] - background.top[1]),
          background.top[2] + along * (background.bottom[2] - background.top[2])};
-    if (shading == Shading::Lit) return c;
+    if (shading == Shading::Lit || shading == Shading::Thickness) return c;
     for (float* ch : {&c.x, &c.y, &c.z}) *ch = float(srgbTable()[int(std::clamp(*ch, 0.0f, 1.0f) * 4096.0f + 0.5f)]) / 255.0f;
     return c;
   }
@@ -703,6 +706,15 @@ struct Shader {
         const F3 n = normalAt(p, dir);
         return {0.5f * (n.x + 1), 0.5f * (n.y + 1), 0.5f * (n.z + 1)};
       }
+      case Shading::Thickness: {
+        const F3 n = normalAt(p, dir);
+        const double t = thicknessAt(volume, {p.x, p.y, p.z}, {n.x, n.y, n.z});
+        const F3 red{0.80f, 0.06f, 0.04f}, yellow{0.85f, 0.62f, 0.10f};
+        const float s = float(std::clamp((t - thicknessMin) / thicknessMin, 0.0, 2.0));
+        Material tinted = material;
+        tinted.albedo = t < thicknessMin ? red : s < 1 ? yellow : yellow + (material.albedo - yellow) * (s - 1);
+        return shadeLit(kernel, view, tinted, p, n, dir, still);
+      }
       case Shading::GradientError:
         break;
     }
@@ -711,7 +723,7 @@ struct Shader {
   }
 
   void store(F3 c, std::uint8_t* out, const std::array<std::uint8_t, 4097>& srgb) const {
-    if (shading == Shading::Lit) {
+    if (shading == Shading::Lit || shading == Shading::Thickness) {
       out[0] = toByte(c.x, srgb), out[1] = toByte(c.y, srgb), out[2] = toByte(c.z, srgb);
       return;
     }
@@ -750,15 +762,19 @@ bool isEdge(const Frame& f, int x, int y) {
 
 }  // namespace
 
-Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality) {
+Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality,
+             double thicknessMinVu) {
   camera.validate();
+  if (!(std::isfinite(thicknessMinVu) && thicknessMinVu > 0))
+    throw EngineError(ErrorKind::InvalidArgument, "min_vu", "must be a finite number of vu above 0");
   const RayKernel kernel(accel);
   const View view = makeView(camera);
   const Material material;
   const Background background;
   const auto& srgb = srgbTable();
   const bool still = quality == FrameQuality::Still;
-  const Shader shader{kernel, view, material, background, shading, still, float(camera.height)};
+  const Shader shader{kernel, view, material, background, shading, still, float(camera.height), accel.volume(),
+                      thicknessMinVu};
 
   Frame frame;
   frame.width = camera.width;
@@ -823,9 +839,10 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
   return frame;
 }
 
-Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality) {
+Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality,
+             double thicknessMinVu) {
   camera.validate();
-  return render(RaycastAccel(volume, pool), camera, shading, pool, quality);
+  return render(RaycastAccel(volume, pool), camera, shading, pool, quality, thicknessMinVu);
 }
 
 }  // namespace marzipan

@@ -42,6 +42,8 @@ enum class Shading {
   Lit,            // clay: warm albedo, soft key and hemisphere fill, faint specular, SDF ambient occlusion
   Normals,        // RGB = (n + 1) / 2 for the outward unit normal n (world axes)
   GradientError,  // grey level = max | |grad d| - 1 | over the hit cell's 8 corners, 0.1 -> white
+  Thickness,      // Lit, tinted by the wall thickness under the hit (thickness.hpp): red below
+                  // thicknessMinVu, shading to yellow at twice that, clay from three times on
 };
 
 // Interactive frames favour speed; still frames (shown once edits stop, render.frame, snapshots)
@@ -86,10 +88,11 @@ class RaycastAccel {
   std::vector<std::shared_ptr<const Brick>> owned_;
 };
 
+// thicknessMinVu (> 0, vu) is used by Shading::Thickness only.
 Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool,
-             FrameQuality quality = FrameQuality::Interactive);
+             FrameQuality quality = FrameQuality::Interactive, double thicknessMinVu = 1.0);
 // Builds the accelerator for this one frame; keep a RaycastAccel to render a version repeatedly.
 Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool,
-             FrameQuality quality = FrameQuality::Interactive);
+             FrameQuality quality = FrameQuality::Interactive, double thicknessMinVu = 1.0);
 
 }  // namespace marzipan

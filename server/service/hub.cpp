@@ -29,6 +29,7 @@
 #include "engine/mesh_io.hpp"
 #include "engine/raycast.hpp"
 #include "engine/solids.hpp"
+#include "engine/thickness.hpp"
 #include "engine/splats.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume_file.hpp"
@@ -167,6 +168,7 @@ class HubClient {
   ViewMode mode = ViewMode::None;
   Camera camera;
   Shading shading = Shading::Lit;
+  double thicknessMinVu = 1;
   StrokeId stroke = 0;
   std::uint64_t frameSeq = 0;     // bumped by every change or camera change
   bool rendering = false, renderAgain = false;
@@ -855,11 +857,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     const std::uint64_t revision = s.session->revision(), seq = c->frameSeq;
     const Camera camera = c->camera;
     const Shading shading = c->shading;
+    const double minVu = c->thicknessMinVu;
     const int quality = still ? options.stillQuality : options.interactiveQuality;
     std::weak_ptr<LiveSession> weak = c->session;
-    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, quality, still] {
+    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, minVu, quality, still] {
       try {
-        const Frame f = render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive);
+        const Frame f =
+            render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive, minVu);
         const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
         c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
       } catch (const std::exception& e) {
@@ -1132,6 +1136,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
         c->mode = p.mode;
         if (p.camera) c->camera = *p.camera;
         c->shading = p.shading;
+        c->thicknessMinVu = p.minVu;
         r.result = {{"mode", protocol::nameOf(protocol::kViewModeNames, p.mode)}, {"revision", s.session->revision()}};
         r.after = [self, &s, c] {
           if (c->mode == ViewMode::Splats) self->sendFullSplats(s, *c, 0);
@@ -1143,7 +1148,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       const protocol::RenderFrameParams p = protocol::parseRenderFrameParams(req.params, l.maxFrameSide);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, p, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-        const Frame f = render(vol, p.camera, p.shading, self->pool, FrameQuality::Still);
+        const Frame f = render(vol, p.camera, p.shading, self->pool, FrameQuality::Still, p.minVu);
         const bool png = p.format == protocol::ImageKind::Png;
         const Bytes file = png ? encodePng(f.rgb, f.width, f.height) : encodeJpeg(f.rgb, f.width, f.height, p.quality);
         r.frame = makeFrame(png ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg, frameId, revision, file);
@@ -1188,6 +1193,18 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
           r.result["source_triangles"] = decimated->sourceTriangles;
           r.result["max_error"] = decimated->maxError;
         }
+      });
+    }
+    case Method::AnalysisThickness: {
+      const protocol::ThicknessParams p = protocol::parseThicknessParams(req.params);
+      return offStrand(c, req.id, [self, p](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const ThicknessReport t = analyzeThickness(vol, p.minVu, p.maxPlaces, 4.0, self->pool);
+        json places = json::array();
+        for (const ThinPlace& q : t.places)
+          places.push_back({{"point", protocol::vec3Json(q.point)}, {"normal", protocol::vec3Json(q.normal)},
+                            {"thickness", q.thickness}});
+        r.result = {{"revision", revision}, {"min_vu", p.minVu}, {"points", t.points}, {"below", t.below},
+                    {"thinnest", t.points ? json(t.thinnest) : json(nullptr)}, {"places", places}};
       });
     }
     case Method::VolumeSave: {

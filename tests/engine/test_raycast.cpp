@@ -9,6 +9,7 @@
 
 #include "engine/errors.hpp"
 #include "engine/raycast.hpp"
+#include "engine/shapes.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -368,4 +369,32 @@ TEST_CASE("invalid cameras are refused", "[raycast][errors]") {
   } catch (const EngineError& e) {
     CHECK(e.kind() == ErrorKind::TooLarge);
   }
+}
+
+TEST_CASE("thickness shading paints thin walls red and thick ones clay", "[raycast]") {
+  // A 2 vu plate on the left half, a 20 vu block on the right half, seen from +z.
+  const Volume v = makeFromFunction(
+      {64, 64, 64},
+      [](Vec3 p) {
+        const double plate = sdf::box(p, {18, 32, 32}, {12, 20, 1});
+        const double block = sdf::box(p, {46, 32, 32}, {12, 20, 10});
+        return std::min(plate, block);
+      },
+      true);
+  const Camera cam{{32, 32, 150}, {32, 32, 32}, {0, 1, 0}, 40, 64, 64};
+  ThreadPool pool(2);
+  const Frame f = render(v, cam, Shading::Thickness, pool, FrameQuality::Interactive, 4.0);
+  const Frame lit = render(v, cam, Shading::Lit, pool);
+  auto px = [&](const Frame& fr, int x, int y) { return &fr.rgb[index(fr, x, y) * 3]; };
+  // Pixel columns over the plate (x ~ 18) and over the block (x ~ 46).
+  const int plateX = 20, blockX = 44, y = 32;
+  REQUIRE(std::isfinite(f.depth[index(f, plateX, y)]));
+  REQUIRE(std::isfinite(f.depth[index(f, blockX, y)]));
+  const std::uint8_t* thin = px(f, plateX, y);
+  const std::uint8_t* thick = px(f, blockX, y);
+  CHECK(thin[0] > 2 * thin[1]);  // red
+  CHECK(thin[0] > 2 * thin[2]);
+  CHECK(std::equal(thick, thick + 3, px(lit, blockX, y)));  // three times the minimum and more: clay
+  CHECK(f.depth == lit.depth);
+  CHECK_THROWS_AS(render(v, cam, Shading::Thickness, pool, FrameQuality::Interactive, 0.0), EngineError);
 }

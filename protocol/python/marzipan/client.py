@@ -563,11 +563,14 @@ class Client:
                                                             shading=shading))
 
     async def frame(self, camera: dict, width: int, height: int, format: str = "png", *,
-                    quality: int | None = None, shading: str | None = None) -> bytes:
+                    quality: int | None = None, shading: str | None = None,
+                    min_vu: float | None = None) -> bytes:
         """render.frame: the image file (PNG or JPEG) of `camera` = {eye, target, up?, fov?}
-        at width x height; shading "lit" (default), "normals" or "gradient_error"."""
+        at width x height; shading "lit" (default), "normals", "gradient_error" or "thickness"
+        (with min_vu: walls thinner than that are red)."""
         _, frame = await self.call("render.frame", _without_none(
-            camera=camera, width=width, height=height, format=format, quality=quality, shading=shading))
+            camera=camera, width=width, height=height, format=format, quality=quality, shading=shading,
+            min_vu=min_vu))
         return bytes(frame.payload)
 
     async def export_mesh(self, format: str = "stl", max_triangles: int | None = None,
@@ -583,6 +586,13 @@ class Client:
         result, frame = await self.call("mesh.export", _without_none(
             format=format, max_triangles=max_triangles, max_error=max_error))
         return result, bytes(frame.payload)
+
+    async def thickness(self, min_vu: float, max_places: int | None = None) -> dict:
+        """analysis.thickness: {revision, min_vu, points, below, thinnest, places: [{point,
+        normal, thickness}]}: the wall thickness under every surface point (vu), the thinnest
+        places thinner than min_vu first."""
+        result, _ = await self.call("analysis.thickness", _without_none(min_vu=min_vu, max_places=max_places))
+        return result
 
     async def splats(self):
         """splats.get: the full splat buffer, decoded (splats.SplatBuffer)."""

@@ -182,9 +182,11 @@ class AgainstServer(unittest.TestCase):
                 obj = await client.export_mesh("obj")
                 ply = await client.export_mesh("ply")
                 glb = await client.export_mesh_with_result("glb", max_triangles=1000)
-                return png, error_png, jpeg, stl_result, bytes(stl.payload), obj, ply, glb
+                thick = await client.thickness(100, max_places=3)
+                thick_png = await client.frame(camera, 64, 48, "png", shading="thickness", min_vu=100)
+                return png, error_png, jpeg, stl_result, bytes(stl.payload), obj, ply, glb, thick, thick_png
 
-        png, error_png, jpeg, stl_result, stl, obj, ply, (glb_result, glb) = run(go())
+        png, error_png, jpeg, stl_result, stl, obj, ply, (glb_result, glb), thick, thick_png = run(go())
         width, height, channels, pixels = decode_png(png)
         self.assertEqual((width, height, channels), (160, 120, 3))
         self.assertGreater(len(set(pixels)), 20, "a lit picture, not a blank one")
@@ -210,6 +212,12 @@ class AgainstServer(unittest.TestCase):
         doc = json.loads(glb[20:20 + struct.unpack_from("<I", glb, 12)[0]])
         indices = doc["accessors"][doc["meshes"][0]["primitives"][0]["indices"]]
         self.assertEqual(indices["count"], 3 * glb_result["triangles"])
+        # The whole 64^3 pig is thinner than 100 vu: every point is below, three places listed.
+        self.assertEqual(thick["below"], thick["points"])
+        self.assertEqual(len(thick["places"]), 3)
+        self.assertEqual(thick["places"][0]["thickness"], thick["thinnest"])
+        _, _, _, red = decode_png(thick_png)
+        self.assertTrue(any(red[i] > 2 * red[i + 1] + 20 for i in range(0, len(red), 3)), "thin walls in red")
 
     def test_messages_over_websockets_default_limit_of_1_mib_arrive(self):
         async def go():
