@@ -13,6 +13,13 @@ if [ ! -f tests/browser/node_modules/.package-lock.json ] ||
   npm ci --prefix tests/browser --no-audit --no-fund
 fi
 # ---- end of Web client --------------------------------------------------------------------------
+# ---- glTF validator (tests/gltf) -------------------------------------------------------------------
+# The Khronos glTF validator, pinned by tests/gltf/package-lock.json, reinstalled like the above.
+if [ ! -f tests/gltf/node_modules/.package-lock.json ] ||
+   [ tests/gltf/package-lock.json -nt tests/gltf/node_modules/.package-lock.json ]; then
+  npm ci --prefix tests/gltf --no-audit --no-fund
+fi
+# ---- end of glTF validator ---------------------------------------------------------------------------
 build="${BUILD_DIR:-build}"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DMARZIPAN_BUILD_TESTS=ON
 cmake --build "$build" -j "$(nproc)"

@@ -116,7 +116,17 @@ Camera cameraValue(const json& params, int maxSide) {
 Shading shadingValue(const json& v) {
   const std::string shading = stringValue(v, "shading");
   if (const auto s = shadingFromName(shading)) return *s;
-  fail("shading", "must be \"lit\", \"normals\" or \"gradient_error\", got " + inQuotes(shading));
+  fail("shading", "must be \"lit\", \"normals\", \"gradient_error\" or \"thickness\", got " + inQuotes(shading));
+}
+
+// "min_vu" of the thickness shading: a wall thinner than this is drawn red.
+std::optional<double> minVuValue(const json& params, Shading shading) {
+  const json* m = find(params, "min_vu");
+  if (!m) return std::nullopt;
+  if (shading != Shading::Thickness) fail("min_vu", "applies to shading \"thickness\" only");
+  const double v = finiteNumber(*m, "min_vu");
+  if (!(v > 0 && v <= 1e4)) fail("min_vu", "must be a number of vu above 0 and at most 10000");
+  return v;
 }
 
 std::string paramsContext(Method m) { return "params of " + std::string(nameOf(kMethodNames, m)); }
@@ -330,7 +340,7 @@ MorphOp parseMorphParams(const json& params) {
 
 ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   const std::string context = paramsContext(Method::ViewSet);
-  checkKeys(params, {"mode", "camera", "width", "height", "shading"}, context);
+  checkKeys(params, {"mode", "camera", "width", "height", "shading", "min_vu"}, context);
   ViewSetParams p;
   const std::string mode = stringValue(require(params, "mode", context), "mode");
   const auto m = fromName(kViewModeNames, mode);
@@ -339,8 +349,9 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   if (p.mode == ViewMode::Frames) {
     p.camera = cameraValue(params, maxSide);
     if (const json* s = find(params, "shading")) p.shading = shadingValue(*s);
+    if (const auto m = minVuValue(params, p.shading)) p.minVu = *m;
   } else {
-    for (const char* key : {"camera", "width", "height", "shading"})
+    for (const char* key : {"camera", "width", "height", "shading", "min_vu"})
       if (find(params, key)) fail(key, "is only for mode \"frames\"");
   }
   return p;
@@ -348,7 +359,7 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
 
 RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
   const std::string context = paramsContext(Method::RenderFrame);
-  checkKeys(params, {"camera", "width", "height", "format", "quality", "shading"}, context);
+  checkKeys(params, {"camera", "width", "height", "format", "quality", "shading", "min_vu"}, context);
   RenderFrameParams p;
   const std::string format = stringValue(require(params, "format", context), "format");
   if (format == "jpeg") p.format = ImageKind::Jpeg;
@@ -359,16 +370,35 @@ RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
     p.quality = int(integerInRange(*q, "quality", 1, 100));
   }
   if (const json* s = find(params, "shading")) p.shading = shadingValue(*s);
+  if (const auto m = minVuValue(params, p.shading)) p.minVu = *m;
   p.camera = cameraValue(params, maxSide);
   return p;
 }
 
-std::string parseMeshExportParams(const json& params) {
+MeshExportParams parseMeshExportParams(const json& params) {
   const std::string context = paramsContext(Method::MeshExport);
-  checkKeys(params, {"format"}, context);
-  const std::string format = stringValue(require(params, "format", context), "format");
-  if (format != "stl" && format != "obj" && format != "ply") fail("format", "must be \"stl\", \"obj\" or \"ply\", got " + inQuotes(format));
-  return format;
+  checkKeys(params, {"format", "max_triangles", "max_error"}, context);
+  MeshExportParams p;
+  p.format = stringValue(require(params, "format", context), "format");
+  if (p.format != "stl" && p.format != "obj" && p.format != "ply" && p.format != "glb")
+    fail("format", "must be \"stl\", \"obj\", \"ply\" or \"glb\", got " + inQuotes(p.format));
+  if (const json* t = find(params, "max_triangles"))
+    p.maxTriangles = std::uint32_t(integerInRange(*t, "max_triangles", 1, 0xFFFFFFFFll));
+  if (const json* e = find(params, "max_error")) {
+    p.maxError = finiteNumber(*e, "max_error");
+    if (!(*p.maxError > 0 && *p.maxError <= 1e6)) fail("max_error", "must be a number of vu above 0 and at most 1e6");
+  }
+  return p;
+}
+
+ThicknessParams parseThicknessParams(const json& params) {
+  const std::string context = paramsContext(Method::AnalysisThickness);
+  checkKeys(params, {"min_vu", "max_places"}, context);
+  ThicknessParams p;
+  p.minVu = finiteNumber(require(params, "min_vu", context), "min_vu");
+  if (!(p.minVu > 0 && p.minVu <= 1e4)) fail("min_vu", "must be a number of vu above 0 and at most 10000");
+  if (const json* m = find(params, "max_places")) p.maxPlaces = std::uint32_t(integerInRange(*m, "max_places", 1, 1000));
+  return p;
 }
 
 std::uint64_t parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) {

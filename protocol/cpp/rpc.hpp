@@ -68,8 +68,9 @@ class RpcException : public std::runtime_error {
 enum class Method {
   SessionCreate, SessionJoin, SessionLeave, SessionStats, ToolApply, StrokeBegin, StrokeDabs, StrokeEnd,
   VolumeMorph, HistoryUndo, HistoryRedo, ViewSet, RenderFrame, SplatsGet, MeshExport, VolumeSave, VolumeLoad,
+  AnalysisThickness,
 };
-inline constexpr std::array<NameOf<Method>, 17> kMethodNames{{
+inline constexpr std::array<NameOf<Method>, 18> kMethodNames{{
     {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
     {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
     {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
@@ -78,7 +79,7 @@ inline constexpr std::array<NameOf<Method>, 17> kMethodNames{{
     {Method::HistoryRedo, "history.redo"},     {Method::ViewSet, "view.set"},
     {Method::RenderFrame, "render.frame"},     {Method::SplatsGet, "splats.get"},
     {Method::MeshExport, "mesh.export"},       {Method::VolumeSave, "volume.save"},
-    {Method::VolumeLoad, "volume.load"},
+    {Method::VolumeLoad, "volume.load"},       {Method::AnalysisThickness, "analysis.thickness"},
 }};
 // Methods whose id travels in a binary header (answered by a frame, or naming an upload).
 bool needsFrameId(Method m);
@@ -157,13 +158,22 @@ struct ViewSetParams {
   ViewMode mode = ViewMode::Splats;
   std::optional<Camera> camera;  // with width and height set; present exactly for frames
   Shading shading = Shading::Lit;  // of pushed frames
+  double minVu = 1;                // thickness shading: red below this many vu
 };
 enum class ImageKind { Jpeg, Png };
+// mesh.export: the file format and the optional decimation (server/engine/decimate.hpp).
+struct MeshExportParams {
+  std::string format;                       // "stl", "obj", "ply" or "glb"
+  std::optional<std::uint32_t> maxTriangles;  // >= 1
+  std::optional<double> maxError;             // vu, > 0 and at most 1e6
+};
+
 struct RenderFrameParams {
   Camera camera;  // with width and height
   ImageKind format = ImageKind::Jpeg;
   int quality = 90;
   Shading shading = Shading::Lit;
+  double minVu = 1;  // thickness shading: red below this many vu
 };
 
 // Session ids and tokens as PROTOCOL.md spells them.
@@ -182,7 +192,13 @@ MorphOp parseMorphParams(const nlohmann::json& params);
 // maxSide: the server's max_frame_side (-32004 above it).
 ViewSetParams parseViewSetParams(const nlohmann::json& params, int maxSide);
 RenderFrameParams parseRenderFrameParams(const nlohmann::json& params, int maxSide);
-std::string parseMeshExportParams(const nlohmann::json& params);  // "stl", "obj" or "ply"
+MeshExportParams parseMeshExportParams(const nlohmann::json& params);
+// analysis.thickness: min_vu (> 0, at most 1e4) and max_places (1..1000, default 64).
+struct ThicknessParams {
+  double minVu = 0;
+  std::uint32_t maxPlaces = 64;
+};
+ThicknessParams parseThicknessParams(const nlohmann::json& params);
 std::uint64_t parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
 // Methods without params: refuses any key.
 void parseNoParams(const nlohmann::json& params, Method m);

@@ -150,12 +150,15 @@ enum class Shading {
   Lit,            // clay: warm albedo, soft key and hemisphere fill, faint specular, SDF ambient occlusion
   Normals,        // RGB = (n + 1) / 2 for the outward unit normal n (world axes)
   GradientError,  // grey level = max | |grad d| - 1 | over the hit cell's 8 corners, 0.1 -> white
+  Thickness,      // Lit, tinted by the wall thickness under the hit (engine/thickness.hpp): red below
+                  // the minimum thickness, shading to yellow at twice that, clay from three times on
 };
 
-inline constexpr std::array<WireName<Shading>, 3> kShadingNames{{
+inline constexpr std::array<WireName<Shading>, 4> kShadingNames{{
     {Shading::Lit, "lit"},
     {Shading::Normals, "normals"},
     {Shading::GradientError, "gradient_error"},
+    {Shading::Thickness, "thickness"},
 }};
 inline std::optional<Shading> shadingFromName(std::string_view name) { return fromWireName(kShadingNames, name); }
 

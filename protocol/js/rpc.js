@@ -30,6 +30,7 @@ export const METHODS = Object.freeze([
   "mesh.export",
   "volume.save",
   "volume.load",
+  "analysis.thickness",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

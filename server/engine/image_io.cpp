@@ -1,10 +1,13 @@
-// JPEG and PNG encoding through stb_image_write, linked from the system's libstb (conventions in
-// image_io.hpp). stb reports failure only for allocation or size problems; both become errors.
+// JPEG through libjpeg-turbo's TurboJPEG API (SIMD DCT and Huffman coding), PNG through
+// stb_image_write, both linked from the system's libraries (conventions in image_io.hpp).
+// Either library reports failure only for allocation or size problems; both become errors.
 #include "image_io.hpp"
 
+#include <memory>
 #include <sstream>
 
 #include <stb/stb_image_write.h>
+#include <turbojpeg.h>
 
 #include "errors.hpp"
 
@@ -46,11 +49,21 @@ std::vector<std::uint8_t> encodeJpeg(const std::vector<std::uint8_t>& rgb, int w
     s << "must be between 1 and 100 (got " << quality << ")";
     throw EngineError(ErrorKind::InvalidArgument, "quality", s.str());
   }
-  std::vector<std::uint8_t> out;
-  out.reserve(rgb.size() / 8 + 1024);
-  if (!stbi_write_jpg_to_func(append, &out, width, height, 3, rgb.data(), quality))
-    throw EngineError(ErrorKind::Format, "", "JPEG encoding failed");
-  return out;
+  // A compressor per thread: a handle is not safe to share, and creating one per frame costs
+  // more than small frames take to encode.
+  struct HandleDeleter {
+    void operator()(void* h) const { tjDestroy(h); }
+  };
+  thread_local std::unique_ptr<void, HandleDeleter> handle(tjInitCompress());
+  if (!handle) throw EngineError(ErrorKind::Format, "", "JPEG encoder could not be created");
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  const int subsampling = quality <= 90 ? TJSAMP_420 : TJSAMP_444;
+  const int status = tjCompress2(handle.get(), rgb.data(), width, width * 3, height, TJPF_RGB, &buffer, &size,
+                                 subsampling, quality, 0);
+  std::unique_ptr<unsigned char, void (*)(unsigned char*)> owned(buffer, tjFree);
+  if (status != 0) throw EngineError(ErrorKind::Format, "", std::string("JPEG encoding failed: ") + tjGetErrorStr2(handle.get()));
+  return std::vector<std::uint8_t>(buffer, buffer + size);
 }
 
 std::vector<std::uint8_t> encodePng(const std::vector<std::uint8_t>& rgb, int width, int height) {

@@ -11,7 +11,7 @@ namespace marzipan {
 
 enum class ImageFormat { Jpeg, Png };
 
-// Baseline JPEG (stb), 4:2:0 chroma subsampling at quality 90 and below; quality in [1, 100].
+// Baseline JPEG (libjpeg-turbo), 4:2:0 chroma subsampling at quality 90 and below; quality in [1, 100].
 std::vector<std::uint8_t> encodeJpeg(const std::vector<std::uint8_t>& rgb, int width, int height, int quality);
 // Lossless PNG, 8 bits per channel.
 std::vector<std::uint8_t> encodePng(const std::vector<std::uint8_t>& rgb, int width, int height);

@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "errors.hpp"
+#include "gltf.hpp"
 #include "little_endian.hpp"
 
 namespace marzipan {
@@ -258,6 +259,7 @@ std::optional<MeshFormat> meshFormatFromName(std::string_view name) {
   if (name == "stl") return MeshFormat::Stl;
   if (name == "obj") return MeshFormat::Obj;
   if (name == "ply") return MeshFormat::Ply;
+  if (name == "glb") return MeshFormat::Glb;
   return std::nullopt;
 }
 
@@ -345,6 +347,8 @@ std::vector<std::uint8_t> exportMesh(const Mesh& m, MeshFormat format) {
     }
     case MeshFormat::Ply:
       return exportPly(m);
+    case MeshFormat::Glb:
+      return exportGlb(m);
   }
   throw EngineError(ErrorKind::InvalidArgument, "format", "unknown mesh format");
 }
@@ -595,6 +599,8 @@ Mesh parseMesh(std::span<const std::uint8_t> bytes, MeshFormat format) {
       return parseObj(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
     case MeshFormat::Ply:
       return parsePly(bytes);
+    case MeshFormat::Glb:
+      throw EngineError(ErrorKind::Format, "format", "glTF files are written, not read");
   }
   throw EngineError(ErrorKind::InvalidArgument, "format", "unknown mesh format");
 }

@@ -23,9 +23,9 @@
 
 namespace marzipan {
 
-enum class MeshFormat { Stl, Obj, Ply };
+enum class MeshFormat { Stl, Obj, Ply, Glb };
 
-// "stl", "obj", "ply".
+// "stl", "obj", "ply", "glb" (glb is written only: gltf.hpp).
 std::optional<MeshFormat> meshFormatFromName(std::string_view name);
 
 // Largest triangle count any parser accepts (a 3.4 GB binary STL).
@@ -40,6 +40,7 @@ std::vector<std::uint8_t> exportStl(const Mesh& m);
 std::string exportObj(const Mesh& m);
 // Binary little-endian PLY: vertex x y z [nx ny nz] as float, face "list uchar uint".
 std::vector<std::uint8_t> exportPly(const Mesh& m);
+// Glb: exportGlb (gltf.hpp).
 std::vector<std::uint8_t> exportMesh(const Mesh& m, MeshFormat format);
 
 // Writes bytes to a file (replacing it). Throws EngineError(InvalidArgument, "path") on failure.
@@ -59,6 +60,7 @@ Mesh parseStl(std::span<const std::uint8_t> bytes);
 // scalar type) and a "face" element with a vertex_indices list; other elements must have only
 // scalar properties and are skipped.
 Mesh parsePly(std::span<const std::uint8_t> bytes);
+// Glb is not read: EngineError(Format).
 Mesh parseMesh(std::span<const std::uint8_t> bytes, MeshFormat format);
 
 // --- import ----------------------------------------------------------------------------------

@@ -27,6 +27,7 @@
 #include <sstream>
 
 #include "errors.hpp"
+#include "thickness.hpp"
 
 namespace marzipan {
 
@@ -548,14 +549,51 @@ struct RayKernel {
     return worst;
   }
 
+  // A smooth normal field: the central-difference gradients at the 8 corners of the cell holding
+  // p, blended trilinearly. The analytic gradient of the trilinear interpolant (gradient())
+  // jumps across cell faces, which draws the voxel grid as contour steps on smooth surfaces;
+  // this one is continuous, so shading varies smoothly across cells.
+  F3 smoothGradient(F3 p) const {
+    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
+    const float f[3] = {p.x - float(ix), p.y - float(iy), p.z - float(iz)};
+    // The 4x4x4 voxels around the cell, read once.
+    float v[4][4][4];
+    for (int z = 0; z < 4; ++z)
+      for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x) v[z][y][x] = voxel(ix - 1 + x, iy - 1 + y, iz - 1 + z);
+    F3 g{};
+    for (int dz = 0; dz < 2; ++dz)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+          const float w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+          const int x = dx + 1, y = dy + 1, z = dz + 1;
+          g = g + F3{v[z][y][x + 1] - v[z][y][x - 1], v[z][y + 1][x] - v[z][y - 1][x], v[z + 1][y][x] - v[z - 1][y][x]} *
+                      (0.5f * w);
+        }
+    return g;
+  }
+
   // Ambient occlusion from the field itself: along the normal, an unoccluded surface has d equal
-  // to the offset; the relative shortfall measures nearby material. Two offsets inside the band
-  // (beyond it d is clamped) catch creases and contact shadows at a few voxels' scale.
-  float occlusion(F3 p, F3 n) const {
-    const float s1 = band * 0.35f, s2 = band * 0.7f;
-    const float occ = 0.6f * std::max(0.0f, s1 - sample(p + n * s1)) / s1 +
-                      0.4f * std::max(0.0f, s2 - sample(p + n * s2)) / s2;
-    return std::clamp(1.0f - 1.2f * occ, 0.0f, 1.0f);
+  // to the offset; the relative shortfall measures nearby material. Offsets stay inside the band
+  // (beyond it d is clamped) and catch creases and contact shadows at a few voxels' scale.
+  // Interactive frames take two samples; stills take five, spread over the band and weighted
+  // towards the surface, which makes the darkening of a crease fade out gradually (soft).
+  float occlusion(F3 p, F3 n, bool still) const {
+    if (!still) {
+      const float s1 = band * 0.35f, s2 = band * 0.7f;
+      const float occ = 0.6f * std::max(0.0f, s1 - sample(p + n * s1)) / s1 +
+                        0.4f * std::max(0.0f, s2 - sample(p + n * s2)) / s2;
+      return std::clamp(1.0f - 1.2f * occ, 0.0f, 1.0f);
+    }
+    constexpr int kSamples = 5;
+    float occ = 0, weights = 0;
+    for (int i = 1; i <= kSamples; ++i) {
+      const float s = band * 0.9f * float(i) / kSamples;
+      const float w = 1.0f / float(i);
+      occ += w * std::max(0.0f, s - sample(p + n * s)) / s;
+      weights += w;
+    }
+    return std::clamp(1.0f - 1.2f * occ / weights, 0.0f, 1.0f);
   }
 };
 
@@ -576,10 +614,10 @@ struct Material {
   float specular = 0.10f;
 };
 
-F3 shadeLit(const RayKernel& k, const View& v, const Material& m, F3 p, F3 n, F3 dir) {
+F3 shadeLit(const RayKernel& k, const View& v, const Material& m, F3 p, F3 n, F3 dir, bool still) {
   const F3 toEye = dir * -1.0f;
   const F3 light = v.light;
-  const float ao = k.occlusion(p, n);
+  const float ao = k.occlusion(p, n, still);
   const float diffuse = std::max(0.0f, (dot(n, light) + m.wrap) / (1 + m.wrap));
   const float h = 0.5f + 0.5f * dot(n, v.up);
   const F3 half = normalizedF(light + toEye);
@@ -593,15 +631,113 @@ F3 shadeLit(const RayKernel& k, const View& v, const Material& m, F3 p, F3 n, F3
           m.albedo.z * (m.key.z * keyShade + fill.z * ao) + m.key.z * spec};
 }
 
+// A pixel's colour before output: linear light for Lit (sRGB is applied after averaging
+// samples), display values in [0, 1] for Normals and GradientError.
+struct Shader {
+  const RayKernel& kernel;
+  const View& view;
+  const Material& material;
+  const Background& background;
+  Shading shading;
+  bool still;
+  float height;
+  const Volume& volume;
+  double thicknessMin;
+
+  F3 backgroundAt(float y) const {
+    const float along = y / std::max(1.0f, height - 1);
+    F3 c{background.top[0] + along * (background.bottom[0] - background.top[0]),
+         background.top[1] + along * (background.bottom[1] - background.top[1]),
+         background.top[2] + along * (background.bottom[2] - background.top[2])};
+    if (shading == Shading::Lit || shading == Shading::Thickness) return c;
+    for (float* ch : {&c.x, &c.y, &c.z}) *ch = float(srgbTable()[int(std::clamp(*ch, 0.0f, 1.0f) * 4096.0f + 0.5f)]) / 255.0f;
+    return c;
+  }
+
+  F3 normalAt(F3 p, F3 dir) const {
+    F3 n = normalizedF(still ? kernel.smoothGradient(p) : kernel.gradient(p));
+    return dot(n, n) == 0 ? dir * -1.0f : n;
+  }
+
+  // The colour of the surface hit at distance t along the unit ray dir.
+  F3 hit(F3 dir, float t) const {
+    const F3 p = view.eye + dir * t;
+    switch (shading) {
+      case Shading::Lit:
+        return shadeLit(kernel, view, material, p, normalAt(p, dir), dir, still);
+      case Shading::Normals: {
+        const F3 n = normalAt(p, dir);
+        return {0.5f * (n.x + 1), 0.5f * (n.y + 1), 0.5f * (n.z + 1)};
+      }
+      case Shading::Thickness: {
+        const F3 n = normalAt(p, dir);
+        const double t = thicknessAt(volume, {p.x, p.y, p.z}, {n.x, n.y, n.z});
+        const F3 red{0.80f, 0.06f, 0.04f}, yellow{0.85f, 0.62f, 0.10f};
+        const float s = float(std::clamp((t - thicknessMin) / thicknessMin, 0.0, 2.0));
+        Material tinted = material;
+        tinted.albedo = t < thicknessMin ? red : s < 1 ? yellow : yellow + (material.albedo - yellow) * (s - 1);
+        return shadeLit(kernel, view, tinted, p, n, dir, still);
+      }
+      case Shading::GradientError:
+        break;
+    }
+    const float e = std::min(1.0f, kernel.gradientError(p) / kGradientErrorWhite);
+    return {e, e, e};
+  }
+
+  void store(F3 c, std::uint8_t* out, const std::array<std::uint8_t, 4097>& srgb) const {
+    if (shading == Shading::Lit || shading == Shading::Thickness) {
+      out[0] = toByte(c.x, srgb), out[1] = toByte(c.y, srgb), out[2] = toByte(c.z, srgb);
+      return;
+    }
+    out[0] = std::uint8_t(std::lround(255 * std::clamp(c.x, 0.0f, 1.0f)));
+    out[1] = std::uint8_t(std::lround(255 * std::clamp(c.y, 0.0f, 1.0f)));
+    out[2] = std::uint8_t(std::lround(255 * std::clamp(c.z, 0.0f, 1.0f)));
+  }
+};
+
+// Still frames: a pixel is an edge when a neighbour (8-connected) differs in hit or miss, lies
+// at a clearly different depth (an occluding contour), or differs by more than kEdgeContrast in
+// a channel (a crease); edge pixels are resolved from kAaSamples more rays on a rotated grid.
+constexpr int kAaSamples = 4;
+constexpr float kAaOffsets[kAaSamples][2] = {{-0.125f, -0.375f}, {0.375f, -0.125f}, {0.125f, 0.375f}, {-0.375f, 0.125f}};
+constexpr int kEdgeContrast = 12;
+constexpr float kEdgeDepthJump = 0.02f;  // relative to the nearer depth, plus 1 vu
+
+bool isEdge(const Frame& f, int x, int y) {
+  const std::size_t i = std::size_t(y) * f.width + x;
+  const float d = f.depth[i];
+  const std::uint8_t* c = &f.rgb[i * 3];
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int nx = x + dx, ny = y + dy;
+      if ((!dx && !dy) || nx < 0 || ny < 0 || nx >= f.width || ny >= f.height) continue;
+      const std::size_t j = std::size_t(ny) * f.width + nx;
+      const float e = f.depth[j];
+      if (std::isfinite(d) != std::isfinite(e)) return true;
+      if (std::isfinite(d) && std::fabs(d - e) > kEdgeDepthJump * std::min(d, e) + 1) return true;
+      const std::uint8_t* o = &f.rgb[j * 3];
+      for (int ch = 0; ch < 3; ++ch)
+        if (std::abs(int(c[ch]) - int(o[ch])) > kEdgeContrast) return true;
+    }
+  return false;
+}
+
 }  // namespace
 
-Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool) {
+Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality,
+             double thicknessMinVu) {
   camera.validate();
+  if (!(std::isfinite(thicknessMinVu) && thicknessMinVu > 0))
+    throw EngineError(ErrorKind::InvalidArgument, "min_vu", "must be a finite number of vu above 0");
   const RayKernel kernel(accel);
   const View view = makeView(camera);
   const Material material;
   const Background background;
   const auto& srgb = srgbTable();
+  const bool still = quality == FrameQuality::Still;
+  const Shader shader{kernel, view, material, background, shading, still, float(camera.height), accel.volume(),
+                      thicknessMinVu};
 
   Frame frame;
   frame.width = camera.width;
@@ -609,8 +745,9 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
   frame.rgb.assign(std::size_t(camera.width) * camera.height * 3, 0);
   frame.depth.assign(std::size_t(camera.width) * camera.height, kInf);
   const int tilesX = (camera.width + kTile - 1) / kTile, tilesY = (camera.height + kTile - 1) / kTile;
+  const std::size_t tiles = std::size_t(tilesX) * tilesY;
 
-  pool.parallelFor(std::size_t(tilesX) * tilesY, [&](std::size_t tile) {
+  pool.parallelFor(tiles, [&](std::size_t tile) {
     const int x0 = int(tile % tilesX) * kTile, y0 = int(tile / tilesX) * kTile;
     const int x1 = std::min(x0 + kTile, camera.width), y1 = std::min(y0 + kTile, camera.height);
     // Every ray of the tile lies in the cone around the ray through the tile's middle that holds
@@ -623,10 +760,6 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
     }
     const float tSafe = kernel.coneStart(view.eye, axis, tanA), tEnd = kernel.coneEnd(view.eye, axis, tanA);
     for (int y = y0; y < y1; ++y) {
-      const float along = float(y) / float(std::max(1, camera.height - 1));
-      std::uint8_t bg[3];
-      for (int c = 0; c < 3; ++c)
-        bg[c] = toByte(background.top[c] + along * (background.bottom[c] - background.top[c]), srgb);
       RayKernel::Ray rays[kTile];
       for (int x = x0; x < x1; ++x) {
         const F3 dir = view.ray(float(x), float(y));
@@ -634,48 +767,45 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
         kernel.start(rays[x - x0], view.eye, dir, tSafe, tEnd * (1 + kConeSlack) / std::max(dot(dir, axis), 1e-6f));
       }
       for (int x = x0; x < x1; x += kGroup) kernel.trace(rays + (x - x0), std::min(kGroup, x1 - x));
+      const F3 bg = shader.backgroundAt(float(y));
       for (int x = x0; x < x1; ++x) {
-        const F3 dir = rays[x - x0].d;
         const float t = rays[x - x0].hit;
         const std::size_t pi = std::size_t(y) * camera.width + x;
-        std::uint8_t* out = &frame.rgb[pi * 3];
-        if (!(t < kInf)) {
-          out[0] = bg[0], out[1] = bg[1], out[2] = bg[2];
-          continue;
-        }
-        frame.depth[pi] = t;
-        const F3 p = view.eye + dir * t;
-        switch (shading) {
-          case Shading::Lit: {
-            F3 n = normalizedF(kernel.gradient(p));
-            if (dot(n, n) == 0) n = dir * -1.0f;
-            const F3 c = shadeLit(kernel, view, material, p, n, dir);
-            out[0] = toByte(c.x, srgb), out[1] = toByte(c.y, srgb), out[2] = toByte(c.z, srgb);
-            break;
-          }
-          case Shading::Normals: {
-            F3 n = normalizedF(kernel.gradient(p));
-            if (dot(n, n) == 0) n = dir * -1.0f;
-            out[0] = std::uint8_t(std::lround(127.5f * (n.x + 1)));
-            out[1] = std::uint8_t(std::lround(127.5f * (n.y + 1)));
-            out[2] = std::uint8_t(std::lround(127.5f * (n.z + 1)));
-            break;
-          }
-          case Shading::GradientError: {
-            const float e = std::min(1.0f, kernel.gradientError(p) / kGradientErrorWhite);
-            out[0] = out[1] = out[2] = std::uint8_t(std::lround(255 * e));
-            break;
-          }
-        }
+        if (t < kInf) frame.depth[pi] = t;
+        shader.store(t < kInf ? shader.hit(rays[x - x0].d, t) : bg, &frame.rgb[pi * 3], srgb);
       }
     }
   });
+  if (!still) return frame;
+
+  // Anti-aliasing reads the finished first pass (neighbours across tiles included) and writes
+  // only its own tile's colours, so the result does not depend on the thread count. Its rays
+  // start from the eye (the tile's cone does not hold rays off the pixel centres).
+  std::vector<std::uint8_t> resolved = frame.rgb;
+  pool.parallelFor(tiles, [&](std::size_t tile) {
+    const int x0 = int(tile % tilesX) * kTile, y0 = int(tile / tilesX) * kTile;
+    const int x1 = std::min(x0 + kTile, camera.width), y1 = std::min(y0 + kTile, camera.height);
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        if (!isEdge(frame, x, y)) continue;
+        RayKernel::Ray rays[kAaSamples];
+        for (int s = 0; s < kAaSamples; ++s)
+          kernel.start(rays[s], view.eye, view.ray(float(x) + kAaOffsets[s][0], float(y) + kAaOffsets[s][1]), 0, kInf);
+        kernel.trace(rays, kAaSamples);
+        F3 sum{};
+        for (int s = 0; s < kAaSamples; ++s)
+          sum = sum + (rays[s].hit < kInf ? shader.hit(rays[s].d, rays[s].hit) : shader.backgroundAt(float(y) + kAaOffsets[s][1]));
+        shader.store(sum * (1.0f / kAaSamples), &resolved[(std::size_t(y) * camera.width + x) * 3], srgb);
+      }
+  });
+  frame.rgb = std::move(resolved);
   return frame;
 }
 
-Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool) {
+Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool, FrameQuality quality,
+             double thicknessMinVu) {
   camera.validate();
-  return render(RaycastAccel(volume, pool), camera, shading, pool);
+  return render(RaycastAccel(volume, pool), camera, shading, pool, quality, thicknessMinVu);
 }
 
 }  // namespace marzipan

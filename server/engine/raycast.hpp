@@ -11,7 +11,8 @@
 // - Frame::rgb is width*height*3 bytes (R, G, B), rows from the top; Frame::depth is the
 //   distance from the eye to the hit along the ray, in vu (+inf where the ray meets nothing).
 // - Pixels are identical for any thread count: the frame is split into fixed 16x16 tiles and
-//   every pixel is computed from its own ray only.
+//   every pixel is computed from its own rays only (a still frame's second, anti-aliasing pass
+//   reads the finished first pass).
 #pragma once
 
 #include <cstdint>
@@ -24,6 +25,13 @@
 #include "protocol/cpp/values.hpp"  // Camera (and its validate()), Shading, kMaxFrameSide
 
 namespace marzipan {
+
+// Interactive frames favour speed; still frames (shown once edits stop, render.frame, snapshots)
+// shade from a smooth normal field (the central-difference gradients at the hit cell's corners,
+// blended trilinearly: continuous across cells, so a smooth surface shows no voxel steps), take
+// five ambient-occlusion samples instead of two, and anti-alias: pixels on a silhouette, a
+// depth jump or a colour crease get four more rays on a rotated grid, averaged in linear light.
+enum class FrameQuality { Interactive, Still };
 
 struct Frame {
   int width = 0, height = 0;
@@ -60,8 +68,11 @@ class RaycastAccel {
   std::vector<std::shared_ptr<const Brick>> owned_;
 };
 
-Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool);
+// thicknessMinVu (> 0, vu) is used by Shading::Thickness only.
+Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, ThreadPool& pool,
+             FrameQuality quality = FrameQuality::Interactive, double thicknessMinVu = 1.0);
 // Builds the accelerator for this one frame; keep a RaycastAccel to render a version repeatedly.
-Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool);
+Frame render(const Volume& volume, const Camera& camera, Shading shading, ThreadPool& pool,
+             FrameQuality quality = FrameQuality::Interactive, double thicknessMinVu = 1.0);
 
 }  // namespace marzipan

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -18,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/decimate.hpp"
 #include "engine/errors.hpp"
 #include "engine/image_io.hpp"
 #include "engine/marching_cubes.hpp"
@@ -64,6 +66,7 @@ struct Options {
   int width = 512, height = 512;
   Shading shading = Shading::Lit;
   std::optional<int> quality;
+  DecimateOptions decimate;
   bool stats = false;
   int statsEvery = 0;
   int threads = 0;
@@ -148,6 +151,11 @@ Options parseOptions(const std::vector<std::string>& args) {
       if (*o.fitMargin < 0) throw UsageError("--fit takes a margin of 0 vu or more");
     } else if (name == "--out") {
       o.out = value();
+    } else if (name == "--max-triangles") {
+      o.decimate.maxTriangles = std::size_t(parseInt(name, value(), 1, std::numeric_limits<int>::max()));
+    } else if (name == "--max-error") {
+      o.decimate.maxError = parseDouble(name, value());
+      if (!(*o.decimate.maxError > 0)) throw UsageError("--max-error takes a number of vu above 0");
     } else if (name == "--render") {
       o.render = value();
     } else if (name == "--camera-eye") {
@@ -184,7 +192,7 @@ Options parseOptions(const std::vector<std::string>& args) {
   if (o.opsPath.empty()) throw UsageError("missing the OPS file (a path, or - for standard input)");
   const std::string loadExt = lowerExtension(o.load);
   if (!o.load.empty()) {
-    if (loadExt != "mzv" && !meshFormatFromName(loadExt))
+    if (loadExt != "mzv" && (!meshFormatFromName(loadExt) || loadExt == "glb"))
       throw UsageError("--load takes a .mzv, .stl, .obj or .ply file, got \"" + o.load + "\"");
     if (o.solid) throw UsageError("--solid and --load exclude each other");
     if (loadExt == "mzv" && o.size) throw UsageError("--size does not apply to a .mzv file, which has its own size");
@@ -195,8 +203,10 @@ Options parseOptions(const std::vector<std::string>& args) {
   if (!o.out.empty()) {
     const std::string ext = lowerExtension(o.out);
     if (ext != "mzv" && !meshFormatFromName(ext))
-      throw UsageError("--out takes a .stl, .obj, .ply or .mzv file, got \"" + o.out + "\"");
+      throw UsageError("--out takes a .stl, .obj, .ply, .glb or .mzv file, got \"" + o.out + "\"");
   }
+  if ((o.decimate.maxTriangles || o.decimate.maxError) && (o.out.empty() || lowerExtension(o.out) == "mzv"))
+    throw UsageError("--max-triangles and --max-error apply to a mesh written with --out");
   if (!o.render.empty()) {
     const std::string ext = lowerExtension(o.render);
     if (ext != "png" && ext != "jpg" && ext != "jpeg")
@@ -298,14 +308,24 @@ nlohmann::ordered_json statsLine(const Volume& vol, double ms) {
           {"ms", std::round(ms * 1000) / 1000}};
 }
 
-void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camera>& camera, ThreadPool& pool) {
+void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camera>& camera, ThreadPool& pool,
+                  std::ostream& out) {
   if (!o.out.empty()) {
     try {
       const std::string ext = lowerExtension(o.out);
       if (ext == "mzv") {
         saveVolumeFile(vol, o.out);
       } else {
-        writeFile(o.out, exportMesh(extractMesh(vol, pool), *meshFormatFromName(ext)));
+        Mesh mesh = extractMesh(vol, pool);
+        if (o.decimate.maxTriangles || o.decimate.maxError) {
+          DecimateResult d = decimateMesh(mesh, vol, o.decimate, pool);
+          out << nlohmann::ordered_json{{"mesh", o.out}, {"source_triangles", d.sourceTriangles},
+                              {"triangles", d.mesh.triangleCount()}, {"vertices", d.mesh.vertexCount()},
+                              {"max_error", d.maxError}}.dump()
+              << '\n' << std::flush;
+          mesh = std::move(d.mesh);
+        }
+        writeFile(o.out, exportMesh(mesh, *meshFormatFromName(ext)));
       }
     } catch (const EngineError& e) {
       throw InputError(o.out + ": " + e.what());
@@ -313,7 +333,7 @@ void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camer
   }
   if (camera) {
     try {
-      const Frame frame = render(vol, *camera, o.shading, pool);
+      const Frame frame = render(vol, *camera, o.shading, pool, FrameQuality::Still);
       const ImageFormat format = lowerExtension(o.render) == "png" ? ImageFormat::Png : ImageFormat::Jpeg;
       writeFile(o.render,
                 encodeImage(frame.rgb, frame.width, frame.height, format, o.quality.value_or(kDefaultQuality)));
@@ -352,7 +372,7 @@ int run(const std::vector<std::string>& args, std::ostream& out) {
     }
   }
   if (o.stats && !reported) out << statsLine(vol, ms).dump() << '\n' << std::flush;
-  writeOutputs(o, vol, camera, pool);
+  writeOutputs(o, vol, camera, pool, out);
   return kExitOk;
 }
 
@@ -381,7 +401,12 @@ Starting solid:
   --fit MARGIN          with a mesh: scale and centre it, MARGIN vu from the tightest sides
 
 Output:
-  --out FILE            .stl, .obj or .ply mesh of the surface, or .mzv volume file
+  --out FILE            .stl, .obj, .ply or .glb (glTF 2.0) mesh of the surface, or .mzv
+                        volume file
+  --max-triangles N     decimate the mesh to at most N triangles (meshoptimizer)
+  --max-error E         decimate while meshoptimizer's error estimate stays within E vu;
+                        with either, one JSON line on stdout: mesh, source_triangles,
+                        triangles, vertices, max_error (measured distance to the surface, vu)
   --render FILE         .png or .jpg ray-cast image of the result
   --camera-eye X,Y,Z    default: a 3/4 view from the front right, above, framing the domain
   --camera-target X,Y,Z default: the domain's centre

@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/decimate.hpp"
 #include "engine/errors.hpp"
 #include "engine/image_io.hpp"
 #include "engine/marching_cubes.hpp"
@@ -28,6 +29,7 @@
 #include "engine/mesh_io.hpp"
 #include "engine/raycast.hpp"
 #include "engine/solids.hpp"
+#include "engine/thickness.hpp"
 #include "engine/splats.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume_file.hpp"
@@ -174,6 +176,7 @@ class HubClient {
   ViewMode mode = ViewMode::None;
   Camera camera;
   Shading shading = Shading::Lit;
+  double thicknessMinVu = 1;
   StrokeId stroke = 0;
   std::uint64_t frameSeq = 0;     // bumped by every change or camera change
   bool rendering = false, renderAgain = false;
@@ -862,11 +865,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     const std::uint64_t revision = s.session->revision(), seq = c->frameSeq;
     const Camera camera = c->camera;
     const Shading shading = c->shading;
+    const double minVu = c->thicknessMinVu;
     const int quality = still ? options.stillQuality : options.interactiveQuality;
     std::weak_ptr<LiveSession> weak = c->session;
-    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, quality, still] {
+    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, minVu, quality, still] {
       try {
-        const Frame f = render(*snapshot, camera, shading, self->pool);
+        const Frame f =
+            render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive, minVu);
         const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
         c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
       } catch (const std::exception& e) {
@@ -1141,6 +1146,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
         c->mode = p.mode;
         if (p.camera) c->camera = *p.camera;
         c->shading = p.shading;
+        c->thicknessMinVu = p.minVu;
         r.result = {{"mode", protocol::nameOf(protocol::kViewModeNames, p.mode)}, {"revision", s.session->revision()}};
         r.after = [self, &s, c] {
           if (c->mode == ViewMode::Splats) self->sendFullSplats(s, *c, 0);
@@ -1152,7 +1158,7 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       const protocol::RenderFrameParams p = protocol::parseRenderFrameParams(req.params, l.maxFrameSide);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, p, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-        const Frame f = render(vol, p.camera, p.shading, self->pool);
+        const Frame f = render(vol, p.camera, p.shading, self->pool, FrameQuality::Still, p.minVu);
         const bool png = p.format == protocol::ImageKind::Png;
         const Bytes file = png ? encodePng(f.rgb, f.width, f.height) : encodeJpeg(f.rgb, f.width, f.height, p.quality);
         r.frame = makeFrame(png ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg, frameId, revision, file);
@@ -1171,21 +1177,44 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       });
     }
     case Method::MeshExport: {
-      const std::string format = protocol::parseMeshExportParams(req.params);
+      const protocol::MeshExportParams p = protocol::parseMeshExportParams(req.params);
+      const std::string format = p.format;
       const std::uint32_t frameId = req.frameId;
-      return offStrand(c, req.id, [self, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-        const Mesh mesh = extractMesh(vol, self->pool);
+      return offStrand(c, req.id, [self, p, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        Mesh mesh = extractMesh(vol, self->pool);
+        std::optional<DecimateResult> decimated;
+        if (p.maxTriangles || p.maxError) {
+          decimated = decimateMesh(mesh, vol, {p.maxTriangles, p.maxError}, self->pool);
+          mesh = std::move(decimated->mesh);
+        }
         const MeshFormat f = *meshFormatFromName(format);
         const Bytes file = exportMesh(mesh, f);
         if (file.size() > protocol::kMaxFramePayload)
           throw RpcException(RpcCode::LimitExceeded, "the mesh file is larger than one frame can carry (4 GiB)",
                              {{"limit", "frame_payload"}, {"max", protocol::kMaxFramePayload}});
-        const auto kind = format == "stl" ? protocol::FrameKind::MeshStl
+        const auto kind = format == "stl"   ? protocol::FrameKind::MeshStl
                           : format == "obj" ? protocol::FrameKind::MeshObj
+                          : format == "glb" ? protocol::FrameKind::MeshGlb
                                             : protocol::FrameKind::MeshPly;
         r.frame = makeFrame(kind, frameId, revision, file);
         r.result = {{"revision", revision}, {"format", format}, {"vertices", mesh.vertexCount()},
                     {"triangles", mesh.triangleCount()}, {"bytes", file.size()}};
+        if (decimated) {
+          r.result["source_triangles"] = decimated->sourceTriangles;
+          r.result["max_error"] = decimated->maxError;
+        }
+      });
+    }
+    case Method::AnalysisThickness: {
+      const protocol::ThicknessParams p = protocol::parseThicknessParams(req.params);
+      return offStrand(c, req.id, [self, p](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const ThicknessReport t = analyzeThickness(vol, p.minVu, p.maxPlaces, 4.0, self->pool);
+        json places = json::array();
+        for (const ThinPlace& q : t.places)
+          places.push_back({{"point", protocol::vec3Json(q.point)}, {"normal", protocol::vec3Json(q.normal)},
+                            {"thickness", q.thickness}});
+        r.result = {{"revision", revision}, {"min_vu", p.minVu}, {"points", t.points}, {"below", t.below},
+                    {"thinnest", t.points ? json(t.thinnest) : json(nullptr)}, {"places", places}};
       });
     }
     case Method::VolumeSave: {

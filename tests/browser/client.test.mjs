@@ -370,6 +370,16 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.match(download.suggestedFilename(), /^marzipan-.*\.stl$/);
   const triangles = checkStl(readFileSync(stlPath), 128);
   t.diagnostic(`exported ${triangles} triangles`);
+  // And as glTF binary: the same triangles behind the "glTF" header.
+  const [glbDownload] = await Promise.all([page.waitForEvent("download"), page.click('[data-export="glb"]')]);
+  const glbPath = join(artifacts, "export.glb");
+  await glbDownload.saveAs(glbPath);
+  assert.match(glbDownload.suggestedFilename(), /^marzipan-.*\.glb$/);
+  const glb = readFileSync(glbPath);
+  assert.equal(glb.toString("latin1", 0, 4), "glTF");
+  assert.equal(glb.readUInt32LE(8), glb.length);
+  const gltf = JSON.parse(glb.toString("utf8", 20, 20 + glb.readUInt32LE(12)));
+  assert.equal(gltf.accessors[gltf.meshes[0].primitives[0].indices].count, 3 * triangles);
 
   // Brush size from the keyboard and from an F+drag, fast or slow.
   await page.locator("#view").focus();

@@ -9,6 +9,7 @@
 
 #include "engine/errors.hpp"
 #include "engine/raycast.hpp"
+#include "engine/shapes.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -108,9 +109,10 @@ TEST_CASE("frames are identical for any thread count", "[raycast]") {
   const Vec3 c{31.5, 31.5, 31.5};
   const Camera cam{c + Vec3{60, 35, 70}, c, {0, 1, 0}, 45, 83, 61};
   ThreadPool one(1), two(2);
+  for (FrameQuality q : {FrameQuality::Interactive, FrameQuality::Still})
   for (Shading sh : {Shading::Lit, Shading::Normals, Shading::GradientError}) {
-    const Frame a = render(pig, cam, sh, one);
-    const Frame b = render(RaycastAccel(pig), cam, sh, two);
+    const Frame a = render(pig, cam, sh, one, q);
+    const Frame b = render(RaycastAccel(pig), cam, sh, two, q);
     REQUIRE(a.rgb == b.rgb);
     REQUIRE(a.depth.size() == b.depth.size());
     CHECK(std::memcmp(a.depth.data(), b.depth.data(), a.depth.size() * sizeof(float)) == 0);
@@ -118,6 +120,95 @@ TEST_CASE("frames are identical for any thread count", "[raycast]") {
     for (float d : a.depth) hit += std::isfinite(d) ? 1 : 0;
     CHECK(hit > 500);
   }
+}
+
+namespace {
+
+// A sphere filling most of a square frame, lit: radius 30 vu, so that a voxel spans about 4
+// pixels and the shading of each cell is visible.
+struct LargeSphere {
+  Vec3 center{48, 48, 48};
+  double radius = 30;
+  Volume volume = makeSphere({96, 96, 96}, center, radius);
+  Camera camera{center + normalized(Vec3{1, 0.75, 1.25}) * 99.0, center, {0, 1, 0}, 40, 320, 320};
+};
+
+int luma(const Frame& f, int x, int y) {
+  const std::uint8_t* p = &f.rgb[index(f, x, y) * 3];
+  return int(p[0]) + int(p[1]) + int(p[2]);
+}
+
+// The largest and the mean |I(x+1) - 2 I(x) + I(x-1)| of the summed channels along every row,
+// over pixels whose row neighbours within `margin` all hit the surface (away from the silhouette).
+struct SecondDifference {
+  int worst = 0;
+  double mean = 0;
+};
+SecondDifference secondDifference(const Frame& f, int margin) {
+  int worst = 0;
+  long long sum = 0, count = 0;
+  for (int y = 0; y < f.height; ++y)
+    for (int x = margin; x + margin < f.width; ++x) {
+      bool interior = true;
+      for (int dx = -margin; dx <= margin && interior; ++dx) interior = std::isfinite(f.depth[index(f, x + dx, y)]);
+      if (!interior) continue;
+      const int d = std::abs(luma(f, x + 1, y) - 2 * luma(f, x, y) + luma(f, x - 1, y));
+      worst = std::max(worst, d);
+      sum += d, ++count;
+    }
+  return {worst, count ? double(sum) / double(count) : 0.0};
+}
+
+}  // namespace
+
+TEST_CASE("still frames shade a smooth sphere smoothly and anti-alias its silhouette", "[raycast]") {
+  LargeSphere s;
+  ThreadPool pool(2);
+  const RaycastAccel accel(s.volume, pool);
+  const Frame fast = render(accel, s.camera, Shading::Lit, pool, FrameQuality::Interactive);
+  const Frame still = render(accel, s.camera, Shading::Lit, pool, FrameQuality::Still);
+  CHECK(fast.depth == still.depth);
+
+  // Rounding each channel to 8 bits alone makes second differences of up to 2 per channel (6 for
+  // the sum); a smooth shading stays near that, a per-cell normal steps at every cell face.
+  const SecondDifference fastSecond = secondDifference(fast, 6), stillSecond = secondDifference(still, 6);
+  INFO("second difference of R+G+B along rows: interactive worst " << fastSecond.worst << " mean " << fastSecond.mean
+                                                                   << ", still worst " << stillSecond.worst << " mean " << stillSecond.mean);
+  CHECK(stillSecond.worst <= 14);
+  // The check tells the two apart: the steps are there without the smooth normals.
+  CHECK(fastSecond.worst > 20);
+  CHECK(fastSecond.mean > 1.5 * stillSecond.mean);
+  // Silhouette: the reference is the same view rendered 4x larger and box-filtered down.
+  Camera big = s.camera;
+  big.width *= 4, big.height *= 4;
+  const Frame ref = render(accel, big, Shading::Lit, pool, FrameQuality::Interactive);
+  auto refValue = [&](int x, int y, int ch) {
+    int sum = 0;
+    for (int dy = 0; dy < 4; ++dy)
+      for (int dx = 0; dx < 4; ++dx) sum += ref.rgb[(std::size_t(4 * y + dy) * ref.width + 4 * x + dx) * 3 + ch];
+    return sum / 16.0;
+  };
+  double fastError = 0, stillError = 0;
+  int silhouette = 0, blended = 0;
+  for (int y = 1; y + 1 < still.height; ++y)
+    for (int x = 1; x + 1 < still.width; ++x) {
+      bool mixed = false;
+      const bool h = std::isfinite(still.depth[index(still, x, y)]);
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) mixed |= std::isfinite(still.depth[index(still, x + dx, y + dy)]) != h;
+      if (!mixed) continue;
+      ++silhouette;
+      for (int ch = 0; ch < 3; ++ch) {
+        fastError += std::fabs(fast.rgb[index(fast, x, y) * 3 + ch] - refValue(x, y, ch));
+        stillError += std::fabs(still.rgb[index(still, x, y) * 3 + ch] - refValue(x, y, ch));
+      }
+      blended += still.rgb[index(still, x, y) * 3 + 1] != fast.rgb[index(fast, x, y) * 3 + 1] ? 1 : 0;
+    }
+  INFO("silhouette pixels " << silhouette << ", changed by AA " << blended << "; mean abs error vs 4x4 supersampled: interactive "
+                            << fastError / (3 * silhouette) << ", still " << stillError / (3 * silhouette));
+  REQUIRE(silhouette > 500);
+  CHECK(blended > silhouette / 4);
+  CHECK(stillError < 0.6 * fastError);
 }
 
 TEST_CASE("gradient-error mode is dark on a distance field and bright where it is corrupted", "[raycast]") {
@@ -278,4 +369,32 @@ TEST_CASE("invalid cameras are refused", "[raycast][errors]") {
   } catch (const EngineError& e) {
     CHECK(e.kind() == ErrorKind::TooLarge);
   }
+}
+
+TEST_CASE("thickness shading paints thin walls red and thick ones clay", "[raycast]") {
+  // A 2 vu plate on the left half, a 20 vu block on the right half, seen from +z.
+  const Volume v = makeFromFunction(
+      {64, 64, 64},
+      [](Vec3 p) {
+        const double plate = sdf::box(p, {18, 32, 32}, {12, 20, 1});
+        const double block = sdf::box(p, {46, 32, 32}, {12, 20, 10});
+        return std::min(plate, block);
+      },
+      true);
+  const Camera cam{{32, 32, 150}, {32, 32, 32}, {0, 1, 0}, 40, 64, 64};
+  ThreadPool pool(2);
+  const Frame f = render(v, cam, Shading::Thickness, pool, FrameQuality::Interactive, 4.0);
+  const Frame lit = render(v, cam, Shading::Lit, pool);
+  auto px = [&](const Frame& fr, int x, int y) { return &fr.rgb[index(fr, x, y) * 3]; };
+  // Pixel columns over the plate (x ~ 18) and over the block (x ~ 46).
+  const int plateX = 20, blockX = 44, y = 32;
+  REQUIRE(std::isfinite(f.depth[index(f, plateX, y)]));
+  REQUIRE(std::isfinite(f.depth[index(f, blockX, y)]));
+  const std::uint8_t* thin = px(f, plateX, y);
+  const std::uint8_t* thick = px(f, blockX, y);
+  CHECK(thin[0] > 2 * thin[1]);  // red
+  CHECK(thin[0] > 2 * thin[2]);
+  CHECK(std::equal(thick, thick + 3, px(lit, blockX, y)));  // three times the minimum and more: clay
+  CHECK(f.depth == lit.depth);
+  CHECK_THROWS_AS(render(v, cam, Shading::Thickness, pool, FrameQuality::Interactive, 0.0), EngineError);
 }

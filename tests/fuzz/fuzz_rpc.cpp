@@ -43,6 +43,11 @@ void decodeParams(const Request& r) {
       break;
     }
     case Method::MeshExport: (void)parseMeshExportParams(p); break;
+    case Method::AnalysisThickness: {
+      const ThicknessParams t = parseThicknessParams(p);
+      expect(t.minVu > 0 && t.minVu <= 1e4 && t.maxPlaces >= 1 && t.maxPlaces <= 1000, "thickness params in range");
+      break;
+    }
     case Method::VolumeLoad: {
       const std::uint64_t bytes = parseVolumeLoadParams(p, kMaxUploadBytes);
       expect(bytes >= 52 && bytes <= kMaxUploadBytes, "an upload size is within [52, max_binary_bytes - 24]");

@@ -474,6 +474,22 @@ TEST_CASE("mesh.export and volume.save send files; volume.load takes one back as
   CHECK(file.size() - protocol::kFrameHeaderBytes == 84 + 50 * stl["triangles"].get<std::size_t>());
   CHECK(stl["triangles"].get<int>() > 1000);
   CHECK(a.call("mesh.export", {{"format", "fbx"}})["error"]["data"]["field"] == "format");
+  CHECK(a.call("mesh.export", {{"format", "glb"}, {"max_triangles", 0}})["error"]["data"]["field"] == "max_triangles");
+  CHECK(a.call("mesh.export", {{"format", "glb"}, {"max_error", -1}})["error"]["data"]["field"] == "max_error");
+
+  // glTF, decimated to a budget: the result reports what was reached and how far it strays.
+  id = a.nextId;
+  const json glb = a.result("mesh.export", {{"format", "glb"}, {"max_triangles", 500}});
+  file = std::get<Bytes>(a.link->at(a.link->waitFor([&](const auto& m) {
+    return isFrame(m, protocol::FrameKind::MeshGlb) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+  })));
+  CHECK(std::string(file.begin() + protocol::kFrameHeaderBytes, file.begin() + protocol::kFrameHeaderBytes + 4) == "glTF");
+  CHECK(glb["source_triangles"] == stl["triangles"]);
+  CHECK(glb["triangles"].get<int>() <= 500);
+  CHECK(glb["triangles"].get<int>() > 400);
+  CHECK(glb["max_error"].get<double>() > 0);
+  CHECK(glb["max_error"].get<double>() < 3);
+  CHECK_FALSE(stl.contains("max_error"));
 
   id = a.nextId;
   const json saved = a.result("volume.save");
@@ -636,4 +652,31 @@ TEST_CASE("leaving and disconnecting update the others' client lists", "[hub]") 
   });
   CHECK(a.result("session.leave")["session"] == created["session"]);
   CHECK(a.error("session.stats") == -32009);
+}
+
+TEST_CASE("analysis.thickness finds the thinnest places; frames shade thickness", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  // The sphere's radius is 0.35 * 64 = 22.4: every chord through the centre is 44.8 vu.
+  const json all = a.result("analysis.thickness", {{"min_vu", 50}, {"max_places", 5}});
+  CHECK(all["points"].get<int>() > 1000);
+  CHECK(all["below"] == all["points"]);
+  CHECK(all["thinnest"].get<double>() == Approx(44.8).margin(0.2));
+  REQUIRE(all["places"].size() == 5);
+  CHECK(all["places"][0]["thickness"] == all["thinnest"]);
+  const json none = a.result("analysis.thickness", {{"min_vu", 40}});
+  CHECK(none["below"] == 0);
+  CHECK(none["places"].empty());
+  CHECK(a.call("analysis.thickness", {{"max_places", 3}})["error"]["data"]["field"] == "min_vu");
+  CHECK(a.call("analysis.thickness", {{"min_vu", 0}})["error"]["data"]["field"] == "min_vu");
+  CHECK(a.call("analysis.thickness", {{"min_vu", 1}, {"max_places", 0}})["error"]["data"]["field"] == "max_places");
+
+  const json camera = {{"eye", {32, 32, 150}}, {"target", {32, 32, 32}}};
+  CHECK(a.result("render.frame", {{"camera", camera}, {"width", 16}, {"height", 16}, {"format", "png"},
+                                  {"shading", "thickness"}, {"min_vu", 50}})["format"] == "png");
+  CHECK(a.call("render.frame", {{"camera", camera}, {"width", 16}, {"height", 16}, {"format", "png"}, {"min_vu", 5}})
+            ["error"]["data"]["field"] == "min_vu");
+  CHECK(a.result("view.set", {{"mode", "frames"}, {"camera", camera}, {"width", 16}, {"height", 16},
+                              {"shading", "thickness"}, {"min_vu", 3}})["mode"] == "frames");
 }

@@ -4,9 +4,10 @@
 //   (interactive quality first, then a still one) and one at once for every view.set. Camera
 //   moves send view.set, at most one in flight, at half resolution while the camera moves and
 //   at full resolution once it has been still for STILL_DELAY_MS.
-// - "normals" and "gradient_error" (for inspection): view.set has no shading, so the session
-//   streams `none` and this asks for each frame with render.frame (PNG, exact pixels) after
-//   every camera move or change of the session, one request in flight, the newest wins.
+// - "normals", "gradient_error" and "thickness" (for inspection): the session streams `none`
+//   and this asks for each frame with render.frame (PNG, exact pixels) after every camera move
+//   or change of the session, one request in flight, the newest wins. "thickness" paints walls
+//   thinner than THICKNESS_MIN_VU red (a typical minimum wall for printing at 1 vu = 1 mm).
 // Conventions: sizes in device pixels of the canvas, capped by the server's max_frame_side;
 // images decode off the main thread (createImageBitmap) and an older image that finishes
 // decoding after a newer one is dropped.
@@ -14,6 +15,7 @@
 import { FrameKind } from "/protocol/js/frames.js";
 
 const STILL_DELAY_MS = 200;
+export const THICKNESS_MIN_VU = 2;
 
 export class FrameFeed {
   // onShown(): called after each frame is shown.
@@ -96,7 +98,14 @@ export class FrameFeed {
       this.session.setView({ mode: "frames", camera, width: size[0], height: size[1] }).then(done, done);
     } else {
       this.session
-        .renderFrame({ camera, width: size[0], height: size[1], format: "png", shading: this.shading })
+        .renderFrame({
+          camera,
+          width: size[0],
+          height: size[1],
+          format: "png",
+          shading: this.shading,
+          ...(this.shading === "thickness" ? { min_vu: THICKNESS_MIN_VU } : {}),
+        })
         .then(({ result, frame }) => {
           if (frame) this.show(frame.header.kind, result.revision, frame.payload, still);
         })

@@ -8,6 +8,9 @@
 
 import { GLOBAL_OPS, TOOLS, toolById } from "./tools.js";
 
+// Shadings only the server's ray caster draws: choosing one switches to the frame view.
+const FRAMES_ONLY = new Set(["gradient_error", "thickness"]);
+
 export const RADIUS_MIN = 0.5;
 export const RADIUS_MAX = 1024;
 
@@ -152,14 +155,14 @@ export class Controls {
   setView(view) {
     this.settings.view = view;
     for (const input of this.doc.querySelectorAll('input[name="view"]')) input.checked = input.value === view;
-    if (view === "splats" && this.settings.shading === "gradient_error") this.#setShadingControl("lit");
+    if (view === "splats" && FRAMES_ONLY.has(this.settings.shading)) this.#setShadingControl("lit");
     this.handlers.onView(view, this.settings.shading);
   }
 
   setShading(shading) {
     this.#setShadingControl(shading);
     // Gradient error exists only in the server's frames.
-    if (shading === "gradient_error" && this.settings.view !== "frames") return this.setView("frames");
+    if (FRAMES_ONLY.has(shading) && this.settings.view !== "frames") return this.setView("frames");
     this.handlers.onView(this.settings.view, shading);
   }
 

@@ -1,7 +1,7 @@
 // Files in and out of the page: downloads of what the server sends (meshes, volume files) and
 // of snapshots, and reading a file the person picks.
 
-const MIME = { stl: "model/stl", obj: "model/obj", ply: "application/octet-stream", mzv: "application/octet-stream", png: "image/png" };
+const MIME = { stl: "model/stl", obj: "model/obj", ply: "application/octet-stream", glb: "model/gltf-binary", mzv: "application/octet-stream", png: "image/png" };
 
 // Offers `data` (a Blob, or bytes) as a download named `name`.
 export function download(data, name) {

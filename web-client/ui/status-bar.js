@@ -14,6 +14,7 @@ const SLOW_METHODS = new Set([
   "mesh.export",
   "volume.save",
   "volume.load",
+  "analysis.thickness",
 ]);
 
 export class StatusBar {

@@ -25,7 +25,7 @@ from .rpc import ConnectionClosed, ProtocolError, RpcError
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_CONNECTION = 0, 1, 2, 3
 DEFAULT_URL = "ws://127.0.0.1:8080/ws"
-_MESH_FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply"}
+_MESH_FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".glb": "glb"}
 _IMAGE_FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg"}
 _SOLIDS = ("empty", "sphere", "box", "torus", "cylinder", "dumbbell", "pig")
 # The direction of the default view, from the target towards the eye: front right and above
@@ -162,7 +162,11 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--load", metavar="FILE.mzv", help="start from a volume file (a session of its size)")
     b.add_argument("--join", metavar="SESSION", help="work in this existing session instead of a new one")
     b.add_argument("--token", help="the edit token of --join's session")
-    b.add_argument("--out", metavar="FILE", help="write the result: .stl .obj .ply (mesh, vu) or .mzv")
+    b.add_argument("--out", metavar="FILE", help="write the result: .stl .obj .ply .glb (mesh, vu) or .mzv")
+    b.add_argument("--max-triangles", type=_int_in(1, (1 << 32) - 1), metavar="N",
+                   help="decimate the --out mesh to at most N triangles")
+    b.add_argument("--max-error", type=float, metavar="E",
+                   help="decimate the --out mesh while the error estimate stays within E vu")
     b.add_argument("--render", metavar="FILE", help="ray-cast a picture of the result: .png or .jpg")
     b.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z")
     b.add_argument("--camera-target", type=_vec3, metavar="X,Y,Z", help="default: the domain's centre")
@@ -195,7 +199,12 @@ def _check_usage(parser, a):
     if a.load and not a.load.lower().endswith(".mzv"):
         fail("--load takes a .mzv volume file over the network (meshes: `marzipan batch --load`)")
     if a.out and os.path.splitext(a.out)[1].lower() not in (*_MESH_FORMATS, ".mzv"):
-        fail(f"--out {a.out}: the extension must be .stl, .obj, .ply or .mzv")
+        fail(f"--out {a.out}: the extension must be .stl, .obj, .ply, .glb or .mzv")
+    decimate = a.max_triangles is not None or a.max_error is not None
+    if decimate and (not a.out or a.out.lower().endswith(".mzv")):
+        fail("--max-triangles and --max-error apply to a mesh written with --out")
+    if a.max_error is not None and not (0 < a.max_error <= 1e6):
+        fail("--max-error takes a number of vu above 0")
     if a.render and os.path.splitext(a.render)[1].lower() not in _IMAGE_FORMATS:
         fail(f"--render {a.render}: the extension must be .png or .jpg")
     if not a.render and (a.camera_eye or a.camera_target or a.camera_up or a.shading or a.quality):
@@ -265,7 +274,15 @@ async def run_batch(a) -> int:
         outputs = []
         if a.out:
             ext = os.path.splitext(a.out)[1].lower()
-            data = await client.save() if ext == ".mzv" else await client.export_mesh(_MESH_FORMATS[ext])
+            if ext == ".mzv":
+                data = await client.save()
+            elif a.max_triangles is not None or a.max_error is not None:
+                result, data = await client.export_mesh_with_result(_MESH_FORMATS[ext], a.max_triangles, a.max_error)
+                print(json.dumps({"mesh": a.out, "source_triangles": result["source_triangles"],
+                                  "triangles": result["triangles"], "vertices": result["vertices"],
+                                  "max_error": result["max_error"]}), flush=True)
+            else:
+                data = await client.export_mesh(_MESH_FORMATS[ext])
             outputs.append((a.out, data))
         if a.render:
             camera = default_camera(size, a.fov, a.camera_target)

@@ -46,7 +46,8 @@ DEFAULT_MAX_UPDATES = 4096
 # The binary frame kinds that may answer each binary-answered method.
 _ANSWER_KINDS = {
     "render.frame": {"jpeg": FrameKind.FRAME_JPEG, "png": FrameKind.FRAME_PNG},
-    "mesh.export": {"stl": FrameKind.MESH_STL, "obj": FrameKind.MESH_OBJ, "ply": FrameKind.MESH_PLY},
+    "mesh.export": {"stl": FrameKind.MESH_STL, "obj": FrameKind.MESH_OBJ, "ply": FrameKind.MESH_PLY,
+                    "glb": FrameKind.MESH_GLB},
 }
 _SESSION_ID_CHARS = 22  # 132 random bits in base64url, as PROTOCOL.md proposes
 
@@ -566,17 +567,36 @@ class Client:
                                                             shading=shading))
 
     async def frame(self, camera: dict, width: int, height: int, format: str = "png", *,
-                    quality: int | None = None, shading: str | None = None) -> bytes:
+                    quality: int | None = None, shading: str | None = None,
+                    min_vu: float | None = None) -> bytes:
         """render.frame: the image file (PNG or JPEG) of `camera` = {eye, target, up?, fov?}
-        at width x height; shading "lit" (default), "normals" or "gradient_error"."""
+        at width x height; shading "lit" (default), "normals", "gradient_error" or "thickness"
+        (with min_vu: walls thinner than that are red)."""
         _, frame = await self.call("render.frame", _without_none(
-            camera=camera, width=width, height=height, format=format, quality=quality, shading=shading))
+            camera=camera, width=width, height=height, format=format, quality=quality, shading=shading,
+            min_vu=min_vu))
         return bytes(frame.payload)
 
-    async def export_mesh(self, format: str = "stl") -> bytes:
-        """mesh.export: the marching-cubes mesh as an STL, OBJ or PLY file (vu)."""
-        _, frame = await self.call("mesh.export", {"format": format})
-        return bytes(frame.payload)
+    async def export_mesh(self, format: str = "stl", max_triangles: int | None = None,
+                          max_error: float | None = None) -> bytes:
+        """mesh.export: the marching-cubes mesh as an STL, OBJ, PLY or glTF binary (glb) file
+        (vu), decimated to at most max_triangles and/or within max_error vu when given."""
+        return (await self.export_mesh_with_result(format, max_triangles, max_error))[1]
+
+    async def export_mesh_with_result(self, format: str = "stl", max_triangles: int | None = None,
+                                      max_error: float | None = None) -> tuple[dict, bytes]:
+        """export_mesh, with the result: {revision, format, vertices, triangles, bytes} and,
+        when decimated, source_triangles and max_error (measured distance to the surface, vu)."""
+        result, frame = await self.call("mesh.export", _without_none(
+            format=format, max_triangles=max_triangles, max_error=max_error))
+        return result, bytes(frame.payload)
+
+    async def thickness(self, min_vu: float, max_places: int | None = None) -> dict:
+        """analysis.thickness: {revision, min_vu, points, below, thinnest, places: [{point,
+        normal, thickness}]}: the wall thickness under every surface point (vu), the thinnest
+        places thinner than min_vu first."""
+        result, _ = await self.call("analysis.thickness", _without_none(min_vu=min_vu, max_places=max_places))
+        return result
 
     async def splats(self):
         """splats.get: the full splat buffer, decoded (splats.SplatBuffer)."""

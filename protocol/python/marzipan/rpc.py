@@ -34,6 +34,7 @@ METHODS = (
     "mesh.export",
     "volume.save",
     "volume.load",
+    "analysis.thickness",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

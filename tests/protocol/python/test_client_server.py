@@ -3,6 +3,7 @@ port for this file): every method, the typed errors the contract lists, two clie
 session, and the exact numbers the server reports (digests, byte counts, splat geometry)."""
 
 import asyncio
+import json
 import math
 import re
 import struct
@@ -180,9 +181,12 @@ class AgainstServer(unittest.TestCase):
                 stl_result, stl = await client.call("mesh.export", {"format": "stl"})
                 obj = await client.export_mesh("obj")
                 ply = await client.export_mesh("ply")
-                return png, error_png, jpeg, stl_result, bytes(stl.payload), obj, ply
+                glb = await client.export_mesh_with_result("glb", max_triangles=1000)
+                thick = await client.thickness(100, max_places=3)
+                thick_png = await client.frame(camera, 64, 48, "png", shading="thickness", min_vu=100)
+                return png, error_png, jpeg, stl_result, bytes(stl.payload), obj, ply, glb, thick, thick_png
 
-        png, error_png, jpeg, stl_result, stl, obj, ply = run(go())
+        png, error_png, jpeg, stl_result, stl, obj, ply, (glb_result, glb), thick, thick_png = run(go())
         width, height, channels, pixels = decode_png(png)
         self.assertEqual((width, height, channels), (160, 120, 3))
         self.assertGreater(len(set(pixels)), 20, "a lit picture, not a blank one")
@@ -198,6 +202,22 @@ class AgainstServer(unittest.TestCase):
         self.assertEqual(sum(1 for line in text.splitlines() if line.startswith("v ")), stl_result["vertices"])
         self.assertTrue(ply.startswith(b"ply\nformat binary_little_endian 1.0\n"))
         self.assertIn(f"element face {triangles}\n".encode(), ply[:400])
+        # glTF binary decimated to 1000 triangles: header, JSON chunk, and the index count.
+        self.assertEqual(glb[:4], b"glTF")
+        self.assertEqual(struct.unpack_from("<II", glb, 4), (2, len(glb)))
+        self.assertEqual(glb_result["source_triangles"], triangles)
+        self.assertLessEqual(glb_result["triangles"], 1000)
+        self.assertGreater(glb_result["triangles"], 900)
+        self.assertTrue(0 < glb_result["max_error"] < 3)
+        doc = json.loads(glb[20:20 + struct.unpack_from("<I", glb, 12)[0]])
+        indices = doc["accessors"][doc["meshes"][0]["primitives"][0]["indices"]]
+        self.assertEqual(indices["count"], 3 * glb_result["triangles"])
+        # The whole 64^3 pig is thinner than 100 vu: every point is below, three places listed.
+        self.assertEqual(thick["below"], thick["points"])
+        self.assertEqual(len(thick["places"]), 3)
+        self.assertEqual(thick["places"][0]["thickness"], thick["thinnest"])
+        _, _, _, red = decode_png(thick_png)
+        self.assertTrue(any(red[i] > 2 * red[i + 1] + 20 for i in range(0, len(red), 3)), "thin walls in red")
 
     def test_messages_over_websockets_default_limit_of_1_mib_arrive(self):
         async def go():

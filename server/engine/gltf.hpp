@@ -1,0 +1,23 @@
+// glTF 2.0 binary (.glb) export of a triangle mesh, for Blender, three.js, game engines and any
+// viewer that reads glTF.
+//
+// Conventions: one scene, one node, one mesh with one indexed triangle primitive. Positions
+// are vu as they are (glTF's unit is the metre: 1 vu becomes 1 m; glTF's +Y up is the volume's
+// +y); triangles counter-clockwise seen from outside, as glTF wants. Indices are uint32;
+// normals, when the mesh has them, are written as unit vectors (a zero normal is replaced by
+// the area-weighted normal of the triangles around the vertex). Little-endian whatever the
+// host; every chunk is padded to 4 bytes (JSON with spaces, binary with zeros).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "marching_cubes.hpp"
+
+namespace marzipan {
+
+// Throws EngineError(InvalidArgument) for positions/indices not in threes, normals not one per
+// vertex, indices out of range or non-finite positions; EngineError(TooLarge) past 4 GiB.
+std::vector<std::uint8_t> exportGlb(const Mesh& m);
+
+}  // namespace marzipan
