@@ -509,12 +509,16 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // Runs fn on c's session strand, answers, then lets the connection's next message start.
   void onStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id, Clock::time_point arrived, bool isEdit,
                 std::function<void(LiveSession&, Reply&)> fn) {
-    std::shared_ptr<LiveSession> s = c->session;
+    onStrand(c, c->session, id, arrived, isEdit, std::move(fn));
+  }
+  // The same on the strand of s, which c need not be a client of (yet): session.create/join.
+  void onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<json>& id,
+                Clock::time_point arrived, bool isEdit, std::function<void(LiveSession&, Reply&)> fn) {
     s->strand->post([self = shared_from_this(), c, s, id, arrived, isEdit, fn = std::move(fn)] {
       Reply r;
       try {
         if (s->unloaded || !s->session) {
-          c->session.reset();
+          if (c->session == s) c->session.reset();
           if (!s->failure.empty()) throw RpcException(RpcCode::Internal, s->failure);
           throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
         }
@@ -716,9 +720,10 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         emit(self->options.events.sessions, -1);
       }
     });
-    c->session = s;
-    onStrand(c, req.id, arrived, false, [self, c, view, dims, solid](LiveSession& ls, Reply& r) {
+    // c->session is set only once admitted: a refused create leaves the connection as it was.
+    onStrand(c, s, req.id, arrived, false, [self, c, s, view, dims, solid](LiveSession& ls, Reply& r) {
       self->admit(ls, c, false, view, r);
+      c->session = s;
       r.result["token"] = ls.secrets.token;
       r.result["view_token"] = ls.secrets.viewToken;
       self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) + "x" +
@@ -735,12 +740,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (sameSecret(s->secrets.token, p.token)) readOnly = false;
     else if (sameSecret(s->secrets.viewToken, p.token)) readOnly = true;
     else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
-    c->session = s;
     const ViewMode view = p.view;
     auto self = shared_from_this();
-    std::shared_ptr<LiveSession> joined = s;
-    onStrand(c, req.id, arrived, false, [self, c, view, readOnly](LiveSession& ls, Reply& r) {
+    // c->session is set only once admitted: a refused join (a full session) grants nothing.
+    onStrand(c, s, req.id, arrived, false, [self, c, s, view, readOnly](LiveSession& ls, Reply& r) {
       self->admit(ls, c, readOnly, view, r);
+      c->session = s;
       self->log("session " + ls.id + ": client " + std::to_string(c->clientId) + " (" + c->peer + ") joined" +
                 (readOnly ? " read-only" : "") + ", " + std::to_string(ls.clients.size()) + " in all");
     });

@@ -303,6 +303,75 @@ TEST_CASE("two clients see each other's edits; a view token cannot edit", "[hub]
   CHECK(v.result("session.stats")["revision"] == 1);
 }
 
+// Every editing method, with valid params, must get `code` on t's connection (-32009 outside
+// a session, -32007 for a view client); nothing may change.
+void expectNoEdits(TestClient& t, int code) {
+  INFO("expected every edit refused with " << code);
+  CHECK(t.error("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}}) == code);
+  CHECK(t.error("volume.morph", {{"kind", "dilate"}, {"radius", 1}}) == code);
+  CHECK(t.error("stroke.begin", {{"tool", "smooth"}}) == code);
+  CHECK(t.error("stroke.dabs", {{"stroke", 1}, {"dabs", {{{"center", {32, 54, 32}}}}}}) == code);
+  CHECK(t.error("stroke.end", {{"stroke", 1}}) == code);
+  CHECK(t.error("history.undo") == code);
+  CHECK(t.error("history.redo") == code);
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Box, {64, 64, 64}));
+  const int id = t.nextId;
+  CHECK(t.error("volume.load", {{"bytes", file.size()}}) == code);
+  t.hub.binary(t.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+}
+
+TEST_CASE("a refused session.create or session.join leaves the connection exactly as it was", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxClientsPerSession = 2;
+  o.limits.maxSessions = 2;
+  Hub hub(o);
+  TestClient a(hub), v(hub), x(hub);
+  json params = kCreate64;
+  params["session"] = "refusals-session-id-0001";
+  const json created = a.result("session.create", params);
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});  // something to undo
+  v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});
+  std::uint64_t revision = 1;
+
+  SECTION("outside a session") {
+    // The issue's reproduction: the session is full (-32003) and the joiner held the view token.
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["view_token"]}}) == -32003);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["token"]}}) == -32003);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", "wrong"}}) == -32002);
+    CHECK(x.error("session.join", {{"session", "nosuchsession-000000001"}, {"token", created["token"]}}) == -32001);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"protocol", 2}}) == -32008);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"protocol", 2}}) == -32008);
+    CHECK(x.error("session.create", {{"size", {64, 64, 256}}, {"solid", "box"}}) == -32004);
+    CHECK(x.error("session.create", params) == -32014);
+    expectNoEdits(x, -32009);
+    TestClient other(hub);
+    other.result("session.create", kCreate64);  // the second and last session
+    CHECK(x.error("session.create", kCreate64) == -32004);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.stats") == -32009);
+  }
+  SECTION("a view client stays a view client of its session") {
+    CHECK(v.error("session.create", kCreate64) == -32010);
+    CHECK(v.error("session.join", {{"session", created["session"]}, {"token", created["token"]}}) == -32010);
+    expectNoEdits(v, -32007);
+    CHECK(v.result("session.stats")["session"] == created["session"]);
+  }
+  SECTION("an editor keeps its rights and its session") {
+    CHECK(a.error("session.join", {{"session", created["session"]}, {"token", created["view_token"]}}) == -32010);
+    CHECK(a.error("session.create", kCreate64) == -32010);
+    CHECK(a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 10, 32}}})["revision"] == 2);
+    revision = 2;
+  }
+  // Nothing a refused connection sent changed the session; the full session still counts two.
+  const json stats = a.result("session.stats");
+  CHECK(stats["clients"].size() == 2);
+  CHECK(stats["revision"] == revision);
+  CHECK(stats["can_undo"] == true);
+}
+
 TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
