@@ -234,6 +234,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void enqueue(const std::shared_ptr<HubClient>& c, HubClient::Incoming in) {
     bool start = false;
     const std::size_t size = std::visit([](const auto& m) { return m.size(); }, in.message);
+    std::string refusal;
     {
       const std::lock_guard lock(c->mutex);
       if (c->closed) return;
@@ -242,7 +243,6 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       const auto now = Clock::now();
       c->tokens = std::min(2 * rate, c->tokens + rate * std::chrono::duration<double>(now - c->refilled).count());
       c->refilled = now;
-      std::string refusal;
       if (c->queue.size() >= limits().maxPendingMessages)
         refusal = "too many requests in flight on this connection (" + std::to_string(limits().maxPendingMessages) +
                   "); wait for answers before sending more";
@@ -251,35 +251,40 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                   " requests per second on this connection; slow down";
       else if (c->queuedBytes + size > limits().maxBinaryBytes + limits().maxTextBytes)
         refusal = "too many bytes waiting on this connection; wait for answers before sending more";
-      if (!refusal.empty()) {
-        // Answered at once without queueing. An upload cannot be answered alone: its volume.load
-        // then fails with -32013.
-        if (const auto* text = std::get_if<std::string>(&in.message)) {
-          const protocol::ParsedRequest p = protocol::parseRequest(*text);
-          const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
-          const bool notification = p.request ? !p.request->id : p.error->notification;
-          sendError(*c, id, notification, {RpcCode::Busy, refusal, {{"retry_after_ms", 100}}});
-        }
-        return;
+      if (refusal.empty()) {
+        c->tokens -= 1;
+        c->queuedBytes += size;
+        c->queue.push_back(std::move(in));
+        if (!c->busy) start = c->busy = true;
       }
-      c->tokens -= 1;
-      c->queuedBytes += size;
-      c->queue.push_back(std::move(in));
-      if (!c->busy) start = c->busy = true;
+    }
+    if (!refusal.empty()) {
+      // Answered at once without queueing, after the lock: the link may send inline and, past
+      // its queue bound, disconnect this client (which takes c->mutex). An upload cannot be
+      // answered alone: its volume.load then fails with -32013.
+      if (const auto* text = std::get_if<std::string>(&in.message)) {
+        const protocol::ParsedRequest p = protocol::parseRequest(*text);
+        const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
+        const bool notification = p.request ? !p.request->id : p.error->notification;
+        sendError(*c, id, notification, {RpcCode::Busy, refusal, {{"retry_after_ms", 100}}});
+      }
+      return;
     }
     if (start) workers.post([self = shared_from_this(), c] { self->pump(c); });
   }
 
   // Ends the handling of one message: the next one may start.
   void finish(const std::shared_ptr<HubClient>& c) {
+    bool closed = false;
     {
       const std::lock_guard lock(c->mutex);
       if (!c->closed && c->queue.empty()) {
         c->busy = false;
         return;
       }
-      if (c->closed) return cleanup(c);
+      closed = c->closed;
     }
+    if (closed) return cleanup(c);
     workers.post([self = shared_from_this(), c] { self->pump(c); });
   }
 
@@ -297,8 +302,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void pump(const std::shared_ptr<HubClient>& c) {
     HubClient::Incoming in;
     {
-      const std::lock_guard lock(c->mutex);
-      if (c->closed) return cleanup(c);
+      std::unique_lock lock(c->mutex);
+      if (c->closed) {
+        lock.unlock();
+        return cleanup(c);
+      }
       if (c->queue.empty()) {
         c->busy = false;
         return;
@@ -335,12 +343,14 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (options.events.request) options.events.request(protocol::nameOf(protocol::kMethodNames, req.method));
     // A binary-answered method sent as a notification has nowhere to put its answer.
     if (!req.id && protocol::needsFrameId(req.method)) return finish(c);
+    bool refuse = false;
     {
       const std::lock_guard lock(mutex);
-      if (stopping) {
-        sendError(*c, req.id, {RpcCode::Busy, "the server is shutting down", nullptr});
-        return finish(c);
-      }
+      refuse = stopping;
+    }
+    if (refuse) {
+      sendError(*c, req.id, {RpcCode::Busy, "the server is shutting down", nullptr});
+      return finish(c);
     }
     try {
       switch (req.method) {

@@ -6,7 +6,10 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <future>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -370,6 +373,46 @@ TEST_CASE("a refused session.create or session.join leaves the connection exactl
   CHECK(stats["clients"].size() == 2);
   CHECK(stats["revision"] == revision);
   CHECK(stats["can_undo"] == true);
+}
+
+// A link like the network's: its sends may run inline on the caller's thread and, past its
+// queue bound (here: the first -32005), disconnect the client from inside the send.
+struct DisconnectingLink : CaptureLink {
+  Hub* hub = nullptr;
+  std::shared_ptr<HubClient> client;
+  void sendText(std::string text) override {
+    const bool busy = json::parse(text).value("error", json::object()).value("code", 0) == -32005;
+    CaptureLink::sendText(std::move(text));
+    if (busy && client) hub->disconnect(client);
+  }
+};
+
+TEST_CASE("a reader that floods and falls behind is disconnected without deadlocking the sender", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxPendingMessages = 4;
+  Hub hub(o);
+  auto link = std::make_shared<DisconnectingLink>();
+  link->hub = &hub;
+  link->client = hub.connect(link, "flooder");
+  // Before the fix the refusal was sent under the client's lock and the inline disconnect took it
+  // again: this thread hung. A hang cannot be failed cleanly, so the flood runs on its own thread.
+  auto done = std::make_shared<std::promise<void>>();
+  std::future<void> flooded = done->get_future();
+  std::thread([&hub, client = link->client, done] {
+    for (int i = 0; i < 200; ++i)
+      hub.text(client, json{{"jsonrpc", "2.0"}, {"id", i}, {"method", "session.create"}, {"params", kCreate64}}.dump());
+    done->set_value();
+  }).detach();
+  if (flooded.wait_for(kWait) != std::future_status::ready) {
+    std::fprintf(stderr, "deadlock: Hub::text never returned after an inline disconnect\n");
+    std::_Exit(1);
+  }
+  link->waitFor([](const auto& m) {
+    const json* j = std::get_if<json>(&m);
+    return j && j->contains("error") && (*j)["error"]["code"] == -32005;
+  });
+  hub.disconnect(link->client);
+  link->client.reset();
 }
 
 TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {
