@@ -191,6 +191,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::shared_ptr<const std::string> text;
     std::shared_ptr<const std::vector<std::uint8_t>> binary;
     bool latestWins = false;
+    std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
     std::size_t size() const { return text ? text->size() : binary->size(); }
   };
 
@@ -258,8 +259,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         }
       }
     } else {
-      queuedBytes_ += out.size();
-      if (queuedBytes_ > state_->options.hub->limits().maxQueuedBytes) return startClose(websocket::close_code::policy_error, "too far behind");
+      // The bound is for backlog, not for one message: an answer larger than half of it counts
+      // as half, so a reader at full speed gets it and what follows; one that does not read
+      // is closed by the next such answer.
+      const std::size_t bound = state_->options.hub->limits().maxQueuedBytes;
+      out.charge = std::min(out.size(), bound / 2);
+      queuedBytes_ += out.charge;
+      if (queuedBytes_ > bound) return startClose(websocket::close_code::policy_error, "too far behind");
     }
     queue_.push_back(std::move(out));
     if (!writing_) doWrite();
@@ -280,7 +286,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     state_->metrics.addBytesSent(bytes);
     writing_ = false;
     if (ec) return fail(ec, "write");
-    if (!queue_.front().latestWins) queuedBytes_ -= queue_.front().size();
+    queuedBytes_ -= queue_.front().charge;
     queue_.pop_front();
     if (closeAfterWrite_) return doClose();
     if (!queue_.empty() && !closing_) doWrite();
@@ -318,7 +324,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::string peer_;
   std::shared_ptr<service::HubClient> client_;
   std::deque<Out> queue_;
-  std::size_t queuedBytes_ = 0;  // non-droppable bytes queued, the one in flight included
+  std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
   bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
   websocket::close_reason closeReason_;
   std::string closeReasonText_;

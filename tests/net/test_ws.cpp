@@ -222,6 +222,30 @@ TEST_CASE("ws: a client that stops reading neither stalls the others nor grows m
   CHECK(fast.call(100, "session.stats")["result"]["clients"].size() == 1);
 }
 
+TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxQueuedBytes = std::size_t(64) << 10;
+  Server s("ws-big-answer", o);
+  Client c(s.server->port());
+  REQUIRE(c.call(1, "session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}}).contains("result"));
+  c.sendText(json{{"jsonrpc", "2.0"}, {"id", 2}, {"method", "mesh.export"}, {"params", {{"format", "obj"}}}}.dump());
+  std::size_t fileBytes = 0;
+  json answer;
+  while (auto m = c.read()) {
+    if (!m->text) {
+      fileBytes = m->data.size() - marzipan::protocol::kFrameHeaderBytes;
+      continue;
+    }
+    answer = json::parse(m->data);
+    if (answer.contains("id") && answer["id"] == 2) break;
+  }
+  INFO(answer.dump() << " " << c.error.message());
+  REQUIRE(answer.contains("result"));
+  CHECK(answer["result"]["bytes"] == fileBytes);
+  CHECK(fileBytes > 4 * o.limits.maxQueuedBytes);
+  CHECK(c.call(3, "session.stats").contains("result"));
+}
+
 TEST_CASE("ws: stop() lets running edits answer, then closes with 1001", "[net][ws]") {
   Server s("ws-shutdown");
   Client c(s.server->port());
