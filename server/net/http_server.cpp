@@ -30,6 +30,7 @@
 #include <deque>
 #include <exception>
 #include <iostream>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -40,6 +41,7 @@
 
 #include "net/static_files.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/rpc.hpp"
 #include "service/hub.hpp"
 
 namespace marzipan::net {
@@ -61,7 +63,7 @@ std::string endpointText(const tcp::endpoint& ep) {
 }
 
 // What the listener and the sessions share.
-struct SharedState {
+struct SharedState : std::enable_shared_from_this<SharedState> {
   SharedState(const HttpServerOptions& o, Metrics& m) : options(o), files(o.webRoot), metrics(m) {
     for (const auto& [prefix, dir] : o.mounts) mounts.emplace_back(prefix, StaticFiles(dir));
   }
@@ -112,17 +114,42 @@ struct SharedState {
     if (live == 0) idle.notify_all();
   }
 
+  // A TCP connection's place under the connection bounds (HubLimits::maxConnections and
+  // maxConnectionsPerAddress); released when the last holder (HTTP, then WebSocket session)
+  // goes. Null when a bound is reached: the caller closes the socket.
+  std::shared_ptr<void> takeSlot(const std::string& address) {
+    const service::HubLimits limits = options.hub ? options.hub->limits() : service::HubLimits{};
+    {
+      const std::lock_guard lock(mutex);
+      std::size_t& mine = perAddress[address];
+      if (connections >= limits.maxConnections || mine >= limits.maxConnectionsPerAddress) {
+        if (mine == 0) perAddress.erase(address);
+        return nullptr;
+      }
+      ++mine;
+      ++connections;
+    }
+    return std::shared_ptr<void>(new char, [self = shared_from_this(), address](void* p) {
+      delete static_cast<char*>(p);
+      const std::lock_guard lock(self->mutex);
+      --self->connections;
+      if (--self->perAddress[address] == 0) self->perAddress.erase(address);
+    });
+  }
+
   const HttpServerOptions& options;
   const StaticFiles files;
   std::vector<std::pair<std::string, StaticFiles>> mounts;
   Metrics& metrics;
-  std::mutex mutex;  // guards the seven below
+  std::mutex mutex;  // guards the nine below
   std::condition_variable idle;  // notified when live drops to 0 and when the acceptor closed
   bool stopping = false, acceptorClosed = false;
   std::vector<std::weak_ptr<HttpSession>> sessions;
   std::vector<std::weak_ptr<WsSession>> websockets;
   std::size_t live = 0;  // HTTP sessions and WebSockets
   std::size_t liveWs = 0;
+  std::size_t connections = 0;                        // slots taken
+  std::map<std::string, std::size_t> perAddress;  // slots taken per client address
 };
 
 bool normalClose(const beast::error_code& ec) {
@@ -146,8 +173,8 @@ bool originAllowed(const SharedState& state, std::string_view origin, std::strin
 // A WebSocket connection: reads messages into the hub, writes what the hub sends.
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer)
-      : ws_(std::move(stream)), state_(std::move(state)), peer_(std::move(peer)) {}
+  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer, std::shared_ptr<void> slot)
+      : ws_(std::move(stream)), state_(std::move(state)), peer_(std::move(peer)), slot_(std::move(slot)) {}
 
   ~WsSession() {
     if (!joined_) return;
@@ -168,7 +195,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.set_option(timeout);
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "marzipan"); }));
-    ws_.read_message_max(std::max(limits.maxTextBytes, limits.maxBinaryBytes));
+    nextReadMax_ = limits.maxTextBytes;
     ws_.auto_fragment(false);
     ws_.async_accept(req, beast::bind_front_handler(&WsSession::onAccept, shared_from_this()));
   }
@@ -222,6 +249,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   void doRead() {
     if (closing_) return;
+    // Per message: nothing over max_text_bytes is buffered unless an editor announced an upload.
+    ws_.read_message_max(nextReadMax_);
     ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::onRead, shared_from_this()));
   }
 
@@ -230,11 +259,14 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     const service::HubLimits& limits = state_->options.hub->limits();
     const auto data = buffer_.cdata();
     const auto* begin = static_cast<const std::uint8_t*>(data.data());
+    nextReadMax_ = limits.maxTextBytes;
     if (ws_.got_text()) {
       if (bytes > limits.maxTextBytes)
         return startClose(websocket::close_code::too_big, "text message over max_text_bytes (" +
                                                               std::to_string(limits.maxTextBytes) + ")");
-      state_->options.hub->text(client_, std::string(reinterpret_cast<const char*>(begin), bytes));
+      std::string text(reinterpret_cast<const char*>(begin), bytes);
+      if (const std::uint64_t upload = announcedUpload(text, limits)) nextReadMax_ = upload;
+      state_->options.hub->text(client_, std::move(text));
     } else {
       const auto decoded = protocol::decodeFrameHeader({begin, bytes}, limits.maxBinaryBytes);
       if (!decoded) return startClose(websocket::close_code::policy_error, decoded.error->message.substr(0, 120));
@@ -244,6 +276,20 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
     buffer_.consume(buffer_.size());
     doRead();
+  }
+
+  // The size of the upload frame a volume.load in `text` announces when this client may upload
+  // (Hub::mayUpload), else 0. The hub checks the request again; this only sizes the next read.
+  std::uint64_t announcedUpload(const std::string& text, const service::HubLimits& limits) const {
+    if (text.find("volume.load") == std::string::npos || !state_->options.hub->mayUpload(client_)) return 0;
+    const protocol::ParsedRequest p = protocol::parseRequest(text);
+    if (!p.request || p.request->method != protocol::Method::VolumeLoad) return 0;
+    try {
+      return protocol::parseVolumeLoadParams(p.request->params, limits.maxBinaryBytes - protocol::kFrameHeaderBytes) +
+             protocol::kFrameHeaderBytes;
+    } catch (const std::exception&) {
+      return 0;  // the hub answers the bad params
+    }
   }
 
   void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
@@ -322,6 +368,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   beast::flat_buffer buffer_;
   std::shared_ptr<SharedState> state_;
   std::string peer_;
+  std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
+  std::size_t nextReadMax_ = 0;  // the largest next message: max_text_bytes, or an announced upload
   std::shared_ptr<service::HubClient> client_;
   std::deque<Out> queue_;
   std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
@@ -333,12 +381,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket&& socket, std::shared_ptr<SharedState> state)
-      : stream_(std::move(socket)), state_(std::move(state)) {
-    beast::error_code ec;
-    const tcp::endpoint remote = stream_.socket().remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : endpointText(remote);
-  }
+  HttpSession(tcp::socket&& socket, std::shared_ptr<SharedState> state, std::string peer, std::shared_ptr<void> slot)
+      : stream_(std::move(socket)), state_(std::move(state)), peer_(std::move(peer)), slot_(std::move(slot)) {}
 
   ~HttpSession() {
     if (!joined_) return;
@@ -404,7 +448,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       }
       busy_ = false;
       upgraded_ = true;
-      std::make_shared<WsSession>(std::move(stream_), state_, peer_)->run(std::move(req));
+      std::make_shared<WsSession>(std::move(stream_), state_, peer_, std::move(slot_))->run(std::move(req));
       return;
     }
     if (req.method() != http::verb::get && !head) {
@@ -499,6 +543,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<SharedState> state_;
   std::string peer_;
+  std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
   bool joined_ = false;  // counted in state_->live
   bool busy_ = false;  // a request has been read and its response not yet written
   bool upgraded_ = false;  // the socket went to a WsSession
@@ -561,7 +606,16 @@ class Listener : public std::enable_shared_from_this<Listener> {
     // would hold the later ones for the client's delayed ACK (about 40 ms per edit).
     beast::error_code noDelay;
     socket.set_option(tcp::no_delay(true), noDelay);
-    std::make_shared<HttpSession>(std::move(socket), state_)->run();
+    beast::error_code remoteEc;
+    const tcp::endpoint remote = socket.remote_endpoint(remoteEc);
+    const std::string peer = remoteEc ? std::string("?") : endpointText(remote);
+    if (auto slot = state_->takeSlot(remoteEc ? peer : remote.address().to_string())) {
+      std::make_shared<HttpSession>(std::move(socket), state_, peer, std::move(slot))->run();
+    } else {
+      state_->log("http: refused " + peer + ": too many connections (max_connections / max_connections_per_address)");
+      beast::error_code ignored;
+      socket.close(ignored);
+    }
     if (!state_->isStopping()) doAccept();
   }
 

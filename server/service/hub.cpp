@@ -160,6 +160,11 @@ class HubClient {
   };
   std::optional<PendingLoad> load;
 
+  // Written on the session's strand, read anywhere: an editor of a session (may upload), a
+  // member of one, and since when it is in none (for the lobby deadline).
+  std::atomic<bool> editor{false}, member{false};
+  std::atomic<Clock::rep> outsideSince{Clock::now().time_since_epoch().count()};
+
   // The session's strand only.
   int clientId = 0;
   bool readOnly = false;
@@ -598,7 +603,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_frame_side", l.maxFrameSide},
             {"history_bytes", l.historyBytes},
             {"idle_session_seconds", l.idleSession.count()},
-            {"ping_seconds", l.ping.count()}};
+            {"ping_seconds", l.ping.count()},
+            {"max_queue_bytes", l.maxQueuedBytes},
+            {"max_connections", l.maxConnections},
+            {"max_connections_per_address", l.maxConnectionsPerAddress},
+            {"lobby_seconds", l.lobby.count()}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -632,6 +641,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     c->readOnly = readOnly;
     c->mode = view;
     c->stroke = 0;
+    c->member = true;
+    c->editor = !readOnly;
     s.clients.push_back(c);
     {
       const std::lock_guard lock(mutex);
@@ -669,6 +680,9 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     }
     s.clients.erase(it);
     c.mode = ViewMode::None;
+    c.editor = false;
+    c.member = false;
+    c.outsideSince = Clock::now().time_since_epoch().count();
     {
       const std::lock_guard lock(mutex);
       --s.clientCount;
@@ -896,6 +910,26 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
           });
         });
       });
+    });
+  }
+
+  // Closes c once it has been in no session for the lobby time; re-arms itself while it is in
+  // one or has not been out that long.
+  void scheduleLobbyCheck(const std::weak_ptr<HubClient>& weak, std::chrono::milliseconds delay) {
+    workers.postAfter(delay, [self = shared_from_this(), weak] {
+      const auto c = weak.lock();
+      if (!c) return;
+      {
+        const std::lock_guard lock(c->mutex);
+        if (c->closed) return;
+      }
+      const auto lobby = std::chrono::duration_cast<std::chrono::milliseconds>(self->limits().lobby);
+      const auto out = Clock::now() - Clock::time_point(Clock::duration(c->outsideSince.load()));
+      if (c->member || out < lobby) {
+        const auto left = c->member ? lobby : lobby - std::chrono::duration_cast<std::chrono::milliseconds>(out);
+        return self->scheduleLobbyCheck(weak, std::max(left, std::chrono::milliseconds(10)));
+      }
+      c->link->close(1008, "no session joined within " + std::to_string(self->limits().lobby.count()) + " s");
     });
   }
 
@@ -1214,8 +1248,12 @@ Hub::~Hub() { shutdown(); }
 const HubLimits& Hub::limits() const { return impl_->limits(); }
 
 std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::string peer) {
-  return std::make_shared<HubClient>(std::move(link), std::move(peer));
+  auto c = std::make_shared<HubClient>(std::move(link), std::move(peer));
+  impl_->scheduleLobbyCheck(c, std::chrono::duration_cast<std::chrono::milliseconds>(impl_->limits().lobby));
+  return c;
 }
+
+bool Hub::mayUpload(const std::shared_ptr<HubClient>& client) const { return client->editor; }
 
 void Hub::text(const std::shared_ptr<HubClient>& client, std::string message) {
   impl_->enqueue(client, {std::move(message), Clock::now()});
