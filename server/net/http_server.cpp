@@ -157,13 +157,32 @@ bool normalClose(const beast::error_code& ec) {
          ec == asio::error::connection_reset || ec == asio::error::broken_pipe;
 }
 
+// The host name of a Host header ("name:port", "[v6]:port", "name"), without the port.
+std::string_view hostName(std::string_view host) {
+  if (!host.empty() && host.front() == '[') return host.substr(1, host.find(']') - 1);
+  return host.substr(0, host.rfind(':'));
+}
+
+// Whether a page served under this Host is this server's own and not a DNS rebinding (a page
+// of another site whose name now resolves to this address): an address literal, localhost, or
+// a name of HttpServerOptions::publicHosts.
+bool ownHost(const SharedState& state, std::string_view host) {
+  const std::string name(hostName(host));
+  if (name == "localhost") return true;
+  beast::error_code ec;
+  asio::ip::make_address(name, ec);
+  if (!ec) return true;
+  const auto& hosts = state.options.publicHosts;
+  return std::find(hosts.begin(), hosts.end(), name) != hosts.end();
+}
+
 // Whether a browser's Origin may open a WebSocket here (see HttpServerOptions::allowedOrigins).
 bool originAllowed(const SharedState& state, std::string_view origin, std::string_view host) {
   if (origin.empty()) return true;
   const auto& allowed = state.options.allowedOrigins;
   if (allowed.empty()) {
     const std::size_t scheme = origin.find("://");
-    return scheme != std::string_view::npos && origin.substr(scheme + 3) == host;
+    return scheme != std::string_view::npos && origin.substr(scheme + 3) == host && ownHost(state, host);
   }
   for (const std::string& a : allowed)
     if (a == "*" || a == origin) return true;

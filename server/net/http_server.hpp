@@ -52,6 +52,10 @@ struct HttpServerOptions {
   // Origins ("http://host:port") a browser may open /ws from; empty: only the page's own
   // (Origin's host equal to the Host header); "*": any. Requests without Origin (scripts) pass.
   std::vector<std::string> allowedOrigins;
+  // Host names (without port) under which browsers reach this server, for the page's-own check
+  // above: there the Host must also be an address literal, localhost or one of these, so that
+  // a page of another site whose name was rebound to this address cannot drive it.
+  std::vector<std::string> publicHosts;
   std::function<void(const std::string&)> log;  // one line, no newline; called from I/O threads
 };
 

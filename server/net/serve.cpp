@@ -81,10 +81,15 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
       queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}},
       serverId{"--server-id", "MARZIPAN_SERVER_ID", {}},
-      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}};
+      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}},
+      publicHosts{"--public-host", "MARZIPAN_PUBLIC_HOST", {}},
+      maxConnections{"--max-connections", "MARZIPAN_MAX_CONNECTIONS", {}},
+      maxPerAddress{"--max-connections-per-address", "MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS", {}},
+      lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
+                               &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -158,15 +163,24 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     limits.ping = std::chrono::seconds(parseUnsigned(pingSeconds, 3600));
     if (limits.ping.count() < 1) throw UsageError("--ping-seconds (or MARZIPAN_PING_SECONDS) must be at least 1");
   }
-  if (origins.value) {
-    std::string_view list = *origins.value;
+  setLimit(maxConnections, limits.maxConnections, 1, 1000000);
+  setLimit(maxPerAddress, limits.maxConnectionsPerAddress, 1, 1000000);
+  if (lobbySeconds.value) {
+    limits.lobby = std::chrono::seconds(parseUnsigned(lobbySeconds, 1u << 30));
+    if (limits.lobby.count() < 1) throw UsageError("--lobby-seconds (or MARZIPAN_LOBBY_SECONDS) must be at least 1");
+  }
+  const auto splitList = [](const std::optional<std::string>& value, std::vector<std::string>& into) {
+    if (!value) return;
+    std::string_view list = *value;
     while (!list.empty()) {
       const std::size_t comma = list.find(',');
       const std::string_view item = list.substr(0, comma);
-      if (!item.empty()) options.allowedOrigins.emplace_back(item);
+      if (!item.empty()) into.emplace_back(item);
       list = comma == std::string_view::npos ? std::string_view() : list.substr(comma + 1);
     }
-  }
+  };
+  splitList(origins.value, options.allowedOrigins);
+  splitList(publicHosts.value, options.publicHosts);
   options.webRoot = webRoot.value ? fs::path(*webRoot.value) : fs::path(MARZIPAN_DEFAULT_WEB_ROOT);
   if (webRoot.value && webRoot.value->empty()) throw UsageError("--web-root (or MARZIPAN_WEB_ROOT) is empty");
   std::error_code ec;
@@ -243,6 +257,10 @@ Options (each also read from the environment variable in brackets; a flag wins):
                     every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open
                     /ws from, * for any [MARZIPAN_ALLOWED_ORIGINS]; default the page's own
+                    when it was served under an address literal, localhost or a --public-host
+  --public-host LIST  comma-separated host names browsers reach this server by (behind a
+                    proxy: its public name) [MARZIPAN_PUBLIC_HOST]; other names are refused
+                    for the page's-own origin check (DNS rebinding)
 Limits (PROTOCOL.md, "Versions and limits"):
   --max-text-bytes N         largest text message [MARZIPAN_MAX_TEXT_BYTES]; 1048576
   --max-binary-bytes N       largest binary message [MARZIPAN_MAX_BINARY_BYTES]; 268435456
@@ -259,7 +277,14 @@ Limits (PROTOCOL.md, "Versions and limits"):
   --max-requests-per-second N  per connection, bursts of twice that; beyond: busy (-32005)
                              [MARZIPAN_MAX_REQUESTS_PER_SECOND]; 400
   --max-queue-mb N           undelivered responses and splat buffers per connection before it
-                             is closed as too far behind [MARZIPAN_MAX_QUEUE_MB]; 64
+                             is closed as too far behind; one answer counts at most half
+                             [MARZIPAN_MAX_QUEUE_MB]; 64
+  --max-connections N        TCP connections at once; more are closed at once
+                             [MARZIPAN_MAX_CONNECTIONS]; 1024
+  --max-connections-per-address N  the same per client address
+                             [MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS]; 32
+  --lobby-seconds N          a WebSocket in no session this long is closed (1008)
+                             [MARZIPAN_LOBBY_SECONDS]; 60
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and

@@ -39,7 +39,8 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Server {
-  explicit Server(const std::string& name, HubOptions hubOptions = {}, std::vector<std::string> origins = {}) {
+  explicit Server(const std::string& name, HubOptions hubOptions = {}, std::vector<std::string> origins = {},
+                  std::vector<std::string> publicHosts = {}) {
     const fs::path dir = marzipan::test::scratch(name);
     fs::create_directories(dir / "root");
     fs::create_directories(dir / "js");
@@ -51,6 +52,7 @@ struct Server {
     options.mounts.emplace_back("/protocol/js/", dir / "js");
     options.threads = 2;
     options.allowedOrigins = std::move(origins);
+    options.publicHosts = std::move(publicHosts);
     options.log = [](const std::string&) {};
     server.emplace(options);
     hubOptions.workers = 2;
@@ -67,7 +69,8 @@ struct Server {
 
 class Client {
  public:
-  explicit Client(std::uint16_t port, const std::string& origin = "") : ws_(ioc_) {
+  // host: the Host header, "127.0.0.1:PORT" when empty.
+  explicit Client(std::uint16_t port, const std::string& origin = "", const std::string& host = "") : ws_(ioc_) {
     tcp::socket& s = ws_.next_layer();
     s.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
     timeval timeout{20, 0};
@@ -76,7 +79,7 @@ class Client {
       ws_.set_option(websocket::stream_base::decorator(
           [origin](websocket::request_type& req) { req.set(beast::http::field::origin, origin); }));
     ws_.read_message_max(std::size_t(512) << 20);
-    ws_.handshake("127.0.0.1:" + std::to_string(port), "/ws?session=test");
+    ws_.handshake(host.empty() ? "127.0.0.1:" + std::to_string(port) : host, "/ws?session=test");
   }
 
   void sendText(const std::string& text) {
@@ -212,6 +215,17 @@ TEST_CASE("ws: browsers from another origin are refused", "[net][ws]") {
     const std::string self = "http://127.0.0.1:" + std::to_string(s.server->port());
     CHECK_NOTHROW(Client(s.server->port(), self));
     CHECK_THROWS(Client(s.server->port(), "http://evil.example"));
+  }
+  {
+    // DNS rebinding: a page of another site whose name now resolves to this server has an
+    // Origin equal to its Host; only the server's own names may pass.
+    Server s("ws-origin-rebinding", {}, {}, {"studio.example"});
+    const std::string port = std::to_string(s.server->port());
+    CHECK_THROWS(Client(s.server->port(), "http://rebound.example:" + port, "rebound.example:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://studio.example:" + port, "studio.example:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://localhost:" + port, "localhost:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://[::1]:" + port, "[::1]:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "", "rebound.example:" + port));  // scripts send no Origin
   }
   Server s("ws-origin-list", {}, {"http://studio.example"});
   CHECK_NOTHROW(Client(s.server->port(), "http://studio.example"));
