@@ -259,6 +259,9 @@ TEST_CASE("session.create refuses bad params naming the field", "[hub]") {
   CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"protocol", 2}})["error"]["code"] == -32008);
   CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"session", "short"}})["error"]["data"]["field"] ==
         "session");
+  // Under 128 random bits an id could be guessed, and join's answers tell whether it exists.
+  CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"session", "abcdefghijklmnopqrstu"}})["error"]["data"]
+            ["field"] == "session");
   CHECK(hub.sessionCount() == 0);
   a.result("session.create", kCreate64);
   CHECK(a.error("session.create", kCreate64) == -32010);
