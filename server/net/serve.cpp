@@ -85,11 +85,15 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       publicHosts{"--public-host", "MARZIPAN_PUBLIC_HOST", {}},
       maxConnections{"--max-connections", "MARZIPAN_MAX_CONNECTIONS", {}},
       maxPerAddress{"--max-connections-per-address", "MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS", {}},
-      lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}};
+      lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}},
+      volumeMb{"--max-volume-mb", "MARZIPAN_MAX_VOLUME_MB", {}}, outputMb{"--max-output-mb", "MARZIPAN_MAX_OUTPUT_MB", {}},
+      createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
+      createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
-                               &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds};
+                               &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
+                               &volumeMb, &outputMb, &createRate, &createRateAddress};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -163,6 +167,10 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     limits.ping = std::chrono::seconds(parseUnsigned(pingSeconds, 3600));
     if (limits.ping.count() < 1) throw UsageError("--ping-seconds (or MARZIPAN_PING_SECONDS) must be at least 1");
   }
+  setLimit(volumeMb, limits.maxVolumeBytes, 1, 1u << 20, std::uint64_t(1) << 20);
+  setLimit(outputMb, limits.maxOutputBytes, 1, 4095, std::uint64_t(1) << 20);
+  setLimit(createRate, limits.maxCreatesPerMinute, 1, 1000000);
+  setLimit(createRateAddress, limits.maxCreatesPerAddressPerMinute, 1, 1000000);
   setLimit(maxConnections, limits.maxConnections, 1, 1000000);
   setLimit(maxPerAddress, limits.maxConnectionsPerAddress, 1, 1000000);
   if (lobbySeconds.value) {
@@ -285,6 +293,14 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              [MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS]; 32
   --lobby-seconds N          a WebSocket in no session this long is closed (1008)
                              [MARZIPAN_LOBBY_SECONDS]; 60
+  --max-volume-mb N          memory of one session's volume; a larger volume.load is
+                             refused [MARZIPAN_MAX_VOLUME_MB]; 256
+  --max-output-mb N          largest mesh file or splat buffer one request may build,
+                             estimated before any work [MARZIPAN_MAX_OUTPUT_MB]; 256
+  --max-creates-per-minute N   session.create per connection in 60 s
+                             [MARZIPAN_MAX_CREATES_PER_MINUTE]; 10
+  --max-creates-per-address-per-minute N  the same per client address
+                             [MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE]; 30
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and

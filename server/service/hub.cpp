@@ -92,6 +92,37 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
 
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
+// Grid edges the surface crosses (a sign change between two voxels of one brick; those across
+// brick borders are left out, a few percent). Marching cubes makes one vertex per crossed edge
+// and about two triangles per vertex, so this sizes a mesh before it is built.
+std::size_t crossedEdges(const Volume& vol) {
+  std::size_t edges = 0;
+  vol.forEachPresentBrick([&](Int3, const Brick& b) {
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const int i = x + 8 * (y + 8 * z);
+          const bool in = b.v[i] < 0;
+          if (x < 7 && in != (b.v[i + 1] < 0)) ++edges;
+          if (y < 7 && in != (b.v[i + 8] < 0)) ++edges;
+          if (z < 7 && in != (b.v[i + 64] < 0)) ++edges;
+        }
+  });
+  return edges;
+}
+
+// Bytes of a mesh file per crossed edge (one vertex, two triangles): STL 2 x 50; OBJ a "v"
+// line and two "f" lines, PLY a vertex with its normal and two faces (140 and 55, measured on
+// the 96^3 pig 2026-11-24; tests/service/test_hub.cpp holds each within 0.8-1.3 of the file).
+std::size_t meshBytesPerEdge(const std::string& format) { return format == "stl" ? 100 : format == "obj" ? 140 : 55; }
+
+// The peer's address without its port ("1.2.3.4:5", "[::1]:5").
+std::string addressOf(const std::string& peer) {
+  if (!peer.empty() && peer.front() == '[') return peer.substr(0, peer.find(']') + 1);
+  const std::size_t colon = peer.find(':');
+  return colon != std::string::npos && colon == peer.rfind(':') ? peer.substr(0, colon) : peer;
+}
+
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
@@ -159,6 +190,7 @@ class HubClient {
     Clock::time_point arrived;
   };
   std::optional<PendingLoad> load;
+  std::deque<Clock::time_point> creates;  // this connection's session.create in the last minute
 
   // Written on the session's strand, read anywhere: an editor of a session (may upload), a
   // member of one, and since when it is in none (for the lobby deadline).
@@ -209,6 +241,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   ThreadPool pool;  // for whole-volume kernels and renders; parallelFor serializes its callers
   mutable std::mutex mutex;  // guards sessions and stopping
   std::map<std::string, std::shared_ptr<LiveSession>> sessions;
+  std::map<std::string, std::deque<Clock::time_point>> createsByAddress;  // in the last minute
   bool stopping = false;
   std::atomic<bool> idleCheckScheduled{false};
   const std::string owner;  // this server's name in leases
@@ -398,6 +431,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     bytes.clear();
     onStrand(c, load.id, load.arrived, true, [this, c, payload](LiveSession& s, Reply& r) {
       Volume vol = ::marzipan::loadVolume(*payload);
+      if (vol.memoryBytes() > limits().maxVolumeBytes)
+        throw RpcException(RpcCode::LimitExceeded,
+                           "the file's volume holds " + std::to_string(vol.memoryBytes()) + " bytes of bricks, over max_volume_bytes " +
+                               std::to_string(limits().maxVolumeBytes),
+                           {{"limit", "max_volume_bytes"}, {"value", vol.memoryBytes()}, {"max", limits().maxVolumeBytes}, {"field", "file"}});
       const Int3 d = s.session->volume().dims();
       if (vol.dims() != d)
         throw RpcException(RpcCode::EngineRefused,
@@ -607,7 +645,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_queue_bytes", l.maxQueuedBytes},
             {"max_connections", l.maxConnections},
             {"max_connections_per_address", l.maxConnectionsPerAddress},
-            {"lobby_seconds", l.lobby.count()}};
+            {"lobby_seconds", l.lobby.count()},
+            {"max_volume_bytes", l.maxVolumeBytes},
+            {"max_output_bytes", l.maxOutputBytes},
+            {"max_creates_per_minute", l.maxCreatesPerMinute},
+            {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -692,6 +734,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     log("session " + s.id + ": client " + std::to_string(c.clientId) + " (" + c.peer + ") left, " +
         std::to_string(s.clients.size()) + " remain");
     broadcastClients(s, nullptr);
+    // A session nobody changed holds nothing worth keeping in memory: its slot goes at once.
+    if (s.clients.empty() && s.session->revision() == 0) return unload(s, "left unchanged");
     scheduleIdleCheck();
   }
 
@@ -706,6 +750,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                            "\"size\"[" + std::to_string(a) + "] " + std::to_string(p.size[a]) +
                                " is over the server's max_grid_side " + std::to_string(limits().maxGridSide),
                            {{"limit", "max_grid_side"}, {"value", p.size[a]}, {"max", limits().maxGridSide}, {"field", "size"}});
+    checkCreateRate(*c);
     const std::string id = p.session.value_or(randomText(kSessionIdChars));
     auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, workers);
     {
@@ -753,6 +798,34 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) + "x" +
                 std::to_string(dims.y) + "x" + std::to_string(dims.z) + ") by " + c->peer);
     });
+  }
+
+  // Counts a session.create of c against the per-minute bounds, or refuses it (-32004).
+  void checkCreateRate(HubClient& c) {
+    const auto now = Clock::now();
+    const auto minuteAgo = now - std::chrono::minutes(1);
+    const auto refuse = [](const char* limit, std::size_t max, const std::string& who) {
+      return RpcException(RpcCode::LimitExceeded,
+                          std::to_string(max) + " sessions were created " + who + " in the last minute; try later",
+                          {{"limit", limit}, {"max", max}, {"retry_after_ms", 60'000}});
+    };
+    while (!c.creates.empty() && c.creates.front() < minuteAgo) c.creates.pop_front();
+    if (c.creates.size() >= limits().maxCreatesPerMinute)
+      throw refuse("max_creates_per_minute", limits().maxCreatesPerMinute, "on this connection");
+    {
+      const std::lock_guard lock(mutex);
+      for (auto it = createsByAddress.begin(); it != createsByAddress.end();) {
+        while (!it->second.empty() && it->second.front() < minuteAgo) it->second.pop_front();
+        it = it->second.empty() ? createsByAddress.erase(it) : std::next(it);
+      }
+      auto& mine = createsByAddress[addressOf(c.peer)];
+      if (mine.size() >= limits().maxCreatesPerAddressPerMinute) {
+        if (mine.empty()) createsByAddress.erase(addressOf(c.peer));
+        throw refuse("max_creates_per_address_per_minute", limits().maxCreatesPerAddressPerMinute, "from this address");
+      }
+      mine.push_back(now);
+    }
+    c.creates.push_back(now);
   }
 
   void join(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
@@ -1203,6 +1276,14 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       protocol::parseNoParams(req.params, req.method);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        // At most one point per voxel of a stored brick, 8 bytes each (uniform bricks yield
+        // points only where a -band brick meets a +band one; max_volume_bytes bounds those).
+        const std::size_t estimate = vol.presentBricks() * (8 + 8 * std::size_t(kBrickVoxels));
+        if (estimate > self->limits().maxOutputBytes)
+          throw RpcException(RpcCode::LimitExceeded,
+                             "the splat buffer could reach " + std::to_string(estimate) + " bytes, over max_output_bytes " +
+                                 std::to_string(self->limits().maxOutputBytes),
+                             {{"limit", "max_output_bytes"}, {"value", estimate}, {"max", self->limits().maxOutputBytes}});
         std::size_t bricks = 0, points = 0;
         r.frame = self->fullSplatsFrame(vol, frameId, revision, &bricks, &points);
         r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
@@ -1213,6 +1294,12 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       const std::string format = protocol::parseMeshExportParams(req.params);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const std::size_t estimate = crossedEdges(vol) * meshBytesPerEdge(format);
+        if (estimate > self->limits().maxOutputBytes)
+          throw RpcException(RpcCode::LimitExceeded,
+                             "the mesh file would be about " + std::to_string(estimate) + " bytes, over max_output_bytes " +
+                                 std::to_string(self->limits().maxOutputBytes),
+                             {{"limit", "max_output_bytes"}, {"value", estimate}, {"max", self->limits().maxOutputBytes}});
         const Mesh mesh = extractMesh(vol, self->pool);
         const MeshFormat f = *meshFormatFromName(format);
         const Bytes file = exportMesh(mesh, f);

@@ -60,6 +60,15 @@ struct HubLimits {
   // A WebSocket that is in no session this long (since it opened or left one) is closed with
   // 1008: a connection outside a session holds nothing but its slot.
   std::chrono::seconds lobby{60};
+  // The memory of one session's volume (its stored bricks); a volume.load beyond it is refused
+  // (-32004). Full splat buffers are at most about twice this.
+  std::size_t maxVolumeBytes = std::size_t(256) << 20;
+  // The largest answer a request may build (mesh.export's file, splats.get's buffer), estimated
+  // from the band before any work; beyond it -32004.
+  std::size_t maxOutputBytes = std::size_t(256) << 20;
+  // session.create per connection and per client address in any 60 s; beyond them -32004.
+  std::size_t maxCreatesPerMinute = 10;
+  std::size_t maxCreatesPerAddressPerMinute = 30;
 };
 
 // What the hub reports, for /metrics and the log. Any member may be empty; called from worker

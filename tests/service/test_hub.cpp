@@ -418,6 +418,85 @@ TEST_CASE("a reader that floods and falls behind is disconnected without deadloc
   link->client.reset();
 }
 
+TEST_CASE("one connection cannot take every session slot", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxSessions = 2;
+  o.limits.maxCreatesPerMinute = 3;
+  o.limits.maxCreatesPerAddressPerMinute = 5;
+  Hub hub(o);
+  const auto waitForSessions = [&](std::size_t n) {
+    const auto deadline = std::chrono::steady_clock::now() + kWait;
+    while (hub.sessionCount() != n && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return hub.sessionCount();
+  };
+  TestClient a(hub), b(hub), other(hub);
+  // The issue's reproduction: create and leave again and again. A session left unchanged goes
+  // at once, so the slots stay free; the rate bounds stop the loop.
+  for (int i = 0; i < 3; ++i) {
+    a.result("session.create", kCreate64);
+    a.result("session.leave");
+    CHECK(waitForSessions(0) == 0);
+  }
+  const json perConnection = a.call("session.create", kCreate64);
+  CHECK(perConnection["error"]["code"] == -32004);
+  CHECK(perConnection["error"]["data"]["limit"] == "max_creates_per_minute");
+  b.result("session.create", kCreate64);
+  b.result("session.leave");
+  // A changed session stays for the idle timeout.
+  const json kept = b.result("session.create", kCreate64);
+  b.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  b.result("session.leave");
+  CHECK(waitForSessions(1) == 1);
+  // Both connections come from one address ("test"): five creates in the minute are all it gets.
+  const json perAddress = other.call("session.create", kCreate64);
+  CHECK(perAddress["error"]["code"] == -32004);
+  CHECK(perAddress["error"]["data"]["limit"] == "max_creates_per_address_per_minute");
+  CHECK(other.result("session.join", {{"session", kept["session"]}, {"token", kept["token"]}})["revision"] == 1);
+}
+
+TEST_CASE("outputs are sized from the band before they are built", "[hub]") {
+  // The estimate: a mesh file's size from the crossed edges, against the real file.
+  json created;
+  std::size_t stlBytes = 0, objBytes = 0, plyBytes = 0;
+  {
+    Hub hub(smallOptions());
+    TestClient a(hub);
+    created = a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+    stlBytes = a.result("mesh.export", {{"format", "stl"}})["bytes"];
+    objBytes = a.result("mesh.export", {{"format", "obj"}})["bytes"];
+    plyBytes = a.result("mesh.export", {{"format", "ply"}})["bytes"];
+  }
+  HubOptions o = smallOptions();
+  o.limits.maxOutputBytes = 1;
+  o.limits.maxVolumeBytes = 64 << 10;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+  const std::size_t mark = a.link->size();
+  for (const auto& [format, real] : {std::pair<std::string, std::size_t>{"stl", stlBytes}, {"obj", objBytes}, {"ply", plyBytes}}) {
+    const json refused = a.call("mesh.export", {{"format", format}});
+    INFO(format << ": " << refused.dump() << " real " << real);
+    CHECK(refused["error"]["code"] == -32004);
+    CHECK(refused["error"]["data"]["limit"] == "max_output_bytes");
+    const double ratio = refused["error"]["data"]["value"].get<double>() / double(real);
+    CHECK(ratio > 0.8);
+    CHECK(ratio < 1.3);
+  }
+  const json splats = a.call("splats.get");
+  CHECK(splats["error"]["data"]["limit"] == "max_output_bytes");
+  // Nothing was built and sent.
+  for (std::size_t i = mark; i < a.link->size(); ++i) CHECK(std::holds_alternative<json>(a.link->at(i)));
+  // A volume over max_volume_bytes is refused before it replaces the session's.
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Pig, {96, 96, 96}));
+  const int id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+  a.hub.binary(a.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+  const json loaded = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+  CHECK(loaded["error"]["data"]["limit"] == "max_volume_bytes");
+  CHECK(a.result("session.stats")["revision"] == 0);
+}
+
 TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
