@@ -450,7 +450,19 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       };
       r.result = {{"revision", a.revision}, {"digest", digestText(s.session->digest())}, {"roi", protocol::boxJson(a.roi)},
                   {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
-      r.after = [this, &s, c, a] { changed(s, *c, "load", a.roi, a.bricks, true); };
+      r.after = [this, &s, c, a] {
+        // A snapshot now lets the next rotation remove this upload's file: without it every
+        // load-R.mzv (up to max_binary_bytes each) stayed until snapshot_every records passed.
+        if (s.journal) {
+          try {
+            s.journal = store.snapshot(s.id, s.session->volume());
+            announceOpenStrokes(s);
+          } catch (const std::exception& e) {
+            log("session " + s.id + ": snapshot after a load failed (" + e.what() + "); the journal goes on");
+          }
+        }
+        changed(s, *c, "load", a.roi, a.bricks, true);
+      };
     });
   }
 

@@ -811,6 +811,29 @@ TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded 
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("uploads kept in the data directory do not pile up", "[hub]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-loads";
+  std::filesystem::remove_all(dir);
+  HubOptions o = smallOptions();
+  o.dataDir = dir;
+  Hub hub(o);
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate64);
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Box, {64, 64, 64}));
+  for (int i = 0; i < 4; ++i) {
+    const int id = a.nextId++;
+    a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+    a.hub.binary(a.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+    CHECK(std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })))["result"]["revision"] == i + 1);
+  }
+  CHECK(a.result("history.undo")["revision"] == 5);
+  std::size_t loads = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / created["session"].get<std::string>()))
+    if (e.path().filename().string().rfind("load-", 0) == 0) ++loads;
+  CHECK(loads <= 1);
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("leaving and disconnecting update the others' client lists", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
