@@ -88,12 +88,13 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}},
       volumeMb{"--max-volume-mb", "MARZIPAN_MAX_VOLUME_MB", {}}, outputMb{"--max-output-mb", "MARZIPAN_MAX_OUTPUT_MB", {}},
       createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
-      createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}};
+      createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
+      maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
                                &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
-                               &volumeMb, &outputMb, &createRate, &createRateAddress};
+                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -171,6 +172,10 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(outputMb, limits.maxOutputBytes, 1, 4095, std::uint64_t(1) << 20);
   setLimit(createRate, limits.maxCreatesPerMinute, 1, 1000000);
   setLimit(createRateAddress, limits.maxCreatesPerAddressPerMinute, 1, 1000000);
+  if (maxAgeDays.value) {
+    limits.maxSessionAge = std::chrono::hours(24 * std::int64_t(parseUnsigned(maxAgeDays, 100000)));
+    if (limits.maxSessionAge.count() < 24) throw UsageError("--max-session-age-days (or MARZIPAN_MAX_SESSION_AGE_DAYS) must be at least 1");
+  }
   setLimit(maxConnections, limits.maxConnections, 1, 1000000);
   setLimit(maxPerAddress, limits.maxConnectionsPerAddress, 1, 1000000);
   if (lobbySeconds.value) {
@@ -301,6 +306,8 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              [MARZIPAN_MAX_CREATES_PER_MINUTE]; 10
   --max-creates-per-address-per-minute N  the same per client address
                              [MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE]; 30
+  --max-session-age-days N   with --data-dir: a session at rest nobody changed for N days is
+                             deleted [MARZIPAN_MAX_SESSION_AGE_DAYS]; 90
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and

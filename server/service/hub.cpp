@@ -661,7 +661,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_volume_bytes", l.maxVolumeBytes},
             {"max_output_bytes", l.maxOutputBytes},
             {"max_creates_per_minute", l.maxCreatesPerMinute},
-            {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute}};
+            {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute},
+            {"max_session_age_days", l.maxSessionAge.count() / 24}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -1018,6 +1019,27 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     });
   }
 
+  // Deletes sessions at rest untouched for max_session_age, now and then every hour.
+  void sweepOldSessions(std::chrono::milliseconds delay) {
+    if (!store.enabled()) return;
+    workers.postAfter(delay, [self = shared_from_this()] {
+      try {
+        const auto removed = self->store.removeUntouched(
+            std::chrono::duration_cast<std::chrono::seconds>(self->limits().maxSessionAge), self->owner, kLeaseTtl,
+            [&](const std::string& id) {
+              const std::lock_guard lock(self->mutex);
+              return self->sessions.count(id) > 0;
+            });
+        for (const std::string& id : removed)
+          self->log("session " + id + ": untouched for " + std::to_string(self->limits().maxSessionAge.count() / 24) +
+                    " days, deleted");
+      } catch (const std::exception& e) {
+        self->log(std::string("sweeping old sessions failed: ") + e.what());
+      }
+      self->sweepOldSessions(std::chrono::hours(1));
+    });
+  }
+
   // --- idle sessions ---------------------------------------------------------------------------------
   void scheduleIdleCheck() {
     if (idleCheckScheduled.exchange(true)) return;
@@ -1340,7 +1362,9 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
   }
 }
 
-Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {}
+Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {
+  impl_->sweepOldSessions(std::chrono::milliseconds(0));
+}
 
 Hub::~Hub() { shutdown(); }
 

@@ -69,6 +69,9 @@ struct HubLimits {
   // session.create per connection and per client address in any 60 s; beyond them -32004.
   std::size_t maxCreatesPerMinute = 10;
   std::size_t maxCreatesPerAddressPerMinute = 30;
+  // With a data directory: a session at rest whose files nobody changed for this long is
+  // deleted (checked at start and hourly).
+  std::chrono::hours maxSessionAge{24 * 90};
 };
 
 // What the hub reports, for /metrics and the log. Any member may be empty; called from worker

@@ -834,6 +834,33 @@ TEST_CASE("uploads kept in the data directory do not pile up", "[hub]") {
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("sessions at rest untouched for max_session_age are deleted", "[hub]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-age";
+  std::filesystem::remove_all(dir);
+  HubOptions o = smallOptions();
+  o.dataDir = dir;
+  json old, young;
+  {
+    Hub hub(o);
+    TestClient a(hub), b(hub);
+    old = a.result("session.create", kCreate64);
+    young = b.result("session.create", kCreate64);
+  }
+  // Both are at rest now; one looks 91 days old.
+  const auto past = std::filesystem::file_time_type::clock::now() - std::chrono::hours(24 * 91);
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / old["session"].get<std::string>()))
+    std::filesystem::last_write_time(e.path(), past);
+  Hub hub(o);
+  const auto deadline = std::chrono::steady_clock::now() + kWait;
+  while (std::filesystem::exists(dir / "sessions" / old["session"].get<std::string>()) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  TestClient c(hub);
+  CHECK(c.error("session.join", {{"session", old["session"]}, {"token", old["token"]}}) == -32001);
+  CHECK(c.result("session.join", {{"session", young["session"]}, {"token", young["token"]}})["revision"] == 0);
+  CHECK(c.result("session.stats")["clients"].size() == 1);
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("leaving and disconnecting update the others' client lists", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
