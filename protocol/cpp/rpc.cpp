@@ -219,8 +219,11 @@ CreateParams parseCreateParams(const json& params) {
   p.solid = *kind;
   if (const json* s = find(params, "session")) {
     const std::string id = stringValue(*s, "session");
-    if (id.size() < 16 || id.size() > 64 || !idCharsOnly(id))
-      fail("session", "must be 16 to 64 characters of A-Z a-z 0-9 _ -, got " + inQuotes(id));
+    // The answers to session.join tell whether an id exists (-32001 vs -32002): that is safe
+    // only for ids nobody can guess, so a proposed id must be able to carry 128 random bits.
+    if (id.size() < 22 || id.size() > 64 || !idCharsOnly(id))
+      fail("session", "must be 22 to 64 characters of A-Z a-z 0-9 _ - (at least 128 random bits: 22 random "
+                      "base64url characters), got " + inQuotes(id));
     p.session = id;
   }
   p.protocol = protocolValue(params);

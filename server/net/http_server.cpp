@@ -30,6 +30,7 @@
 #include <deque>
 #include <exception>
 #include <iostream>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -40,6 +41,7 @@
 
 #include "net/static_files.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/rpc.hpp"
 #include "service/hub.hpp"
 
 namespace marzipan::net {
@@ -67,7 +69,7 @@ std::string endpointText(const tcp::endpoint& ep) {
 }
 
 // What the listener and the sessions share.
-struct SharedState {
+struct SharedState : std::enable_shared_from_this<SharedState> {
   SharedState(const HttpServerOptions& o, Metrics& m) : options(o), files(o.webRoot), metrics(m) {
     for (const auto& [prefix, dir] : o.mounts) mounts.emplace_back(prefix, StaticFiles(dir));
   }
@@ -116,22 +118,66 @@ struct SharedState {
     if (live == 0) idle.notify_all();
   }
 
+  // A TCP connection's place under the connection bounds (HubLimits::maxConnections and
+  // maxConnectionsPerAddress); released when the last holder (HTTP, then WebSocket session)
+  // goes. Null when a bound is reached: the caller closes the socket.
+  std::shared_ptr<void> takeSlot(const std::string& address) {
+    const service::HubLimits limits = options.hub ? options.hub->limits() : service::HubLimits{};
+    {
+      const std::lock_guard lock(mutex);
+      std::size_t& mine = perAddress[address];
+      if (connections >= limits.maxConnections || mine >= limits.maxConnectionsPerAddress) {
+        if (mine == 0) perAddress.erase(address);
+        return nullptr;
+      }
+      ++mine;
+      ++connections;
+    }
+    return std::shared_ptr<void>(new char, [self = shared_from_this(), address](void* p) {
+      delete static_cast<char*>(p);
+      const std::lock_guard lock(self->mutex);
+      --self->connections;
+      if (--self->perAddress[address] == 0) self->perAddress.erase(address);
+    });
+  }
+
   const HttpServerOptions& options;
   const StaticFiles files;
   std::vector<std::pair<std::string, StaticFiles>> mounts;
   Metrics& metrics;
-  std::mutex mutex;  // guards the seven below
+  std::mutex mutex;  // guards the nine below
   std::condition_variable idle;  // notified when live drops to 0 and when the acceptor closed
   bool stopping = false, acceptorClosed = false;
   std::vector<std::weak_ptr<HttpSession>> sessions;
   std::vector<std::weak_ptr<WsSession>> websockets;
   std::size_t live = 0;  // HTTP sessions and WebSockets
   std::size_t liveWs = 0;
+  std::size_t connections = 0;                        // slots taken
+  std::map<std::string, std::size_t> perAddress;  // slots taken per client address
 };
 
 bool normalClose(const beast::error_code& ec) {
   return ec == asio::error::operation_aborted || ec == http::error::end_of_stream || ec == asio::error::eof ||
          ec == asio::error::connection_reset || ec == asio::error::broken_pipe;
+}
+
+// The host name of a Host header ("name:port", "[v6]:port", "name"), without the port.
+std::string_view hostName(std::string_view host) {
+  if (!host.empty() && host.front() == '[') return host.substr(1, host.find(']') - 1);
+  return host.substr(0, host.rfind(':'));
+}
+
+// Whether a page served under this Host is this server's own and not a DNS rebinding (a page
+// of another site whose name now resolves to this address): an address literal, localhost, or
+// a name of HttpServerOptions::publicHosts.
+bool ownHost(const SharedState& state, std::string_view host) {
+  const std::string name(hostName(host));
+  if (name == "localhost") return true;
+  beast::error_code ec;
+  asio::ip::make_address(name, ec);
+  if (!ec) return true;
+  const auto& hosts = state.options.publicHosts;
+  return std::find(hosts.begin(), hosts.end(), name) != hosts.end();
 }
 
 // Whether a browser's Origin may open a WebSocket here (see HttpServerOptions::allowedOrigins).
@@ -140,7 +186,7 @@ bool originAllowed(const SharedState& state, std::string_view origin, std::strin
   const auto& allowed = state.options.allowedOrigins;
   if (allowed.empty()) {
     const std::size_t scheme = origin.find("://");
-    return scheme != std::string_view::npos && origin.substr(scheme + 3) == host;
+    return scheme != std::string_view::npos && origin.substr(scheme + 3) == host && ownHost(state, host);
   }
   for (const std::string& a : allowed)
     if (a == "*" || a == origin) return true;
@@ -150,8 +196,8 @@ bool originAllowed(const SharedState& state, std::string_view origin, std::strin
 // A WebSocket connection: reads messages into the hub, writes what the hub sends.
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer)
-      : ws_(std::move(stream)), state_(std::move(state)), peer_(std::move(peer)) {}
+  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer, std::shared_ptr<void> slot)
+      : ws_(std::move(stream)), state_(std::move(state)), peer_(std::move(peer)), slot_(std::move(slot)) {}
 
   ~WsSession() {
     if (!joined_) return;
@@ -172,7 +218,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.set_option(timeout);
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "marzipan"); }));
-    ws_.read_message_max(std::max(limits.maxTextBytes, limits.maxBinaryBytes));
+    nextReadMax_ = limits.maxTextBytes;
     ws_.auto_fragment(false);
     ws_.async_accept(req, beast::bind_front_handler(&WsSession::onAccept, shared_from_this()));
   }
@@ -195,6 +241,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::shared_ptr<const std::string> text;
     std::shared_ptr<const std::vector<std::uint8_t>> binary;
     bool latestWins = false;
+    std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
     std::size_t size() const { return text ? text->size() : binary->size(); }
   };
 
@@ -225,6 +272,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   void doRead() {
     if (closing_) return;
+    // Per message: nothing over max_text_bytes is buffered unless an editor announced an upload.
+    ws_.read_message_max(nextReadMax_);
     ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::onRead, shared_from_this()));
   }
 
@@ -233,11 +282,14 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     const service::HubLimits& limits = state_->options.hub->limits();
     const auto data = buffer_.cdata();
     const auto* begin = static_cast<const std::uint8_t*>(data.data());
+    nextReadMax_ = limits.maxTextBytes;
     if (ws_.got_text()) {
       if (bytes > limits.maxTextBytes)
         return startClose(websocket::close_code::too_big, "text message over max_text_bytes (" +
                                                               std::to_string(limits.maxTextBytes) + ")");
-      state_->options.hub->text(client_, std::string(reinterpret_cast<const char*>(begin), bytes));
+      std::string text(reinterpret_cast<const char*>(begin), bytes);
+      if (const std::uint64_t upload = announcedUpload(text, limits)) nextReadMax_ = upload;
+      state_->options.hub->text(client_, std::move(text));
     } else {
       const auto decoded = protocol::decodeFrameHeader({begin, bytes}, limits.maxBinaryBytes);
       if (!decoded) return startClose(websocket::close_code::policy_error, decoded.error->message.substr(0, 120));
@@ -247,6 +299,20 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
     buffer_.consume(buffer_.size());
     doRead();
+  }
+
+  // The size of the upload frame a volume.load in `text` announces when this client may upload
+  // (Hub::mayUpload), else 0. The hub checks the request again; this only sizes the next read.
+  std::uint64_t announcedUpload(const std::string& text, const service::HubLimits& limits) const {
+    if (text.find("volume.load") == std::string::npos || !state_->options.hub->mayUpload(client_)) return 0;
+    const protocol::ParsedRequest p = protocol::parseRequest(text);
+    if (!p.request || p.request->method != protocol::Method::VolumeLoad) return 0;
+    try {
+      return protocol::parseVolumeLoadParams(p.request->params, limits.maxBinaryBytes - protocol::kFrameHeaderBytes) +
+             protocol::kFrameHeaderBytes;
+    } catch (const std::exception&) {
+      return 0;  // the hub answers the bad params
+    }
   }
 
   void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
@@ -262,8 +328,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         }
       }
     } else {
-      queuedBytes_ += out.size();
-      if (queuedBytes_ > state_->options.hub->limits().maxQueuedBytes) return startClose(websocket::close_code::policy_error, "too far behind");
+      // The bound is for backlog, not for one message: an answer larger than half of it counts
+      // as half, so a reader at full speed gets it and what follows; one that does not read
+      // is closed by the next such answer.
+      const std::size_t bound = state_->options.hub->limits().maxQueuedBytes;
+      out.charge = std::min(out.size(), bound / 2);
+      queuedBytes_ += out.charge;
+      if (queuedBytes_ > bound) return startClose(websocket::close_code::policy_error, "too far behind");
     }
     queue_.push_back(std::move(out));
     if (!writing_) doWrite();
@@ -284,7 +355,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     state_->metrics.addBytesSent(bytes);
     writing_ = false;
     if (ec) return fail(ec, "write");
-    if (!queue_.front().latestWins) queuedBytes_ -= queue_.front().size();
+    queuedBytes_ -= queue_.front().charge;
     queue_.pop_front();
     if (closeAfterWrite_) return doClose();
     if (!queue_.empty() && !closing_) doWrite();
@@ -320,9 +391,11 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   beast::flat_buffer buffer_;
   std::shared_ptr<SharedState> state_;
   std::string peer_;
+  std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
+  std::size_t nextReadMax_ = 0;  // the largest next message: max_text_bytes, or an announced upload
   std::shared_ptr<service::HubClient> client_;
   std::deque<Out> queue_;
-  std::size_t queuedBytes_ = 0;  // non-droppable bytes queued, the one in flight included
+  std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
   bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
   websocket::close_reason closeReason_;
   std::string closeReasonText_;
@@ -331,12 +404,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket&& socket, std::shared_ptr<SharedState> state)
-      : stream_(std::move(socket)), state_(std::move(state)) {
-    beast::error_code ec;
-    const tcp::endpoint remote = stream_.socket().remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : endpointText(remote);
-  }
+  HttpSession(tcp::socket&& socket, std::shared_ptr<SharedState> state, std::string peer, std::shared_ptr<void> slot)
+      : stream_(std::move(socket)), state_(std::move(state)), peer_(std::move(peer)), slot_(std::move(slot)) {}
 
   ~HttpSession() {
     if (!joined_) return;
@@ -402,7 +471,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       }
       busy_ = false;
       upgraded_ = true;
-      std::make_shared<WsSession>(std::move(stream_), state_, peer_)->run(std::move(req));
+      std::make_shared<WsSession>(std::move(stream_), state_, peer_, std::move(slot_))->run(std::move(req));
       return;
     }
     if (req.method() != http::verb::get && !head) {
@@ -497,6 +566,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<SharedState> state_;
   std::string peer_;
+  std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
   bool joined_ = false;  // counted in state_->live
   bool busy_ = false;  // a request has been read and its response not yet written
   bool upgraded_ = false;  // the socket went to a WsSession
@@ -559,7 +629,16 @@ class Listener : public std::enable_shared_from_this<Listener> {
     // would hold the later ones for the client's delayed ACK (about 40 ms per edit).
     beast::error_code noDelay;
     socket.set_option(tcp::no_delay(true), noDelay);
-    std::make_shared<HttpSession>(std::move(socket), state_)->run();
+    beast::error_code remoteEc;
+    const tcp::endpoint remote = socket.remote_endpoint(remoteEc);
+    const std::string peer = remoteEc ? std::string("?") : endpointText(remote);
+    if (auto slot = state_->takeSlot(remoteEc ? peer : remote.address().to_string())) {
+      std::make_shared<HttpSession>(std::move(socket), state_, peer, std::move(slot))->run();
+    } else {
+      state_->log("http: refused " + peer + ": too many connections (max_connections / max_connections_per_address)");
+      beast::error_code ignored;
+      socket.close(ignored);
+    }
     if (!state_->isStopping()) doAccept();
   }
 

@@ -7,7 +7,8 @@
 // WebSocket conventions: one read loop and one write in flight per connection; the outgoing
 // queue keeps responses and splat buffers in order and replaces a queued pushed image by a
 // newer one; a connection whose undelivered non-droppable bytes exceed the hub's
-// maxQueuedBytes is closed with 1008 "too far behind". Text over maxTextBytes closes with 1009,
+// maxQueuedBytes is closed with 1008 "too far behind" (one message counts at most half the
+// bound: the bound is for backlog, a single big answer always goes out). Text over maxTextBytes closes with 1009,
 // invalid UTF-8 with 1007, an unreadable binary frame or one of another kind than 9 with 1008.
 // Pings every ping period; no answer within two closes the connection.
 //
@@ -51,6 +52,10 @@ struct HttpServerOptions {
   // Origins ("http://host:port") a browser may open /ws from; empty: only the page's own
   // (Origin's host equal to the Host header); "*": any. Requests without Origin (scripts) pass.
   std::vector<std::string> allowedOrigins;
+  // Host names (without port) under which browsers reach this server, for the page's-own check
+  // above: there the Host must also be an address literal, localhost or one of these, so that
+  // a page of another site whose name was rebound to this address cannot drive it.
+  std::vector<std::string> publicHosts;
   std::function<void(const std::string&)> log;  // one line, no newline; called from I/O threads
 };
 

@@ -79,10 +79,20 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
       queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}},
       serverId{"--server-id", "MARZIPAN_SERVER_ID", {}},
-      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}};
+      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}},
+      publicHosts{"--public-host", "MARZIPAN_PUBLIC_HOST", {}},
+      maxConnections{"--max-connections", "MARZIPAN_MAX_CONNECTIONS", {}},
+      maxPerAddress{"--max-connections-per-address", "MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS", {}},
+      lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}},
+      volumeMb{"--max-volume-mb", "MARZIPAN_MAX_VOLUME_MB", {}}, outputMb{"--max-output-mb", "MARZIPAN_MAX_OUTPUT_MB", {}},
+      createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
+      createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
+      maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
+                               &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
+                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -156,15 +166,32 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     limits.ping = std::chrono::seconds(parseUnsigned(pingSeconds, 3600));
     if (limits.ping.count() < 1) throw UsageError("--ping-seconds (or MARZIPAN_PING_SECONDS) must be at least 1");
   }
-  if (origins.value) {
-    std::string_view list = *origins.value;
+  setLimit(volumeMb, limits.maxVolumeBytes, 1, 1u << 20, std::uint64_t(1) << 20);
+  setLimit(outputMb, limits.maxOutputBytes, 1, 4095, std::uint64_t(1) << 20);
+  setLimit(createRate, limits.maxCreatesPerMinute, 1, 1000000);
+  setLimit(createRateAddress, limits.maxCreatesPerAddressPerMinute, 1, 1000000);
+  if (maxAgeDays.value) {
+    limits.maxSessionAge = std::chrono::hours(24 * std::int64_t(parseUnsigned(maxAgeDays, 100000)));
+    if (limits.maxSessionAge.count() < 24) throw UsageError("--max-session-age-days (or MARZIPAN_MAX_SESSION_AGE_DAYS) must be at least 1");
+  }
+  setLimit(maxConnections, limits.maxConnections, 1, 1000000);
+  setLimit(maxPerAddress, limits.maxConnectionsPerAddress, 1, 1000000);
+  if (lobbySeconds.value) {
+    limits.lobby = std::chrono::seconds(parseUnsigned(lobbySeconds, 1u << 30));
+    if (limits.lobby.count() < 1) throw UsageError("--lobby-seconds (or MARZIPAN_LOBBY_SECONDS) must be at least 1");
+  }
+  const auto splitList = [](const std::optional<std::string>& value, std::vector<std::string>& into) {
+    if (!value) return;
+    std::string_view list = *value;
     while (!list.empty()) {
       const std::size_t comma = list.find(',');
       const std::string_view item = list.substr(0, comma);
-      if (!item.empty()) options.allowedOrigins.emplace_back(item);
+      if (!item.empty()) into.emplace_back(item);
       list = comma == std::string_view::npos ? std::string_view() : list.substr(comma + 1);
     }
-  }
+  };
+  splitList(origins.value, options.allowedOrigins);
+  splitList(publicHosts.value, options.publicHosts);
   options.webRoot = webRoot.value ? fs::path(*webRoot.value) : fs::path(MARZIPAN_DEFAULT_WEB_ROOT);
   if (webRoot.value && webRoot.value->empty()) throw UsageError("--web-root (or MARZIPAN_WEB_ROOT) is empty");
   std::error_code ec;
@@ -237,6 +264,10 @@ Options (each also read from the environment variable in brackets; a flag wins):
                     every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open
                     /ws from, * for any [MARZIPAN_ALLOWED_ORIGINS]; default the page's own
+                    when it was served under an address literal, localhost or a --public-host
+  --public-host LIST  comma-separated host names browsers reach this server by (behind a
+                    proxy: its public name) [MARZIPAN_PUBLIC_HOST]; other names are refused
+                    for the page's-own origin check (DNS rebinding)
 Limits (PROTOCOL.md, "Versions and limits"):
   --max-text-bytes N         largest text message [MARZIPAN_MAX_TEXT_BYTES]; 1048576
   --max-binary-bytes N       largest binary message [MARZIPAN_MAX_BINARY_BYTES]; 268435456
@@ -253,7 +284,24 @@ Limits (PROTOCOL.md, "Versions and limits"):
   --max-requests-per-second N  per connection, bursts of twice that; beyond: busy (-32005)
                              [MARZIPAN_MAX_REQUESTS_PER_SECOND]; 400
   --max-queue-mb N           undelivered responses and splat buffers per connection before it
-                             is closed as too far behind [MARZIPAN_MAX_QUEUE_MB]; 64
+                             is closed as too far behind; one answer counts at most half
+                             [MARZIPAN_MAX_QUEUE_MB]; 64
+  --max-connections N        TCP connections at once; more are closed at once
+                             [MARZIPAN_MAX_CONNECTIONS]; 1024
+  --max-connections-per-address N  the same per client address
+                             [MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS]; 32
+  --lobby-seconds N          a WebSocket in no session this long is closed (1008)
+                             [MARZIPAN_LOBBY_SECONDS]; 60
+  --max-volume-mb N          memory of one session's volume; a larger volume.load is
+                             refused [MARZIPAN_MAX_VOLUME_MB]; 256
+  --max-output-mb N          largest mesh file or splat buffer one request may build,
+                             estimated before any work [MARZIPAN_MAX_OUTPUT_MB]; 256
+  --max-creates-per-minute N   session.create per connection in 60 s
+                             [MARZIPAN_MAX_CREATES_PER_MINUTE]; 10
+  --max-creates-per-address-per-minute N  the same per client address
+                             [MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE]; 30
+  --max-session-age-days N   with --data-dir: a session at rest nobody changed for N days is
+                             deleted [MARZIPAN_MAX_SESSION_AGE_DAYS]; 90
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and

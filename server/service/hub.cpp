@@ -102,6 +102,40 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
 
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
+// Grid edges the surface crosses (a sign change between two voxels of one brick; those across
+// brick borders are left out, a few percent). Marching cubes makes one vertex per crossed edge
+// and about two triangles per vertex, so this sizes a mesh before it is built.
+std::size_t crossedEdges(const Volume& vol) {
+  std::size_t edges = 0;
+  vol.forEachPresentBrick([&](Int3, const Brick& b) {
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const int i = x + 8 * (y + 8 * z);
+          const bool in = b.v[i] < 0;
+          if (x < 7 && in != (b.v[i + 1] < 0)) ++edges;
+          if (y < 7 && in != (b.v[i + 8] < 0)) ++edges;
+          if (z < 7 && in != (b.v[i + 64] < 0)) ++edges;
+        }
+  });
+  return edges;
+}
+
+// Bytes of a mesh file per crossed edge (one vertex, two triangles): STL 2 x 50; OBJ a "v"
+// line and two "f" lines, PLY a vertex with its normal and two faces (140 and 55, measured on
+// the 96^3 pig 2026-11-24; tests/service/test_hub.cpp holds each within 0.8-1.3 of the file);
+// GLB a position and normal (24 bytes) and two triangles of 32-bit indices (24): 48.
+std::size_t meshBytesPerEdge(const std::string& format) {
+  return format == "stl" ? 100 : format == "obj" ? 140 : format == "glb" ? 48 : 55;
+}
+
+// The peer's address without its port ("1.2.3.4:5", "[::1]:5").
+std::string addressOf(const std::string& peer) {
+  if (!peer.empty() && peer.front() == '[') return peer.substr(0, peer.find(']') + 1);
+  const std::size_t colon = peer.find(':');
+  return colon != std::string::npos && colon == peer.rfind(':') ? peer.substr(0, colon) : peer;
+}
+
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
@@ -169,6 +203,12 @@ class HubClient {
     Clock::time_point arrived;
   };
   std::optional<PendingLoad> load;
+  std::deque<Clock::time_point> creates;  // this connection's session.create in the last minute
+
+  // Written on the session's strand, read anywhere: an editor of a session (may upload), a
+  // member of one, and since when it is in none (for the lobby deadline).
+  std::atomic<bool> editor{false}, member{false};
+  std::atomic<Clock::rep> outsideSince{Clock::now().time_since_epoch().count()};
 
   // The session's strand only.
   int clientId = 0;
@@ -215,6 +255,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   ThreadPool pool;  // for whole-volume kernels and renders; parallelFor serializes its callers
   mutable std::mutex mutex;  // guards sessions and stopping
   std::map<std::string, std::shared_ptr<LiveSession>> sessions;
+  std::map<std::string, std::deque<Clock::time_point>> createsByAddress;  // in the last minute
   bool stopping = false;
   std::atomic<bool> idleCheckScheduled{false};
   const std::string owner;  // this server's name in leases
@@ -245,6 +286,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void enqueue(const std::shared_ptr<HubClient>& c, HubClient::Incoming in) {
     bool start = false;
     const std::size_t size = std::visit([](const auto& m) { return m.size(); }, in.message);
+    std::string refusal;
     {
       const std::lock_guard lock(c->mutex);
       if (c->closed) return;
@@ -253,7 +295,6 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       const auto now = Clock::now();
       c->tokens = std::min(2 * rate, c->tokens + rate * std::chrono::duration<double>(now - c->refilled).count());
       c->refilled = now;
-      std::string refusal;
       if (c->queue.size() >= limits().maxPendingMessages)
         refusal = "too many requests in flight on this connection (" + std::to_string(limits().maxPendingMessages) +
                   "); wait for answers before sending more";
@@ -262,35 +303,40 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                   " requests per second on this connection; slow down";
       else if (c->queuedBytes + size > limits().maxBinaryBytes + limits().maxTextBytes)
         refusal = "too many bytes waiting on this connection; wait for answers before sending more";
-      if (!refusal.empty()) {
-        // Answered at once without queueing. An upload cannot be answered alone: its volume.load
-        // then fails with -32013.
-        if (const auto* text = std::get_if<std::string>(&in.message)) {
-          const protocol::ParsedRequest p = protocol::parseRequest(*text);
-          const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
-          const bool notification = p.request ? !p.request->id : p.error->notification;
-          sendError(*c, id, notification, {RpcCode::Busy, refusal, {{"retry_after_ms", 100}}});
-        }
-        return;
+      if (refusal.empty()) {
+        c->tokens -= 1;
+        c->queuedBytes += size;
+        c->queue.push_back(std::move(in));
+        if (!c->busy) start = c->busy = true;
       }
-      c->tokens -= 1;
-      c->queuedBytes += size;
-      c->queue.push_back(std::move(in));
-      if (!c->busy) start = c->busy = true;
+    }
+    if (!refusal.empty()) {
+      // Answered at once without queueing, after the lock: the link may send inline and, past
+      // its queue bound, disconnect this client (which takes c->mutex). An upload cannot be
+      // answered alone: its volume.load then fails with -32013.
+      if (const auto* text = std::get_if<std::string>(&in.message)) {
+        const protocol::ParsedRequest p = protocol::parseRequest(*text);
+        const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
+        const bool notification = p.request ? !p.request->id : p.error->notification;
+        sendError(*c, id, notification, {RpcCode::Busy, refusal, {{"retry_after_ms", 100}}});
+      }
+      return;
     }
     if (start) workers.post([self = shared_from_this(), c] { self->pump(c); });
   }
 
   // Ends the handling of one message: the next one may start.
   void finish(const std::shared_ptr<HubClient>& c) {
+    bool closed = false;
     {
       const std::lock_guard lock(c->mutex);
       if (!c->closed && c->queue.empty()) {
         c->busy = false;
         return;
       }
-      if (c->closed) return cleanup(c);
+      closed = c->closed;
     }
+    if (closed) return cleanup(c);
     workers.post([self = shared_from_this(), c] { self->pump(c); });
   }
 
@@ -308,8 +354,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void pump(const std::shared_ptr<HubClient>& c) {
     HubClient::Incoming in;
     {
-      const std::lock_guard lock(c->mutex);
-      if (c->closed) return cleanup(c);
+      std::unique_lock lock(c->mutex);
+      if (c->closed) {
+        lock.unlock();
+        return cleanup(c);
+      }
       if (c->queue.empty()) {
         c->busy = false;
         return;
@@ -346,12 +395,14 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (options.events.request) options.events.request(protocol::nameOf(protocol::kMethodNames, req.method));
     // A binary-answered method sent as a notification has nowhere to put its answer.
     if (!req.id && protocol::needsFrameId(req.method)) return finish(c);
+    bool refuse = false;
     {
       const std::lock_guard lock(mutex);
-      if (stopping) {
-        sendError(*c, req.id, {RpcCode::Busy, "the server is shutting down", nullptr});
-        return finish(c);
-      }
+      refuse = stopping;
+    }
+    if (refuse) {
+      sendError(*c, req.id, {RpcCode::Busy, "the server is shutting down", nullptr});
+      return finish(c);
     }
     try {
       switch (req.method) {
@@ -394,6 +445,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     bytes.clear();
     onStrand(c, load.id, load.arrived, true, [this, c, payload](LiveSession& s, Reply& r) {
       Volume vol = ::marzipan::loadVolume(*payload);
+      if (vol.memoryBytes() > limits().maxVolumeBytes)
+        throw RpcException(RpcCode::LimitExceeded,
+                           "the file's volume holds " + std::to_string(vol.memoryBytes()) + " bytes of bricks, over max_volume_bytes " +
+                               std::to_string(limits().maxVolumeBytes),
+                           {{"limit", "max_volume_bytes"}, {"value", vol.memoryBytes()}, {"max", limits().maxVolumeBytes}, {"field", "file"}});
       const Int3 d = s.session->volume().dims();
       if (vol.dims() != d)
         throw RpcException(RpcCode::EngineRefused,
@@ -408,7 +464,19 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       };
       r.result = {{"revision", a.revision}, {"digest", digestText(s.session->digest())}, {"roi", protocol::boxJson(a.roi)},
                   {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
-      r.after = [this, &s, c, a] { changed(s, *c, "load", a.roi, a.bricks, true); };
+      r.after = [this, &s, c, a] {
+        // A snapshot now lets the next rotation remove this upload's file: without it every
+        // load-R.mzv (up to max_binary_bytes each) stayed until snapshot_every records passed.
+        if (s.journal) {
+          try {
+            s.journal = store.snapshot(s.id, s.session->volume());
+            announceOpenStrokes(s);
+          } catch (const std::exception& e) {
+            log("session " + s.id + ": snapshot after a load failed (" + e.what() + "); the journal goes on");
+          }
+        }
+        changed(s, *c, "load", a.roi, a.bricks, true);
+      };
     });
   }
 
@@ -520,12 +588,16 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // Runs fn on c's session strand, answers, then lets the connection's next message start.
   void onStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id, Clock::time_point arrived, bool isEdit,
                 std::function<void(LiveSession&, Reply&)> fn) {
-    std::shared_ptr<LiveSession> s = c->session;
+    onStrand(c, c->session, id, arrived, isEdit, std::move(fn));
+  }
+  // The same on the strand of s, which c need not be a client of (yet): session.create/join.
+  void onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<json>& id,
+                Clock::time_point arrived, bool isEdit, std::function<void(LiveSession&, Reply&)> fn) {
     s->strand->post([self = shared_from_this(), c, s, id, arrived, isEdit, fn = std::move(fn)] {
       Reply r;
       try {
         if (s->unloaded || !s->session) {
-          c->session.reset();
+          if (c->session == s) c->session.reset();
           if (!s->failure.empty()) throw RpcException(RpcCode::Internal, s->failure);
           throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
         }
@@ -595,7 +667,16 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_frame_side", l.maxFrameSide},
             {"history_bytes", l.historyBytes},
             {"idle_session_seconds", l.idleSession.count()},
-            {"ping_seconds", l.ping.count()}};
+            {"ping_seconds", l.ping.count()},
+            {"max_queue_bytes", l.maxQueuedBytes},
+            {"max_connections", l.maxConnections},
+            {"max_connections_per_address", l.maxConnectionsPerAddress},
+            {"lobby_seconds", l.lobby.count()},
+            {"max_volume_bytes", l.maxVolumeBytes},
+            {"max_output_bytes", l.maxOutputBytes},
+            {"max_creates_per_minute", l.maxCreatesPerMinute},
+            {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute},
+            {"max_session_age_days", l.maxSessionAge.count() / 24}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -629,6 +710,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     c->readOnly = readOnly;
     c->mode = view;
     c->stroke = 0;
+    c->member = true;
+    c->editor = !readOnly;
     s.clients.push_back(c);
     {
       const std::lock_guard lock(mutex);
@@ -666,6 +749,9 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     }
     s.clients.erase(it);
     c.mode = ViewMode::None;
+    c.editor = false;
+    c.member = false;
+    c.outsideSince = Clock::now().time_since_epoch().count();
     {
       const std::lock_guard lock(mutex);
       --s.clientCount;
@@ -675,6 +761,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     log("session " + s.id + ": client " + std::to_string(c.clientId) + " (" + c.peer + ") left, " +
         std::to_string(s.clients.size()) + " remain");
     broadcastClients(s, nullptr);
+    // A session nobody changed holds nothing worth keeping in memory: its slot goes at once.
+    if (s.clients.empty() && s.session->revision() == 0) return unload(s, "left unchanged");
     scheduleIdleCheck();
   }
 
@@ -689,6 +777,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                            "\"size\"[" + std::to_string(a) + "] " + std::to_string(p.size[a]) +
                                " is over the server's max_grid_side " + std::to_string(limits().maxGridSide),
                            {{"limit", "max_grid_side"}, {"value", p.size[a]}, {"max", limits().maxGridSide}, {"field", "size"}});
+    checkCreateRate(*c);
     const std::string id = p.session.value_or(randomText(kSessionIdChars));
     auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, workers);
     {
@@ -727,14 +816,43 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         emit(self->options.events.sessions, -1);
       }
     });
-    c->session = s;
-    onStrand(c, req.id, arrived, false, [self, c, view, dims, solid](LiveSession& ls, Reply& r) {
+    // c->session is set only once admitted: a refused create leaves the connection as it was.
+    onStrand(c, s, req.id, arrived, false, [self, c, s, view, dims, solid](LiveSession& ls, Reply& r) {
       self->admit(ls, c, false, view, r);
+      c->session = s;
       r.result["token"] = ls.secrets.token;
       r.result["view_token"] = ls.secrets.viewToken;
       self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) + "x" +
                 std::to_string(dims.y) + "x" + std::to_string(dims.z) + ") by " + c->peer);
     });
+  }
+
+  // Counts a session.create of c against the per-minute bounds, or refuses it (-32004).
+  void checkCreateRate(HubClient& c) {
+    const auto now = Clock::now();
+    const auto minuteAgo = now - std::chrono::minutes(1);
+    const auto refuse = [](const char* limit, std::size_t max, const std::string& who) {
+      return RpcException(RpcCode::LimitExceeded,
+                          std::to_string(max) + " sessions were created " + who + " in the last minute; try later",
+                          {{"limit", limit}, {"max", max}, {"retry_after_ms", 60'000}});
+    };
+    while (!c.creates.empty() && c.creates.front() < minuteAgo) c.creates.pop_front();
+    if (c.creates.size() >= limits().maxCreatesPerMinute)
+      throw refuse("max_creates_per_minute", limits().maxCreatesPerMinute, "on this connection");
+    {
+      const std::lock_guard lock(mutex);
+      for (auto it = createsByAddress.begin(); it != createsByAddress.end();) {
+        while (!it->second.empty() && it->second.front() < minuteAgo) it->second.pop_front();
+        it = it->second.empty() ? createsByAddress.erase(it) : std::next(it);
+      }
+      auto& mine = createsByAddress[addressOf(c.peer)];
+      if (mine.size() >= limits().maxCreatesPerAddressPerMinute) {
+        if (mine.empty()) createsByAddress.erase(addressOf(c.peer));
+        throw refuse("max_creates_per_address_per_minute", limits().maxCreatesPerAddressPerMinute, "from this address");
+      }
+      mine.push_back(now);
+    }
+    c.creates.push_back(now);
   }
 
   void join(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
@@ -746,12 +864,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (sameSecret(s->secrets.token, p.token)) readOnly = false;
     else if (sameSecret(s->secrets.viewToken, p.token)) readOnly = true;
     else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
-    c->session = s;
     const ViewMode view = p.view;
     auto self = shared_from_this();
-    std::shared_ptr<LiveSession> joined = s;
-    onStrand(c, req.id, arrived, false, [self, c, view, readOnly](LiveSession& ls, Reply& r) {
+    // c->session is set only once admitted: a refused join (a full session) grants nothing.
+    onStrand(c, s, req.id, arrived, false, [self, c, s, view, readOnly](LiveSession& ls, Reply& r) {
       self->admit(ls, c, readOnly, view, r);
+      c->session = s;
       self->log("session " + ls.id + ": client " + std::to_string(c->clientId) + " (" + c->peer + ") joined" +
                 (readOnly ? " read-only" : "") + ", " + std::to_string(ls.clients.size()) + " in all");
     });
@@ -894,6 +1012,47 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
           });
         });
       });
+    });
+  }
+
+  // Closes c once it has been in no session for the lobby time; re-arms itself while it is in
+  // one or has not been out that long.
+  void scheduleLobbyCheck(const std::weak_ptr<HubClient>& weak, std::chrono::milliseconds delay) {
+    workers.postAfter(delay, [self = shared_from_this(), weak] {
+      const auto c = weak.lock();
+      if (!c) return;
+      {
+        const std::lock_guard lock(c->mutex);
+        if (c->closed) return;
+      }
+      const auto lobby = std::chrono::duration_cast<std::chrono::milliseconds>(self->limits().lobby);
+      const auto out = Clock::now() - Clock::time_point(Clock::duration(c->outsideSince.load()));
+      if (c->member || out < lobby) {
+        const auto left = c->member ? lobby : lobby - std::chrono::duration_cast<std::chrono::milliseconds>(out);
+        return self->scheduleLobbyCheck(weak, std::max(left, std::chrono::milliseconds(10)));
+      }
+      c->link->close(1008, "no session joined within " + std::to_string(self->limits().lobby.count()) + " s");
+    });
+  }
+
+  // Deletes sessions at rest untouched for max_session_age, now and then every hour.
+  void sweepOldSessions(std::chrono::milliseconds delay) {
+    if (!store.enabled()) return;
+    workers.postAfter(delay, [self = shared_from_this()] {
+      try {
+        const auto removed = self->store.removeUntouched(
+            std::chrono::duration_cast<std::chrono::seconds>(self->limits().maxSessionAge), self->owner, kLeaseTtl,
+            [&](const std::string& id) {
+              const std::lock_guard lock(self->mutex);
+              return self->sessions.count(id) > 0;
+            });
+        for (const std::string& id : removed)
+          self->log("session " + id + ": untouched for " + std::to_string(self->limits().maxSessionAge.count() / 24) +
+                    " days, deleted");
+      } catch (const std::exception& e) {
+        self->log(std::string("sweeping old sessions failed: ") + e.what());
+      }
+      self->sweepOldSessions(std::chrono::hours(1));
     });
   }
 
@@ -1170,6 +1329,14 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       protocol::parseNoParams(req.params, req.method);
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        // At most one point per voxel of a stored brick, 8 bytes each (uniform bricks yield
+        // points only where a -band brick meets a +band one; max_volume_bytes bounds those).
+        const std::size_t estimate = vol.presentBricks() * (8 + 8 * std::size_t(kBrickVoxels));
+        if (estimate > self->limits().maxOutputBytes)
+          throw RpcException(RpcCode::LimitExceeded,
+                             "the splat buffer could reach " + std::to_string(estimate) + " bytes, over max_output_bytes " +
+                                 std::to_string(self->limits().maxOutputBytes),
+                             {{"limit", "max_output_bytes"}, {"value", estimate}, {"max", self->limits().maxOutputBytes}});
         std::size_t bricks = 0, points = 0;
         r.frame = self->fullSplatsFrame(vol, frameId, revision, &bricks, &points);
         r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
@@ -1181,6 +1348,12 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
       const std::string format = p.format;
       const std::uint32_t frameId = req.frameId;
       return offStrand(c, req.id, [self, p, format, frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+        const std::size_t estimate = crossedEdges(vol) * meshBytesPerEdge(format);
+        if (estimate > self->limits().maxOutputBytes)
+          throw RpcException(RpcCode::LimitExceeded,
+                             "the mesh file would be about " + std::to_string(estimate) + " bytes, over max_output_bytes " +
+                                 std::to_string(self->limits().maxOutputBytes),
+                             {{"limit", "max_output_bytes"}, {"value", estimate}, {"max", self->limits().maxOutputBytes}});
         Mesh mesh = extractMesh(vol, self->pool);
         std::optional<DecimateResult> decimated;
         if (p.maxTriangles || p.maxError) {
@@ -1231,15 +1404,21 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
   }
 }
 
-Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {}
+Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {
+  impl_->sweepOldSessions(std::chrono::milliseconds(0));
+}
 
 Hub::~Hub() { shutdown(); }
 
 const HubLimits& Hub::limits() const { return impl_->limits(); }
 
 std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::string peer) {
-  return std::make_shared<HubClient>(std::move(link), std::move(peer));
+  auto c = std::make_shared<HubClient>(std::move(link), std::move(peer));
+  impl_->scheduleLobbyCheck(c, std::chrono::duration_cast<std::chrono::milliseconds>(impl_->limits().lobby));
+  return c;
 }
+
+bool Hub::mayUpload(const std::shared_ptr<HubClient>& client) const { return client->editor; }
 
 void Hub::text(const std::shared_ptr<HubClient>& client, std::string message) {
   impl_->enqueue(client, {std::move(message), Clock::now()});

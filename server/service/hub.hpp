@@ -53,6 +53,25 @@ struct HubLimits {
   // Bytes of non-droppable data (responses, splat buffers) queued for one connection; beyond
   // it the connection is closed with 1008 "too far behind" (enforced by the network layer).
   std::size_t maxQueuedBytes = std::size_t(64) << 20;
+  // TCP connections (HTTP and WebSocket) at once, in all and from one client address; beyond
+  // them a new connection is closed at once (enforced by the network layer).
+  std::size_t maxConnections = 1024;
+  std::size_t maxConnectionsPerAddress = 32;
+  // A WebSocket that is in no session this long (since it opened or left one) is closed with
+  // 1008: a connection outside a session holds nothing but its slot.
+  std::chrono::seconds lobby{60};
+  // The memory of one session's volume (its stored bricks); a volume.load beyond it is refused
+  // (-32004). Full splat buffers are at most about twice this.
+  std::size_t maxVolumeBytes = std::size_t(256) << 20;
+  // The largest answer a request may build (mesh.export's file, splats.get's buffer), estimated
+  // from the band before any work; beyond it -32004.
+  std::size_t maxOutputBytes = std::size_t(256) << 20;
+  // session.create per connection and per client address in any 60 s; beyond them -32004.
+  std::size_t maxCreatesPerMinute = 10;
+  std::size_t maxCreatesPerAddressPerMinute = 30;
+  // With a data directory: a session at rest whose files nobody changed for this long is
+  // deleted (checked at start and hourly).
+  std::chrono::hours maxSessionAge{24 * 90};
 };
 
 // What the hub reports, for /metrics and the log. Any member may be empty; called from worker
@@ -113,6 +132,9 @@ class Hub {
   void text(const std::shared_ptr<HubClient>& client, std::string message);
   // One binary message (already checked by decodeFrameHeader, kind 9).
   void binary(const std::shared_ptr<HubClient>& client, std::vector<std::uint8_t> message);
+  // Whether the client's next binary message may be an upload of up to max_binary_bytes: it
+  // is an editor in a session. Without it the transport reads no message over max_text_bytes.
+  bool mayUpload(const std::shared_ptr<HubClient>& client) const;
   // The connection is gone: leaves its session, drops its queued messages.
   void disconnect(const std::shared_ptr<HubClient>& client);
 

@@ -357,4 +357,25 @@ void SessionStore::releaseLease(const std::string& id, const std::string& owner)
   }
 }
 
+std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxAge, const std::string& owner,
+                                                       std::chrono::milliseconds ttl,
+                                                       const std::function<bool(const std::string&)>& live) const {
+  std::vector<std::string> removed;
+  if (!enabled()) return removed;
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir_ / "sessions", ec)) {
+    const std::string id = entry.path().filename().string();
+    if (!entry.is_directory(ec) || live(id)) continue;
+    bool old = true;
+    for (const fs::directory_entry& file : fs::directory_iterator(entry.path(), ec))
+      if (now - file.last_write_time(ec) < maxAge) old = false;
+    if (!old || !takeLease(id, owner, ttl)) continue;
+    fs::remove_all(entry.path(), ec);
+    if (ec) warn("session " + id + ": removing it after " + std::to_string(maxAge.count() / 86400) + " days failed: " + ec.message());
+    else removed.push_back(id);
+  }
+  return removed;
+}
+
 }  // namespace marzipan::service

@@ -23,6 +23,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -69,6 +70,12 @@ class SessionStore {
   // The lease: false when another owner holds an unexpired one. Taking it again renews it.
   bool takeLease(const std::string& id, const std::string& owner, std::chrono::milliseconds ttl) const;
   void releaseLease(const std::string& id, const std::string& owner) const;
+
+  // Deletes every session at rest whose files all are older than maxAge, unless live(id) says
+  // it is loaded here or another owner holds its lease; returns the ids deleted.
+  std::vector<std::string> removeUntouched(std::chrono::seconds maxAge, const std::string& owner,
+                                           std::chrono::milliseconds ttl,
+                                           const std::function<bool(const std::string&)>& live) const;
 
  private:
   std::filesystem::path sessionDir(const std::string& id) const;

@@ -39,7 +39,8 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Server {
-  explicit Server(const std::string& name, HubOptions hubOptions = {}, std::vector<std::string> origins = {}) {
+  explicit Server(const std::string& name, HubOptions hubOptions = {}, std::vector<std::string> origins = {},
+                  std::vector<std::string> publicHosts = {}) {
     const fs::path dir = marzipan::test::scratch(name);
     fs::create_directories(dir / "root");
     fs::create_directories(dir / "js");
@@ -51,6 +52,7 @@ struct Server {
     options.mounts.emplace_back("/protocol/js/", dir / "js");
     options.threads = 2;
     options.allowedOrigins = std::move(origins);
+    options.publicHosts = std::move(publicHosts);
     options.log = [](const std::string&) {};
     server.emplace(options);
     hubOptions.workers = 2;
@@ -67,7 +69,8 @@ struct Server {
 
 class Client {
  public:
-  explicit Client(std::uint16_t port, const std::string& origin = "") : ws_(ioc_) {
+  // host: the Host header, "127.0.0.1:PORT" when empty.
+  explicit Client(std::uint16_t port, const std::string& origin = "", const std::string& host = "") : ws_(ioc_) {
     tcp::socket& s = ws_.next_layer();
     s.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
     timeval timeout{20, 0};
@@ -76,7 +79,7 @@ class Client {
       ws_.set_option(websocket::stream_base::decorator(
           [origin](websocket::request_type& req) { req.set(beast::http::field::origin, origin); }));
     ws_.read_message_max(std::size_t(512) << 20);
-    ws_.handshake("127.0.0.1:" + std::to_string(port), "/ws?session=test");
+    ws_.handshake(host.empty() ? "127.0.0.1:" + std::to_string(port) : host, "/ws?session=test");
   }
 
   void sendText(const std::string& text) {
@@ -86,6 +89,13 @@ class Client {
   void sendBinary(const std::vector<std::uint8_t>& bytes) {
     ws_.binary(true);
     ws_.write(asio::buffer(bytes));
+  }
+  // For a message the server may refuse while it is still being written: a write error is
+  // the server's close, which closeCode() then reads.
+  void sendBinaryMayFail(const std::vector<std::uint8_t>& bytes) {
+    beast::error_code ec;
+    ws_.binary(true);
+    ws_.write(asio::buffer(bytes), ec);
   }
 
   // The next message: text as json, binary as its bytes; nullopt when the connection closed.
@@ -124,6 +134,16 @@ class Client {
     while (read()) {
     }
     return ws_.reason().code;
+  }
+
+  // For a message refused while it was still being written: the server's close frame may be
+  // lost to the reset that the unread rest of the message causes. The close code, -1 for a
+  // close without one, 0 when the connection stayed open (the read timed out).
+  int refusedCode() {
+    while (read()) {
+    }
+    if (ws_.reason().code != 0) return ws_.reason().code;
+    return error == asio::error::would_block || error == asio::error::try_again || error == asio::error::timed_out ? 0 : -1;
   }
 
   beast::error_code error;
@@ -178,8 +198,9 @@ TEST_CASE("ws: unreadable or oversized frames close with 1008 / 1009 / 1007", "[
   }
   {
     Client c(s.server->port());
-    c.sendBinary(std::vector<std::uint8_t>(70000, 0));
-    CHECK(c.closeCode() == 1009);
+    c.sendBinaryMayFail(std::vector<std::uint8_t>(70000, 0));
+    const int code = c.refusedCode();
+    CHECK((code == 1009 || code == -1));
   }
   {
     Client c(s.server->port());
@@ -194,6 +215,17 @@ TEST_CASE("ws: browsers from another origin are refused", "[net][ws]") {
     const std::string self = "http://127.0.0.1:" + std::to_string(s.server->port());
     CHECK_NOTHROW(Client(s.server->port(), self));
     CHECK_THROWS(Client(s.server->port(), "http://evil.example"));
+  }
+  {
+    // DNS rebinding: a page of another site whose name now resolves to this server has an
+    // Origin equal to its Host; only the server's own names may pass.
+    Server s("ws-origin-rebinding", {}, {}, {"studio.example"});
+    const std::string port = std::to_string(s.server->port());
+    CHECK_THROWS(Client(s.server->port(), "http://rebound.example:" + port, "rebound.example:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://studio.example:" + port, "studio.example:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://localhost:" + port, "localhost:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "http://[::1]:" + port, "[::1]:" + port));
+    CHECK_NOTHROW(Client(s.server->port(), "", "rebound.example:" + port));  // scripts send no Origin
   }
   Server s("ws-origin-list", {}, {"http://studio.example"});
   CHECK_NOTHROW(Client(s.server->port(), "http://studio.example"));
@@ -220,6 +252,110 @@ TEST_CASE("ws: a client that stops reading neither stalls the others nor grows m
   // The slow client was dropped once its queue passed the bound.
   CHECK(slow.closeCode() == 1008);
   CHECK(fast.call(100, "session.stats")["result"]["clients"].size() == 1);
+}
+
+TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxQueuedBytes = std::size_t(64) << 10;
+  Server s("ws-big-answer", o);
+  Client c(s.server->port());
+  REQUIRE(c.call(1, "session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}}).contains("result"));
+  c.sendText(json{{"jsonrpc", "2.0"}, {"id", 2}, {"method", "mesh.export"}, {"params", {{"format", "obj"}}}}.dump());
+  std::size_t fileBytes = 0;
+  json answer;
+  while (auto m = c.read()) {
+    if (!m->text) {
+      fileBytes = m->data.size() - marzipan::protocol::kFrameHeaderBytes;
+      continue;
+    }
+    answer = json::parse(m->data);
+    if (answer.contains("id") && answer["id"] == 2) break;
+  }
+  INFO(answer.dump() << " " << c.error.message());
+  REQUIRE(answer.contains("result"));
+  CHECK(answer["result"]["bytes"] == fileBytes);
+  CHECK(fileBytes > 4 * o.limits.maxQueuedBytes);
+  CHECK(c.call(3, "session.stats").contains("result"));
+}
+
+TEST_CASE("ws: nothing over max_text_bytes is read unless an editor announced its upload", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxTextBytes = 4096;
+  Server s("ws-read-limit", o);
+  const auto upload = [](std::uint32_t id, const std::string& file) {
+    return marzipan::protocol::encodeFrame(marzipan::protocol::FrameKind::VolumeUpload, id, 0,
+                                           {reinterpret_cast<const std::uint8_t*>(file.data()), file.size()});
+  };
+  Client editor(s.server->port());
+  const json created = editor.call(1, "session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  editor.sendText(json{{"jsonrpc", "2.0"}, {"id", 2}, {"method", "volume.save"}, {"params", json::object()}}.dump());
+  std::optional<Client::Message> m;
+  while ((m = editor.read()) && m->text) {
+  }
+  REQUIRE(m);
+  const std::string file = m->data.substr(marzipan::protocol::kFrameHeaderBytes);
+  REQUIRE(file.size() > 4 * o.limits.maxTextBytes);
+  REQUIRE(editor.response(2).contains("result"));
+  {
+    // The issue's reproduction: a connection in no session sends a big upload frame.
+    Client outsider(s.server->port());
+    outsider.sendBinaryMayFail(upload(7, file));
+    const int code = outsider.refusedCode();
+    CHECK((code == 1009 || code == -1));
+  }
+  {
+    Client outsider(s.server->port());
+    outsider.sendText(json{{"jsonrpc", "2.0"}, {"id", 3}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+    outsider.sendBinaryMayFail(upload(3, file));
+    const int code = outsider.refusedCode();
+    CHECK((code == 1009 || code == -1));
+  }
+  {
+    Client viewer(s.server->port());
+    REQUIRE(viewer.call(1, "session.join", {{"session", created["result"]["session"]}, {"token", created["result"]["view_token"]}, {"view", "none"}})
+                .contains("result"));
+    viewer.sendText(json{{"jsonrpc", "2.0"}, {"id", 3}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+    viewer.sendBinaryMayFail(upload(3, file));
+    const int code = viewer.refusedCode();
+    CHECK((code == 1009 || code == -1));
+  }
+  // The editor's announced upload is read; an upload larger than announced is not.
+  editor.sendText(json{{"jsonrpc", "2.0"}, {"id", 4}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+  editor.sendBinary(upload(4, file));
+  CHECK(editor.response(4)["result"]["revision"] == 1);
+  editor.sendText(json{{"jsonrpc", "2.0"}, {"id", 5}, {"method", "volume.load"}, {"params", {{"bytes", 5000}}}}.dump());
+  editor.sendBinaryMayFail(upload(5, file));
+  const int code = editor.refusedCode();
+  CHECK((code == 1009 || code == -1));
+}
+
+TEST_CASE("ws: connections are bounded per client address, and one outside a session is closed", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxConnectionsPerAddress = 3;
+  o.limits.lobby = std::chrono::seconds(1);
+  Server s("ws-connection-bounds", o);
+  std::optional<Client> a(std::in_place, s.server->port());
+  Client b(s.server->port()), c(s.server->port());
+  CHECK_THROWS(Client(s.server->port()));
+  CHECK_THROWS(marzipan::test::request(s.server->port(), "GET", "/healthz"));
+  a.reset();
+  // The slot comes back once the server has seen the close.
+  bool reconnected = false;
+  for (int i = 0; i < 100 && !reconnected; ++i) {
+    try {
+      Client again(s.server->port());
+      reconnected = true;
+    } catch (const std::exception&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  CHECK(reconnected);
+  // b never joins: closed after the lobby time; c joins and stays.
+  REQUIRE(c.call(1, "session.create", kCreate).contains("result"));
+  const auto start = std::chrono::steady_clock::now();
+  CHECK(b.closeCode() == 1008);
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(5));
+  CHECK(c.call(2, "session.stats").contains("result"));
 }
 
 TEST_CASE("ws: stop() lets running edits answer, then closes with 1001", "[net][ws]") {

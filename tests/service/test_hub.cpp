@@ -6,7 +6,10 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <future>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -257,6 +260,9 @@ TEST_CASE("session.create refuses bad params naming the field", "[hub]") {
   CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"protocol", 2}})["error"]["code"] == -32008);
   CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"session", "short"}})["error"]["data"]["field"] ==
         "session");
+  // Under 128 random bits an id could be guessed, and join's answers tell whether it exists.
+  CHECK(a.call("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"session", "abcdefghijklmnopqrstu"}})["error"]["data"]
+            ["field"] == "session");
   CHECK(hub.sessionCount() == 0);
   a.result("session.create", kCreate64);
   CHECK(a.error("session.create", kCreate64) == -32010);
@@ -302,6 +308,194 @@ TEST_CASE("two clients see each other's edits; a view token cannot edit", "[hub]
   CHECK(v.error("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}}) == -32007);
   CHECK(v.error("history.undo") == -32007);
   CHECK(v.result("session.stats")["revision"] == 1);
+}
+
+// Every editing method, with valid params, must get `code` on t's connection (-32009 outside
+// a session, -32007 for a view client); nothing may change.
+void expectNoEdits(TestClient& t, int code) {
+  INFO("expected every edit refused with " << code);
+  CHECK(t.error("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}}) == code);
+  CHECK(t.error("volume.morph", {{"kind", "dilate"}, {"radius", 1}}) == code);
+  CHECK(t.error("stroke.begin", {{"tool", "smooth"}}) == code);
+  CHECK(t.error("stroke.dabs", {{"stroke", 1}, {"dabs", {{{"center", {32, 54, 32}}}}}}) == code);
+  CHECK(t.error("stroke.end", {{"stroke", 1}}) == code);
+  CHECK(t.error("history.undo") == code);
+  CHECK(t.error("history.redo") == code);
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Box, {64, 64, 64}));
+  const int id = t.nextId;
+  CHECK(t.error("volume.load", {{"bytes", file.size()}}) == code);
+  t.hub.binary(t.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+}
+
+TEST_CASE("a refused session.create or session.join leaves the connection exactly as it was", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxClientsPerSession = 2;
+  o.limits.maxSessions = 2;
+  Hub hub(o);
+  TestClient a(hub), v(hub), x(hub);
+  json params = kCreate64;
+  params["session"] = "refusals-session-id-0001";
+  const json created = a.result("session.create", params);
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});  // something to undo
+  v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});
+  std::uint64_t revision = 1;
+
+  SECTION("outside a session") {
+    // The issue's reproduction: the session is full (-32003) and the joiner held the view token.
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["view_token"]}}) == -32003);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["token"]}}) == -32003);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", "wrong"}}) == -32002);
+    CHECK(x.error("session.join", {{"session", "nosuchsession-000000001"}, {"token", created["token"]}}) == -32001);
+    CHECK(x.error("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"protocol", 2}}) == -32008);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"protocol", 2}}) == -32008);
+    CHECK(x.error("session.create", {{"size", {64, 64, 256}}, {"solid", "box"}}) == -32004);
+    CHECK(x.error("session.create", params) == -32014);
+    expectNoEdits(x, -32009);
+    TestClient other(hub);
+    other.result("session.create", kCreate64);  // the second and last session
+    CHECK(x.error("session.create", kCreate64) == -32004);
+    expectNoEdits(x, -32009);
+    CHECK(x.error("session.stats") == -32009);
+  }
+  SECTION("a view client stays a view client of its session") {
+    CHECK(v.error("session.create", kCreate64) == -32010);
+    CHECK(v.error("session.join", {{"session", created["session"]}, {"token", created["token"]}}) == -32010);
+    expectNoEdits(v, -32007);
+    CHECK(v.result("session.stats")["session"] == created["session"]);
+  }
+  SECTION("an editor keeps its rights and its session") {
+    CHECK(a.error("session.join", {{"session", created["session"]}, {"token", created["view_token"]}}) == -32010);
+    CHECK(a.error("session.create", kCreate64) == -32010);
+    CHECK(a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 10, 32}}})["revision"] == 2);
+    revision = 2;
+  }
+  // Nothing a refused connection sent changed the session; the full session still counts two.
+  const json stats = a.result("session.stats");
+  CHECK(stats["clients"].size() == 2);
+  CHECK(stats["revision"] == revision);
+  CHECK(stats["can_undo"] == true);
+}
+
+// A link like the network's: its sends may run inline on the caller's thread and, past its
+// queue bound (here: the first -32005), disconnect the client from inside the send.
+struct DisconnectingLink : CaptureLink {
+  Hub* hub = nullptr;
+  std::shared_ptr<HubClient> client;
+  void sendText(std::string text) override {
+    const bool busy = json::parse(text).value("error", json::object()).value("code", 0) == -32005;
+    CaptureLink::sendText(std::move(text));
+    if (busy && client) hub->disconnect(client);
+  }
+};
+
+TEST_CASE("a reader that floods and falls behind is disconnected without deadlocking the sender", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxPendingMessages = 4;
+  Hub hub(o);
+  auto link = std::make_shared<DisconnectingLink>();
+  link->hub = &hub;
+  link->client = hub.connect(link, "flooder");
+  // Before the fix the refusal was sent under the client's lock and the inline disconnect took it
+  // again: this thread hung. A hang cannot be failed cleanly, so the flood runs on its own thread.
+  auto done = std::make_shared<std::promise<void>>();
+  std::future<void> flooded = done->get_future();
+  std::thread([&hub, client = link->client, done] {
+    for (int i = 0; i < 200; ++i)
+      hub.text(client, json{{"jsonrpc", "2.0"}, {"id", i}, {"method", "session.create"}, {"params", kCreate64}}.dump());
+    done->set_value();
+  }).detach();
+  if (flooded.wait_for(kWait) != std::future_status::ready) {
+    std::fprintf(stderr, "deadlock: Hub::text never returned after an inline disconnect\n");
+    std::_Exit(1);
+  }
+  link->waitFor([](const auto& m) {
+    const json* j = std::get_if<json>(&m);
+    return j && j->contains("error") && (*j)["error"]["code"] == -32005;
+  });
+  hub.disconnect(link->client);
+  link->client.reset();
+}
+
+TEST_CASE("one connection cannot take every session slot", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxSessions = 2;
+  o.limits.maxCreatesPerMinute = 3;
+  o.limits.maxCreatesPerAddressPerMinute = 5;
+  Hub hub(o);
+  const auto waitForSessions = [&](std::size_t n) {
+    const auto deadline = std::chrono::steady_clock::now() + kWait;
+    while (hub.sessionCount() != n && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return hub.sessionCount();
+  };
+  TestClient a(hub), b(hub), other(hub);
+  // The issue's reproduction: create and leave again and again. A session left unchanged goes
+  // at once, so the slots stay free; the rate bounds stop the loop.
+  for (int i = 0; i < 3; ++i) {
+    a.result("session.create", kCreate64);
+    a.result("session.leave");
+    CHECK(waitForSessions(0) == 0);
+  }
+  const json perConnection = a.call("session.create", kCreate64);
+  CHECK(perConnection["error"]["code"] == -32004);
+  CHECK(perConnection["error"]["data"]["limit"] == "max_creates_per_minute");
+  b.result("session.create", kCreate64);
+  b.result("session.leave");
+  // A changed session stays for the idle timeout.
+  const json kept = b.result("session.create", kCreate64);
+  b.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  b.result("session.leave");
+  CHECK(waitForSessions(1) == 1);
+  // Both connections come from one address ("test"): five creates in the minute are all it gets.
+  const json perAddress = other.call("session.create", kCreate64);
+  CHECK(perAddress["error"]["code"] == -32004);
+  CHECK(perAddress["error"]["data"]["limit"] == "max_creates_per_address_per_minute");
+  CHECK(other.result("session.join", {{"session", kept["session"]}, {"token", kept["token"]}})["revision"] == 1);
+}
+
+TEST_CASE("outputs are sized from the band before they are built", "[hub]") {
+  // The estimate: a mesh file's size from the crossed edges, against the real file.
+  json created;
+  std::size_t stlBytes = 0, objBytes = 0, plyBytes = 0;
+  {
+    Hub hub(smallOptions());
+    TestClient a(hub);
+    created = a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+    stlBytes = a.result("mesh.export", {{"format", "stl"}})["bytes"];
+    objBytes = a.result("mesh.export", {{"format", "obj"}})["bytes"];
+    plyBytes = a.result("mesh.export", {{"format", "ply"}})["bytes"];
+  }
+  HubOptions o = smallOptions();
+  o.limits.maxOutputBytes = 1;
+  o.limits.maxVolumeBytes = 64 << 10;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+  const std::size_t mark = a.link->size();
+  for (const auto& [format, real] : {std::pair<std::string, std::size_t>{"stl", stlBytes}, {"obj", objBytes}, {"ply", plyBytes}}) {
+    const json refused = a.call("mesh.export", {{"format", format}});
+    INFO(format << ": " << refused.dump() << " real " << real);
+    CHECK(refused["error"]["code"] == -32004);
+    CHECK(refused["error"]["data"]["limit"] == "max_output_bytes");
+    const double ratio = refused["error"]["data"]["value"].get<double>() / double(real);
+    CHECK(ratio > 0.8);
+    CHECK(ratio < 1.3);
+  }
+  const json splats = a.call("splats.get");
+  CHECK(splats["error"]["data"]["limit"] == "max_output_bytes");
+  // Nothing was built and sent.
+  for (std::size_t i = mark; i < a.link->size(); ++i) CHECK(std::holds_alternative<json>(a.link->at(i)));
+  // A volume over max_volume_bytes is refused before it replaces the session's.
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Pig, {96, 96, 96}));
+  const int id = a.nextId++;
+  a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+  a.hub.binary(a.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+  const json loaded = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+  CHECK(loaded["error"]["data"]["limit"] == "max_volume_bytes");
+  CHECK(a.result("session.stats")["revision"] == 0);
 }
 
 TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {
@@ -633,6 +827,56 @@ TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded 
   CHECK(c.result("session.join", {{"session", created["session"]}, {"token", created["token"]}})["digest"] == digest);
   TestClient d(again);
   CHECK(d.error("session.create", json{{"size", {64, 64, 64}}, {"solid", "box"}, {"session", created["session"]}}) == -32014);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("uploads kept in the data directory do not pile up", "[hub]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-loads";
+  std::filesystem::remove_all(dir);
+  HubOptions o = smallOptions();
+  o.dataDir = dir;
+  Hub hub(o);
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate64);
+  const std::vector<std::uint8_t> file = saveVolume(makeSolid(SolidKind::Box, {64, 64, 64}));
+  for (int i = 0; i < 4; ++i) {
+    const int id = a.nextId++;
+    a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+    a.hub.binary(a.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+    CHECK(std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })))["result"]["revision"] == i + 1);
+  }
+  CHECK(a.result("history.undo")["revision"] == 5);
+  std::size_t loads = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / created["session"].get<std::string>()))
+    if (e.path().filename().string().rfind("load-", 0) == 0) ++loads;
+  CHECK(loads <= 1);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("sessions at rest untouched for max_session_age are deleted", "[hub]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-age";
+  std::filesystem::remove_all(dir);
+  HubOptions o = smallOptions();
+  o.dataDir = dir;
+  json old, young;
+  {
+    Hub hub(o);
+    TestClient a(hub), b(hub);
+    old = a.result("session.create", kCreate64);
+    young = b.result("session.create", kCreate64);
+  }
+  // Both are at rest now; one looks 91 days old.
+  const auto past = std::filesystem::file_time_type::clock::now() - std::chrono::hours(24 * 91);
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / old["session"].get<std::string>()))
+    std::filesystem::last_write_time(e.path(), past);
+  Hub hub(o);
+  const auto deadline = std::chrono::steady_clock::now() + kWait;
+  while (std::filesystem::exists(dir / "sessions" / old["session"].get<std::string>()) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  TestClient c(hub);
+  CHECK(c.error("session.join", {{"session", old["session"]}, {"token", old["token"]}}) == -32001);
+  CHECK(c.result("session.join", {{"session", young["session"]}, {"token", young["token"]}})["revision"] == 0);
+  CHECK(c.result("session.stats")["clients"].size() == 1);
   std::filesystem::remove_all(dir);
 }
 

@@ -1,0 +1,434 @@
+#!/usr/bin/python3
+"""Hostile clients against a real `marzipan serve`: replays the findings of issue 12 (a view
+token editing through a refused join, big frames before a session, connection floods, a reader
+that floods, big answers, huge outputs, session-slot exhaustion, DNS rebinding, guessable ids,
+unbounded operations, SIGTERM during one) and reports PASS or FAIL per case, one line each,
+then a JSON summary.
+
+Each case starts its own server (`BIN serve --port 0` with the flags the case needs) so that the
+cases do not disturb each other, and stops it with SIGTERM (killed after 1 s: clean shutdown is a case of its own). A case passes when the server does
+what PROTOCOL.md promises; a crash, a hang (every wait has a timeout) or a wrong answer fails it.
+
+Cases marked `pending` check behaviour another change brings (issue 12 item 3: progress,
+op.cancel, a work budget, SIGTERM within 10 s whatever runs). They run only with --pending;
+without it they are listed as SKIPPED(pending) and do not decide the exit status.
+
+Exit status: 0 when every case that ran passed, 1 otherwise, 2 usage. Standard library and
+Debian's python3-websockets only: run it with /usr/bin/python3.
+Conventions: times in seconds (time.monotonic), sizes in bytes unless named _mb (2^20 bytes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import re
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+
+import websockets
+
+TIMEOUT = 20.0
+CREATE = {"size": [64, 64, 64], "solid": "sphere", "view": "none"}
+
+
+class Server:
+    """`marzipan serve --port 0 FLAGS...` until stop()."""
+
+    def __init__(self, binary: str, flags: list[str]):
+        self.proc = subprocess.Popen([binary, "serve", "--port", "0", "--threads", "2", *flags],
+                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        line = self.proc.stdout.readline()
+        match = re.fullmatch(r"listening on http://(\S+):(\d+)\n", line)
+        if not match:
+            self.proc.kill()
+            raise RuntimeError(f"{binary} serve: expected 'listening on http://HOST:PORT', got {line!r}")
+        self.port = int(match.group(2))
+        self.url = f"ws://127.0.0.1:{self.port}/ws"
+
+    def rss_mb(self) -> float:
+        with open(f"/proc/{self.proc.pid}/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024
+        return 0.0
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, grace: float = 1.0) -> float:
+        """SIGTERM; the seconds until it exited (killed after grace: returns grace)."""
+        start = time.monotonic()
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(grace)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                return grace
+        return time.monotonic() - start
+
+
+class Client:
+    """One WebSocket: numbered requests, answers matched by id, notifications kept aside."""
+
+    def __init__(self, ws):
+        self.ws = ws
+        self.next_id = 1
+        self.binaries: list[bytes] = []
+        self.notes: list[dict] = []
+
+    @classmethod
+    async def open(cls, url: str, **kw) -> "Client":
+        ws = await asyncio.wait_for(websockets.connect(url, max_size=None, ping_interval=None, close_timeout=1, compression=None, **kw),
+                                    TIMEOUT)
+        return cls(ws)
+
+    async def send(self, method: str, params: dict | None = None) -> int:
+        rid = self.next_id
+        self.next_id += 1
+        await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": rid, "method": method, "params": params or {}}))
+        return rid
+
+    async def answer(self, rid: int) -> dict:
+        deadline = time.monotonic() + TIMEOUT
+        while True:
+            message = await asyncio.wait_for(self.ws.recv(), max(0.1, deadline - time.monotonic()))
+            if isinstance(message, bytes):
+                self.binaries.append(message)
+                continue
+            m = json.loads(message)
+            if m.get("id") == rid:
+                return m
+            self.notes.append(m)
+
+    async def call(self, method: str, params: dict | None = None) -> dict:
+        return await self.answer(await self.send(method, params))
+
+    async def result(self, method: str, params: dict | None = None) -> dict:
+        m = await self.call(method, params)
+        if "result" not in m:
+            raise AssertionError(f"{method}: {m}")
+        return m["result"]
+
+    async def closed_code(self, timeout: float = TIMEOUT) -> int | None:
+        """Reads until the server closes; its close code (None: reset without one)."""
+        try:
+            while True:
+                await asyncio.wait_for(self.ws.recv(), timeout)
+        except websockets.exceptions.ConnectionClosed as e:
+            return e.code if e.code not in (1005, 1006) else None
+
+
+def error_code(m: dict) -> int | None:
+    return m.get("error", {}).get("code")
+
+
+def upload_frame(request_id: int, payload_length: int) -> bytes:
+    """A binary frame header (protocol/PROTOCOL.md) of kind 9 for payload_length zero bytes."""
+    return struct.pack("<4sHHIQI", b"MZPN", 1, 9, request_id, 0, payload_length) + bytes(payload_length)
+
+
+def expect(condition: bool, what: str):
+    if not condition:
+        raise AssertionError(what)
+
+
+# ---- the cases ------------------------------------------------------------------------------
+# Each takes the server binary and returns a one-line detail; it raises AssertionError to fail.
+
+async def view_token_after_refused_join(binary):
+    """Item 1: --max-clients-per-session 2; a view join refused with -32003 grants nothing."""
+    s = Server(binary, ["--max-clients-per-session", "2"])
+    try:
+        a = await Client.open(s.url)
+        created = await a.result("session.create", CREATE)
+        v = await Client.open(s.url)
+        await v.result("session.join", {"session": created["session"], "token": created["view_token"], "view": "none"})
+        x = await Client.open(s.url)
+        refused = await x.call("session.join", {"session": created["session"], "token": created["view_token"], "view": "none"})
+        expect(error_code(refused) == -32003, f"second view join: {refused}")
+        codes = [error_code(await x.call("tool.apply", {"tool": "add_blob", "center": [32, 54, 32]})),
+                 error_code(await x.call("history.undo")),
+                 error_code(await x.call("stroke.begin", {"tool": "smooth"}))]
+        expect(codes == [-32009] * 3, f"edits after the refused join answered {codes}")
+        stats = await a.result("session.stats")
+        expect(stats["revision"] == 0, f"revision {stats['revision']}")
+        return "edits after the refused join: -32009; revision 0"
+    finally:
+        s.stop()
+
+
+async def big_frames_before_a_session(binary):
+    """Item 2: four connections outside any session each send a 64 MiB kind-9 frame."""
+    s = Server(binary, [])
+    try:
+        before = s.rss_mb()
+        clients = [await Client.open(s.url) for _ in range(4)]
+        frame = upload_frame(1, 64 << 20)
+        codes = []
+        for c in clients:
+            try:
+                await asyncio.wait_for(c.ws.send(frame), TIMEOUT)
+            except (websockets.exceptions.ConnectionClosed, OSError):
+                pass
+            codes.append(await c.closed_code(5))
+        growth = s.rss_mb() - before
+        expect(all(code in (1009, None) for code in codes), f"close codes {codes}")
+        expect(growth < 32, f"RSS grew {growth:.0f} MiB")
+        return f"closed {codes}; RSS +{growth:.1f} MiB"
+    finally:
+        s.stop()
+
+
+async def connections_per_address(binary):
+    """Item 2: --max-connections-per-address 8; the 9th is refused, a freed slot comes back."""
+    s = Server(binary, ["--max-connections-per-address", "8"])
+    try:
+        clients = [await Client.open(s.url) for _ in range(8)]
+        try:
+            await Client.open(s.url)
+            raise AssertionError("a 9th connection was accepted")
+        except (websockets.exceptions.InvalidHandshake, websockets.exceptions.ConnectionClosed, OSError,
+                asyncio.TimeoutError, EOFError):
+            pass
+        await clients[0].ws.close()
+        for _ in range(100):
+            try:
+                again = await Client.open(s.url)
+                await again.ws.close()
+                return "8 accepted, the 9th refused, a closed one's slot reused"
+            except (websockets.exceptions.InvalidHandshake, websockets.exceptions.ConnectionClosed, OSError, EOFError):
+                await asyncio.sleep(0.05)
+        raise AssertionError("the freed slot never came back")
+    finally:
+        s.stop()
+
+
+async def lobby_deadline(binary):
+    """Item 2: --lobby-seconds 1; a WebSocket that joins nothing is closed with 1008."""
+    s = Server(binary, ["--lobby-seconds", "1"])
+    try:
+        c = await Client.open(s.url)
+        start = time.monotonic()
+        code = await c.closed_code(10)
+        took = time.monotonic() - start
+        expect(code == 1008 and took < 5, f"close {code} after {took:.1f} s")
+        return f"closed with 1008 after {took:.1f} s"
+    finally:
+        s.stop()
+
+
+async def flooding_reader(binary):
+    """Item 4: a client sends 3000 requests without reading; the server stays responsive."""
+    s = Server(binary, ["--max-queue-mb", "1"])
+    try:
+        flooder = await Client.open(s.url)
+        await flooder.result("session.create", {"size": [128, 128, 128], "solid": "sphere"})
+        async def flood():
+            for _ in range(3000):
+                await flooder.send("session.stats")
+
+        try:
+            await asyncio.wait_for(flood(), 5)
+        except (websockets.exceptions.ConnectionClosed, asyncio.TimeoutError):
+            pass  # closed as too far behind, or the socket's buffers are full: both are fine
+        other = await Client.open(s.url)
+        start = time.monotonic()
+        await other.result("session.create", CREATE)
+        took = time.monotonic() - start
+        expect(s.alive() and took < 5, f"another client waited {took:.1f} s")
+        return f"another client answered in {took * 1000:.0f} ms"
+    finally:
+        s.stop()
+
+
+async def big_answer_small_queue(binary):
+    """Item 5: --max-queue-mb 1; an OBJ of several MiB reaches a client that reads."""
+    s = Server(binary, ["--max-queue-mb", "1"])
+    try:
+        c = await Client.open(s.url)
+        await c.result("session.create", {"size": [128, 128, 128], "solid": "sphere", "view": "none"})
+        r = await c.result("mesh.export", {"format": "obj"})
+        expect(r["bytes"] > (2 << 20), f"the file is only {r['bytes']} bytes")
+        expect(len(c.binaries) == 1 and len(c.binaries[0]) == r["bytes"] + 24, "the file frame is missing")
+        await c.result("session.stats")
+        return f"{r['bytes'] / 2**20:.1f} MiB delivered, connection open"
+    finally:
+        s.stop()
+
+
+async def output_sized_before_work(binary):
+    """Item 6: --max-output-mb 1; mesh.export of a 192^3 pig is refused at once with -32004."""
+    s = Server(binary, ["--max-output-mb", "1"])
+    try:
+        c = await Client.open(s.url)
+        await c.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
+        start = time.monotonic()
+        m = await c.call("mesh.export", {"format": "stl"})
+        took = time.monotonic() - start
+        data = m.get("error", {}).get("data", {})
+        expect(error_code(m) == -32004 and data.get("limit") == "max_output_bytes", f"answer {m}")
+        expect(not c.binaries, "a mesh frame was sent")
+        return f"-32004 max_output_bytes (estimate {data.get('value')} bytes) in {took * 1000:.0f} ms"
+    finally:
+        s.stop()
+
+
+async def session_slots(binary):
+    """Item 7: --max-sessions 4; create/leave 8 times on one connection, then others still create."""
+    s = Server(binary, ["--max-sessions", "4"])
+    try:
+        a = await Client.open(s.url)
+        for _ in range(8):
+            await a.result("session.create", CREATE)
+            await a.result("session.leave")
+        b = await Client.open(s.url)
+        await b.result("session.create", CREATE)
+        await b.result("session.leave")
+        codes = []
+        for _ in range(3):
+            codes.append(error_code(await a.call("session.create", CREATE)))
+            await a.call("session.leave")
+        expect(codes[-1] == -32004, f"the 11th create on one connection answered {codes}")
+        return f"8 create/leave cycles left the slots free; creates 9-11 answered {codes}"
+    finally:
+        s.stop()
+
+
+def raw_upgrade(port: int, host: str, origin: str) -> int:
+    """The HTTP status of a WebSocket upgrade with this Host and Origin."""
+    with socket.create_connection(("127.0.0.1", port), timeout=TIMEOUT) as sock:
+        sock.sendall((f"GET /ws HTTP/1.1\r\nHost: {host}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                      f"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                      f"Origin: {origin}\r\n\r\n").encode())
+        head = sock.recv(4096).decode("latin-1")
+    return int(head.split()[1])
+
+
+async def dns_rebinding(binary):
+    """Item 13: a page of rebound.example (resolving to the server) may not open /ws."""
+    s = Server(binary, ["--public-host", "studio.example"])
+    try:
+        p = s.port
+        rebound = raw_upgrade(p, f"rebound.example:{p}", f"http://rebound.example:{p}")
+        own = raw_upgrade(p, f"127.0.0.1:{p}", f"http://127.0.0.1:{p}")
+        public = raw_upgrade(p, f"studio.example:{p}", f"http://studio.example:{p}")
+        expect((rebound, own, public) == (403, 101, 101), f"statuses {(rebound, own, public)}")
+        return "rebound name 403; address literal and --public-host 101"
+    finally:
+        s.stop()
+
+
+async def guessable_session_id(binary):
+    """Item 15: a proposed id of 21 characters is refused; 22 random ones are taken."""
+    s = Server(binary, [])
+    try:
+        c = await Client.open(s.url)
+        m = await c.call("session.create", {**CREATE, "session": "a" * 21})
+        expect(error_code(m) == -32602 and m["error"]["data"]["field"] == "session", f"answer {m}")
+        r = await c.result("session.create", {**CREATE, "session": "Zq3-x_8KfP0aLm2Qr7TbWs"})
+        expect(r["session"] == "Zq3-x_8KfP0aLm2Qr7TbWs", f"answer {r}")
+        return "21 characters -32602; 22 accepted"
+    finally:
+        s.stop()
+
+
+async def long_operation_progress_cancel(binary):
+    """Item 3 (pending): a global smoothing of 100000 iterations on a 192^3 pig reports progress
+    and can be cancelled, or is refused at once by a work budget (-32004); others are served."""
+    s = Server(binary, [])
+    try:
+        a = await Client.open(s.url)
+        await a.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
+        rid = await a.send("tool.apply", {"tool": "smooth", "global": True, "iterations": 100000})
+        other = await Client.open(s.url)
+        start = time.monotonic()
+        await other.result("session.create", CREATE)
+        expect(time.monotonic() - start < 2, "another session waited behind the long operation")
+        try:
+            m = await asyncio.wait_for(a.answer(rid), 3)
+            expect(error_code(m) == -32004, f"answer {m}")
+            return "refused by the work budget"
+        except asyncio.TimeoutError:
+            pass
+        expect(any(n.get("method") == "progress" for n in a.notes), "no progress notification within 3 s")
+        cancel = await a.call("op.cancel", {})
+        m = await a.answer(rid)
+        expect("error" in m or "result" in m, f"answer {m} after cancel {cancel}")
+        stats = await a.result("session.stats")
+        return f"progress seen, cancelled at revision {stats['revision']}"
+    finally:
+        s.stop()
+
+
+async def sigterm_during_long_operation(binary):
+    """Item 3d (pending): SIGTERM exits within 10 s while a long operation runs."""
+    s = Server(binary, [])
+    stopped = False
+    try:
+        a = await Client.open(s.url)
+        await a.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
+        await a.send("tool.apply", {"tool": "smooth", "global": True, "iterations": 2000})
+        await asyncio.sleep(1)
+        took = s.stop(grace=20)
+        stopped = True
+        expect(took < 10, f"exited after {took:.1f} s")
+        return f"exited {took:.1f} s after SIGTERM"
+    finally:
+        if not stopped:
+            s.stop()
+
+
+CASES = [
+    ("1 view token after a refused join", view_token_after_refused_join, False),
+    ("2 big frames before a session", big_frames_before_a_session, False),
+    ("2 connections per address", connections_per_address, False),
+    ("2 lobby deadline", lobby_deadline, False),
+    ("4 flooding reader", flooding_reader, False),
+    ("5 big answer, small queue", big_answer_small_queue, False),
+    ("6 output sized before work", output_sized_before_work, False),
+    ("7 session slots", session_slots, False),
+    ("13 DNS rebinding", dns_rebinding, False),
+    ("15 guessable session id", guessable_session_id, False),
+    ("3 long operation: progress, cancel or budget", long_operation_progress_cancel, True),
+    ("3 SIGTERM during a long operation", sigterm_during_long_operation, True),
+]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--marzipan", required=True, help="the marzipan binary")
+    parser.add_argument("--pending", action="store_true", help="also run the cases marked pending")
+    parser.add_argument("--only", help="run only cases whose name contains this")
+    args = parser.parse_args()
+    results = []
+    for name, case, pending in CASES:
+        if args.only and args.only not in name:
+            continue
+        if pending and not args.pending:
+            results.append({"case": name, "status": "SKIPPED(pending)"})
+            print(f"SKIPPED(pending)  {name}", flush=True)
+            continue
+        start = time.monotonic()
+        try:
+            detail = asyncio.run(asyncio.wait_for(case(args.marzipan), 90))
+            status = "PASS"
+        except Exception as e:  # a case's failure, whatever raised it, is reported, not fatal
+            detail = f"{type(e).__name__}: {e}"
+            status = "FAIL"
+        took = time.monotonic() - start
+        results.append({"case": name, "status": status, "detail": detail, "seconds": round(took, 2)})
+        print(f"{status:<16}  {name}: {detail} ({took:.1f} s)", flush=True)
+    print(json.dumps({"results": results}))
+    return 1 if any(r["status"] == "FAIL" for r in results) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
