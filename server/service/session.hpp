@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "protocol/cpp/geometry.hpp"
+#include "engine/level_set.hpp"
 #include "engine/measures.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
