@@ -16,6 +16,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
 #include <variant>
 
@@ -26,6 +27,7 @@
 #include "engine/marching_cubes.hpp"
 #include "engine/measures.hpp"
 #include "engine/mesh_io.hpp"
+#include "engine/progress.hpp"
 #include "engine/raycast.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
@@ -33,6 +35,7 @@
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/rpc.hpp"
+#include "service/apply_op.hpp"
 #include "service/session.hpp"
 #include "service/journal.hpp"
 #include "service/session_store.hpp"
@@ -55,6 +58,13 @@ constexpr std::size_t kSessionIdChars = 22;  // 132 bits
 constexpr std::size_t kTokenChars = 43;      // 258 bits
 // A server that stops renewing (a crash) lets another take its sessions after this long.
 constexpr std::chrono::milliseconds kLeaseTtl{30'000};
+// op.progress notifications of one request come at most this often.
+constexpr std::chrono::milliseconds kProgressInterval{250};
+// Shutdown waits this long for running edits (long ones are cancelled), then as long again
+// for the snapshots: with the network's grace period it exits within 10 s of SIGTERM.
+constexpr std::chrono::milliseconds kShutdownWait{2'000};
+// A request estimated above this many voxels (about 2 s here) runs as a Workers::LongTask.
+constexpr double kLongOpVoxels = 2e7;
 
 std::string randomText(std::size_t chars) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
@@ -116,6 +126,9 @@ Failure failureOf(std::exception_ptr e, const std::function<void(const std::stri
     return {RpcCode(int(x.code())), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const EngineError& x) {
     return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const Cancelled&) {
+    return {RpcCode::Cancelled, "the operation was cancelled (op.cancel or server shutdown); the session is unchanged",
+            nullptr};
   } catch (const std::exception& x) {
     if (log) log(std::string("internal error: ") + x.what());
     return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
@@ -149,6 +162,7 @@ class HubClient {
   std::size_t queuedBytes = 0;
   double tokens = 1e9;  // requests it may still send now (capped at the first refill)
   Clock::time_point refilled = Clock::now();
+  std::shared_ptr<Progress> running;  // its long request in progress, for op.cancel
 
   // Pump only (one message at a time, so no lock is needed).
   std::shared_ptr<LiveSession> session;
@@ -208,8 +222,81 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   std::atomic<bool> idleCheckScheduled{false};
   const std::string owner;  // this server's name in leases
   std::atomic<bool> leaseRenewalScheduled{false};
+  std::set<Progress*> runningOps;  // guarded by mutex: cancelled by shutdown
 
   const HubLimits& limits() const { return options.limits; }
+
+  // --- long operations -----------------------------------------------------------------------
+  // One long request's Progress (engine/progress.hpp): op.progress notifications to its
+  // client, cancelled by that client's op.cancel or by shutdown. Registered from track() until
+  // done() or its destruction (it is captured by the request's strand task).
+  struct RunningOp {
+    std::shared_ptr<Impl> hub;
+    std::shared_ptr<HubClient> client;
+    std::shared_ptr<Progress> progress;
+    bool registered = true;
+    void done() {
+      if (!std::exchange(registered, false)) return;
+      {
+        const std::lock_guard lock(client->mutex);
+        if (client->running == progress) client->running.reset();
+      }
+      const std::lock_guard lock(hub->mutex);
+      hub->runningOps.erase(progress.get());
+    }
+    ~RunningOp() { done(); }
+  };
+
+  std::shared_ptr<RunningOp> track(const std::shared_ptr<HubClient>& c, const std::optional<json>& id) {
+    auto progress = std::make_shared<Progress>(
+        [link = c->link, request = id.value_or(json(nullptr))](double fraction) {
+          link->sendText(protocol::notificationText("op.progress", {{"request", request}, {"fraction", fraction}}));
+        },
+        kProgressInterval);
+    auto op = std::make_shared<RunningOp>(RunningOp{shared_from_this(), c, progress});
+    {
+      const std::lock_guard lock(c->mutex);
+      c->running = progress;
+    }
+    const std::lock_guard lock(mutex);
+    runningOps.insert(progress.get());
+    if (stopping) progress->cancel();
+    return op;
+  }
+
+  // Refuses a request whose estimated work is over max_op_voxels, before anything runs.
+  void checkBudget(double voxels, const char* what) const {
+    if (voxels <= limits().maxOpVoxels) return;
+    char text[160];
+    std::snprintf(text, sizeof text, "%s would process about %.3g voxels, over the server's max_op_voxels %.3g", what,
+                  voxels, limits().maxOpVoxels);
+    throw RpcException(RpcCode::LimitExceeded, std::string(text) + "; use fewer iterations, a smaller radius or fewer dabs",
+                       {{"limit", "max_op_voxels"}, {"value", voxels}, {"max", limits().maxOpVoxels}});
+  }
+
+  // op.cancel overtakes the connection's queue, where the request it cancels holds the line:
+  // handled here, on the caller's thread. False when text is not an op.cancel request.
+  bool cancel(const std::shared_ptr<HubClient>& c, const std::string& text) {
+    const protocol::ParsedRequest parsed = protocol::parseRequest(text);
+    if (!parsed.request || parsed.request->method != Method::OpCancel) return false;
+    const protocol::Request& req = *parsed.request;
+    if (options.events.request) options.events.request("op.cancel");
+    std::shared_ptr<Progress> running;
+    {
+      const std::lock_guard lock(c->mutex);
+      if (c->closed) return true;
+      running = c->running;
+    }
+    try {
+      protocol::parseNoParams(req.params, Method::OpCancel);
+    } catch (...) {
+      sendError(*c, req.id, failureOf(std::current_exception(), options.events.log));
+      return true;
+    }
+    if (running) running->cancel();
+    sendResult(*c, req.id, {{"cancelled", running != nullptr}});
+    return true;
+  }
 
   void log(const std::string& line) const {
     if (options.events.log) options.events.log(line);
@@ -346,6 +433,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       switch (req.method) {
         case Method::SessionCreate: return create(c, req, arrived);
         case Method::SessionJoin: return join(c, req, arrived);
+        case Method::OpCancel:
+          // Spelled so that Hub::text did not see it (escapes): nothing of this connection runs
+          // while the pump handles a message.
+          protocol::parseNoParams(req.params, req.method);
+          sendResult(*c, req.id, {{"cancelled", false}});
+          return finish(c);
         default: break;
       }
       if (!c->session) throw RpcException(RpcCode::NotInSession, "not in a session: session.create or session.join first");
@@ -389,6 +482,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                            "the file's grid is " + std::to_string(vol.dims().x) + "x" + std::to_string(vol.dims().y) + "x" +
                                std::to_string(vol.dims().z) + ", the session's " + std::to_string(d.x) + "x" +
                                std::to_string(d.y) + "x" + std::to_string(d.z),
+                           {{"field", "file"}});
+      // Another band width would be another grid: the load could not be one undoable step.
+      if (vol.band() != s.session->volume().band())
+        throw RpcException(RpcCode::EngineRefused,
+                           "the file's band half-width is " + std::to_string(vol.band()) + " vu, the session's " +
+                               std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
                            {{"field", "file"}});
       ApplyResult a = s.session->load(std::move(vol));
       a.fullRefresh = true;
@@ -584,7 +683,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_frame_side", l.maxFrameSide},
             {"history_bytes", l.historyBytes},
             {"idle_session_seconds", l.idleSession.count()},
-            {"ping_seconds", l.ping.count()}};
+            {"ping_seconds", l.ping.count()},
+            {"max_op_voxels", l.maxOpVoxels}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -945,8 +1045,12 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
   switch (req.method) {
     case Method::ToolApply: {
       const protocol::ToolApplyParams p = protocol::parseToolApplyParams(req.params);
-      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
+        const OpCost cost = estimateCost(s.session->volume(), p.op);
+        self->checkBudget(cost.voxels, "this tool");
+        running->progress->setTotal(cost.passes);
         protocol::Op op = p.op;
         std::optional<Vec3> hit;
         if (p.ray) {
@@ -959,7 +1063,11 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           if (auto* g = std::get_if<protocol::CsgToolOp>(&op)) g->params.center = *hit;
         }
         const bool brush = std::holds_alternative<protocol::BrushOp>(op);
+        std::optional<Workers::LongTask> longTask;
+        if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
+        running->done();
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
         if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
         if (a.changed) {
@@ -970,9 +1078,17 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::VolumeMorph: {
       const protocol::MorphOp op = protocol::parseMorphParams(req.params);
-      return onStrand(c, req.id, arrived, true, [self, c, op, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, op, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
+        const OpCost cost = estimateCost(s.session->volume(), op);
+        self->checkBudget(cost.voxels, "this morphology");
+        running->progress->setTotal(cost.passes);
+        std::optional<Workers::LongTask> longTask;
+        if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->apply(op, self->pool);
+        running->done();
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
         if (a.changed) {
           r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}}; };
@@ -1003,11 +1119,21 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::StrokeDabs: {
       const protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(req.params, l.maxDabs);
-      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
         if (p.stroke != c->stroke)
           throw RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(p.stroke) + " is not this connection's open stroke",
                              {{"field", "stroke"}});
+        double voxels = 0;
+        for (const auto& [id, st] : s.session->openStrokeList())
+          if (id == p.stroke) {
+            const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
+            voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images);
+          }
+        self->checkBudget(voxels, "this message's dabs");
+        std::optional<Workers::LongTask> longTask;
+        if (voxels > kLongOpVoxels) longTask.emplace(self->workers);
         std::vector<Dab> dabs;
         dabs.reserve(p.dabs.size());
         for (const protocol::DabParam& d : p.dabs) {
@@ -1020,7 +1146,9 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           dab.pressure = d.pressure;
           dabs.push_back(dab);
         }
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->strokeDabs(p.stroke, dabs, ThreadPool::serial());
+        running->done();
         r.result = {{"revision", a.revision},
                     {"applied", a.changed ? dabs.size() - a.missed : 0},
                     {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
@@ -1203,6 +1331,7 @@ std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::s
 }
 
 void Hub::text(const std::shared_ptr<HubClient>& client, std::string message) {
+  if (message.find("op.cancel") != std::string::npos && impl_->cancel(client, message)) return;
   impl_->enqueue(client, {std::move(message), Clock::now()});
 }
 
@@ -1231,14 +1360,22 @@ void Hub::shutdown() {
     s.stopping = true;
     for (const auto& [id, live] : s.sessions) all.push_back(live);
   }
-  // Let running edits finish (bounded: a global operation may take a while).
-  const auto deadline = Clock::now() + std::chrono::seconds(30);
+  // Long operations stop at their next chunk or dab and change nothing; the others finish.
+  {
+    const std::lock_guard lock(s.mutex);
+    for (Progress* p : s.runningOps) p->cancel();
+  }
+  const auto deadline = Clock::now() + kShutdownWait;
   for (const auto& live : all)
     while (live->strand->pending() > 0 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   if (s.store.enabled()) {
+    // Every snapshot is posted at once; one that is not done by the deadline still runs when
+    // the workers stop (they finish queued tasks), and the journal holds its changes anyway.
+    std::vector<std::future<void>> snapshots;
     for (const auto& live : all) {
-      std::promise<void> done;
-      live->strand->post([&s, live, &done] {
+      auto done = std::make_shared<std::promise<void>>();
+      snapshots.push_back(done->get_future());
+      live->strand->post([&s, live, done] {
         if (!live->unloaded && live->session && live->journal) {
           try {
             live->journal = s.store.snapshot(live->id, live->session->volume());
@@ -1248,10 +1385,11 @@ void Hub::shutdown() {
           live->journal.reset();
           s.store.releaseLease(live->id, s.owner);
         }
-        done.set_value();
+        done->set_value();
       });
-      done.get_future().wait();
     }
+    const auto snapshotDeadline = Clock::now() + kShutdownWait;
+    for (const auto& f : snapshots) f.wait_until(snapshotDeadline);
   }
   s.workers.stop();
   // Sessions hold their clients and clients their session: break those cycles now that no

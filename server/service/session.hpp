@@ -133,7 +133,9 @@ class Session {
   explicit Session(Volume initial, std::size_t historyBudgetBytes = History::kDefaultBudgetBytes);
 
   // One operation object (a brush dab, a CSG tool, global smoothing or morphology) as one
-  // history step. Throws ServiceError (OutOfDomain when its region misses the domain).
+  // history step. Throws ServiceError (OutOfDomain when its region misses the domain); any
+  // other exception (Cancelled through the thread's Progress, engine/progress.hpp, or
+  // std::bad_alloc) also leaves the session exactly as before.
   ApplyResult apply(const protocol::Op& op, ThreadPool& pool);
 
   // The first surface hit of a ray on the live volume, for `tool.apply` with a ray: the caller
@@ -147,8 +149,9 @@ class Session {
   // dabs of one stroke fold into one history step, which stays open while it is the newest
   // step: any other change of the session (apply, undo, redo, load, another stroke's dabs)
   // closes it and the stroke's next dabs start a new step. The whole message is checked
-  // before the first dab is applied, and undone if the engine refuses a dab, so a throw
-  // changes nothing. One revision per call that changed something.
+  // before the first dab is applied, and undone if the engine refuses a dab (or the thread's
+  // Progress is cancelled between dabs), so a throw changes nothing. One revision per call
+  // that changed something.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
   // Closes the stroke; its step can no longer grow. Throws UnknownStroke / StrokeClosed.
   void endStroke(StrokeId id);

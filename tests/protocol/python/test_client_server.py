@@ -20,7 +20,8 @@ from marzipan.splats import decode_splats
 
 HEX16 = re.compile(r"^[0-9a-f]{16}$")
 LIMIT_KEYS = {"max_text_bytes", "max_binary_bytes", "max_grid_side", "max_sessions", "max_clients_per_session",
-              "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds"}
+              "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds",
+              "max_op_voxels"}
 
 
 def run(coroutine, timeout=120):
