@@ -30,6 +30,7 @@ export const METHODS = Object.freeze([
   "mesh.export",
   "volume.save",
   "volume.load",
+  "op.cancel",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -64,6 +65,7 @@ export const RpcErrorCode = Object.freeze({
   UploadMissing: -32013,
   SessionExists: -32014,
   SessionHeldElsewhere: -32015,
+  Cancelled: -32016,
 });
 
 const ERROR_NAMES = new Map(Object.entries(RpcErrorCode).map(([name, code]) => [code, name]));

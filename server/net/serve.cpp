@@ -81,10 +81,12 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       pingSeconds{"--ping-seconds", "MARZIPAN_PING_SECONDS", {}},
       queueMb{"--max-queue-mb", "MARZIPAN_MAX_QUEUE_MB", {}}, fsyncMs{"--fsync-ms", "MARZIPAN_FSYNC_MS", {}},
       serverId{"--server-id", "MARZIPAN_SERVER_ID", {}},
-      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}};
+      maxRate{"--max-requests-per-second", "MARZIPAN_MAX_REQUESTS_PER_SECOND", {}},
+      maxOpMvoxels{"--max-op-mvoxels", "MARZIPAN_MAX_OP_MVOXELS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
-                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate};
+                               &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
+                               &maxOpMvoxels};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -141,6 +143,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
   setLimit(maxRate, limits.maxRequestsPerSecond, 1, 1000000);
   setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
+  setLimit(maxOpMvoxels, limits.maxOpVoxels, 1, 1u << 30, 1'000'000);
   if (serverId.value) {
     const bool ok = std::all_of(serverId.value->begin(), serverId.value->end(), [](char ch) {
       return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == ':' || ch == '-';
@@ -260,11 +263,14 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              [MARZIPAN_MAX_REQUESTS_PER_SECOND]; 400
   --max-queue-mb N           undelivered responses and splat buffers per connection before it
                              is closed as too far behind [MARZIPAN_MAX_QUEUE_MB]; 64
+  --max-op-mvoxels N         work one request may cost, in millions of voxels processed
+                             (estimated before it runs); beyond: -32004 [MARZIPAN_MAX_OP_MVOXELS]; 4000
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and
-session events to stderr. SIGINT or SIGTERM: stops accepting, finishes running edits, saves
-sessions (with --data-dir), closes WebSockets with 1001 and exits 0.
+session events to stderr. SIGINT or SIGTERM: stops accepting, cancels long operations (they
+change nothing), finishes other running edits, saves sessions (with --data-dir), closes
+WebSockets with 1001 and exits 0, within 10 s.
 Exit status: 0 after a signal, 1 when it cannot start (web root missing, port in use),
 2 usage error. Options also take the form --name=value.
 )";

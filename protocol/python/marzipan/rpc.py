@@ -34,6 +34,7 @@ METHODS = (
     "mesh.export",
     "volume.save",
     "volume.load",
+    "op.cancel",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -61,6 +62,7 @@ class ErrorCode(enum.IntEnum):
     UPLOAD_MISSING = -32013
     SESSION_EXISTS = -32014
     SESSION_HELD_ELSEWHERE = -32015
+    CANCELLED = -32016
 
 
 class MarzipanError(Exception):
@@ -106,6 +108,7 @@ class NothingToUndoRedo(RpcError): pass
 class UploadMissing(RpcError): pass
 class SessionExists(RpcError): pass
 class SessionHeldElsewhere(RpcError): pass
+class Cancelled(RpcError): pass
 
 
 _ERROR_CLASSES = {
@@ -129,6 +132,7 @@ _ERROR_CLASSES = {
     ErrorCode.UPLOAD_MISSING: UploadMissing,
     ErrorCode.SESSION_EXISTS: SessionExists,
     ErrorCode.SESSION_HELD_ELSEWHERE: SessionHeldElsewhere,
+    ErrorCode.CANCELLED: Cancelled,
 }
 for _code, _cls in _ERROR_CLASSES.items():
     _cls.code = int(_code)
