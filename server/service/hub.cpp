@@ -199,6 +199,7 @@ struct LiveSession {
   std::vector<std::shared_ptr<HubClient>> clients;
   int nextClient = 1;
   bool unloaded = false;
+  bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
   // Guarded by the hub's mutex: when the last client left (for the idle timeout).
   Clock::time_point emptySince = Clock::now();
   std::size_t clientCount = 0;
@@ -538,6 +539,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
                                                 "); it was not kept. The session is as it was");
     }
+    if (s.journal->dirty()) scheduleSync(s);
     if (s.journal->records() >= options.snapshotEvery) {
       try {
         s.journal = store.snapshot(s.id, s.session->volume());
@@ -546,6 +548,32 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
       }
     }
+  }
+
+  // On the strand: with --fsync-ms N, records that did not sync on append are synced by a timer
+  // within N ms (an append syncs only when N ms passed since the last sync).
+  void scheduleSync(LiveSession& s) {
+    if (s.syncScheduled) return;
+    s.syncScheduled = true;
+    std::weak_ptr<LiveSession> weak;
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(s.id); it != sessions.end() && it->second.get() == &s) weak = it->second;
+    }
+    workers.postAfter(options.fsyncInterval, [self = shared_from_this(), weak] {
+      const auto live = weak.lock();
+      if (!live) return;
+      live->strand->post([self, live] {
+        live->syncScheduled = false;
+        if (!live->journal || !live->journal->dirty()) return;
+        try {
+          live->journal->sync();
+          if (self->options.events.journalSynced) self->options.events.journalSynced();
+        } catch (const std::exception& e) {
+          self->log("session " + live->id + ": " + e.what());
+        }
+      });
+    });
   }
 
   // On the strand: a fresh journal starts with the strokes still open, so that their next dabs

@@ -67,6 +67,7 @@ struct HubEvents {
   std::function<void(std::string_view)> request;        // a request's method name
   std::function<void(int)> error;                       // a JSON-RPC error code sent
   std::function<void(double)> editLatency;              // seconds from arrival to response
+  std::function<void()> journalSynced;                  // a journal fsynced by the --fsync-ms timer
 };
 
 struct HubOptions {

@@ -3,6 +3,7 @@
 // global operation that fails part way (service/hub.hpp, engine/progress.hpp).
 #include <catch2/catch.hpp>
 
+#include <condition_variable>
 #include <filesystem>
 #include <future>
 #include <thread>
@@ -227,4 +228,30 @@ TEST_CASE("volume.load of a file with another band width is refused; the undo hi
   CHECK(after["revision"] == before["revision"]);
   CHECK(after["digest"] == before["digest"]);
   CHECK(after["can_undo"] == true);
+}
+
+TEST_CASE("--fsync-ms: records an append did not sync are synced by a timer within the interval", "[hub][durability]") {
+  const auto dir = scratch("fsync");
+  HubOptions o = longOptions();
+  o.dataDir = dir;
+  o.fsyncInterval = std::chrono::milliseconds(150);
+  std::mutex mutex;
+  std::condition_variable cv;
+  int synced = 0;
+  o.events.journalSynced = [&] {
+    const std::lock_guard lock(mutex);
+    ++synced;
+    cv.notify_all();
+  };
+  {
+    Hub hub(o);
+    TestClient a(hub);
+    a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+    // Two edits in a row: the second comes within the interval of the first's sync, so only the
+    // timer can sync it.
+    for (int i = 0; i < 2; ++i) a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+    std::unique_lock lock(mutex);
+    CHECK(cv.wait_for(lock, std::chrono::seconds(2), [&] { return synced > 0; }));
+  }
+  std::filesystem::remove_all(dir);
 }
