@@ -230,7 +230,7 @@ TEST_CASE("volume.load of a file with another band width is refused; the undo hi
   CHECK(after["can_undo"] == true);
 }
 
-TEST_CASE("--fsync-ms: records an append did not sync are synced by a timer within the interval", "[hub][durability]") {
+TEST_CASE("with --fsync-ms, records an append did not sync are synced by a timer within the interval", "[hub][durability]") {
   const auto dir = scratch("fsync");
   HubOptions o = longOptions();
   o.dataDir = dir;
