@@ -224,6 +224,9 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   const std::string owner;  // this server's name in leases
   std::atomic<bool> leaseRenewalScheduled{false};
   std::set<Progress*> runningOps;  // guarded by mutex: cancelled by shutdown
+  // Guarded by mutex: sessions being recovered from the data directory, by id; a second join
+  // waits for the first one's load instead of loading (and opening the journal) again.
+  std::map<std::string, std::shared_future<std::shared_ptr<LiveSession>>> loading;
 
   const HubLimits& limits() const { return options.limits; }
 
@@ -874,12 +877,44 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     });
   }
 
-  // The live session of this id, loading it from the data directory when it sleeps there.
+  // The live session of this id, loading it from the data directory when it sleeps there. One
+  // loader per id: concurrent joins wait for it. max_sessions is checked before any work.
   std::shared_ptr<LiveSession> findOrLoad(const std::string& id, const std::string& token) {
+    std::shared_future<std::shared_ptr<LiveSession>> pending;
+    std::promise<std::shared_ptr<LiveSession>> mine;
     {
       const std::lock_guard lock(mutex);
       if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
+      if (const auto it = loading.find(id); it != loading.end()) pending = it->second;
+      else if (sessions.size() + loading.size() >= limits().maxSessions) throw sessionsFull();
+      else loading.emplace(id, mine.get_future().share());
     }
+    if (pending.valid()) {
+      // The caller checks this client's token against the loaded session's secrets. A load
+      // that failed (perhaps for the other joiner's token) is tried again with this one.
+      try {
+        return pending.get();
+      } catch (...) {
+        return findOrLoad(id, token);
+      }
+    }
+    const auto settle = [&] {
+      const std::lock_guard lock(mutex);
+      loading.erase(id);
+    };
+    try {
+      std::shared_ptr<LiveSession> s = load(id, token);
+      settle();
+      mine.set_value(s);
+      return s;
+    } catch (...) {
+      settle();
+      mine.set_exception(std::current_exception());
+      throw;
+    }
+  }
+
+  std::shared_ptr<LiveSession> load(const std::string& id, const std::string& token) {
     const std::optional<SessionSecrets> secrets = store.secrets(id);
     if (!secrets) throw RpcException(RpcCode::NoSuchSession, "no session with id \"" + id + "\"", {{"field", "session"}});
     if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
@@ -901,12 +936,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     scheduleLeaseRenewal();
     {
       const std::lock_guard lock(mutex);
-      if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
-      if (sessions.size() >= limits().maxSessions) {
-        s->journal.reset();
-        store.releaseLease(id, owner);
-        throw sessionsFull();
-      }
+      // Its slot was counted in `loading` when the load began.
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);

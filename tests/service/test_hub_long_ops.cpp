@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <filesystem>
 #include <future>
+#include <set>
 #include <thread>
 
 #include "engine/solids.hpp"
@@ -252,6 +253,58 @@ TEST_CASE("with --fsync-ms, records an append did not sync are synced by a timer
     for (int i = 0; i < 2; ++i) a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
     std::unique_lock lock(mutex);
     CHECK(cv.wait_for(lock, std::chrono::seconds(2), [&] { return synced > 0; }));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("parallel joins of a session at rest load it once; a full server refuses before loading", "[hub][durability]") {
+  const auto dir = scratch("joins");
+  HubOptions o = longOptions();
+  o.dataDir = dir;
+  json created, other;
+  {
+    Hub hub(o);
+    TestClient a(hub), b(hub);
+    created = a.result("session.create", kCreatePig);
+    for (int i = 0; i < 20; ++i) a.result("tool.apply", kBlob);
+    other = b.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  }
+  std::mutex mutex;
+  int loads = 0;
+  o.events.log = [&](const std::string& line) {
+    const std::lock_guard lock(mutex);
+    if (line.find(": loaded from ") != std::string::npos) ++loads;
+  };
+  {
+    Hub hub(o);
+    std::vector<std::unique_ptr<TestClient>> clients;
+    for (int i = 0; i < 4; ++i) clients.push_back(std::make_unique<TestClient>(hub));
+    for (auto& c : clients)
+      c->hub.text(c->client, json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "session.join"},
+                                  {"params", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}}}}
+                                 .dump());
+    std::set<int> ids;
+    for (auto& c : clients) {
+      const json r = responseTo(*c, 1);
+      INFO(r.dump().substr(0, 300));
+      REQUIRE(r.contains("result"));
+      ids.insert(r["result"]["client"].get<int>());
+    }
+    CHECK(ids.size() == 4);  // four clients of one session
+    CHECK(hub.sessionCount() == 1);
+    const std::lock_guard lock(mutex);
+    CHECK(loads == 1);
+  }
+  {
+    o.limits.maxSessions = 1;
+    Hub hub(o);
+    TestClient a(hub), b(hub);
+    a.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+    const json full = b.call("session.join", {{"session", other["session"]}, {"token", other["token"]}, {"view", "none"}});
+    CHECK(full["error"]["code"] == -32004);
+    CHECK(full["error"]["data"]["limit"] == "max_sessions");
+    const std::lock_guard lock(mutex);
+    CHECK(loads == 2);  // one more: the first join of this hub
   }
   std::filesystem::remove_all(dir);
 }
