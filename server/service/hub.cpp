@@ -185,7 +185,7 @@ class HubClient {
   bool rendering = false, renderAgain = false;
 };
 
-struct LiveSession {
+struct LiveSession : std::enable_shared_from_this<LiveSession> {
   LiveSession(std::string i, SessionSecrets s, Workers& w)
       : id(std::move(i)), secrets(std::move(s)), strand(std::make_shared<Strand>(w)) {}
   const std::string id;
@@ -198,7 +198,8 @@ struct LiveSession {
   std::string failure;               // why the session could not be created
   std::vector<std::shared_ptr<HubClient>> clients;
   int nextClient = 1;
-  bool unloaded = false;
+  // Written on the strand, also read under the hub's mutex (findOrLoad): atomic.
+  std::atomic<bool> unloaded{false};
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
   // Guarded by the hub's mutex: when the last client left (for the idle timeout).
   Clock::time_point emptySince = Clock::now();
@@ -749,6 +750,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     c->readOnly = readOnly;
     c->mode = view;
     c->stroke = 0;
+    c->rendering = c->renderAgain = false;  // a render of an earlier membership no longer counts
     s.clients.push_back(c);
     {
       const std::lock_guard lock(mutex);
@@ -1006,6 +1008,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     startRender(s, c, false);
   }
 
+  // On s's strand: c is still the client `clientId` of s (it did not leave, or leave and join
+  // again), so its view state belongs to this strand.
+  static bool sameClient(const LiveSession& s, const HubClient& c, int clientId) {
+    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; }) &&
+           c.clientId == clientId;
+  }
+
   void startRender(LiveSession& s, const std::shared_ptr<HubClient>& c, bool still) {
     c->rendering = true;
     auto snapshot = std::make_shared<Volume>(s.session->snapshot());
@@ -1013,8 +1022,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     const Camera camera = c->camera;
     const Shading shading = c->shading;
     const int quality = still ? options.stillQuality : options.interactiveQuality;
-    std::weak_ptr<LiveSession> weak = c->session;
-    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, quality, still] {
+    // The client may have left s (and joined another session, whose strand owns its view state
+    // then) by the time the render is done: s's strand touches c only while c is still the
+    // same client of s (c->session belongs to the connection's pump, not to this strand).
+    std::weak_ptr<LiveSession> weak = s.weak_from_this();
+    const int clientId = c->clientId;
+    workers.post([self = shared_from_this(), weak, c, clientId, snapshot, revision, seq, camera, shading, quality, still] {
       try {
         const Frame f = render(*snapshot, camera, shading, self->pool);
         const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
@@ -1024,17 +1037,18 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       }
       const auto live = weak.lock();
       if (!live) return;
-      live->strand->post([self, s = live, c, seq, still] {
+      live->strand->post([self, s = live, c, clientId, seq, still] {
+        if (!self->sameClient(*s, *c, clientId)) return;
         c->rendering = false;
-        if (c->mode != ViewMode::Frames || c->session != s) return;
+        if (c->mode != ViewMode::Frames) return;
         if (c->renderAgain) {
           c->renderAgain = false;
           return self->startRender(*s, c, false);
         }
         if (still) return;
-        self->workers.postAfter(self->options.stillDelay, [self, s, c, seq] {
-          s->strand->post([self, s, c, seq] {
-            if (c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq && c->session == s)
+        self->workers.postAfter(self->options.stillDelay, [self, s, c, clientId, seq] {
+          s->strand->post([self, s, c, clientId, seq] {
+            if (self->sameClient(*s, *c, clientId) && c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq)
               self->startRender(*s, c, true);
           });
         });

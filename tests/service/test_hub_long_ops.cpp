@@ -308,3 +308,25 @@ TEST_CASE("parallel joins of a session at rest load it once; a full server refus
   }
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("a frames client that moves between sessions while its frames render (run under TSan: tests/tsan.sh)", "[hub]") {
+  HubOptions o = longOptions();
+  o.stillDelay = std::chrono::milliseconds(1);
+  Hub hub(o);
+  TestClient a(hub), b(hub), mover(hub);
+  const json s1 = a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  const json s2 = b.result("session.create", {{"size", {64, 64, 64}}, {"solid", "box"}, {"view", "none"}});
+  const json camera = {{"eye", {32, 40, 150}}, {"target", {32, 32, 32}}};
+  for (int round = 0; round < 6; ++round) {
+    const json& s = round % 2 ? s2 : s1;
+    mover.result("session.join", {{"session", s["session"]}, {"token", s["token"]}, {"view", "none"}});
+    mover.result("view.set", {{"mode", "frames"}, {"camera", camera}, {"width", 64}, {"height", 48}});
+    (round % 2 ? b : a).result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+    mover.result("session.leave");
+  }
+  // Frames of a session it left never follow it into the next one's state: it still renders.
+  mover.result("session.join", {{"session", s1["session"]}, {"token", s1["token"]}, {"view", "none"}});
+  const std::size_t mark = mover.link->size();
+  mover.result("view.set", {{"mode", "frames"}, {"camera", camera}, {"width", 64}, {"height", 48}});
+  mover.link->waitFor([](const auto& m) { return std::holds_alternative<Bytes>(m); }, mark);
+}
