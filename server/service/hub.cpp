@@ -546,8 +546,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (s.journal->dirty()) scheduleSync(s);
     if (s.journal->records() >= options.snapshotEvery) {
       try {
-        s.journal = store.snapshot(s.id, s.session->volume());
-        announceOpenStrokes(s);
+        // A fresh journal starts with the strokes still open, so that their next dabs replay
+        // without the journal that began them.
+        std::vector<json> head;
+        for (const auto& [id, st] : s.session->openStrokeList()) head.push_back(strokeBeginRecord(id, st));
+        s.journal = store.snapshot(s.id, s.session->volume(), head);
       } catch (const std::exception& e) {
         log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
       }
@@ -580,11 +583,6 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     });
   }
 
-  // On the strand: a fresh journal starts with the strokes still open, so that their next dabs
-  // replay without the journal that began them.
-  void announceOpenStrokes(LiveSession& s) {
-    for (const auto& [id, st] : s.session->openStrokeList()) s.journal->append(strokeBeginRecord(id, st));
-  }
 
   // On the strand: forgets a session whose in-memory state may be ahead of its journal.
   void closeBroken(LiveSession& s) {
