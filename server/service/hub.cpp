@@ -520,7 +520,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // request gets an error; if even that fails the session is closed, its acknowledged state
   // intact on disk.
   void persist(LiveSession& s, const std::function<json()>& makeRecords) {
-    if (!s.journal) return;
+    if (!s.journal) {
+      // With a data directory a change is acknowledged only once journaled.
+      if (store.enabled()) throw RpcException(RpcCode::Busy, "the server is shutting down; the change was not kept");
+      return;
+    }
     try {
       // Inside the try: making the records may write files (an undo's bricks, an upload).
       const json records = makeRecords();
@@ -1454,6 +1458,9 @@ void Hub::shutdown() {
           }
           live->journal.reset();
           s.store.releaseLease(live->id, s.owner);
+          // An edit that reaches the strand after this (dispatched just before `stopping`)
+          // finds the session closed instead of being acknowledged without a journal.
+          live->unloaded = true;
         }
         done->set_value();
       });
