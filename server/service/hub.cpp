@@ -198,6 +198,10 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   std::string failure;               // why the session could not be created
   std::vector<std::shared_ptr<HubClient>> clients;
   int nextClient = 1;
+  // The lease is released once (unload, shutdown); renewal, which runs off the strand so that a
+  // long operation cannot let it expire, must not take it again after that.
+  std::mutex leaseMutex;
+  bool leaseReleased = false;
   // Written on the strand, also read under the hub's mutex (findOrLoad): atomic.
   std::atomic<bool> unloaded{false};
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
@@ -588,6 +592,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   }
 
 
+  void releaseLease(LiveSession& s) {
+    const std::lock_guard lease(s.leaseMutex);
+    if (std::exchange(s.leaseReleased, true)) return;
+    store.releaseLease(s.id, owner);
+  }
+
   // On the strand: forgets a session whose in-memory state may be ahead of its journal.
   void closeBroken(LiveSession& s) {
     s.unloaded = true;
@@ -605,14 +615,17 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (!store.enabled() || leaseRenewalScheduled.exchange(true)) return;
     workers.postAfter(kLeaseTtl / 3, [self = shared_from_this()] {
       self->leaseRenewalScheduled = false;
-      std::vector<std::string> ids;
+      std::vector<std::shared_ptr<LiveSession>> lives;
       {
         const std::lock_guard lock(self->mutex);
-        for (const auto& [id, live] : self->sessions) ids.push_back(id);
+        for (const auto& [id, live] : self->sessions) lives.push_back(live);
       }
-      for (const std::string& id : ids) {
+      for (const auto& renewed : lives) {
+        const std::string& id = renewed->id;
         bool held = false;
         try {
+          const std::lock_guard lease(renewed->leaseMutex);
+          if (renewed->leaseReleased) continue;  // unloaded meanwhile: renewing would take it back
           held = self->store.takeLease(id, self->owner, kLeaseTtl);
         } catch (const std::exception& e) {
           self->log("session " + id + ": renewing its lease failed: " + e.what());
@@ -635,7 +648,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             self->closeBroken(*live);
           });
       }
-      if (!ids.empty()) self->scheduleLeaseRenewal();
+      if (!lives.empty()) self->scheduleLeaseRenewal();
     });
   }
 
@@ -1095,7 +1108,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         // The journal holds every acknowledged change: the session is safe without the snapshot.
         log("session " + s.id + ": snapshot at unload failed: " + e.what());
       }
-      store.releaseLease(s.id, owner);
+      releaseLease(s);
     }
     s.journal.reset();
     s.unloaded = true;
@@ -1457,7 +1470,7 @@ void Hub::shutdown() {
             s.log("session " + live->id + ": snapshot at shutdown failed (the journal has every change): " + e.what());
           }
           live->journal.reset();
-          s.store.releaseLease(live->id, s.owner);
+          s.releaseLease(*live);
           // An edit that reaches the strand after this (dispatched just before `stopping`)
           // finds the session closed instead of being acknowledged without a journal.
           live->unloaded = true;
