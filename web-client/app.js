@@ -167,6 +167,7 @@ export class App {
       this.#updateAvailability();
     });
     s.addEventListener("clients", (e) => this.status.clients(e.detail.clients, s.info && s.info.client));
+    s.addEventListener("progress", (e) => this.messages.fraction(e.detail.fraction));
     s.addEventListener("rtt", (e) => this.status.rtt(e.detail.method, e.detail.ms));
     s.addEventListener("splats", (e) => this.#splats(e.detail));
     s.addEventListener("frame", (e) => {
@@ -308,7 +309,8 @@ export class App {
       op === "smooth"
         ? this.session.applyTool({ tool: "smooth", global: true, iterations: Math.round(amount), strength: this.controls.settings.strength })
         : this.session.morph(op, amount);
-    await this.#quietly(this.messages.during(`${spec.label} the whole volume`, work));
+    const cancel = () => this.session.cancel().catch(() => {});
+    await this.#quietly(this.messages.during(`${spec.label} the whole volume`, work, cancel));
   }
 
   async #exportMesh(format) {

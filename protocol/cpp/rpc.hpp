@@ -50,6 +50,7 @@ enum class RpcCode : int {
   UploadMissing = -32013,
   SessionExists = -32014,
   HeldElsewhere = -32015,
+  Cancelled = -32016,
 };
 
 // An error to answer with; `data` is null or an object.
@@ -69,8 +70,9 @@ enum class Method {
   SessionCreate, SessionJoin, SessionLeave, SessionStats, ToolApply, StrokeBegin, StrokeDabs, StrokeEnd,
   VolumeMorph, HistoryUndo, HistoryRedo, ViewSet, RenderFrame, SplatsGet, MeshExport, VolumeSave, VolumeLoad,
   AnalysisThickness,
+  OpCancel,
 };
-inline constexpr std::array<NameOf<Method>, 18> kMethodNames{{
+inline constexpr std::array<NameOf<Method>, 19> kMethodNames{{
     {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
     {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
     {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
@@ -80,6 +82,7 @@ inline constexpr std::array<NameOf<Method>, 18> kMethodNames{{
     {Method::RenderFrame, "render.frame"},     {Method::SplatsGet, "splats.get"},
     {Method::MeshExport, "mesh.export"},       {Method::VolumeSave, "volume.save"},
     {Method::VolumeLoad, "volume.load"},       {Method::AnalysisThickness, "analysis.thickness"},
+    {Method::OpCancel, "op.cancel"},
 }};
 // Methods whose id travels in a binary header (answered by a frame, or naming an upload).
 bool needsFrameId(Method m);

@@ -31,6 +31,7 @@ export const METHODS = Object.freeze([
   "volume.save",
   "volume.load",
   "analysis.thickness",
+  "op.cancel",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -65,6 +66,7 @@ export const RpcErrorCode = Object.freeze({
   UploadMissing: -32013,
   SessionExists: -32014,
   SessionHeldElsewhere: -32015,
+  Cancelled: -32016,
 });
 
 const ERROR_NAMES = new Map(Object.entries(RpcErrorCode).map(([name, code]) => [code, name]));

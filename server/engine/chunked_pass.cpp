@@ -1,6 +1,6 @@
 #include "chunked_pass.hpp"
 
-
+#include "progress.hpp"
 #include "thread_pool.hpp"
 
 namespace marzipan {
@@ -28,12 +28,18 @@ std::vector<BrickChange> chunkedPass(Volume& vol, int margin, ThreadPool& pool, 
         if (active) chunks.push_back(interior);
       }
 
+  // The caller's Progress (progress.hpp): checked before each chunk, one pass counts as one
+  // unit. Nothing is published before every chunk is done, so a cancelled pass leaves vol alone.
+  Progress* progress = Progress::current();
+  if (progress) progress->check();
   std::vector<std::vector<BrickChange>> perChunk(chunks.size());
   const Volume& source = vol;
   auto run = [&](std::size_t c, ThreadPool& inner) {
+    if (progress) progress->check();
     DenseGrid g = DenseGrid::gather(source, chunks[c].grown(margin));
     fn(g, chunks[c], inner);
     perChunk[c] = source.diff(chunks[c], g.v.data(), g.box);
+    if (progress) progress->advance(1.0 / double(chunks.size()));
   };
   if (chunks.size() == 1) {
     run(0, pool);
@@ -41,6 +47,7 @@ std::vector<BrickChange> chunkedPass(Volume& vol, int margin, ThreadPool& pool, 
     pool.parallelFor(chunks.size(), [&](std::size_t c) { run(c, ThreadPool::serial()); });
   }
 
+  if (chunks.empty() && progress) progress->advance(1);
   std::vector<BrickChange> changes;
   for (auto& pc : perChunk) changes.insert(changes.end(), pc.begin(), pc.end());
   vol.publish(changes, true);

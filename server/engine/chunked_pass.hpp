@@ -3,6 +3,8 @@
 // number of threads). Each chunk is gathered with a ghost margin, worked on densely, and
 // only its interior is written back. Chunks far from every stored brick are skipped: their
 // field is uniform and a band-local operation cannot change it.
+// A Progress installed for the calling thread (progress.hpp) is checked before every chunk
+// and advanced by one unit per pass.
 #pragma once
 
 #include <functional>

@@ -57,11 +57,14 @@ void ThreadPool::workerLoop() {
 
 void ThreadPool::parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn) {
   if (n == 0) return;
-  if (workers_.empty() || n == 1) {
+  // A caller that finds the pool busy with another caller's items runs its own on its thread
+  // instead of queueing behind them: a long whole-volume operation of one session must not
+  // hold up a render of another (items are independent, so the result is the same).
+  std::unique_lock call(callMutex_, std::defer_lock);
+  if (workers_.empty() || n == 1 || !call.try_lock()) {
     for (std::size_t i = 0; i < n; ++i) fn(i);
     return;
   }
-  std::lock_guard call(callMutex_);
   std::unique_lock lock(mutex_);
   job_ = &fn;
   jobSize_ = n;

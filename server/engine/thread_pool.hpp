@@ -23,8 +23,9 @@ class ThreadPool {
   int threads() const { return int(workers_.size()) + 1; }
 
   // Calls fn(i) for every i in [0, n), spread over the pool and the calling thread; returns
-  // when all are done. The first exception thrown by fn is rethrown here. Not re-entrant:
-  // fn must not call parallelFor on the same pool.
+  // when all are done. The first exception thrown by fn is rethrown here. Callers do not wait
+  // for each other: while one caller's items run on the pool, another's run on its own thread
+  // (so fn may call parallelFor on the same pool; the inner call runs serially).
   void parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn);
 
   // A single-threaded pool for callers that want no parallelism.

@@ -87,12 +87,13 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       volumeMb{"--max-volume-mb", "MARZIPAN_MAX_VOLUME_MB", {}}, outputMb{"--max-output-mb", "MARZIPAN_MAX_OUTPUT_MB", {}},
       createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
       createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
-      maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}};
+      maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}},
+      maxOpMvoxels{"--max-op-mvoxels", "MARZIPAN_MAX_OP_MVOXELS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
                                &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
-                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays};
+                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -149,6 +150,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   setLimit(historyMb, limits.historyBytes, 0, 1u << 20, std::uint64_t(1) << 20);
   setLimit(maxRate, limits.maxRequestsPerSecond, 1, 1000000);
   setLimit(queueMb, limits.maxQueuedBytes, 1, 1u << 16, std::uint64_t(1) << 20);
+  setLimit(maxOpMvoxels, limits.maxOpVoxels, 1, 1u << 30, 1'000'000);
   if (serverId.value) {
     const bool ok = std::all_of(serverId.value->begin(), serverId.value->end(), [](char ch) {
       return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == ':' || ch == '-';
@@ -302,11 +304,14 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              [MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE]; 30
   --max-session-age-days N   with --data-dir: a session at rest nobody changed for N days is
                              deleted [MARZIPAN_MAX_SESSION_AGE_DAYS]; 90
+  --max-op-mvoxels N         work one request may cost, in millions of voxels processed
+                             (estimated before it runs); beyond: -32004 [MARZIPAN_MAX_OP_MVOXELS]; 4000
   --help            this text
 
 Prints "listening on http://HOST:PORT" once it accepts connections and logs connection and
-session events to stderr. SIGINT or SIGTERM: stops accepting, finishes running edits, saves
-sessions (with --data-dir), closes WebSockets with 1001 and exits 0.
+session events to stderr. SIGINT or SIGTERM: stops accepting, cancels long operations (they
+change nothing), finishes other running edits, saves sessions (with --data-dir), closes
+WebSockets with 1001 and exits 0, within 10 s.
 Exit status: 0 after a signal, 1 when it cannot start (web root missing, port in use),
 2 usage error. Options also take the form --name=value.
 )";

@@ -16,6 +16,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
 #include <variant>
 
@@ -27,6 +28,7 @@
 #include "engine/marching_cubes.hpp"
 #include "engine/measures.hpp"
 #include "engine/mesh_io.hpp"
+#include "engine/progress.hpp"
 #include "engine/raycast.hpp"
 #include "engine/solids.hpp"
 #include "engine/thickness.hpp"
@@ -36,6 +38,7 @@
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "protocol/cpp/rpc.hpp"
+#include "service/apply_op.hpp"
 #include "service/session.hpp"
 #include "service/journal.hpp"
 #include "service/session_store.hpp"
@@ -58,6 +61,13 @@ constexpr std::size_t kSessionIdChars = 22;  // 132 bits
 constexpr std::size_t kTokenChars = 43;      // 258 bits
 // A server that stops renewing (a crash) lets another take its sessions after this long.
 constexpr std::chrono::milliseconds kLeaseTtl{30'000};
+// op.progress notifications of one request come at most this often.
+constexpr std::chrono::milliseconds kProgressInterval{250};
+// Shutdown waits this long for running edits (long ones are cancelled), then as long again
+// for the snapshots: with the network's grace period it exits within 10 s of SIGTERM.
+constexpr std::chrono::milliseconds kShutdownWait{2'000};
+// A request estimated above this many voxels (about 2 s here) runs as a Workers::LongTask.
+constexpr double kLongOpVoxels = 2e7;
 
 std::string randomText(std::size_t chars) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
@@ -160,6 +170,9 @@ Failure failureOf(std::exception_ptr e, const std::function<void(const std::stri
     return {RpcCode(int(x.code())), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const EngineError& x) {
     return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const Cancelled&) {
+    return {RpcCode::Cancelled, "the operation was cancelled (op.cancel or server shutdown); the session is unchanged",
+            nullptr};
   } catch (const std::exception& x) {
     if (log) log(std::string("internal error: ") + x.what());
     return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
@@ -193,6 +206,7 @@ class HubClient {
   std::size_t queuedBytes = 0;
   double tokens = 1e9;  // requests it may still send now (capped at the first refill)
   Clock::time_point refilled = Clock::now();
+  std::shared_ptr<Progress> running;  // its long request in progress, for op.cancel
 
   // Pump only (one message at a time, so no lock is needed).
   std::shared_ptr<LiveSession> session;
@@ -222,7 +236,7 @@ class HubClient {
   bool rendering = false, renderAgain = false;
 };
 
-struct LiveSession {
+struct LiveSession : std::enable_shared_from_this<LiveSession> {
   LiveSession(std::string i, SessionSecrets s, Workers& w)
       : id(std::move(i)), secrets(std::move(s)), strand(std::make_shared<Strand>(w)) {}
   const std::string id;
@@ -235,7 +249,13 @@ struct LiveSession {
   std::string failure;               // why the session could not be created
   std::vector<std::shared_ptr<HubClient>> clients;
   int nextClient = 1;
-  bool unloaded = false;
+  // The lease is released once (unload, shutdown); renewal, which runs off the strand so that a
+  // long operation cannot let it expire, must not take it again after that.
+  std::mutex leaseMutex;
+  bool leaseReleased = false;
+  // Written on the strand, also read under the hub's mutex (findOrLoad): atomic.
+  std::atomic<bool> unloaded{false};
+  bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
   // Guarded by the hub's mutex: when the last client left (for the idle timeout).
   Clock::time_point emptySince = Clock::now();
   std::size_t clientCount = 0;
@@ -260,8 +280,84 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   std::atomic<bool> idleCheckScheduled{false};
   const std::string owner;  // this server's name in leases
   std::atomic<bool> leaseRenewalScheduled{false};
+  std::set<Progress*> runningOps;  // guarded by mutex: cancelled by shutdown
+  // Guarded by mutex: sessions being recovered from the data directory, by id; a second join
+  // waits for the first one's load instead of loading (and opening the journal) again.
+  std::map<std::string, std::shared_future<std::shared_ptr<LiveSession>>> loading;
 
   const HubLimits& limits() const { return options.limits; }
+
+  // --- long operations -----------------------------------------------------------------------
+  // One long request's Progress (engine/progress.hpp): op.progress notifications to its
+  // client, cancelled by that client's op.cancel or by shutdown. Registered from track() until
+  // done() or its destruction (it is captured by the request's strand task).
+  struct RunningOp {
+    std::shared_ptr<Impl> hub;
+    std::shared_ptr<HubClient> client;
+    std::shared_ptr<Progress> progress;
+    bool registered = true;
+    void done() {
+      if (!std::exchange(registered, false)) return;
+      {
+        const std::lock_guard lock(client->mutex);
+        if (client->running == progress) client->running.reset();
+      }
+      const std::lock_guard lock(hub->mutex);
+      hub->runningOps.erase(progress.get());
+    }
+    ~RunningOp() { done(); }
+  };
+
+  std::shared_ptr<RunningOp> track(const std::shared_ptr<HubClient>& c, const std::optional<json>& id) {
+    auto progress = std::make_shared<Progress>(
+        [link = c->link, request = id.value_or(json(nullptr))](double fraction) {
+          link->sendText(protocol::notificationText("op.progress", {{"request", request}, {"fraction", fraction}}));
+        },
+        kProgressInterval);
+    auto op = std::make_shared<RunningOp>(RunningOp{shared_from_this(), c, progress});
+    {
+      const std::lock_guard lock(c->mutex);
+      c->running = progress;
+    }
+    const std::lock_guard lock(mutex);
+    runningOps.insert(progress.get());
+    if (stopping) progress->cancel();
+    return op;
+  }
+
+  // Refuses a request whose estimated work is over max_op_voxels, before anything runs.
+  void checkBudget(double voxels, const char* what) const {
+    if (voxels <= limits().maxOpVoxels) return;
+    char text[160];
+    std::snprintf(text, sizeof text, "%s would process about %.3g voxels, over the server's max_op_voxels %.3g", what,
+                  voxels, limits().maxOpVoxels);
+    throw RpcException(RpcCode::LimitExceeded, std::string(text) + "; use fewer iterations, a smaller radius or fewer dabs",
+                       {{"limit", "max_op_voxels"}, {"value", voxels}, {"max", limits().maxOpVoxels}});
+  }
+
+  // op.cancel overtakes the connection's queue, where the request it cancels holds the line:
+  // handled here, on the caller's thread. False when text is not an op.cancel request.
+  bool cancel(const std::shared_ptr<HubClient>& c, const std::string& text) {
+    const protocol::ParsedRequest parsed = protocol::parseRequest(text);
+    if (!parsed.request || parsed.request->method != Method::OpCancel) return false;
+    const protocol::Request& req = *parsed.request;
+    if (options.events.request) options.events.request("op.cancel");
+    std::shared_ptr<Progress> running;
+    {
+      const std::lock_guard lock(c->mutex);
+      if (c->closed) return true;
+      running = c->running;
+    }
+    try {
+      protocol::parseNoParams(req.params, Method::OpCancel);
+    } catch (...) {
+      sendError(*c, req.id, failureOf(std::current_exception(), options.events.log));
+      return true;
+    }
+    if (running) running->cancel();
+    sendResult(*c, req.id, {{"cancelled", running != nullptr}});
+    return true;
+  }
 
   void log(const std::string& line) const {
     if (options.events.log) options.events.log(line);
@@ -408,6 +504,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       switch (req.method) {
         case Method::SessionCreate: return create(c, req, arrived);
         case Method::SessionJoin: return join(c, req, arrived);
+        case Method::OpCancel:
+          // Spelled so that Hub::text did not see it (escapes): nothing of this connection runs
+          // while the pump handles a message.
+          protocol::parseNoParams(req.params, req.method);
+          sendResult(*c, req.id, {{"cancelled", false}});
+          return finish(c);
         default: break;
       }
       if (!c->session) throw RpcException(RpcCode::NotInSession, "not in a session: session.create or session.join first");
@@ -457,6 +559,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                                std::to_string(vol.dims().z) + ", the session's " + std::to_string(d.x) + "x" +
                                std::to_string(d.y) + "x" + std::to_string(d.z),
                            {{"field", "file"}});
+      // Another band width would be another grid: the load could not be one undoable step.
+      if (vol.band() != s.session->volume().band())
+        throw RpcException(RpcCode::EngineRefused,
+                           "the file's band half-width is " + std::to_string(vol.band()) + " vu, the session's " +
+                               std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
+                           {{"field", "file"}});
       ApplyResult a = s.session->load(std::move(vol));
       a.fullRefresh = true;
       r.record = [this, &s, payload, rev = a.revision] {
@@ -469,8 +577,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         // load-R.mzv (up to max_binary_bytes each) stayed until snapshot_every records passed.
         if (s.journal) {
           try {
-            s.journal = store.snapshot(s.id, s.session->volume());
-            announceOpenStrokes(s);
+            rotate(s);
           } catch (const std::exception& e) {
             log("session " + s.id + ": snapshot after a load failed (" + e.what() + "); the journal goes on");
           }
@@ -495,7 +602,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // request gets an error; if even that fails the session is closed, its acknowledged state
   // intact on disk.
   void persist(LiveSession& s, const std::function<json()>& makeRecords) {
-    if (!s.journal) return;
+    if (!s.journal) {
+      // With a data directory a change is acknowledged only once journaled.
+      if (store.enabled()) throw RpcException(RpcCode::Busy, "the server is shutting down; the change was not kept");
+      return;
+    }
     try {
       // Inside the try: making the records may write files (an undo's bricks, an upload).
       const json records = makeRecords();
@@ -518,20 +629,55 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
                                                 "); it was not kept. The session is as it was");
     }
+    if (s.journal->dirty()) scheduleSync(s);
     if (s.journal->records() >= options.snapshotEvery) {
       try {
-        s.journal = store.snapshot(s.id, s.session->volume());
-        announceOpenStrokes(s);
+        rotate(s);
       } catch (const std::exception& e) {
         log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
       }
     }
   }
 
-  // On the strand: a fresh journal starts with the strokes still open, so that their next dabs
-  // replay without the journal that began them.
-  void announceOpenStrokes(LiveSession& s) {
-    for (const auto& [id, st] : s.session->openStrokeList()) s.journal->append(strokeBeginRecord(id, st));
+  // On the strand: a snapshot of s and a fresh journal that starts with the strokes still open,
+  // so that their next dabs replay without the journal that began them.
+  void rotate(LiveSession& s) {
+    std::vector<json> head;
+    for (const auto& [id, st] : s.session->openStrokeList()) head.push_back(strokeBeginRecord(id, st));
+    s.journal = store.snapshot(s.id, s.session->volume(), head);
+  }
+
+  // On the strand: with --fsync-ms N, records that did not sync on append are synced by a timer
+  // within N ms (an append syncs only when N ms passed since the last sync).
+  void scheduleSync(LiveSession& s) {
+    if (s.syncScheduled) return;
+    s.syncScheduled = true;
+    std::weak_ptr<LiveSession> weak;
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(s.id); it != sessions.end() && it->second.get() == &s) weak = it->second;
+    }
+    workers.postAfter(options.fsyncInterval, [self = shared_from_this(), weak] {
+      const auto live = weak.lock();
+      if (!live) return;
+      live->strand->post([self, live] {
+        live->syncScheduled = false;
+        if (!live->journal || !live->journal->dirty()) return;
+        try {
+          live->journal->sync();
+          if (self->options.events.journalSynced) self->options.events.journalSynced();
+        } catch (const std::exception& e) {
+          self->log("session " + live->id + ": " + e.what());
+        }
+      });
+    });
+  }
+
+
+  void releaseLease(LiveSession& s) {
+    const std::lock_guard lease(s.leaseMutex);
+    if (std::exchange(s.leaseReleased, true)) return;
+    store.releaseLease(s.id, owner);
   }
 
   // On the strand: forgets a session whose in-memory state may be ahead of its journal.
@@ -551,14 +697,17 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (!store.enabled() || leaseRenewalScheduled.exchange(true)) return;
     workers.postAfter(kLeaseTtl / 3, [self = shared_from_this()] {
       self->leaseRenewalScheduled = false;
-      std::vector<std::string> ids;
+      std::vector<std::shared_ptr<LiveSession>> lives;
       {
         const std::lock_guard lock(self->mutex);
-        for (const auto& [id, live] : self->sessions) ids.push_back(id);
+        for (const auto& [id, live] : self->sessions) lives.push_back(live);
       }
-      for (const std::string& id : ids) {
+      for (const auto& renewed : lives) {
+        const std::string& id = renewed->id;
         bool held = false;
         try {
+          const std::lock_guard lease(renewed->leaseMutex);
+          if (renewed->leaseReleased) continue;  // unloaded meanwhile: renewing would take it back
           held = self->store.takeLease(id, self->owner, kLeaseTtl);
         } catch (const std::exception& e) {
           self->log("session " + id + ": renewing its lease failed: " + e.what());
@@ -581,7 +730,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             self->closeBroken(*live);
           });
       }
-      if (!ids.empty()) self->scheduleLeaseRenewal();
+      if (!lives.empty()) self->scheduleLeaseRenewal();
     });
   }
 
@@ -676,7 +825,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
             {"max_output_bytes", l.maxOutputBytes},
             {"max_creates_per_minute", l.maxCreatesPerMinute},
             {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute},
-            {"max_session_age_days", l.maxSessionAge.count() / 24}};
+            {"max_session_age_days", l.maxSessionAge.count() / 24},
+            {"max_op_voxels", l.maxOpVoxels}};
   }
 
   static json clientsJson(const LiveSession& s) {
@@ -712,6 +862,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     c->stroke = 0;
     c->member = true;
     c->editor = !readOnly;
+    c->rendering = c->renderAgain = false;  // a render of an earlier membership no longer counts
     s.clients.push_back(c);
     {
       const std::lock_guard lock(mutex);
@@ -875,12 +1026,44 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     });
   }
 
-  // The live session of this id, loading it from the data directory when it sleeps there.
+  // The live session of this id, loading it from the data directory when it sleeps there. One
+  // loader per id: concurrent joins wait for it. max_sessions is checked before any work.
   std::shared_ptr<LiveSession> findOrLoad(const std::string& id, const std::string& token) {
+    std::shared_future<std::shared_ptr<LiveSession>> pending;
+    std::promise<std::shared_ptr<LiveSession>> mine;
     {
       const std::lock_guard lock(mutex);
       if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
+      if (const auto it = loading.find(id); it != loading.end()) pending = it->second;
+      else if (sessions.size() + loading.size() >= limits().maxSessions) throw sessionsFull();
+      else loading.emplace(id, mine.get_future().share());
     }
+    if (pending.valid()) {
+      // The caller checks this client's token against the loaded session's secrets. A load
+      // that failed (perhaps for the other joiner's token) is tried again with this one.
+      try {
+        return pending.get();
+      } catch (...) {
+        return findOrLoad(id, token);
+      }
+    }
+    const auto settle = [&] {
+      const std::lock_guard lock(mutex);
+      loading.erase(id);
+    };
+    try {
+      std::shared_ptr<LiveSession> s = load(id, token);
+      settle();
+      mine.set_value(s);
+      return s;
+    } catch (...) {
+      settle();
+      mine.set_exception(std::current_exception());
+      throw;
+    }
+  }
+
+  std::shared_ptr<LiveSession> load(const std::string& id, const std::string& token) {
     const std::optional<SessionSecrets> secrets = store.secrets(id);
     if (!secrets) throw RpcException(RpcCode::NoSuchSession, "no session with id \"" + id + "\"", {{"field", "session"}});
     if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
@@ -902,12 +1085,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     scheduleLeaseRenewal();
     {
       const std::lock_guard lock(mutex);
-      if (const auto it = sessions.find(id); it != sessions.end() && !it->second->unloaded) return it->second;
-      if (sessions.size() >= limits().maxSessions) {
-        s->journal.reset();
-        store.releaseLease(id, owner);
-        throw sessionsFull();
-      }
+      // Its slot was counted in `loading` when the load began.
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);
@@ -977,6 +1155,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     startRender(s, c, false);
   }
 
+  // On s's strand: c is still the client `clientId` of s (it did not leave, or leave and join
+  // again), so its view state belongs to this strand.
+  static bool sameClient(const LiveSession& s, const HubClient& c, int clientId) {
+    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; }) &&
+           c.clientId == clientId;
+  }
+
   void startRender(LiveSession& s, const std::shared_ptr<HubClient>& c, bool still) {
     c->rendering = true;
     auto snapshot = std::make_shared<Volume>(s.session->snapshot());
@@ -985,8 +1170,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     const Shading shading = c->shading;
     const double minVu = c->thicknessMinVu;
     const int quality = still ? options.stillQuality : options.interactiveQuality;
-    std::weak_ptr<LiveSession> weak = c->session;
-    workers.post([self = shared_from_this(), weak, c, snapshot, revision, seq, camera, shading, minVu, quality, still] {
+    // The client may have left s (and joined another session, whose strand owns its view state
+    // then) by the time the render is done: s's strand touches c only while c is still the
+    // same client of s (c->session belongs to the connection's pump, not to this strand).
+    std::weak_ptr<LiveSession> weak = s.weak_from_this();
+    const int clientId = c->clientId;
+    workers.post([self = shared_from_this(), weak, c, clientId, snapshot, revision, seq, camera, shading, minVu, quality, still] {
       try {
         const Frame f =
             render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive, minVu);
@@ -997,17 +1186,18 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       }
       const auto live = weak.lock();
       if (!live) return;
-      live->strand->post([self, s = live, c, seq, still] {
+      live->strand->post([self, s = live, c, clientId, seq, still] {
+        if (!self->sameClient(*s, *c, clientId)) return;
         c->rendering = false;
-        if (c->mode != ViewMode::Frames || c->session != s) return;
+        if (c->mode != ViewMode::Frames) return;
         if (c->renderAgain) {
           c->renderAgain = false;
           return self->startRender(*s, c, false);
         }
         if (still) return;
-        self->workers.postAfter(self->options.stillDelay, [self, s, c, seq] {
-          s->strand->post([self, s, c, seq] {
-            if (c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq && c->session == s)
+        self->workers.postAfter(self->options.stillDelay, [self, s, c, clientId, seq] {
+          s->strand->post([self, s, c, clientId, seq] {
+            if (self->sameClient(*s, *c, clientId) && c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq)
               self->startRender(*s, c, true);
           });
         });
@@ -1093,7 +1283,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         // The journal holds every acknowledged change: the session is safe without the snapshot.
         log("session " + s.id + ": snapshot at unload failed: " + e.what());
       }
-      store.releaseLease(s.id, owner);
+      releaseLease(s);
     }
     s.journal.reset();
     s.unloaded = true;
@@ -1117,8 +1307,12 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
   switch (req.method) {
     case Method::ToolApply: {
       const protocol::ToolApplyParams p = protocol::parseToolApplyParams(req.params);
-      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
+        const OpCost cost = estimateCost(s.session->volume(), p.op);
+        self->checkBudget(cost.voxels, "this tool");
+        running->progress->setTotal(cost.passes);
         protocol::Op op = p.op;
         std::optional<Vec3> hit;
         if (p.ray) {
@@ -1131,7 +1325,11 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           if (auto* g = std::get_if<protocol::CsgToolOp>(&op)) g->params.center = *hit;
         }
         const bool brush = std::holds_alternative<protocol::BrushOp>(op);
+        std::optional<Workers::LongTask> longTask;
+        if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
+        running->done();
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
         if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
         if (a.changed) {
@@ -1142,9 +1340,17 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::VolumeMorph: {
       const protocol::MorphOp op = protocol::parseMorphParams(req.params);
-      return onStrand(c, req.id, arrived, true, [self, c, op, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, op, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
+        const OpCost cost = estimateCost(s.session->volume(), op);
+        self->checkBudget(cost.voxels, "this morphology");
+        running->progress->setTotal(cost.passes);
+        std::optional<Workers::LongTask> longTask;
+        if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->apply(op, self->pool);
+        running->done();
         r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
         if (a.changed) {
           r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}}; };
@@ -1177,11 +1383,21 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::StrokeDabs: {
       const protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(req.params, l.maxDabs);
-      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly](LiveSession& s, Reply& r) {
+      const auto running = track(c, req.id);
+      return onStrand(c, req.id, arrived, true, [self, c, p, refuseReadOnly, running](LiveSession& s, Reply& r) {
         refuseReadOnly(s);
         if (p.stroke != c->stroke)
           throw RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(p.stroke) + " is not this connection's open stroke",
                              {{"field", "stroke"}});
+        double voxels = 0;
+        for (const auto& [id, st] : s.session->openStrokeList())
+          if (id == p.stroke) {
+            const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
+            voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images);
+          }
+        self->checkBudget(voxels, "this message's dabs");
+        std::optional<Workers::LongTask> longTask;
+        if (voxels > kLongOpVoxels) longTask.emplace(self->workers);
         std::vector<Dab> dabs;
         dabs.reserve(p.dabs.size());
         for (const protocol::DabParam& d : p.dabs) {
@@ -1194,7 +1410,9 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           dab.pressure = d.pressure;
           dabs.push_back(dab);
         }
+        const Progress::Scope scope(*running->progress);
         const ApplyResult a = s.session->strokeDabs(p.stroke, dabs, ThreadPool::serial());
+        running->done();
         r.result = {{"revision", a.revision},
                     {"applied", a.changed ? dabs.size() - a.missed : 0},
                     {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
@@ -1421,6 +1639,7 @@ std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::s
 bool Hub::mayUpload(const std::shared_ptr<HubClient>& client) const { return client->editor; }
 
 void Hub::text(const std::shared_ptr<HubClient>& client, std::string message) {
+  if (message.find("op.cancel") != std::string::npos && impl_->cancel(client, message)) return;
   impl_->enqueue(client, {std::move(message), Clock::now()});
 }
 
@@ -1449,14 +1668,22 @@ void Hub::shutdown() {
     s.stopping = true;
     for (const auto& [id, live] : s.sessions) all.push_back(live);
   }
-  // Let running edits finish (bounded: a global operation may take a while).
-  const auto deadline = Clock::now() + std::chrono::seconds(30);
+  // Long operations stop at their next chunk or dab and change nothing; the others finish.
+  {
+    const std::lock_guard lock(s.mutex);
+    for (Progress* p : s.runningOps) p->cancel();
+  }
+  const auto deadline = Clock::now() + kShutdownWait;
   for (const auto& live : all)
     while (live->strand->pending() > 0 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   if (s.store.enabled()) {
+    // Every snapshot is posted at once; one that is not done by the deadline still runs when
+    // the workers stop (they finish queued tasks), and the journal holds its changes anyway.
+    std::vector<std::future<void>> snapshots;
     for (const auto& live : all) {
-      std::promise<void> done;
-      live->strand->post([&s, live, &done] {
+      auto done = std::make_shared<std::promise<void>>();
+      snapshots.push_back(done->get_future());
+      live->strand->post([&s, live, done] {
         if (!live->unloaded && live->session && live->journal) {
           try {
             live->journal = s.store.snapshot(live->id, live->session->volume());
@@ -1464,12 +1691,16 @@ void Hub::shutdown() {
             s.log("session " + live->id + ": snapshot at shutdown failed (the journal has every change): " + e.what());
           }
           live->journal.reset();
-          s.store.releaseLease(live->id, s.owner);
+          s.releaseLease(*live);
+          // An edit that reaches the strand after this (dispatched just before `stopping`)
+          // finds the session closed instead of being acknowledged without a journal.
+          live->unloaded = true;
         }
-        done.set_value();
+        done->set_value();
       });
-      done.get_future().wait();
     }
+    const auto snapshotDeadline = Clock::now() + kShutdownWait;
+    for (const auto& f : snapshots) f.wait_until(snapshotDeadline);
   }
   s.workers.stop();
   // Sessions hold their clients and clients their session: break those cycles now that no

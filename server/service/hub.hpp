@@ -72,6 +72,10 @@ struct HubLimits {
   // With a data directory: a session at rest whose files nobody changed for this long is
   // deleted (checked at start and hourly).
   std::chrono::hours maxSessionAge{24 * 90};
+  // Work one request may cost, in voxels processed (service/apply_op.hpp, estimateCost): beyond
+  // it the request is refused with -32004 before anything runs. The default is several minutes
+  // of work on a 2-core VM; long operations can be cancelled meanwhile (op.cancel).
+  double maxOpVoxels = 4e9;
 };
 
 // What the hub reports, for /metrics and the log. Any member may be empty; called from worker
@@ -82,6 +86,7 @@ struct HubEvents {
   std::function<void(std::string_view)> request;        // a request's method name
   std::function<void(int)> error;                       // a JSON-RPC error code sent
   std::function<void(double)> editLatency;              // seconds from arrival to response
+  std::function<void()> journalSynced;                  // a journal fsynced by the --fsync-ms timer
 };
 
 struct HubOptions {
@@ -128,7 +133,8 @@ class Hub {
   const HubLimits& limits() const;
 
   std::shared_ptr<HubClient> connect(std::shared_ptr<ClientLink> link, std::string peer);
-  // One text message (already checked for size and UTF-8 by the transport).
+  // One text message (already checked for size and UTF-8 by the transport). An op.cancel is
+  // answered at once, ahead of the connection's queued messages.
   void text(const std::shared_ptr<HubClient>& client, std::string message);
   // One binary message (already checked by decodeFrameHeader, kind 9).
   void binary(const std::shared_ptr<HubClient>& client, std::vector<std::uint8_t> message);
@@ -138,8 +144,10 @@ class Hub {
   // The connection is gone: leaves its session, drops its queued messages.
   void disconnect(const std::shared_ptr<HubClient>& client);
 
-  // Refuses new requests (-32005), lets running edits finish, snapshots every session in the
-  // data directory (when set), releases their leases and stops the workers. Idempotent.
+  // Refuses new requests (-32005), cancels running long operations (they change nothing and
+  // answer -32016), lets other running edits finish, snapshots every session in the data
+  // directory (when set), releases their leases and stops the workers, all within about 8 s
+  // (a snapshot still running then finishes before the workers stop). Idempotent.
   void shutdown();
 
   std::size_t sessionCount() const;

@@ -46,6 +46,8 @@ class Journal {
   // was, so the refused record is not replayed.
   void append(const nlohmann::json& record);
   void sync();
+  // Appended records not yet synced (with a sync interval): the owner's timer calls sync().
+  bool dirty() const { return dirty_; }
   std::size_t records() const { return records_; }
   const std::filesystem::path& path() const { return path_; }
 

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "engine/errors.hpp"
+#include "engine/progress.hpp"
 #include "engine/splats.hpp"
 #include "service/apply_op.hpp"
 
@@ -153,10 +154,17 @@ ApplyResult Session::finish(const Edit& edit) {
 
 ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool) {
   Edit edit;
+  // A whole-volume op publishes pass by pass: when one fails part way (cancelled, out of
+  // memory) this copy (O(tiles), bricks shared) is put back, so a throw changes nothing.
+  Volume before = volume_;
   try {
     edit = applyOp(volume_, op, pool);
   } catch (const EngineError& e) {
+    volume_ = std::move(before);
     rethrow(e, "");
+  } catch (...) {
+    volume_ = std::move(before);
+    throw;
   }
   // An op that changed nothing is not a change of the session: an open stroke keeps folding.
   if (!edit.empty()) lastStroke_ = 0;

@@ -133,7 +133,9 @@ class Session {
   explicit Session(Volume initial, std::size_t historyBudgetBytes = History::kDefaultBudgetBytes);
 
   // One operation object (a brush dab, a CSG tool, global smoothing or morphology) as one
-  // history step. Throws ServiceError (OutOfDomain when its region misses the domain).
+  // history step. Throws ServiceError (OutOfDomain when its region misses the domain); any
+  // other exception (Cancelled through the thread's Progress, engine/progress.hpp, or
+  // std::bad_alloc) also leaves the session exactly as before.
   ApplyResult apply(const protocol::Op& op, ThreadPool& pool);
 
   // The first surface hit of a ray on the live volume, for `tool.apply` with a ray: the caller

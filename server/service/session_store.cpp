@@ -27,6 +27,10 @@ using nlohmann::json;
 
 namespace marzipan::service {
 
+namespace {
+void syncDirectory(const fs::path& dir);
+}
+
 void writeFileAtomically(const fs::path& path, const void* data, std::size_t size) {
   const fs::path tmp = path.string() + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
@@ -48,6 +52,8 @@ void writeFileAtomically(const fs::path& path, const void* data, std::size_t siz
     ::unlink(tmp.c_str());
     throw std::runtime_error("cannot rename " + tmp.string() + ": " + std::strerror(e));
   }
+  // The rename itself is durable only once the directory is.
+  syncDirectory(path.parent_path());
 }
 
 namespace {
@@ -207,13 +213,19 @@ std::unique_ptr<Journal> SessionStore::create(const std::string& id, const Sessi
   return journal;
 }
 
-std::unique_ptr<Journal> SessionStore::snapshot(const std::string& id, const Volume& volume) const {
+std::unique_ptr<Journal> SessionStore::snapshot(const std::string& id, const Volume& volume,
+                                                const std::vector<json>& head) const {
   const fs::path dir = sessionDir(id);
   const std::uint64_t r = volume.revision();
+  // The journal first, whole: a journal-R without snapshot-R continues the old journal's
+  // revision R at recovery (its head re-announces strokes, which replay accepts), while a
+  // snapshot-R without its journal's head would leave the open strokes' next dabs unreplayable.
+  std::string text;
+  for (const json& rec : head) text += journalLine(rec);
+  writeFileAtomically(journalPath(dir, r), text.data(), text.size());
   const std::vector<std::uint8_t> bytes = saveVolume(volume);
   writeFileAtomically(snapshotPath(dir, r), bytes.data(), bytes.size());
   auto journal = std::make_unique<Journal>(journalPath(dir, r), syncInterval_);
-  syncDirectory(dir);
   // Keep this snapshot and the one before it, with every journal and upload from that one on.
   const std::vector<std::uint64_t> snaps = revisions(dir, "snapshot-", ".mzv");
   std::uint64_t keepFrom = r;

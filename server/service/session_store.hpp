@@ -56,7 +56,11 @@ class SessionStore {
   std::unique_ptr<Journal> create(const std::string& id, const SessionSecrets& secrets, const Volume& volume) const;
   // A snapshot of `volume` at its revision and a fresh journal after it; files older than the
   // previous snapshot are deleted.
-  std::unique_ptr<Journal> snapshot(const std::string& id, const Volume& volume) const;
+  // `head`: the records the new journal starts with (the open strokes' stroke_begin), written
+  // with it in one atomic file: the rotation is complete or did not happen (then this throws
+  // and the old snapshot and journal stay the ones to append to).
+  std::unique_ptr<Journal> snapshot(const std::string& id, const Volume& volume,
+                                    const std::vector<nlohmann::json>& head = {}) const;
   // Keeps the bricks an undo or redo put in place, for the journal record {"undo"/"redo": name};
   // returns the name ("step-R.bin": "MZBK", u32 count, per brick i32 x y z, u8 0 outside /
   // 1 inside / 2 data + 512 f32, then the CRC-32 of all before it; little-endian).

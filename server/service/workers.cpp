@@ -3,13 +3,48 @@
 // fairly with others instead of holding a thread until its queue is empty.
 #include "service/workers.hpp"
 
+#include <algorithm>
 #include <exception>
 
 namespace marzipan::service {
 
 Workers::Workers(unsigned threads, std::function<void(const std::string&)> onError) : onError_(std::move(onError)) {
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  count_ = threads;
   for (unsigned i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
+}
+
+Workers::LongTask::LongTask(Workers& w) : workers_(w) {
+  w.reapRetired();
+  const std::lock_guard lock(w.mutex_);
+  if (w.stopping_) return;
+  w.threads_.emplace_back([&w] { w.loop(); });
+}
+
+Workers::LongTask::~LongTask() {
+  {
+    const std::lock_guard lock(workers_.mutex_);
+    if (workers_.stopping_) return;
+    ++workers_.retire_;
+  }
+  workers_.wake_.notify_one();
+}
+
+// Joins the extra threads that have left (outside the lock: they take it on their way out).
+void Workers::reapRetired() {
+  std::vector<std::thread> done;
+  {
+    const std::lock_guard lock(mutex_);
+    if (stopping_) return;
+    for (const std::thread::id id : retired_) {
+      const auto it = std::find_if(threads_.begin(), threads_.end(), [&](const std::thread& t) { return t.get_id() == id; });
+      if (it == threads_.end()) continue;
+      done.push_back(std::move(*it));
+      threads_.erase(it);
+    }
+    retired_.clear();
+  }
+  for (std::thread& t : done) t.join();
 }
 
 Workers::~Workers() { stop(); }
@@ -70,6 +105,12 @@ void Workers::loop() {
       continue;
     }
     if (stopping_) return;
+    if (retire_ > 0) {
+      // Any idle thread may leave in place of the long task's: they are all alike.
+      --retire_;
+      retired_.push_back(std::this_thread::get_id());
+      return;
+    }
     if (delayed_.empty()) {
       wake_.wait(lock);
     } else {

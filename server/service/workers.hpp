@@ -30,15 +30,31 @@ class Workers {
   Workers(const Workers&) = delete;
   Workers& operator=(const Workers&) = delete;
 
-  unsigned threads() const { return unsigned(threads_.size()); }
+  unsigned threads() const { return count_; }
   void post(Task task);
   // Runs `task` once `delay` has passed (dropped if the workers stop first).
   void postAfter(std::chrono::milliseconds delay, Task task);
   // Runs the tasks already queued (not the delayed ones), then joins the threads. Idempotent.
   void stop();
 
+  // Held by a task for the length of a long computation (a whole-volume operation): the
+  // workers start one more thread meanwhile, which leaves again when the task ends, so long
+  // tasks of some sessions never take every thread from the others' short ones (the kernel
+  // then shares the cores among them).
+  class LongTask {
+   public:
+    explicit LongTask(Workers& w);
+    ~LongTask();
+    LongTask(const LongTask&) = delete;
+    LongTask& operator=(const LongTask&) = delete;
+
+   private:
+    Workers& workers_;
+  };
+
  private:
   void loop();
+  void reapRetired();
 
   std::function<void(const std::string&)> onError_;
   std::mutex mutex_;
@@ -47,6 +63,9 @@ class Workers {
   std::multimap<std::chrono::steady_clock::time_point, Task> delayed_;
   bool stopping_ = false;
   std::vector<std::thread> threads_;
+  unsigned count_ = 0;   // threads started by the constructor
+  int retire_ = 0;       // extra threads that should leave when they find no task
+  std::vector<std::thread::id> retired_;  // left the loop, not joined yet
 };
 
 class Strand : public std::enable_shared_from_this<Strand> {

@@ -610,3 +610,23 @@ test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000
   assert.deepEqual(errors, [], "no script errors");
   await page.close();
 });
+
+test("a whole-volume smoothing fills the progress bar and Cancel stops it, changing nothing", { timeout: 120000 }, async () => {
+  const errors = [];
+  const page = await browser.context.newPage();
+  collectErrors(page, errors);
+  await createSession(page, 128, "pig");
+  await page.selectOption("#global-op", "smooth");
+  await page.locator("#global-amount").fill("1500");
+  await page.click("#global-apply");
+  // The bar is determinate once the server reports op.progress, and the Cancel button shows.
+  await page.waitForFunction(() => document.querySelector("#progress progress").value > 0, null, { timeout: 60000 });
+  assert.equal(await page.locator("#progress-cancel").isVisible(), true);
+  await page.click("#progress-cancel");
+  await page.waitForFunction(() => document.getElementById("progress").hidden, null, { timeout: 30000 });
+  const history = await page.evaluate(() => window.marzipan.messages.history);
+  assert.ok(history.some((m) => m.kind === "error" && m.text.includes("-32016")), JSON.stringify(history));
+  assert.equal(await data(page, "revision", "revision"), "0");
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});

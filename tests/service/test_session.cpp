@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "engine/measures.hpp"
+#include "engine/progress.hpp"
 #include "engine/solids.hpp"
 #include "protocol/cpp/ops.hpp"
 #include "service/session.hpp"
@@ -418,4 +419,32 @@ TEST_CASE("session: stats report measures, revision and digest", "[session]") {
   CHECK(st.canUndo);
   CHECK(st.undoSteps == 1);
   CHECK(st.memoryBytes == s.volume().memoryBytes());
+}
+
+TEST_CASE("a global operation that fails or is cancelled part way changes nothing", "[session]") {
+  ThreadPool pool(2);
+  for (const bool cancel : {false, true}) {
+    Session s(makeSolid(SolidKind::Pig, {128, 128, 128}));
+    s.apply(protocol::BrushOp{BrushTool::AddBlob, BrushParams{{64, 64, 100}, 8, 1}}, pool);
+    const std::uint64_t digest = s.digest(), revision = s.revision();
+    const std::string hex = digestHex(s.volume());
+    const std::size_t steps = s.history().undoSteps();
+    // After the first of four passes: out of memory, or a cancel from another thread.
+    Progress progress(
+        [&](double fraction) {
+          if (fraction < 0.25) return;
+          if (!cancel) throw std::bad_alloc();
+          progress.cancel();
+        },
+        std::chrono::milliseconds(0));
+    progress.setTotal(4);
+    const Progress::Scope scope(progress);
+    if (cancel) CHECK_THROWS_AS(s.apply(protocol::GlobalSmoothOp{4, 1.0}, pool), Cancelled);
+    else CHECK_THROWS_AS(s.apply(protocol::GlobalSmoothOp{4, 1.0}, pool), std::bad_alloc);
+    CHECK(s.digest() == digest);
+    CHECK(digestHex(s.volume()) == hex);
+    CHECK(s.revision() == revision);
+    CHECK(s.history().undoSteps() == steps);
+    CHECK(progress.fraction() >= 0.25);
+  }
 }

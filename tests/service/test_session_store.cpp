@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/measures.hpp"
+#include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "service/hub.hpp"
 #include "service/session_store.hpp"
@@ -186,5 +187,39 @@ TEST_CASE("a lease keeps a session on one server until it expires or is released
   CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)));
   std::this_thread::sleep_for(std::chrono::milliseconds(5));
   CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("a snapshot's journal starts with the open strokes, and a rotation cut short is recovered", "[store]") {
+  const fs::path dir = freshDir("rotation");
+  SessionStore store(dir);
+  Session live(makeSolid(SolidKind::Sphere, {64, 64, 64}));
+  std::unique_ptr<Journal> journal = store.create("rot", {"t", "v"}, live.volume());
+  const StrokeId stroke = live.beginStroke(protocol::BrushTool::AddBlob, 6, 1);
+  journal->append({{"stroke_begin", stroke}, {"tool", "add_blob"}, {"radius", 6}, {"strength", 1}, {"symmetry", ""}});
+  const auto dab = [&](double x) {
+    live.strokeDabs(stroke, {Dab{Vec3{x, 54, 32}, 1.0}}, ThreadPool::serial());
+    journal->append({{"r", live.revision()}, {"stroke", stroke}, {"dabs", {{x, 54, 32, 1.0}}}});
+  };
+  dab(30);
+  // The rotation writes the new journal with the stroke's begin record, then the snapshot.
+  const json head = {{"stroke_begin", stroke}, {"tool", "add_blob"}, {"radius", 6}, {"strength", 1}, {"symmetry", ""}};
+  journal = store.snapshot("rot", live.volume(), {head});
+  CHECK(journal->records() == 1);
+  dab(34);
+  std::uint64_t revision = 0;
+  CHECK(recoveredDigest(dir, "rot", &revision) == digestHex(live.volume()));
+  CHECK(revision == live.revision());
+
+  // Cut short after the journal, before the snapshot: the old journal goes on, the new one's
+  // head is replayed (or skipped) without breaking recovery.
+  const std::uint64_t r = live.revision();
+  journal.reset();
+  {
+    std::ofstream partial(dir / "sessions" / "rot" / ("journal-" + std::to_string(r) + ".log"), std::ios::binary);
+    partial << journalLine(head);
+  }
+  CHECK(recoveredDigest(dir, "rot", &revision) == digestHex(live.volume()));
+  CHECK(revision == r);
   fs::remove_all(dir);
 }

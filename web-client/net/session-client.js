@@ -130,6 +130,13 @@ export class SessionClient extends EventTarget {
     return result;
   }
 
+  // op.cancel: stops this connection's long request (which then fails with -32016 and changes
+  // nothing); true when one was running.
+  async cancel() {
+    const { result } = await this.request("op.cancel", {});
+    return result.cancelled;
+  }
+
   async morph(kind, radius) {
     const { result } = await this.request("volume.morph", { kind, radius });
     this.#advance(result.revision);
@@ -311,6 +318,8 @@ export class SessionClient extends EventTarget {
       this.#emitState({ cause: params.cause, by: params.by, roi: params.roi });
     } else if (method === "session.clients") {
       this.#setClients(params.clients);
+    } else if (method === "op.progress") {
+      this.#emit("progress", params);
     }
   }
 

@@ -4,8 +4,8 @@
 // (ui/offline-banner.js) says it once, for as long as it lasts.
 // Conventions: messages stack in the viewport's corner and dismiss themselves after a while
 // (errors later than notices); the list is an aria-live region so screen readers announce
-// them. The server sends no progress of an operation (PROTOCOL.md has none), so the progress
-// indicator shows that something runs and for how long, not how far it has come.
+// them. The progress indicator shows what runs and for how long; for whole-volume operations
+// the server's op.progress fills the bar (fraction()) and a Cancel button sends op.cancel.
 
 import { plainError } from "../net/plain-errors.js";
 
@@ -19,6 +19,11 @@ export class Messages {
     this.list = doc.getElementById("messages");
     this.progress = doc.getElementById("progress");
     this.progressText = doc.getElementById("progress-text");
+    this.progressBar = this.progress.querySelector("progress");
+    this.cancelButton = doc.getElementById("progress-cancel");
+    this.cancelButton.addEventListener("click", () => {
+      for (const r of this.running.values()) if (r.cancel) r.cancel();
+    });
     this.running = new Map(); // token -> {label, started}
     this.tick = 0;
     this.history = []; // the last HISTORY messages, {kind, text}, for the console and tests
@@ -67,9 +72,10 @@ export class Messages {
   }
 
   // Shows the progress indicator while `promise` runs; resolves and rejects as it does.
-  async during(label, promise) {
+  // `cancel`, when given, is what the Cancel button calls.
+  async during(label, promise, cancel = null) {
     const token = {};
-    this.running.set(token, { label, started: performance.now() });
+    this.running.set(token, { label, started: performance.now(), cancel });
     this.#updateProgress();
     try {
       return await promise;
@@ -79,7 +85,14 @@ export class Messages {
     }
   }
 
+  // How far the running operation is, in [0, 1] (the server's op.progress).
+  fraction(f) {
+    if (this.running.size) this.progressBar.value = f;
+  }
+
   #updateProgress() {
+    this.progressBar.removeAttribute("value"); // indeterminate until the server reports
+    this.cancelButton.hidden = ![...this.running.values()].some((r) => r.cancel);
     if (!this.running.size) {
       this.progress.hidden = true;
       clearInterval(this.tick);

@@ -508,6 +508,13 @@ class Client:
         # Anything else is the server's to refuse, with its own message.
         return await self.apply(op)
 
+    async def cancel(self) -> bool:
+        """op.cancel: stops this connection's long request in progress (global smoothing,
+        morphology, a stroke.dabs message), which then fails with Cancelled and changes nothing.
+        Needs a second task: the request waits for its own answer. True when one was running.
+        Its op.progress notifications ({"request": id, "fraction": 0..1}) arrive as updates."""
+        return (await self._result("op.cancel"))["cancelled"]
+
     async def morph(self, kind: str, radius: float) -> dict:
         """volume.morph: erode, dilate, open or close with a sphere of `radius` vu."""
         return await self._result("volume.morph", {"kind": kind, "radius": radius})

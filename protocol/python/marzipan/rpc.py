@@ -35,6 +35,7 @@ METHODS = (
     "volume.save",
     "volume.load",
     "analysis.thickness",
+    "op.cancel",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -62,6 +63,7 @@ class ErrorCode(enum.IntEnum):
     UPLOAD_MISSING = -32013
     SESSION_EXISTS = -32014
     SESSION_HELD_ELSEWHERE = -32015
+    CANCELLED = -32016
 
 
 class MarzipanError(Exception):
@@ -107,6 +109,7 @@ class NothingToUndoRedo(RpcError): pass
 class UploadMissing(RpcError): pass
 class SessionExists(RpcError): pass
 class SessionHeldElsewhere(RpcError): pass
+class Cancelled(RpcError): pass
 
 
 _ERROR_CLASSES = {
@@ -130,6 +133,7 @@ _ERROR_CLASSES = {
     ErrorCode.UPLOAD_MISSING: UploadMissing,
     ErrorCode.SESSION_EXISTS: SessionExists,
     ErrorCode.SESSION_HELD_ELSEWHERE: SessionHeldElsewhere,
+    ErrorCode.CANCELLED: Cancelled,
 }
 for _code, _cls in _ERROR_CLASSES.items():
     _cls.code = int(_code)

@@ -24,7 +24,7 @@ LIMIT_KEYS = {"max_text_bytes", "max_binary_bytes", "max_grid_side", "max_sessio
               "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds",
               "max_queue_bytes", "max_connections", "max_connections_per_address", "lobby_seconds",
               "max_volume_bytes", "max_output_bytes", "max_creates_per_minute", "max_creates_per_address_per_minute",
-              "max_session_age_days"}
+              "max_session_age_days", "max_op_voxels"}
 
 
 def run(coroutine, timeout=120):
