@@ -92,24 +92,6 @@ bool sameSecret(const std::string& secret, const std::string& given) {
   return diff == 0;
 }
 
-// The journal record of a stroke's start (journal.hpp), read back by session_store.cpp.
-json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
-  const std::string symmetry =
-      std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
-  json record{{"stroke_begin", id},
-              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
-              {"radius", st.radius},
-              {"strength", st.strength},
-              {"symmetry", symmetry}};
-  if (st.accumulate) record["accumulate"] = true;
-  if (!st.memory.empty()) {
-    json applied = json::array();
-    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
-    record["applied"] = std::move(applied);
-  }
-  return record;
-}
-
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
 // Grid edges the surface crosses (a sign change between two voxels of one brick; those across

@@ -390,4 +390,21 @@ std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxA
   return removed;
 }
 
+json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
+  const std::string symmetry =
+      std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
+  json record{{"stroke_begin", id},
+              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+              {"radius", st.radius},
+              {"strength", st.strength},
+              {"symmetry", symmetry}};
+  if (st.accumulate) record["accumulate"] = true;
+  if (!st.memory.empty()) {
+    json applied = json::array();
+    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
+    record["applied"] = std::move(applied);
+  }
+  return record;
+}
+
 }  // namespace marzipan::service

@@ -32,6 +32,11 @@
 
 namespace marzipan::service {
 
+// The journal record of a stroke's start (journal.hpp): tool, radius, strength, symmetry,
+// accumulate, and what it applied so far (its memory), which recovery reads back. The hub writes
+// it at stroke.begin and at the head of every new journal for the strokes still open.
+nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);
+
 struct SessionSecrets {
   std::string token, viewToken;
 };

@@ -14,7 +14,7 @@ TEST_CASE("every shading, solid and tool shape has one wire name that parses bac
     CHECK(shadingFromName(n.name) == n.value);
     seen.insert(std::string(n.name));
   }
-  CHECK(seen == std::set<std::string>{"lit", "normals", "gradient_error"});
+  CHECK(seen == std::set<std::string>{"lit", "normals", "gradient_error", "thickness"});
   for (const auto& n : kSolidKindNames) {
     CHECK(solidKindFromName(n.name) == n.value);
     CHECK(std::string(solidKindName(n.value)) == std::string(n.name));

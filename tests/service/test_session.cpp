@@ -154,7 +154,7 @@ TEST_CASE("session: a new step after undos clears the redo list", "[session]") {
 TEST_CASE("session: the history budget drops the oldest steps", "[session]") {
   ThreadPool pool(2);
   // Room for some of the 8 steps, counted as held: older steps packed (history.hpp).
-  const std::size_t budget = 16 * History::kBytesPerBrick;
+  const std::size_t budget = 40 * History::kBytesPerBrick;
   Session s(sphere(), budget);
   for (int i = 0; i < 8; ++i) s.apply(blob(BrushTool::AddBlob, {kSurface, kC - 14 + 4 * i, kC}, 4), pool);
   CHECK(s.history().bytes() <= budget);

@@ -203,7 +203,8 @@ TEST_CASE("a snapshot's journal starts with the open strokes, and a rotation cut
   };
   dab(30);
   // The rotation writes the new journal with the stroke's begin record, then the snapshot.
-  const json head = {{"stroke_begin", stroke}, {"tool", "add_blob"}, {"radius", 6}, {"strength", 1}, {"symmetry", ""}};
+  const json head = strokeBeginRecord(stroke, live.openStrokeList().at(0).second);
+  CHECK(head.contains("applied"));  // the stroke's memory: its next dabs add only the excess
   journal = store.snapshot("rot", live.volume(), {head});
   CHECK(journal->records() == 1);
   dab(34);
