@@ -1002,6 +1002,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     // c->session is set only once admitted: a refused join (a full session) grants nothing.
     onStrand(c, s, req.id, arrived, false, [self, c, s, view, readOnly](LiveSession& ls, Reply& r) {
       self->admit(ls, c, readOnly, view, r);
+      // An editor may share a view link; a view client learns nothing more than it had.
+      if (!readOnly) r.result["view_token"] = ls.secrets.viewToken;
       c->session = s;
       self->log("session " + ls.id + ": client " + std::to_string(c->clientId) + " (" + c->peer + ") joined" +
                 (readOnly ? " read-only" : "") + ", " + std::to_string(ls.clients.size()) + " in all");

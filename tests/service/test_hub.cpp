@@ -1,7 +1,7 @@
 // The hub without sockets: every method's success path and its refusals, two clients on one
 // session, undo digests, splat deltas against a fresh full buffer, frames, uploads, limits and
-// idle unloading. A CaptureLink records what the hub sends; every wait times out (20 s) so a
-// hang fails the test instead of the run.
+// idle unloading, driven through hub_support.hpp (a CaptureLink records what the hub sends;
+// every wait times out, so a hang fails the test instead of the run).
 #include <catch2/catch.hpp>
 
 #include <chrono>
@@ -23,75 +23,15 @@
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "service/hub.hpp"
+#include "hub_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using namespace marzipan::service::testing;
 using nlohmann::json;
 using Bytes = std::vector<std::uint8_t>;
 
 namespace {
-
-constexpr auto kWait = std::chrono::seconds(20);
-
-// What one connection received, in order.
-struct CaptureLink : ClientLink {
-  std::mutex mutex;
-  std::condition_variable cv;
-  std::vector<std::variant<json, Bytes>> messages;
-  int closeCode = 0;
-
-  void sendText(std::string text) override {
-    const std::lock_guard lock(mutex);
-    messages.emplace_back(json::parse(text));
-    cv.notify_all();
-  }
-  void sendBinary(std::shared_ptr<const Bytes> frame, bool) override {
-    const std::lock_guard lock(mutex);
-    messages.emplace_back(*frame);
-    cv.notify_all();
-  }
-  void close(int code, std::string) override {
-    const std::lock_guard lock(mutex);
-    closeCode = code;
-    cv.notify_all();
-  }
-
-  // Waits until pred holds for the message list; returns the index it found.
-  template <class Pred>
-  std::size_t waitFor(Pred pred, std::size_t from = 0) {
-    std::unique_lock lock(mutex);
-    std::size_t found = SIZE_MAX;
-    const bool ok = cv.wait_for(lock, kWait, [&] {
-      for (std::size_t i = from; i < messages.size(); ++i)
-        if (pred(messages[i])) {
-          found = i;
-          return true;
-        }
-      return false;
-    });
-    if (!ok) FAIL("timed out waiting for a message");
-    return found;
-  }
-
-  std::size_t size() {
-    const std::lock_guard lock(mutex);
-    return messages.size();
-  }
-  std::variant<json, Bytes> at(std::size_t i) {
-    const std::lock_guard lock(mutex);
-    return messages.at(i);
-  }
-};
-
-bool isResponse(const std::variant<json, Bytes>& m, const json& id) {
-  const json* j = std::get_if<json>(&m);
-  return j && j->contains("id") && (*j)["id"] == id;
-}
-
-bool isNotification(const std::variant<json, Bytes>& m, const std::string& method) {
-  const json* j = std::get_if<json>(&m);
-  return j && !j->contains("id") && j->value("method", "") == method;
-}
 
 protocol::FrameHeader headerOf(const Bytes& b) {
   const auto d = protocol::decodeFrameHeader(b);
@@ -105,41 +45,6 @@ bool isFrame(const std::variant<json, Bytes>& m, protocol::FrameKind kind) {
 }
 
 std::span<const std::uint8_t> payloadOf(const Bytes& b) { return {b.data() + protocol::kFrameHeaderBytes, b.size() - protocol::kFrameHeaderBytes}; }
-
-struct TestClient {
-  Hub& hub;
-  std::shared_ptr<CaptureLink> link = std::make_shared<CaptureLink>();
-  std::shared_ptr<HubClient> client;
-  int nextId = 1;
-
-  explicit TestClient(Hub& h) : hub(h), client(h.connect(link, "test")) {}
-  ~TestClient() { hub.disconnect(client); }
-
-  // Sends a request and returns its response (the whole message).
-  json call(const std::string& method, const json& params = json::object()) {
-    const int id = nextId++;
-    const std::size_t mark = link->size();
-    hub.text(client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
-    return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
-  }
-  json result(const std::string& method, const json& params = json::object()) {
-    const json r = call(method, params);
-    INFO(r.dump());
-    REQUIRE(r.contains("result"));
-    return r["result"];
-  }
-  int error(const std::string& method, const json& params = json::object()) {
-    const json r = call(method, params);
-    INFO(r.dump());
-    REQUIRE(r.contains("error"));
-    return r["error"]["code"].get<int>();
-  }
-  json rawResponse(const std::string& text, const json& id) {
-    const std::size_t mark = link->size();
-    hub.text(client, text);
-    return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
-  }
-};
 
 HubOptions smallOptions() {
   HubOptions o;
@@ -287,11 +192,13 @@ TEST_CASE("two clients see each other's edits; a view token cannot edit", "[hub]
   CHECK(joined["client"] == 2);
   CHECK(joined["read_only"] == false);
   CHECK(joined.count("token") == 0);
+  CHECK(joined["view_token"] == created["view_token"]);  // an editor can share a view link
   a.link->waitFor([](const auto& m) {
     return isNotification(m, "session.clients") && std::get<json>(m)["params"]["clients"].size() == 2;
   });
   const json viewer = v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}});
   CHECK(viewer["read_only"] == true);
+  CHECK(viewer.count("view_token") == 0);
 
   const std::size_t mark = b.link->size();
   const json applied = a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});

@@ -27,6 +27,7 @@ const TEXTS = {
   UploadMissing: "The file did not reach the server: load it again.",
   SessionExists: "A session with this id exists already.",
   SessionHeldElsewhere: "This session is open on another server; reconnecting there may take a moment.",
+  Cancelled: "The operation was cancelled; the session is unchanged.",
 };
 
 export function plainError(error) {

@@ -12,7 +12,7 @@ const MAX_IN_FLIGHT = 3;
 
 export class StrokeSender {
   // session: net/session-client.js; maxDabs: the server's max_dabs limit.
-  constructor(session, { tool, radius, strength, symmetry }, maxDabs = 256) {
+  constructor(session, { tool, radius, strength, symmetry, accumulate }, maxDabs = 256) {
     this.session = session;
     this.maxDabs = maxDabs;
     this.queue = [];
@@ -23,6 +23,7 @@ export class StrokeSender {
     this.stroke = null;
     const params = { tool, radius, strength };
     if (symmetry && symmetry.length) params.symmetry = symmetry;
+    if (accumulate) params.accumulate = true;
     this.begun = session.beginStroke(params).then(
       (id) => {
         this.stroke = id;

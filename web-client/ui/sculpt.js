@@ -21,6 +21,11 @@ import { BrushDrag } from "./brush-drag.js";
 import { toolWithModifier } from "./tools.js";
 
 export const DAB_SPACING = 0.25;
+// Strokes build up, message by message (stroke.begin "accumulate"). Without it a stroke moves
+// each point at most as far as one application of the brush does (1 vu at strength 1, the
+// protocol's stroke memory), which on a 128^3 model is too little to see; until the engine
+// scales a stroke's height with its radius and strength, the client asks for build-up.
+const STROKES_ACCUMULATE = true;
 
 export class Sculpt {
   constructor({ session, store, camera, renderer, controls, messages }) {
@@ -90,7 +95,7 @@ export class Sculpt {
     const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
     const tool = toolWithModifier(s.tool, modifier);
     this.stroke = {
-      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry }, maxDabs),
+      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, accumulate: STROKES_ACCUMULATE }, maxDabs),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
       lazy: new LazyMouse(s.lazy || 0),
     };

@@ -17,6 +17,7 @@ test("limits keep the server's sentence; undo and redo say which", () => {
     "That goes beyond what this server allows: radius above max_radius 64.");
   assert.equal(plainError(rpc("history.undo", -32012, "NothingToUndoRedo", "nothing to undo")).text, "There is nothing to undo.");
   assert.equal(plainError(rpc("history.redo", -32012, "NothingToUndoRedo", "nothing to redo")).text, "There is nothing to redo.");
+  assert.equal(plainError(rpc("tool.apply", -32016, "Cancelled", "the operation was cancelled")).text, "The operation was cancelled; the session is unchanged.");
 });
 
 test("a field named by the server stays in the detail; unknown codes still read as a sentence", () => {
