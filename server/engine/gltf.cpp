@@ -10,6 +10,7 @@
 
 #include "errors.hpp"
 #include "little_endian.hpp"
+#include "mesh_io.hpp"
 
 namespace marzipan {
 
@@ -65,12 +66,7 @@ std::vector<float> unitNormals(const Mesh& m) {
 }  // namespace
 
 std::vector<std::uint8_t> exportGlb(const Mesh& m) {
-  if (m.positions.size() % 3 != 0 || m.indices.size() % 3 != 0)
-    throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions and indices must come in threes");
-  if (!m.normals.empty() && m.normals.size() != m.positions.size())
-    throw EngineError(ErrorKind::InvalidArgument, "mesh", "normals must be empty or one per vertex");
-  for (const std::uint32_t i : m.indices)
-    if (i >= m.vertexCount()) throw EngineError(ErrorKind::InvalidArgument, "mesh", "vertex index out of range");
+  requireExportable(m);
   for (const float f : m.positions)
     if (!std::isfinite(f)) throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions must be finite");
   const std::size_t vertices = m.vertexCount(), indexCount = m.indices.size();

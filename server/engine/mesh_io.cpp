@@ -30,17 +30,6 @@ using le::appendF32;
 using le::get32;
 using le::getF32;
 
-// Export needs a well-formed mesh; a bad one is the caller's mistake, not a file's.
-void requireExportable(const Mesh& m) {
-  if (m.positions.size() % 3 != 0 || m.indices.size() % 3 != 0)
-    throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions and indices must come in threes");
-  if (!m.normals.empty() && m.normals.size() != m.positions.size())
-    throw EngineError(ErrorKind::InvalidArgument, "mesh", "normals must be empty or one per vertex");
-  for (const std::uint32_t i : m.indices)
-    if (i >= m.vertexCount()) throw EngineError(ErrorKind::InvalidArgument, "mesh", "vertex index out of range");
-  if (m.triangleCount() > std::numeric_limits<std::uint32_t>::max())
-    throw EngineError(ErrorKind::TooLarge, "mesh", "more than 2^32 - 1 triangles");
-}
 
 void appendFloat(std::string& s, float f) {
   char buf[32];
@@ -254,6 +243,17 @@ struct PlyElement {
 };
 
 }  // namespace
+
+void requireExportable(const Mesh& m) {
+  if (m.positions.size() % 3 != 0 || m.indices.size() % 3 != 0)
+    throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions and indices must come in threes");
+  if (!m.normals.empty() && m.normals.size() != m.positions.size())
+    throw EngineError(ErrorKind::InvalidArgument, "mesh", "normals must be empty or one per vertex");
+  for (const std::uint32_t i : m.indices)
+    if (i >= m.vertexCount()) throw EngineError(ErrorKind::InvalidArgument, "mesh", "vertex index out of range");
+  if (m.triangleCount() > std::numeric_limits<std::uint32_t>::max())
+    throw EngineError(ErrorKind::TooLarge, "mesh", "more than 2^32 - 1 triangles");
+}
 
 std::optional<MeshFormat> meshFormatFromName(std::string_view name) {
   if (name == "stl") return MeshFormat::Stl;

@@ -32,6 +32,10 @@ std::optional<MeshFormat> meshFormatFromName(std::string_view name);
 inline constexpr std::size_t kMaxMeshTriangles = std::size_t(1) << 26;
 
 // --- export ----------------------------------------------------------------------------------
+// Every exporter first checks that m is well formed (positions and indices in threes, normals
+// none or one per vertex, indices in range, at most 2^32 - 1 triangles) and throws
+// EngineError(field "mesh") otherwise: a bad mesh is the caller's mistake, not a file's.
+void requireExportable(const Mesh& m);
 // Binary STL: 80-byte header, uint32 count, per triangle the unit face normal (zero when
 // degenerate), three vertices and a zero uint16.
 std::vector<std::uint8_t> exportStl(const Mesh& m);
