@@ -56,8 +56,8 @@ CsgToolOp parseCsg(const json& obj, CsgOp csg) {
   CsgToolOp op;
   op.params.op = csg;
   const std::string shape = stringValue(require(obj, "shape", context), "shape");
-  const auto s = fromName(kShapeNames, shape);
-  if (!s) fail("shape", "must be one of " + listNames(kShapeNames) + ", got " + inQuotes(shape));
+  const auto s = fromWireName(kToolShapeNames, shape);
+  if (!s) fail("shape", "must be one of " + listNames(kToolShapeNames) + ", got " + inQuotes(shape));
   op.params.shape = *s;
   op.params.center = centerValue(require(obj, "center", context));
   op.params.radius = numberInRange(require(obj, "radius", context), "radius", kMinToolRadius, kMaxToolRadius);
@@ -82,7 +82,7 @@ MorphOp parseMorph(const json& obj) {
   checkKeys(obj, {"op", "kind", "radius"}, context);
   MorphOp op;
   const std::string kind = stringValue(require(obj, "kind", context), "kind");
-  const auto k = fromName(kMorphKindNames, kind);
+  const auto k = fromWireName(kMorphKindNames, kind);
   if (!k) fail("kind", "must be one of " + listNames(kMorphKindNames) + ", got " + inQuotes(kind));
   op.kind = *k;
   op.radius = numberInRange(require(obj, "radius", context), "radius", kMinMorphRadius, kMaxMorphRadius);
@@ -90,7 +90,7 @@ MorphOp parseMorph(const json& obj) {
 }
 
 Op parseTool(const json& obj, const std::string& name) {
-  if (const auto brush = fromName(kBrushToolNames, name)) {
+  if (const auto brush = fromWireName(kBrushToolNames, name)) {
     const json* global = find(obj, "global");
     if (global && booleanValue(*global, "global")) {
       if (*brush != BrushTool::Smooth) fail("global", "is only available for tool \"smooth\"");
@@ -98,7 +98,7 @@ Op parseTool(const json& obj, const std::string& name) {
     }
     return parseBrush(obj, *brush);
   }
-  if (const auto csg = fromName(kCsgToolNames, name)) return parseCsg(obj, *csg);
+  if (const auto csg = fromWireName(kCsgToolNames, name)) return parseCsg(obj, *csg);
   fail("tool", "must be one of " + listNames(kBrushToolNames) + ", " + listNames(kCsgToolNames) + ", got " +
                    inQuotes(name));
 }
@@ -141,7 +141,7 @@ json toJson(const Op& op) {
           return {{"op", kOpSmooth}, {"global", true}, {"iterations", o.iterations}, {"strength", o.strength}};
         } else if constexpr (std::is_same_v<T, CsgToolOp>) {
           json j = {{"tool", nameOf(kCsgToolNames, o.params.op)},
-                    {"shape", nameOf(kShapeNames, o.params.shape)},
+                    {"shape", nameOf(kToolShapeNames, o.params.shape)},
                     {"center", center(o.params.center)},
                     {"radius", o.params.radius},
                     {"blend", o.params.blend}};

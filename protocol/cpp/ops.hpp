@@ -73,11 +73,9 @@ class OpError : public std::runtime_error {
 };
 
 // --- the names, in one place --------------------------------------------------------------
+// Tables of WireName (values.hpp), looked up with fromWireName and nameOf.
 template <class E>
-struct NameOf {
-  E value;
-  std::string_view name;
-};
+using NameOf = WireName<E>;
 
 // The "tool" values. A tool is a brush, a CSG operation, or (smooth only) global smoothing.
 inline constexpr std::array<NameOf<BrushTool>, 4> kBrushToolNames{{
@@ -100,19 +98,9 @@ inline constexpr std::array<NameOf<MorphKind>, 4> kMorphKindNames{{
     {MorphKind::Open, "open"},
     {MorphKind::Close, "close"},
 }};
-inline constexpr std::array<NameOf<ToolShape>, 3> kShapeNames{{
-    {ToolShape::Sphere, "sphere"},
-    {ToolShape::Box, "box"},
-    {ToolShape::Cylinder, "cylinder"},
-}};
 inline constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
 
-template <class E, std::size_t N>
-constexpr std::optional<E> fromName(const std::array<NameOf<E>, N>& table, std::string_view name) {
-  for (const auto& entry : table)
-    if (entry.name == name) return entry.value;
-  return std::nullopt;
-}
+// The name of `value`, or "" for a value without one (wireName says "unknown").
 template <class E, std::size_t N>
 constexpr std::string_view nameOf(const std::array<NameOf<E>, N>& table, E value) {
   for (const auto& entry : table)

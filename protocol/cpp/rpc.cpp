@@ -50,7 +50,7 @@ bool validId(const json& id) {
 
 ViewMode viewModeValue(const json& v, bool framesAllowed) {
   const std::string name = stringValue(v, "view");
-  const auto mode = fromName(kViewModeNames, name);
+  const auto mode = fromWireName(kViewModeNames, name);
   if (!mode || (!framesAllowed && *mode == ViewMode::Frames))
     fail("view", std::string("must be ") + (framesAllowed ? "\"splats\", \"frames\" or \"none\"" : "\"splats\" or \"none\"") +
                      ", got " + inQuotes(name));
@@ -171,7 +171,7 @@ ParsedRequest parseRequest(std::string_view text) {
                   method ? "\"method\" must be a string, got " + describe(*method) : "\"method\" is missing", replyId,
                   notification);
   const std::string& name = method->get_ref<const std::string&>();
-  const auto m = fromName(kMethodNames, name);
+  const auto m = fromWireName(kMethodNames, name);
   if (!m) return refuse(RpcCode::UnknownMethod, "unknown method " + inQuotes(name), replyId, notification);
 
   Request request;
@@ -267,7 +267,7 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
   checkKeys(params, {"tool", "radius", "strength", "symmetry", "accumulate"}, context);
   StrokeBeginParams p;
   const std::string tool = stringValue(require(params, "tool", context), "tool");
-  const auto t = fromName(kBrushToolNames, tool);
+  const auto t = fromWireName(kBrushToolNames, tool);
   if (!t) fail("tool", "must be one of " + listNames(kBrushToolNames) + " for a stroke, got " + inQuotes(tool));
   p.tool = *t;
   if (const json* r = find(params, "radius")) p.radius = numberInRange(*r, "radius", kMinToolRadius, kMaxToolRadius);
@@ -346,7 +346,7 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   checkKeys(params, {"mode", "camera", "width", "height", "shading", "min_vu"}, context);
   ViewSetParams p;
   const std::string mode = stringValue(require(params, "mode", context), "mode");
-  const auto m = fromName(kViewModeNames, mode);
+  const auto m = fromWireName(kViewModeNames, mode);
   if (!m) fail("mode", "must be \"splats\", \"frames\" or \"none\", got " + inQuotes(mode));
   p.mode = *m;
   if (p.mode == ViewMode::Frames) {

@@ -127,7 +127,7 @@ void replayRecord(Session& s, const json& rec, std::map<std::uint64_t, StrokeId>
       s.endStroke(it->second);
       strokes.erase(it);
     }
-    const auto tool = protocol::fromName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
+    const auto tool = fromWireName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
     if (!tool) throw std::runtime_error("unknown stroke tool");
     const std::string sym = rec.value("symmetry", "");
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,

@@ -74,7 +74,7 @@ TEST_CASE("each kind of operation object parses into its typed op", "[ops]") {
     CHECK(std::get<BrushOp>(parseOp(with(kBrush, "tool", name))).tool == tool);
   for (const auto& [op, name] : kCsgToolNames)
     CHECK(std::get<CsgToolOp>(parseOp(with(kCsg, "tool", name))).params.op == op);
-  for (const auto& [shape, name] : kShapeNames)
+  for (const auto& [shape, name] : kToolShapeNames)
     CHECK(std::get<CsgToolOp>(parseOp(with(without(kCsg, "axis"), "shape", name))).params.shape == shape);
   for (const auto& [kind, name] : kMorphKindNames)
     CHECK(std::get<MorphOp>(parseOp(with(kMorph, "kind", name))).kind == kind);
