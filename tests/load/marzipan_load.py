@@ -138,6 +138,27 @@ class Drag:
 
 # ------------------------------------------------------------------------------------ clients
 
+class Pacer:
+    """A fixed schedule from now: ticks `period` s apart until `end`, each one's lateness
+    appended to `lags`; `due` is the time of the next tick."""
+
+    def __init__(self, period: float, end: float, lags: list):
+        self.period, self.end, self.lags = period, end, lags
+        self.due = time.monotonic()
+
+    async def ticks(self, count: int):
+        for k in range(count):
+            now = time.monotonic()
+            if self.due > now:
+                await asyncio.sleep(self.due - now)
+                now = time.monotonic()
+            if now >= self.end:
+                return
+            self.lags.append(now - self.due)
+            yield k
+            self.due += self.period
+
+
 class SessionState:
     """What the clients of one session (all in one process) share."""
 
@@ -370,20 +391,12 @@ class LoadClient:
 
             begun = loop.create_task(self.call("stroke.begin", params))
             begun.add_done_callback(begun_done)
-            due = time.monotonic()
-            for k in range(frames):
-                now = time.monotonic()
-                if due > now:
-                    await asyncio.sleep(due - now)
-                    now = time.monotonic()
-                if now >= end:
-                    break
-                self.stats.send_lag.append(now - due)
+            pacer = Pacer(1.0 / WEB_CLIENT_FRAME_HZ, end, self.stats.send_lag)
+            async for k in pacer.ticks(frames):
                 if not failed:
                     queue.append(({"ray": drag.ray((k + 1) / frames),
-                                   "pressure": round(self.rng.uniform(0.5, 1.0), 2)}, now))
+                                   "pressure": round(self.rng.uniform(0.5, 1.0), 2)}, time.monotonic()))
                 flush()
-                due += 1.0 / WEB_CLIENT_FRAME_HZ
             try:
                 await begun
             except (RuntimeError, ConnectionError, asyncio.TimeoutError):
@@ -410,23 +423,15 @@ class LoadClient:
             self.stroke = (await begun)["stroke"]
             drag = Drag(self.rng, self.args["size"])
             messages = max(1, round(self.rng.uniform(1.0, 2.0) * rate))
-            due = time.monotonic()
-            for k in range(messages):
-                now = time.monotonic()
-                if due > now:
-                    await asyncio.sleep(due - now)
-                    now = time.monotonic()
-                if now >= end:
-                    break
-                self.stats.send_lag.append(now - due)
+            pacer = Pacer(period, end, self.stats.send_lag)
+            async for k in pacer.ticks(messages):
                 count = self.rng.randint(1, 4)
                 dabs = [{"ray": drag.ray((k + (j + 1) / count) / messages),
                          "pressure": round(self.rng.uniform(0.5, 1.0), 2)} for j in range(count)]
                 await self.send("stroke.dabs", {"stroke": self.stroke, "dabs": dabs})
-                due += period
             # The pointer is released one period after its last move, so that a client sends
             # `rate` messages a second over whole strokes, short ones too.
-            await asyncio.sleep(max(0.0, min(due, end) - time.monotonic()))
+            await asyncio.sleep(max(0.0, min(pacer.due, end) - time.monotonic()))
             await self.send("stroke.end", {"stroke": self.stroke})
             self.stroke = None
 
