@@ -14,6 +14,7 @@
 // pinch that begins on the model does not dab.
 
 import { pressGesture } from "./gesture-map.js";
+import { isTyping } from "./shortcuts.js";
 
 const CLICK_SLOP_PX = 4;
 const MIN_PRESSURE = 0.05;
@@ -23,11 +24,7 @@ const HELD_KEYS = new Set(["Space", "KeyF"]);
 // Times are the events' own (timeStamp), not when a busy page got round to handling them.
 const DOUBLE_MS = 400; // two still camera presses this close in time are a double press
 const TAP_MS = 250; // two fingers down and up within this, without moving: a two-finger tap
-const TYPING = new Set(["text", "url", "number", "search", "email", "password"]);
 
-function typing(t) {
-  return t && (t.tagName === "TEXTAREA" || t.tagName === "SELECT" || (t.tagName === "INPUT" && TYPING.has(t.type)));
-}
 
 export class PointerInput {
   constructor(canvas, camera, handlers) {
@@ -49,7 +46,7 @@ export class PointerInput {
     this.held = new Set();
     const doc = canvas.ownerDocument;
     doc.addEventListener("keydown", (e) => {
-      if (!HELD_KEYS.has(e.code) || typing(e.target)) return;
+      if (!HELD_KEYS.has(e.code) || isTyping(e.target)) return;
       this.held.add(e.code);
       if (e.target === canvas || e.target === doc.body) e.preventDefault(); // Space would scroll
     });

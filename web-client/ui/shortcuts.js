@@ -26,13 +26,18 @@ export const KEY_HELP = Object.freeze([
 ]);
 
 const TYPING = new Set(["text", "url", "number", "search", "email", "password"]);
+
+// Whether keys pressed on `t` are typing into a field (and so no shortcut).
+export function isTyping(t) {
+  return Boolean(t && (t.tagName === "TEXTAREA" || t.tagName === "SELECT" || (t.tagName === "INPUT" && TYPING.has(t.type))));
+}
 const ORBIT_STEP_PX = 24;
 
 export function installShortcuts(doc, actions) {
   doc.addEventListener("keydown", (e) => {
     const t = e.target;
     if (doc.querySelector("dialog[open]")) return;
-    if (t && (t.tagName === "TEXTAREA" || t.tagName === "SELECT" || (t.tagName === "INPUT" && TYPING.has(t.type)))) return;
+    if (isTyping(t)) return;
     const mod = e.ctrlKey || e.metaKey;
     const key = e.key;
     let handled = true;
