@@ -69,18 +69,28 @@ constexpr std::chrono::milliseconds kShutdownWait{2'000};
 // A request estimated above this many voxels (about 2 s here) runs as a Workers::LongTask.
 constexpr double kLongOpVoxels = 2e7;
 
+// Ids and secrets begin with a letter or digit so that no command line takes one for an option
+// (`--join -x...`); the first character carries log2(62) bits instead of 6.
 std::string randomText(std::size_t chars) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
+  constexpr unsigned kAlphanumerics = 62;
+  std::string s;
+  s.reserve(chars);
   std::vector<unsigned char> bytes(chars);
-  std::size_t got = 0;
-  while (got < chars) {
-    const ssize_t n = ::getrandom(bytes.data() + got, chars - got, 0);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw std::runtime_error("no random bytes from the kernel");
-    got += std::size_t(n);
+  while (s.size() < chars) {
+    std::size_t got = 0;
+    while (got < chars) {
+      const ssize_t n = ::getrandom(bytes.data() + got, chars - got, 0);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw std::runtime_error("no random bytes from the kernel");
+      got += std::size_t(n);
+    }
+    for (std::size_t i = 0; i < chars && s.size() < chars; ++i) {
+      const unsigned v = bytes[i] & 63u;
+      if (s.empty() && v >= kAlphanumerics) continue;  // rejection keeps the first character uniform
+      s.push_back(kAlphabet[v]);
+    }
   }
-  std::string s(chars, ' ');
-  for (std::size_t i = 0; i < chars; ++i) s[i] = kAlphabet[bytes[i] & 63];
   return s;
 }
 

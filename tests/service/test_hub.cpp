@@ -10,8 +10,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <future>
+#include <cctype>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <variant>
 
@@ -324,6 +326,28 @@ TEST_CASE("a reader that floods and falls behind is disconnected without deadloc
   });
   hub.disconnect(link->client);
   link->client.reset();
+}
+
+TEST_CASE("ids and secrets the server makes never begin with '-', so command lines take them as values", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxCreatesPerMinute = 1000;
+  o.limits.maxCreatesPerAddressPerMinute = 1000;
+  Hub hub(o);
+  TestClient a(hub);
+  // 3 × 150 draws: with a uniform first character over all 64, one of them begins with '-' with
+  // probability 1 - (63/64)^450 > 0.999.
+  std::set<char> first;
+  for (int i = 0; i < 150; ++i) {
+    const json r = a.result("session.create", {{"size", {8, 8, 8}}, {"solid", "empty"}});
+    for (const char* key : {"session", "token", "view_token"}) {
+      const std::string text = r[key].get<std::string>();
+      REQUIRE(!text.empty());
+      CHECK(std::isalnum(static_cast<unsigned char>(text[0])));
+      first.insert(text[0]);
+    }
+    a.result("session.leave", json::object());
+  }
+  CHECK(first.size() > 40);  // still spread over the alphanumerics
 }
 
 TEST_CASE("one connection cannot take every session slot", "[hub]") {
