@@ -47,6 +47,12 @@ class Server:
         self.port = int(match.group(2))
         self.url = f"ws://127.0.0.1:{self.port}/ws"
 
+    def __enter__(self) -> "Server":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
     def rss_mb(self) -> float:
         with open(f"/proc/{self.proc.pid}/status") as f:
             for line in f:
@@ -141,8 +147,7 @@ def expect(condition: bool, what: str):
 
 async def view_token_after_refused_join(binary):
     """Item 1: --max-clients-per-session 2; a view join refused with -32003 grants nothing."""
-    s = Server(binary, ["--max-clients-per-session", "2"])
-    try:
+    with Server(binary, ["--max-clients-per-session", "2"]) as s:
         a = await Client.open(s.url)
         created = await a.result("session.create", CREATE)
         v = await Client.open(s.url)
@@ -157,14 +162,11 @@ async def view_token_after_refused_join(binary):
         stats = await a.result("session.stats")
         expect(stats["revision"] == 0, f"revision {stats['revision']}")
         return "edits after the refused join: -32009; revision 0"
-    finally:
-        s.stop()
 
 
 async def big_frames_before_a_session(binary):
     """Item 2: four connections outside any session each send a 64 MiB kind-9 frame."""
-    s = Server(binary, [])
-    try:
+    with Server(binary, []) as s:
         before = s.rss_mb()
         clients = [await Client.open(s.url) for _ in range(4)]
         frame = upload_frame(1, 64 << 20)
@@ -179,14 +181,11 @@ async def big_frames_before_a_session(binary):
         expect(all(code in (1009, None) for code in codes), f"close codes {codes}")
         expect(growth < 32, f"RSS grew {growth:.0f} MiB")
         return f"closed {codes}; RSS +{growth:.1f} MiB"
-    finally:
-        s.stop()
 
 
 async def connections_per_address(binary):
     """Item 2: --max-connections-per-address 8; the 9th is refused, a freed slot comes back."""
-    s = Server(binary, ["--max-connections-per-address", "8"])
-    try:
+    with Server(binary, ["--max-connections-per-address", "8"]) as s:
         clients = [await Client.open(s.url) for _ in range(8)]
         try:
             await Client.open(s.url)
@@ -203,28 +202,22 @@ async def connections_per_address(binary):
             except (websockets.exceptions.InvalidHandshake, websockets.exceptions.ConnectionClosed, OSError, EOFError):
                 await asyncio.sleep(0.05)
         raise AssertionError("the freed slot never came back")
-    finally:
-        s.stop()
 
 
 async def lobby_deadline(binary):
     """Item 2: --lobby-seconds 1; a WebSocket that joins nothing is closed with 1008."""
-    s = Server(binary, ["--lobby-seconds", "1"])
-    try:
+    with Server(binary, ["--lobby-seconds", "1"]) as s:
         c = await Client.open(s.url)
         start = time.monotonic()
         code = await c.closed_code(10)
         took = time.monotonic() - start
         expect(code == 1008 and took < 5, f"close {code} after {took:.1f} s")
         return f"closed with 1008 after {took:.1f} s"
-    finally:
-        s.stop()
 
 
 async def flooding_reader(binary):
     """Item 4: a client sends 3000 requests without reading; the server stays responsive."""
-    s = Server(binary, ["--max-queue-mb", "1"])
-    try:
+    with Server(binary, ["--max-queue-mb", "1"]) as s:
         flooder = await Client.open(s.url)
         await flooder.result("session.create", {"size": [128, 128, 128], "solid": "sphere"})
         async def flood():
@@ -241,14 +234,11 @@ async def flooding_reader(binary):
         took = time.monotonic() - start
         expect(s.alive() and took < 5, f"another client waited {took:.1f} s")
         return f"another client answered in {took * 1000:.0f} ms"
-    finally:
-        s.stop()
 
 
 async def big_answer_small_queue(binary):
     """Item 5: --max-queue-mb 1; an OBJ of several MiB reaches a client that reads."""
-    s = Server(binary, ["--max-queue-mb", "1"])
-    try:
+    with Server(binary, ["--max-queue-mb", "1"]) as s:
         c = await Client.open(s.url)
         await c.result("session.create", {"size": [128, 128, 128], "solid": "sphere", "view": "none"})
         r = await c.result("mesh.export", {"format": "obj"})
@@ -256,14 +246,11 @@ async def big_answer_small_queue(binary):
         expect(len(c.binaries) == 1 and len(c.binaries[0]) == r["bytes"] + 24, "the file frame is missing")
         await c.result("session.stats")
         return f"{r['bytes'] / 2**20:.1f} MiB delivered, connection open"
-    finally:
-        s.stop()
 
 
 async def output_sized_before_work(binary):
     """Item 6: --max-output-mb 1; mesh.export of a 192^3 pig is refused at once with -32004."""
-    s = Server(binary, ["--max-output-mb", "1"])
-    try:
+    with Server(binary, ["--max-output-mb", "1"]) as s:
         c = await Client.open(s.url)
         await c.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
         start = time.monotonic()
@@ -273,14 +260,11 @@ async def output_sized_before_work(binary):
         expect(error_code(m) == -32004 and data.get("limit") == "max_output_bytes", f"answer {m}")
         expect(not c.binaries, "a mesh frame was sent")
         return f"-32004 max_output_bytes (estimate {data.get('value')} bytes) in {took * 1000:.0f} ms"
-    finally:
-        s.stop()
 
 
 async def session_slots(binary):
     """Item 7: --max-sessions 4; create/leave 8 times on one connection, then others still create."""
-    s = Server(binary, ["--max-sessions", "4"])
-    try:
+    with Server(binary, ["--max-sessions", "4"]) as s:
         a = await Client.open(s.url)
         for _ in range(8):
             await a.result("session.create", CREATE)
@@ -294,8 +278,6 @@ async def session_slots(binary):
             await a.call("session.leave")
         expect(codes[-1] == -32004, f"the 11th create on one connection answered {codes}")
         return f"8 create/leave cycles left the slots free; creates 9-11 answered {codes}"
-    finally:
-        s.stop()
 
 
 def raw_upgrade(port: int, host: str, origin: str) -> int:
@@ -310,30 +292,24 @@ def raw_upgrade(port: int, host: str, origin: str) -> int:
 
 async def dns_rebinding(binary):
     """Item 13: a page of rebound.example (resolving to the server) may not open /ws."""
-    s = Server(binary, ["--public-host", "studio.example"])
-    try:
+    with Server(binary, ["--public-host", "studio.example"]) as s:
         p = s.port
         rebound = raw_upgrade(p, f"rebound.example:{p}", f"http://rebound.example:{p}")
         own = raw_upgrade(p, f"127.0.0.1:{p}", f"http://127.0.0.1:{p}")
         public = raw_upgrade(p, f"studio.example:{p}", f"http://studio.example:{p}")
         expect((rebound, own, public) == (403, 101, 101), f"statuses {(rebound, own, public)}")
         return "rebound name 403; address literal and --public-host 101"
-    finally:
-        s.stop()
 
 
 async def guessable_session_id(binary):
     """Item 15: a proposed id of 21 characters is refused; 22 random ones are taken."""
-    s = Server(binary, [])
-    try:
+    with Server(binary, []) as s:
         c = await Client.open(s.url)
         m = await c.call("session.create", {**CREATE, "session": "a" * 21})
         expect(error_code(m) == -32602 and m["error"]["data"]["field"] == "session", f"answer {m}")
         r = await c.result("session.create", {**CREATE, "session": "Zq3-x_8KfP0aLm2Qr7TbWs"})
         expect(r["session"] == "Zq3-x_8KfP0aLm2Qr7TbWs", f"answer {r}")
         return "21 characters -32602; 22 accepted"
-    finally:
-        s.stop()
 
 
 async def long_operation_progress_cancel(binary):
@@ -341,8 +317,7 @@ async def long_operation_progress_cancel(binary):
     nothing; one within it (200 iterations on a 192^3 pig, several seconds here) reports
     op.progress, does not hold up another session, and op.cancel stops it with -32016 leaving
     revision and digest as they were."""
-    s = Server(binary, [])
-    try:
+    with Server(binary, []) as s:
         a = await Client.open(s.url)
         created = await a.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
         m = await asyncio.wait_for(a.call("tool.apply", {"tool": "smooth", "global": True, "iterations": 100000}), 1)
@@ -368,16 +343,12 @@ async def long_operation_progress_cancel(binary):
         expect(stats["revision"] == created["revision"] and stats["digest"] == created["digest"],
                f"revision/digest {stats['revision']}/{stats['digest']} after cancel, {created['revision']}/{created['digest']} before")
         return f"budget -32004; {len(progress)} op.progress; cancelled -32016 at revision {stats['revision']}, digest unchanged"
-    finally:
-        s.stop()
 
 
 async def sigterm_during_long_operation(binary):
     """Item 3d: SIGTERM while a long operation runs (one the budget admits): the server exits
     within 10 s, and the requester hears -32016 or a 1001 close rather than nothing."""
-    s = Server(binary, [])
-    stopped = False
-    try:
+    with Server(binary, []) as s:
         a = await Client.open(s.url)
         await a.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
         rid = await a.send("tool.apply", {"tool": "smooth", "global": True, "iterations": 200})
@@ -397,12 +368,8 @@ async def sigterm_during_long_operation(binary):
             heard = f"close {e.code}"
             expect(e.code == 1001, f"closed with {e.code}")
         took = await stopping
-        stopped = True
         expect(took < 10, f"exited after {took:.1f} s")
         return f"{heard}; exited {took:.1f} s after SIGTERM"
-    finally:
-        if not stopped:
-            s.stop()
 
 
 CASES = [
