@@ -178,15 +178,15 @@ TEST_CASE("a corrupt newest snapshot falls back to the previous one and both jou
 TEST_CASE("a lease keeps a session on one server until it expires or is released", "[store]") {
   const fs::path dir = freshDir("lease");
   SessionStore store(dir);
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
-  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)).has_value());
   store.releaseLease("abc", "server-b");
-  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)).has_value());
   store.releaseLease("abc", "server-a");
-  CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)));
+  CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)).has_value());
   std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
   fs::remove_all(dir);
 }
 
@@ -194,7 +194,7 @@ TEST_CASE("a snapshot's journal starts with the open strokes, and a rotation cut
   const fs::path dir = freshDir("rotation");
   SessionStore store(dir);
   Session live(makeSolid(SolidKind::Sphere, {64, 64, 64}));
-  std::unique_ptr<Journal> journal = store.create("rot", {"t", "v"}, live.volume());
+  std::unique_ptr<SessionLog> journal = store.create("rot", {"t", "v"}, live.volume());
   const StrokeId stroke = live.beginStroke(protocol::BrushTool::AddBlob, 6, 1);
   journal->append({{"stroke_begin", stroke}, {"tool", "add_blob"}, {"radius", 6}, {"strength", 1}, {"symmetry", ""}});
   const auto dab = [&](double x) {
