@@ -387,10 +387,8 @@ bool SessionStore::acquire(const std::string& id) {
 bool SessionStore::renew(const std::string& id) {
   const auto g = held(id);
   if (!g) return false;
-  if (takeLease(id, owner_, ttl_, g)) return true;
-  const std::lock_guard lock(mutex_);
-  leases_.erase(id);
-  return false;
+  // A lost lease stays recorded until release(): the session's writes keep being refused.
+  return takeLease(id, owner_, ttl_, g).has_value();
 }
 
 void SessionStore::release(const std::string& id) {
