@@ -35,10 +35,13 @@ KvCompare absent(const std::string& key) {
 
 std::optional<SnapshotRef> parseRef(const json& j) {
   if (!j.is_object()) return std::nullopt;
-  return SnapshotRef{j.at("file").get<std::string>(), j.at("revision").get<std::uint64_t>(),
-                     j.at("next").get<std::uint64_t>()};
+  SnapshotRef r{j.at("file").get<std::string>(), j.at("revision").get<std::uint64_t>(), j.at("next").get<std::uint64_t>(), {}};
+  for (const json& rec : j.value("head", json::array())) r.head.push_back(rec);
+  return r;
 }
-json refJson(const SnapshotRef& r) { return {{"file", r.file}, {"revision", r.revision}, {"next", r.next}}; }
+json refJson(const SnapshotRef& r) {
+  return {{"file", r.file}, {"revision", r.revision}, {"next", r.next}, {"head", r.head}};
+}
 
 }  // namespace
 
@@ -315,7 +318,9 @@ void EtcdOwner::runGroup(std::vector<std::shared_ptr<Pending>> group) {
   }
   // One by one: which compare failed says whether it was fenced, and a retry after an unknown
   // outcome recognises its own record.
-  const auto deadline = Clock::now() + std::chrono::seconds(options_.leaseTtlSeconds);
+  // Retried for half the lease's TTL at most: long enough for an etcd election (about a second),
+  // short enough that the keep-alive, which gives up after a whole TTL, still holds the lease.
+  const auto deadline = Clock::now() + std::chrono::milliseconds(options_.leaseTtlSeconds * 500);
   for (const auto& p : group) {
     const std::string& id = p->journal->id();
     const std::string oKey = ownerKey(id), jKey = journalKey(id, p->seq);
@@ -351,8 +356,8 @@ void EtcdOwner::runGroup(std::vector<std::shared_ptr<Pending>> group) {
 // ---- EtcdJournal ------------------------------------------------------------------------------
 
 EtcdJournal::EtcdJournal(EtcdOwner& owner, std::string id, std::int64_t token, EtcdSessionState state)
-    : owner_(owner), id_(std::move(id)), token_(token), current_(state.current), previous_(state.previous) {
-  next_ = !state.journal.empty() ? state.journal.back().seq + 1 : state.current ? state.current->next : 0;
+    : owner_(owner), id_(std::move(id)), token_(token) {
+  resume(state);
 }
 
 std::uint64_t EtcdJournal::nextSeq() const {
@@ -384,17 +389,36 @@ void EtcdJournal::refuseIfBroken() const {
   if (state_ == State::fenced) throw Fenced("session " + id_ + ": another server owns it now");
 }
 
-void EtcdJournal::commitSnapshot(const std::string& file, std::uint64_t revision) {
+void EtcdJournal::resume(const EtcdSessionState& state) {
+  const std::lock_guard lock(mutex_);
+  if (state_ == State::fenced) return;
+  state_ = State::open;
+  current_ = state.current;
+  previous_ = state.previous;
+  next_ = !state.journal.empty() ? state.journal.back().seq + 1 : state.current ? state.current->next : 0;
+}
+
+void EtcdJournal::commitSnapshot(const std::string& file, std::uint64_t revision, const std::vector<json>& head) {
   const std::lock_guard lock(mutex_);
   refuseIfBroken();
-  const SnapshotRef now{file, revision, next_};
+  const SnapshotRef now{file, revision, next_, head};
   json pointer{{"current", refJson(now)}};
   if (current_) pointer["previous"] = refJson(*current_);
-  std::vector<KvOp> ops{KvOp{KvOp::Kind::put, owner_.pointerKey(id_), {}, pointer.dump(), 0}};
+  const std::string value = pointer.dump();
+  if (value.size() > owner_.options_.maxChangeBytes)
+    throw KvRefused("a snapshot pointer of " + std::to_string(value.size()) + " bytes (its open strokes) is beyond the " +
+                    std::to_string(owner_.options_.maxChangeBytes) + " one etcd request may hold");
+  std::vector<KvOp> ops{KvOp{KvOp::Kind::put, owner_.pointerKey(id_), {}, value, 0}};
   // The journal before the snapshot that now becomes the previous one is covered twice over.
   if (current_ && current_->next > 0)
     ops.push_back(KvOp{KvOp::Kind::deleteRange, owner_.journalKey(id_, 0), owner_.journalKey(id_, current_->next), {}, 0});
-  const KvTxnResult r = owner_.kv_.txn({ownedBy(owner_.ownerKey(id_), token_)}, ops, {});
+  KvTxnResult r;
+  try {
+    r = owner_.kv_.txn({ownedBy(owner_.ownerKey(id_), token_)}, ops, {});
+  } catch (const KvUnavailable&) {
+    state_ = State::unknown;  // the pointer may have moved: read it back before going on
+    throw;
+  }
   if (!r.succeeded) {
     owner_.fenced(id_);
     state_ = State::fenced;
@@ -402,6 +426,19 @@ void EtcdJournal::commitSnapshot(const std::string& file, std::uint64_t revision
   }
   previous_ = current_;
   current_ = now;
+}
+
+void EtcdJournal::erase() {
+  const std::lock_guard lock(mutex_);
+  const std::string all = owner_.options_.prefix + "sessions/" + id_ + "/";
+  const KvTxnResult r = owner_.kv_.txn({ownedBy(owner_.ownerKey(id_), token_)},
+                                       {KvOp{KvOp::Kind::deleteRange, all, prefixEnd(all), {}, 0}}, {});
+  if (!r.succeeded) {
+    owner_.fenced(id_);
+    state_ = State::fenced;
+    throw Fenced("session " + id_ + ": another server owns it now; it was not deleted");
+  }
+  state_ = State::fenced;  // no owner key any more: nothing more is written through this journal
 }
 
 void EtcdJournal::release() {

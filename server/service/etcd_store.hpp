@@ -7,9 +7,10 @@
 //   sessions/ID/journal/SEQ  one acknowledged change: {"token":T,"records":[...]} (records as in
 //                            service/journal.hpp); SEQ is 16 lower-case hex digits, from 0, so
 //                            that key order is sequence order; written only if absent
-//   sessions/ID/snapshot     the pointer readers trust: {"current":{"file","revision","next"},
-//                            "previous":{...}}: a snapshot file (never-reused name, written by
-//                            the caller beside session.json) and the first SEQ after it
+//   sessions/ID/snapshot     the pointer readers trust: {"current":{"file","revision","next",
+//                            "head"},"previous":{...}}: a snapshot file (never-reused name,
+//                            written by the caller beside session.json), the first SEQ after
+//                            it, and the records replay starts with (the open strokes')
 // Ownership: each server holds one lease (TTL options.leaseTtl, kept alive every third of it by
 // a thread of its own, revoked by stop()). claim() creates the owner key in a transaction only
 // if it is absent. Every write of an owner compares the owner key's createRevision with its
@@ -72,6 +73,7 @@ struct SnapshotRef {
   std::string file;
   std::uint64_t revision = 0;
   std::uint64_t next = 0;  // the first journal SEQ after it
+  std::vector<nlohmann::json> head;  // replayed before the journal from `next`
 };
 
 // A change read back from the journal.
@@ -96,12 +98,18 @@ class EtcdJournal {
   void append(const std::vector<nlohmann::json>& records);
   // Makes `snap` current (its file must be complete and synced): moves the pointer and deletes
   // the journal keys before the previous snapshot's, in one fenced transaction.
-  void commitSnapshot(const std::string& file, std::uint64_t revision);
+  // `head` goes into the pointer itself, so that the move is all or nothing.
+  void commitSnapshot(const std::string& file, std::uint64_t revision, const std::vector<nlohmann::json>& head = {});
+  // After a read-back (an append's outcome was unknown): appends continue after what `state`
+  // holds. A fenced journal stays fenced.
+  void resume(const EtcdSessionState& state);
   std::uint64_t nextSeq() const;
   std::int64_t token() const { return token_; }
   const std::string& id() const { return id_; }
   // Deletes the owner key (if still this token's): another server may take the session at once.
   void release();
+  // Deletes every key of the session, the owner key last of all (fenced): session.delete.
+  void erase();
 
  private:
   friend class EtcdOwner;

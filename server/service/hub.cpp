@@ -598,6 +598,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     std::function<json()> record;
   };
 
+  // -32015, with data.owner when the storage knows which server owns the session (etcd).
+  RpcException heldElsewhere(const std::string& id, const std::string& message) {
+    const std::optional<std::string> owner = store->holder(id);
+    return RpcException(RpcCode::HeldElsewhere, message, owner ? json{{"owner", *owner}} : json());
+  }
+
   // On the strand: appends a change's records to the journal before it is acknowledged. When
   // that fails the session goes back to what the journal holds (the change is dropped) and the
   // request gets an error; if even that fails the session is closed, its acknowledged state
@@ -621,7 +627,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       log("session " + s.id + ": " + e.what() + "; closing it here");
       s.journal.reset();
       closeBroken(s);
-      throw RpcException(RpcCode::HeldElsewhere, "another server took over this session; the change was not kept. Join it again");
+      throw heldElsewhere(s.id, "another server took over this session; the change was not kept. Join it again");
     } catch (const std::exception& e) {
       log("session " + s.id + ": " + e.what() + "; rolling back to the journal");
       s.journal.reset();
@@ -967,7 +973,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                                                self->limits().historyBytes);
         if (self->store->persistent()) {
           if (!self->store->acquire(s->id))
-            throw RpcException(RpcCode::HeldElsewhere, "another server holds this session id");
+            throw self->heldElsewhere(s->id, "another server holds this session id");
           s->journal = self->store->create(s->id, s->secrets, s->session->volume());
           self->scheduleLeaseRenewal();
         }
@@ -1087,9 +1093,8 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
       throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
     if (!store->acquire(id))
-      throw RpcException(RpcCode::HeldElsewhere,
-                         "another server has session \"" + id + "\" loaded; connect with /ws?session=" + id +
-                             " through the load balancer");
+      throw heldElsewhere(id, "another server has session \"" + id + "\" loaded; connect with /ws?session=" + id +
+                                  " through the load balancer, or to the server data.owner names");
     Recovered rec;
     try {
       rec = store->recover(id, limits().historyBytes, pool);

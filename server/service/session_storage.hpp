@@ -91,6 +91,8 @@ class SessionStorage {
   // A lease lost that the storage learns of by itself (a watch, a keep-alive failing). Set
   // before the first acquire; may be called from any thread.
   virtual void onLost(std::function<void(const std::string& id)> handler) = 0;
+  // The name of the server that owns id, when the storage knows it (-32015's data.owner).
+  virtual std::optional<std::string> holder(const std::string&) { return std::nullopt; }
 
   // --- sessions at rest --------------------------------------------------------------------
   virtual bool exists(const std::string& id) const = 0;

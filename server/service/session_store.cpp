@@ -29,8 +29,17 @@ using nlohmann::json;
 
 namespace marzipan::service {
 
-namespace {
-void syncDirectory(const fs::path& dir);
+void syncDirectory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+std::vector<std::uint8_t> readFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path.string());
+  return std::vector<std::uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 void writeFileAtomically(const fs::path& path, const void* data, std::size_t size) {
@@ -81,19 +90,6 @@ std::vector<std::uint64_t> revisions(const fs::path& dir, std::string_view prefi
 
 fs::path snapshotPath(const fs::path& dir, std::uint64_t r) { return dir / ("snapshot-" + std::to_string(r) + ".mzv"); }
 fs::path journalPath(const fs::path& dir, std::uint64_t r) { return dir / ("journal-" + std::to_string(r) + ".log"); }
-
-void syncDirectory(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
-}
-
-std::vector<std::uint8_t> readFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + path.string());
-  return std::vector<std::uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 long long nowMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();

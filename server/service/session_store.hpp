@@ -117,5 +117,10 @@ class SessionStore final : public SessionStorage {
 
 // Writes bytes to path through path + ".tmp", fsync and rename.
 void writeFileAtomically(const std::filesystem::path& path, const void* data, std::size_t size);
+// fsyncs a directory (after a rename or an unlink in it); a directory that cannot be opened is
+// left alone.
+void syncDirectory(const std::filesystem::path& dir);
+// The whole file; throws std::runtime_error "cannot read PATH".
+std::vector<std::uint8_t> readFile(const std::filesystem::path& path);
 
 }  // namespace marzipan::service
