@@ -45,6 +45,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from cluster import EtcdCluster, free_port  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "protocol", "python"))
+from marzipan import Client  # noqa: E402  (this checkout's package)
+
 SERVERS = ("s1", "s2", "s3")
 LEASE_SECONDS = 3
 TAKEOVER_LIMIT = 10.0  # seconds, the issue's "within ~10 s"
@@ -116,7 +119,7 @@ class Topology:
 
     def start_server(self, name, etcd=True):
         args = [self.args.marzipan, "serve", "--port", str(self.ports[name]), "--threads", "2",
-                "--max-requests-per-second", "1000000", "--server-id", name]
+                "--max-requests-per-second", "1000000", "--server-id", self.server_id(name)]
         if etcd:
             args += ["--data-dir", self.data, "--etcd", self.cluster.endpoints,
                      "--etcd-lease-seconds", str(LEASE_SECONDS)]
@@ -128,6 +131,10 @@ class Topology:
         match = re.fullmatch(r"listening on http://127\.0\.0\.1:(\d+)\n", line)
         assert match, f"{name}: expected 'listening on http://127.0.0.1:PORT', got {line!r}\n{self.log(name)}"
         self.ports[name] = int(match.group(1))
+
+    def server_id(self, name):
+        """What the owner keys and -32015's data.owner say: the address clients can reach."""
+        return f"127.0.0.1:{self.ports[name]}"
 
     def log(self, name):
         try:
@@ -282,7 +289,14 @@ async def check_kill_and_restart(t, report):
     async with Rpc(t.direct(owner, s.sid)) as other:
         refused = await other.call("session.join", s.join())
         assert refused[0] == "error" and refused[1] == HELD_ELSEWHERE, f"restarted {owner}: {refused}"
-        assert refused[2] and refused[2].get("owner") == new_owner, f"data.owner {refused[2]}, expected {new_owner}"
+        expected = t.server_id(new_owner)
+        assert refused[2] and refused[2].get("owner") == expected, f"data.owner {refused[2]}, expected {expected}"
+    # The Python client follows data.owner when asked to, and joins there.
+    async with Client.connect(f"ws://127.0.0.1:{t.ports[owner]}/ws", session=s.sid) as py:
+        joined = await py.join(s.sid, s.token, follow_owner=True)
+        assert joined["revision"] == s.revision, f"joined at the owner at revision {joined['revision']}"
+        assert py.url.startswith(f"ws://{expected}/"), py.url
+        await py.leave()
     assert (await s.apply(rpc))[0] == "ok"
     await rpc.__aexit__()
     return s
