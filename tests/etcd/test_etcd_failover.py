@@ -19,6 +19,7 @@ Also reported: the median and 95th percentile of an acknowledged edit's round tr
 the proxy, and marzipan_etcd_append_seconds from a server's /metrics.
 
 Usage: test_etcd_failover.py --marzipan BIN --haproxy BIN --config docker/haproxy.cfg --workdir DIR
+       [--lease-seconds N] [--only kill|pause|leader ...]
 Run by ctest ("etcd: ..."). Needs Debian's /usr/bin/python3 with python3-websockets.
 Conventions: every wait is bounded; every process started here is killed at the end; a failed
 check raises AssertionError saying what was expected and what came.
@@ -31,6 +32,7 @@ import json
 import os
 import re
 import secrets
+import shutil
 import select
 import signal
 import statistics
@@ -401,10 +403,13 @@ def main():
     parser.add_argument("--haproxy", required=True)
     parser.add_argument("--config", required=True)
     parser.add_argument("--workdir", required=True)
+    parser.add_argument("--lease-seconds", type=int, default=3,
+                        help="the servers' --etcd-lease-seconds (3 here to keep the test short; 5 is the default)")
     parser.add_argument("--only", choices=["kill", "pause", "leader"], action="append",
                         help="run only these checks (default: all)")
     args = parser.parse_args()
-    import shutil
+    global LEASE_SECONDS
+    LEASE_SECONDS = args.lease_seconds
     shutil.rmtree(args.workdir, ignore_errors=True)
     os.makedirs(args.workdir)
     t = Topology(args)
