@@ -161,7 +161,7 @@ Failure failureOf(std::exception_ptr e, const std::function<void(const std::stri
   } catch (const protocol::OpError& x) {
     return {RpcCode::InvalidParams, x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const ServiceError& x) {
-    return {RpcCode(int(x.code())), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+    return {x.code(), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const EngineError& x) {
     return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const Cancelled&) {
@@ -788,18 +788,22 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports), answers and lets the connection go on.
+  // atStrand, when given, starts the reply on the strand with what needs the live session.
   void offStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id,
-                 std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn) {
+                 std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
+                 std::function<void(LiveSession&, Reply&)> atStrand = {}) {
     std::shared_ptr<LiveSession> s = c->session;
-    s->strand->post([self = shared_from_this(), c, s, id, fn = std::move(fn)]() mutable {
+    s->strand->post([self = shared_from_this(), c, s, id, fn = std::move(fn), atStrand = std::move(atStrand)]() mutable {
       if (s->unloaded || !s->session) {
         self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
         return self->finish(c);
       }
       auto snapshot = std::make_shared<Volume>(s->session->snapshot());
       const std::uint64_t revision = s->session->revision();
-      self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn)] {
-        Reply r;
+      auto started = std::make_shared<Reply>();
+      if (atStrand) atStrand(*s, *started);
+      self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn), started] {
+        Reply& r = *started;
         try {
           fn(*snapshot, revision, r);
           if (r.frame) c->link->sendBinary(r.frame, false);
@@ -1519,26 +1523,29 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::SessionStats: {
       protocol::parseNoParams(req.params, req.method);
-      return onStrand(c, req.id, arrived, false, [](LiveSession& s, Reply& r) {
-        const SessionStats st = s.session->stats();
-        const Measures& m = st.measures;
-        json clients = json::array();
-        for (const auto& other : s.clients) clients.push_back({{"client", other->clientId}, {"read_only", other->readOnly}});
-        r.result = {{"session", s.id},
-                    {"size", sizeJson(s.session->volume().dims())},
-                    {"revision", st.revision},
-                    {"digest", m.digest},
-                    {"clients", clients},
-                    {"inside_volume", m.insideVolume},
-                    {"surface_area", m.surfaceArea},
-                    {"components", m.components},
-                    {"bounds", {{"empty", m.bounds.empty}, {"lo", protocol::vec3Json(m.bounds.lo)}, {"hi", protocol::vec3Json(m.bounds.hi)}}},
-                    {"gradient_error", {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}, {"voxels", m.gradientError.voxels}}},
-                    {"memory_bytes", st.memoryBytes},
-                    {"history_bytes", st.historyBytes},
-                    {"can_undo", st.canUndo},
-                    {"can_redo", st.canRedo}};
-      });
+      // The measures read every brick: off the strand, on the snapshot, so edits go on meanwhile.
+      return offStrand(
+          c, req.id,
+          [](const Volume& vol, std::uint64_t, Reply& r) {
+            const Measures m = measure(vol);
+            r.result["digest"] = m.digest;
+            r.result["inside_volume"] = m.insideVolume;
+            r.result["surface_area"] = m.surfaceArea;
+            r.result["components"] = m.components;
+            r.result["bounds"] = {{"empty", m.bounds.empty}, {"lo", protocol::vec3Json(m.bounds.lo)}, {"hi", protocol::vec3Json(m.bounds.hi)}};
+            r.result["gradient_error"] = {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}, {"voxels", m.gradientError.voxels}};
+          },
+          [](LiveSession& s, Reply& r) {
+            const SessionStats st = s.session->counters();
+            r.result = {{"session", s.id},
+                        {"size", sizeJson(s.session->volume().dims())},
+                        {"revision", st.revision},
+                        {"clients", clientsJson(s)},
+                        {"memory_bytes", st.memoryBytes},
+                        {"history_bytes", st.historyBytes},
+                        {"can_undo", st.canUndo},
+                        {"can_redo", st.canRedo}};
+          });
     }
     case Method::ViewSet: {
       const protocol::ViewSetParams p = protocol::parseViewSetParams(req.params, l.maxFrameSide);
