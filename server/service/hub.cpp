@@ -241,7 +241,17 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   std::unique_ptr<Session> session;
   std::unique_ptr<SessionLog> journal;  // with a persistent storage
   std::string failure;               // why the session could not be created
-  std::vector<std::shared_ptr<HubClient>> clients;
+  // Its clients, weakly: a connection owns its HubClient, which holds its session, so ownership
+  // runs one way (connection -> client -> session) and nothing needs breaking at shutdown.
+  std::vector<std::weak_ptr<HubClient>> clients;
+  // The clients still alive: all of them, except while the hub shuts down.
+  std::vector<std::shared_ptr<HubClient>> members() const {
+    std::vector<std::shared_ptr<HubClient>> out;
+    out.reserve(clients.size());
+    for (const auto& weak : clients)
+      if (auto c = weak.lock()) out.push_back(std::move(c));
+    return out;
+  }
   int nextClient = 1;
   // The lease is released once (unload, shutdown); renewal, which runs off the strand so that a
   // long operation cannot let it expire, must not take it again after that.
@@ -639,7 +649,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         log("session " + s.id + ": cannot reopen its journal (" + again.what() + "); closing it");
         closeBroken(s);
       }
-      for (const auto& c : s.clients) c->stroke = 0;
+      for (const auto& c : s.members()) c->stroke = 0;
       throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
                                                 "); it was not kept. The session is as it was");
     }
@@ -709,7 +719,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     }
     emit(options.events.sessions, -1);
     emit(options.events.clients, -std::int64_t(s.clients.size()));
-    for (const auto& c : s.clients) c->link->close(1011, "the session is no longer served here; join it again");
+    for (const auto& c : s.members()) c->link->close(1011, "the session is no longer served here; join it again");
     s.clients.clear();
   }
 
@@ -857,7 +867,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   static json clientsJson(const LiveSession& s) {
     json list = json::array();
-    for (const auto& c : s.clients) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
+    for (const auto& c : s.members()) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
     return list;
   }
 
@@ -905,13 +915,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   void broadcastClients(LiveSession& s, const HubClient* except) {
     const std::string text = protocol::notificationText("session.clients", {{"clients", clientsJson(s)}});
-    for (const auto& other : s.clients)
+    for (const auto& other : s.members())
       if (other.get() != except) other->link->sendText(text);
   }
 
   // On the strand: c leaves s (ending its stroke); the others hear of it.
   void leave(LiveSession& s, HubClient& c) {
-    const auto it = std::find_if(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; });
+    const auto it = std::find_if(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.lock().get() == &c; });
     if (it == s.clients.end()) return;
     if (c.stroke) {
       try {
@@ -1137,9 +1147,10 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                             {"digest", digestText(ss.digest())},
                             {"can_undo", ss.canUndo()},
                             {"can_redo", ss.canRedo()}});
-    for (const auto& c : s.clients) c->link->sendText(text);
+    const auto members = s.members();
+    for (const auto& c : members) c->link->sendText(text);
     SharedBytes delta;
-    for (const auto& c : s.clients) {
+    for (const auto& c : members) {
       if (c->mode == ViewMode::Splats) {
         if (full) {
           sendFullSplats(s, *c, 0);
@@ -1185,7 +1196,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // On s's strand: c is still the client `clientId` of s (it did not leave, or leave and join
   // again), so its view state belongs to this strand.
   static bool sameClient(const LiveSession& s, const HubClient& c, int clientId) {
-    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; }) &&
+    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.lock().get() == &c; }) &&
            c.clientId == clientId;
   }
 
@@ -1739,13 +1750,7 @@ void Hub::shutdown() {
     for (const auto& f : snapshots) f.wait_until(snapshotDeadline);
   }
   s.workers.stop();
-  // Sessions hold their clients and clients their session: break those cycles now that no
-  // task can run.
   const std::lock_guard lock(s.mutex);
-  for (const auto& [id, live] : s.sessions) {
-    for (const auto& c : live->clients) c->session.reset();
-    live->clients.clear();
-  }
   s.sessions.clear();
 }
 

@@ -15,8 +15,9 @@
 //   session here (its clients reconnect to the new holder).
 // - Order of what one edit sends: the requester's response, then `session.changed` to every
 //   client, then each client's splat delta or frame. Binary answers precede their response.
-// - Ownership: the hub owns sessions; a HubClient is owned by the network connection (and by
-//   tasks in flight); sessions hold their clients until they leave or disconnect.
+// - Ownership runs one way: the hub owns sessions; a HubClient is owned by the network
+//   connection (and by tasks in flight) and holds its session; a session knows its clients by
+//   weak reference.
 // - Units: sizes in bytes, durations as std::chrono types, coordinates in vu.
 #pragma once
 
