@@ -6,13 +6,17 @@ namespace marzipan {
 
 DenseGrid DenseGrid::gather(const Volume& vol, const Box& b) {
   DenseGrid g;
-  g.box = b;
-  g.size = b.size();
-  g.sx = std::size_t(g.size.x);
-  g.sxy = g.sx * std::size_t(g.size.y);
-  g.v.resize(std::size_t(b.voxels()));
-  vol.gather(b, g.v.data());
+  g.gatherFrom(vol, b);
   return g;
+}
+
+void DenseGrid::gatherFrom(const Volume& vol, const Box& b) {
+  box = b;
+  size = b.size();
+  sx = std::size_t(size.x);
+  sxy = sx * std::size_t(size.y);
+  v.resize(std::size_t(b.voxels()));
+  vol.gather(b, v.data());
 }
 
 }  // namespace marzipan

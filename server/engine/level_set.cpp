@@ -8,6 +8,7 @@
 #include "dense_grid.hpp"
 #include "errors.hpp"
 #include "redistance.hpp"
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
@@ -107,36 +108,54 @@ class SweptWindow {
   std::vector<PreparedDab> dabs_, memory_;
 };
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). region must lie kStencilReach inside the grid. Work is split in
-// fixed blocks, each voxel computed alone: thread-count independent.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            ThreadPool& pool) {
+// Scratch reused by the tools on each thread: fresh grids and lists each application cost
+// page faults (the kernel clearing pages) as large as the work itself.
+struct ToolScratch {
+  DenseGrid grid;
+  BandVoxels band;
   std::vector<std::uint32_t> list;
-  std::vector<float> speed;
+  std::vector<float> speed, next;
+  std::vector<Box> resetBoxes, normalizeBoxes;
+};
+ToolScratch& toolScratch() {
+  thread_local ToolScratch s;
+  return s;
+}
+
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
+// kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
+// thread-count independent.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool) {
+  ToolScratch& s = toolScratch();
+  std::vector<std::uint32_t>& list = s.list;
+  std::vector<float>& speed = s.speed;
+  list.clear();
+  speed.clear();
   const std::size_t stride[3] = {1, g.sx, g.sxy};
-  for (int z = region.lo.z; z < region.hi.z; ++z)
-    for (int y = region.lo.y; y < region.hi.y; ++y) {
-      std::size_t i = g.index({region.lo.x, y, z});
-      for (int x = region.lo.x; x < region.hi.x; ++x, ++i) {
-        const float d = g.v[i];
-        if (!(std::fabs(d) < band)) continue;
-        double w = 1;
-        if (window) {
-          // Foot point by the central-difference gradient: the window is constant along normals.
-          Vec3 n{0.5 * (g.v[i + 1] - g.v[i - 1]), 0.5 * (g.v[i + g.sx] - g.v[i - g.sx]),
-                 0.5 * (g.v[i + g.sxy] - g.v[i - g.sxy])};
-          n = normalized(n);
-          const Vec3 q = Vec3{double(x), double(y), double(z)} - n * d;
-          w = window->at({x, y, z}, q);
-          if (w <= 0) continue;
-        }
-        list.push_back(std::uint32_t(i));
-        speed.push_back(float(m.speed * w));
-      }
+  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+    const std::size_t i = voxels.index[k];
+    const float d = g.v[i];
+    if (!(std::fabs(d) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p)) continue;
+    double w = 1;
+    if (window) {
+      // Foot point by the central-difference gradient: the window is constant along normals.
+      Vec3 n{0.5 * (g.v[i + 1] - g.v[i - 1]), 0.5 * (g.v[i + g.sx] - g.v[i - g.sx]),
+             0.5 * (g.v[i + g.sxy] - g.v[i - g.sxy])};
+      n = normalized(n);
+      const Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * d;
+      w = window->at(p, q);
+      if (w <= 0) continue;
     }
+    list.push_back(std::uint32_t(i));
+    speed.push_back(float(m.speed * w));
+  }
   if (list.empty()) return;
-  std::vector<float> next(list.size());
+  std::vector<float>& next = s.next;
+  next.resize(list.size());
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
   for (int step = 0; step < m.substeps; ++step) {
@@ -244,26 +263,28 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       if (!roi.intersect(group.box).empty()) remembered.push_back({d.center, d.weight, roi});
     }
     const Box region = group.box.grown(reach).intersect(vol.domain());
-    DenseGrid g = DenseGrid::gather(vol, group.box.grown(gatherMargin));
-    std::vector<std::uint8_t> mask(g.v.size(), 0);
-    auto mark = [&](const Box& b, std::uint8_t bits) {
-      for (int z = b.lo.z; z < b.hi.z; ++z)
-        for (int y = b.lo.y; y < b.hi.y; ++y) {
-          const std::size_t row = g.index({b.lo.x, y, z});
-          for (int x = 0; x < b.hi.x - b.lo.x; ++x) mask[row + std::size_t(x)] |= bits;
-        }
-    };
+    ToolScratch& scratch = toolScratch();
+    DenseGrid& g = scratch.grid;
+    g.gatherFrom(vol, group.box.grown(gatherMargin));
+    scratch.resetBoxes.clear();
+    scratch.normalizeBoxes.clear();
     for (const PreparedDab& d : mine) {
-      mark(d.roi.grown(reach).intersect(vol.domain()), kRedistanceReset);
-      mark(d.roi, kRedistanceNormalize);
+      scratch.resetBoxes.push_back(d.roi.grown(reach).intersect(vol.domain()));
+      scratch.normalizeBoxes.push_back(d.roi);
     }
+    scratch.band.collect(g, region.grown(1), band);
     const SweptWindow window(r, std::move(mine), std::move(remembered));
-    evolve(g, group.box, band, m, &window, pool);
+    evolve(g, group.box, band, m, &window, scratch.band, pool);
     RedistanceOptions options;
-    options.mask = &mask;
-    redistanceRegion(g, region, band, Outside::Source, options);
+    options.resetBoxes = scratch.resetBoxes;
+    options.normalizeBoxes = scratch.normalizeBoxes;
+    options.band = &scratch.band;
+    redistanceRegion(g, region, band, Outside::Source, options, pool);
     total.append(vol.scatter(region, g.v.data(), g.box), region);
   }
+  // A huge ROI's scratch is not worth keeping for the next dab.
+  constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
+  if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
   return total;
 }
 
@@ -279,8 +300,12 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
   e.region = vol.domain();
   e.changes = chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool& inner) {
     const Box region = g.box.grown(-kStencilReach);
-    evolve(g, region, band, m, nullptr, inner);
-    redistanceRegion(g, region, band, Outside::Ignored);
+    BandVoxels& voxels = toolScratch().band;
+    voxels.collect(g, region.grown(1), band);
+    evolve(g, region, band, m, nullptr, voxels, inner);
+    RedistanceOptions options;
+    options.band = &voxels;
+    redistanceRegion(g, region, band, Outside::Ignored, options, inner);
   });
   return e;
 }
