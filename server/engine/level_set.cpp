@@ -8,6 +8,7 @@
 #include "dense_grid.hpp"
 #include "errors.hpp"
 #include "redistance.hpp"
+#include "stencil.hpp"
 #include "thread_pool.hpp"
 
 namespace marzipan {
@@ -143,9 +144,8 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     double w = 1;
     if (window) {
       // Foot point by the central-difference gradient: the window is constant along normals.
-      Vec3 n{0.5 * (g.v[i + 1] - g.v[i - 1]), 0.5 * (g.v[i + g.sx] - g.v[i - g.sx]),
-             0.5 * (g.v[i + g.sxy] - g.v[i - g.sxy])};
-      n = normalized(n);
+      const Vec3 n = normalized(
+          GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
       const Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * d;
       w = window->at(p, q);
       if (w <= 0) continue;
