@@ -16,6 +16,9 @@ using namespace march_flag;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kBucketsPerVu = 32.0f;
 constexpr float kMonotoneRun = 0.2f;  // see MarchOrder::Second
+// Buckets between checks of the caller's progress: a bucket of a tool's region takes well
+// under a millisecond.
+constexpr std::size_t kBucketsPerCheck = 4;
 
 // Bits of the per-side array of voxels the march made known (the shared flags stay read-only
 // while both sides run, so neither side writes a byte the other reads).
@@ -59,9 +62,15 @@ class SideMarcher {
     for (auto& b : buckets_) b.clear();
   }
 
-  MarchStats run(std::span<const std::uint32_t> seeds) {
+  // progress: this side's share, advanced as its buckets are taken.
+  MarchStats run(std::span<const std::uint32_t> seeds, const ProgressShare& progress) {
     for (const std::uint32_t i : seeds) push(i, mag(i), 0);
+    const double perBucket = 1.0 / double(buckets_.size());
     for (std::size_t b = 0; b < buckets_.size(); ++b) {
+      if (b % kBucketsPerCheck == 0) {
+        progress.check();
+        if (b > 0) progress.advance(kBucketsPerCheck * perBucket);
+      }
       current_ = b;
       auto& bucket = buckets_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
@@ -78,6 +87,7 @@ class SideMarcher {
       }
       bucket.clear();
     }
+    progress.advance(double(buckets_.size() - (buckets_.size() - 1) / kBucketsPerCheck * kBucketsPerCheck) * perBucket);
     return stats_;
   }
 
@@ -198,7 +208,7 @@ Scratch& scratch() {
 
 MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
-                               ThreadPool& pool) {
+                               ThreadPool& pool, ProgressShare progress) {
   Scratch& s = scratch();
   s.reached.resize(g.v.size());
   std::memset(s.reached.data(), 0, s.reached.size());
@@ -212,7 +222,7 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
   MarchStats side[2];
   auto runSide = [&](std::size_t k) {
     SideMarcher m(g, f, s.reached.data(), band, second, k ? kNeg : 0, s.buckets[k]);
-    side[k] = m.run(s.seeds[k]);
+    side[k] = m.run(s.seeds[k], progress.part(0.5));
   };
   if (pool.threads() > 1 && !s.seeds[0].empty() && !s.seeds[1].empty()) {
     pool.parallelFor(2, runSide);

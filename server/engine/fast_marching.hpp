@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "dense_grid.hpp"
+#include "progress.hpp"
 
 namespace marzipan {
 
@@ -61,9 +62,11 @@ inline constexpr std::uint8_t kCallerB = 64;
 // The march proper. flags: one march_flag byte per grid voxel. Every unknown voxel (no
 // kFrozen) must already hold +-band with its side's sign. candidates: every source of the
 // grid with |value| < band that may border an unknown voxel of its side, in increasing index
-// order (a superset is fine). Writes only unknown voxels.
+// order (a superset is fine). Writes only unknown voxels. progress: checked every few buckets
+// of each side (throws Cancelled, leaving the grid part-marched) and advanced in step with the
+// buckets taken.
 MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
-                               ThreadPool& pool);
+                               ThreadPool& pool, ProgressShare progress = {});
 
 }  // namespace marzipan

@@ -7,6 +7,7 @@
 #include "chunked_pass.hpp"
 #include "dense_grid.hpp"
 #include "errors.hpp"
+#include "progress.hpp"
 #include "redistance.hpp"
 #include "stencil.hpp"
 #include "thread_pool.hpp"
@@ -44,6 +45,11 @@ Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::i
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
 constexpr int kStencilReach = 2;
+
+// A local tool checks the caller's Progress (progress.hpp) every so many band voxels, and
+// counts one unit per call: these shares of it per group of dabs, the march the rest.
+constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+constexpr double kGatherShare = 0.1, kCollectShare = 0.05, kEvolveShare = 0.15, kRedistanceShare = 0.6;
 
 float minmod(float a, float b) {
   if (a * b <= 0) return 0;
@@ -126,9 +132,9 @@ ToolScratch& toolScratch() {
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
 // foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
 // kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
-// thread-count independent.
+// thread-count independent. progress: checked per block, advanced per sub-step.
 void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            const BandVoxels& voxels, ThreadPool& pool) {
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
   ToolScratch& s = toolScratch();
   std::vector<std::uint32_t>& list = s.list;
   std::vector<float>& speed = s.speed;
@@ -136,6 +142,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   speed.clear();
   const std::size_t stride[3] = {1, g.sx, g.sxy};
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
     const float d = g.v[i];
     if (!(std::fabs(d) < band)) continue;
@@ -153,7 +160,10 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     list.push_back(std::uint32_t(i));
     speed.push_back(float(m.speed * w));
   }
-  if (list.empty()) return;
+  if (list.empty()) {
+    progress.advance(1);
+    return;
+  }
   std::vector<float>& next = s.next;
   next.resize(list.size());
   constexpr std::size_t kBlock = 4096;
@@ -161,6 +171,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   for (int step = 0; step < m.substeps; ++step) {
     const float* v = g.v.data();
     pool.parallelFor(blocks, [&](std::size_t b) {
+      progress.check();
       const std::size_t end = std::min(list.size(), (b + 1) * kBlock);
       for (std::size_t k = b * kBlock; k < end; ++k) {
         const std::size_t i = list[k];
@@ -175,6 +186,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
       }
     });
     for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    progress.advance(1.0 / m.substeps);
   }
 }
 
@@ -254,8 +266,12 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     groups.push_back(std::move(g));
   }
 
+  // Each group counts groupUnits of the caller's Progress (progress.hpp).
+  Progress* const progress = Progress::current();
+  const double groupUnits = 1.0 / double(groups.size());
   Edit total;
-  for (const Group& group : groups) {
+  auto applyGroup = [&](const Group& group) {
+    const ProgressShare share{progress, groupUnits};
     std::vector<PreparedDab> mine, remembered;
     for (const std::size_t i : group.dabs) mine.push_back(prepared[i]);
     for (const StrokeDab& d : memory) {
@@ -265,26 +281,47 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     const Box region = group.box.grown(reach).intersect(vol.domain());
     ToolScratch& scratch = toolScratch();
     DenseGrid& g = scratch.grid;
-    g.gatherFrom(vol, group.box.grown(gatherMargin));
+    g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare));
     scratch.resetBoxes.clear();
     scratch.normalizeBoxes.clear();
     for (const PreparedDab& d : mine) {
       scratch.resetBoxes.push_back(d.roi.grown(reach).intersect(vol.domain()));
       scratch.normalizeBoxes.push_back(d.roi);
     }
-    scratch.band.collect(g, region.grown(1), band);
+    scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
     const SweptWindow window(r, std::move(mine), std::move(remembered));
-    evolve(g, group.box, band, m, &window, scratch.band, pool);
+    evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare));
     RedistanceOptions options;
     options.resetBoxes = scratch.resetBoxes;
     options.normalizeBoxes = scratch.normalizeBoxes;
     options.band = &scratch.band;
+    options.progress = share.part(kRedistanceShare);
     redistanceRegion(g, region, band, Outside::Source, options, pool);
+    share.check();  // the last check: nothing below stops part way
     total.append(vol.scatter(region, g.v.data(), g.box), region);
+    share.advance(1 - kGatherShare - kCollectShare - kEvolveShare - kRedistanceShare);
+  };
+  // A huge ROI's scratch is not worth keeping for the next dab (also when this one throws).
+  struct TrimScratch {
+    ~TrimScratch() {
+      constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
+      if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
+    }
+  } trim;
+  if (groups.empty()) return total;
+  if (groups.size() == 1) {
+    applyGroup(groups.front());  // a throw comes before its scatter: vol is untouched
+    return total;
   }
-  // A huge ROI's scratch is not worth keeping for the next dab.
-  constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
-  if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
+  // A throw in a later group (cancelled, out of memory) puts back the groups already
+  // scattered, so that a failed call changes nothing (a Volume copy shares its bricks).
+  Volume before = vol;
+  try {
+    for (const Group& group : groups) applyGroup(group);
+  } catch (...) {
+    vol = std::move(before);
+    throw;
+  }
   return total;
 }
 

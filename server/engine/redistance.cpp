@@ -13,6 +13,10 @@ namespace {
 using namespace march_flag;
 constexpr std::uint8_t kReset = kCallerA;      // in the region and to be reset unless kept
 constexpr std::uint8_t kNormalize = kCallerB;  // a kept voxel here is normalized
+// The caller's progress: checked per z-slice of the dense passes and every so many band
+// voxels; the classification counts as this share of the call, the march as the rest.
+constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+constexpr double kSetupShare = 0.3;
 
 // Calls fn(first, end) for the x-runs [first, end) of row (y, z) covered by the union of
 // `boxes`, each run once, in increasing x.
@@ -45,11 +49,12 @@ Scratch& scratch() {
 
 }  // namespace
 
-void BandVoxels::collect(const DenseGrid& g, const Box& b, float band) {
+void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
   index.clear();
   point.clear();
-  for (int z = box.lo.z; z < box.hi.z; ++z)
+  for (int z = box.lo.z; z < box.hi.z; ++z) {
+    progress.check();
     for (int y = box.lo.y; y < box.hi.y; ++y) {
       const std::size_t row = g.index({box.lo.x, y, z});
       const float* v = g.v.data() + row;
@@ -72,10 +77,13 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band) {
           point.push_back({box.lo.x + x, y, z});
         }
     }
+  }
+  progress.advance(1);
 }
 
 MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
                             const RedistanceOptions& options, ThreadPool& pool) {
+  const ProgressShare& progress = options.progress;
   const Box r = region.intersect(g.box);
   if (r.empty()) return {};
   Scratch& s = scratch();
@@ -89,7 +97,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
     std::size_t row = 0;
-    for (int z = 0; z < sz; ++z)
+    for (int z = 0; z < sz; ++z) {
+      progress.check();
       for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
         std::uint8_t* f = flags + row;
         const float* rv = v + row;
@@ -97,6 +106,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         if (z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy)
           for (int x = xLo; x < xHi; ++x) f[x] |= kInterior;
       }
+    }
   }
 
   // The region's voxels to reset, and where kept voxels are normalized.
@@ -110,7 +120,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
   {
     const std::span<const Box> reset = clipped(options.resetBoxes);
-    for (int z = r.lo.z; z < r.hi.z; ++z)
+    for (int z = r.lo.z; z < r.hi.z; ++z) {
+      progress.check();
       for (int y = r.lo.y; y < r.hi.y; ++y)
         forEachRun(reset, y, z, s.runs, [&](int lo, int hi) {
           std::uint8_t* f = flags + g.index({lo, y, z});
@@ -121,27 +132,31 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
             f[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
           }
         });
+    }
   }
   if (options.normalizeKept) {
     const std::span<const Box> normalize = clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1}
                                                                                 : options.normalizeBoxes);
-    for (int z = r.lo.z; z < r.hi.z; ++z)
+    for (int z = r.lo.z; z < r.hi.z; ++z) {
+      progress.check();
       for (int y = r.lo.y; y < r.hi.y; ++y)
         forEachRun(normalize, y, z, s.runs, [&](int lo, int hi) {
           std::uint8_t* f = flags + g.index({lo, y, z});
           for (int x = 0; x < hi - lo; ++x) f[x] |= kNormalize;
         });
+    }
   }
 
   // Only voxels of the band list can be kept, or need a value written before the march.
   const BandVoxels* list = options.band;
   if (!list || !(list->box == r.grown(1).intersect(g.box))) {
-    s.band.collect(g, r.grown(1), band);
+    s.band.collect(g, r.grown(1), band, {progress.progress, 0});
     list = &s.band;
   }
   s.kept.clear();
   s.farUnknown.clear();
   for (std::size_t k = 0; k < list->index.size(); ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
     const std::uint32_t i = list->index[k];
     const std::uint8_t f = flags[i];
     if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
@@ -197,7 +212,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   }
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
   for (const std::uint32_t i : s.farUnknown) v[i] = v[i] < 0 ? -band : band;
-  return fastMarchClassified(g, s.flags, list->index, band, options.order, pool);
+  progress.advance(kSetupShare);
+  return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));
 }
 
 void redistanceVolume(Volume& vol, ThreadPool& pool) {

@@ -26,7 +26,8 @@ struct BandVoxels {
   std::vector<std::uint32_t> index;
   std::vector<Int3> point;
 
-  void collect(const DenseGrid& grid, const Box& box, float band);
+  // progress: checked per z-slice, advanced by its whole share at the end.
+  void collect(const DenseGrid& grid, const Box& box, float band, const ProgressShare& progress = {});
 };
 
 // How to treat the voxels of the region before marching.
@@ -51,6 +52,9 @@ struct RedistanceOptions {
   // before the caller changed some of them (it may only have changed voxels of the list).
   // Saves the scan of the box.
   const BandVoxels* band = nullptr;
+  // The caller's progress (progress.hpp): checked throughout (a cancelled call throws
+  // Cancelled and leaves the grid part-redistanced), advanced by its share as the call goes.
+  ProgressShare progress;
 };
 
 // Redistances `region` (clipped to grid.box) of the grid in place. A voxel is adjacent to
