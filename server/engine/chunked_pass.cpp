@@ -1,5 +1,6 @@
 #include "chunked_pass.hpp"
 
+#include "brick.hpp"
 #include "progress.hpp"
 #include "thread_pool.hpp"
 
@@ -7,21 +8,21 @@ namespace marzipan {
 
 std::vector<BrickChange> chunkedPass(Volume& vol, int margin, ThreadPool& pool, const ChunkFn& fn) {
   const Int3 dims = vol.dims();
-  const Int3 bd = vol.brickDims();
-  const int marginBricks = (margin + kBrickSide - 1) / kBrickSide;
-  constexpr int chunkBricks = kChunkSide / kBrickSide;
+  const Box brickGrid{{0, 0, 0}, vol.brickDims()};
+  const int marginBricks = Bricks::gridOf({margin, margin, margin}).x;  // whole bricks covering the margin
 
   // A chunk is active when a stored brick lies within its margin.
   std::vector<Box> chunks;
   for (int cz = 0; cz < dims.z; cz += kChunkSide)
     for (int cy = 0; cy < dims.y; cy += kChunkSide)
       for (int cx = 0; cx < dims.x; cx += kChunkSide) {
-        const Box interior = Box{{cx, cy, cz}, {cx + kChunkSide, cy + kChunkSide, cz + kChunkSide}}.intersect(vol.domain());
-        const Int3 blo{cx / kBrickSide - marginBricks, cy / kBrickSide - marginBricks, cz / kBrickSide - marginBricks};
+        const Box chunk{{cx, cy, cz}, {cx + kChunkSide, cy + kChunkSide, cz + kChunkSide}};
+        const Box interior = chunk.intersect(vol.domain());
+        const Box near = Bricks::bricksOf(chunk).grown(marginBricks).intersect(brickGrid);
         bool active = false;
-        for (int bz = std::max(0, blo.z); !active && bz < std::min(bd.z, blo.z + chunkBricks + 2 * marginBricks); ++bz)
-          for (int by = std::max(0, blo.y); !active && by < std::min(bd.y, blo.y + chunkBricks + 2 * marginBricks); ++by)
-            for (int bx = std::max(0, blo.x); !active && bx < std::min(bd.x, blo.x + chunkBricks + 2 * marginBricks); ++bx) {
+        for (int bz = near.lo.z; !active && bz < near.hi.z; ++bz)
+          for (int by = near.lo.y; !active && by < near.hi.y; ++by)
+            for (int bx = near.lo.x; !active && bx < near.hi.x; ++bx) {
               float u;
               active = vol.brickData({bx, by, bz}, &u) != nullptr;
             }

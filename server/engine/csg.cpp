@@ -1,9 +1,11 @@
 #include "csg.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "dense_grid.hpp"
 #include "errors.hpp"
+#include "progress.hpp"
 #include "redistance.hpp"
 #include "shapes.hpp"
 
@@ -21,7 +23,7 @@ double toolDistance(const CsgParams& p, Vec3 x) {
   return 0;
 }
 
-Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool&) {
+Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool) {
   if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
   requireRange(p.radius, 0.5, kMaxDomainSide, "radius");
   requireRange(p.blend, 0, p.radius, "blend");
@@ -34,9 +36,15 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool&) {
   if (region.empty())
     throw EngineError(ErrorKind::OutOfDomain, "center", "the tool lies outside the volume");
 
+  // The caller's Progress (progress.hpp): one unit for the call, checked per z-slice and
+  // throughout the redistancing; a cancelled call stops before it writes anything to vol.
+  Progress* const progress = Progress::current();
+  const ProgressShare share{progress, 1};
   const int margin = int(std::ceil(band)) + 1;
-  DenseGrid g = DenseGrid::gather(vol, region.grown(margin));
-  for (int z = region.lo.z; z < region.hi.z; ++z)
+  DenseGrid g;
+  g.gatherFrom(vol, region.grown(margin), share.part(0.1));
+  for (int z = region.lo.z; z < region.hi.z; ++z) {
+    share.check();
     for (int y = region.lo.y; y < region.hi.y; ++y)
       for (int x = region.lo.x; x < region.hi.x; ++x) {
         const std::size_t i = g.index({x, y, z});
@@ -48,23 +56,29 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool&) {
           case CsgOp::Subtract: r = sdf::smoothMax(d, -t, p.blend); break;
           case CsgOp::Intersect: r = sdf::smoothMax(d, t, p.blend); break;
         }
-        g.v[i] = float(r);
+        // Beyond the band only the sign matters (those voxels are marched afresh; on the side
+        // kept exact both terms lie within it), and clamped they stay off the band list.
+        g.v[i] = float(std::clamp(r, -double(band), double(band)));
       }
-  Edit e;
-  if (p.op == CsgOp::Intersect) {
-    // Outside the tool's reach max(d, t) is air: the march must not continue from the old
-    // field there, and every brick outside the region is cleared.
+  }
+  share.advance(0.2);
+  // Outside the tool's reach max(d, t) is air: the march must not continue from the old field
+  // there, and every brick outside the region is cleared (below, once nothing can stop).
+  if (p.op == CsgOp::Intersect)
     for (std::size_t i = 0; i < g.v.size(); ++i)
       if (!region.contains(g.point(i))) g.v[i] = band;
-    e.append(vol.fill(false), vol.domain());
-  }
   // min/max of two exact distances is exact on one side: outside a union, inside an
   // intersection or difference. Re-marching that side would only add the marcher's error
   // (up to 0.3 vu around the tool's convex edges); a blend is exact on neither side.
   RedistanceOptions opt;
   if (p.blend == 0) opt.exactSide = p.op == CsgOp::Add ? +1 : -1;
-  redistanceRegion(g, region, band, Outside::Source, opt);
+  opt.progress = share.part(0.6);
+  redistanceRegion(g, region, band, Outside::Source, opt, pool);
+  share.check();  // the last check: nothing below stops part way
+  Edit e;
+  if (p.op == CsgOp::Intersect) e.append(vol.fill(false), vol.domain());
   e.append(vol.scatter(region, g.v.data(), g.box), region);
+  share.advance(0.1);
   return e;
 }
 

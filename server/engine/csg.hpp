@@ -1,7 +1,9 @@
 // Constructive tools (docs/method.md §2): combine the solid with a tool shape by
 // add = min(d, t), subtract = max(d, -t), intersect = max(d, t), optionally with a smooth
 // blend of radius `blend`, then redistance the touched band so it stays a distance field.
-// Sign and units as in volume.hpp; the volume is modified in place.
+// Sign and units as in volume.hpp; the volume is modified in place. The calling thread's
+// Progress (progress.hpp) is checked throughout and advanced by one unit; a cancelled call
+// throws Cancelled and changes nothing. Results do not depend on the pool's thread count.
 #pragma once
 
 #include "edit.hpp"

@@ -11,6 +11,7 @@
 
 namespace marzipan {
 
+struct ProgressShare;
 class Volume;
 
 struct DenseGrid {
@@ -26,6 +27,10 @@ struct DenseGrid {
 
   // The box's voxels copied out of a volume.
   static DenseGrid gather(const Volume& vol, const Box& b);
+  // The same into this grid, reusing its storage (no fresh pages for a scratch grid). With a
+  // progress, it is checked and advanced between slabs of a few z-slices (progress.hpp).
+  void gatherFrom(const Volume& vol, const Box& b);
+  void gatherFrom(const Volume& vol, const Box& b, const ProgressShare& progress);
 
   std::size_t index(Int3 p) const {  // p in volume coordinates, must lie in box
     return std::size_t(p.x - box.lo.x) + sx * std::size_t(p.y - box.lo.y) + sxy * std::size_t(p.z - box.lo.z);

@@ -2,20 +2,34 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
 namespace {
 
+using namespace march_flag;
+
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kBucketsPerVu = 32.0f;
 constexpr float kMonotoneRun = 0.2f;  // see MarchOrder::Second
+// Buckets between checks of the caller's progress: a bucket of a tool's region takes well
+// under a millisecond.
+constexpr std::size_t kBucketsPerCheck = 4;
+
+// Bits of the per-side array of voxels the march made known (the shared flags stay read-only
+// while both sides run, so neither side writes a byte the other reads).
+constexpr std::uint8_t kReached = 1;  // taken from the queue: its value may be used
+constexpr std::uint8_t kTaken = 2;    // taken at least once (for the retake count)
 
 struct Entry {
   std::uint32_t index;
   float dist;
 };
+using Buckets = std::vector<std::vector<Entry>>;
 
 // Solves sum_k c_k (u - m_k)^2 = 1 for the largest root, using the axes in increasing m and
 // dropping those whose m is not below the root (Sethian's upwind rule).
@@ -34,104 +48,76 @@ double solveEikonal(double m[3], double c[3], int n) {
   return u;
 }
 
-class Marcher {
+// One side of the surface. It reads the shared flags, the values of its own side and of the
+// other side's sources, and writes only its own side's unknown voxels and `reached` bytes:
+// the two sides may run at the same time on one grid.
+class SideMarcher {
  public:
-  Marcher(DenseGrid& g, const std::vector<MarchState>& state, float band, MarchOrder order)
-      : g_(g), band_(band), second_(order == MarchOrder::Second) {
-    const std::size_t n = g.v.size();
-    dist_.resize(n);
-    flag_.resize(n);
+  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::uint8_t* reached, float band, bool second,
+              std::uint8_t negBit, Buckets& buckets)
+      : g_(g), v_(g.v.data()), flags_(flags), reached_(reached), band_(band), second_(second), negBit_(negBit),
+        buckets_(buckets) {
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
-    seeds_.clear();
-    written_.clear();
-    // Locals, not members: stores to the byte-typed flags may alias anything, and would make
-    // the compiler reload every member and vector pointer once per voxel.
-    const float* v = g.v.data();
-    const MarchState* states = state.data();
-    std::uint8_t* flags = flag_.data();
-    float* dist = dist_.data();
-    const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
-    auto init = [&](std::size_t i, std::uint8_t position) {
-      // MarchState's values are its flag bits (Source = known + frozen, Ignored = ignored +
-      // frozen), so the flags are the state plus sign and position bits.
-      const std::uint8_t st = std::uint8_t(states[i]);
-      flags[i] = std::uint8_t(st | position | (v[i] < 0 ? kNeg : 0));
-      const float mag = std::fabs(v[i]);
-      if (st == std::uint8_t(MarchState::Source)) {
-        dist[i] = mag;
-        if (mag < band) seeds_.push_back(std::uint32_t(i));  // only these can lower anything
-      } else {
-        dist[i] = kInf;
-        // Every unknown voxel not already at +-band must be written even if the march never
-        // reaches it (it becomes +-band); one at +-band stays as it is unless reached.
-        if (st == std::uint8_t(MarchState::Unknown) && mag != band) written_.push_back(std::uint32_t(i));
-      }
-    };
-    const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);  // interior columns [xLo, xHi)
-    std::size_t row = 0;
-    for (int z = 0; z < sz; ++z)
-      for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
-        const std::uint8_t inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy ? kInterior : 0;
-        for (int x = 0; x < xLo; ++x) init(row + std::size_t(x), 0);
-        for (int x = xLo; x < xHi; ++x) init(row + std::size_t(x), inner);
-        for (int x = xHi; x < sx; ++x) init(row + std::size_t(x), 0);
-      }
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
+    for (auto& b : buckets_) b.clear();
   }
 
-  MarchStats run() {
-    // Only band sources next to an unknown voxel can lower anything.
-    for (const std::uint32_t i : seeds_) {
-      bool feeds = false;
-      forNeighbours(i, [&](std::size_t n) { feeds = feeds || !(flag_[n] & kFrozen); });
-      if (feeds) push(i, dist_[i], 0);
-    }
+  // progress: this side's share, advanced as its buckets are taken.
+  MarchStats run(std::span<const std::uint32_t> seeds, const ProgressShare& progress) {
+    for (const std::uint32_t i : seeds) push(i, mag(i), 0);
+    const double perBucket = 1.0 / double(buckets_.size());
     for (std::size_t b = 0; b < buckets_.size(); ++b) {
+      if (b % kBucketsPerCheck == 0) {
+        progress.check();
+        if (b > 0) progress.advance(kBucketsPerCheck * perBucket);
+      }
       current_ = b;
       auto& bucket = buckets_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
         const Entry e = bucket[k];
-        if (e.dist != dist_[e.index]) continue;  // superseded by a lower entry
+        if (e.dist != mag(e.index)) continue;  // superseded by a lower entry
         ++stats_.accepted;
-        if (flag_[e.index] & kTaken) ++stats_.retaken;
-        flag_[e.index] |= kKnown | kTaken;
+        if (reached_[e.index] & kTaken) ++stats_.retaken;
+        reached_[e.index] |= kReached | kTaken;
         // A neighbour already at or below this value would drop it from its stencil (the
         // upwind rule), so this voxel cannot lower it.
         forNeighbours(e.index, [&](std::size_t n) {
-          if (!(flag_[n] & kFrozen) && dist_[n] > e.dist) update(n);
+          if ((flags_[n] & (kFrozen | kNeg)) == negBit_ && mag(n) > e.dist) update(n);
         });
       }
       bucket.clear();
     }
-    for (const std::uint32_t i : written_) g_.v[i] = (flag_[i] & kNeg) ? -std::min(dist_[i], band_) : std::min(dist_[i], band_);
+    progress.advance(double(buckets_.size() - (buckets_.size() - 1) / kBucketsPerCheck * kBucketsPerCheck) * perBucket);
     return stats_;
   }
 
- private:
-  static constexpr std::uint8_t kKnown = 1;     // has a value others may use (source or taken)
-  static constexpr std::uint8_t kNeg = 2;       // inside
-  static constexpr std::uint8_t kFrozen = 4;    // source or ignored: never recomputed
-  static constexpr std::uint8_t kIgnored = 8;
-  static constexpr std::uint8_t kInterior = 16; // at least 2 voxels from every face of the grid
-  static_assert(std::uint8_t(MarchState::Source) == (kKnown | kFrozen) &&
-                std::uint8_t(MarchState::Ignored) == (kIgnored | kFrozen));
-  static constexpr std::uint8_t kTaken = 32;    // taken from the queue at least once
-
-  Int3 coords(std::size_t i) const {
-    return {int(i % g_.sx), int((i / g_.sx) % std::size_t(g_.size.y)), int(i / g_.sxy)};
+  // Sources of this side that border one of its unknown voxels: only these can lower anything.
+  static bool feeds(const DenseGrid& g, const std::uint8_t* flags, std::size_t i) {
+    const std::uint8_t side = flags[i] & kNeg;
+    bool any = false;
+    forEachNeighbour(g, flags, i, [&](std::size_t n) { any = any || (flags[n] & (kFrozen | kNeg)) == side; });
+    return any;
   }
 
+ private:
+  float mag(std::size_t i) const { return std::fabs(v_[i]); }
+
   template <class F>
-  void forNeighbours(std::size_t i, F&& fn) const {
-    if (flag_[i] & kInterior) {
-      for (int a = 0; a < 3; ++a) fn(i - stride_[a]), fn(i + stride_[a]);
+  static void forEachNeighbour(const DenseGrid& g, const std::uint8_t* flags, std::size_t i, F&& fn) {
+    const std::size_t stride[3] = {1, g.sx, g.sxy};
+    if (flags[i] & kInterior) {
+      for (int a = 0; a < 3; ++a) fn(i - stride[a]), fn(i + stride[a]);
       return;
     }
-    const Int3 p = coords(i);
+    const Int3 p = g.point(i) - g.box.lo;
     for (int a = 0; a < 3; ++a) {
-      if (p[a] > 0) fn(i - stride_[a]);
-      if (p[a] + 1 < g_.size[a]) fn(i + stride_[a]);
+      if (p[a] > 0) fn(i - stride[a]);
+      if (p[a] + 1 < g.size[a]) fn(i + stride[a]);
     }
+  }
+  template <class F>
+  void forNeighbours(std::size_t i, F&& fn) const {
+    forEachNeighbour(g_, flags_, i, fn);
   }
 
   void push(std::size_t i, float d, std::size_t minBucket) {
@@ -139,28 +125,29 @@ class Marcher {
     buckets_[std::min(b, buckets_.size() - 1)].push_back({std::uint32_t(i), d});
   }
 
-  // Usable as an upwind value for a voxel whose sign bit is negBit.
-  bool usable(std::size_t n, std::uint8_t negBit) const {
-    return (flag_[n] & (kKnown | kIgnored | kNeg)) == (kKnown | negBit);
-  }
-
   // The second upwind value two steps away along one axis, or infinity. The signed field is
   // smooth across the surface, so a source of the other sign serves with its sign: without
   // it the first layer off the surface is only first order, and its bias shows in every
   // curvature.
-  double secondUpwind(std::size_t n2, std::uint8_t negBit) const {
-    const std::uint8_t f = flag_[n2];
-    if ((f & (kKnown | kIgnored)) != kKnown) return kInf;
-    if ((f & kNeg) == negBit) return dist_[n2];
-    return (f & kFrozen) ? -double(dist_[n2]) : kInf;
+  double secondUpwind(std::size_t n2) const {
+    const std::uint8_t f = flags_[n2];
+    if (f & kIgnored) return kInf;
+    if ((f & kNeg) == negBit_) return ((f & kKnown) || (reached_[n2] & kReached)) ? mag(n2) : kInf;
+    return (f & kKnown) ? -double(mag(n2)) : kInf;
   }
 
-  // Recomputes voxel n from its known neighbours.
+  // Usable as an upwind value: known, on this side.
+  bool usable(std::size_t n) const {
+    const std::uint8_t f = flags_[n];
+    if ((f & (kIgnored | kNeg)) != negBit_) return false;
+    return (f & kKnown) || (reached_[n] & kReached);
+  }
+
+  // Recomputes voxel n (unknown, this side) from its known neighbours.
   void update(std::size_t n) {
-    const std::uint8_t negBit = flag_[n] & kNeg;
-    const bool interior = flag_[n] & kInterior;
+    const bool interior = flags_[n] & kInterior;
     Int3 q{};
-    if (!interior) q = coords(n);
+    if (!interior) q = g_.point(n) - g_.box.lo;
     double m[3], c[3];
     int count = 0;
     for (int a = 0; a < 3; ++a) {
@@ -168,13 +155,13 @@ class Marcher {
       const bool hasLo = interior || q[a] > 0, hasHi = interior || q[a] + 1 < g_.size[a];
       float best = kInf;
       int dir = 0;
-      if (hasLo && usable(n - s, negBit)) best = dist_[n - s], dir = -1;
-      if (hasHi && usable(n + s, negBit) && dist_[n + s] < best) best = dist_[n + s], dir = +1;
+      if (hasLo && usable(n - s)) best = mag(n - s), dir = -1;
+      if (hasHi && usable(n + s) && mag(n + s) < best) best = mag(n + s), dir = +1;
       if (dir == 0) continue;
       m[count] = best;
       c[count] = 1.0;
       if (second_ && (interior || (q[a] + 2 * dir >= 0 && q[a] + 2 * dir < g_.size[a]))) {
-        const double b = secondUpwind(dir > 0 ? n + 2 * s : n - 2 * s, negBit);
+        const double b = secondUpwind(dir > 0 ? n + 2 * s : n - 2 * s);
         if (best - b >= kMonotoneRun) {
           m[count] = (4.0 * best - b) / 3.0;
           c[count] = 9.0 / 4.0;
@@ -184,43 +171,93 @@ class Marcher {
     }
     if (count == 0) return;
     const float u = float(solveEikonal(m, c, count));  // compared as stored, or a root rounded
-    if (u < dist_[n] && u < band_) {                    // up would be pushed again forever
-      if (dist_[n] == kInf) written_.push_back(std::uint32_t(n));
-      dist_[n] = u;
+    if (u < mag(n) && u < band_) {                      // up would be pushed again forever
+      v_[n] = negBit_ ? -u : u;
       push(n, u, current_);
     }
   }
 
   DenseGrid& g_;
+  float* v_;
+  const std::uint8_t* flags_;
+  std::uint8_t* reached_;
   float band_;
   bool second_;
+  std::uint8_t negBit_;
+  Buckets& buckets_;
   std::size_t stride_[3];
-  // Per-thread scratch, reused across calls: global operations march thousands of times, and
-  // fresh multi-megabyte arrays each time cost as much in page faults as the marching itself.
-  struct Scratch {
-    std::vector<float> dist;
-    std::vector<std::uint8_t> flag;
-    std::vector<std::vector<Entry>> buckets;
-    std::vector<std::uint32_t> seeds;    // sources inside the band
-    std::vector<std::uint32_t> written;  // unknown voxels that were in the band or were reached
-  };
-  static Scratch& scratch() {
-    thread_local Scratch s;
-    return s;
-  }
-  std::vector<float>& dist_ = scratch().dist;
-  std::vector<std::uint8_t>& flag_ = scratch().flag;
-  std::vector<std::vector<Entry>>& buckets_ = scratch().buckets;
-  std::vector<std::uint32_t>& seeds_ = scratch().seeds;
-  std::vector<std::uint32_t>& written_ = scratch().written;
   std::size_t current_ = 0;
   MarchStats stats_;
 };
 
+// Per-thread scratch, reused across calls: tools march thousands of times, and fresh
+// multi-megabyte arrays each time cost as much in page faults as the marching itself.
+struct Scratch {
+  std::vector<std::uint8_t> flags;    // fastMarch's classification
+  std::vector<std::uint8_t> reached;  // per voxel, kReached | kTaken (each side its own voxels)
+  std::vector<std::uint32_t> candidates;
+  std::vector<std::uint32_t> seeds[2];
+  Buckets buckets[2];
+};
+Scratch& scratch() {
+  thread_local Scratch s;
+  return s;
+}
+
 }  // namespace
 
-MarchStats fastMarch(DenseGrid& grid, const std::vector<MarchState>& state, float band, MarchOrder order) {
-  return Marcher(grid, state, band, order).run();
+MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& flags,
+                               std::span<const std::uint32_t> candidates, float band, MarchOrder order,
+                               ThreadPool& pool, ProgressShare progress) {
+  Scratch& s = scratch();
+  s.reached.resize(g.v.size());
+  std::memset(s.reached.data(), 0, s.reached.size());
+  for (auto& seeds : s.seeds) seeds.clear();
+  const std::uint8_t* f = flags.data();
+  for (const std::uint32_t i : candidates) {
+    if ((f[i] & (kKnown | kIgnored)) != kKnown || !(std::fabs(g.v[i]) < band)) continue;
+    if (SideMarcher::feeds(g, f, i)) s.seeds[(f[i] & kNeg) ? 1 : 0].push_back(i);
+  }
+  const bool second = order == MarchOrder::Second;
+  MarchStats side[2];
+  auto runSide = [&](std::size_t k) {
+    SideMarcher m(g, f, s.reached.data(), band, second, k ? kNeg : 0, s.buckets[k]);
+    side[k] = m.run(s.seeds[k], progress.part(0.5));
+  };
+  if (pool.threads() > 1 && !s.seeds[0].empty() && !s.seeds[1].empty()) {
+    pool.parallelFor(2, runSide);
+  } else {
+    runSide(0);
+    runSide(1);
+  }
+  return {side[0].accepted + side[1].accepted, side[0].retaken + side[1].retaken};
+}
+
+MarchStats fastMarch(DenseGrid& g, const std::vector<MarchState>& state, float band, MarchOrder order) {
+  Scratch& s = scratch();
+  s.flags.resize(g.v.size());
+  s.candidates.clear();
+  float* v = g.v.data();
+  std::uint8_t* flags = s.flags.data();
+  const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
+  const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);  // interior columns [xLo, xHi)
+  std::size_t row = 0;
+  for (int z = 0; z < sz; ++z)
+    for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
+      const std::uint8_t inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy ? kInterior : 0;
+      for (int x = 0; x < sx; ++x) {
+        const std::size_t i = row + std::size_t(x);
+        const std::uint8_t st = std::uint8_t(state[i]);
+        const bool neg = v[i] < 0;
+        flags[i] = std::uint8_t(st | (neg ? kNeg : 0) | (x >= xLo && x < xHi ? inner : 0));
+        if (state[i] == MarchState::Unknown) {
+          v[i] = neg ? -band : band;
+        } else if (state[i] == MarchState::Source && std::fabs(v[i]) < band) {
+          s.candidates.push_back(std::uint32_t(i));
+        }
+      }
+    }
+  return fastMarchClassified(g, s.flags, s.candidates, band, order, ThreadPool::serial());
 }
 
 }  // namespace marzipan

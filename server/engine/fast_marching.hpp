@@ -1,19 +1,25 @@
 // Redistancing by the Fast Marching Method on a dense grid (docs/method.md §5).
 //
 // Each side of the surface is marched outward from its Source voxels: a voxel's distance is
-// computed only from known voxels of its own sign. The priority queue is an exact bucket
-// queue: buckets of 1/32 vu are taken in order, and a voxel lowered after it was taken is
-// taken again, so the result is the same as that of a binary-heap marcher (up to float
-// rounding) at a fraction of the cost.
+// computed only from known voxels of its own sign (and the other side's sources, for the
+// second-order stencil). The two sides are therefore independent, and run at once on two
+// threads when the pool has them; the result does not depend on it. The priority queue is an
+// exact bucket queue: buckets of 1/32 vu are taken in order, and a voxel lowered after it was
+// taken is taken again, so the result is the same as that of a binary-heap marcher (up to
+// float rounding) at a fraction of the cost. The march works in place on the grid's values.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "dense_grid.hpp"
+#include "progress.hpp"
 
 namespace marzipan {
+
+class ThreadPool;
 
 enum class MarchState : std::uint8_t {
   Unknown = 0,   // to be computed; only the sign of its value is read
@@ -38,5 +44,29 @@ struct MarchStats {
 // On return every Unknown voxel holds sign * min(distance to its side's sources, band).
 MarchStats fastMarch(DenseGrid& grid, const std::vector<MarchState>& state, float band,
                      MarchOrder order = MarchOrder::Second);
+
+// The marcher's own per-voxel classification, for callers that classify a region themselves
+// (redistance.cpp) instead of filling a MarchState per voxel of the grid. The low bits are
+// MarchState's values.
+namespace march_flag {
+inline constexpr std::uint8_t kKnown = 1;     // a source: its value is kept and may be used
+inline constexpr std::uint8_t kNeg = 2;       // inside (value < 0)
+inline constexpr std::uint8_t kFrozen = 4;    // source or ignored: never recomputed
+inline constexpr std::uint8_t kIgnored = 8;
+inline constexpr std::uint8_t kInterior = 16; // at least 2 voxels from every face of the grid
+// Free for the caller's own bookkeeping; the marcher does not read them.
+inline constexpr std::uint8_t kCallerA = 32;
+inline constexpr std::uint8_t kCallerB = 64;
+}  // namespace march_flag
+
+// The march proper. flags: one march_flag byte per grid voxel. Every unknown voxel (no
+// kFrozen) must already hold +-band with its side's sign. candidates: every source of the
+// grid with |value| < band that may border an unknown voxel of its side, in increasing index
+// order (a superset is fine). Writes only unknown voxels. progress: checked every few buckets
+// of each side (throws Cancelled, leaving the grid part-marched) and advanced in step with the
+// buckets taken.
+MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>& flags,
+                               std::span<const std::uint32_t> candidates, float band, MarchOrder order,
+                               ThreadPool& pool, ProgressShare progress = {});
 
 }  // namespace marzipan

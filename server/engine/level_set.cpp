@@ -7,7 +7,10 @@
 #include "chunked_pass.hpp"
 #include "dense_grid.hpp"
 #include "errors.hpp"
+#include "progress.hpp"
 #include "redistance.hpp"
+#include "stencil.hpp"
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
@@ -42,6 +45,11 @@ Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::i
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
 constexpr int kStencilReach = 2;
+
+// A local tool checks the caller's Progress (progress.hpp) every so many band voxels, and
+// counts one unit per call: these shares of it per group of dabs, the march the rest.
+constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+constexpr double kGatherShare = 0.1, kCollectShare = 0.05, kEvolveShare = 0.15, kRedistanceShare = 0.6;
 
 float minmod(float a, float b) {
   if (a * b <= 0) return 0;
@@ -107,41 +115,63 @@ class SweptWindow {
   std::vector<PreparedDab> dabs_, memory_;
 };
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). region must lie kStencilReach inside the grid. Work is split in
-// fixed blocks, each voxel computed alone: thread-count independent.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            ThreadPool& pool) {
+// Scratch reused by the tools on each thread: fresh grids and lists each application cost
+// page faults (the kernel clearing pages) as large as the work itself.
+struct ToolScratch {
+  DenseGrid grid;
+  BandVoxels band;
   std::vector<std::uint32_t> list;
-  std::vector<float> speed;
+  std::vector<float> speed, next;
+  std::vector<Box> resetBoxes, normalizeBoxes;
+};
+ToolScratch& toolScratch() {
+  thread_local ToolScratch s;
+  return s;
+}
+
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
+// kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
+// thread-count independent. progress: checked per block, advanced per sub-step.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+  ToolScratch& s = toolScratch();
+  std::vector<std::uint32_t>& list = s.list;
+  std::vector<float>& speed = s.speed;
+  list.clear();
+  speed.clear();
   const std::size_t stride[3] = {1, g.sx, g.sxy};
-  for (int z = region.lo.z; z < region.hi.z; ++z)
-    for (int y = region.lo.y; y < region.hi.y; ++y) {
-      std::size_t i = g.index({region.lo.x, y, z});
-      for (int x = region.lo.x; x < region.hi.x; ++x, ++i) {
-        const float d = g.v[i];
-        if (!(std::fabs(d) < band)) continue;
-        double w = 1;
-        if (window) {
-          // Foot point by the central-difference gradient: the window is constant along normals.
-          Vec3 n{0.5 * (g.v[i + 1] - g.v[i - 1]), 0.5 * (g.v[i + g.sx] - g.v[i - g.sx]),
-                 0.5 * (g.v[i + g.sxy] - g.v[i - g.sxy])};
-          n = normalized(n);
-          const Vec3 q = Vec3{double(x), double(y), double(z)} - n * d;
-          w = window->at({x, y, z}, q);
-          if (w <= 0) continue;
-        }
-        list.push_back(std::uint32_t(i));
-        speed.push_back(float(m.speed * w));
-      }
+  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    const float d = g.v[i];
+    if (!(std::fabs(d) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p)) continue;
+    double w = 1;
+    if (window) {
+      // Foot point by the central-difference gradient: the window is constant along normals.
+      const Vec3 n = normalized(
+          GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
+      const Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * d;
+      w = window->at(p, q);
+      if (w <= 0) continue;
     }
-  if (list.empty()) return;
-  std::vector<float> next(list.size());
+    list.push_back(std::uint32_t(i));
+    speed.push_back(float(m.speed * w));
+  }
+  if (list.empty()) {
+    progress.advance(1);
+    return;
+  }
+  std::vector<float>& next = s.next;
+  next.resize(list.size());
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
   for (int step = 0; step < m.substeps; ++step) {
     const float* v = g.v.data();
     pool.parallelFor(blocks, [&](std::size_t b) {
+      progress.check();
       const std::size_t end = std::min(list.size(), (b + 1) * kBlock);
       for (std::size_t k = b * kBlock; k < end; ++k) {
         const std::size_t i = list[k];
@@ -156,6 +186,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
       }
     });
     for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    progress.advance(1.0 / m.substeps);
   }
 }
 
@@ -235,8 +266,12 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     groups.push_back(std::move(g));
   }
 
+  // Each group counts groupUnits of the caller's Progress (progress.hpp).
+  Progress* const progress = Progress::current();
+  const double groupUnits = 1.0 / double(groups.size());
   Edit total;
-  for (const Group& group : groups) {
+  auto applyGroup = [&](const Group& group) {
+    const ProgressShare share{progress, groupUnits};
     std::vector<PreparedDab> mine, remembered;
     for (const std::size_t i : group.dabs) mine.push_back(prepared[i]);
     for (const StrokeDab& d : memory) {
@@ -244,25 +279,48 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       if (!roi.intersect(group.box).empty()) remembered.push_back({d.center, d.weight, roi});
     }
     const Box region = group.box.grown(reach).intersect(vol.domain());
-    DenseGrid g = DenseGrid::gather(vol, group.box.grown(gatherMargin));
-    std::vector<std::uint8_t> mask(g.v.size(), 0);
-    auto mark = [&](const Box& b, std::uint8_t bits) {
-      for (int z = b.lo.z; z < b.hi.z; ++z)
-        for (int y = b.lo.y; y < b.hi.y; ++y) {
-          const std::size_t row = g.index({b.lo.x, y, z});
-          for (int x = 0; x < b.hi.x - b.lo.x; ++x) mask[row + std::size_t(x)] |= bits;
-        }
-    };
+    ToolScratch& scratch = toolScratch();
+    DenseGrid& g = scratch.grid;
+    g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare));
+    scratch.resetBoxes.clear();
+    scratch.normalizeBoxes.clear();
     for (const PreparedDab& d : mine) {
-      mark(d.roi.grown(reach).intersect(vol.domain()), kRedistanceReset);
-      mark(d.roi, kRedistanceNormalize);
+      scratch.resetBoxes.push_back(d.roi.grown(reach).intersect(vol.domain()));
+      scratch.normalizeBoxes.push_back(d.roi);
     }
+    scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
     const SweptWindow window(r, std::move(mine), std::move(remembered));
-    evolve(g, group.box, band, m, &window, pool);
+    evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare));
     RedistanceOptions options;
-    options.mask = &mask;
-    redistanceRegion(g, region, band, Outside::Source, options);
+    options.resetBoxes = scratch.resetBoxes;
+    options.normalizeBoxes = scratch.normalizeBoxes;
+    options.band = &scratch.band;
+    options.progress = share.part(kRedistanceShare);
+    redistanceRegion(g, region, band, Outside::Source, options, pool);
+    share.check();  // the last check: nothing below stops part way
     total.append(vol.scatter(region, g.v.data(), g.box), region);
+    share.advance(1 - kGatherShare - kCollectShare - kEvolveShare - kRedistanceShare);
+  };
+  // A huge ROI's scratch is not worth keeping for the next dab (also when this one throws).
+  struct TrimScratch {
+    ~TrimScratch() {
+      constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
+      if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
+    }
+  } trim;
+  if (groups.empty()) return total;
+  if (groups.size() == 1) {
+    applyGroup(groups.front());  // a throw comes before its scatter: vol is untouched
+    return total;
+  }
+  // A throw in a later group (cancelled, out of memory) puts back the groups already
+  // scattered, so that a failed call changes nothing (a Volume copy shares its bricks).
+  Volume before = vol;
+  try {
+    for (const Group& group : groups) applyGroup(group);
+  } catch (...) {
+    vol = std::move(before);
+    throw;
   }
   return total;
 }
@@ -279,8 +337,12 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
   e.region = vol.domain();
   e.changes = chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool& inner) {
     const Box region = g.box.grown(-kStencilReach);
-    evolve(g, region, band, m, nullptr, inner);
-    redistanceRegion(g, region, band, Outside::Ignored);
+    BandVoxels& voxels = toolScratch().band;
+    voxels.collect(g, region.grown(1), band);
+    evolve(g, region, band, m, nullptr, voxels, inner);
+    RedistanceOptions options;
+    options.band = &voxels;
+    redistanceRegion(g, region, band, Outside::Ignored, options, inner);
   });
   return e;
 }

@@ -13,7 +13,9 @@
 // Global tools use W = 1 over the whole volume. All tools: sign and units as in volume.hpp;
 // the volume is modified in place and the returned Edit holds the replaced bricks; invalid
 // parameters throw EngineError before anything changes. Results do not depend on the pool's
-// thread count.
+// thread count. Progress (progress.hpp): the calling thread's Progress is checked throughout
+// (a local tool every few milliseconds; a cancelled one throws Cancelled and changes nothing)
+// and advanced by one unit per local call, one per pass of a global one.
 #pragma once
 
 #include <span>

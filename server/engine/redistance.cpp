@@ -1,67 +1,194 @@
 #include "redistance.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "chunked_pass.hpp"
-#include "thread_pool.hpp"
 #include "volume.hpp"
 
 namespace marzipan {
 
-MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
-                            const RedistanceOptions& options) {
-  const Box r = region.intersect(g.box);
-  std::vector<MarchState> state(g.v.size(), outside == Outside::Source ? MarchState::Source : MarchState::Ignored);
-  std::vector<std::size_t> kept;
-  const float* values = g.v.data();
-  MarchState* states = state.data();
-  const int exactSide = options.exactSide;
-  const std::uint8_t* mask = options.mask ? options.mask->data() : nullptr;
-  // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
-  auto resetOrExact = [exactSide](float v) {
-    return exactSide != 0 && (v < 0) == (exactSide < 0) ? MarchState::Source : MarchState::Unknown;
-  };
-  for (int z = r.lo.z; z < r.hi.z; ++z)
-    for (int y = r.lo.y; y < r.hi.y; ++y) {
-      std::size_t i = g.index({r.lo.x, y, z});
-      for (int x = r.lo.x; x < r.hi.x; ++x, ++i) {
-        if (mask && !(mask[i] & kRedistanceReset)) continue;  // stays a source
-        const float v = values[i];
-        // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
-        if (std::fabs(v) >= 1.75f) {
-          states[i] = resetOrExact(v);
-          continue;
-        }
-        bool adjacent = v == 0;  // on the surface itself (grid-aligned faces, edges, corners)
-        const bool neg = v < 0;
-        const Int3 p{x, y, z};
-        for (int a = 0; a < 3 && !adjacent; ++a) {
-          const std::size_t s = g.stride(a);
-          if (p[a] > g.box.lo[a] && (values[i - s] < 0) != neg) adjacent = true;
-          if (p[a] + 1 < g.box.hi[a] && (values[i + s] < 0) != neg) adjacent = true;
-        }
-        if (resetOrExact(v) == MarchState::Source) {
-          states[i] = MarchState::Source;
-        } else if (adjacent) {
-          states[i] = MarchState::Source;
-          kept.push_back(i);
-        } else {
-          states[i] = MarchState::Unknown;
+namespace {
+
+using namespace march_flag;
+constexpr std::uint8_t kReset = kCallerA;      // in the region and to be reset unless kept
+constexpr std::uint8_t kNormalize = kCallerB;  // a kept voxel here is normalized
+// The caller's progress: checked per z-slice of the dense passes and every so many band
+// voxels; the classification counts as this share of the call, the march as the rest.
+constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+constexpr double kSetupShare = 0.3;
+
+// Calls fn(first, end) for the x-runs [first, end) of row (y, z) covered by the union of
+// `boxes`, each run once, in increasing x.
+template <class F>
+void forEachRun(std::span<const Box> boxes, int y, int z, std::vector<std::pair<int, int>>& runs, F&& fn) {
+  runs.clear();
+  for (const Box& b : boxes)
+    if (y >= b.lo.y && y < b.hi.y && z >= b.lo.z && z < b.hi.z && b.lo.x < b.hi.x) runs.push_back({b.lo.x, b.hi.x});
+  if (runs.size() > 1) std::sort(runs.begin(), runs.end());
+  for (std::size_t k = 0; k < runs.size();) {
+    int lo = runs[k].first, hi = runs[k].second;
+    for (++k; k < runs.size() && runs[k].first <= hi; ++k) hi = std::max(hi, runs[k].second);
+    fn(lo, hi);
+  }
+}
+
+struct Scratch {
+  std::vector<std::uint8_t> flags;
+  BandVoxels band;
+  std::vector<std::size_t> kept;  // positions in the band list
+  std::vector<float> scaled;
+  std::vector<std::uint32_t> farUnknown;
+  std::vector<Box> boxes;
+  std::vector<std::pair<int, int>> runs;
+};
+Scratch& scratch() {
+  thread_local Scratch s;
+  return s;
+}
+
+}  // namespace
+
+void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
+  box = b.intersect(g.box);
+  index.clear();
+  point.clear();
+  for (int z = box.lo.z; z < box.hi.z; ++z) {
+    progress.check();
+    for (int y = box.lo.y; y < box.hi.y; ++y) {
+      const std::size_t row = g.index({box.lo.x, y, z});
+      const float* v = g.v.data() + row;
+      const int n = box.hi.x - box.lo.x;
+      // Far voxels are the rule: test 16 at a time without a branch, then visit the others.
+      int x = 0;
+      for (; x + 16 <= n; x += 16) {
+        std::uint32_t near = 0;
+        for (int k = 0; k < 16; ++k) near |= std::uint32_t(std::fabs(v[x + k]) != band) << k;
+        while (near) {
+          const int k = __builtin_ctz(near);
+          near &= near - 1;
+          index.push_back(std::uint32_t(row + std::size_t(x + k)));
+          point.push_back({box.lo.x + x + k, y, z});
         }
       }
+      for (; x < n; ++x)
+        if (std::fabs(v[x]) != band) {
+          index.push_back(std::uint32_t(row + std::size_t(x)));
+          point.push_back({box.lo.x + x, y, z});
+        }
     }
+  }
+  progress.advance(1);
+}
+
+MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
+                            const RedistanceOptions& options, ThreadPool& pool) {
+  const ProgressShare& progress = options.progress;
+  const Box r = region.intersect(g.box);
+  if (r.empty()) return {};
+  Scratch& s = scratch();
+  s.flags.resize(g.v.size());
+  std::uint8_t* flags = s.flags.data();
+  float* v = g.v.data();
+
+  // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
+  const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
+  {
+    const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
+    const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
+    std::size_t row = 0;
+    for (int z = 0; z < sz; ++z) {
+      progress.check();
+      for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
+        std::uint8_t* f = flags + row;
+        const float* rv = v + row;
+        for (int x = 0; x < sx; ++x) f[x] = std::uint8_t(base | (rv[x] < 0 ? kNeg : 0));
+        if (z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy)
+          for (int x = xLo; x < xHi; ++x) f[x] |= kInterior;
+      }
+    }
+  }
+
+  // The region's voxels to reset, and where kept voxels are normalized.
+  auto clipped = [&](std::span<const Box> boxes) {
+    s.boxes.clear();
+    for (const Box& b : boxes) s.boxes.push_back(b.intersect(r));
+    if (boxes.empty()) s.boxes.push_back(r);
+    return std::span<const Box>(s.boxes);
+  };
+  const int exactSide = options.exactSide;
+  const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
+  {
+    const std::span<const Box> reset = clipped(options.resetBoxes);
+    for (int z = r.lo.z; z < r.hi.z; ++z) {
+      progress.check();
+      for (int y = r.lo.y; y < r.hi.y; ++y)
+        forEachRun(reset, y, z, s.runs, [&](int lo, int hi) {
+          std::uint8_t* f = flags + g.index({lo, y, z});
+          for (int x = 0; x < hi - lo; ++x) {
+            const std::uint8_t keep = f[x] & (kNeg | kInterior);
+            // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
+            const bool exact = exactSide != 0 && (keep & kNeg) == exactNeg;
+            f[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
+          }
+        });
+    }
+  }
   if (options.normalizeKept) {
-    if (options.mask)
-      std::erase_if(kept, [&](std::size_t i) { return !((*options.mask)[i] & kRedistanceNormalize); });
-    std::vector<float> scaled(kept.size());
-    for (std::size_t k = 0; k < kept.size(); ++k) {
-      const std::size_t i = kept[k];
-      const Int3 p = g.point(i);
+    const std::span<const Box> normalize = clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1}
+                                                                                : options.normalizeBoxes);
+    for (int z = r.lo.z; z < r.hi.z; ++z) {
+      progress.check();
+      for (int y = r.lo.y; y < r.hi.y; ++y)
+        forEachRun(normalize, y, z, s.runs, [&](int lo, int hi) {
+          std::uint8_t* f = flags + g.index({lo, y, z});
+          for (int x = 0; x < hi - lo; ++x) f[x] |= kNormalize;
+        });
+    }
+  }
+
+  // Only voxels of the band list can be kept, or need a value written before the march.
+  const BandVoxels* list = options.band;
+  if (!list || !(list->box == r.grown(1).intersect(g.box))) {
+    s.band.collect(g, r.grown(1), band, {progress.progress, 0});
+    list = &s.band;
+  }
+  s.kept.clear();
+  s.farUnknown.clear();
+  for (std::size_t k = 0; k < list->index.size(); ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::uint32_t i = list->index[k];
+    const std::uint8_t f = flags[i];
+    if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+    const float value = v[i];
+    // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
+    bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
+    if (!adjacent && std::fabs(value) < 1.75f) {
+      const bool neg = value < 0;
+      const Int3 p = list->point[k];
+      for (int a = 0; a < 3 && !adjacent; ++a) {
+        const std::size_t st = g.stride(a);
+        if ((f & kInterior) || p[a] > g.box.lo[a]) adjacent = (v[i - st] < 0) != neg;
+        if (!adjacent && ((f & kInterior) || p[a] + 1 < g.box.hi[a])) adjacent = (v[i + st] < 0) != neg;
+      }
+    }
+    if (adjacent) {
+      flags[i] = std::uint8_t(f | kKnown | kFrozen);
+      if (f & kNormalize) s.kept.push_back(k);
+    } else {
+      s.farUnknown.push_back(i);
+    }
+  }
+  if (options.normalizeKept) {
+    s.scaled.resize(s.kept.size());
+    for (std::size_t j = 0; j < s.kept.size(); ++j) {
+      const std::size_t i = list->index[s.kept[j]];
+      const Int3 p = list->point[s.kept[j]];
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
-        const std::size_t s = g.stride(a);
-        const double lo = p[a] > g.box.lo[a] ? g.v[i - s] : g.v[i];
-        const double hi = p[a] + 1 < g.box.hi[a] ? g.v[i + s] : g.v[i];
+        const std::size_t st = g.stride(a);
+        const double lo = p[a] > g.box.lo[a] ? v[i - st] : v[i];
+        const double hi = p[a] + 1 < g.box.hi[a] ? v[i + st] : v[i];
         const double span = (p[a] > g.box.lo[a] ? 1 : 0) + (p[a] + 1 < g.box.hi[a] ? 1 : 0);
         const double d = span > 0 ? (hi - lo) / span : 0;
         g2 += d * d;
@@ -69,20 +196,24 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       // The surface crosses an edge to an opposite-sign neighbour within t = v / (v - v_n) vu,
       // so no distance exceeds the nearest such t; this bounds the result where the gradient
       // is small (a kink between two surfaces), where v / |grad| alone would explode.
-      const double v = g.v[i];
+      const double value = v[i];
       double bound = 1.0;
       for (int a = 0; a < 3; ++a) {
-        const std::size_t s = g.stride(a);
-        if (p[a] > g.box.lo[a] && (g.v[i - s] < 0) != (v < 0)) bound = std::min(bound, v / (v - g.v[i - s]));
-        if (p[a] + 1 < g.box.hi[a] && (g.v[i + s] < 0) != (v < 0)) bound = std::min(bound, v / (v - g.v[i + s]));
+        const std::size_t st = g.stride(a);
+        if (p[a] > g.box.lo[a] && (v[i - st] < 0) != (value < 0)) bound = std::min(bound, value / (value - v[i - st]));
+        if (p[a] + 1 < g.box.hi[a] && (v[i + st] < 0) != (value < 0))
+          bound = std::min(bound, value / (value - v[i + st]));
       }
       const double len = std::sqrt(g2);
-      const double mag = len > 1e-6 ? std::min(std::fabs(v) / len, bound) : bound;
-      scaled[k] = float(std::copysign(mag, v));
+      const double mag = len > 1e-6 ? std::min(std::fabs(value) / len, bound) : bound;
+      s.scaled[j] = float(std::copysign(mag, value));
     }
-    for (std::size_t k = 0; k < kept.size(); ++k) g.v[kept[k]] = scaled[k];
+    for (std::size_t j = 0; j < s.kept.size(); ++j) v[list->index[s.kept[j]]] = s.scaled[j];
   }
-  return fastMarch(g, state, band, options.order);
+  // The marcher starts every unknown voxel at +-band; those off the list are there already.
+  for (const std::uint32_t i : s.farUnknown) v[i] = v[i] < 0 ? -band : band;
+  progress.advance(kSetupShare);
+  return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));
 }
 
 void redistanceVolume(Volume& vol, ThreadPool& pool) {

@@ -3,12 +3,14 @@
 // kept ones. Resetting everything is what keeps vanished parts from leaving stray voxels.
 #pragma once
 
+#include <span>
+
 #include "dense_grid.hpp"
 #include "fast_marching.hpp"
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
-class ThreadPool;
 class Volume;
 
 enum class Outside {
@@ -16,8 +18,17 @@ enum class Outside {
   Ignored,  // they are a stale ghost layer (one chunk of a global operation)
 };
 
-inline constexpr std::uint8_t kRedistanceReset = 1;
-inline constexpr std::uint8_t kRedistanceNormalize = 2;
+// The voxels of a box of a grid whose value is not exactly +-band, in index order, with their
+// positions (volume coordinates). Every other voxel of the box lies at least band from the
+// surface: the work of a tool grows with this list (the band), not with its box.
+struct BandVoxels {
+  Box box;
+  std::vector<std::uint32_t> index;
+  std::vector<Int3> point;
+
+  // progress: checked per z-slice, advanced by its whole share at the end.
+  void collect(const DenseGrid& grid, const Box& box, float band, const ProgressShare& progress = {});
+};
 
 // How to treat the voxels of the region before marching.
 struct RedistanceOptions {
@@ -26,22 +37,32 @@ struct RedistanceOptions {
   // leave in kept voxels do not accumulate. Without it, the mean curvature flow of a sphere
   // runs 1.5% fast after a few hundred applications (R^2 = R0^2 - 4.06 t instead of 4 t).
   bool normalizeKept = true;
-  // When set: one byte per grid voxel (same index), kRedistance* bits. Voxels of the region
-  // without kRedistanceReset are sources like those outside it, and only kept voxels with
-  // kRedistanceNormalize are normalized. A local tool resets the band around its ROIs (a union
-  // of boxes) and normalizes only where it moved the surface, so that the zero set around it
-  // stays exactly where it was.
-  const std::vector<std::uint8_t>* mask = nullptr;
+  // When not empty: only the region's voxels inside one of these boxes are reset; the others
+  // are sources like those outside it. A local tool resets the band around its ROIs.
+  std::span<const Box> resetBoxes;
+  // When not empty: only kept voxels inside one of these boxes are normalized. A local tool
+  // normalizes only where it moved the surface, so that the zero set around it stays exactly
+  // where it was.
+  std::span<const Box> normalizeBoxes;
   // +1 / -1: the values on the outside / inside are already exact distances (a union's
   // outside, an intersection's inside) and are kept; only the other side is marched.
   int exactSide = 0;
   MarchOrder order = MarchOrder::Second;
+  // When set: the band voxels of region grown by 1 (clipped to the grid), as collected
+  // before the caller changed some of them (it may only have changed voxels of the list).
+  // Saves the scan of the box.
+  const BandVoxels* band = nullptr;
+  // The caller's progress (progress.hpp): checked throughout (a cancelled call throws
+  // Cancelled and leaves the grid part-redistanced), advanced by its share as the call goes.
+  ProgressShare progress;
 };
 
-// Redistances `region` (must lie in grid.box) of the grid in place. A voxel is adjacent to
+// Redistances `region` (clipped to grid.box) of the grid in place. A voxel is adjacent to
 // the zero set when it is 0 or one of its 6 neighbours has the other sign (0 counts as outside).
+// The two sides of the surface are marched on two threads when the pool has them (the same
+// result either way).
 MarchStats redistanceRegion(DenseGrid& grid, const Box& region, float band, Outside outside,
-                            const RedistanceOptions& options = {});
+                            const RedistanceOptions& options = {}, ThreadPool& pool = ThreadPool::serial());
 
 // Turns an approximate signed distance (right sign, right zero set, |grad| not 1) into a
 // true distance field over the whole volume: kept voxels are scaled by 1/|grad| first.

@@ -21,10 +21,15 @@ Brush engineBrush(protocol::BrushTool tool);
 // What an op will cost before it runs, for the server's per-request budget and progress.
 // voxels: voxels processed, an upper estimate that goes with the time it takes: a local
 // tool's region (the worst place: clipped to the domain, grown by the band), or for a
-// whole-volume op the domain's voxels times its passes (0 for a volume without stored bricks).
-// About 1e7 voxels per second either way on a 2-core VM (2026-11-24).
-// passes: the chunked whole-volume passes it makes (progress units, engine/progress.hpp); 0
-// for a local op.
+// whole-volume op the domain's voxels times its passes (0 for a volume without stored
+// bricks). Every kind runs at about the same rate per voxel so counted: measured 2026-11-24
+// on this 2-core VM (brushes serial as the server runs them, the others on 2 threads), quiet:
+// add_blob/smooth/sharpen radius 140 on 256^3 0.64-0.75 s (2.2-2.6e7 voxels/s), add_blob
+// radius 300 on the 512^3 sphere 4.0-5.2 s (2.6-3.3e7), csg_add radius 120 on 256^3 0.61 s
+// (2.5e7) and radius 250 on 512^3 4.3-4.7 s (2.9e7), a smoothing pass of the 192^3 pig
+// 0.26 s (2.7e7); busy (load 10) about 1e7 voxels per second.
+// passes: progress units (engine/progress.hpp): the chunked whole-volume passes it makes, or
+// 1 for a local op (the engine counts its phases in fractions of it).
 struct OpCost {
   double voxels = 0;
   double passes = 0;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <functional>
 #include <string>
 #include <vector>
@@ -20,20 +21,32 @@ struct Options {
 struct Timing {
   double median_ms = 0, min_ms = 0, max_ms = 0;
   int reps = 0;
+  // The median CPU time of the process over the reps, all threads together: on a machine shared
+  // with other work it stays near the quiet figure when the wall-clock time does not.
+  double cpu_median_ms = 0;
 };
+
+inline double processCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+}
 
 // Runs setup() then f() `reps` times; only f is timed.
 template <class Setup, class F>
 Timing measure(int reps, Setup&& setup, F&& f) {
-  std::vector<double> ms;
+  std::vector<double> ms, cpu;
   for (int r = 0; r < reps; ++r) {
     setup();
+    const double c0 = processCpuMs();
     const auto t0 = std::chrono::steady_clock::now();
     f();
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    cpu.push_back(processCpuMs() - c0);
   }
   std::sort(ms.begin(), ms.end());
-  return {ms[ms.size() / 2], ms.front(), ms.back(), reps};
+  std::sort(cpu.begin(), cpu.end());
+  return {ms[ms.size() / 2], ms.front(), ms.back(), reps, cpu[cpu.size() / 2]};
 }
 template <class F>
 Timing measure(int reps, F&& f) {

@@ -125,7 +125,8 @@ MARZIPAN_BENCH("stroke16") {
   const Timing one = measure(reps, [&] { place(1); }, [&] { applyStroke(v, st, dabs, {}, pool); });
   const Timing sixteen = measure(reps, [&] { place(16); }, [&] { applyStroke(v, st, dabs, {}, pool); });
   emit("stroke16", opt.threads, sixteen,
-       {{"radius", r}, {"dabs", 16}, {"one_dab_ms", one.median_ms}, {"ratio_to_one_dab", sixteen.median_ms / one.median_ms}});
+       {{"radius", r}, {"dabs", 16}, {"one_dab_ms", one.median_ms}, {"ratio_to_one_dab", sixteen.median_ms / one.median_ms},
+        {"one_dab_cpu_ms", one.cpu_median_ms}, {"cpu_ratio_to_one_dab", sixteen.cpu_median_ms / one.cpu_median_ms}});
 }
 
 MARZIPAN_BENCH("mcf_global") {

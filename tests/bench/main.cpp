@@ -28,6 +28,7 @@ void emit(const std::string& scenario, int threads, const Timing& t, nlohmann::o
   j["min_ms"] = t.min_ms;
   j["max_ms"] = t.max_ms;
   j["reps"] = t.reps;
+  j["cpu_median_ms"] = t.cpu_median_ms;
   for (auto& [k, v] : extra.items()) j[k] = v;
   std::cout << j.dump() << std::endl;
 }
