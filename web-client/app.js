@@ -7,6 +7,7 @@
 
 import { FRAME_HEADER_BYTES } from "/protocol/js/frames.js";
 import { decodeSplats } from "/protocol/js/splats.js";
+import { gridBoxEdges, nearGridEdge } from "./math/grid-edge.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
 import { RpcError } from "./net/rpc-error.js";
 import { FrameFeed } from "./net/frame-feed.js";
@@ -199,7 +200,17 @@ export class App {
       this.#cameraChanged();
     }
     this.status.splats(this.store.pointCount, this.store.bricks.size, this.store.revision);
+    this.#showGridEdge();
     this.sculpt.refresh();
+  }
+
+  // The grid's box and a note while the model comes within GRID_NEAR_VU of a face.
+  #showGridEdge() {
+    const size = this.session.info && this.session.info.size;
+    const near = Boolean(size) && nearGridEdge(this.store.bricks.values(), size);
+    this.renderer.gridBox = near ? gridBoxEdges(size) : [];
+    this.canvas.dataset.gridEdge = near ? "near" : "clear";
+    document.getElementById("grid-note").hidden = !near;
   }
 
   // Frames the model (its splats), or the whole domain when it has none.

@@ -636,3 +636,74 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   assert.deepEqual(errors, [], "no script errors");
   await page.close();
 });
+
+// The farthest splat from `center`, vu: how far a stroke raised a sphere's surface.
+const reach = (page, center) =>
+  page.evaluate((c) => {
+    let far = 0;
+    for (const b of window.marzipan.store.bricks.values())
+      for (let i = 0; i < 3 * b.count; i += 3) far = Math.max(far, Math.hypot(b.positions[i] - c[0], b.positions[i + 1] - c[1], b.positions[i + 2] - c[2]));
+    return far;
+  }, center);
+
+// A scrub: the pointer goes back and forth `passes` times over `half` px either side of (x, y).
+async function scrub(page, [x, y], half, passes) {
+  await page.mouse.move(x - half, y);
+  await page.mouse.down();
+  for (let p = 0; p < passes; ++p)
+    for (let i = 1; i <= 8; ++i) await page.mouse.move(x + (p % 2 ? 1 : -1) * half * (1 - (2 * i) / 8), y);
+  await page.mouse.up();
+}
+
+test("a stroke's dabs land on the surface as it was at the press: scrubbing one place cannot grow a tentacle", { timeout: 240000 }, async (t) => {
+  const errors = [];
+  const page = await browser.context.newPage();
+  collectErrors(page, errors);
+  const sent = [];
+  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  await createSession(page, 128, "sphere"); // radius 0.35 * 128 = 44.8 vu about the grid's middle
+  const center = [63.5, 63.5, 63.5];
+  const r0 = await reach(page, center);
+  assert.ok(Math.abs(r0 - 44.8) < 1, `the sphere's splats reach ${r0} vu`);
+  const [cx, cy] = await canvasCenter(page);
+  await page.locator("#radius").fill("8");
+  const growth = {};
+  for (const strength of [0.25, 0.5, 0.75, 1]) {
+    await page.locator("#strength").fill(String(strength));
+    const from = sent.length;
+    const r = await revision(page);
+    await scrub(page, [cx, cy], 20, 12);
+    await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, r);
+    await settled(page);
+    growth[strength] = (await reach(page, center)) - r0;
+    const dabs = sent.slice(from).filter((m) => m.method === "stroke.dabs").flatMap((m) => m.params.dabs);
+    assert.ok(dabs.length > 10 && dabs.every((d) => d.center && !d.ray), `the dabs go as centres picked on the client: ${dabs.length}, ${JSON.stringify(dabs.slice(0, 2))}`);
+    // every dab lies on the sphere as it was before the stroke, never on the stroke's own growth
+    const off = Math.max(...dabs.map((d) => Math.abs(Math.hypot(...d.center.map((v, k) => v - center[k])) - 44.8)));
+    assert.ok(off < 1, `dabs within ${off.toFixed(2)} vu of the starting surface`);
+    if (strength === 1) await shot(page, "10-scrub-strength-1");
+    const rStroke = await revision(page);
+    await page.keyboard.press("Control+z");
+    await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, rStroke);
+    await settled(page);
+  }
+  t.diagnostic(`growth of a 12-pass scrub at radius 8 per strength (vu): ${JSON.stringify(growth)}`);
+  writeFileSync(join(artifacts, "stroke-growth.json"), `${JSON.stringify({ radius: 8, passes: 12, growth }, null, 2)}\n`);
+  // A brush's window ends one radius from its centre, and every centre is on the starting
+  // surface: the stroke rises at most the radius (plus a splat's reach), however long it scrubs.
+  for (const [s, g] of Object.entries(growth)) assert.ok(g > 0.5 && g <= 8 + 1, `strength ${s}: growth ${g} vu within (0.5, radius + 1]`);
+  assert.ok(growth[1] >= growth[0.25], "a stronger stroke rises at least as much");
+
+  // Near the grid's faces the box shows, with a note; away from them neither does.
+  assert.equal(await data(page, "view", "gridEdge"), "clear");
+  assert.equal(await page.locator("#grid-note").isVisible(), false);
+  const r = await revision(page);
+  await page.evaluate(() => window.marzipan.session.applyTool({ tool: "csg_add", shape: "sphere", radius: 12, center: [118, 63.5, 63.5] }));
+  await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, r);
+  await settled(page);
+  assert.equal(await data(page, "view", "gridEdge"), "near");
+  assert.equal(await page.locator("#grid-note").isVisible(), true, "the note says the model nears the grid's edge");
+  await shot(page, "11-grid-edge");
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});
