@@ -95,19 +95,6 @@ function changedPixels(a, b, threshold = 24) {
   return n;
 }
 
-// Where a ray {origin, direction} first meets a sphere, or null.
-function sphereHit({ origin, direction }, center, radius) {
-  const len = Math.hypot(...direction);
-  const d = direction.map((v) => v / len);
-  const o = origin.map((v, i) => v - center[i]);
-  const b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
-  const c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - radius * radius;
-  const disc = b * b - c;
-  if (disc < 0) return null;
-  const t = -b - Math.sqrt(disc);
-  return origin.map((v, i) => v + t * d[i]);
-}
-
 // The canvas's centre in page coordinates.
 async function canvasCenter(page) {
   const box = await page.locator("#view").boundingBox();
@@ -201,17 +188,16 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.deepEqual(begin.params, { tool: "add_blob", radius: 12, strength: 1, accumulate: true });
   const dabs = sentSince(strokeFrom, "stroke.dabs").flatMap((m) => m.params.dabs);
   assert.equal(sentSince(strokeFrom, "stroke.end").length, 1, "one stroke.end");
-  // Each dab is a pick ray; where it meets the starting sphere (centre 63.5, radius 44.8) the
-  // dabs must lie DAB_SPACING * radius = 3 vu apart along the path.
-  const hits = dabs.map((d) => sphereHit(d.ray, [63.5, 63.5, 63.5], 0.35 * 128));
-  assert.ok(hits.every(Boolean), "every dab ray points at the model");
+  // Each dab is a centre picked on the sphere as it was at the press (centre 63.5, radius
+  // 44.8), DAB_SPACING * radius = 3 vu apart along the path.
+  const hits = dabs.map((d) => d.center);
+  assert.ok(hits.every((h) => h && Math.abs(Math.hypot(...h.map((v) => v - 63.5)) - 0.35 * 128) < 1), "every dab lies on the starting sphere");
   const gaps = hits.slice(1).map((h, i) => Math.hypot(h[0] - hits[i][0], h[1] - hits[i][1], h[2] - hits[i][2]));
   gaps.sort((a, b) => a - b);
   t.diagnostic(`${dabs.length} dabs, median gap ${gaps[gaps.length >> 1].toFixed(2)} vu`);
   assert.ok(dabs.length >= 8, `a drag across the sphere makes dabs (${dabs.length})`);
-  // Measured on the starting sphere while the dabs land on the growing bulge, the gaps come out
-  // a little short of 3 vu; one dab per pointer event would be about 1 vu apart.
-  assert.ok(gaps[gaps.length >> 1] > 2.2 && gaps[gaps.length >> 1] < 3.6, `dabs are 3 vu apart (median ${gaps[gaps.length >> 1]})`);
+  // one dab per pointer event would be about 1 vu apart
+  assert.ok(gaps[gaps.length >> 1] > 2.6 && gaps[gaps.length >> 1] < 3.4, `dabs are 3 vu apart (median ${gaps[gaps.length >> 1]})`);
   assert.ok(dabs.every((d) => d.pressure === 1), "a mouse presses with 1");
   const r1 = await revision(page);
   const d1 = await digest(page);
@@ -386,6 +372,28 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(glb.readUInt32LE(8), glb.length);
   const gltf = JSON.parse(glb.toString("utf8", 20, 20 + glb.readUInt32LE(12)));
   assert.equal(gltf.accessors[gltf.meshes[0].primitives[0].indices].count, 3 * triangles);
+  // At 0.1 mm per vu the same STL comes out in millimetres, every coordinate a tenth, and the
+  // GLB in metres (glTF's unit).
+  await page.locator("#mesh-scale").fill("0.1");
+  assert.equal(await text(page, "mesh-scale-grid"), "The grid is 12.8 × 12.8 × 12.8 mm.");
+  const [mmDownload] = await Promise.all([page.waitForEvent("download"), page.click('[data-export="stl"]')]);
+  const mmPath = join(artifacts, "export-0.1mm.stl");
+  await mmDownload.saveAs(mmPath);
+  const [vuStl, mmStl] = [readFileSync(stlPath), readFileSync(mmPath)];
+  assert.equal(mmStl.length, vuStl.length, "the same triangles");
+  for (let at = 84; at < vuStl.length; at += 50)
+    for (let k = 3; k < 12; ++k) assert.equal(mmStl.readFloatLE(at + 4 * k), Math.fround(vuStl.readFloatLE(at + 4 * k) * 0.1));
+  assert.match(await page.locator(".message", { hasText: "STL at 0.1 mm per vu" }).last().textContent(), /The model measures [\d.]+ × [\d.]+ × [\d.]+ mm/);
+  const [mmGlbDownload] = await Promise.all([page.waitForEvent("download"), page.click('[data-export="glb"]')]);
+  const mmGlbPath = join(artifacts, "export-0.1mm.glb");
+  await mmGlbDownload.saveAs(mmGlbPath);
+  const mmGlb = readFileSync(mmGlbPath);
+  const mmGltf = JSON.parse(mmGlb.toString("utf8", 20, 20 + mmGlb.readUInt32LE(12)));
+  const [pos, mmPos] = [gltf, mmGltf].map((g) => g.accessors[g.meshes[0].primitives[0].attributes.POSITION]);
+  // at the default 1 mm per vu a GLB's positions are vu / 1000 m; at 0.1 mm per vu a tenth of that
+  mmPos.max.forEach((v, k) => assert.ok(Math.abs(v / pos.max[k] - 0.1) < 1e-6, `GLB positions in metres: ${mmPos.max} vs ${pos.max}`));
+  assert.ok(pos.max.every((v) => v > 0.09 && v < 0.128), `the sphere's top corner in metres at 1 mm per vu: ${pos.max}`);
+  await page.locator("#mesh-scale").fill("1");
 
   // Brush size from the keyboard and from an F+drag, fast or slow.
   await page.locator("#view").focus();
@@ -617,7 +625,7 @@ test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000
   await page.close();
 });
 
-test("a whole-volume smoothing fills the progress bar and Cancel stops it, changing nothing", { timeout: 120000 }, async () => {
+test("a whole-volume smoothing fills the progress bar and Cancel stops it, changing nothing; the pig's front and the orthographic view", { timeout: 180000 }, async (t) => {
   const errors = [];
   const page = await browser.context.newPage();
   collectErrors(page, errors);
@@ -633,7 +641,33 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   const history = await page.evaluate(() => window.marzipan.messages.history);
   assert.ok(history.some((m) => m.kind === "error" && m.text.includes("was cancelled") && m.detail.includes("-32016")), JSON.stringify(history));
   assert.equal(await data(page, "revision", "revision"), "0");
+
+  // The pig faces +x: its link says so, and Front (key 1) looks at its face.
+  assert.match(await page.evaluate(() => location.hash), /&front=%2Bx$/, "the link carries the pig's front");
+  await page.locator("#view").focus();
+  await page.keyboard.press("1");
+  for (const close of await page.locator('.message button[aria-label="Dismiss"]').all()) await close.click();
+  const back = await page.evaluate(() => window.marzipan.camera.backward);
+  assert.ok(Math.abs(back[0] - 1) < 1e-9, `Front looks at the pig from +x: ${back}`);
+  await page.mouse.move(5, 5);
+  // Orthographic (key 5): the same framing through a 1.2 degree lens, in both views.
+  const perspective = await shot(page, "12-pig-front");
+  await page.keyboard.press("5");
+  assert.equal(await page.locator("#orthographic").isChecked(), true);
+  assert.equal(await page.evaluate(() => window.marzipan.camera.toProtocol().fov), 1.2);
+  await page.waitForTimeout(300);
+  const ortho = await shot(page, "13-pig-front-orthographic");
+  const [pf, of] = [modelFraction(perspective), modelFraction(ortho)];
+  t.diagnostic(`model pixels: ${pf.toFixed(3)} perspective, ${of.toFixed(3)} orthographic`);
+  assert.ok(Math.abs(of / pf - 1) < 0.2, "about the same framing");
+  assert.ok(changedPixels(perspective, ortho) > 500, "but a different projection");
+  await page.click('label:has(input[value="frames"])');
+  await page.waitForFunction(() => Number(document.getElementById("stat-frame").dataset.received || 0) > 0, null, { timeout: 30000 });
+  await page.waitForTimeout(600);
+  const frame = await shot(page, "14-pig-front-orthographic-frame");
+  assert.ok(Math.abs(modelFraction(frame) / of - 1) < 0.1, `the server's frame frames it alike (${modelFraction(frame)} vs ${of})`);
   assert.deepEqual(errors, [], "no script errors");
+  assert.deepEqual(await page.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error" && !m.text.includes("cancelled")).map((m) => m.text)), []);
   await page.close();
 });
 

@@ -49,7 +49,7 @@ function scaleObj(bytes, s) {
     const parts = line.trim().split(/\s+/);
     return ["v", ...parts.slice(1).map((v, i) => (i < 3 ? formatFloat(Number(v) * s) : v))].join(" ");
   });
-  return new TextEncoder().encode(`# units: mm (${formatFloat(s)} mm per vu)\n${scaled.join("\n")}`);
+  return new TextEncoder().encode(`# units: mm (${s} mm per vu)\n${scaled.join("\n")}`);
 }
 
 const PLY_SIZES = { char: 1, uchar: 1, int8: 1, uint8: 1, short: 2, ushort: 2, int16: 2, uint16: 2, int: 4, uint: 4, int32: 4, uint32: 4, float: 4, float32: 4, double: 8, float64: 8 };
@@ -60,7 +60,7 @@ function scalePly(bytes, s) {
   const head = new TextDecoder("latin1").decode(bytes.subarray(0, Math.min(bytes.length, 4096)));
   const end = head.indexOf("end_header\n");
   if (!head.startsWith("ply\n") || end < 0) throw new Error("not a PLY file with an end_header line");
-  const lines = head.slice(0, end).split("\n");
+  const lines = head.slice(0, end - 1).split("\n"); // without the newline before end_header
   if (!lines.includes("format binary_little_endian 1.0")) throw new Error("not a binary little-endian PLY");
   const vertexLine = lines.findIndex((l) => l.startsWith("element "));
   const [, name, countText] = lines[vertexLine].split(" ");
@@ -79,7 +79,7 @@ function scalePly(bytes, s) {
   }
   if (Object.keys(xyz).length !== 3) throw new Error("the PLY's vertices lack x, y or z");
   const bodyStart = end + "end_header\n".length;
-  const header = [lines[0], lines[1], `comment units: mm (${formatFloat(s)} mm per vu)`, ...lines.slice(2), "end_header", ""].join("\n");
+  const header = [lines[0], lines[1], `comment units: mm (${s} mm per vu)`, ...lines.slice(2), "end_header", ""].join("\n");
   const headerBytes = new TextEncoder().encode(header);
   const out = new Uint8Array(headerBytes.length + bytes.length - bodyStart);
   out.set(headerBytes);
