@@ -184,6 +184,9 @@ export class SplatRenderer {
   draw(camera, shading) {
     if (!this.pointCount || !this.buffer.texture) return;
     const gl = this.gl;
+    // (made before the points' texture is bound: making it binds its own texture)
+    const width = gl.drawingBufferWidth, height = gl.drawingBufferHeight;
+    const target = this.blend && this.canBlend ? this.#targetFor(width, height) : null;
     const { program, uniforms } = this.program;
     gl.useProgram(program);
     gl.bindVertexArray(this.vao);
@@ -197,8 +200,6 @@ export class SplatRenderer {
     gl.uniform3fv(uniforms.u_up, camera.up);
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LEQUAL);
-    const width = gl.drawingBufferWidth, height = gl.drawingBufferHeight;
-    const target = this.blend && this.canBlend ? this.#targetFor(width, height) : null;
     if (!target || !this.blend) {
       gl.uniform1f(uniforms.u_depthPush, 0);
       gl.uniform1i(uniforms.u_shading, shading === "normals" ? 1 : 0);
@@ -208,11 +209,12 @@ export class SplatRenderer {
       return;
     }
     gl.bindFramebuffer(gl.FRAMEBUFFER, target.framebuffer);
+    gl.colorMask(true, true, true, true);
+    gl.depthMask(true); // a clear writes only what the masks allow
     gl.clearColor(0, 0, 0, 0);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     // 1: the nearest surface's depth, pushed back by BLEND_DEPTH
     gl.colorMask(false, false, false, false);
-    gl.depthMask(true);
     gl.uniform1f(uniforms.u_depthPush, BLEND_DEPTH);
     gl.uniform1i(uniforms.u_shading, 2);
     gl.drawArrays(gl.TRIANGLES, 0, 3 * this.pointCount);
