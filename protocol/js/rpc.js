@@ -76,6 +76,19 @@ export function rpcErrorName(code) {
   return ERROR_NAMES.get(code) ?? "";
 }
 
+// Where to reconnect after -32015 (session held elsewhere): when the servers share etcd,
+// error.data.owner names the server that owns the session (its --server-id, by default
+// HOST:PORT). Returns currentUrl with its host and port replaced by the owner's (path and
+// query kept), or null when the error names no owner or the name is not a HOST:PORT. Behind a
+// load balancer whose servers clients cannot reach, retry through the balancer instead.
+export function ownerUrl(error, currentUrl) {
+  const owner = error?.code === RpcErrorCode.SessionHeldElsewhere ? error?.data?.owner : undefined;
+  if (typeof owner !== "string" || !/^[A-Za-z0-9._-]+:[0-9]{1,5}$/.test(owner)) return null;
+  const url = new URL(currentUrl);
+  url.host = owner;
+  return url.href;
+}
+
 // Kinds of incoming message that classifyMessage tells apart.
 export const MessageKind = Object.freeze({
   Result: "result", // {jsonrpc, id, result}: the answer to a request

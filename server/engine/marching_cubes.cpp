@@ -4,7 +4,7 @@
 // is set when that corner is inside (d < 0). Cell edges: edge e runs along axis a = e / 4 from
 // the corner with offsets (r & 1) on axis a+1 and (r >> 1) on axis a+2 (mod 3), r = e % 4.
 //
-// Work is split into blocks of 8^3 cells: block B holds the cells whose lowest corner lies in
+// Work is split into blocks of kBrickSide^3 cells: block B holds the cells whose lowest corner lies in
 // brick B, so its corners span bricks B and B+1 on each axis; blocks run from -1 (the cells
 // that close the surface against the domain's low sides) to brickDims - 1. Only blocks whose
 // bricks hold both signs are visited (uniform bricks tell their sign without being read).
@@ -20,7 +20,9 @@
 #include <bit>
 #include <limits>
 
+#include "brick.hpp"
 #include "errors.hpp"
+#include "stencil.hpp"
 
 namespace marzipan {
 
@@ -163,7 +165,9 @@ const CaseTable& caseTable() {
 // --- blocks --------------------------------------------------------------------------------
 
 constexpr int kSide = kBrickSide;    // cells per block side
+constexpr std::uint32_t kRow = Bricks::kRowBits;  // one bit per cell of a block row
 constexpr int kCorners = kSide + 1;  // corners per block side
+static_assert(kCorners <= 32, "a block row's corners are bits of a 32-bit word");
 constexpr int kGather = kSide + 3;   // corners plus a ring for central differences
 constexpr int kPlaneSlots = 3 * 2 * kSide * kSide;
 constexpr std::uint32_t kNeighbourShift = 29;
@@ -186,18 +190,21 @@ struct EdgeInfo {
   int off[3];
 };
 
-// Set bits of a byte, without relying on a popcount instruction in the target.
-int bitCount(std::uint32_t byte) {
+// Set bits of a row mask, a byte at a time (one byte for rows of 8 cells), without relying on a
+// popcount instruction in the target.
+int bitCount(std::uint32_t bits) {
   static constexpr auto counts = [] {
     std::array<std::uint8_t, 256> c{};
     for (int i = 1; i < 256; ++i) c[std::size_t(i)] = std::uint8_t((i & 1) + c[std::size_t(i >> 1)]);
     return c;
   }();
-  return counts[byte];
+  int n = 0;
+  for (; bits; bits >>= 8) n += counts[bits & 0xFF];
+  return n;
 }
 
-// Copies the block's corners and their one-voxel ring (voxels 8B-1 .. 8B+9 per axis, which lie
-// in bricks B-1 .. B+1) into v[z][y][x]; voxels outside the domain read +band. Volume::gather
+// Copies the block's corners and their one-voxel ring (voxels SB-1 .. SB+S+1 per axis, S the
+// brick side, which lie in bricks B-1 .. B+1) into v[z][y][x]; voxels outside the domain read +band. Volume::gather
 // does the same but looks the brick up again for every row segment.
 void gatherBlock(const Volume& vol, Int3 block, float (&v)[kGather][kGather][kGather]) {
   const Int3 dims = vol.dims(), bd = vol.brickDims();
@@ -219,8 +226,8 @@ void gatherBlock(const Volume& vol, Int3 block, float (&v)[kGather][kGather][kGa
   for (int a = 0; a < 3; ++a)
     for (int i = 0; i < kGather; ++i) {
       const int g = block[a] * kSide - 1 + i;
-      brickOf[a][i] = (i + kSide - 1) / kSide;
-      localOf[a][i] = (i + kSide - 1) % kSide;
+      brickOf[a][i] = Bricks::brickOf(i - 1) + 1;
+      localOf[a][i] = Bricks::localOf(i - 1);
       valid[a][i] = g >= 0 && g < dims[a];
     }
   const bool allValidX = valid[0][0] && valid[0][kGather - 1];
@@ -232,7 +239,7 @@ void gatherBlock(const Volume& vol, Int3 block, float (&v)[kGather][kGather][kGa
         continue;
       }
       const int bz = brickOf[2][z], by = brickOf[1][y];
-      const int offset = kSide * (localOf[1][y] + kSide * localOf[2][z]);
+      const int offset = Bricks::index(0, localOf[1][y], localOf[2][z]);
       if (allValidX) {
         // Ring voxel from brick B-1, the brick's own row, two voxels from brick B+1.
         row[0] = data[bz][by][0] ? data[bz][by][0][offset + kSide - 1] : uniform[bz][by][0];
@@ -270,9 +277,7 @@ void processBlock(const Volume& vol, Int3 block, const CaseTable& table, BlockOu
 
   auto at = [&](int x, int y, int z) { return v[z + 1][y + 1][x + 1]; };
   auto grad = [&](int x, int y, int z, float g[3]) {
-    g[0] = 0.5f * (at(x + 1, y, z) - at(x - 1, y, z));
-    g[1] = 0.5f * (at(x, y + 1, z) - at(x, y - 1, z));
-    g[2] = 0.5f * (at(x, y, z + 1) - at(x, y, z - 1));
+    GradStencil::inArray(&v[z + 1][y + 1][x + 1], 1, kGather, kGather * kGather).gradient(g);
   };
 
   std::uint32_t local[kSide][kSide][kSide][3];  // written for crossed owned edges only
@@ -281,15 +286,15 @@ void processBlock(const Volume& vol, Int3 block, const CaseTable& table, BlockOu
   for (int z = 0; z < kSide; ++z)
     for (int y = 0; y < kSide; ++y) {
       const std::uint32_t m = mask[z][y];
-      crossings += bitCount((m ^ (m >> 1)) & 0xFF) + bitCount((m ^ mask[z][y + 1]) & 0xFF) +
-                   bitCount((m ^ mask[z + 1][y]) & 0xFF);
+      crossings += bitCount((m ^ (m >> 1)) & kRow) + bitCount((m ^ mask[z][y + 1]) & kRow) +
+                   bitCount((m ^ mask[z + 1][y]) & kRow);
     }
   out.positions.reserve(std::size_t(crossings) * 3);
   out.normals.reserve(std::size_t(crossings) * 3);
   for (int z = 0; z < kSide; ++z)
     for (int y = 0; y < kSide; ++y) {
       const std::uint32_t m = mask[z][y];
-      const std::uint32_t c[3] = {(m ^ (m >> 1)) & 0xFF, (m ^ mask[z][y + 1]) & 0xFF, (m ^ mask[z + 1][y]) & 0xFF};
+      const std::uint32_t c[3] = {(m ^ (m >> 1)) & kRow, (m ^ mask[z][y + 1]) & kRow, (m ^ mask[z + 1][y]) & kRow};
       for (std::uint32_t bits = c[0] | c[1] | c[2]; bits; bits &= bits - 1) {
         const int x = std::countr_zero(bits);
         for (int a = 0; a < 3; ++a) {
@@ -330,7 +335,7 @@ void processBlock(const Volume& vol, Int3 block, const CaseTable& table, BlockOu
     for (int y = 0; y < kSide; ++y) {
       const std::uint32_t m00 = mask[z][y], m10 = mask[z][y + 1], m01 = mask[z + 1][y], m11 = mask[z + 1][y + 1];
       const std::uint32_t all = m00 & m10 & m01 & m11, any = m00 | m10 | m01 | m11;
-      const std::uint32_t mixed = (any | (any >> 1)) & ~(all & (all >> 1)) & 0xFF;
+      const std::uint32_t mixed = (any | (any >> 1)) & ~(all & (all >> 1)) & kRow;
       for (std::uint32_t bits = mixed; bits; bits &= bits - 1) {
         const int x = std::countr_zero(bits);
         const int cube = int((m00 >> x & 3) | (m10 >> x & 3) << 2 | (m01 >> x & 3) << 4 | (m11 >> x & 3) << 6);
@@ -360,12 +365,8 @@ Mesh extractMesh(const Volume& vol, ThreadPool& pool) {
   // Which signs each brick holds, over [-1, bd] per axis (the ring is air): bit 0 some voxel
   // outside, bit 1 some voxel inside. A brick reaching past the domain also borders air.
   constexpr std::uint8_t kOut = 1, kIn = 2;
-  const Int3 sd{bd.x + 2, bd.y + 2, bd.z + 2};
-  std::vector<std::uint8_t> signs(std::size_t(sd.x) * sd.y * sd.z, kOut);
-  auto signsAt = [&](int x, int y, int z) -> std::uint8_t& {
-    return signs[std::size_t(x + 1) +
-                 std::size_t(sd.x) * (std::size_t(y + 1) + std::size_t(sd.y) * std::size_t(z + 1))];
-  };
+  BrickGrid<std::uint8_t> signs(bd, 1, kOut);
+  auto signsAt = [&](int x, int y, int z) -> std::uint8_t& { return signs[Int3{x, y, z}]; };
   const Int3 dims = vol.dims();
   pool.parallelFor(std::size_t(bd.z), [&](std::size_t zi) {
     const int z = int(zi);
@@ -385,11 +386,7 @@ Mesh extractMesh(const Volume& vol, ThreadPool& pool) {
   });
 
   // Blocks over [-1, bd) per axis; a block can hold a sign change only if its 8 bricks hold both.
-  const Int3 nd{bd.x + 1, bd.y + 1, bd.z + 1};
-  std::vector<std::int32_t> blockIndex(std::size_t(nd.x) * nd.y * nd.z, -1);
-  auto blockSlot = [&](Int3 b) {
-    return std::size_t(b.x + 1) + std::size_t(nd.x) * (std::size_t(b.y + 1) + std::size_t(nd.y) * std::size_t(b.z + 1));
-  };
+  BrickGrid<std::int32_t> blockIndex(bd, 1, -1);
   std::vector<Int3> blocks;
   for (int z = -1; z < bd.z; ++z)
     for (int y = -1; y < bd.y; ++y)
@@ -397,7 +394,7 @@ Mesh extractMesh(const Volume& vol, ThreadPool& pool) {
         std::uint8_t seen = 0;
         for (int c = 0; c < 8; ++c) seen |= signsAt(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2 & 1));
         if (seen != (kIn | kOut)) continue;
-        blockIndex[blockSlot({x, y, z})] = std::int32_t(blocks.size());
+        blockIndex[Int3{x, y, z}] = std::int32_t(blocks.size());
         blocks.push_back({x, y, z});
       }
 
@@ -429,7 +426,7 @@ Mesh extractMesh(const Volume& vol, ThreadPool& pool) {
       }
       // The owner block exists: it sees the same two voxel signs across this edge.
       const Int3 b = blocks[i] + Int3{int(code & 1), int(code >> 1 & 1), int(code >> 2 & 1)};
-      const std::size_t owner = std::size_t(blockIndex[blockSlot(b)]);
+      const std::size_t owner = std::size_t(blockIndex[b]);
       *dst++ = std::uint32_t(vertexBase[owner]) + outs[owner].planes[slot];
     }
   });

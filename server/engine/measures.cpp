@@ -7,7 +7,9 @@
 #include <numeric>
 #include <vector>
 
+#include "brick.hpp"
 #include "dense_grid.hpp"
+#include "stencil.hpp"
 
 namespace marzipan {
 
@@ -19,26 +21,22 @@ struct Neighbourhood {
   float v[kSide * kSide * kSide];
 
   Neighbourhood(const Volume& vol, Int3 brick) {
-    const Int3 o{brick.x * kBrickSide - 1, brick.y * kBrickSide - 1, brick.z * kBrickSide - 1};
+    const Int3 o = Bricks::origin(brick) - Int3{1, 1, 1};
     vol.gather({o, o + Int3{kSide, kSide, kSide}}, v);
   }
-  // Local voxel (x,y,z) of the brick, each in [-1, 8].
-  float at(int x, int y, int z) const { return v[(x + 1) + kSide * ((y + 1) + kSide * (z + 1))]; }
-  // |grad d| by central differences at local voxel l, each coordinate in [0, 7].
+  static int index(int x, int y, int z) { return (x + 1) + kSide * ((y + 1) + kSide * (z + 1)); }
+  // Local voxel (x,y,z) of the brick, each in [-1, kBrickSide].
+  float at(int x, int y, int z) const { return v[index(x, y, z)]; }
+  // |grad d| by central differences at local voxel l, each coordinate in [0, kBrickSide).
   double gradientLength(Int3 l) const {
-    const double gx = 0.5 * (at(l.x + 1, l.y, l.z) - at(l.x - 1, l.y, l.z));
-    const double gy = 0.5 * (at(l.x, l.y + 1, l.z) - at(l.x, l.y - 1, l.z));
-    const double gz = 0.5 * (at(l.x, l.y, l.z + 1) - at(l.x, l.y, l.z - 1));
-    return std::sqrt(gx * gx + gy * gy + gz * gz);
+    return GradStencil::inArray(v + index(l.x, l.y, l.z), 1, kSide, kSide * kSide).length();
   }
 };
-
-Int3 brickOrigin(Int3 b) { return {b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide}; }
 
 // Calls fn(local, global) for each voxel of a brick that lies in the domain.
 template <class F>
 void forEachDomainVoxel(const Volume& vol, Int3 b, F&& fn) {
-  const Int3 o = brickOrigin(b);
+  const Int3 o = Bricks::origin(b);
   const Int3 d = vol.dims();
   for (int z = 0; z < kBrickSide && o.z + z < d.z; ++z)
     for (int y = 0; y < kBrickSide && o.y + y < d.y; ++y)
@@ -53,7 +51,7 @@ double insideVolume(const Volume& vol) {
   double sum = 0;
   vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
     forEachDomainVoxel(vol, b, [&](Int3 l, Int3) {
-      sum += std::clamp(0.5 - double(br.v[l.x + kBrickSide * (l.y + kBrickSide * l.z)]), 0.0, 1.0);
+      sum += std::clamp(0.5 - double(br.v[Bricks::index(l)]), 0.0, 1.0);
     });
   });
   vol.forEachInsideBrick([&](Int3 b) { forEachDomainVoxel(vol, b, [&](Int3, Int3) { sum += 1; }); });
@@ -67,8 +65,7 @@ namespace {
 template <class F>
 void forEachStoredVoxel(const Volume& vol, const Box& region, F&& fn) {
   vol.forEachPresentBrick([&](Int3 b, const Brick&) {
-    const Int3 o = brickOrigin(b);
-    if (Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(region).empty()) return;
+    if (Bricks::box(b).intersect(region).empty()) return;
     const Neighbourhood n(vol, b);
     forEachDomainVoxel(vol, b, [&](Int3 l, Int3 p) { fn(n, l, p); });
   });
@@ -115,10 +112,10 @@ struct BoundsOfZeroSet {
   // Uniformly inside bricks count with their extent (clipped to the domain).
   Bounds finish(const Volume& vol) {
     vol.forEachInsideBrick([&](Int3 b) {
-      const Int3 o = brickOrigin(b);
+      const Int3 o = Bricks::origin(b), last = o + Int3{kBrickSide - 1, kBrickSide - 1, kBrickSide - 1};
       const Int3 d = vol.dims();
       include({double(o.x), double(o.y), double(o.z)});
-      include({double(std::min(o.x + 7, d.x - 1)), double(std::min(o.y + 7, d.y - 1)), double(std::min(o.z + 7, d.z - 1))});
+      include({double(std::min(last.x, d.x - 1)), double(std::min(last.y, d.y - 1)), double(std::min(last.z, d.z - 1))});
     });
     return bb;
   }
@@ -155,21 +152,19 @@ double surfaceArea(const Volume& vol) {
 }
 
 int countComponents(const Volume& vol) {
-  const Int3 bd = vol.brickDims();
-  const std::size_t slots = std::size_t(bd.x) * bd.y * bd.z;
-  auto slotOf = [&](Int3 b) { return std::size_t(b.x) + std::size_t(bd.x) * (std::size_t(b.y) + std::size_t(bd.y) * b.z); };
-  // Node ids: 512 per present brick (one per voxel), then one per uniformly inside brick.
-  std::vector<std::int64_t> base(slots, -1);
-  std::vector<const Brick*> data(slots, nullptr);
+  // Node ids: one per voxel of each present brick, then one per uniformly inside brick; -1 for
+  // outside bricks and the ring around the grid.
+  BrickGrid<std::int64_t> base(vol.brickDims(), 1, -1);
+  BrickGrid<const Brick*> data(vol.brickDims(), 1, nullptr);
   std::int64_t next = 0;
   vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
-    base[slotOf(b)] = next;
-    data[slotOf(b)] = &br;
+    base[b] = next;
+    data[b] = &br;
     next += kBrickVoxels;
   });
   std::vector<Int3> insideBricks;
   vol.forEachInsideBrick([&](Int3 b) {
-    base[slotOf(b)] = next++;
+    base[b] = next++;
     insideBricks.push_back(b);
   });
   std::vector<std::int64_t> parent(static_cast<std::size_t>(next));
@@ -187,10 +182,10 @@ int countComponents(const Volume& vol) {
   // The node of an inside voxel at global p, or -1 when p is outside the solid or the domain.
   auto nodeAt = [&](Int3 p) -> std::int64_t {
     if (!domain.contains(p)) return -1;
-    const std::size_t s = slotOf({p.x >> 3, p.y >> 3, p.z >> 3});
+    const std::size_t s = base.index(Bricks::brickOf(p));
     if (base[s] < 0) return -1;
     if (!data[s]) return base[s];
-    const int l = (p.x & 7) + kBrickSide * ((p.y & 7) + kBrickSide * (p.z & 7));
+    const int l = Bricks::indexOf(p);
     return data[s]->v[l] < 0 ? base[s] + l : -1;
   };
   vol.forEachPresentBrick([&](Int3 b, const Brick&) {
@@ -203,13 +198,10 @@ int countComponents(const Volume& vol) {
     });
   });
   for (const Int3& b : insideBricks) {
-    const std::int64_t self = base[slotOf(b)];
+    const std::int64_t self = base[b];
     isInside[self] = 1;
-    for (const Int3& d : kSix) {
-      const Int3 nb = b + d;
-      if (nb.x < 0 || nb.y < 0 || nb.z < 0 || nb.x >= bd.x || nb.y >= bd.y || nb.z >= bd.z) continue;
-      if (base[slotOf(nb)] >= 0 && !data[slotOf(nb)]) unite(self, base[slotOf(nb)]);
-    }
+    for (const Int3& d : kSix)
+      if (base[b + d] >= 0 && !data[b + d]) unite(self, base[b + d]);
   }
   int count = 0;
   for (std::int64_t i = 0; i < next; ++i)

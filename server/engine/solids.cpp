@@ -32,14 +32,14 @@ double pig(Vec3 p) {
 Volume makeFromFunction(Int3 dims, const std::function<double(Vec3)>& f, bool exact, float band, ThreadPool& pool) {
   Volume vol(dims, band);
   const Int3 bd = vol.brickDims();
-  // Half diagonal of a brick (voxel centres 0..7) plus the allowed overestimate.
-  const double skip = band + 3.5 * std::sqrt(3.0) + 2.0;
+  // Half diagonal of a brick (from its centre to its corner voxels) plus the allowed overestimate.
+  const double skip = band + Bricks::kCentre * std::sqrt(3.0) + 2.0;
   std::vector<std::vector<BrickChange>> rows(std::size_t(bd.y) * bd.z);
   pool.parallelFor(rows.size(), [&](std::size_t r) {
     const int by = int(r % std::size_t(bd.y)), bz = int(r / std::size_t(bd.y));
     for (int bx = 0; bx < bd.x; ++bx) {
-      const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
-      const double centre = f({o.x + 3.5, o.y + 3.5, o.z + 3.5});
+      const Int3 o = Bricks::origin({bx, by, bz});
+      const double centre = f({o.x + Bricks::kCentre, o.y + Bricks::kCentre, o.z + Bricks::kCentre});
       if (!std::isfinite(centre)) throw EngineError(ErrorKind::InvalidArgument, "solid", "distance is not finite");
       if (std::fabs(centre) > skip) {
         if (centre < 0) rows[r].push_back({{bx, by, bz}, {}, {nullptr, true}});
@@ -53,7 +53,7 @@ Volume makeFromFunction(Int3 dims, const std::function<double(Vec3)>& f, bool ex
             float v = band;  // past the domain's edge: not evaluated
             if (p.x < dims.x && p.y < dims.y && p.z < dims.z)
               v = float(std::clamp(f({double(p.x), double(p.y), double(p.z)}), double(-band), double(band)));
-            brick->v[x + kBrickSide * (y + kBrickSide * z)] = v;
+            brick->v[Bricks::index(x, y, z)] = v;
           }
       const BrickRef ref = vol.canonicalBrick({bx, by, bz}, std::move(brick));
       if (ref.data || ref.inside) rows[r].push_back({{bx, by, bz}, {}, ref});

@@ -11,11 +11,14 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <tuple>
 
+#include "brick_table.hpp"
 #include "errors.hpp"
+#include "stencil.hpp"
 
 namespace marzipan {
 
@@ -31,76 +34,58 @@ constexpr float kPosLow = kSplatPositionLow;
 constexpr float kPosStep = kSplatPositionStep;
 static_assert(kBrickSide == kSplatBrickSide, "splat buffers address bricks of 8^3 voxels");
 
-// Index in the padded array of local voxel (x, y, z), each in [-1, 8].
+// Index in the padded array of local voxel (x, y, z), each in [-1, kBrickSide].
 constexpr int padIndex(int x, int y, int z) { return (x + 1) + kPad * ((y + 1) + kPad * (z + 1)); }
+
+// The two coordinates of index k = i + kBrickSide j over a brick face (forFace).
+constexpr int faceI(int k) { return k & Bricks::kMask; }
+constexpr int faceJ(int k) { return k >> Bricks::kLog2; }
 
 bool inGrid(const Volume& vol, Int3 b) {
   const Int3 n = vol.brickDims();
   return b.x >= 0 && b.y >= 0 && b.z >= 0 && b.x < n.x && b.y < n.y && b.z < n.z;
 }
 
-// Brick lookups for one extraction: straight from the volume (a few bricks), or from a table
-// filled in one pass over the grid (a full extraction, which looks each brick up 7 times).
+// Brick lookups for one extraction: straight from the volume (a few bricks), or from a
+// BrickTable filled in one pass over the grid (a full extraction, which looks each brick up 7 times).
 class BrickLookup {
  public:
-  explicit BrickLookup(const Volume& vol) : vol_(vol), n_(vol.brickDims()), band_(vol.band()) {}
+  explicit BrickLookup(const Volume& vol) : vol_(vol), band_(vol.band()) {}
 
-  void fillTable() {
-    data_.resize(std::size_t(n_.x) * n_.y * n_.z);
-    inside_.resize(data_.size());
-    for (int z = 0; z < n_.z; ++z)
-      for (int y = 0; y < n_.y; ++y)
-        for (int x = 0; x < n_.x; ++x) {
-          const std::size_t i = index({x, y, z});
-          float u;
-          data_[i] = vol_.brickData({x, y, z}, &u);
-          inside_[i] = !data_[i] && u < 0;
-        }
-  }
+  void fillTable() { table_.emplace(vol_); }
 
   const Volume& volume() const { return vol_; }
-  bool inGrid(Int3 b) const { return b.x >= 0 && b.y >= 0 && b.z >= 0 && b.x < n_.x && b.y < n_.y && b.z < n_.z; }
-  // The brick's voxels, or null with *u its uniform value; beyond the grid, null and +band.
+  // The brick's voxels, or null with *u its uniform value; beyond the grid (by at most one
+  // brick), null and +band.
   const float* operator()(Int3 b, float* u) const {
-    if (!inGrid(b)) {
+    if (table_) return table_->data(b, u);
+    if (!inGrid(vol_, b)) {
       *u = band_;
       return nullptr;
     }
-    if (data_.empty()) return vol_.brickData(b, u);
-    const std::size_t i = index(b);
-    *u = inside_[i] ? -band_ : band_;
-    return data_[i];
+    return vol_.brickData(b, u);
   }
-  // 0 uniform outside (also beyond the grid), 1 uniform inside, 2 stored; table only.
-  int kind(Int3 b) const {
-    if (!inGrid(b)) return 0;
-    const std::size_t i = index(b);
-    return data_[i] ? 2 : inside_[i];
-  }
+  // Outside also beyond the grid; table only.
+  BrickTable::Kind kind(Int3 b) const { return table_->kind(b); }
 
  private:
-  std::size_t index(Int3 b) const {
-    return std::size_t(b.x) + std::size_t(n_.x) * (std::size_t(b.y) + std::size_t(n_.y) * std::size_t(b.z));
-  }
-
   const Volume& vol_;
-  Int3 n_;
   float band_;
-  std::vector<const float*> data_;
-  std::vector<std::uint8_t> inside_;
+  std::optional<BrickTable> table_;
 };
 
-// Calls fn(k, value) for the 64 voxels of a brick's face (axis a, local coordinate c along
-// it), with k = i + 8 j over the two other axes in increasing order. Loops follow memory.
+// Calls fn(k, value) for the kBrickSide^2 voxels of a brick's face (axis a, local coordinate c
+// along it), with k = i + S j (S = kBrickSide) over the two other axes in increasing order
+// (faceI, faceJ). Loops follow memory.
 template <class F>
 void forFace(const float* v, int a, int c, F&& fn) {
   if (a == 0) {
-    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[c + kBrickSide * r]);  // k = y + 8 z
+    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[c + kBrickSide * r]);  // k = y + S z
   } else if (a == 1) {
-    for (int z = 0; z < kBrickSide; ++z)  // k = z + 8 x, visited x fastest
-      for (int x = 0; x < kBrickSide; ++x) fn(z + kBrickSide * x, v[x + kBrickSide * (c + kBrickSide * z)]);
+    for (int z = 0; z < kBrickSide; ++z)  // k = z + S x, visited x fastest
+      for (int x = 0; x < kBrickSide; ++x) fn(z + kBrickSide * x, v[Bricks::index(x, c, z)]);
   } else {
-    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[kBrickSide * kBrickSide * c + r]);  // k = x + 8 y
+    for (int r = 0; r < kBrickSide * kBrickSide; ++r) fn(r, v[kBrickSide * kBrickSide * c + r]);  // k = x + S y
   }
 }
 
@@ -165,30 +150,31 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
     for (int y = 0; y < kBrickSide; ++y) {
       float* row = g + padIndex(0, y, z);
       if (own) {
-        std::memcpy(row, own + kBrickSide * (y + kBrickSide * z), sizeof(float) * kBrickSide);
+        std::memcpy(row, own + Bricks::index(0, y, z), sizeof(float) * kBrickSide);
       } else {
         std::fill(row, row + kBrickSide, ownValue);
       }
     }
   for (int a = 0; a < 3; ++a) {
     const int a1 = (a + 1) % 3, a2 = (a + 2) % 3;
-    const int s1 = kStride[a1], s2 = kStride[a2];  // forFace's k = i + 8 j runs over (a1, a2)
+    const int s1 = kStride[a1], s2 = kStride[a2];  // forFace's k = i + S j runs over (a1, a2)
     for (int s = -1; s <= 1; s += 2) {
       Int3 nb = b;
       nb[a] += s;
       float u;
       const float* nd = look(nb, &u);
-      // The ring voxel at padded coordinate -1 (or 8) is voxel 7 (or 0) of the neighbour.
+      // The ring voxel at padded coordinate -1 (or kBrickSide) is the neighbour's last (or first) voxel.
       float* dst = g + (s < 0 ? 0 : kBrickSide + 1) * kStride[a] + kStride[a1] + kStride[a2];
+      auto at = [&](int k) -> float& { return dst[faceI(k) * s1 + faceJ(k) * s2]; };
       if (!nd) {
-        for (int k = 0; k < kBrickSide * kBrickSide; ++k) dst[(k & 7) * s1 + (k >> 3) * s2] = u;
+        for (int k = 0; k < kBrickSide * kBrickSide; ++k) at(k) = u;
       } else {
-        forFace(nd, a, s < 0 ? kBrickSide - 1 : 0, [&](int k, float v) { dst[(k & 7) * s1 + (k >> 3) * s2] = v; });
+        forFace(nd, a, s < 0 ? kBrickSide - 1 : 0, [&](int k, float v) { at(k) = v; });
       }
     }
   }
   // Voxels past the domain's far edge read as air, whatever the brick stores there.
-  const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
+  const Int3 o = Bricks::origin(b);
   const Int3 dims = vol.dims();
   if (o.x + kBrickSide + 1 > dims.x || o.y + kBrickSide + 1 > dims.y || o.z + kBrickSide + 1 > dims.z) {
     for (int z = -1; z <= kBrickSide; ++z)
@@ -198,7 +184,9 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
   }
 }
 
-// 8 bytes of 0/1 (the first at the lowest address) packed into 8 bits, bit i from byte i.
+// The 8 bytes of 0/1 of a brick row (the first at the lowest address) packed into 8 bits, bit i
+// from byte i. Rows of another length need another packing: the static_assert above holds the
+// side at the wire's 8.
 std::uint32_t packBytes(const std::uint8_t* p) {
   std::uint64_t w = 0;
   for (int i = 0; i < 8; ++i) w |= std::uint64_t(p[i]) << (8 * i);
@@ -242,7 +230,7 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
                  (s ^ inside[i + kPad * kPad]);
   }
 
-  const Int3 o{b.x * kBrickSide, b.y * kBrickSide, b.z * kBrickSide};
+  const Int3 o = Bricks::origin(b);
   const Int3 dims = vol.dims();
   const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y),
             zs = std::min(kBrickSide, dims.z - o.z);
@@ -256,8 +244,9 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
         const int x = std::countr_zero(m);
         const int c = padIndex(x, y, z);
         const float d = g[c];
-        const float gx = g[c + 1] - g[c - 1], gy = g[c + kPad] - g[c - kPad],
-                    gz = g[c + kPad * kPad] - g[c - kPad * kPad];
+        // Twice the gradient: only its direction is kept.
+        const GradStencil st = GradStencil::inArray(g + c, kStride[0], kStride[1], kStride[2]);
+        const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
         const float len2 = gx * gx + gy * gy + gz * gz;
         const float px = float(o.x + x), py = float(o.y + y), pz = float(o.z + z);
         Splat& sp = found[count++];
@@ -305,10 +294,10 @@ std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
     for (int y = 0; y < n.y; ++y)
       for (int x = 0; x < n.x; ++x) {
         const Int3 b{x, y, z};
-        const int k = look.kind(b);
-        bool keep = k == 2;
+        const BrickTable::Kind k = look.kind(b);
+        bool keep = k == BrickTable::Kind::Stored;
         for (int a = 0; a < 3 && !keep; ++a) {
-          keep = k == 1 && (b[a] + 1) * kBrickSide > vol.dims()[a];
+          keep = k == BrickTable::Kind::Inside && (b[a] + 1) * kBrickSide > vol.dims()[a];
           for (int s = -1; s <= 1 && !keep; s += 2) {
             Int3 nb = b;
             nb[a] += s;

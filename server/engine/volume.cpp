@@ -6,12 +6,11 @@
 #include <sstream>
 
 #include "errors.hpp"
+#include "stencil.hpp"
 
 namespace marzipan {
 
 namespace {
-
-int localIndex(int x, int y, int z) { return x + kBrickSide * (y + kBrickSide * z); }
 
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
@@ -30,7 +29,7 @@ Volume::Volume(Int3 dims, float band) : dims_(dims), band_(band) {
   }
   requireRange(band, 2.0, 8.0, "band");
   for (int a = 0; a < 3; ++a) {
-    brickDims_[a] = (dims[a] + kBrickSide - 1) / kBrickSide;
+    brickDims_[a] = Bricks::gridOf(dims)[a];
     tileDims_[a] = (brickDims_[a] + kTileSide - 1) / kTileSide;
   }
   const std::size_t nt = std::size_t(tileDims_.x) * tileDims_.y * tileDims_.z;
@@ -73,8 +72,8 @@ const float* Volume::brickData(Int3 b, float* uniformValue) const {
 float Volume::at(Int3 p) const {
   if (p.x < 0 || p.y < 0 || p.z < 0 || p.x >= dims_.x || p.y >= dims_.y || p.z >= dims_.z) return band_;
   float u;
-  const float* d = brickData({p.x >> 3, p.y >> 3, p.z >> 3}, &u);
-  return d ? d[localIndex(p.x & 7, p.y & 7, p.z & 7)] : u;
+  const float* d = brickData(Bricks::brickOf(p), &u);
+  return d ? d[Bricks::indexOf(p)] : u;
 }
 
 void Volume::gather(const Box& box, float* out) const {
@@ -85,11 +84,12 @@ void Volume::gather(const Box& box, float* out) const {
   // Everything outside the domain reads as air; inside, brick by brick (one table look-up each).
   if (inside.voxels() != box.voxels()) std::fill(out, out + sxy * std::size_t(s.z), band_);
   if (inside.empty()) return;
-  for (int bz = inside.lo.z >> 3; bz <= (inside.hi.z - 1) >> 3; ++bz)
-    for (int by = inside.lo.y >> 3; by <= (inside.hi.y - 1) >> 3; ++by)
-      for (int bx = inside.lo.x >> 3; bx <= (inside.hi.x - 1) >> 3; ++bx) {
-        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
-        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(inside);
+  const Box bricks = Bricks::bricksOf(inside);
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        const Int3 o = Bricks::origin({bx, by, bz});
+        const Box here = Bricks::box({bx, by, bz}).intersect(inside);
         float u;
         const float* d = brickData({bx, by, bz}, &u);
         const int n = here.hi.x - here.lo.x;
@@ -98,7 +98,7 @@ void Volume::gather(const Box& box, float* out) const {
             float* row = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
                          sxy * std::size_t(z - box.lo.z);
             if (d) {
-              std::memcpy(row, d + localIndex(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
+              std::memcpy(row, d + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
             } else {
               std::fill(row, row + n, u);
             }
@@ -147,8 +147,7 @@ Vec3 Volume::gradient(Vec3 p) const {
 }
 
 Vec3 Volume::voxelGradient(Int3 p) const {
-  return {0.5 * (at(p.x + 1, p.y, p.z) - at(p.x - 1, p.y, p.z)), 0.5 * (at(p.x, p.y + 1, p.z) - at(p.x, p.y - 1, p.z)),
-          0.5 * (at(p.x, p.y, p.z + 1) - at(p.x, p.y, p.z - 1))};
+  return GradStencil::around(p, [this](Int3 q) { return at(q); }).gradient();
 }
 
 std::size_t Volume::memoryBytes() const {
@@ -171,13 +170,14 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
   if (!srcBox.contains(r.lo) || !srcBox.contains(r.hi - Int3{1, 1, 1}))
     throw EngineError(ErrorKind::InvalidArgument, "srcBox", "must contain the region to write");
   const Int3 ss = srcBox.size();
-  for (int bz = r.lo.z >> 3; bz <= (r.hi.z - 1) >> 3; ++bz)
-    for (int by = r.lo.y >> 3; by <= (r.hi.y - 1) >> 3; ++by)
-      for (int bx = r.lo.x >> 3; bx <= (r.hi.x - 1) >> 3; ++bx) {
+  const Box bricks = Bricks::bricksOf(r);
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
         const Int3 b{bx, by, bz};
         const BrickRef old = brick(b);
-        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
-        const Box here = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(r);
+        const Int3 o = Bricks::origin(b);
+        const Box here = Bricks::box(b).intersect(r);
         // Most bricks of a tool's region do not change: find out before allocating one.
         bool changed = false;
         const float uniform = old.inside ? -band_ : band_;
@@ -186,7 +186,7 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
             const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
-            const float* d = old.data ? old.data->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
+            const float* d = old.data ? old.data->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
             for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
               // NaN passes std::clamp and would reach every reader; refuse it before publishing.
               if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
@@ -205,7 +205,7 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
             const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
-            float* d = nb->v + localIndex(here.lo.x - o.x, y - o.y, z - o.z);
+            float* d = nb->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z);
             for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
               if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
               d[x] = std::clamp(s[x], -band_, band_);
@@ -221,11 +221,11 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
 }
 
 BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
-  const Int3 o{brick.x * kBrickSide, brick.y * kBrickSide, brick.z * kBrickSide};
-  const Box inDomain = Box{o, o + Int3{kBrickSide, kBrickSide, kBrickSide}}.intersect(domain());
+  const Int3 o = Bricks::origin(brick);
+  const Box inDomain = Bricks::box(brick).intersect(domain());
   bool allOut = true, allIn = true;
   if (inDomain.size() == Int3{kBrickSide, kBrickSide, kBrickSide}) {
-    // Every brick of a domain whose sides are multiples of 8: no voxel to blank, and most
+    // Every brick of a domain whose sides are multiples of the brick side: no voxel to blank, and most
     // bricks an edit writes are mixed, which the first few voxels tell (2% of a loaded server's
     // CPU went to the general loop below).
     for (int i = 0; i < kBrickVoxels && (allOut || allIn); ++i) {
@@ -238,7 +238,7 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
   for (int z = 0; z < kBrickSide; ++z)
     for (int y = 0; y < kBrickSide; ++y)
       for (int x = 0; x < kBrickSide; ++x) {
-        float& v = data->v[localIndex(x, y, z)];
+        float& v = data->v[Bricks::index(x, y, z)];
         if (!inDomain.contains(o + Int3{x, y, z})) {
           v = band_;
           continue;

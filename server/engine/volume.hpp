@@ -5,8 +5,8 @@
 // - Unit: vu (voxel spacing 1). Voxel (i,j,k) sits at the point (i,j,k).
 // - Only the band |d| < band() is exact; values beyond are clamped to +-band().
 //   Points outside the domain read as +band() (the domain is surrounded by air).
-// - Storage: bricks of 8^3 floats, index x + 8*(y + 8*z) inside a brick; bricks are grouped
-//   in tiles of 8^3 bricks. A brick slot either shares an immutable Brick or is uniform
+// - Storage: bricks of 8^3 floats, index x + 8*(y + 8*z) inside a brick (brick.hpp: the side
+//   and the addressing are defined there once); bricks are grouped in tiles of 8^3 bricks. A brick slot either shares an immutable Brick or is uniform
 //   (every voxel -band or +band) and stores nothing, so memory grows with surface area.
 // - Copy-on-write: a Volume is a value. Copying it copies only the tile table (O(tiles)) and
 //   shares every brick; an edit publishes new bricks and new tiles and leaves copies alone.
@@ -20,16 +20,14 @@
 #include <memory>
 #include <vector>
 
+#include "brick.hpp"
 #include "geometry.hpp"
 #include "protocol/cpp/values.hpp"  // kMaxDomainSide
 
 namespace marzipan {
 
-inline constexpr int kBrickSide = 8;
-inline constexpr int kBrickVoxels = kBrickSide * kBrickSide * kBrickSide;
-
 struct Brick {
-  float v[kBrickVoxels];  // index x + 8*(y + 8*z), local voxel coordinates
+  float v[kBrickVoxels];  // index Bricks::index(local voxel)
 };
 
 // One slot of the brick table: shared voxel data, or uniform inside/outside when data is null.
@@ -45,7 +43,7 @@ struct BrickRef {
 
 // One brick replaced by an edit: applying `after` over `before` redoes it, the reverse undoes it.
 struct BrickChange {
-  Int3 brick;  // brick coordinates (voxel / 8)
+  Int3 brick;  // brick coordinates (Bricks::brickOf(voxel))
   BrickRef before, after;
 };
 

@@ -155,10 +155,9 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
   if (!(band >= 2.0f && band <= 8.0f)) formatError("band half-width must be in [2, 8]");
   const std::uint64_t revision = get64(p + 24);
   if (get32(p + 32) != std::uint32_t(kBrickSide))
-    formatError("brick side " + std::to_string(get32(p + 32)) + " (this build uses 8)");
+    formatError("brick side " + std::to_string(get32(p + 32)) + " (this build uses " + std::to_string(kBrickSide) + ")");
   if (get32(p + 44) != 0) formatError("reserved header bytes must be 0");
-  const Int3 grid{(dims.x + kBrickSide - 1) / kBrickSide, (dims.y + kBrickSide - 1) / kBrickSide,
-                  (dims.z + kBrickSide - 1) / kBrickSide};
+  const Int3 grid = Bricks::gridOf(dims);
   const std::uint64_t slots = std::uint64_t(grid.x) * std::uint64_t(grid.y) * std::uint64_t(grid.z);
   const std::uint64_t present = get32(p + 36), inside = get32(p + 40);
   if (present + inside > slots)
@@ -191,14 +190,11 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
     getValues(p + at + 8, br->v);
     for (const float v : br->v)
       if (!(std::fabs(v) <= band)) formatError(brickName(b) + " holds a value that is NaN or outside +-band");
-    for (int z = 0; z < kBrickSide; ++z)
-      for (int y = 0; y < kBrickSide; ++y)
-        for (int x = 0; x < kBrickSide; ++x) {
-          const bool past = b.x * kBrickSide + x >= dims.x || b.y * kBrickSide + y >= dims.y ||
-                            b.z * kBrickSide + z >= dims.z;
-          if (past && br->v[x + kBrickSide * (y + kBrickSide * z)] != band)
-            formatError(brickName(b) + " holds a voxel past the domain's edge that is not +band");
-        }
+    for (int k = 0; k < kBrickVoxels; ++k) {
+      const Int3 p = Bricks::origin(b) + Bricks::local(k);
+      const bool past = p.x >= dims.x || p.y >= dims.y || p.z >= dims.z;
+      if (past && br->v[k] != band) formatError(brickName(b) + " holds a voxel past the domain's edge that is not +band");
+    }
     // Volume keeps such a brick as a uniform slot; storing it would give the same field another
     // digest than it has when built any other way.
     BrickRef ref = vol.canonicalBrick(b, std::move(br));

@@ -4,7 +4,8 @@
 // Conventions: durations in seconds, sizes in bytes; counters only grow, gauges (sessions,
 // clients) move by deltas. The HTTP layer feeds requests, errors (HTTP status >= 400) and
 // bytes sent; the WebSocket layer feeds sessions, clients (in sessions), requests by method and
-// the edit latency histogram. Errors are labelled by code: HTTP statuses now, JSON-RPC
+// the edit latency histogram; the etcd store (--etcd) feeds ownership changes, fenced rejections
+// and the latency of its journal transactions. Errors are labelled by code: HTTP statuses now, JSON-RPC
 // codes (negative) once the WebSocket layer reports them.
 #pragma once
 
@@ -18,6 +19,7 @@
 
 namespace marzipan::service {
 struct HubEvents;
+struct EtcdEvents;
 }
 
 namespace marzipan::net {
@@ -41,6 +43,10 @@ class Metrics {
   void addSessions(std::int64_t delta);
   void addClients(std::int64_t delta);
   void observeEditLatency(double seconds);
+  // etcd-owned sessions (service/etcd_store.hpp).
+  void countOwnershipChange(bool gained);
+  void countFencedRejection();
+  void observeEtcdAppend(double seconds);
 
   std::string renderPrometheus() const;
 
@@ -51,12 +57,17 @@ class Metrics {
   mutable std::mutex mutex_;  // guards the two below
   std::map<int, std::uint64_t> errors_;
   std::map<std::string, std::uint64_t, std::less<>> methods_;
-  std::array<std::uint64_t, kEditLatencyBuckets.size() + 1> latencyCounts_{};  // per bucket, last = +Inf
-  double latencySum_ = 0;
+  using LatencyCounts = std::array<std::uint64_t, kEditLatencyBuckets.size() + 1>;  // per bucket, last = +Inf
+  static void observe(LatencyCounts& counts, double& sum, double seconds);
+  LatencyCounts latencyCounts_{}, etcdAppendCounts_{};
+  double latencySum_ = 0, etcdAppendSum_ = 0;
+  std::atomic<std::uint64_t> ownershipGained_{0}, ownershipLost_{0}, fencedRejections_{0};
 };
 
 // The hub's events wired to these counters (sessions, clients, requests by method, errors,
 // edit latency); `log` is left to the caller. The metrics must outlive the hub.
 service::HubEvents hubEventsFor(Metrics& metrics);
+// The etcd store's events wired to these counters (`log` is left to the caller).
+service::EtcdEvents etcdEventsFor(Metrics& metrics);
 
 }  // namespace marzipan::net

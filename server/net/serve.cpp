@@ -20,7 +20,9 @@
 #include <thread>
 #include <type_traits>
 
+#include "net/etcd_client.hpp"
 #include "net/http_server.hpp"
+#include "service/etcd_storage.hpp"
 #include "service/hub.hpp"
 
 #ifndef MARZIPAN_DEFAULT_WEB_ROOT
@@ -88,12 +90,14 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
       createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
       maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}},
-      maxOpMvoxels{"--max-op-mvoxels", "MARZIPAN_MAX_OP_MVOXELS", {}};
+      maxOpMvoxels{"--max-op-mvoxels", "MARZIPAN_MAX_OP_MVOXELS", {}}, etcd{"--etcd", "MARZIPAN_ETCD", {}},
+      etcdLease{"--etcd-lease-seconds", "MARZIPAN_ETCD_LEASE_SECONDS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
                                &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
-                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels};
+                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels,
+                               &etcd,      &etcdLease};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -131,6 +135,8 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   // Sockets need little CPU; geometry runs on the hub's workers.
   options.threads = std::min(2u, cores);
 
+  // Declared before the hub's options, which share the storage that uses it: destroyed last.
+  std::unique_ptr<EtcdClient> etcdClient;
   service::HubOptions hubOptions;
   hubOptions.workers = threadCount ? threadCount : cores;
   service::HubLimits& limits = hubOptions.limits;
@@ -209,6 +215,14 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     if (ec) throw std::runtime_error("cannot create data directory " + *dataDir.value + ": " + ec.message());
     hubOptions.dataDir = *dataDir.value;
   }
+  if (etcdLease.value && !etcd.value) throw UsageError("--etcd-lease-seconds needs --etcd");
+  service::EtcdOptions etcdOptions;
+  if (etcdLease.value) {
+    etcdOptions.leaseTtlSeconds = parseUnsigned(etcdLease, 3600);
+    if (etcdOptions.leaseTtlSeconds < 2) throw UsageError("--etcd-lease-seconds (or MARZIPAN_ETCD_LEASE_SECONDS) must be at least 2");
+  }
+  if (etcd.value && !dataDir.value)
+    throw UsageError("--etcd (or MARZIPAN_ETCD) needs --data-dir: the snapshots are files on a volume the servers share");
   options.handleSignals = true;
   // A write past a file size limit (ulimit -f) must fail with EFBIG and be refused like a full
   // disk, not kill the server.
@@ -217,6 +231,23 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   HttpServer server(options);
   hubOptions.events = hubEventsFor(server.metrics());
   hubOptions.events.log = logToStderr;
+  if (etcd.value) {
+    try {
+      etcdClient = std::make_unique<EtcdClient>(EtcdClient::splitEndpoints(*etcd.value));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--etcd (or MARZIPAN_ETCD): ") + e.what());
+    }
+    // The owner keys name this server: its id, which clients are told with -32015.
+    if (hubOptions.serverId.empty()) {
+      char host[256] = {};
+      ::gethostname(host, sizeof host - 1);
+      hubOptions.serverId = std::string(host) + "-" + std::to_string(::getpid());
+    }
+    service::EtcdEvents events = etcdEventsFor(server.metrics());
+    events.log = logToStderr;
+    hubOptions.storage = std::make_shared<service::EtcdStorage>(*etcdClient, *dataDir.value, hubOptions.serverId,
+                                                                etcdOptions, std::move(events));
+  }
   service::Hub hub(hubOptions);
   server.setHub(&hub);
   server.start();
@@ -261,7 +292,16 @@ Options (each also read from the environment variable in brackets; a flag wins):
                     idle one is discarded
   --server-id NAME  this server's name in session leases [MARZIPAN_SERVER_ID]; default
                     HOSTNAME:PORT (random with --port 0). Restarted under the same name it
-                    takes its sessions back at once; other servers wait for the lease (30 s)
+                    takes its sessions back at once; other servers wait for the lease (30 s;
+                    with --etcd the etcd lease, see below: not even the same name skips it)
+  --etcd URL[,URL...]  own sessions through etcd (3.4+, its v3 JSON gateway: http://HOST:PORT of
+                    each member) [MARZIPAN_ETCD]; needs --data-dir on a volume every server
+                    mounts (snapshots stay files there). Owner, journal and snapshot pointer
+                    live in etcd, fenced: a server that lost its lease can write nothing.
+                    Without it the data directory's lease files decide (one host's clock)
+  --etcd-lease-seconds N  with --etcd: this server's lease TTL; its sessions move to another
+                    server that long after it dies (at once after a clean stop)
+                    [MARZIPAN_ETCD_LEASE_SECONDS]; 5
   --fsync-ms N      0: every change is fsynced before its response (default); N: at most
                     every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open

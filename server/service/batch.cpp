@@ -4,6 +4,7 @@
 #include "service/batch.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <chrono>
@@ -31,6 +32,7 @@
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/ops.hpp"
 #include "service/apply_op.hpp"
+#include "service/measures_json.hpp"
 
 namespace marzipan::service {
 namespace {
@@ -46,6 +48,14 @@ struct UsageError : std::runtime_error {
 struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// "a, b or c" from a wire-name table, for messages that list what is accepted.
+template <class E, std::size_t N>
+std::string nameList(const std::array<WireName<E>, N>& names) {
+  std::string out;
+  for (std::size_t i = 0; i < N; ++i) out += (i == 0 ? "" : i + 1 == N ? " or " : ", ") + std::string(names[i].name);
+  return out;
+}
 
 struct NumberedOp {
   int line;
@@ -173,7 +183,7 @@ Options parseOptions(const std::vector<std::string>& args) {
     } else if (name == "--shading") {
       const std::string v = value();
       if (const auto s = shadingFromName(v)) o.shading = *s;
-      else throw UsageError("--shading takes lit, normals or gradient_error, got \"" + v + "\"");
+      else throw UsageError("--shading takes " + nameList(kShadingNames) + ", got \"" + v + "\"");
     } else if (name == "--quality") {
       o.quality = parseInt(name, value(), 1, 100);
     } else if (name == "--stats") {
@@ -292,20 +302,12 @@ Camera makeCamera(const Options& o, Int3 dims) {
   return c;
 }
 
+// revision, the measures as session.stats gives them (measures_json.hpp), ms.
 nlohmann::ordered_json statsLine(const Volume& vol, double ms) {
-  const Measures m = measure(vol);
-  using nlohmann::ordered_json;
-  ordered_json box = nullptr;
-  if (!m.bounds.empty)
-    box = {{"min", {m.bounds.lo.x, m.bounds.lo.y, m.bounds.lo.z}}, {"max", {m.bounds.hi.x, m.bounds.hi.y, m.bounds.hi.z}}};
-  return {{"revision", vol.revision()},
-          {"inside_volume", m.insideVolume},
-          {"surface_area", m.surfaceArea},
-          {"components", m.components},
-          {"bounding_box", box},
-          {"gradient_error", {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}}},
-          {"digest", m.digest},
-          {"ms", std::round(ms * 1000) / 1000}};
+  nlohmann::ordered_json line = {{"revision", vol.revision()}};
+  putMeasures(line, measure(vol));
+  line["ms"] = std::round(ms * 1000) / 1000;
+  return line;
 }
 
 void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camera>& camera, ThreadPool& pool,
@@ -413,13 +415,15 @@ Output:
   --camera-up X,Y,Z     default: 0,1,0
   --fov DEG             vertical field of view, (1, 170) (default 40)
   --width W, --height H image size, 1..4096 (default 512 x 512)
-  --shading MODE        lit|normals|gradient_error (default lit)
+  --shading MODE        lit|normals|gradient_error|thickness (default lit; thickness tints
+                        walls under 1 vu red)
   --quality Q           JPEG quality 1..100 (default 90)
 
 Reports:
   --stats               after the last operation, one JSON line on stdout: revision,
-                        inside_volume, surface_area, components, bounding_box {min, max},
-                        gradient_error {max, mean}, digest, ms (time spent in operations)
+                        inside_volume, surface_area, components, bounds {empty, lo, hi},
+                        gradient_error {max, mean, voxels}, digest (as session.stats gives
+                        them), ms (time spent in operations)
   --stats-every K       a stats line after every K operations (and after the last)
   --threads N           worker threads, 0 = one per core (default); results do not depend on N
 

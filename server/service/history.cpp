@@ -52,7 +52,7 @@ std::uint32_t unzigzag(std::uint32_t z) { return (z >> 1) ^ (0u - (z & 1u)); }
 // The prediction of voxel i of v: the reference's voxel, or from the voxels before it in its row.
 std::uint32_t predict(const float* v, const float* reference, int i) {
   if (reference) return ordered(reference[i]);
-  const int x = i % kBrickSide;
+  const int x = Bricks::local(i).x;
   if (x == 0) return ordered(0.0f);
   if (x == 1) return ordered(v[i - 1]);
   return ordered(std::clamp(2.0f * v[i - 1] - v[i - 2], -kMaxBand, kMaxBand));

@@ -41,6 +41,7 @@
 #include "service/apply_op.hpp"
 #include "service/session.hpp"
 #include "service/journal.hpp"
+#include "service/session_storage.hpp"
 #include "service/session_store.hpp"
 #include "service/workers.hpp"
 
@@ -59,8 +60,6 @@ namespace {
 
 constexpr std::size_t kSessionIdChars = 22;  // 132 bits
 constexpr std::size_t kTokenChars = 43;      // 258 bits
-// A server that stops renewing (a crash) lets another take its sessions after this long.
-constexpr std::chrono::milliseconds kLeaseTtl{30'000};
 // op.progress notifications of one request come at most this often.
 constexpr std::chrono::milliseconds kProgressInterval{250};
 // Shutdown waits this long for running edits (long ones are cancelled), then as long again
@@ -162,7 +161,7 @@ Failure failureOf(std::exception_ptr e, const std::function<void(const std::stri
   } catch (const protocol::OpError& x) {
     return {RpcCode::InvalidParams, x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const ServiceError& x) {
-    return {RpcCode(int(x.code())), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+    return {x.code(), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const EngineError& x) {
     return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const Cancelled&) {
@@ -240,9 +239,19 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
 
   // The strand only.
   std::unique_ptr<Session> session;
-  std::unique_ptr<Journal> journal;  // with a data directory
+  std::unique_ptr<SessionLog> journal;  // with a persistent storage
   std::string failure;               // why the session could not be created
-  std::vector<std::shared_ptr<HubClient>> clients;
+  // Its clients, weakly: a connection owns its HubClient, which holds its session, so ownership
+  // runs one way (connection -> client -> session) and nothing needs breaking at shutdown.
+  std::vector<std::weak_ptr<HubClient>> clients;
+  // The clients still alive: all of them, except while the hub shuts down.
+  std::vector<std::shared_ptr<HubClient>> members() const {
+    std::vector<std::shared_ptr<HubClient>> out;
+    out.reserve(clients.size());
+    for (const auto& weak : clients)
+      if (auto c = weak.lock()) out.push_back(std::move(c));
+    return out;
+  }
   int nextClient = 1;
   // The lease is released once (unload, shutdown); renewal, which runs off the strand so that a
   // long operation cannot let it expire, must not take it again after that.
@@ -259,13 +268,21 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
 struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   explicit Impl(HubOptions o)
       : options(std::move(o)),
-        store(options.dataDir, options.fsyncInterval, options.events.log),
+        owner(options.serverId.empty() ? randomText(16) : options.serverId),
+        store(openStorage(options, owner)),
         workers(options.workers, options.events.log),
-        pool(int(workers.threads())),
-        owner(options.serverId.empty() ? randomText(16) : options.serverId) {}
+        pool(int(workers.threads())) {}
+
+  // The storage the options name: theirs, files in the data directory, or none.
+  static std::shared_ptr<SessionStorage> openStorage(const HubOptions& o, const std::string& owner) {
+    if (o.storage) return o.storage;
+    if (o.dataDir.empty()) return makeMemoryStorage();
+    return std::make_shared<SessionStore>(o.dataDir, o.fsyncInterval, o.events.log, owner);
+  }
 
   HubOptions options;
-  SessionStore store;
+  const std::string owner;  // this server's name in leases
+  const std::shared_ptr<SessionStorage> store;
   Workers workers;
   ThreadPool pool;  // for whole-volume kernels and renders; parallelFor serializes its callers
   mutable std::mutex mutex;  // guards sessions and stopping
@@ -273,7 +290,6 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   std::map<std::string, std::deque<Clock::time_point>> createsByAddress;  // in the last minute
   bool stopping = false;
   std::atomic<bool> idleCheckScheduled{false};
-  const std::string owner;  // this server's name in leases
   std::atomic<bool> leaseRenewalScheduled{false};
   std::set<Progress*> runningOps;  // guarded by mutex: cancelled by shutdown
   // Guarded by mutex: sessions being recovered from the data directory, by id; a second join
@@ -563,7 +579,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       ApplyResult a = s.session->load(std::move(vol));
       a.fullRefresh = true;
       r.record = [this, &s, payload, rev = a.revision] {
-        return json{{"r", rev}, {"load", store.enabled() ? store.saveUpload(s.id, rev, *payload) : std::string()}};
+        return json{{"r", rev}, {"load", store->persistent() ? store->saveUpload(s.id, rev, *payload) : std::string()}};
       };
       r.result = {{"revision", a.revision}, {"digest", digestText(s.session->digest())}, {"roi", protocol::boxJson(a.roi)},
                   {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
@@ -592,6 +608,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     std::function<json()> record;
   };
 
+  // -32015, with data.owner when the storage knows which server owns the session (etcd).
+  RpcException heldElsewhere(const std::string& id, const std::string& message) {
+    const std::optional<std::string> owner = store->holder(id);
+    return RpcException(RpcCode::HeldElsewhere, message, owner ? json{{"owner", *owner}} : json());
+  }
+
   // On the strand: appends a change's records to the journal before it is acknowledged. When
   // that fails the session goes back to what the journal holds (the change is dropped) and the
   // request gets an error; if even that fails the session is closed, its acknowledged state
@@ -599,7 +621,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void persist(LiveSession& s, const std::function<json()>& makeRecords) {
     if (!s.journal) {
       // With a data directory a change is acknowledged only once journaled.
-      if (store.enabled()) throw RpcException(RpcCode::Busy, "the server is shutting down; the change was not kept");
+      if (store->persistent()) throw RpcException(RpcCode::Busy, "the server is shutting down; the change was not kept");
       return;
     }
     try {
@@ -609,18 +631,25 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         for (const json& r : records) s.journal->append(r);
       else
         s.journal->append(records);
+    } catch (const OwnershipLost& e) {
+      // Another server owns the session now: nothing here may be kept, and its clients find
+      // it there when they join again.
+      log("session " + s.id + ": " + e.what() + "; closing it here");
+      s.journal.reset();
+      closeBroken(s);
+      throw heldElsewhere(s.id, "another server took over this session; the change was not kept. Join it again");
     } catch (const std::exception& e) {
       log("session " + s.id + ": " + e.what() + "; rolling back to the journal");
       s.journal.reset();
       try {
-        Recovered rec = store.recover(s.id, limits().historyBytes, pool);
+        Recovered rec = store->recover(s.id, limits().historyBytes, pool);
         s.session = std::move(rec.session);
         s.journal = std::move(rec.journal);
       } catch (const std::exception& again) {
         log("session " + s.id + ": cannot reopen its journal (" + again.what() + "); closing it");
         closeBroken(s);
       }
-      for (const auto& c : s.clients) c->stroke = 0;
+      for (const auto& c : s.members()) c->stroke = 0;
       throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
                                                 "); it was not kept. The session is as it was");
     }
@@ -628,6 +657,12 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     if (s.journal->records() >= options.snapshotEvery) {
       try {
         rotate(s);
+      } catch (const OwnershipLost& e) {
+        // The change was journaled while the lease was still this server's: acknowledged, but
+        // the session goes.
+        log("session " + s.id + ": " + e.what() + "; closing it here");
+        s.journal.reset();
+        closeBroken(s);
       } catch (const std::exception& e) {
         log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
       }
@@ -639,7 +674,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void rotate(LiveSession& s) {
     std::vector<json> head;
     for (const auto& [id, st] : s.session->openStrokeList()) head.push_back(strokeBeginRecord(id, st));
-    s.journal = store.snapshot(s.id, s.session->volume(), head);
+    s.journal = store->snapshot(s.id, s.session->volume(), head);
   }
 
   // On the strand: with --fsync-ms N, records that did not sync on append are synced by a timer
@@ -672,7 +707,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   void releaseLease(LiveSession& s) {
     const std::lock_guard lease(s.leaseMutex);
     if (std::exchange(s.leaseReleased, true)) return;
-    store.releaseLease(s.id, owner);
+    store->release(s.id);
   }
 
   // On the strand: forgets a session whose in-memory state may be ahead of its journal.
@@ -684,13 +719,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     }
     emit(options.events.sessions, -1);
     emit(options.events.clients, -std::int64_t(s.clients.size()));
-    for (const auto& c : s.clients) c->link->close(1011, "the session is no longer served here; join it again");
+    for (const auto& c : s.members()) c->link->close(1011, "the session is no longer served here; join it again");
     s.clients.clear();
   }
 
   void scheduleLeaseRenewal() {
-    if (!store.enabled() || leaseRenewalScheduled.exchange(true)) return;
-    workers.postAfter(kLeaseTtl / 3, [self = shared_from_this()] {
+    if (!store->persistent() || leaseRenewalScheduled.exchange(true)) return;
+    workers.postAfter(store->renewEvery(), [self = shared_from_this()] {
       self->leaseRenewalScheduled = false;
       std::vector<std::shared_ptr<LiveSession>> lives;
       {
@@ -698,34 +733,36 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
         for (const auto& [id, live] : self->sessions) lives.push_back(live);
       }
       for (const auto& renewed : lives) {
-        const std::string& id = renewed->id;
         bool held = false;
         try {
           const std::lock_guard lease(renewed->leaseMutex);
           if (renewed->leaseReleased) continue;  // unloaded meanwhile: renewing would take it back
-          held = self->store.takeLease(id, self->owner, kLeaseTtl);
+          held = self->store->renew(renewed->id);
         } catch (const std::exception& e) {
-          self->log("session " + id + ": renewing its lease failed: " + e.what());
+          self->log("session " + renewed->id + ": renewing its lease failed: " + e.what());
           continue;  // a storage hiccup; the lease still has most of its time
         }
-        if (held) continue;
-        // Another server took it (this one stalled past the expiry): two servers must never
-        // write one journal, so this copy goes, unsaved; its clients reconnect through the
-        // balancer to the new holder.
-        self->log("session " + id + ": another server took its lease; closing it here");
-        std::shared_ptr<LiveSession> live;
-        {
-          const std::lock_guard lock(self->mutex);
-          if (const auto it = self->sessions.find(id); it != self->sessions.end()) live = it->second;
-        }
-        if (live)
-          live->strand->post([self, live] {
-            if (live->unloaded) return;
-            live->journal.reset();
-            self->closeBroken(*live);
-          });
+        if (!held) self->leaseLost(renewed->id);
       }
       if (!lives.empty()) self->scheduleLeaseRenewal();
+    });
+  }
+
+  // Another server took session id (this one stalled past the expiry, or the storage says so):
+  // two servers must never write one session, so this copy goes, unsaved; its clients are
+  // closed and reconnect (through the balancer) to the new holder.
+  void leaseLost(const std::string& id) {
+    std::shared_ptr<LiveSession> live;
+    {
+      const std::lock_guard lock(mutex);
+      if (const auto it = sessions.find(id); it != sessions.end()) live = it->second;
+    }
+    if (!live) return;
+    log("session " + id + ": another server took its lease; closing it here");
+    live->strand->post([self = shared_from_this(), live] {
+      if (live->unloaded) return;
+      live->journal.reset();
+      self->closeBroken(*live);
     });
   }
 
@@ -761,18 +798,22 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports), answers and lets the connection go on.
+  // atStrand, when given, starts the reply on the strand with what needs the live session.
   void offStrand(const std::shared_ptr<HubClient>& c, const std::optional<json>& id,
-                 std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn) {
+                 std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
+                 std::function<void(LiveSession&, Reply&)> atStrand = {}) {
     std::shared_ptr<LiveSession> s = c->session;
-    s->strand->post([self = shared_from_this(), c, s, id, fn = std::move(fn)]() mutable {
+    s->strand->post([self = shared_from_this(), c, s, id, fn = std::move(fn), atStrand = std::move(atStrand)]() mutable {
       if (s->unloaded || !s->session) {
         self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
         return self->finish(c);
       }
       auto snapshot = std::make_shared<Volume>(s->session->snapshot());
       const std::uint64_t revision = s->session->revision();
-      self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn)] {
-        Reply r;
+      auto started = std::make_shared<Reply>();
+      if (atStrand) atStrand(*s, *started);
+      self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn), started] {
+        Reply& r = *started;
         try {
           fn(*snapshot, revision, r);
           if (r.frame) c->link->sendBinary(r.frame, false);
@@ -826,7 +867,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   static json clientsJson(const LiveSession& s) {
     json list = json::array();
-    for (const auto& c : s.clients) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
+    for (const auto& c : s.members()) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
     return list;
   }
 
@@ -874,13 +915,13 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   void broadcastClients(LiveSession& s, const HubClient* except) {
     const std::string text = protocol::notificationText("session.clients", {{"clients", clientsJson(s)}});
-    for (const auto& other : s.clients)
+    for (const auto& other : s.members())
       if (other.get() != except) other->link->sendText(text);
   }
 
   // On the strand: c leaves s (ending its stroke); the others hear of it.
   void leave(LiveSession& s, HubClient& c) {
-    const auto it = std::find_if(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; });
+    const auto it = std::find_if(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.lock().get() == &c; });
     if (it == s.clients.end()) return;
     if (c.stroke) {
       try {
@@ -928,7 +969,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
     auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, workers);
     {
       const std::lock_guard lock(mutex);
-      if (sessions.count(id) || store.exists(id))
+      if (sessions.count(id) || store->exists(id))
         throw RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
                            {{"field", "session"}});
       if (sessions.size() >= limits().maxSessions) throw sessionsFull();
@@ -944,10 +985,10 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       try {
         s->session = std::make_unique<Session>(makeSolid(solid, dims, Volume::kDefaultBand, self->pool),
                                                self->limits().historyBytes);
-        if (self->store.enabled()) {
-          if (!self->store.takeLease(s->id, self->owner, kLeaseTtl))
-            throw RpcException(RpcCode::HeldElsewhere, "another server holds this session id");
-          s->journal = self->store.create(s->id, s->secrets, s->session->volume());
+        if (self->store->persistent()) {
+          if (!self->store->acquire(s->id))
+            throw self->heldElsewhere(s->id, "another server holds this session id");
+          s->journal = self->store->create(s->id, s->secrets, s->session->volume());
           self->scheduleLeaseRenewal();
         }
       } catch (const std::exception& e) {
@@ -1061,19 +1102,18 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   }
 
   std::shared_ptr<LiveSession> load(const std::string& id, const std::string& token) {
-    const std::optional<SessionSecrets> secrets = store.secrets(id);
+    const std::optional<SessionSecrets> secrets = store->secrets(id);
     if (!secrets) throw RpcException(RpcCode::NoSuchSession, "no session with id \"" + id + "\"", {{"field", "session"}});
     if (!sameSecret(secrets->token, token) && !sameSecret(secrets->viewToken, token))
       throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
-    if (!store.takeLease(id, owner, kLeaseTtl))
-      throw RpcException(RpcCode::HeldElsewhere,
-                         "another server has session \"" + id + "\" loaded; connect with /ws?session=" + id +
-                             " through the load balancer");
+    if (!store->acquire(id))
+      throw heldElsewhere(id, "another server has session \"" + id + "\" loaded; connect with /ws?session=" + id +
+                                  " through the load balancer, or to the server data.owner names");
     Recovered rec;
     try {
-      rec = store.recover(id, limits().historyBytes, pool);
+      rec = store->recover(id, limits().historyBytes, pool);
     } catch (...) {
-      store.releaseLease(id, owner);
+      store->release(id);
       throw;
     }
     auto s = std::make_shared<LiveSession>(id, *secrets, workers);
@@ -1086,7 +1126,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       sessions[id] = s;
     }
     emit(options.events.sessions, 1);
-    log("session " + id + ": loaded from " + options.dataDir.string() + " at revision " +
+    log("session " + id + ": loaded from " + store->where() + " at revision " +
         std::to_string(s->session->revision()) + " (" + std::to_string(rec.replayed) + " journal records replayed)");
     return s;
   }
@@ -1107,9 +1147,10 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
                             {"digest", digestText(ss.digest())},
                             {"can_undo", ss.canUndo()},
                             {"can_redo", ss.canRedo()}});
-    for (const auto& c : s.clients) c->link->sendText(text);
+    const auto members = s.members();
+    for (const auto& c : members) c->link->sendText(text);
     SharedBytes delta;
-    for (const auto& c : s.clients) {
+    for (const auto& c : members) {
       if (c->mode == ViewMode::Splats) {
         if (full) {
           sendFullSplats(s, *c, 0);
@@ -1155,7 +1196,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // On s's strand: c is still the client `clientId` of s (it did not leave, or leave and join
   // again), so its view state belongs to this strand.
   static bool sameClient(const LiveSession& s, const HubClient& c, int clientId) {
-    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.get() == &c; }) &&
+    return std::any_of(s.clients.begin(), s.clients.end(), [&](const auto& p) { return p.lock().get() == &c; }) &&
            c.clientId == clientId;
   }
 
@@ -1224,11 +1265,11 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
 
   // Deletes sessions at rest untouched for max_session_age, now and then every hour.
   void sweepOldSessions(std::chrono::milliseconds delay) {
-    if (!store.enabled()) return;
+    if (!store->persistent()) return;
     workers.postAfter(delay, [self = shared_from_this()] {
       try {
-        const auto removed = self->store.removeUntouched(
-            std::chrono::duration_cast<std::chrono::seconds>(self->limits().maxSessionAge), self->owner, kLeaseTtl,
+        const auto removed = self->store->removeUntouched(
+            std::chrono::duration_cast<std::chrono::seconds>(self->limits().maxSessionAge),
             [&](const std::string& id) {
               const std::lock_guard lock(self->mutex);
               return self->sessions.count(id) > 0;
@@ -1272,9 +1313,9 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
   // On the strand: saves (when there is a data directory) and forgets a session without clients.
   void unload(LiveSession& s, const char* why) {
     if (s.unloaded || !s.clients.empty() || !s.session) return;
-    if (store.enabled() && s.journal) {
+    if (store->persistent() && s.journal) {
       try {
-        s.journal = store.snapshot(s.id, s.session->volume());
+        s.journal = store->snapshot(s.id, s.session->volume());
         s.journal.reset();
       } catch (const std::exception& e) {
         // The journal holds every acknowledged change: the session is safe without the snapshot.
@@ -1289,7 +1330,7 @@ struct Hub::Impl : std::enable_shared_from_this<Hub::Impl> {
       if (const auto it = sessions.find(s.id); it != sessions.end() && it->second.get() == &s) sessions.erase(it);
     }
     emit(options.events.sessions, -1);
-    log("session " + s.id + ": " + why + ", " + (store.enabled() ? "saved and unloaded" : "discarded (no --data-dir)"));
+    log("session " + s.id + ": " + why + ", " + (store->persistent() ? "saved and unloaded" : "discarded (no --data-dir)"));
     s.session.reset();
   }
 };
@@ -1452,7 +1493,7 @@ void Hub::Impl::edit(const std::shared_ptr<HubClient>& c, const protocol::Reques
           throw RpcException(RpcCode::NothingToUndo, undo ? "nothing to undo" : "nothing to redo");
         r.result = {{"revision", h.revision}, {"can_undo", h.canUndo}, {"can_redo", h.canRedo}};
         r.record = [self, &s, undo, h] {
-          const std::string step = self->store.enabled() ? self->store.saveStep(s.id, h.revision, h.restored) : std::string();
+          const std::string step = self->store->persistent() ? self->store->saveStep(s.id, h.revision, h.restored) : std::string();
           return json{{"r", h.revision}, {undo ? "undo" : "redo", step}};
         };
         r.after = [self, &s, c, h, undo] { self->changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
@@ -1493,26 +1534,29 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
     }
     case Method::SessionStats: {
       protocol::parseNoParams(req.params, req.method);
-      return onStrand(c, req.id, arrived, false, [](LiveSession& s, Reply& r) {
-        const SessionStats st = s.session->stats();
-        const Measures& m = st.measures;
-        json clients = json::array();
-        for (const auto& other : s.clients) clients.push_back({{"client", other->clientId}, {"read_only", other->readOnly}});
-        r.result = {{"session", s.id},
-                    {"size", sizeJson(s.session->volume().dims())},
-                    {"revision", st.revision},
-                    {"digest", m.digest},
-                    {"clients", clients},
-                    {"inside_volume", m.insideVolume},
-                    {"surface_area", m.surfaceArea},
-                    {"components", m.components},
-                    {"bounds", {{"empty", m.bounds.empty}, {"lo", protocol::vec3Json(m.bounds.lo)}, {"hi", protocol::vec3Json(m.bounds.hi)}}},
-                    {"gradient_error", {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}, {"voxels", m.gradientError.voxels}}},
-                    {"memory_bytes", st.memoryBytes},
-                    {"history_bytes", st.historyBytes},
-                    {"can_undo", st.canUndo},
-                    {"can_redo", st.canRedo}};
-      });
+      // The measures read every brick: off the strand, on the snapshot, so edits go on meanwhile.
+      return offStrand(
+          c, req.id,
+          [](const Volume& vol, std::uint64_t, Reply& r) {
+            const Measures m = measure(vol);
+            r.result["digest"] = m.digest;
+            r.result["inside_volume"] = m.insideVolume;
+            r.result["surface_area"] = m.surfaceArea;
+            r.result["components"] = m.components;
+            r.result["bounds"] = {{"empty", m.bounds.empty}, {"lo", protocol::vec3Json(m.bounds.lo)}, {"hi", protocol::vec3Json(m.bounds.hi)}};
+            r.result["gradient_error"] = {{"max", m.gradientError.max}, {"mean", m.gradientError.mean}, {"voxels", m.gradientError.voxels}};
+          },
+          [](LiveSession& s, Reply& r) {
+            const SessionStats st = s.session->counters();
+            r.result = {{"session", s.id},
+                        {"size", sizeJson(s.session->volume().dims())},
+                        {"revision", st.revision},
+                        {"clients", clientsJson(s)},
+                        {"memory_bytes", st.memoryBytes},
+                        {"history_bytes", st.historyBytes},
+                        {"can_undo", st.canUndo},
+                        {"can_redo", st.canRedo}};
+          });
     }
     case Method::ViewSet: {
       const protocol::ViewSetParams p = protocol::parseViewSetParams(req.params, l.maxFrameSide);
@@ -1620,6 +1664,9 @@ void Hub::Impl::read(const std::shared_ptr<HubClient>& c, const protocol::Reques
 }
 
 Hub::Hub(HubOptions options) : impl_(std::make_shared<Impl>(std::move(options))) {
+  impl_->store->onLost([weak = std::weak_ptr<Impl>(impl_)](const std::string& id) {
+    if (const auto impl = weak.lock()) impl->leaseLost(id);
+  });
   impl_->sweepOldSessions(std::chrono::milliseconds(0));
 }
 
@@ -1676,7 +1723,7 @@ void Hub::shutdown() {
   const auto deadline = Clock::now() + kShutdownWait;
   for (const auto& live : all)
     while (live->strand->pending() > 0 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  if (s.store.enabled()) {
+  if (s.store->persistent()) {
     // Every snapshot is posted at once; one that is not done by the deadline still runs when
     // the workers stop (they finish queued tasks), and the journal holds its changes anyway.
     std::vector<std::future<void>> snapshots;
@@ -1686,7 +1733,7 @@ void Hub::shutdown() {
       live->strand->post([&s, live, done] {
         if (!live->unloaded && live->session && live->journal) {
           try {
-            live->journal = s.store.snapshot(live->id, live->session->volume());
+            live->journal = s.store->snapshot(live->id, live->session->volume());
           } catch (const std::exception& e) {
             s.log("session " + live->id + ": snapshot at shutdown failed (the journal has every change): " + e.what());
           }
@@ -1703,13 +1750,7 @@ void Hub::shutdown() {
     for (const auto& f : snapshots) f.wait_until(snapshotDeadline);
   }
   s.workers.stop();
-  // Sessions hold their clients and clients their session: break those cycles now that no
-  // task can run.
   const std::lock_guard lock(s.mutex);
-  for (const auto& [id, live] : s.sessions) {
-    for (const auto& c : live->clients) c->session.reset();
-    live->clients.clear();
-  }
   s.sessions.clear();
 }
 

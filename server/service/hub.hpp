@@ -8,14 +8,16 @@
 //   connection's messages are handled one after the other, in arrival order, on the workers;
 //   everything that touches a session (its volume, its clients, their view state) runs on that
 //   session's strand; renders run on the workers off the strand, from a snapshot.
-// - Durability (with a data directory, service/session_store.hpp): every change is in the
-//   session's journal before its response is sent; a session lives on one server at a time
-//   (its lease), and is recovered from snapshot + journal when it is joined after an unload,
-//   a restart or a crash.
+// - Durability (through a SessionStorage, service/session_storage.hpp: files in a data
+//   directory, or none): every change is in the session's journal before its response is
+//   sent; a session lives on one server at a time (its lease), and is recovered from snapshot
+//   + journal when it is joined after an unload, a restart or a crash. A lease lost closes the
+//   session here (its clients reconnect to the new holder).
 // - Order of what one edit sends: the requester's response, then `session.changed` to every
 //   client, then each client's splat delta or frame. Binary answers precede their response.
-// - Ownership: the hub owns sessions; a HubClient is owned by the network connection (and by
-//   tasks in flight); sessions hold their clients until they leave or disconnect.
+// - Ownership runs one way: the hub owns sessions; a HubClient is owned by the network
+//   connection (and by tasks in flight) and holds its session; a session knows its clients by
+//   weak reference.
 // - Units: sizes in bytes, durations as std::chrono types, coordinates in vu.
 #pragma once
 
@@ -89,10 +91,14 @@ struct HubEvents {
   std::function<void()> journalSynced;                  // a journal fsynced by the --fsync-ms timer
 };
 
+class SessionStorage;
+
 struct HubOptions {
   HubLimits limits;
   unsigned workers = 0;               // 0: one per core
   std::filesystem::path dataDir;      // empty: sessions are never saved
+  // Where sessions are kept; empty: files in dataDir (service/session_store.hpp), or nowhere.
+  std::shared_ptr<SessionStorage> storage;
   HubEvents events;
   // Still frames follow the last change of a frames-mode client after this pause.
   std::chrono::milliseconds stillDelay{250};

@@ -25,18 +25,18 @@ constexpr double kBisectTolerance = 1e-9;
                                                 : fieldPrefix + "." + e.field();
   switch (e.kind()) {
     case ErrorKind::OutOfDomain:
-      throw ServiceError(ServiceErrorCode::OutOfDomain, field, e.what());
+      throw ServiceError(protocol::RpcCode::EngineRefused, field, e.what());
     case ErrorKind::TooLarge:
-      throw ServiceError(ServiceErrorCode::LimitExceeded, field, e.what());
+      throw ServiceError(protocol::RpcCode::LimitExceeded, field, e.what());
     case ErrorKind::InvalidArgument:
     case ErrorKind::Format:
       break;
   }
-  throw ServiceError(ServiceErrorCode::InvalidParams, field, e.what());
+  throw ServiceError(protocol::RpcCode::InvalidParams, field, e.what());
 }
 
 [[noreturn]] void invalid(const std::string& field, const std::string& what) {
-  throw ServiceError(ServiceErrorCode::InvalidParams, field, field + ": " + what);
+  throw ServiceError(protocol::RpcCode::InvalidParams, field, field + ": " + what);
 }
 
 void requirePoint(Vec3 p, const std::string& field) {
@@ -186,7 +186,7 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
     invalid("radius", "must be a number of vu in [0.5, 1024]");
   if (!std::isfinite(strength) || strength <= 0 || strength > 1) invalid("strength", "must be in (0, 1]");
   if (strokes_.size() >= kMaxOpenStrokes)
-    throw ServiceError(ServiceErrorCode::LimitExceeded, "stroke",
+    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
                        "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
                            "); end one first");
   const StrokeId id = nextStroke_++;
@@ -198,8 +198,8 @@ const Session::Stroke& Session::openStroke(StrokeId id) const {
   const auto it = strokes_.find(id);
   if (it != strokes_.end()) return it->second;
   if (id != 0 && id < nextStroke_)
-    throw ServiceError(ServiceErrorCode::StrokeClosed, "stroke", "stroke " + std::to_string(id) + " has ended");
-  throw ServiceError(ServiceErrorCode::UnknownStroke, "stroke", "no stroke " + std::to_string(id) + " in this session");
+    throw ServiceError(protocol::RpcCode::NoSuchStroke, "stroke", "stroke " + std::to_string(id) + " has ended");
+  throw ServiceError(protocol::RpcCode::NoSuchStroke, "stroke", "no stroke " + std::to_string(id) + " in this session");
 }
 
 ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
@@ -368,9 +368,14 @@ ApplyResult Session::load(Volume vol) {
 }
 
 SessionStats Session::stats() const {
-  SessionStats s;
+  SessionStats s = counters();
   s.measures = measure(volume_);
   std::from_chars(s.measures.digest.data(), s.measures.digest.data() + s.measures.digest.size(), s.digest, 16);
+  return s;
+}
+
+SessionStats Session::counters() const {
+  SessionStats s;
   s.revision = revision_;
   s.canUndo = history_.canUndo();
   s.canRedo = history_.canRedo();

@@ -34,31 +34,27 @@
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/rpc.hpp"
 #include "service/history.hpp"
 
 namespace marzipan::service {
 
-// JSON-RPC error codes of the session model, as protocol/PROTOCOL.md defines them (-32602 is
-// JSON-RPC's own "invalid params"). Two kinds may share a code; the message tells them apart.
-enum class ServiceErrorCode : int {
-  InvalidParams = -32602,  // a value is malformed or out of range; `field` names it
-  OutOfDomain = -32006,    // the engine refused: the tool's region misses the volume's domain
-  UnknownStroke = -32011,  // no such stroke: none with this id was begun in this session
-  StrokeClosed = -32011,   // no such stroke: it was ended (or the session was reloaded since)
-  LimitExceeded = -32004,  // too many open strokes, or a size over the engine's limits
-};
-
+// A refusal of the session model, with the JSON-RPC code of protocol/PROTOCOL.md it is answered
+// with (protocol/cpp/rpc.hpp, the one list of codes): InvalidParams (a value is malformed or
+// out of range; `field` names it), EngineRefused (the tool's region misses the volume's
+// domain), NoSuchStroke (none with this id was begun, or it has ended: the message tells),
+// LimitExceeded (too many open strokes, or a size over the engine's limits).
 class ServiceError : public std::runtime_error {
  public:
-  ServiceError(ServiceErrorCode code, std::string field, const std::string& message)
+  ServiceError(protocol::RpcCode code, std::string field, const std::string& message)
       : std::runtime_error(message), code_(code), field_(std::move(field)) {}
-  ServiceErrorCode code() const { return code_; }
+  protocol::RpcCode code() const { return code_; }
   // The offending parameter ("stroke", "dabs[3].ray.direction"), or empty.
   const std::string& field() const { return field_; }
   std::string message() const { return what(); }
 
  private:
-  ServiceErrorCode code_;
+  protocol::RpcCode code_;
   std::string field_;
 };
 
@@ -133,7 +129,7 @@ class Session {
   explicit Session(Volume initial, std::size_t historyBudgetBytes = History::kDefaultBudgetBytes);
 
   // One operation object (a brush dab, a CSG tool, global smoothing or morphology) as one
-  // history step. Throws ServiceError (OutOfDomain when its region misses the domain); any
+  // history step. Throws ServiceError (EngineRefused when its region misses the domain); any
   // other exception (Cancelled through the thread's Progress, engine/progress.hpp, or
   // std::bad_alloc) also leaves the session exactly as before.
   ApplyResult apply(const protocol::Op& op, ThreadPool& pool);
@@ -201,9 +197,11 @@ class Session {
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
 
-  // Measures of the live volume (reads every brick: on a large session prefer computing
-  // measure() on a snapshot off the strand and adding the counters from here).
+  // Measures of the live volume (reads every brick: on a large session compute measure() on a
+  // snapshot off the strand and add counters(), as the hub's session.stats does).
   SessionStats stats() const;
+  // Everything of stats() but the measures: cheap, for the strand.
+  SessionStats counters() const;
 
  private:
   struct Stroke {

@@ -2,6 +2,7 @@
 #include "service/session_store.hpp"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -21,14 +22,24 @@
 #include "protocol/cpp/little_endian.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "service/journal_records.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace marzipan::service {
 
-namespace {
-void syncDirectory(const fs::path& dir);
+void syncDirectory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+std::vector<std::uint8_t> readFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path.string());
+  return std::vector<std::uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 void writeFileAtomically(const fs::path& path, const void* data, std::size_t size) {
@@ -80,99 +91,108 @@ std::vector<std::uint64_t> revisions(const fs::path& dir, std::string_view prefi
 fs::path snapshotPath(const fs::path& dir, std::uint64_t r) { return dir / ("snapshot-" + std::to_string(r) + ".mzv"); }
 fs::path journalPath(const fs::path& dir, std::uint64_t r) { return dir / ("journal-" + std::to_string(r) + ".log"); }
 
-void syncDirectory(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
+long long nowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-std::vector<std::pair<Int3, BrickRef>> readStep(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  const std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const auto fail = [&]() -> std::runtime_error { return std::runtime_error("unreadable step file " + path.string()); };
-  if (b.size() < 12 || std::memcmp(b.data(), "MZBK", 4) != 0) throw fail();
-  if (crc32Ieee({b.data(), b.size() - 4}) != le::get32(b.data() + b.size() - 4)) throw fail();
-  const std::uint32_t count = le::get32(b.data() + 4);
-  std::vector<std::pair<Int3, BrickRef>> out;
-  std::size_t at = 8;
-  for (std::uint32_t i = 0; i < count; ++i) {
-    if (at + 13 > b.size() - 4) throw fail();
-    const Int3 brick{std::int32_t(le::get32(b.data() + at)), std::int32_t(le::get32(b.data() + at + 4)),
-                     std::int32_t(le::get32(b.data() + at + 8))};
-    const std::uint8_t kind = b[at + 12];
-    at += 13;
-    BrickRef ref;
-    if (kind == 2) {
-      if (at + sizeof(Brick) > b.size() - 4) throw fail();
-      auto data = std::make_shared<Brick>();
-      for (int v = 0; v < kBrickVoxels; ++v) data->v[v] = le::getF32(b.data() + at + 4 * std::size_t(v));
-      at += sizeof(Brick);
-      ref.data = std::move(data);
-    } else {
-      ref.inside = kind == 1;
-    }
-    out.emplace_back(brick, std::move(ref));
-  }
-  return out;
+struct Lease {
+  std::string owner;  // empty: none
+  long long expiresMs = 0;
+  std::uint64_t generation = 0;
+};
+
+Lease readLease(const fs::path& path) {
+  std::ifstream in(path);
+  Lease l;
+  if (!(in >> l.owner >> l.expiresMs)) return {};
+  if (!(in >> l.generation)) l.generation = 0;  // written before generations existed
+  return l;
 }
 
-void replayRecord(Session& s, const json& rec, std::map<std::uint64_t, StrokeId>& strokes, const fs::path& dir,
-                  ThreadPool& pool) {
-  if (rec.contains("op")) {
-    s.apply(protocol::parseOp(rec["op"]), pool);
-  } else if (rec.contains("stroke_begin")) {
-    // A stroke announced again at the head of a journal after a snapshot replaces its entry.
-    if (const auto it = strokes.find(rec["stroke_begin"].get<std::uint64_t>()); it != strokes.end()) {
-      s.endStroke(it->second);
-      strokes.erase(it);
+// flock() on DIR/lease.lock for as long as it lives: exclusive to change the lease, shared to
+// write as its holder. The file also keeps the last generation handed out, which outlives the
+// lease file (removed at release) so that generations only grow.
+class LeaseLock {
+ public:
+  LeaseLock(const fs::path& dir, bool exclusive) : path_(dir / "lease.lock") {
+    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+    if (fd_ < 0) throw std::runtime_error("cannot open " + path_.string() + ": " + std::strerror(errno));
+    while (::flock(fd_, exclusive ? LOCK_EX : LOCK_SH) != 0) {
+      if (errno == EINTR) continue;
+      const int e = errno;
+      ::close(fd_);
+      throw std::runtime_error("cannot lock " + path_.string() + ": " + std::strerror(e));
     }
-    const auto tool = fromWireName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
-    if (!tool) throw std::runtime_error("unknown stroke tool");
-    const std::string sym = rec.value("symmetry", "");
-    const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
-                            sym.find('z') != std::string::npos};
-    const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
-                                      rec.value("accumulate", false));
-    strokes[rec["stroke_begin"].get<std::uint64_t>()] = id;
-    if (const auto it = rec.find("applied"); it != rec.end()) {
-      // What the stroke had applied before the snapshot: its next dabs add only the excess.
-      std::vector<StrokeDab> applied;
-      for (const json& d : *it) {
-        const StrokeDab dab{Vec3{d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>()}, d.at(3).get<double>()};
-        if (!isFinite(dab.center) || !(dab.weight > 0 && dab.weight <= 1)) throw std::runtime_error("bad stroke memory");
-        applied.push_back(dab);
-      }
-      s.setStrokeMemory(id, std::move(applied));
-    }
-  } else if (rec.contains("stroke_end")) {
-    const auto it = strokes.find(rec["stroke_end"].get<std::uint64_t>());
-    if (it != strokes.end()) {
-      s.endStroke(it->second);
-      strokes.erase(it);
-    }
-  } else if (rec.contains("stroke")) {
-    std::vector<Dab> dabs;
-    for (const json& d : rec.at("dabs")) dabs.push_back(Dab{Vec3{d[0], d[1], d[2]}, d[3].get<double>()});
-    s.strokeDabs(strokes.at(rec["stroke"].get<std::uint64_t>()), dabs, pool);
-  } else if (rec.contains("undo") || rec.contains("redo")) {
-    // From the bricks it put in place, not from the replayed history: that history starts at
-    // the snapshot and may hold only part of a stroke that began before it.
-    const bool undo = rec.contains("undo");
-    s.restore(readStep(dir / rec[undo ? "undo" : "redo"].get<std::string>()));
-  } else if (rec.contains("load")) {
-    s.load(loadVolumeFile((dir / rec["load"].get<std::string>()).string()));
-  } else {
-    throw std::runtime_error("unknown journal record");
   }
-}
+  ~LeaseLock() { ::close(fd_); }
+  LeaseLock(const LeaseLock&) = delete;
+  LeaseLock& operator=(const LeaseLock&) = delete;
+
+  std::uint64_t lastGeneration() const {
+    char text[32] = {};
+    const ssize_t n = ::pread(fd_, text, sizeof text - 1, 0);
+    std::uint64_t g = 0;
+    if (n > 0) std::from_chars(text, text + n, g);
+    return g;
+  }
+  void setLastGeneration(std::uint64_t g) const {
+    const std::string text = std::to_string(g) + "\n";
+    if (::pwrite(fd_, text.data(), text.size(), 0) != ssize_t(text.size()) || ::ftruncate(fd_, off_t(text.size())) != 0 ||
+        ::fsync(fd_) != 0)
+      throw std::runtime_error("cannot write " + path_.string() + ": " + std::strerror(errno));
+  }
+
+ private:
+  fs::path path_;
+  int fd_ = -1;
+};
+
+// What a holder's writes check: the lease still names `owner` with `generation`.
+struct Fence {
+  fs::path dir;
+  std::string id, owner;
+  std::uint64_t generation = 0;
+
+  // The shared lock, held while the caller writes; throws OwnershipLost when fenced off.
+  std::unique_ptr<LeaseLock> hold() const {
+    auto lock = std::make_unique<LeaseLock>(dir, false);
+    const Lease l = readLease(dir / "lease");
+    if (l.owner != owner || l.generation != generation)
+      throw OwnershipLost("session " + id + ": this server's lease (generation " + std::to_string(generation) +
+                          ") is gone" + (l.owner.empty() ? std::string() : ", held by " + l.owner + " (generation " +
+                                                                                  std::to_string(l.generation) + ")"));
+    return lock;
+  }
+};
+
+class FileLog final : public SessionLog {
+ public:
+  FileLog(const fs::path& path, std::chrono::milliseconds syncInterval, std::optional<Fence> fence)
+      : journal_(path, syncInterval), fence_(std::move(fence)) {}
+  void append(const json& record) override {
+    const auto lock = fence_ ? fence_->hold() : nullptr;
+    journal_.append(record);
+  }
+  void sync() override { journal_.sync(); }
+  bool dirty() const override { return journal_.dirty(); }
+  std::size_t records() const override { return journal_.records(); }
+
+ private:
+  Journal journal_;
+  std::optional<Fence> fence_;
+};
 
 }  // namespace
 
 SessionStore::SessionStore(fs::path dataDir, std::chrono::milliseconds syncInterval,
-                           std::function<void(const std::string&)> log)
-    : dir_(std::move(dataDir)), syncInterval_(syncInterval), log_(std::move(log)) {
-  if (dir_.empty()) return;
+                           std::function<void(const std::string&)> log, std::string owner,
+                           std::chrono::milliseconds leaseTtl)
+    : dir_(std::move(dataDir)),
+      syncInterval_(syncInterval),
+      log_(std::move(log)),
+      owner_(std::move(owner)),
+      ttl_(leaseTtl) {
+  if (dir_.empty()) throw std::invalid_argument("SessionStore needs a data directory");
   std::error_code ec;
   fs::create_directories(dir_ / "sessions", ec);
   if (ec) throw std::runtime_error("cannot create " + (dir_ / "sessions").string() + ": " + ec.message());
@@ -181,8 +201,23 @@ SessionStore::SessionStore(fs::path dataDir, std::chrono::milliseconds syncInter
 
 fs::path SessionStore::sessionDir(const std::string& id) const { return dir_ / "sessions" / id; }
 
+std::optional<std::uint64_t> SessionStore::held(const std::string& id) const {
+  const std::lock_guard lock(mutex_);
+  const auto it = leases_.find(id);
+  return it == leases_.end() ? std::nullopt : std::optional(it->second);
+}
+
+void SessionStore::checkFence(const std::string& id) const {
+  if (const auto g = held(id)) Fence{sessionDir(id), id, owner_, *g}.hold();
+}
+
+std::unique_ptr<SessionLog> SessionStore::openLog(const std::string& id, const fs::path& journal) const {
+  std::optional<Fence> fence;
+  if (const auto g = held(id)) fence = Fence{sessionDir(id), id, owner_, *g};
+  return std::make_unique<FileLog>(journal, syncInterval_, std::move(fence));
+}
+
 bool SessionStore::exists(const std::string& id) const {
-  if (!enabled()) return false;
   std::error_code ec;
   return fs::exists(sessionDir(id) / "session.json", ec);
 }
@@ -198,8 +233,8 @@ std::optional<SessionSecrets> SessionStore::secrets(const std::string& id) const
   return SessionSecrets{j["token"].get<std::string>(), j["view_token"].get<std::string>()};
 }
 
-std::unique_ptr<Journal> SessionStore::create(const std::string& id, const SessionSecrets& secrets,
-                                              const Volume& volume) const {
+std::unique_ptr<SessionLog> SessionStore::create(const std::string& id, const SessionSecrets& secrets,
+                                                 const Volume& volume) {
   const fs::path dir = sessionDir(id);
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -213,9 +248,11 @@ std::unique_ptr<Journal> SessionStore::create(const std::string& id, const Sessi
   return journal;
 }
 
-std::unique_ptr<Journal> SessionStore::snapshot(const std::string& id, const Volume& volume,
-                                                const std::vector<json>& head) const {
+std::unique_ptr<SessionLog> SessionStore::snapshot(const std::string& id, const Volume& volume,
+                                                   const std::vector<json>& head) {
   const fs::path dir = sessionDir(id);
+  std::unique_ptr<LeaseLock> fenced;
+  if (const auto g = held(id)) fenced = Fence{dir, id, owner_, *g}.hold();
   const std::uint64_t r = volume.revision();
   // The journal first, whole: a journal-R without snapshot-R continues the old journal's
   // revision R at recovery (its head re-announces strokes, which replay accepts), while a
@@ -225,7 +262,7 @@ std::unique_ptr<Journal> SessionStore::snapshot(const std::string& id, const Vol
   writeFileAtomically(journalPath(dir, r), text.data(), text.size());
   const std::vector<std::uint8_t> bytes = saveVolume(volume);
   writeFileAtomically(snapshotPath(dir, r), bytes.data(), bytes.size());
-  auto journal = std::make_unique<Journal>(journalPath(dir, r), syncInterval_);
+  auto journal = openLog(id, journalPath(dir, r));
   // Keep this snapshot and the one before it, with every journal and upload from that one on.
   const std::vector<std::uint64_t> snaps = revisions(dir, "snapshot-", ".mzv");
   std::uint64_t keepFrom = r;
@@ -244,36 +281,23 @@ std::unique_ptr<Journal> SessionStore::snapshot(const std::string& id, const Vol
 }
 
 std::string SessionStore::saveStep(const std::string& id, std::uint64_t revision,
-                                   const std::vector<std::pair<Int3, BrickRef>>& bricks) const {
-  std::vector<std::uint8_t> b{'M', 'Z', 'B', 'K'};
-  const auto put = [&b](std::uint32_t v) {
-    const std::size_t at = b.size();
-    b.resize(at + 4);
-    le::put32(b.data() + at, v);
-  };
-  put(std::uint32_t(bricks.size()));
-  for (const auto& [brick, ref] : bricks) {
-    put(std::uint32_t(brick.x));
-    put(std::uint32_t(brick.y));
-    put(std::uint32_t(brick.z));
-    b.push_back(ref.data ? 2 : ref.inside ? 1 : 0);
-    if (ref.data)
-      for (const float v : ref.data->v) put(std::bit_cast<std::uint32_t>(v));
-  }
-  put(crc32Ieee(b));
+                                   const std::vector<std::pair<Int3, BrickRef>>& bricks) {
+  const std::vector<std::uint8_t> b = encodeStep(bricks);
   const std::string name = "step-" + std::to_string(revision) + ".bin";
+  checkFence(id);
   writeFileAtomically(sessionDir(id) / name, b.data(), b.size());
   return name;
 }
 
 std::string SessionStore::saveUpload(const std::string& id, std::uint64_t revision,
-                                     std::span<const std::uint8_t> file) const {
+                                     std::span<const std::uint8_t> file) {
   const std::string name = "load-" + std::to_string(revision) + ".mzv";
+  checkFence(id);
   writeFileAtomically(sessionDir(id) / name, file.data(), file.size());
   return name;
 }
 
-Recovered SessionStore::recover(const std::string& id, std::size_t historyBytes, ThreadPool& pool) const {
+Recovered SessionStore::recover(const std::string& id, std::size_t historyBytes, ThreadPool& pool) {
   const fs::path dir = sessionDir(id);
   std::vector<std::uint64_t> snaps = revisions(dir, "snapshot-", ".mzv");
   std::optional<Volume> base;
@@ -290,7 +314,7 @@ Recovered SessionStore::recover(const std::string& id, std::size_t historyBytes,
   if (!base) throw std::runtime_error("session " + id + ": no readable snapshot in " + dir.string());
   Recovered out;
   out.session = std::make_unique<Session>(std::move(*base), historyBytes);
-  std::map<std::uint64_t, StrokeId> strokes;
+  Replay replay(*out.session, [&dir](const std::string& name) { return readFile(dir / name); }, pool);
   std::vector<std::uint64_t> journals;
   for (const std::uint64_t j : revisions(dir, "journal-", ".log"))
     if (j >= baseRevision) journals.push_back(j);
@@ -303,77 +327,93 @@ Recovered SessionStore::recover(const std::string& id, std::size_t historyBytes,
     }
     const bool last = k + 1 == journals.size();
     for (const json& rec : Journal::read(journalPath(dir, journals[k]), last, log_)) {
-      replayRecord(*out.session, rec, strokes, dir, pool);
+      replay.apply(rec);
       ++out.replayed;
-      if (rec.contains("r") && rec["r"].get<std::uint64_t>() != out.session->revision())
-        throw std::runtime_error("session " + id + ": replay reached revision " + std::to_string(out.session->revision()) +
-                                 " where the journal says " + rec["r"].dump());
     }
   }
-  for (const auto& [journalStroke, stroke] : strokes) out.session->endStroke(stroke);
+  replay.finish();
   const std::uint64_t appendTo = journals.empty() ? baseRevision : journals.back();
-  out.journal = std::make_unique<Journal>(journalPath(dir, appendTo), syncInterval_);
+  out.journal = openLog(id, journalPath(dir, appendTo));
   return out;
 }
 
-bool SessionStore::takeLease(const std::string& id, const std::string& owner, std::chrono::milliseconds ttl) const {
-  if (!enabled()) return true;
+std::optional<std::uint64_t> SessionStore::takeLease(const std::string& id, const std::string& owner,
+                                                    std::chrono::milliseconds ttl,
+                                                    std::optional<std::uint64_t> heldGeneration) const {
   const fs::path dir = sessionDir(id);
-  const fs::path lease = dir / "lease";
-  const auto nowMs = std::chrono::duration_cast<std::chrono::milliseconds>(
-                         std::chrono::system_clock::now().time_since_epoch())
-                         .count();
-  const auto read = [](const fs::path& p) -> std::pair<std::string, long long> {
-    std::ifstream in(p);
-    std::string who;
-    long long expires = 0;
-    if (!(in >> who >> expires)) return {"", 0};
-    return {who, expires};
-  };
   std::error_code ec;
   fs::create_directories(dir, ec);
   ::chmod(dir.c_str(), 0700);
-  const std::string text = owner + " " + std::to_string(nowMs + ttl.count()) + "\n";
-  const auto [who, expires] = read(lease);
-  if (who == owner) {
-    // Only the holder rewrites a live lease, so replacing it is safe.
-    writeFileAtomically(lease, text.data(), text.size());
-    return read(lease).first == owner;
+  const LeaseLock lock(dir, true);
+  const Lease current = readLease(dir / "lease");
+  const long long now = nowMs();
+  std::uint64_t generation = 0;
+  if (heldGeneration) {
+    // Renewal: only of the very lease held, expired or not; if anyone took it since, it is lost.
+    if (current.owner != owner || current.generation != *heldGeneration) return std::nullopt;
+    generation = *heldGeneration;
+  } else {
+    if (!current.owner.empty() && current.owner != owner && current.expiresMs > now) return std::nullopt;
+    generation = std::max(current.generation, lock.lastGeneration()) + 1;
+    lock.setLastGeneration(generation);
   }
-  if (!who.empty() && expires > nowMs) return false;
-  if (!who.empty()) {
-    // An expired lease: move it aside first. Of several servers doing so at once only one
-    // rename finds it; the others then lose the race to create the new one below.
-    const fs::path stale = dir / ("lease.stale." + owner);
-    if (::rename(lease.c_str(), stale.c_str()) != 0) return false;
-    const auto [staleWho, staleExpires] = read(stale);
-    fs::remove(stale, ec);
-    if (staleWho != who || staleExpires != expires) return false;  // it was renewed meanwhile
-  }
-  // Create it exclusively: link() fails when another server made one first.
-  const fs::path mine = dir / ("lease.new." + owner);
-  writeFileAtomically(mine, text.data(), text.size());
-  const bool won = ::link(mine.c_str(), lease.c_str()) == 0;
-  fs::remove(mine, ec);
-  return won;
+  const std::string text = owner + " " + std::to_string(now + ttl.count()) + " " + std::to_string(generation) + "\n";
+  writeFileAtomically(dir / "lease", text.data(), text.size());
+  return generation;
 }
 
-void SessionStore::releaseLease(const std::string& id, const std::string& owner) const {
-  if (!enabled()) return;
-  const fs::path lease = sessionDir(id) / "lease";
-  std::ifstream in(lease);
-  std::string who;
-  if (in >> who && who == owner) {
-    std::error_code ec;
-    fs::remove(lease, ec);
-  }
+void SessionStore::releaseLease(const std::string& id, const std::string& owner,
+                                std::optional<std::uint64_t> heldGeneration) const {
+  const fs::path dir = sessionDir(id);
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  const LeaseLock lock(dir, true);
+  const Lease current = readLease(dir / "lease");
+  if (current.owner == owner && (!heldGeneration || current.generation == *heldGeneration)) fs::remove(dir / "lease", ec);
 }
 
-std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxAge, const std::string& owner,
-                                                       std::chrono::milliseconds ttl,
-                                                       const std::function<bool(const std::string&)>& live) const {
+bool SessionStore::acquire(const std::string& id) {
+  const auto g = takeLease(id, owner_, ttl_);
+  if (!g) return false;
+  const std::lock_guard lock(mutex_);
+  leases_[id] = *g;
+  return true;
+}
+
+bool SessionStore::renew(const std::string& id) {
+  const auto g = held(id);
+  if (!g) return false;
+  // A lost lease stays recorded until release(): the session's writes keep being refused.
+  return takeLease(id, owner_, ttl_, g).has_value();
+}
+
+void SessionStore::release(const std::string& id) {
+  std::optional<std::uint64_t> g;
+  {
+    const std::lock_guard lock(mutex_);
+    const auto it = leases_.find(id);
+    if (it == leases_.end()) return;
+    g = it->second;
+    leases_.erase(it);
+  }
+  releaseLease(id, owner_, g);
+}
+
+void SessionStore::remove(const std::string& id) {
+  checkFence(id);
+  {
+    const std::lock_guard lock(mutex_);
+    leases_.erase(id);
+  }
+  std::error_code ec;
+  fs::remove_all(sessionDir(id), ec);
+  if (ec) throw std::runtime_error("cannot remove " + sessionDir(id).string() + ": " + ec.message());
+  syncDirectory(dir_ / "sessions");
+}
+
+std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxAge,
+                                                       const std::function<bool(const std::string&)>& live) {
   std::vector<std::string> removed;
-  if (!enabled()) return removed;
   std::error_code ec;
   const auto now = fs::file_time_type::clock::now();
   for (const fs::directory_entry& entry : fs::directory_iterator(dir_ / "sessions", ec)) {
@@ -382,29 +422,12 @@ std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxA
     bool old = true;
     for (const fs::directory_entry& file : fs::directory_iterator(entry.path(), ec))
       if (now - file.last_write_time(ec) < maxAge) old = false;
-    if (!old || !takeLease(id, owner, ttl)) continue;
+    if (!old || !takeLease(id, owner_, ttl_)) continue;
     fs::remove_all(entry.path(), ec);
     if (ec) warn("session " + id + ": removing it after " + std::to_string(maxAge.count() / 86400) + " days failed: " + ec.message());
     else removed.push_back(id);
   }
   return removed;
-}
-
-json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
-  const std::string symmetry =
-      std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
-  json record{{"stroke_begin", id},
-              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
-              {"radius", st.radius},
-              {"strength", st.strength},
-              {"symmetry", symmetry}};
-  if (st.accumulate) record["accumulate"] = true;
-  if (!st.memory.empty()) {
-    json applied = json::array();
-    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
-    record["applied"] = std::move(applied);
-  }
-  return record;
 }
 
 }  // namespace marzipan::service

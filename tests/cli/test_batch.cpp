@@ -104,9 +104,12 @@ TEST_CASE("batch, export STL, import it again: same volume within 2%, stable dig
   CHECK(s["components"] == 1);
   CHECK(s["inside_volume"].get<double>() > 30000);
   CHECK(s["surface_area"].get<double>() > 4000);
-  CHECK(s["bounding_box"]["min"].size() == 3);
-  CHECK(s["bounding_box"]["max"].size() == 3);
+  // The shape of session.stats's measures (service/measures_json.hpp).
+  CHECK(s["bounds"]["empty"] == false);
+  CHECK(s["bounds"]["lo"].size() == 3);
+  CHECK(s["bounds"]["hi"].size() == 3);
   CHECK(s["gradient_error"]["max"].get<double>() >= s["gradient_error"]["mean"].get<double>());
+  CHECK(s["gradient_error"]["voxels"].get<std::size_t>() > 0);
   CHECK(s["digest"].get<std::string>().size() == 16);
   CHECK(s["ms"].get<double>() > 0);
   REQUIRE(fs::file_size(dir / "out.stl") > 84);
@@ -125,8 +128,8 @@ TEST_CASE("batch, export STL, import it again: same volume within 2%, stable dig
   const double v0 = s["inside_volume"].get<double>(), v1 = i["inside_volume"].get<double>();
   CHECK(std::abs(v1 - v0) <= 0.02 * v0);
   for (int a = 0; a < 3; ++a) {
-    CHECK(std::abs(i["bounding_box"]["min"][a].get<double>() - s["bounding_box"]["min"][a].get<double>()) < 0.5);
-    CHECK(std::abs(i["bounding_box"]["max"][a].get<double>() - s["bounding_box"]["max"][a].get<double>()) < 0.5);
+    CHECK(std::abs(i["bounds"]["lo"][a].get<double>() - s["bounds"]["lo"][a].get<double>()) < 0.5);
+    CHECK(std::abs(i["bounds"]["hi"][a].get<double>() - s["bounds"]["hi"][a].get<double>()) < 0.5);
   }
   const Run importedAgain = marzipan(dir, "batch none.jsonl --size 64 --load out.stl --stats --threads 2");
   REQUIRE(importedAgain.status == 0);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "net/metrics.hpp"
+#include "service/etcd_store.hpp"
 
 using marzipan::net::Metrics;
 using marzipan::net::PathClass;
@@ -53,7 +54,8 @@ TEST_CASE("metrics: every line is a comment or `name{labels} value`", "[net][met
     CHECK((isSample || std::regex_match(line, comment)));
     samples += isSample;
   }
-  CHECK(samples == 4 + 3 + 2 + int(Metrics::kEditLatencyBuckets.size()) + 3);
+  CHECK(samples == 4 + 3 + 2 + int(Metrics::kEditLatencyBuckets.size()) + 3 + 2 + 1 +
+                       int(Metrics::kEditLatencyBuckets.size()) + 3);
 }
 
 TEST_CASE("metrics: counters, gauges and errors by code", "[net][metrics]") {
@@ -94,6 +96,26 @@ TEST_CASE("metrics: the edit latency histogram is cumulative, bounds inclusive",
   CHECK(hasLine(text, "marzipan_edit_latency_seconds_bucket{le=\"+Inf\"} 4"));
   CHECK(hasLine(text, "marzipan_edit_latency_seconds_count 4"));
   CHECK(hasLine(text, "marzipan_edit_latency_seconds_sum 5.0125"));
+}
+
+TEST_CASE("metrics: the etcd store's events count ownership changes, fenced rejections and append latency", "[net][metrics]") {
+  Metrics m;
+  const marzipan::service::EtcdEvents e = marzipan::net::etcdEventsFor(m);
+  e.ownershipChanged("a", true);
+  e.ownershipChanged("b", true);
+  e.ownershipChanged("a", false);
+  e.fencedRejection("a");
+  e.appended(0.0015, 3);
+  e.appended(0.003, 1);
+  const std::string text = m.renderPrometheus();
+  CHECK(hasLine(text, "marzipan_etcd_ownership_changes_total{change=\"gained\"} 2"));
+  CHECK(hasLine(text, "marzipan_etcd_ownership_changes_total{change=\"lost\"} 1"));
+  CHECK(hasLine(text, "marzipan_etcd_fenced_rejections_total 1"));
+  CHECK(hasLine(text, "marzipan_etcd_append_seconds_bucket{le=\"0.002\"} 1"));
+  CHECK(hasLine(text, "marzipan_etcd_append_seconds_bucket{le=\"0.005\"} 2"));
+  CHECK(hasLine(text, "marzipan_etcd_append_seconds_count 2"));
+  CHECK(hasLine(text, "marzipan_etcd_append_seconds_sum 0.0045"));
+  CHECK(hasLine(text, "marzipan_edit_latency_seconds_count 0"));
 }
 
 TEST_CASE("metrics: updates from many threads are all counted", "[net][metrics]") {

@@ -377,3 +377,31 @@ TEST_CASE("edits racing shutdown: every acknowledged one is journaled", "[hub][d
   CHECK(joined["revision"].get<std::uint64_t>() >= acknowledged);
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("session.stats measures off the strand: an edit sent after it is answered before it", "[hub]") {
+  Hub hub(longOptions());
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreatePig);
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  // Each round: a asks for stats, b edits right after. In a round where the stats request
+  // reached the strand first (its snapshot is older than the edit), a stats request measured on
+  // the strand would always be answered before the edit; off the strand the edit overtakes it.
+  // The machine may be loaded, so the test asks for one such overtaking in up to 10 rounds.
+  bool overtaken = false;
+  for (int round = 0; round < 10 && !overtaken; ++round) {
+    const int statsId = 700 + 2 * round, editId = statsId + 1;
+    const std::size_t aMark = a.link->size();
+    sendLong(a, statsId, "session.stats", json::object());
+    sendLong(b, editId, "tool.apply", {{"tool", "add_blob"}, {"center", {30 + round, 64, 64}}, {"radius", 2}});
+    const json edit = responseTo(b, editId);
+    REQUIRE(edit.contains("result"));
+    bool statsAnswered = false;
+    for (std::size_t i = aMark; i < a.link->size(); ++i) statsAnswered |= isResponse(a.link->at(i), statsId);
+    const json stats = responseTo(a, statsId);
+    REQUIRE(stats.contains("result"));
+    const bool statsFirstOnStrand =
+        stats["result"]["revision"].get<std::uint64_t>() < edit["result"]["revision"].get<std::uint64_t>();
+    overtaken = statsFirstOnStrand && !statsAnswered;
+  }
+  CHECK(overtaken);
+}

@@ -178,15 +178,58 @@ TEST_CASE("a corrupt newest snapshot falls back to the previous one and both jou
 TEST_CASE("a lease keeps a session on one server until it expires or is released", "[store]") {
   const fs::path dir = freshDir("lease");
   SessionStore store(dir);
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
-  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)).has_value());
   store.releaseLease("abc", "server-b");
-  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)));
+  CHECK_FALSE(store.takeLease("abc", "server-b", std::chrono::milliseconds(60'000)).has_value());
   store.releaseLease("abc", "server-a");
-  CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)));
+  CHECK(store.takeLease("abc", "server-b", std::chrono::milliseconds(1)).has_value());
   std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)));
+  CHECK(store.takeLease("abc", "server-a", std::chrono::milliseconds(60'000)).has_value());
+  fs::remove_all(dir);
+}
+
+TEST_CASE("leases are fenced: a holder that stalled past its expiry can neither renew over nor write after the new one",
+          "[store]") {
+  const fs::path dir = freshDir("fence");
+  const auto ttl = std::chrono::milliseconds(30);
+  SessionStore a(dir, {}, {}, "server-a", ttl), b(dir, {}, {}, "server-b", ttl);
+  Session live(makeSolid(SolidKind::Sphere, {32, 32, 32}));
+  REQUIRE(a.acquire("s"));
+  std::unique_ptr<SessionLog> journalA = a.create("s", {"t", "v"}, live.volume());
+  journalA->append({{"stroke_end", 1}});
+  CHECK(a.renew("s"));
+  std::this_thread::sleep_for(ttl * 2);
+  // a stalled: its lease expired and b took it, with a newer generation.
+  REQUIRE(b.acquire("s"));
+  const auto leaseText = [&] {
+    std::ifstream in(dir / "sessions" / "s" / "lease");
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string bLease = leaseText();
+  CHECK(bLease.rfind("server-b ", 0) == 0);
+  CHECK(bLease.substr(bLease.rfind(' ') + 1) == "2\n");
+  // a's renewal finds the lease taken and leaves b's untouched; a's append is refused and
+  // leaves the journal as it was.
+  CHECK_FALSE(a.renew("s"));
+  CHECK(leaseText() == bLease);
+  const auto journalBytes = fs::file_size(dir / "sessions" / "s" / "journal-0.log");
+  CHECK_THROWS_AS(journalA->append({{"stroke_end", 2}}), OwnershipLost);
+  CHECK(fs::file_size(dir / "sessions" / "s" / "journal-0.log") == journalBytes);
+  CHECK_THROWS_AS(a.snapshot("s", live.volume()), OwnershipLost);
+  // b writes on; a release by a (which no longer holds it) leaves b's lease alone.
+  const Recovered rb = b.recover("s", std::size_t(64) << 20, ThreadPool::serial());
+  rb.journal->append({{"stroke_end", 3}});
+  a.release("s");
+  a.releaseLease("s", "server-a", 1);
+  CHECK(leaseText() == bLease);
+  // Generations only grow, also across a released (removed) lease.
+  b.release("s");
+  CHECK_FALSE(fs::exists(dir / "sessions" / "s" / "lease"));
+  REQUIRE(a.acquire("s"));
+  CHECK(leaseText().substr(leaseText().rfind(' ') + 1) == "3\n");
+  CHECK_THROWS_AS(rb.journal->append({{"stroke_end", 4}}), OwnershipLost);
   fs::remove_all(dir);
 }
 
@@ -194,7 +237,7 @@ TEST_CASE("a snapshot's journal starts with the open strokes, and a rotation cut
   const fs::path dir = freshDir("rotation");
   SessionStore store(dir);
   Session live(makeSolid(SolidKind::Sphere, {64, 64, 64}));
-  std::unique_ptr<Journal> journal = store.create("rot", {"t", "v"}, live.volume());
+  std::unique_ptr<SessionLog> journal = store.create("rot", {"t", "v"}, live.volume());
   const StrokeId stroke = live.beginStroke(protocol::BrushTool::AddBlob, 6, 1);
   journal->append({{"stroke_begin", stroke}, {"tool", "add_blob"}, {"radius", 6}, {"strength", 1}, {"symmetry", ""}});
   const auto dab = [&](double x) {

@@ -29,6 +29,7 @@ from .rpc import (
     Notification,
     ProtocolError,
     RequestIds,
+    SessionHeldElsewhere,
     encode_request,
     error_from_response,
     parse_message,
@@ -453,13 +454,24 @@ class Client:
         self._remember_session(result)
         return result
 
-    async def join(self, session: str, token: str, *, view: str = "none", protocol: int | None = 1) -> dict:
+    async def join(self, session: str, token: str, *, view: str = "none", protocol: int | None = 1,
+                   follow_owner: bool = False) -> dict:
         """session.join with the edit or the view token; reconnects under `session` first when
-        this connection was opened for another id (the load balancer routes on it)."""
+        this connection was opened for another id (the load balancer routes on it).
+        `follow_owner`: on -32015 naming the owning server (servers sharing etcd), reconnect to
+        it directly and join there once; only where clients can reach the servers themselves."""
         if self.session is None and session != self._route:
             await self._reopen(session)
-        result = await self._result("session.join", _without_none(session=session, token=token,
-                                                                 protocol=protocol, view=view))
+        params = _without_none(session=session, token=token, protocol=protocol, view=view)
+        try:
+            result = await self._result("session.join", params)
+        except SessionHeldElsewhere as e:
+            if not follow_owner or e.owner is None:
+                raise
+            parts = urllib.parse.urlsplit(self.url)
+            self.url = urllib.parse.urlunsplit((parts.scheme, e.owner, parts.path, parts.query, ""))
+            await self._reopen(session)
+            result = await self._result("session.join", params)
         self._remember_session(result)
         if result.get("read_only"):
             self.token, self.view_token = None, token

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import json
+import re
 from dataclasses import dataclass, field
 
 PROTOCOL_VERSION = {"major": 1, "minor": 1}
@@ -108,7 +109,15 @@ class NoSuchStroke(RpcError): pass
 class NothingToUndoRedo(RpcError): pass
 class UploadMissing(RpcError): pass
 class SessionExists(RpcError): pass
-class SessionHeldElsewhere(RpcError): pass
+class SessionHeldElsewhere(RpcError):
+    """-32015. With servers that share etcd, `owner` names the server that owns the session
+    (its --server-id, by default HOST:PORT): Client.join(follow_owner=True) reconnects there."""
+
+    @property
+    def owner(self) -> str | None:
+        value = self.data.get("owner")
+        return value if isinstance(value, str) and re.fullmatch(r"[A-Za-z0-9._-]+:[0-9]{1,5}", value) else None
+
 class Cancelled(RpcError): pass
 
 

@@ -12,6 +12,7 @@ import {
   RequestBuilder,
   RpcErrorCode,
   classifyMessage,
+  ownerUrl,
   rpcErrorName,
 } from "../../../protocol/js/rpc.js";
 import { protocolMarkdown, vectors } from "./vectors.mjs";
@@ -140,4 +141,14 @@ test("client notifications carry no id", () => {
   const sent = JSON.parse(builder.notification("stroke.dabs", dabs));
   assert.deepEqual(sent, { jsonrpc: "2.0", method: "stroke.dabs", params: dabs });
   assert.equal(builder.nextId, 1);
+});
+
+test("ownerUrl: -32015's data.owner as the URL to reconnect to, path and session kept", () => {
+  const held = { code: -32015, message: "held elsewhere", data: { owner: "server-b:8080" } };
+  assert.equal(ownerUrl(held, "ws://lb.example:80/ws?session=abc"), "ws://server-b:8080/ws?session=abc");
+  assert.equal(ownerUrl(held, "wss://lb.example/ws?session=abc"), "wss://server-b:8080/ws?session=abc");
+  assert.equal(ownerUrl({ code: -32015, message: "m" }, "ws://a:1/ws"), null);
+  assert.equal(ownerUrl({ code: -32015, message: "m", data: { owner: "host-1234" } }, "ws://a:1/ws"), null);
+  assert.equal(ownerUrl({ code: -32015, message: "m", data: { owner: "evil.example:80/x" } }, "ws://a:1/ws"), null);
+  assert.equal(ownerUrl({ code: -32001, message: "m", data: { owner: "b:1" } }, "ws://a:1/ws"), null);
 });

@@ -60,9 +60,10 @@ class Offline(unittest.TestCase):
                                       "bounds": {"empty": False, "lo": [1, 2, 3], "hi": [4, 5, 6]},
                                       "gradient_error": {"max": 0.1, "mean": 0.01, "voxels": 9},
                                       "digest": "00ff00ff00ff00ff"}, 12.34567))
-        self.assertEqual(list(line), ["revision", "inside_volume", "surface_area", "components", "bounding_box",
+        self.assertEqual(list(line), ["revision", "inside_volume", "surface_area", "components", "bounds",
                                       "gradient_error", "digest", "ms"])
-        self.assertEqual(line["bounding_box"], {"min": [1, 2, 3], "max": [4, 5, 6]})
+        self.assertEqual(line["bounds"], {"empty": False, "lo": [1, 2, 3], "hi": [4, 5, 6]})
+        self.assertEqual(line["gradient_error"], {"max": 0.1, "mean": 0.01, "voxels": 9})
         self.assertEqual(line["ms"], 12.346)
 
     def test_the_default_camera_is_that_of_marzipan_batch(self):
@@ -125,7 +126,7 @@ class AgainstServer(unittest.TestCase):
         self.assertEqual(len(b_lines), 2)  # after operation 3 and after the last (6)
         for a, b in zip(a_lines, b_lines):
             self.assertEqual(list(a), list(b))
-            for key in ("revision", "digest", "inside_volume", "surface_area", "components", "bounding_box",
+            for key in ("revision", "digest", "inside_volume", "surface_area", "components", "bounds",
                         "gradient_error"):
                 self.assertEqual(a[key], b[key], key)
         self.assertEqual((d / "a.stl").read_bytes(), (d / "b.stl").read_bytes())

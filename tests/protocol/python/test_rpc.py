@@ -25,6 +25,14 @@ from marzipan.rpc import (
 
 
 class Tables(unittest.TestCase):
+    def test_session_held_elsewhere_names_its_owner_only_as_host_and_port(self):
+        def held(data):
+            return rpc.error_from_response({"code": -32015, "message": "held elsewhere", "data": data}, "session.join")
+        self.assertEqual(held({"owner": "server-b:8080"}).owner, "server-b:8080")
+        self.assertIsNone(held({}).owner)
+        self.assertIsNone(held({"owner": "evil.example:80/x"}).owner)
+        self.assertIsNone(held({"owner": 7}).owner)
+
     def test_methods_and_version_are_those_of_the_vectors(self):
         self.assertEqual(list(METHODS), VECTORS["methods"])
         self.assertEqual(list(BINARY_METHODS), VECTORS["binary_methods"])

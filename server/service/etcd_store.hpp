@@ -1,0 +1,190 @@
+// Sessions owned through etcd (or any service/key_value.hpp store): one owner per session,
+// fenced, and a journal that no stale owner can write.
+//
+// Keys, under options.prefix (default "marzipan/"), for session ID:
+//   sessions/ID/owner        the owning server's address (what -32015 tells clients), attached
+//                            to that server's lease; its createRevision is the FENCING TOKEN
+//   sessions/ID/journal/SEQ  one acknowledged change: {"token":T,"records":[...]} (records as in
+//                            service/journal.hpp); SEQ is 16 lower-case hex digits, from 0, so
+//                            that key order is sequence order; written only if absent
+//   sessions/ID/snapshot     the pointer readers trust: {"current":{"file","revision","next",
+//                            "head"},"previous":{...}}: a snapshot file (never-reused name,
+//                            written by the caller beside session.json), the first SEQ after
+//                            it, and the records replay starts with (the open strokes')
+// Ownership: each server holds one lease (TTL options.leaseTtl, kept alive every third of it by
+// a thread of its own, revoked by stop()). claim() creates the owner key in a transaction only
+// if it is absent. Every write of an owner compares the owner key's createRevision with its
+// token: after a lease expiry the key is gone (or re-created by another server with a higher
+// revision), so a paused owner that wakes up is refused by etcd itself, whatever its clock says.
+// The lease is lost when a keep-alive answers "expired" or none succeeded for a whole TTL: the
+// owner then refuses appends locally at once (Fenced) and `lost` is called once.
+// Appends from all sessions of a server are grouped: while one transaction is in flight the
+// next ones queue and go together as one transaction (bounded by etcd's --max-txn-ops and
+// --max-request-bytes), so strokes keep up without waiting for a timer.
+// Errors: Fenced (not, or no longer, the owner: nothing was written), KvRefused (too large for
+// etcd, quota exceeded: nothing was written), KvUnavailable (no member answered: the outcome is
+// unknown and the journal refuses further appends until the session is read back).
+// Thread-safety: EtcdOwner and its journals may be used from any thread.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "service/key_value.hpp"
+
+namespace marzipan::service {
+
+struct Fenced : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// What the metrics hear (any thread; may be empty).
+struct EtcdEvents {
+  std::function<void(const std::string& id, bool gained)> ownershipChanged;
+  std::function<void(const std::string& id)> fencedRejection;
+  std::function<void(double seconds, std::size_t changes)> appended;  // one group transaction
+  std::function<void(const std::string&)> log;
+};
+
+struct EtcdOptions {
+  std::string prefix = "marzipan/";
+  std::int64_t leaseTtlSeconds = 5;
+  // etcd's defaults: --max-txn-ops 128 (per branch and for compares), --max-request-bytes
+  // 1.5 MiB. The gateway base64-encodes keys and values (4/3) inside JSON; one change beyond
+  // maxChangeBytes is refused (KvRefused) before it is sent.
+  std::size_t maxTxnOps = 128;
+  std::size_t maxRequestBytes = 1'572'864;
+  std::size_t maxChangeBytes = 1'000'000;
+};
+
+// A snapshot the pointer names.
+struct SnapshotRef {
+  std::string file;
+  std::uint64_t revision = 0;
+  std::uint64_t next = 0;  // the first journal SEQ after it
+  std::vector<nlohmann::json> head;  // replayed before the journal from `next`
+};
+
+// A change read back from the journal.
+struct JournalEntry {
+  std::uint64_t seq = 0;
+  std::int64_t token = 0;
+  std::vector<nlohmann::json> records;
+};
+
+// What is at rest for a session: the pointer and the journal from the previous snapshot on.
+struct EtcdSessionState {
+  std::optional<SnapshotRef> current, previous;
+  std::vector<JournalEntry> journal;  // in SEQ order, contiguous
+};
+
+class EtcdOwner;
+
+// One owned session's journal. Created by EtcdOwner::claim.
+class EtcdJournal {
+ public:
+  // Appends one change (its records) under the next SEQ; returns once etcd has it.
+  void append(const std::vector<nlohmann::json>& records);
+  // Makes `snap` current (its file must be complete and synced): moves the pointer and deletes
+  // the journal keys before the previous snapshot's, in one fenced transaction.
+  // `head` goes into the pointer itself, so that the move is all or nothing.
+  void commitSnapshot(const std::string& file, std::uint64_t revision, const std::vector<nlohmann::json>& head = {});
+  // After a read-back (an append's outcome was unknown): appends continue after what `state`
+  // holds. A fenced journal stays fenced.
+  void resume(const EtcdSessionState& state);
+  std::uint64_t nextSeq() const;
+  std::int64_t token() const { return token_; }
+  const std::string& id() const { return id_; }
+  // Deletes the owner key (if still this token's): another server may take the session at once.
+  void release();
+  // Deletes every key of the session, the owner key last of all (fenced): session.delete.
+  void erase();
+
+ private:
+  friend class EtcdOwner;
+  EtcdJournal(EtcdOwner& owner, std::string id, std::int64_t token, EtcdSessionState state);
+  EtcdOwner& owner_;
+  const std::string id_;
+  const std::int64_t token_;
+  mutable std::mutex mutex_;
+  std::uint64_t next_ = 0;
+  // unknown: an append's outcome is unknown (read the session back first); fenced: another
+  // server owns the session. Either way nothing more is written through this journal.
+  enum class State { open, unknown, fenced };
+  State state_ = State::open;
+  void refuseIfBroken() const;
+  std::optional<SnapshotRef> current_, previous_;
+};
+
+class EtcdOwner {
+ public:
+  // `address`: how clients reach this server (host:port), stored in the owner keys.
+  EtcdOwner(KeyValue& kv, std::string address, EtcdOptions options = {}, EtcdEvents events = {});
+  ~EtcdOwner();  // stop()
+  EtcdOwner(const EtcdOwner&) = delete;
+  EtcdOwner& operator=(const EtcdOwner&) = delete;
+
+  // Grants the lease and starts keeping it alive; `lost` is called once (from the keep-alive
+  // thread) when it is lost. Throws KvUnavailable when etcd cannot be reached.
+  void start(std::function<void()> lost = {});
+  // Revokes the lease (every session it owns is free at once) and stops the keep-alive.
+  void stop();
+  bool leaseHeld() const;
+
+  struct Claim {
+    std::unique_ptr<EtcdJournal> journal;  // set when this server owns the session now
+    EtcdSessionState state;                // what is at rest (when owned)
+    std::string owner;                     // the other owner's address (when not)
+  };
+  // Takes the session if no one owns it; reads back its state when taken.
+  Claim claim(const std::string& id);
+  // The address of the session's owner, if any.
+  std::optional<std::string> ownerOf(const std::string& id);
+  // What is at rest, read without owning (tests, tools).
+  EtcdSessionState read(const std::string& id);
+
+  const std::string& address() const { return address_; }
+  const EtcdOptions& options() const { return options_; }
+
+  std::string ownerKey(const std::string& id) const;
+  std::string journalKey(const std::string& id, std::uint64_t seq) const;
+  std::string pointerKey(const std::string& id) const;
+
+ private:
+  friend class EtcdJournal;
+  struct Pending;
+  // Group commit: blocks until this change's transaction has an outcome.
+  void submit(EtcdJournal& j, std::uint64_t seq, std::string value);
+  void runGroup(std::vector<std::shared_ptr<Pending>> group);
+  void keepAlive();
+  void loseLease(const std::string& why);
+  void fenced(const std::string& id);
+
+  KeyValue& kv_;
+  const std::string address_;
+  const EtcdOptions options_;
+  const EtcdEvents events_;
+
+  mutable std::mutex mutex_;  // guards everything below
+  std::condition_variable wake_;
+  std::int64_t lease_ = 0;
+  bool held_ = false, stopping_ = false;
+  std::chrono::steady_clock::time_point lastRenewed_;
+  std::function<void()> lost_;
+  std::thread keeper_;
+  std::deque<std::shared_ptr<Pending>> queue_;
+  bool committing_ = false;  // a caller is sending groups
+};
+
+}  // namespace marzipan::service

@@ -1,0 +1,139 @@
+// Journal records made and replayed (see journal_records.hpp).
+#include "service/journal_records.hpp"
+
+#include <bit>
+#include <cstring>
+#include <stdexcept>
+
+#include "engine/volume_file.hpp"
+#include "protocol/cpp/little_endian.hpp"
+#include "protocol/cpp/ops.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+
+json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
+  const std::string symmetry =
+      std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
+  json record{{"stroke_begin", id},
+              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+              {"radius", st.radius},
+              {"strength", st.strength},
+              {"symmetry", symmetry}};
+  if (st.accumulate) record["accumulate"] = true;
+  if (!st.memory.empty()) {
+    json applied = json::array();
+    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
+    record["applied"] = std::move(applied);
+  }
+  return record;
+}
+
+std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>>& bricks) {
+  std::vector<std::uint8_t> b{'M', 'Z', 'B', 'K'};
+  const auto put = [&b](std::uint32_t v) {
+    const std::size_t at = b.size();
+    b.resize(at + 4);
+    le::put32(b.data() + at, v);
+  };
+  put(std::uint32_t(bricks.size()));
+  for (const auto& [brick, ref] : bricks) {
+    put(std::uint32_t(brick.x));
+    put(std::uint32_t(brick.y));
+    put(std::uint32_t(brick.z));
+    b.push_back(ref.data ? 2 : ref.inside ? 1 : 0);
+    if (ref.data)
+      for (const float v : ref.data->v) put(std::bit_cast<std::uint32_t>(v));
+  }
+  put(crc32Ieee(b));
+  return b;
+}
+
+std::vector<std::pair<Int3, BrickRef>> decodeStep(std::span<const std::uint8_t> b, const std::string& name) {
+  const auto fail = [&]() -> std::runtime_error { return std::runtime_error("unreadable step file " + name); };
+  if (b.size() < 12 || std::memcmp(b.data(), "MZBK", 4) != 0) throw fail();
+  if (crc32Ieee({b.data(), b.size() - 4}) != le::get32(b.data() + b.size() - 4)) throw fail();
+  const std::uint32_t count = le::get32(b.data() + 4);
+  std::vector<std::pair<Int3, BrickRef>> out;
+  std::size_t at = 8;
+  for (std::uint32_t i = 0; i < count; ++i) {
+    if (at + 13 > b.size() - 4) throw fail();
+    const Int3 brick{std::int32_t(le::get32(b.data() + at)), std::int32_t(le::get32(b.data() + at + 4)),
+                     std::int32_t(le::get32(b.data() + at + 8))};
+    const std::uint8_t kind = b[at + 12];
+    at += 13;
+    BrickRef ref;
+    if (kind == 2) {
+      if (at + sizeof(Brick) > b.size() - 4) throw fail();
+      auto data = std::make_shared<Brick>();
+      for (int v = 0; v < kBrickVoxels; ++v) data->v[v] = le::getF32(b.data() + at + 4 * std::size_t(v));
+      at += sizeof(Brick);
+      ref.data = std::move(data);
+    } else {
+      ref.inside = kind == 1;
+    }
+    out.emplace_back(brick, std::move(ref));
+  }
+  return out;
+}
+
+void Replay::apply(const json& rec) {
+  Session& s = session_;
+  if (rec.contains("op")) {
+    s.apply(protocol::parseOp(rec["op"]), pool_);
+  } else if (rec.contains("stroke_begin")) {
+    // A stroke announced again at the head of a journal after a snapshot replaces its entry.
+    if (const auto it = strokes_.find(rec["stroke_begin"].get<std::uint64_t>()); it != strokes_.end()) {
+      s.endStroke(it->second);
+      strokes_.erase(it);
+    }
+    const auto tool = fromWireName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
+    if (!tool) throw std::runtime_error("unknown stroke tool");
+    const std::string sym = rec.value("symmetry", "");
+    const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
+                            sym.find('z') != std::string::npos};
+    const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
+                                      rec.value("accumulate", false));
+    strokes_[rec["stroke_begin"].get<std::uint64_t>()] = id;
+    if (const auto it = rec.find("applied"); it != rec.end()) {
+      // What the stroke had applied before the snapshot: its next dabs add only the excess.
+      std::vector<StrokeDab> applied;
+      for (const json& d : *it) {
+        const StrokeDab dab{Vec3{d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>()}, d.at(3).get<double>()};
+        if (!isFinite(dab.center) || !(dab.weight > 0 && dab.weight <= 1)) throw std::runtime_error("bad stroke memory");
+        applied.push_back(dab);
+      }
+      s.setStrokeMemory(id, std::move(applied));
+    }
+  } else if (rec.contains("stroke_end")) {
+    const auto it = strokes_.find(rec["stroke_end"].get<std::uint64_t>());
+    if (it != strokes_.end()) {
+      s.endStroke(it->second);
+      strokes_.erase(it);
+    }
+  } else if (rec.contains("stroke")) {
+    std::vector<Dab> dabs;
+    for (const json& d : rec.at("dabs")) dabs.push_back(Dab{Vec3{d[0], d[1], d[2]}, d[3].get<double>()});
+    s.strokeDabs(strokes_.at(rec["stroke"].get<std::uint64_t>()), dabs, pool_);
+  } else if (rec.contains("undo") || rec.contains("redo")) {
+    // From the bricks it put in place, not from the replayed history: that history starts at
+    // the snapshot and may hold only part of a stroke that began before it.
+    const std::string name = rec[rec.contains("undo") ? "undo" : "redo"].get<std::string>();
+    s.restore(decodeStep(readFile_(name), name));
+  } else if (rec.contains("load")) {
+    s.load(loadVolume(readFile_(rec["load"].get<std::string>())));
+  } else {
+    throw std::runtime_error("unknown journal record");
+  }
+  if (rec.contains("r") && rec["r"].get<std::uint64_t>() != s.revision())
+    throw std::runtime_error("replay reached revision " + std::to_string(s.revision()) + " where the journal says " +
+                             rec["r"].dump());
+}
+
+void Replay::finish() {
+  for (const auto& [journalStroke, stroke] : strokes_) session_.endStroke(stroke);
+  strokes_.clear();
+}
+
+}  // namespace marzipan::service

@@ -1,0 +1,52 @@
+// The journal's records (format: service/journal.hpp) made and replayed, for every
+// SessionStorage: the records a change writes, the step files an undo or redo keeps, and the
+// replay of a snapshot's records into a Session.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/thread_pool.hpp"
+#include "engine/volume.hpp"
+#include "service/session.hpp"
+
+namespace marzipan::service {
+
+// The record of a stroke's start: tool, radius, strength, symmetry, accumulate, and what it
+// applied so far (its memory), which recovery reads back. The hub writes it at stroke.begin and
+// at the head of every new journal for the strokes still open.
+nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);
+
+// The bricks an undo or redo put in place, as a step file: "MZBK", u32 count, per brick i32 x y
+// z, u8 0 outside / 1 inside / 2 data + 512 f32, then the CRC-32 of all before it; little-endian.
+std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>>& bricks);
+// Throws std::runtime_error("unreadable step file NAME") when the bytes are not one.
+std::vector<std::pair<Int3, BrickRef>> decodeStep(std::span<const std::uint8_t> bytes, const std::string& name);
+
+// Replays records in journal order into a session recovered from its snapshot.
+class Replay {
+ public:
+  // readFile(name): the bytes of a file a record names ({"undo"/"redo"/"load": name}).
+  Replay(Session& session, std::function<std::vector<std::uint8_t>(const std::string& name)> readFile, ThreadPool& pool)
+      : session_(session), readFile_(std::move(readFile)), pool_(pool) {}
+  // Throws std::runtime_error when a record is unknown or its revision disagrees with the
+  // session's after it.
+  void apply(const nlohmann::json& record);
+  // Ends the strokes the records left open (their clients are gone).
+  void finish();
+
+ private:
+  Session& session_;
+  std::function<std::vector<std::uint8_t>(const std::string&)> readFile_;
+  ThreadPool& pool_;
+  std::map<std::uint64_t, StrokeId> strokes_;  // journal stroke id -> the session's
+};
+
+}  // namespace marzipan::service

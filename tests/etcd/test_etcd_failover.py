@@ -1,0 +1,443 @@
+#!/usr/bin/python3
+"""Sessions owned through etcd, as processes on loopback: three etcd members (cluster.py), three
+`marzipan serve --etcd ... --data-dir SHARED` behind HAProxy with docker/haproxy.cfg (only its
+`server-template` line replaced by the loopback servers), and scripted clients whose every edit
+is tagged (an add_blob at a position of its own), so that the recovered session can be checked
+against a reference replay of exactly the acknowledged edits on a server with no storage.
+
+Checks, in order:
+  kill      SIGKILL the owner: through the proxy, another server acknowledges an edit within
+            10 s (reported: takeover time); revision and digest equal the reference replay.
+  restart   the killed server, started again under its name, does not load the session another
+            server owns: -32015 with data.owner naming that server.
+  pause     SIGSTOP an owner past its lease; another server takes the session and acknowledges
+            edits; SIGCONT the old one and send it edits on its old connection: none is
+            acknowledged; the journal's tokens never decrease along its sequence keys.
+  leader    SIGKILL the etcd leader during edits: the edits resume after the election
+            (reported: the longest edit), nothing acknowledged is lost.
+Also reported: the median and 95th percentile of an acknowledged edit's round trip through
+the proxy, and marzipan_etcd_append_seconds from a server's /metrics.
+
+Usage: test_etcd_failover.py --marzipan BIN --haproxy BIN --config docker/haproxy.cfg --workdir DIR
+       [--lease-seconds N] [--only kill|pause|leader ...]
+Run by ctest ("etcd: ..."). Needs Debian's /usr/bin/python3 with python3-websockets.
+Conventions: every wait is bounded; every process started here is killed at the end; a failed
+check raises AssertionError saying what was expected and what came.
+"""
+
+import argparse
+import asyncio
+import base64
+import json
+import os
+import re
+import secrets
+import shutil
+import select
+import signal
+import statistics
+import subprocess
+import sys
+import time
+import urllib.request
+
+import websockets
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from cluster import EtcdCluster, free_port  # noqa: E402
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "protocol", "python"))
+from marzipan import Client  # noqa: E402  (this checkout's package)
+
+SERVERS = ("s1", "s2", "s3")
+LEASE_SECONDS = 3
+TAKEOVER_LIMIT = 10.0  # seconds, the issue's "within ~10 s"
+HELD_ELSEWHERE = -32015
+CREATE = {"size": [48, 48, 48], "solid": "sphere", "view": "none"}
+
+
+def clean_env():
+    return {k: v for k, v in os.environ.items() if not k.startswith("MARZIPAN_")}
+
+
+def session_id():
+    return secrets.token_urlsafe(16)[:22]
+
+
+def edit(tag):
+    """The tagged edit number `tag`: a small blob at a position of its own on the sphere."""
+    return {"tool": "add_blob", "center": [8 + (tag * 7) % 32, 8 + (tag * 11) % 32, 24 + (tag % 3)], "radius": 2.5}
+
+
+class Rpc:
+    """One WebSocket, JSON-RPC, view none. call() returns ("ok", result) or ("error", code, data);
+    a closed connection raises ConnectionError."""
+
+    def __init__(self, url):
+        self.url = url
+        self.next_id = 1
+
+    async def __aenter__(self):
+        self.ws = await asyncio.wait_for(websockets.connect(self.url, max_size=None), 5)
+        self.server = self.ws.response_headers.get("X-Marzipan-Server")
+        return self
+
+    async def __aexit__(self, *exc):
+        try:
+            await asyncio.wait_for(self.ws.close(), 2)
+        except Exception:
+            pass
+
+    async def call(self, method, params, timeout=10):
+        rid = self.next_id
+        self.next_id += 1
+        try:
+            await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": rid, "method": method, "params": params}))
+            deadline = time.monotonic() + timeout
+            while True:
+                message = await asyncio.wait_for(self.ws.recv(), max(0.01, deadline - time.monotonic()))
+                if isinstance(message, bytes):
+                    continue
+                reply = json.loads(message)
+                if reply.get("id") != rid:
+                    continue
+                if "error" in reply:
+                    return ("error", reply["error"]["code"], reply["error"].get("data"))
+                return ("ok", reply["result"])
+        except (websockets.ConnectionClosed, OSError) as e:
+            raise ConnectionError(str(e)) from None
+
+
+class Topology:
+    def __init__(self, args):
+        self.args = args
+        self.work = args.workdir
+        self.data = os.path.join(self.work, "data")
+        self.cluster = EtcdCluster(os.path.join(self.work, "etcd"), size=3)
+        os.makedirs(self.data, exist_ok=True)
+        self.procs = {}
+        self.ports = {name: free_port() for name in SERVERS}
+
+    def start_server(self, name, etcd=True):
+        args = [self.args.marzipan, "serve", "--port", str(self.ports[name]), "--threads", "2",
+                "--max-requests-per-second", "1000000", "--server-id", self.server_id(name)]
+        if etcd:
+            args += ["--data-dir", self.data, "--etcd", self.cluster.endpoints,
+                     "--etcd-lease-seconds", str(LEASE_SECONDS)]
+        with open(os.path.join(self.work, f"{name}.stderr"), "a") as log:
+            proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=log, text=True, env=clean_env())
+        self.procs[name] = proc
+        ready, _, _ = select.select([proc.stdout], [], [], 15)
+        line = proc.stdout.readline() if ready else ""
+        match = re.fullmatch(r"listening on http://127\.0\.0\.1:(\d+)\n", line)
+        assert match, f"{name}: expected 'listening on http://127.0.0.1:PORT', got {line!r}\n{self.log(name)}"
+        self.ports[name] = int(match.group(1))
+
+    def server_id(self, name):
+        """What the owner keys and -32015's data.owner say: the address clients can reach."""
+        return f"127.0.0.1:{self.ports[name]}"
+
+    def log(self, name):
+        try:
+            with open(os.path.join(self.work, f"{name}.stderr")) as f:
+                return "".join(f"  [{name}] {line}" for line in f.readlines()[-30:])
+        except OSError:
+            return ""
+
+    def start_proxy(self):
+        with open(self.args.config) as f:
+            lines = f.read().splitlines(keepends=True)
+        template = [i for i, l in enumerate(lines) if l.strip().startswith("server-template ")]
+        assert len(template) == 1, f"expected one server-template line in {self.args.config}"
+        indent = lines[template[0]][: len(lines[template[0]]) - len(lines[template[0]].lstrip())]
+        lines[template[0]: template[0] + 1] = [f"{indent}server {n} 127.0.0.1:{self.ports[n]}\n" for n in SERVERS]
+        config = os.path.join(self.work, "haproxy.cfg")
+        with open(config, "w") as f:
+            f.write("".join(lines))
+        self.proxy_port = free_port()
+        env = clean_env()
+        env.update(MARZIPAN_LB_ADDR="127.0.0.1", MARZIPAN_LB_PORT=str(self.proxy_port), MARZIPAN_LB_TLS_PORT=str(free_port()))
+        with open(os.path.join(self.work, "haproxy.log"), "w") as log:
+            self.procs["haproxy"] = subprocess.Popen([self.args.haproxy, "-db", "-f", config], env=env,
+                                                     stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{self.proxy_port}/healthz", timeout=1) as r:
+                    if r.read() == b"ok":
+                        return
+            except OSError:
+                time.sleep(0.05)
+        raise AssertionError("HAProxy did not answer within 10 s")
+
+    def via_proxy(self, sid):
+        return f"ws://127.0.0.1:{self.proxy_port}/ws?session={sid}"
+
+    def direct(self, name, sid):
+        return f"ws://127.0.0.1:{self.ports[name]}/ws?session={sid}"
+
+    def signal(self, name, sig):
+        self.procs[name].send_signal(sig)
+        if sig == signal.SIGKILL:
+            self.procs[name].wait(timeout=10)
+
+    def stop(self):
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGCONT)
+                proc.kill()
+            proc.wait(timeout=10)
+        self.cluster.stop()
+
+
+class Session:
+    """The acknowledged edits of one session, in order, and its secrets."""
+
+    def __init__(self, sid):
+        self.sid = sid
+        self.token = None
+        self.acked = []  # tags
+        self.revision = 0  # after the last acknowledged edit
+        self.next_tag = 0
+        self.round_trips = []
+
+    def join(self):
+        return {"session": self.sid, "token": self.token, "view": "none"}
+
+    async def apply(self, rpc):
+        """Sends the next tagged edit; records it when acknowledged. Returns the reply."""
+        tag = self.next_tag
+        self.next_tag += 1
+        t0 = time.monotonic()
+        reply = await rpc.call("tool.apply", edit(tag))
+        if reply[0] == "ok":
+            self.round_trips.append(time.monotonic() - t0)
+            self.acked.append(tag)
+            # An edit that changes nothing (a blob inside the solid) leaves the revision.
+            expected = self.revision + (0 if reply[1].get("roi") is None else 1)
+            assert reply[1]["revision"] == expected, \
+                f"edit {tag}: revision {reply[1]['revision']}, expected {expected} (each acknowledged edit once)"
+            self.revision = expected
+        return reply
+
+
+async def reference_stats(t, tags):
+    """session.stats after replaying exactly `tags` on a server without storage."""
+    async with Rpc(f"ws://127.0.0.1:{t.ports['reference']}/ws") as rpc:
+        ok = await rpc.call("session.create", CREATE)
+        assert ok[0] == "ok", ok
+        for tag in tags:
+            r = await rpc.call("tool.apply", edit(tag))
+            assert r[0] == "ok", r
+        return (await rpc.call("session.stats", {}))[1]
+
+
+async def check_against_reference(t, s, rpc, what):
+    stats = await rpc.call("session.stats", {})
+    assert stats[0] == "ok", stats
+    expected = await reference_stats(t, s.acked)
+    assert stats[1]["revision"] == s.revision == expected["revision"], \
+        f"{what}: revision {stats[1]['revision']}, acknowledged {s.revision}, the reference replay {expected['revision']}"
+    assert stats[1]["digest"] == expected["digest"], \
+        f"{what}: digest {stats[1]['digest']}, the reference replay gives {expected['digest']}"
+
+
+async def join_until_acked(t, s, url, limit):
+    """Joins (again and again) at url and sends the next edit until one is acknowledged;
+    returns (seconds it took, the connection)."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < limit:
+        rpc = None
+        try:
+            rpc = await Rpc(url).__aenter__()
+            joined = await rpc.call("session.join", s.join(), timeout=5)
+            if joined[0] == "ok":
+                reply = await s.apply(rpc)
+                if reply[0] == "ok":
+                    return time.monotonic() - t0, rpc
+        except (ConnectionError, OSError, asyncio.TimeoutError):
+            pass
+        if rpc is not None:
+            await rpc.__aexit__()
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"no edit of session {s.sid} acknowledged at {url} within {limit} s")
+
+
+async def check_kill_and_restart(t, report):
+    s = Session(session_id())
+    async with Rpc(t.via_proxy(s.sid)) as rpc:
+        created = await rpc.call("session.create", dict(CREATE, session=s.sid))
+        assert created[0] == "ok", created
+        s.token = created[1]["token"]
+        owner = rpc.server
+        assert owner in SERVERS, f"X-Marzipan-Server {owner!r}"
+        for _ in range(20):
+            assert (await s.apply(rpc))[0] == "ok"
+    t.signal(owner, signal.SIGKILL)
+    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
+    report["takeover_seconds_after_sigkill"] = round(took, 2)
+    new_owner = rpc.server
+    assert new_owner != owner, f"the killed {owner} answered"
+    for _ in range(10):
+        assert (await s.apply(rpc))[0] == "ok"
+    await check_against_reference(t, s, rpc, "after SIGKILL of the owner")
+    report["edit_round_trip_ms"] = {
+        "median": round(1000 * statistics.median(s.round_trips), 2),
+        "p95": round(1000 * sorted(s.round_trips)[int(0.95 * len(s.round_trips))], 2), "edits": len(s.round_trips)}
+
+    # The killed server comes back under its name: it must not load what new_owner owns.
+    t.start_server(owner)
+    async with Rpc(t.direct(owner, s.sid)) as other:
+        refused = await other.call("session.join", s.join())
+        assert refused[0] == "error" and refused[1] == HELD_ELSEWHERE, f"restarted {owner}: {refused}"
+        expected = t.server_id(new_owner)
+        assert refused[2] and refused[2].get("owner") == expected, f"data.owner {refused[2]}, expected {expected}"
+    # The Python client follows data.owner when asked to, and joins there.
+    async with Client.connect(f"ws://127.0.0.1:{t.ports[owner]}/ws", session=s.sid) as py:
+        joined = await py.join(s.sid, s.token, follow_owner=True)
+        assert joined["revision"] == s.revision, f"joined at the owner at revision {joined['revision']}"
+        assert py.url.startswith(f"ws://{expected}/"), py.url
+        await py.leave()
+    assert (await s.apply(rpc))[0] == "ok"
+    await rpc.__aexit__()
+    return s
+
+
+def journal_tokens(t, sid):
+    """(seq, token) of every journal key of sid in etcd, in key order."""
+    prefix = f"marzipan/sessions/{sid}/journal/".encode()
+    end = prefix[:-1] + bytes([prefix[-1] + 1])
+    m = next(m for m in t.cluster.members if m.alive())
+    kvs = m.post("/v3/kv/range", {"key": base64.b64encode(prefix).decode(),
+                                  "range_end": base64.b64encode(end).decode()}).get("kvs", [])
+    return [(int(base64.b64decode(kv["key"])[len(prefix):], 16), json.loads(base64.b64decode(kv["value"]))["token"])
+            for kv in kvs]
+
+
+async def check_pause(t, report):
+    s = Session(session_id())
+    old, new = "s2", "s3"
+    stale = await Rpc(t.direct(old, s.sid)).__aenter__()
+    created = await stale.call("session.create", dict(CREATE, session=s.sid))
+    assert created[0] == "ok", created
+    s.token = created[1]["token"]
+    for _ in range(10):
+        assert (await s.apply(stale))[0] == "ok"
+    t.signal(old, signal.SIGSTOP)
+    t0 = time.monotonic()
+    took, rpc = await join_until_acked(t, s, t.direct(new, s.sid), LEASE_SECONDS + TAKEOVER_LIMIT)
+    report["takeover_seconds_after_sigstop"] = round(took, 2)
+    for _ in range(5):
+        assert (await s.apply(rpc))[0] == "ok"
+    # Well past the lease, then the old owner wakes up and is sent edits on its old connection.
+    await asyncio.sleep(max(0.0, LEASE_SECONDS + 0.5 - (time.monotonic() - t0)))
+    t.signal(old, signal.SIGCONT)
+    acknowledged_by_stale = 0
+    for k in range(5):
+        try:
+            reply = await stale.call("tool.apply", edit(1000 + k), timeout=10)
+        except (ConnectionError, asyncio.TimeoutError):
+            break
+        if reply[0] == "ok":
+            acknowledged_by_stale += 1
+    await stale.__aexit__()
+    assert acknowledged_by_stale == 0, f"the resumed {old} acknowledged {acknowledged_by_stale} edits"
+    for _ in range(5):
+        assert (await s.apply(rpc))[0] == "ok"
+    await check_against_reference(t, s, rpc, "after SIGSTOP/SIGCONT of the owner")
+    await rpc.__aexit__()
+    tokens = journal_tokens(t, s.sid)
+    assert tokens, "no journal keys in etcd"
+    seqs = [seq for seq, _ in tokens]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), f"journal keys not contiguous: {seqs}"
+    assert all(a[1] <= b[1] for a, b in zip(tokens, tokens[1:])), f"a token decreases along the journal: {tokens}"
+    assert len({tok for _, tok in tokens}) == 2, f"expected the records of two owners: {tokens}"
+
+
+async def check_etcd_leader_kill(t, report):
+    s = Session(session_id())
+    async with Rpc(t.via_proxy(s.sid)) as rpc:
+        created = await rpc.call("session.create", dict(CREATE, session=s.sid))
+        assert created[0] == "ok", created
+        s.token = created[1]["token"]
+        for _ in range(10):
+            assert (await s.apply(rpc))[0] == "ok"
+        leader = t.cluster.leader()
+        assert leader is not None, "no etcd leader"
+        t.cluster.kill(leader)
+        t0 = time.monotonic()
+        refused = 0
+        while True:
+            try:
+                reply = await s.apply(rpc)
+            except ConnectionError:
+                break
+            if reply[0] == "ok":
+                break
+            refused += 1
+            assert time.monotonic() - t0 < TAKEOVER_LIMIT, f"edits still refused {TAKEOVER_LIMIT} s after the leader died"
+        report["first_edit_after_etcd_leader_kill_seconds"] = round(time.monotonic() - t0, 2)
+        report["edits_refused_during_election"] = refused
+    # Whether the session stayed or had to be joined again, every acknowledged edit is there.
+    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
+    for _ in range(5):
+        assert (await s.apply(rpc))[0] == "ok"
+    await check_against_reference(t, s, rpc, "after the etcd leader was killed")
+    await rpc.__aexit__()
+
+
+def etcd_append_metric(t, name):
+    with urllib.request.urlopen(f"http://127.0.0.1:{t.ports[name]}/metrics", timeout=5) as r:
+        text = r.read().decode()
+    total = re.search(r"^marzipan_etcd_append_seconds_sum (\S+)$", text, re.M)
+    count = re.search(r"^marzipan_etcd_append_seconds_count (\S+)$", text, re.M)
+    assert total and count, "no marzipan_etcd_append_seconds in /metrics"
+    n = float(count.group(1))
+    return {"server": name, "transactions": int(n), "mean_ms": round(1000 * float(total.group(1)) / n, 2) if n else None}
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--marzipan", required=True)
+    parser.add_argument("--haproxy", required=True)
+    parser.add_argument("--config", required=True)
+    parser.add_argument("--workdir", required=True)
+    parser.add_argument("--lease-seconds", type=int, default=3,
+                        help="the servers' --etcd-lease-seconds (3 here to keep the test short; 5 is the default)")
+    parser.add_argument("--only", choices=["kill", "pause", "leader"], action="append",
+                        help="run only these checks (default: all)")
+    args = parser.parse_args()
+    global LEASE_SECONDS
+    LEASE_SECONDS = args.lease_seconds
+    shutil.rmtree(args.workdir, ignore_errors=True)
+    os.makedirs(args.workdir)
+    t = Topology(args)
+    report = {}
+    try:
+        t.cluster.start()
+        for name in SERVERS:
+            t.start_server(name)
+        t.ports["reference"] = free_port()
+        t.start_server("reference", etcd=False)
+        t.start_proxy()
+        only = set(args.only or ["kill", "pause", "leader"])
+        if "kill" in only:
+            asyncio.run(check_kill_and_restart(t, report))
+        if "pause" in only:
+            asyncio.run(check_pause(t, report))
+        if "leader" in only:
+            asyncio.run(check_etcd_leader_kill(t, report))
+        report["etcd_append"] = [etcd_append_metric(t, n) for n in SERVERS if t.procs[n].poll() is None]
+        print(json.dumps(report))
+        return 0
+    except AssertionError:
+        for name in SERVERS:
+            print(t.log(name), file=sys.stderr)
+        raise
+    finally:
+        t.stop()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+// Hubs on EtcdStorage (service/etcd_storage.hpp) over one in-memory etcd (memory_kv.hpp) and one
+// shared scratch directory: two servers in one process. Ownership, -32015 with the owner, a
+// takeover after a lease expiry finding every acknowledged edit (digest equal), the old owner
+// refused, snapshots with open strokes, and a graceful stop freeing sessions at once.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "hub_support.hpp"
+#include "memory_kv.hpp"
+#include "service/etcd_storage.hpp"
+#include "service/hub.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+using namespace marzipan::service::testing;
+using marzipan::test::MemoryKv;
+using nlohmann::json;
+
+namespace {
+
+std::filesystem::path scratch(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("marzipan-etcd-" + name + "-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+HubOptions optionsFor(std::shared_ptr<SessionStorage> storage, std::size_t snapshotEvery = 2000) {
+  HubOptions o;
+  o.workers = 2;
+  o.limits.maxGridSide = 128;
+  o.storage = std::move(storage);
+  o.snapshotEvery = snapshotEvery;
+  return o;
+}
+
+const json kCreate = {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}};
+json blob(double x) { return {{"tool", "add_blob"}, {"center", {x, 40, 24}}, {"radius", 4}}; }
+
+std::int64_t leaseOf(MemoryKv& kv, EtcdStorage& s, const std::string& id) {
+  const auto e = kv.range(s.owner().ownerKey(id), {}, 0);
+  REQUIRE(e.size() == 1);
+  return e[0].lease;
+}
+
+}  // namespace
+
+TEST_CASE("etcd storage: one server owns a session; another answers -32015 naming it, and takes over after the lease",
+          "[hub][etcd]") {
+  const auto dir = scratch("takeover");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  auto storeA = std::make_shared<EtcdStorage>(kv, dir, "server-a:8080", opt);
+  auto storeB = std::make_shared<EtcdStorage>(kv, dir, "server-b:8080", opt);
+  // Snapshots every few records: the takeover reads a snapshot, its head and a journal.
+  Hub hubA(optionsFor(storeA, 5)), hubB(optionsFor(storeB, 5));
+  TestClient a(hubA), b(hubB);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  for (int k = 0; k < 4; ++k) a.result("tool.apply", blob(14 + 5 * k));
+  const int strokeId = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 3}, {"strength", 1}})["stroke"];
+  for (int k = 0; k < 4; ++k)
+    a.result("stroke.dabs", {{"stroke", strokeId}, {"dabs", {{{"center", {16 + 3 * k, 24, 24}}, {"pressure", 1}}}}});
+  a.result("history.undo");
+  const json last = a.result("session.stats");
+
+  const json refused = b.call("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  INFO(refused.dump());
+  REQUIRE(refused.contains("error"));
+  CHECK(refused["error"]["code"] == -32015);
+  CHECK(refused["error"]["data"]["owner"] == "server-a:8080");
+
+  // A stalls past its lease: etcd drops its owner key; its keep-alive learns it and A closes
+  // the session; B loads it with every acknowledged change.
+  kv.expire(leaseOf(kv, *storeA, id));
+  const json joined = b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  CHECK(joined["revision"] == last["revision"]);
+  const json atB = b.result("session.stats");
+  CHECK(atB["digest"] == last["digest"]);
+  CHECK(b.result("tool.apply", blob(30))["revision"] == last["revision"].get<int>() + 1);
+  // A's edits are refused (by its lost lease, or by the fence), never acknowledged.
+  const json stale = a.call("tool.apply", blob(34));
+  INFO(stale.dump());
+  CHECK(stale.contains("error"));
+  const json again = b.result("session.stats");
+  CHECK(again["revision"] == last["revision"].get<int>() + 1);
+  hubA.shutdown();
+  hubB.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("etcd storage: a server stopped gracefully frees its sessions at once; the next loads the last revision",
+          "[hub][etcd]") {
+  const auto dir = scratch("graceful");
+  MemoryKv kv;
+  json created, last;
+  auto storeB = std::make_shared<EtcdStorage>(kv, dir, "server-b");
+  {
+    auto storeA = std::make_shared<EtcdStorage>(kv, dir, "server-a");
+    Hub hubA(optionsFor(storeA));
+    TestClient a(hubA);
+    created = a.result("session.create", kCreate);
+    for (int k = 0; k < 3; ++k) a.result("tool.apply", blob(14 + 6 * k));
+    last = a.result("session.stats");
+    hubA.shutdown();
+  }
+  Hub hubB(optionsFor(storeB));
+  TestClient b(hubB);
+  const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  CHECK(joined["revision"] == last["revision"]);
+  CHECK(b.result("session.stats")["digest"] == last["digest"]);
+  // Only the snapshot the pointer names (and files no record names any more are gone).
+  int snapshots = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / created["session"].get<std::string>()))
+    snapshots += e.path().filename().string().starts_with("snapshot-");
+  CHECK(snapshots <= 2);
+  hubB.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the session; joined again, it has every acknowledged edit",
+          "[hub][etcd]") {
+  const auto dir = scratch("down");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 2;  // etcd down for 1 s (the retries) of the 2 s lease: still held
+  auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  Hub hub(optionsFor(store));
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate);
+  a.result("tool.apply", blob(14));
+  const json before = a.result("session.stats");
+  kv.down = true;
+  CHECK(a.error("tool.apply", blob(20)) == -32000);
+  // The hub cannot read the session back either: it closes it rather than guess.
+  CHECK(a.error("tool.apply", blob(20)) == -32009);
+  kv.down = false;
+  TestClient b(hub);
+  const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  CHECK(joined["revision"] == before["revision"]);
+  CHECK(b.result("session.stats")["digest"] == before["digest"]);
+  CHECK(b.result("tool.apply", blob(26))["revision"] == before["revision"].get<int>() + 1);
+  hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
