@@ -150,7 +150,14 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   // connection the way a network drop does.
   const sockets = [];
   const sent = []; // every text message the page sent, parsed
+  let refused = 0; // while `refusing`, a new socket is closed at once, as by a server that is down
+  let refusing = false;
   await page.routeWebSocket(/\/ws\?session=/, (ws) => {
+    if (refusing) {
+      ++refused;
+      ws.close({ code: 1013, reason: "server down (the test)" });
+      return;
+    }
     const server = ws.connectToServer();
     ws.onMessage((m) => {
       if (typeof m === "string") sent.push(JSON.parse(m));
@@ -561,14 +568,29 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.ok(Math.hypot(...target.map((v, i) => v - aim[i])) < 1e-6, `the view is centred on the point (${target} vs ${aim})`);
 
   // A dropped connection: the page reconnects by itself and resyncs.
+  // The server stays unreachable for three attempts: one banner all along (no message per
+  // attempt), and a drag on the model meanwhile neither sculpts nor turns the camera.
   const rBefore = await revision(page);
   const dBefore = await digest(page);
+  const messagesBefore = await page.evaluate(() => window.marzipan.messages.history.length);
+  refusing = true;
   sockets[0].ws.close({ code: 4000, reason: "network dropped by the test" });
   sockets[0].server.close();
   await page.waitForFunction(() => document.getElementById("connection").dataset.state === "reconnecting");
   assert.equal(await page.locator("#offline").isVisible(), true, "one offline banner while the connection is down");
   assert.match(await text(page, "offline-text"), /code 4000: network dropped by the test.*Sculpting is paused/);
-  await page.waitForFunction(() => document.getElementById("connection").dataset.state === "connected", null, { timeout: 20000 });
+  const cameraNow = () => page.evaluate(() => [window.marzipan.camera.yaw, window.marzipan.camera.pitch, ...window.marzipan.camera.target]);
+  const cameraOffline = await cameraNow();
+  const [ox, oy] = await canvasCenter(page);
+  await drag(page, [ox - 40, oy], [ox + 40, oy + 10], 8);
+  await page.waitForTimeout(200);
+  assert.deepEqual(await cameraNow(), cameraOffline, "a drag on the model while offline does not turn the camera");
+  await page.waitForFunction(() => /attempt [3-9]/.test(document.getElementById("offline-text").textContent), null, { timeout: 30000 });
+  assert.ok(refused >= 2, `the server refused ${refused} attempts`);
+  assert.equal(await page.locator("#offline").isVisible(), true, "the banner stays");
+  assert.deepEqual(await page.evaluate((n) => window.marzipan.messages.history.slice(n).map((m) => m.text), messagesBefore), [], "and no message per attempt");
+  refusing = false;
+  await page.waitForFunction(() => document.getElementById("connection").dataset.state === "connected", null, { timeout: 30000 });
   assert.equal(await page.locator("#offline").isVisible(), false, "the banner goes once the session is back");
   await settled(page);
   assert.equal(sockets.length, 2, "one new WebSocket");
