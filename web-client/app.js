@@ -33,6 +33,7 @@ import { GLOBAL_OPS } from "./ui/tools.js";
 
 const STATUS_REFRESH_MS = 500;
 const FRAME_TIME_FRAMES = 60;
+const HINT_KEY = "marzipan.hint-dismissed";
 
 // Where the starting solids face (server/engine/solids.hpp): the Front view looks at that side.
 const SOLID_FRONTS = Object.freeze({ pig: "+x" });
@@ -86,7 +87,7 @@ export class App {
     });
     installShortcuts(doc, this.#shortcutActions());
     doc.getElementById("help").addEventListener("click", () => this.help.open());
-    doc.getElementById("hint-close").addEventListener("click", () => (doc.getElementById("hint").hidden = true));
+    this.#installHint(doc, localStorageOf(win));
     this.#listen();
     this.joinToken = null; // the token this client holds (edit or view)
     this.front = null; // the model's front axis (math/orbit-camera.js FRONT_AXES), or null for +z
@@ -236,6 +237,25 @@ export class App {
   #cameraChanged() {
     this.frameFeed.cameraMoved();
     this.sculpt.refresh();
+  }
+
+  // The hint along the bottom of the view: dismissed once, gone for good in this browser (kept
+  // in localStorage under HINT_KEY). Presses on its text reach the model (style.css).
+  #installHint(doc, storage) {
+    const hint = doc.getElementById("hint");
+    try {
+      hint.hidden = Boolean(storage && storage.getItem(HINT_KEY));
+    } catch {
+      // a storage that refuses reads leaves the hint shown
+    }
+    doc.getElementById("hint-close").addEventListener("click", () => {
+      hint.hidden = true;
+      try {
+        if (storage) storage.setItem(HINT_KEY, "dismissed");
+      } catch {
+        // full or refused: dismissed for this page only
+      }
+    });
   }
 
   #updateAvailability() {

@@ -173,6 +173,14 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(sockets.length, 1);
   assert.match(sockets[0].ws.url(), new RegExp(`/ws\\?session=${hash.slice(9, 31)}$`), "the socket URL names the session");
 
+  // The hint never stands between the pointer and the model: a press on its text reaches the
+  // canvas, and its × dismisses it for good in this browser.
+  const hintBox = await page.locator("#hint-text").boundingBox();
+  const underHint = await page.evaluate(([x, y]) => document.elementFromPoint(x, y).id, [hintBox.x + hintBox.width / 2, hintBox.y + hintBox.height / 2]);
+  assert.equal(underHint, "view", "a press on the hint's text lands on the view");
+  await page.click("#hint-close");
+  assert.equal(await page.locator("#hint").isVisible(), false, "the × dismisses the hint");
+
   const before = await shot(page, "01-created");
   const center = modelFraction(before, [0.4, 0.4, 0.6, 0.6]);
   const corners = modelFraction(before, [0, 0, 0.1, 0.1]);
@@ -247,6 +255,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   await second.click("#share");
   assert.equal(await second.locator("#share-view").inputValue(), viewLink, "whoever joined by the edit link can share the view link");
   await second.keyboard.press("Escape");
+  assert.equal(await second.locator("#hint").isVisible(), false, "a hint dismissed once stays away");
   assert.equal(await revision(second), await revision(page), "the second page shows the same revision");
   assert.equal(await digest(second), await digest(page), "and the same volume");
   await page.waitForFunction(() => document.getElementById("clients").dataset.count === "2");
