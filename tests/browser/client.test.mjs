@@ -723,6 +723,21 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   await page.close();
 });
 
+// The mean absolute step of luminance between horizontally and vertically neighbouring pixels
+// in `box` (fractions of the picture): what the edges of opaque discs add to a smooth surface.
+function roughness(img, box) {
+  const [x0, y0, x1, y1] = [box[0] * img.width, box[1] * img.height, box[2] * img.width, box[3] * img.height].map(Math.round);
+  const lum = (x, y) => {
+    const o = (y * img.width + x) * 4;
+    return 0.2126 * img.rgba[o] + 0.7152 * img.rgba[o + 1] + 0.0722 * img.rgba[o + 2];
+  };
+  let sum = 0;
+  let n = 0;
+  for (let y = y0; y < y1; ++y)
+    for (let x = x0; x < x1; ++x, n += 2) sum += Math.abs(lum(x + 1, y) - lum(x, y)) + Math.abs(lum(x, y + 1) - lum(x, y));
+  return sum / n;
+}
+
 // The farthest splat from `center`, vu: how far a stroke raised a sphere's surface.
 const reach = (page, center) =>
   page.evaluate((c) => {
@@ -779,6 +794,47 @@ test("a stroke's dabs land on the surface as it was at the press: scrubbing one 
   // surface: the stroke rises at most the radius (plus a splat's reach), however long it scrubs.
   for (const [s, g] of Object.entries(growth)) assert.ok(g > 0.5 && g <= 8 + 1, `strength ${s}: growth ${g} vu within (0.5, radius + 1]`);
   assert.ok(growth[1] >= growth[0.25], "a stronger stroke rises at least as much");
+
+  // A groove seen close up, blended and opaque: the discs' edges (fish scales) make the shading
+  // jump from pixel to pixel where they are drawn opaque; blended, the surface is smooth.
+  await page.click('label:has(input[value="remove_blob"])');
+  await page.locator("#radius").fill("4");
+  await page.locator("#strength").fill("1");
+  const rGroove = await revision(page);
+  await drag(page, [cx - 80, cy + 15], [cx + 80, cy - 15], 24);
+  await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, rGroove);
+  await settled(page);
+  await page.mouse.click(cx, cy, { button: "right", clickCount: 2 }); // centre the view on the groove
+  await page.mouse.move(cx, cy);
+  await page.mouse.wheel(0, -800); // zoom in towards it, to 0.3 of the distance
+  await page.mouse.move(5, 5); // no brush cursor in the pictures
+  await page.waitForTimeout(400);
+  const closeBlended = await shot(page, "15-groove-close-blended");
+  await page.evaluate(() => {
+    window.marzipan.renderer.splats.blend = false;
+    window.marzipan.renderer.requestRedraw();
+  });
+  await page.waitForTimeout(400);
+  const closeOpaque = await shot(page, "15-groove-close-opaque");
+  await page.evaluate(() => {
+    window.marzipan.renderer.splats.blend = true;
+    window.marzipan.renderer.requestRedraw();
+  });
+  const box = [0.1, 0.1, 0.9, 0.9];
+  const close = await page.evaluate(() => {
+    const c = document.getElementById("view");
+    return { distance: window.marzipan.camera.distance, corners: [[0.1, 0.1], [0.9, 0.1], [0.1, 0.9], [0.9, 0.9]].every(([fx, fy]) => window.marzipan.sculpt.pick(fx * c.clientWidth, fy * c.clientHeight)) };
+  });
+  assert.ok(close.corners, `the model fills the close-up (distance ${close.distance})`);
+  const [roughBlended, roughOpaque] = [roughness(closeBlended, box), roughness(closeOpaque, box)];
+  t.diagnostic(`close-up roughness (mean |step| of luminance between neighbouring pixels): blended ${roughBlended.toFixed(2)}, opaque ${roughOpaque.toFixed(2)}`);
+  writeFileSync(join(artifacts, "close-up-roughness.json"), `${JSON.stringify({ blended: roughBlended, opaque: roughOpaque }, null, 2)}\n`);
+  assert.ok(roughBlended < 0.7 * roughOpaque, `blending smooths the close-up: ${roughBlended} vs ${roughOpaque} opaque`);
+  const rGrooved = await revision(page);
+  await page.keyboard.press("Control+z");
+  await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, rGrooved);
+  await settled(page);
+  await page.keyboard.press("0");
 
   // Near the grid's faces the box shows, with a note; away from them neither does.
   assert.equal(await data(page, "view", "gridEdge"), "clear");
