@@ -451,13 +451,29 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const yaw0 = await yaw();
   const rOrbit = await revision(page);
   assert.ok(rOrbit > rMod);
+  // The orbit turns around the surface point under the press, which stays where it was on screen.
+  const [px, py] = [cx - 30, cy + 20];
+  const pivot = await page.evaluate(([x, y]) => {
+    const r = document.getElementById("view").getBoundingClientRect();
+    return window.marzipan.sculpt.pick(x - r.left, y - r.top).point;
+  }, [px, py]);
   await page.locator("#view").focus();
   await page.keyboard.down("Space");
-  await drag(page, [cx - 30, cy], [cx + 30, cy], 6);
+  await drag(page, [px, py], [px + 60, py - 20], 6);
   await page.keyboard.up("Space");
   await page.waitForTimeout(300);
   assert.notEqual(await yaw(), yaw0, "Space+drag on the model orbits");
   assert.equal(await revision(page), rOrbit, "and does not sculpt");
+  const pivotOnScreen = await page.evaluate((p) => {
+    const c = document.getElementById("view");
+    const r = c.getBoundingClientRect();
+    const m = window.marzipan.camera.update(c.clientWidth, c.clientHeight).viewProjection; // column-major
+    const clip = [0, 1, 2, 3].map((i) => m[i] * p[0] + m[4 + i] * p[1] + m[8 + i] * p[2] + m[12 + i]);
+    return [r.left + ((clip[0] / clip[3] + 1) / 2) * c.clientWidth, r.top + ((1 - clip[1] / clip[3]) / 2) * c.clientHeight];
+  }, pivot);
+  assert.ok(Math.hypot(pivotOnScreen[0] - px, pivotOnScreen[1] - py) < 1.5, `the pivot stays under the press: ${pivotOnScreen} vs ${[px, py]}`);
+  await page.keyboard.press("0");
+
   await page.keyboard.press("?");
   assert.equal(await page.locator("#help-dialog").isVisible(), true, "? opens the shortcuts overlay");
   assert.match(await page.locator("#help-dialog").textContent(), /Space \+ drag/);
