@@ -474,6 +474,28 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.ok(Math.hypot(pivotOnScreen[0] - px, pivotOnScreen[1] - py) < 1.5, `the pivot stays under the press: ${pivotOnScreen} vs ${[px, py]}`);
   await page.keyboard.press("0");
 
+  // The stabiliser: with a slack of 30 px the brush trails a shaky pointer on its string, so
+  // the same zig-zag drag lays a shorter, calmer path of dabs.
+  const zigzag = async () => {
+    const from = sent.length;
+    const r = await revision(page);
+    await page.mouse.move(cx - 60, cy - 20);
+    await page.mouse.down();
+    for (let i = 1; i <= 40; ++i) await page.mouse.move(cx - 60 + 3 * i, cy - 20 + (i % 2 ? 6 : -6));
+    await page.mouse.up();
+    await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, r);
+    await settled(page);
+    return sentSince(from, "stroke.dabs").flatMap((m) => m.params.dabs).length;
+  };
+  await page.locator("#radius").fill("4");
+  const plainDabs = await zigzag();
+  await page.locator("#lazy").fill("30");
+  assert.equal(await text(page, "lazy-value"), "30 px");
+  const lazyDabs = await zigzag();
+  await page.locator("#lazy").fill("0");
+  t.diagnostic(`a shaky 120 px drag at radius 4: ${plainDabs} dabs, ${lazyDabs} with the stabiliser at 30 px`);
+  assert.ok(lazyDabs >= 1 && lazyDabs < 0.8 * plainDabs, `the stabiliser calms the path: ${lazyDabs} dabs vs ${plainDabs}`);
+  await page.locator("#radius").fill("8");
   await page.keyboard.press("?");
   assert.equal(await page.locator("#help-dialog").isVisible(), true, "? opens the shortcuts overlay");
   assert.match(await page.locator("#help-dialog").textContent(), /Space \+ drag/);
