@@ -3,6 +3,9 @@
 # filter given, e.g. `-R "service|net"`): the thread pool, copy-on-write volumes read on other
 # threads, sessions and the server's I/O threads.
 # Usage: bash tests/tsan.sh [ctest arguments...]   (BUILD_DIR=... to build elsewhere)
+#        SUITES="service net" bash tests/tsan.sh
+#   builds only those Catch2 suites (tests/AREA) and runs each executable once, all its tests
+#   in one process: the hub, sessions on the worker pool and the server's I/O threads.
 # TSan slows the engine about 12 times: on a busy machine the longest engine tests (mean
 # curvature flow: 28 s in Release, 330 s under TSan, both on a loaded 2-core machine) can pass
 # ctest's 600 s limit when two run at once; run them alone then, e.g. `-R "curvature"`.
@@ -12,7 +15,16 @@ cd "$(dirname "$0")/.."
 install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
 build="${BUILD_DIR:-build-tsan}"
 CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMARZIPAN_SANITIZE=thread
-cmake --build "$build" -j "$(nproc)"
 # halt_on_error: a race fails its test instead of only printing a report.
 export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
+if [ -n "${SUITES:-}" ]; then
+  read -r -a suites <<<"$SUITES"
+  cmake --build "$build" -j "$(nproc)" --target "${suites[@]/%/_tests}"
+  for suite in "${suites[@]}"; do
+    echo "== ${suite}_tests under TSan"
+    "$build/tests/${suite}_tests"
+  done
+  exit 0
+fi
+cmake --build "$build" -j "$(nproc)"
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)" "$@"

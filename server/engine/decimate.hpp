@@ -1,6 +1,7 @@
 // Decimation of a surface mesh to a triangle budget or an error bound, with meshoptimizer's
-// edge-collapse simplifier, followed by its vertex cache and vertex fetch reordering; and the
-// measure of how far a mesh strays from the solid's surface.
+// edge-collapse simplifier, edge flips that take out its long sagging chords, then its vertex
+// cache and vertex fetch reordering; and the measure of how far a mesh strays from the solid's
+// surface.
 //
 // Conventions: positions and errors in vu. Simplification only collapses edges onto existing
 // vertices, so every kept vertex is a vertex of the source (with its normal); triangles keep

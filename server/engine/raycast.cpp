@@ -27,6 +27,7 @@
 #include <sstream>
 
 #include "errors.hpp"
+#include "stencil.hpp"
 #include "thickness.hpp"
 
 namespace marzipan {
@@ -112,12 +113,6 @@ View makeView(const Camera& c) {
 RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(volume) {
   const Int3 bd = volume_.brickDims();
   const Int3 dims = volume_.dims();
-  padded_ = bd + Int3{2, 2, 2};
-  const std::size_t sy = std::size_t(padded_.x), sz = sy * std::size_t(padded_.y);
-  const std::size_t n = sz * std::size_t(padded_.z);
-  auto padIndex = [&](int bx, int by, int bz) {
-    return std::size_t(bx + 1) + sy * std::size_t(by + 1) + sz * std::size_t(bz + 1);
-  };
   const float w = volume_.band();
 
   auto outside = std::make_shared<Brick>();
@@ -125,58 +120,57 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
   std::fill(std::begin(outside->v), std::end(outside->v), w);
   std::fill(std::begin(inside->v), std::end(inside->v), -w);
   owned_ = {outside, inside};
-  bricks_.assign(n, outside->v);
+  bricks_ = BrickGrid<const float*>(bd, 1, outside->v);
 
   for (int bz = 0; bz < bd.z; ++bz)
     for (int by = 0; by < bd.y; ++by)
       for (int bx = 0; bx < bd.x; ++bx) {
+        const Int3 b{bx, by, bz};
         float u;
-        const float* data = volume_.brickData({bx, by, bz}, &u);
-        const std::size_t i = padIndex(bx, by, bz);
+        const float* data = volume_.brickData(b, &u);
         if (data) {
-          bricks_[i] = data;
+          bricks_[b] = data;
           continue;
         }
         if (u > 0) continue;
-        const Int3 o{bx * kBrickSide, by * kBrickSide, bz * kBrickSide};
-        if (o.x + kBrickSide <= dims.x && o.y + kBrickSide <= dims.y && o.z + kBrickSide <= dims.z) {
-          bricks_[i] = inside->v;
+        const Box voxels = Bricks::box(b);
+        if (voxels.hi.x <= dims.x && voxels.hi.y <= dims.y && voxels.hi.z <= dims.z) {
+          bricks_[b] = inside->v;
           continue;
         }
         // A partial brick at the domain's far edge: its voxels past the edge read +band.
         auto edge = std::make_shared<Brick>();
-        for (int z = 0; z < kBrickSide; ++z)
-          for (int y = 0; y < kBrickSide; ++y)
-            for (int x = 0; x < kBrickSide; ++x) {
-              const bool in = o.x + x < dims.x && o.y + y < dims.y && o.z + z < dims.z;
-              edge->v[x + kBrickSide * (y + kBrickSide * z)] = in ? -w : w;
-            }
-        bricks_[i] = edge->v;
+        for (int k = 0; k < kBrickVoxels; ++k) {
+          const Int3 p = voxels.lo + Bricks::local(k);
+          edge->v[k] = p.x < dims.x && p.y < dims.y && p.z < dims.z ? -w : w;
+        }
+        bricks_[b] = edge->v;
         owned_.push_back(std::move(edge));
       }
 
   // The box of each brick's voxels <= 0, local coordinates (none when lo > hi).
   struct VoxelBox {
-    std::int8_t lo[3] = {8, 8, 8}, hi[3] = {-1, -1, -1};
+    std::int8_t lo[3] = {kBrickSide, kBrickSide, kBrickSide}, hi[3] = {-1, -1, -1};
   };
-  std::vector<VoxelBox> negative(std::size_t(bd.x) * bd.y * bd.z);
+  BrickGrid<VoxelBox> negative(bd, 0);
   pool.parallelFor(std::size_t(bd.z), [&](std::size_t bz) {
     for (int by = 0; by < bd.y; ++by)
       for (int bx = 0; bx < bd.x; ++bx) {
-        const float* v = bricks_[padIndex(bx, by, int(bz))];
-        VoxelBox& box = negative[std::size_t(bx) + std::size_t(bd.x) * (by + std::size_t(bd.y) * bz)];
+        const Int3 b{bx, by, int(bz)};
+        const float* v = bricks_[b];
+        VoxelBox& box = negative[b];
         if (v == outside->v) continue;
         if (v == inside->v) {
-          box = {{0, 0, 0}, {7, 7, 7}};
+          box = {{0, 0, 0}, {Bricks::kMask, Bricks::kMask, Bricks::kMask}};
           continue;
         }
         int nonPositive = 0;  // a vectorizable first look: most stored bricks have none
         for (int k = 0; k < kBrickVoxels; ++k) nonPositive += v[k] <= 0 ? 1 : 0;
         if (!nonPositive) continue;
-        int rows = 0, minX = 8, maxX = -1;
+        int rows = 0, minX = kBrickSide, maxX = -1;
         for (int z = 0; z < kBrickSide; ++z)
           for (int y = 0; y < kBrickSide; ++y) {
-            const float* row = v + kBrickSide * (y + kBrickSide * z);
+            const float* row = v + Bricks::index(0, y, z);
             unsigned mask = 0;
             for (int x = 0; x < kBrickSide; ++x) mask |= unsigned(row[x] <= 0) << x;
             if (!mask) continue;
@@ -192,28 +186,29 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
 
   // A voxel <= 0 puts a possible zero in the 8 cells it is a corner of, so a brick's box grows
   // by one cell downwards, into the bricks below it along each axis.
-  info_.assign(n, BrickInfo{255, {8, 8, 8}, {0, 0, 0}});
+  info_ = BrickGrid<BrickInfo>(bd, 1, BrickInfo{255, {kBrickSide, kBrickSide, kBrickSide}, {0, 0, 0}});
   for (int bz = 0; bz < bd.z; ++bz)
     for (int by = 0; by < bd.y; ++by)
       for (int bx = 0; bx < bd.x; ++bx) {
-        const VoxelBox& box = negative[std::size_t(bx) + std::size_t(bd.x) * (by + std::size_t(bd.y) * bz)];
+        const VoxelBox& box = negative[Int3{bx, by, bz}];
         if (box.lo[0] > box.hi[0]) continue;
-        const int b[3] = {bx, by, bz};
+        const Int3 o = Bricks::origin({bx, by, bz});
         int cellLo[3], cellHi[3];
-        for (int k = 0; k < 3; ++k) cellLo[k] = 8 * b[k] + box.lo[k] - 1, cellHi[k] = 8 * b[k] + box.hi[k];
+        for (int k = 0; k < 3; ++k) cellLo[k] = o[k] + box.lo[k] - 1, cellHi[k] = o[k] + box.hi[k];
         for (int dz = -1; dz <= 0; ++dz)
           for (int dy = -1; dy <= 0; ++dy)
             for (int dx = -1; dx <= 0; ++dx) {
-              const int nb[3] = {bx + dx, by + dy, bz + dz};
+              const Int3 nb{bx + dx, by + dy, bz + dz};
+              const Int3 no = Bricks::origin(nb);
               int lo[3], hi[3];
               bool any = true;
               for (int k = 0; k < 3; ++k) {
-                lo[k] = std::max(cellLo[k], 8 * nb[k]) - 8 * nb[k];
-                hi[k] = std::min(cellHi[k], 8 * nb[k] + 7) - 8 * nb[k];
+                lo[k] = std::max(cellLo[k], no[k]) - no[k];
+                hi[k] = std::min(cellHi[k], no[k] + Bricks::kMask) - no[k];
                 any = any && lo[k] <= hi[k];
               }
               if (!any) continue;
-              BrickInfo& info = info_[padIndex(nb[0], nb[1], nb[2])];
+              BrickInfo& info = info_[nb];
               info.reach = 0;
               for (int k = 0; k < 3; ++k) {
                 info.lo[k] = std::uint8_t(std::min<int>(info.lo[k], lo[k]));
@@ -227,7 +222,8 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
   // A pass takes, for each brick, the neighbours it has already visited: 9 in the previous
   // plane and 3 in the previous row, gathered a row at a time, then the previous brick of the
   // same row, which is the only sequential dependency.
-  const Int3 p = padded_;
+  const Int3 p = bd + Int3{2, 2, 2};  // the table, its ring included
+  const std::size_t n = info_.size(), sy = info_.strideY(), sz = info_.strideZ();
   std::vector<std::uint8_t> reach(n);
   for (std::size_t i = 0; i < n; ++i) reach[i] = info_[i].reach;
   std::vector<int> near(std::size_t(p.x));
@@ -266,56 +262,56 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
 
 // Everything one ray needs, as raw pointers and floats: built once per frame, shared read-only.
 struct RayKernel {
+  // The accelerator's tables, each pointing at the slot of brick (0, 0, 0): brick b (from -1, the
+  // ring) is at b.x + sy * b.y + sz * b.z.
   const float* const* bricks;
   const RaycastAccel::BrickInfo* info;
   int sy, sz;
   float band;
   F3 clipLo, clipHi;
-  F3 tableLo, tableHi;  // the padded brick table's extent, vu
+  F3 tableLo, tableHi;  // the brick table's extent, its ring included, vu
 
   explicit RayKernel(const RaycastAccel& a)
-      : bricks(a.bricks_.data()),
-        info(a.info_.data()),
-        sy(a.padded_.x),
-        sz(a.padded_.x * a.padded_.y),
+      : bricks(a.bricks_.data() + a.bricks_.index({0, 0, 0})),
+        info(a.info_.data() + a.info_.index({0, 0, 0})),
+        sy(int(a.bricks_.strideY())),
+        sz(int(a.bricks_.strideZ())),
         band(a.volume_.band()),
         clipLo{-1, -1, -1},
         clipHi{float(a.volume_.dims().x), float(a.volume_.dims().y), float(a.volume_.dims().z)},
-        tableLo{-8, -8, -8},
-        tableHi{float(8 * (a.padded_.x - 1)), float(8 * (a.padded_.y - 1)), float(8 * (a.padded_.z - 1))} {}
+        tableLo{-kBrickSide, -kBrickSide, -kBrickSide},
+        tableHi{float(Bricks::origin(a.bricks_.grid()).x + kBrickSide),
+                float(Bricks::origin(a.bricks_.grid()).y + kBrickSide),
+                float(Bricks::origin(a.bricks_.grid()).z + kBrickSide)} {}
 
-  // floor for the coordinates the kernel reads, all above -8 (the padded table starts there): one
+  // floor for the coordinates the kernel reads, all above -kBrickSide (where the ring starts): one
   // truncation instead of the longer sequence std::floor compiles to without SSE4.1.
-  static int floorIndex(float x) { return int(x + 8.0f) - 8; }
+  static int floorIndex(float x) { return int(x + float(kBrickSide)) - kBrickSide; }
 
-  // Brick coordinates start at -1 (the padding ring).
-  int brickIndex(int bx, int by, int bz) const { return (bx + 1) + sy * (by + 1) + sz * (bz + 1); }
+  int brickIndex(Int3 b) const { return b.x + sy * b.y + sz * b.z; }
 
-  float voxel(int x, int y, int z) const {
-    return bricks[brickIndex(x >> 3, y >> 3, z >> 3)][(x & 7) + kBrickSide * ((y & 7) + kBrickSide * (z & 7))];
-  }
+  float voxel(Int3 p) const { return bricks[brickIndex(Bricks::brickOf(p))][Bricks::indexOf(p)]; }
 
   // The 8 corners of the cell holding p (index dx + 2*dy + 4*dz) and p's offset in the cell.
   void cell(F3 p, float c[8], float f[3]) const {
-    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
-    const float fx = float(ix), fy = float(iy), fz = float(iz);
-    f[0] = p.x - fx, f[1] = p.y - fy, f[2] = p.z - fz;
-    const int lx = ix & 7, ly = iy & 7, lz = iz & 7;
-    const int bx = ix >> 3, by = iy >> 3, bz = iz >> 3;
-    if (lx != 7 && ly != 7 && lz != 7) {
-      const float* v = bricks[brickIndex(bx, by, bz)] + (lx + 8 * ly + 64 * lz);
-      c[0] = v[0], c[1] = v[1], c[2] = v[8], c[3] = v[9];
-      c[4] = v[64], c[5] = v[65], c[6] = v[72], c[7] = v[73];
+    const Int3 i{floorIndex(p.x), floorIndex(p.y), floorIndex(p.z)};
+    f[0] = p.x - float(i.x), f[1] = p.y - float(i.y), f[2] = p.z - float(i.z);
+    const Int3 l = Bricks::localOf(i);
+    if (l.x != Bricks::kMask && l.y != Bricks::kMask && l.z != Bricks::kMask) {
+      constexpr int kY = Bricks::index(0, 1, 0), kZ = Bricks::index(0, 0, 1);
+      const float* v = bricks[brickIndex(Bricks::brickOf(i))] + Bricks::index(l);
+      c[0] = v[0], c[1] = v[1], c[2] = v[kY], c[3] = v[kY + 1];
+      c[4] = v[kZ], c[5] = v[kZ + 1], c[6] = v[kZ + kY], c[7] = v[kZ + kY + 1];
       return;
     }
-    const int bxs[2] = {bx, bx + (lx == 7)}, lxs[2] = {lx, (lx + 1) & 7};
-    const int bys[2] = {by, by + (ly == 7)}, lys[2] = {ly, (ly + 1) & 7};
-    const int bzs[2] = {bz, bz + (lz == 7)}, lzs[2] = {lz, (lz + 1) & 7};
+    const int bxs[2] = {Bricks::brickOf(i.x), Bricks::brickOf(i.x + 1)}, lxs[2] = {l.x, Bricks::localOf(i.x + 1)};
+    const int bys[2] = {Bricks::brickOf(i.y), Bricks::brickOf(i.y + 1)}, lys[2] = {l.y, Bricks::localOf(i.y + 1)};
+    const int bzs[2] = {Bricks::brickOf(i.z), Bricks::brickOf(i.z + 1)}, lzs[2] = {l.z, Bricks::localOf(i.z + 1)};
     for (int dz = 0; dz < 2; ++dz)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx)
           c[dx + 2 * dy + 4 * dz] =
-              bricks[brickIndex(bxs[dx], bys[dy], bzs[dz])][lxs[dx] + 8 * lys[dy] + 64 * lzs[dz]];
+              bricks[brickIndex({bxs[dx], bys[dy], bzs[dz]})][Bricks::index(lxs[dx], lys[dy], lzs[dz])];
   }
 
   float sample(F3 p) const {
@@ -339,8 +335,8 @@ struct RayKernel {
 
   // The brick holding p (coordinates from -1) and its entry in the table.
   const RaycastAccel::BrickInfo& brickAt(F3 p, int b[3]) const {
-    b[0] = floorIndex(p.x) >> 3, b[1] = floorIndex(p.y) >> 3, b[2] = floorIndex(p.z) >> 3;
-    return info[brickIndex(b[0], b[1], b[2])];
+    b[0] = Bricks::brickOf(floorIndex(p.x)), b[1] = Bricks::brickOf(floorIndex(p.y)), b[2] = Bricks::brickOf(floorIndex(p.z));
+    return info[brickIndex({b[0], b[1], b[2]})];
   }
 
   // How far along the unit axis a, from o, a cone of half-angle atan(tanA) holds no zero of the
@@ -369,7 +365,8 @@ struct RayKernel {
       if (r == 0) return 0;
       // The cube of bricks [b - r + 1, b + r - 1] holds no such cell.
       e = kInf;
-      for (int k = 0; k < 3; ++k) e = std::min({e, q[k] - float(8 * (b[k] - r + 1)), float(8 * (b[k] + r)) - q[k]});
+      for (int k = 0; k < 3; ++k)
+        e = std::min({e, q[k] - float(kBrickSide * (b[k] - r + 1)), float(kBrickSide * (b[k] + r)) - q[k]});
     } else {
       // Far outside the domain: the slab beyond the clip box along some axis is empty.
       for (int k = 0; k < 3; ++k) e = std::max({e, clipLo[k] - q[k], q[k] - clipHi[k]});
@@ -453,12 +450,14 @@ struct RayKernel {
     bool skip = in.reach > 0;  // jump to where the ray leaves [lo, hi]
     if (skip) {
       // The cube of bricks [b - r + 1, b + r - 1] holds no cell that may hold a zero.
-      for (int a = 0; a < 3; ++a) lo[a] = float(8 * (b[a] - in.reach + 1)), hi[a] = float(8 * (b[a] + in.reach));
+      for (int a = 0; a < 3; ++a)
+        lo[a] = float(kBrickSide * (b[a] - in.reach + 1)), hi[a] = float(kBrickSide * (b[a] + in.reach));
     } else {
       // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
       // the ray enters them, or leave the brick.
       float clo[3], chi[3];
-      for (int a = 0; a < 3; ++a) clo[a] = float(8 * b[a] + in.lo[a]), chi[a] = float(8 * b[a] + in.hi[a] + 1);
+      for (int a = 0; a < 3; ++a)
+        clo[a] = float(kBrickSide * b[a] + in.lo[a]), chi[a] = float(kBrickSide * b[a] + in.hi[a] + 1);
       if (p.x < clo[0] || p.y < clo[1] || p.z < clo[2] || p.x > chi[0] || p.y > chi[1] || p.z > chi[2]) {
         const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
         if (enter <= leave && leave >= r.t) {
@@ -472,7 +471,7 @@ struct RayKernel {
           }
         } else {
           skip = true;
-          for (int a = 0; a < 3; ++a) lo[a] = float(8 * b[a]), hi[a] = lo[a] + 8;
+          for (int a = 0; a < 3; ++a) lo[a] = float(kBrickSide * b[a]), hi[a] = lo[a] + kBrickSide;
         }
       }
     }
@@ -535,16 +534,14 @@ struct RayKernel {
 
   // Largest | |grad d| - 1 | over the 8 corners of the cell holding p (central differences).
   float gradientError(F3 p) const {
-    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
+    const Int3 i{floorIndex(p.x), floorIndex(p.y), floorIndex(p.z)};
     float worst = 0;
     for (int dz = 0; dz < 2; ++dz)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx) {
-          const int x = ix + dx, y = iy + dy, z = iz + dz;
-          const float gx = 0.5f * (voxel(x + 1, y, z) - voxel(x - 1, y, z));
-          const float gy = 0.5f * (voxel(x, y + 1, z) - voxel(x, y - 1, z));
-          const float gz = 0.5f * (voxel(x, y, z + 1) - voxel(x, y, z - 1));
-          worst = std::max(worst, std::fabs(std::sqrt(gx * gx + gy * gy + gz * gz) - 1));
+          float g[3];
+          GradStencil::around(i + Int3{dx, dy, dz}, [&](Int3 q) { return voxel(q); }).gradient(g);
+          worst = std::max(worst, std::fabs(std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1));
         }
     return worst;
   }
@@ -554,21 +551,20 @@ struct RayKernel {
   // jumps across cell faces, which draws the voxel grid as contour steps on smooth surfaces;
   // this one is continuous, so shading varies smoothly across cells.
   F3 smoothGradient(F3 p) const {
-    const int ix = floorIndex(p.x), iy = floorIndex(p.y), iz = floorIndex(p.z);
-    const float f[3] = {p.x - float(ix), p.y - float(iy), p.z - float(iz)};
+    const Int3 i{floorIndex(p.x), floorIndex(p.y), floorIndex(p.z)};
+    const float f[3] = {p.x - float(i.x), p.y - float(i.y), p.z - float(i.z)};
     // The 4x4x4 voxels around the cell, read once.
     float v[4][4][4];
     for (int z = 0; z < 4; ++z)
       for (int y = 0; y < 4; ++y)
-        for (int x = 0; x < 4; ++x) v[z][y][x] = voxel(ix - 1 + x, iy - 1 + y, iz - 1 + z);
+        for (int x = 0; x < 4; ++x) v[z][y][x] = voxel(i + Int3{x - 1, y - 1, z - 1});
     F3 g{};
     for (int dz = 0; dz < 2; ++dz)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx) {
           const float w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
-          const int x = dx + 1, y = dy + 1, z = dz + 1;
-          g = g + F3{v[z][y][x + 1] - v[z][y][x - 1], v[z][y + 1][x] - v[z][y - 1][x], v[z + 1][y][x] - v[z - 1][y][x]} *
-                      (0.5f * w);
+          const GradStencil s = GradStencil::inArray(&v[dz + 1][dy + 1][dx + 1], 1, 4, 16);
+          g = g + F3{s.difference(0), s.difference(1), s.difference(2)} * (0.5f * w);
         }
     return g;
   }
@@ -671,11 +667,11 @@ struct Shader {
       }
       case Shading::Thickness: {
         const F3 n = normalAt(p, dir);
-        const double t = thicknessAt(volume, {p.x, p.y, p.z}, {n.x, n.y, n.z});
+        const double thick = thicknessAt(volume, {p.x, p.y, p.z}, {n.x, n.y, n.z});
         const F3 red{0.80f, 0.06f, 0.04f}, yellow{0.85f, 0.62f, 0.10f};
-        const float s = float(std::clamp((t - thicknessMin) / thicknessMin, 0.0, 2.0));
+        const float s = float(std::clamp((thick - thicknessMin) / thicknessMin, 0.0, 2.0));
         Material tinted = material;
-        tinted.albedo = t < thicknessMin ? red : s < 1 ? yellow : yellow + (material.albedo - yellow) * (s - 1);
+        tinted.albedo = thick < thicknessMin ? red : s < 1 ? yellow : yellow + (material.albedo - yellow) * (s - 1);
         return shadeLit(kernel, view, tinted, p, n, dir, still);
       }
       case Shading::GradientError:

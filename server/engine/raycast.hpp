@@ -19,6 +19,7 @@
 #include <memory>
 #include <vector>
 
+#include "brick.hpp"
 #include "geometry.hpp"
 #include "thread_pool.hpp"
 #include "volume.hpp"
@@ -62,9 +63,9 @@ class RaycastAccel {
   };
 
   Volume volume_;
-  Int3 padded_;  // brick table size: volume brick dims + 2
-  std::vector<const float*> bricks_;
-  std::vector<BrickInfo> info_;
+  // Both over the volume's bricks and one ring around them (the ring reads +band).
+  BrickGrid<const float*> bricks_;
+  BrickGrid<BrickInfo> info_;
   std::vector<std::shared_ptr<const Brick>> owned_;
 };
 

@@ -30,6 +30,9 @@
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume_file.hpp"
+#ifdef MARZIPAN_HAS_OPENVDB
+#include "engine/openvdb/vdb_io.hpp"
+#endif
 #include "protocol/cpp/ops.hpp"
 #include "service/apply_op.hpp"
 #include "service/measures_json.hpp"
@@ -48,6 +51,18 @@ struct UsageError : std::runtime_error {
 struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// .vdb files (OpenVDB level sets) are read and written only by a build with OpenVDB.
+#ifdef MARZIPAN_HAS_OPENVDB
+constexpr bool kWithOpenVdb = true;
+#else
+constexpr bool kWithOpenVdb = false;
+#endif
+void requireOpenVdb(const std::string& option, const std::string& path) {
+  if (!kWithOpenVdb)
+    throw UsageError(option + " \"" + path +
+                     "\": this marzipan was built without OpenVDB (cmake -DMARZIPAN_WITH_OPENVDB=ON reads and writes .vdb)");
+}
 
 // "a, b or c" from a wire-name table, for messages that list what is accepted.
 template <class E, std::size_t N>
@@ -202,20 +217,23 @@ Options parseOptions(const std::vector<std::string>& args) {
   if (o.opsPath.empty()) throw UsageError("missing the OPS file (a path, or - for standard input)");
   const std::string loadExt = lowerExtension(o.load);
   if (!o.load.empty()) {
-    if (loadExt != "mzv" && (!meshFormatFromName(loadExt) || loadExt == "glb"))
-      throw UsageError("--load takes a .mzv, .stl, .obj or .ply file, got \"" + o.load + "\"");
+    if (loadExt != "mzv" && loadExt != "vdb" && (!meshFormatFromName(loadExt) || loadExt == "glb"))
+      throw UsageError("--load takes a .mzv, .vdb, .stl, .obj or .ply file, got \"" + o.load + "\"");
+    if (loadExt == "vdb") requireOpenVdb("--load", o.load);
     if (o.solid) throw UsageError("--solid and --load exclude each other");
     if (loadExt == "mzv" && o.size) throw UsageError("--size does not apply to a .mzv file, which has its own size");
-    if (loadExt == "mzv" && o.fitMargin) throw UsageError("--fit applies to meshes only");
+    if ((loadExt == "mzv" || loadExt == "vdb") && o.fitMargin) throw UsageError("--fit applies to meshes only");
   } else if (o.fitMargin) {
     throw UsageError("--fit applies to a mesh given with --load");
   }
   if (!o.out.empty()) {
     const std::string ext = lowerExtension(o.out);
-    if (ext != "mzv" && !meshFormatFromName(ext))
-      throw UsageError("--out takes a .stl, .obj, .ply, .glb or .mzv file, got \"" + o.out + "\"");
+    if (ext != "mzv" && ext != "vdb" && !meshFormatFromName(ext))
+      throw UsageError("--out takes a .stl, .obj, .ply, .glb, .mzv or .vdb file, got \"" + o.out + "\"");
+    if (ext == "vdb") requireOpenVdb("--out", o.out);
   }
-  if ((o.decimate.maxTriangles || o.decimate.maxError) && (o.out.empty() || lowerExtension(o.out) == "mzv"))
+  if ((o.decimate.maxTriangles || o.decimate.maxError) &&
+      (o.out.empty() || lowerExtension(o.out) == "mzv" || lowerExtension(o.out) == "vdb"))
     throw UsageError("--max-triangles and --max-error apply to a mesh written with --out");
   if (!o.render.empty()) {
     const std::string ext = lowerExtension(o.render);
@@ -268,6 +286,9 @@ Volume startingVolume(const Options& o, ThreadPool& pool) {
   try {
     const std::string ext = lowerExtension(o.load);
     if (ext == "mzv") return loadVolumeFile(o.load);
+#ifdef MARZIPAN_HAS_OPENVDB
+    if (ext == "vdb") return loadVdb(o.load, dims);
+#endif
     Mesh mesh = parseMesh(readBytes(o.load), *meshFormatFromName(ext));
     if (o.fitMargin) mesh = fitMeshToDomain(mesh, dims, *o.fitMargin);
     return importMesh(mesh, dims, Volume::kDefaultBand, pool);
@@ -317,6 +338,10 @@ void writeOutputs(const Options& o, const Volume& vol, const std::optional<Camer
       const std::string ext = lowerExtension(o.out);
       if (ext == "mzv") {
         saveVolumeFile(vol, o.out);
+#ifdef MARZIPAN_HAS_OPENVDB
+      } else if (ext == "vdb") {
+        saveVdb(vol, o.out);
+#endif
       } else {
         Mesh mesh = extractMesh(vol, pool);
         if (o.decimate.maxTriangles || o.decimate.maxError) {
@@ -398,13 +423,14 @@ Operations (coordinates and lengths in vu, the voxel spacing):
 Starting solid:
   --size N              domain of N^3 voxels, 8..1024 (default 128)
   --solid NAME          sphere|box|torus|cylinder|dumbbell|pig|empty (default sphere)
-  --load FILE           a volume file (.mzv, keeps its own size) or a closed mesh
-                        (.stl, .obj, .ply) in vu, placed as it is in an N^3 domain
+  --load FILE           a volume file (.mzv, keeps its own size), an OpenVDB level set
+                        (.vdb: voxel x,y,z of the N^3 domain reads the grid's x,y,z) or a
+                        closed mesh (.stl, .obj, .ply) in vu, placed as it is in an N^3 domain
   --fit MARGIN          with a mesh: scale and centre it, MARGIN vu from the tightest sides
 
 Output:
-  --out FILE            .stl, .obj, .ply or .glb (glTF 2.0) mesh of the surface, or .mzv
-                        volume file
+  --out FILE            .stl, .obj, .ply or .glb (glTF 2.0) mesh of the surface, .mzv
+                        volume file or .vdb OpenVDB level set (.vdb: builds with OpenVDB)
   --max-triangles N     decimate the mesh to at most N triangles (meshoptimizer)
   --max-error E         decimate while meshoptimizer's error estimate stays within E vu;
                         with either, one JSON line on stdout: mesh, source_triangles,

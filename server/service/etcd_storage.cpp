@@ -257,25 +257,15 @@ void EtcdStorage::remove(const std::string& id) {
     const std::lock_guard lock(mutex_);
     owned_.erase(id);
   }
-  std::error_code ec;
-  fs::remove_all(sessionDir(id), ec);
-  if (ec) throw std::runtime_error("cannot remove " + sessionDir(id).string() + ": " + ec.message());
-  syncDirectory(dir_ / "sessions");
+  removeSessionFolder(sessionDir(id));
 }
 
 std::vector<std::string> EtcdStorage::removeUntouched(std::chrono::seconds maxAge,
                                                       const std::function<bool(const std::string&)>& live) {
   std::vector<std::string> removed;
-  std::error_code ec;
-  const auto now = fs::file_time_type::clock::now();
-  for (const fs::directory_entry& entry : fs::directory_iterator(dir_ / "sessions", ec)) {
-    const std::string id = entry.path().filename().string();
-    if (!entry.is_directory(ec) || live(id)) continue;
-    bool old = true;
-    for (const fs::directory_entry& file : fs::directory_iterator(entry.path(), ec))
-      if (now - file.last_write_time(ec) < maxAge) old = false;
+  for (const std::string& id : sessionsUntouchedFor(dir_ / "sessions", maxAge, live)) {
     try {
-      if (!old || !acquire(id)) continue;
+      if (!acquire(id)) continue;
       remove(id);
       removed.push_back(id);
     } catch (const std::exception& e) {

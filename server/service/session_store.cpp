@@ -36,6 +36,29 @@ void syncDirectory(const fs::path& dir) {
   ::close(fd);
 }
 
+std::vector<std::string> sessionsUntouchedFor(const fs::path& sessions, std::chrono::seconds maxAge,
+                                              const std::function<bool(const std::string&)>& live) {
+  std::vector<std::string> ids;
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (const fs::directory_entry& entry : fs::directory_iterator(sessions, ec)) {
+    std::string id = entry.path().filename().string();
+    if (!entry.is_directory(ec) || live(id)) continue;
+    bool old = true;
+    for (const fs::directory_entry& file : fs::directory_iterator(entry.path(), ec))
+      if (now - file.last_write_time(ec) < maxAge) old = false;
+    if (old) ids.push_back(std::move(id));
+  }
+  return ids;
+}
+
+void removeSessionFolder(const fs::path& folder) {
+  std::error_code ec;
+  fs::remove_all(folder, ec);
+  if (ec) throw std::runtime_error("cannot remove " + folder.string() + ": " + ec.message());
+  syncDirectory(folder.parent_path());
+}
+
 std::vector<std::uint8_t> readFile(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read " + path.string());
@@ -405,25 +428,16 @@ void SessionStore::remove(const std::string& id) {
     const std::lock_guard lock(mutex_);
     leases_.erase(id);
   }
-  std::error_code ec;
-  fs::remove_all(sessionDir(id), ec);
-  if (ec) throw std::runtime_error("cannot remove " + sessionDir(id).string() + ": " + ec.message());
-  syncDirectory(dir_ / "sessions");
+  removeSessionFolder(sessionDir(id));
 }
 
 std::vector<std::string> SessionStore::removeUntouched(std::chrono::seconds maxAge,
                                                        const std::function<bool(const std::string&)>& live) {
   std::vector<std::string> removed;
-  std::error_code ec;
-  const auto now = fs::file_time_type::clock::now();
-  for (const fs::directory_entry& entry : fs::directory_iterator(dir_ / "sessions", ec)) {
-    const std::string id = entry.path().filename().string();
-    if (!entry.is_directory(ec) || live(id)) continue;
-    bool old = true;
-    for (const fs::directory_entry& file : fs::directory_iterator(entry.path(), ec))
-      if (now - file.last_write_time(ec) < maxAge) old = false;
-    if (!old || !takeLease(id, owner_, ttl_)) continue;
-    fs::remove_all(entry.path(), ec);
+  for (const std::string& id : sessionsUntouchedFor(dir_ / "sessions", maxAge, live)) {
+    if (!takeLease(id, owner_, ttl_)) continue;
+    std::error_code ec;
+    fs::remove_all(sessionDir(id), ec);
     if (ec) warn("session " + id + ": removing it after " + std::to_string(maxAge.count() / 86400) + " days failed: " + ec.message());
     else removed.push_back(id);
   }

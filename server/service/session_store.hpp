@@ -120,6 +120,12 @@ void writeFileAtomically(const std::filesystem::path& path, const void* data, st
 // fsyncs a directory (after a rename or an unlink in it); a directory that cannot be opened is
 // left alone.
 void syncDirectory(const std::filesystem::path& dir);
+// The session folders under `sessions` (folder name = session id) not live(id) whose every
+// file was last written more than maxAge ago.
+std::vector<std::string> sessionsUntouchedFor(const std::filesystem::path& sessions, std::chrono::seconds maxAge,
+                                              const std::function<bool(const std::string&)>& live);
+// Removes a session's folder and syncs its parent; throws std::runtime_error "cannot remove PATH: why".
+void removeSessionFolder(const std::filesystem::path& folder);
 // The whole file; throws std::runtime_error "cannot read PATH".
 std::vector<std::uint8_t> readFile(const std::filesystem::path& path);
 

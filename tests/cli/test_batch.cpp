@@ -157,6 +157,47 @@ TEST_CASE("a saved volume loads back bit for bit and keeps its revision", "[cli]
   CHECK(statsLines(more.out).at(0)["revision"] == 8);
 }
 
+// MARZIPAN_CLI_HAS_OPENVDB: the binary was built with -DMARZIPAN_WITH_OPENVDB=ON.
+TEST_CASE(".vdb: a level set written by batch loads back with the same distances, or is refused without OpenVDB", "[cli]") {
+  const fs::path dir = scratch("vdb");
+  writeText(dir / "ops.jsonl", kOps);
+#ifdef MARZIPAN_CLI_HAS_OPENVDB
+  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.vdb");
+  INFO(sculpt.err);
+  REQUIRE(sculpt.status == 0);
+  const json s = statsLines(sculpt.out).at(0);
+  CHECK(readText(dir / "out.vdb").substr(0, 4) == " BDV");  // OpenVDB's magic number, 0x56444220 little-endian
+
+  const Run loaded = marzipan(dir, "batch - --load out.vdb --size 64 --stats < /dev/null");
+  INFO(loaded.err);
+  REQUIRE(loaded.status == 0);
+  const json l = statsLines(loaded.out).at(0);
+  CHECK(l["revision"] == 0);
+  // The band's floats are stored as they are and the rest is +-band on both sides: the same voxels.
+  CHECK(l["digest"] == s["digest"]);
+  CHECK(l["inside_volume"] == s["inside_volume"]);
+  CHECK(l["surface_area"] == s["surface_area"]);
+
+  writeText(dir / "text.vdb", "not a vdb file\n");
+  const Run bad = marzipan(dir, "batch - --load text.vdb --stats < /dev/null");
+  CHECK(bad.status == 1);
+  CHECK_THAT(bad.err, Catch::Contains("text.vdb"));
+  CHECK(marzipan(dir, "batch - --load missing.vdb < /dev/null").status == 1);
+  CHECK(marzipan(dir, "batch - --load out.vdb --fit 2 < /dev/null").status == 2);
+  CHECK(marzipan(dir, "batch ops.jsonl --out again.vdb --max-triangles 100").status == 2);
+  CHECK_FALSE(fs::exists(dir / "again.vdb"));
+#else
+  const Run out = marzipan(dir, "batch ops.jsonl --size 64 --out out.vdb");
+  CHECK(out.status == 2);
+  CHECK_THAT(out.err, Catch::Contains("MARZIPAN_WITH_OPENVDB"));
+  CHECK_FALSE(fs::exists(dir / "out.vdb"));
+  writeText(dir / "in.vdb", "");
+  const Run in = marzipan(dir, "batch ops.jsonl --load in.vdb");
+  CHECK(in.status == 2);
+  CHECK_THAT(in.err, Catch::Contains("MARZIPAN_WITH_OPENVDB"));
+#endif
+}
+
 TEST_CASE("stats every K ops (--stats-every) and after the last", "[cli]") {
   const fs::path dir = scratch("every");
   writeText(dir / "ops.jsonl", kOps);

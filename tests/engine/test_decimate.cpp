@@ -1,8 +1,8 @@
 // Decimation against the exact sphere: the budget is met, the mesh stays closed and manifold,
-// and the measured distance to the field's zero set is bounded. The issue's target is 0.1 vu for
-// 100k triangles of the radius-100 sphere; meshoptimizer 0.18 reaches 0.126 vu there (a few
-// long edges: its area-weighted quadric error underestimates the sag of a long chord), so the
-// bound below is 0.15 vu and the README states the measured figure.
+// and the measured distance to the field's zero set is within the issue's 0.1 vu for 100k
+// triangles of the radius-100 sphere. meshoptimizer 0.18 alone reaches 0.126 vu there (a few
+// long edges: its quadric error does not see the sag of a long chord); decimate.cpp's edge flips
+// bring it to 0.088 vu (2026-11-24).
 #include <catch2/catch.hpp>
 
 #include <chrono>
@@ -31,7 +31,7 @@ TEST_CASE("the radius-100 sphere decimated to 100k triangles stays closed and ne
   CHECK(r.sourceTriangles == full.triangleCount());
   CHECK(r.mesh.triangleCount() <= 100000);
   CHECK(r.mesh.triangleCount() > 99000);
-  CHECK(r.maxError <= 0.15);
+  CHECK(r.maxError <= 0.1);
   CHECK(r.maxError >= fullDeviation);  // the source's vertices are kept: it cannot get closer
   CHECK(r.maxError == surfaceDeviation(r.mesh, sphere, pool));
   CHECK(checkEdges(r.mesh).closedManifold());

@@ -13,6 +13,7 @@
 
 #include "hub_support.hpp"
 #include "memory_kv.hpp"
+#include "storage_support.hpp"
 #include "service/etcd_storage.hpp"
 #include "service/hub.hpp"
 
@@ -147,5 +148,14 @@ TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the sessio
   CHECK(b.result("session.stats")["digest"] == before["digest"]);
   CHECK(b.result("tool.apply", blob(26))["revision"] == before["revision"].get<int>() + 1);
   hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("etcd storage: sessions at rest untouched longer than the age limit are removed with their keys", "[etcd]") {
+  MemoryKv kv;
+  const auto dir = scratch("untouched");
+  EtcdStorage store(kv, dir, "server-a");
+  checkRemovesUntouched(store, dir);
+  CHECK(kv.range(store.owner().ownerKey("old"), {}, 0).empty());
   std::filesystem::remove_all(dir);
 }

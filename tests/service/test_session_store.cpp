@@ -16,6 +16,7 @@
 #include "engine/thread_pool.hpp"
 #include "service/hub.hpp"
 #include "service/session_store.hpp"
+#include "storage_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
@@ -265,5 +266,12 @@ TEST_CASE("a snapshot's journal starts with the open strokes, and a rotation cut
   }
   CHECK(recoveredDigest(dir, "rot", &revision) == digestHex(live.volume()));
   CHECK(revision == r);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("sessions at rest untouched longer than the age limit are removed, younger and live ones kept", "[store]") {
+  const fs::path dir = freshDir("untouched");
+  SessionStore store(dir);
+  testing::checkRemovesUntouched(store, dir);
   fs::remove_all(dir);
 }

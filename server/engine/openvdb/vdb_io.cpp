@@ -2,12 +2,14 @@
 #include "engine/openvdb/vdb_io.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <mutex>
 #include <vector>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/SignedFloodFill.h>
 
+#include "engine/brick.hpp"
 #include "engine/errors.hpp"
 
 namespace marzipan {
@@ -31,14 +33,12 @@ void saveVdb(const Volume& vol, const std::string& path) {
   auto acc = grid->getAccessor();
   const Int3 dims = vol.dims();
   vol.forEachPresentBrick([&](Int3 b, const Brick& brick) {
-    for (int z = 0; z < kBrickSide; ++z)
-      for (int y = 0; y < kBrickSide; ++y)
-        for (int x = 0; x < kBrickSide; ++x) {
-          const Int3 p{b.x * kBrickSide + x, b.y * kBrickSide + y, b.z * kBrickSide + z};
-          if (p.x >= dims.x || p.y >= dims.y || p.z >= dims.z) continue;
-          const float d = brick.v[x + kBrickSide * (y + kBrickSide * z)];
-          if (std::fabs(d) < w) acc.setValue(openvdb::Coord(p.x, p.y, p.z), d);
-        }
+    const Int3 o = Bricks::origin(b);
+    for (int k = 0; k < kBrickVoxels; ++k) {
+      const Int3 p = o + Bricks::local(k);
+      if (p.x >= dims.x || p.y >= dims.y || p.z >= dims.z) continue;
+      if (std::fabs(brick.v[k]) < w) acc.setValue(openvdb::Coord(p.x, p.y, p.z), brick.v[k]);
+    }
   });
   // Inactive values take the sign of the nearest active ones: -w inside, +w outside.
   openvdb::tools::signedFloodFill(grid->tree());
