@@ -7,7 +7,9 @@
 
 import { FRAME_HEADER_BYTES } from "/protocol/js/frames.js";
 import { decodeSplats } from "/protocol/js/splats.js";
+import { gridBoxEdges, nearGridEdge } from "./math/grid-edge.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
+import { scaleMesh } from "./math/mesh-scale.js";
 import { RpcError } from "./net/rpc-error.js";
 import { FrameFeed } from "./net/frame-feed.js";
 import { PickSync } from "./net/pick-sync.js";
@@ -31,6 +33,10 @@ import { GLOBAL_OPS } from "./ui/tools.js";
 
 const STATUS_REFRESH_MS = 500;
 const FRAME_TIME_FRAMES = 60;
+const HINT_KEY = "marzipan.hint-dismissed";
+
+// Where the starting solids face (server/engine/solids.hpp): the Front view looks at that side.
+const SOLID_FRONTS = Object.freeze({ pig: "+x" });
 
 export class App {
   constructor(doc, win) {
@@ -54,6 +60,8 @@ export class App {
     this.renderer.onBeforeDraw.push(() => this.frameFeed.tick());
     this.pickSync = new PickSync(this.session, () => this.store.revision, (buffer) => this.#splats(buffer));
     this.controls = new Controls(doc, this.#controlHandlers());
+    doc.getElementById("mesh-scale").addEventListener("input", () => this.#showMeshScale());
+    doc.getElementById("orthographic").addEventListener("change", (e) => this.#setOrthographic(e.target.checked));
     this.sculpt = new Sculpt({
       session: this.session,
       store: this.store,
@@ -79,9 +87,10 @@ export class App {
     });
     installShortcuts(doc, this.#shortcutActions());
     doc.getElementById("help").addEventListener("click", () => this.help.open());
-    doc.getElementById("hint-close").addEventListener("click", () => (doc.getElementById("hint").hidden = true));
+    this.#installHint(doc, localStorageOf(win));
     this.#listen();
     this.joinToken = null; // the token this client holds (edit or view)
+    this.front = null; // the model's front axis (math/orbit-camera.js FRONT_AXES), or null for +z
     this.fitOnNextFull = false;
     this.lastMeasure = null;
     win.setInterval(() => this.status.fps(this.renderer.fps, this.renderer.lastDrawMs), STATUS_REFRESH_MS);
@@ -127,13 +136,18 @@ export class App {
     if (choice.create) {
       const result = await this.session.create(choice.create);
       this.joinToken = result.token;
+      this.front = SOLID_FRONTS[choice.create.solid] || null;
     } else {
       await this.session.join(choice.join);
       this.joinToken = choice.join.token;
+      const known = this.recent.find(choice.join.session);
+      this.front = choice.join.front || (known && known.front) || null;
     }
-    this.win.history.replaceState(null, "", sessionLink(this.win.location.href, this.session.info.session, this.joinToken));
+    this.camera.setFront(this.front);
+    this.camera.setPreset("home");
+    this.win.history.replaceState(null, "", sessionLink(this.win.location.href, this.session.info.session, this.joinToken, this.front));
     const info = this.session.info;
-    this.recent.remember({ session: info.session, token: this.joinToken, readOnly: Boolean(info.read_only), size: info.size });
+    this.recent.remember({ session: info.session, token: this.joinToken, readOnly: Boolean(info.read_only), size: info.size, front: this.front });
     if (this.controls.settings.view === "frames") await this.frameFeed.start(this.controls.settings.shading);
   }
 
@@ -148,6 +162,7 @@ export class App {
     s.addEventListener("joined", (e) => {
       const { info, rejoined } = e.detail;
       this.camera.setDomain(info.size);
+      this.#showMeshScale();
       this.status.session(info);
       this.status.clients(s.clients, info.client);
       if (rejoined) {
@@ -199,7 +214,17 @@ export class App {
       this.#cameraChanged();
     }
     this.status.splats(this.store.pointCount, this.store.bricks.size, this.store.revision);
+    this.#showGridEdge();
     this.sculpt.refresh();
+  }
+
+  // The grid's box and a note while the model comes within GRID_NEAR_VU of a face.
+  #showGridEdge() {
+    const size = this.session.info && this.session.info.size;
+    const near = Boolean(size) && nearGridEdge(this.store.bricks.values(), size);
+    this.renderer.gridBox = near ? gridBoxEdges(size) : [];
+    this.canvas.dataset.gridEdge = near ? "near" : "clear";
+    document.getElementById("grid-note").hidden = !near;
   }
 
   // Frames the model (its splats), or the whole domain when it has none.
@@ -212,6 +237,25 @@ export class App {
   #cameraChanged() {
     this.frameFeed.cameraMoved();
     this.sculpt.refresh();
+  }
+
+  // The hint along the bottom of the view: dismissed once, gone for good in this browser (kept
+  // in localStorage under HINT_KEY). Presses on its text reach the model (style.css).
+  #installHint(doc, storage) {
+    const hint = doc.getElementById("hint");
+    try {
+      hint.hidden = Boolean(storage && storage.getItem(HINT_KEY));
+    } catch {
+      // a storage that refuses reads leaves the hint shown
+    }
+    doc.getElementById("hint-close").addEventListener("click", () => {
+      hint.hidden = true;
+      try {
+        if (storage) storage.setItem(HINT_KEY, "dismissed");
+      } catch {
+        // full or refused: dismissed for this page only
+      }
+    });
   }
 
   #updateAvailability() {
@@ -242,7 +286,7 @@ export class App {
       onSnapshot: () => this.#snapshot(),
       onStats: () => this.#stats(),
       onMeasure: () => this.measureFrameTime(),
-      onShare: () => this.shareDialog.open(this.win.location.href, this.session.info, this.joinToken),
+      onShare: () => this.shareDialog.open(this.win.location.href, this.session.info, this.joinToken, this.front),
       onNewSession: () => this.#chooseSession(Boolean(this.session.info)),
     };
   }
@@ -259,6 +303,7 @@ export class App {
       toggleView: () => c().setView(c().settings.view === "splats" ? "frames" : "splats"),
       toggleGradientError: () => c().setShading(c().settings.shading === "gradient_error" ? "lit" : "gradient_error"),
       camera: (name) => this.#cameraPreset(name),
+      toggleOrthographic: () => this.#setOrthographic(!this.camera.orthographic),
       zoom: (k) => {
         this.camera.zoom(k);
         this.#cameraChanged();
@@ -276,6 +321,12 @@ export class App {
   #cameraPreset(name) {
     this.camera.setPreset(name);
     this.#fitModel();
+    this.#cameraChanged();
+  }
+
+  #setOrthographic(on) {
+    this.camera.setOrthographic(on);
+    this.doc.getElementById("orthographic").checked = on;
     this.#cameraChanged();
   }
 
@@ -315,12 +366,33 @@ export class App {
 
   async #exportMesh(format) {
     try {
+      const mmPerVu = this.#meshScale();
+      if (mmPerVu === null) return;
       const { result, frame } = await this.messages.during(`Exporting ${format.toUpperCase()}`, this.session.exportMesh(format));
-      download(frame.payload, fileName(this.session.info.session, result.revision, format));
-      this.messages.notice(`${format.toUpperCase()}: ${result.triangles.toLocaleString("en")} triangles, ${formatBytes(result.bytes)}.`);
+      const bytes = scaleMesh(format, frame.payload, mmPerVu);
+      download(bytes, fileName(this.session.info.session, result.revision, format));
+      const box = this.store.pointBounds();
+      const size = box ? ` The model measures ${box.hi.map((h, k) => formatMm((h - box.lo[k]) * mmPerVu)).join(" × ")} mm.` : "";
+      this.messages.notice(`${format.toUpperCase()} at ${formatMm(mmPerVu)} mm per vu: ${result.triangles.toLocaleString("en")} triangles, ${formatBytes(bytes.byteLength)}.${size}`);
     } catch {
       // reported by the session's "error" event
     }
+  }
+
+  // The "Mesh scale" field in mm per vu, or null (and a message) when it is not a usable number.
+  #meshScale() {
+    const field = document.getElementById("mesh-scale");
+    const v = Number(field.value);
+    if (v > 0 && Number.isFinite(v)) return v;
+    this.messages.error(new Error(`The mesh scale must be a positive number of millimetres per vu, not "${field.value}".`));
+    return null;
+  }
+
+  // The grid's side in mm at the chosen scale, beside the field.
+  #showMeshScale() {
+    const size = this.session.info && this.session.info.size;
+    const v = Number(document.getElementById("mesh-scale").value);
+    document.getElementById("mesh-scale-grid").textContent = size && v > 0 ? `The grid is ${size.map((n) => formatMm(n * v)).join(" × ")} mm.` : "";
   }
 
   async #saveVolume() {
@@ -380,6 +452,11 @@ function describe(e) {
   if (e instanceof RpcError) return `${e.message} [${e.code} ${e.codeName}]`;
   if (e && e.name === "ConnectionLost") return "the connection closed before the server answered";
   return e && e.message ? e.message : String(e);
+}
+
+// Millimetres with up to three decimals, no trailing zeros.
+function formatMm(v) {
+  return String(Number(v.toFixed(3)));
 }
 
 function formatBytes(n) {

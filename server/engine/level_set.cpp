@@ -30,8 +30,12 @@ struct Motion {
 // application at speed 1 moves the surface 1 vu.
 constexpr double kAdvectDt = 0.5;
 constexpr int kAdvectSubsteps = 2;
-// Curvature flow: one explicit step at the 7-point Laplacian's stability limit dt = 1/6.
+// Curvature flow: explicit steps at the 7-point Laplacian's stability limit dt = 1/6.
 constexpr double kCurvatureDt = 1.0 / 6.0;
+// The smoothing brush takes this many such steps per application: one step moves a groove of
+// radius 4 by a few hundredths of a vu, invisible, so a sculptor needed many passes
+// (tests/engine/test_level_set.cpp, "one smoothing application ... fills a groove").
+constexpr int kSmoothSubsteps = 32;
 // Sharpening runs the flow backwards; |L| <= 1 per voxel keeps noise from blowing up.
 constexpr double kSharpenCurvatureLimit = 1.0;
 
@@ -39,8 +43,8 @@ Motion advection(double speed) {
   return {.kind = Motion::Kind::Advect, .speed = speed, .dt = kAdvectDt, .substeps = kAdvectSubsteps};
 }
 
-Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::infinity()) {
-  return {.kind = Motion::Kind::Curvature, .speed = scale, .dt = kCurvatureDt, .substeps = 1, .curvatureLimit = limit};
+Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::infinity(), int substeps = 1) {
+  return {.kind = Motion::Kind::Curvature, .speed = scale, .dt = kCurvatureDt, .substeps = substeps, .curvatureLimit = limit};
 }
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).
@@ -207,7 +211,7 @@ Motion strokeMotion(const StrokeSettings& st) {
   switch (st.tool) {
     case Brush::AddBlob: return advection(st.strength);
     case Brush::RemoveBlob: return advection(-st.strength);
-    case Brush::Smooth: return curvatureFlow(st.strength);
+    case Brush::Smooth: return curvatureFlow(st.strength, std::numeric_limits<double>::infinity(), kSmoothSubsteps);
     case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
   }
   throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");

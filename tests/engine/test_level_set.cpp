@@ -336,6 +336,26 @@ TEST_CASE("a straight stroke leaves a ridge of even height: no beads at dabs or 
   }
 }
 
+TEST_CASE("one smoothing application at strength 1 visibly fills a groove", "[level_set][stroke][smooth]") {
+  // A groove of the remove-blob brush at radius 4 (six applications, as a sculptor's pass
+  // with build-up gives), then one application of the smoothing brush at radius 7 along it.
+  Volume v = strokeSlab();
+  sendStroke(v, {Brush::RemoveBlob, 4, 1}, strokeLine(16, 62.5, 1), 6, true);
+  const auto meanDepth = [&] {
+    double sum = 0;
+    int n = 0;
+    for (double x = 26; x <= 52; x += 0.5, ++n) sum -= ridgeHeight(v, x);
+    return sum / n;
+  };
+  const double groove = meanDepth();
+  applyStroke(v, {Brush::Smooth, 7, 1}, strokeLine(16, 62.5, 1.75), {});
+  const double smoothed = meanDepth();
+  INFO("groove " << groove << " vu deep, " << smoothed << " vu after one smoothing application");
+  CHECK(groove > 1);
+  CHECK(smoothed < 0.65 * groove);  // one explicit step per application took off 3 %
+  CHECK(smoothed > 0);  // smoothing fills in, it never raises a ridge
+}
+
 TEST_CASE("a stroke adds the same volume however its dabs are grouped or spaced", "[level_set][stroke]") {
   const StrokeSettings st{Brush::AddBlob, 6, 1};
   const double before = insideVolume(strokeSlab());

@@ -10,6 +10,11 @@ import * as mat4 from "./mat4.js";
 import { addScaled, cross, length, normalize, sub } from "./vec3.js";
 
 export const DEFAULT_FOV_DEGREES = 40; // the server's default, so both views frame alike
+// The "orthographic" view is a telephoto: the server ray-casts only perspective cameras (fov
+// in (1, 170) degrees) and both views must show the same picture, so the camera narrows to
+// this fov and backs off to keep the framing; across a model as deep as the view is high,
+// sizes then differ by about 2 tan(fov / 2) ~ 2% from its near side to its far side.
+export const ORTHOGRAPHIC_FOV_DEGREES = 1.2;
 const HALF_PI = Math.PI / 2;
 const FIT_MARGIN = 0.8; // a fitted box fills at most this much of the view's half-extent
 
@@ -20,9 +25,15 @@ export const VIEW_PRESETS = Object.freeze({
   home: { yaw: Math.PI / 5, pitch: Math.PI / 7 },
 });
 
+// The yaw that puts the eye on the side of a horizontal axis ("+x", "-x", "+z", "-z"): the
+// model's front, where its face is (the pig of server/engine/solids.hpp faces +x).
+const FRONT_YAWS = Object.freeze({ "+z": 0, "+x": HALF_PI, "-z": Math.PI, "-x": -HALF_PI });
+export const FRONT_AXES = Object.freeze(Object.keys(FRONT_YAWS));
+
 export class OrbitCamera {
   constructor(dims = [128, 128, 128]) {
     this.fovDegrees = DEFAULT_FOV_DEGREES;
+    this.frontYaw = 0; // presets turn by this: the model's front (setFront)
     this.target = [0, 0, 0];
     this.distance = 1;
     this.yaw = VIEW_PRESETS.home.yaw;
@@ -40,9 +51,34 @@ export class OrbitCamera {
     this.domainCenter = dims.map((n) => (n - 1) / 2);
     // Foot points may sit up to 2 vu outside the outermost voxels.
     this.domainRadius = 0.5 * Math.hypot(dims[0], dims[1], dims[2]) + 2;
-    this.minDistance = Math.max(1, 0.02 * Math.max(...dims));
-    this.maxDistance = 8 * this.domainRadius;
+    this.minDistance = Math.max(1, 0.02 * Math.max(...dims)) * this.#lens;
+    this.maxDistance = 8 * this.domainRadius * this.#lens;
     this.distance = clamp(this.distance, this.minDistance, this.maxDistance);
+  }
+
+  // How much farther this fov must stand than the default one to frame alike.
+  get #lens() {
+    return Math.tan((DEFAULT_FOV_DEGREES * Math.PI) / 360) / Math.tan((this.fovDegrees * Math.PI) / 360);
+  }
+
+  get orthographic() {
+    return this.fovDegrees === ORTHOGRAPHIC_FOV_DEGREES;
+  }
+
+  // Switches between the perspective and the (telephoto) orthographic view, keeping what is
+  // at the target's depth the same size on screen.
+  setOrthographic(on) {
+    const before = this.#lens;
+    this.fovDegrees = on ? ORTHOGRAPHIC_FOV_DEGREES : DEFAULT_FOV_DEGREES;
+    const k = this.#lens / before;
+    this.minDistance *= k;
+    this.maxDistance *= k;
+    this.distance *= k;
+  }
+
+  // The model's front: one of FRONT_AXES, or null for +z (the front preset's own axis).
+  setFront(axis) {
+    this.frontYaw = FRONT_YAWS[axis] || 0;
   }
 
   get fovY() {
@@ -110,7 +146,7 @@ export class OrbitCamera {
 
   setPreset(name) {
     const p = VIEW_PRESETS[name];
-    this.yaw = p.yaw;
+    this.yaw = wrapAngle(p.yaw + this.frontYaw);
     this.pitch = p.pitch;
   }
 

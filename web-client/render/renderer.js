@@ -11,6 +11,8 @@
 
 import { Backdrop } from "./backdrop.js";
 import { BrushCursor } from "./brush-cursor.js";
+
+const GRID_COLOR = [0.95, 0.55, 0.2];
 import { FrameImage } from "./frame-image.js";
 import { SplatRenderer } from "./splat-renderer.js";
 
@@ -24,6 +26,7 @@ export class Renderer {
     this.view = "splats";
     this.shading = "lit";
     this.cursorShape = { rings: [], segments: [], color: [1, 1, 1] }; // ui/sculpt.js sets it
+    this.gridBox = []; // the grid's edges while the model nears them (app.js, math/grid-edge.js)
     this.onBeforeDraw = [];
     this.onAfterDraw = [];
     this.width = 1;
@@ -139,6 +142,7 @@ export class Renderer {
       this.backdrop.draw();
       if (this.view === "splats") this.splats.draw(this.camera, this.shading);
     }
+    if (this.gridBox.length) this.cursor.draw(this.camera, { rings: [], segments: this.gridBox, color: GRID_COLOR });
     this.cursor.draw(this.camera, this.cursorShape);
     this.lastDrawMs = performance.now() - start;
     ++this.frameCount;

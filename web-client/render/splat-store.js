@@ -111,6 +111,20 @@ export class SplatStore {
     return { lo, hi };
   }
 
+  // The box of the points themselves, {lo, hi} in vu, or null when there are none.
+  pointBounds() {
+    if (this.pointCount === 0) return null;
+    const lo = [Infinity, Infinity, Infinity];
+    const hi = [-Infinity, -Infinity, -Infinity];
+    for (const { count, positions } of this.bricks.values())
+      for (let i = 0; i < 3 * count; i += 3)
+        for (let k = 0; k < 3; ++k) {
+          lo[k] = Math.min(lo[k], positions[i + k]);
+          hi[k] = Math.max(hi[k], positions[i + k]);
+        }
+    return { lo, hi };
+  }
+
   #release(entry) {
     if (!entry.slot) return;
     this.allocator.release(entry.slot);

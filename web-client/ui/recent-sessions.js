@@ -2,7 +2,8 @@
 // session: the start screen lists them with their links. Kept in the browser's localStorage
 // (never sent anywhere), newest first, at most MAX_RECENT, one entry per session (the edit
 // token wins over a view token for the same session).
-// An entry: {session, token, readOnly, size: [nx, ny, nz], openedAt: ms since the epoch}.
+// An entry: {session, token, readOnly, size: [nx, ny, nz], front (the model's front axis, or
+// null), openedAt: ms since the epoch}.
 
 export const MAX_RECENT = 12;
 const KEY = "marzipan.recent-sessions";
@@ -23,12 +24,17 @@ export class RecentSessions {
     }
   }
 
-  remember({ session, token, readOnly, size }, now = Date.now()) {
+  remember({ session, token, readOnly, size, front = null }, now = Date.now()) {
     const old = this.list();
     const same = old.find((e) => e.session === session);
-    const keep = same && same.token !== token && !same.readOnly && readOnly ? same : { session, token, readOnly: Boolean(readOnly), size };
+    const keep = same && same.token !== token && !same.readOnly && readOnly ? same : { session, token, readOnly: Boolean(readOnly), size, front: front || (same && same.front) || null };
     const entries = [{ ...keep, openedAt: now }, ...old.filter((e) => e.session !== session)].slice(0, MAX_RECENT);
     this.#save(entries);
+  }
+
+  // The entry of `session`, or null.
+  find(session) {
+    return this.list().find((e) => e.session === session) || null;
   }
 
   forget(session) {

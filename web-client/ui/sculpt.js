@@ -2,9 +2,12 @@
 // clicks of CSG tools.
 // Conventions: pointer positions in CSS pixels of the canvas; world in vu. The surface under
 // the pointer is found on the client's splats (math/splat-pick.js): that places the cursor and
-// spaces the dabs (DAB_SPACING of the radius apart along the surface), but each dab goes to
-// the server as the pointer's ray, so it lands on the surface as the server has it when the
-// dab applies. Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
+// spaces the dabs (DAB_SPACING of the radius apart along the surface). A stroke picks its dabs
+// on the surface as it was when the stroke began (the splat store's bricks at the press; the
+// store replaces a changed brick's entry, never its arrays, so that list stays intact) and
+// sends them as centres: a dab never lands on what the stroke itself just added, so a stroke
+// cannot climb its own growth into a tentacle however long the pointer scrubs one place (it
+// rises at most about the brush radius above where it began). Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
 // mirrored images, x' = nx - 1 - x for a mirror across x. A modifier held at the press (ui/
 // gesture-map.js) inverts the tool or makes it smooth for that stroke; with the stabiliser on
 // (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
@@ -24,7 +27,9 @@ export const DAB_SPACING = 0.25;
 // Strokes build up, message by message (stroke.begin "accumulate"). Without it a stroke moves
 // each point at most as far as one application of the brush does (1 vu at strength 1, the
 // protocol's stroke memory), which on a 128^3 model is too little to see; until the engine
-// scales a stroke's height with its radius and strength, the client asks for build-up.
+// scales a stroke's height with its radius and strength, the client asks for build-up. The
+// build-up stays bounded because the dabs are picked on the stroke's starting surface: each
+// dab's window ends one radius from a centre on that surface.
 const STROKES_ACCUMULATE = true;
 
 export class Sculpt {
@@ -42,10 +47,11 @@ export class Sculpt {
     return this.session.connected && !this.session.readOnly;
   }
 
-  // The surface under the pointer at (x, y): {t, point, normal} or null.
-  pick(x, y) {
+  // The surface under the pointer at (x, y): {t, point, normal} or null; on `bricks` (default:
+  // the splats as they are now).
+  pick(x, y, bricks = this.store.bricks.values()) {
     const { origin, direction } = this.#ray(x, y);
-    return pickSplats(this.store.bricks.values(), origin, direction, DISC_RADIUS);
+    return pickSplats(bricks, origin, direction, DISC_RADIUS);
   }
 
   #ray(x, y) {
@@ -75,7 +81,7 @@ export class Sculpt {
 
   // The settings or the view changed: the cursor follows.
   refresh() {
-    if (this.hoverAt) this.hit = this.pick(...this.hoverAt);
+    if (this.hoverAt) this.hit = this.pick(...this.hoverAt, this.stroke ? this.stroke.surface : undefined);
     this.#updateCursor();
   }
 
@@ -98,6 +104,7 @@ export class Sculpt {
       sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, accumulate: STROKES_ACCUMULATE }, maxDabs),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
       lazy: new LazyMouse(s.lazy || 0),
+      surface: [...this.store.bricks.values()], // the splats at the press, for picking its dabs
     };
     this.#setOpenStrokes(this.openStrokes + 1);
     this.strokeMove(x, y, pressure);
@@ -109,10 +116,13 @@ export class Sculpt {
     if (!at) return;
     const [x, y] = at;
     this.hoverAt = [x, y];
-    this.hit = this.pick(x, y);
+    const surface = this.stroke.surface;
+    this.hit = this.pick(x, y, surface);
     for (const dab of this.stroke.spacer.add(this.hit && this.hit.point, [x, y], pressure)) {
-      const { origin, direction } = this.#ray(dab.screen[0], dab.screen[1]);
-      this.stroke.sender.add({ ray: { origin, direction }, pressure: round(dab.pressure) });
+      // the spacer interpolates between samples; the dab's own pick puts it on the surface
+      const onSurface = this.pick(dab.screen[0], dab.screen[1], surface);
+      const center = (onSurface ? onSurface.point : dab.point).map(round);
+      this.stroke.sender.add({ center, pressure: round(dab.pressure) });
     }
     this.#updateCursor();
   }

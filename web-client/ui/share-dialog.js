@@ -22,12 +22,12 @@ export class ShareDialog {
 
   // info: the session.create / session.join result; a client that joined by link knows only
   // the token it joined with.
-  open(pageUrl, info, joinToken) {
+  open(pageUrl, info, joinToken, front = null) {
     const edit = info.token || (!info.read_only ? joinToken : "");
     const view = info.view_token || (info.read_only ? joinToken : "");
     const $ = (id) => this.doc.getElementById(id);
-    $("share-edit").value = edit ? sessionLink(pageUrl, info.session, edit) : "(not known to this client)";
-    $("share-view").value = view ? sessionLink(pageUrl, info.session, view) : "(not known to this client)";
+    $("share-edit").value = edit ? sessionLink(pageUrl, info.session, edit, front) : "(not known to this client)";
+    $("share-view").value = view ? sessionLink(pageUrl, info.session, view, front) : "(not known to this client)";
     for (const button of this.dialog.querySelectorAll("[data-copy]"))
       button.textContent = button.dataset.copy === "share-edit" ? "Copy edit link" : "Copy view link";
     this.dialog.showModal();

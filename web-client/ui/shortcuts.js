@@ -18,7 +18,8 @@ export const KEY_HELP = Object.freeze([
   ["V", "splats / frames view"],
   ["G", "gradient-error shading"],
   ["0 or Home", "reset the view to the model"],
-  ["1  3  7", "front, side, top"],
+  ["1  3  7", "front, side, top (the model's front: the pig's face)"],
+  ["5", "orthographic / perspective"],
   ["arrow keys", "orbit (with the model focused)"],
   ["+  −", "zoom"],
   ["Escape", "cancel the gesture"],
@@ -56,6 +57,7 @@ export function installShortcuts(doc, actions) {
     else if (key === "1") actions.camera("front");
     else if (key === "3") actions.camera("side");
     else if (key === "7") actions.camera("top");
+    else if (key === "5") actions.toggleOrthographic();
     else if (key === "+" || key === "=") actions.zoom(1 / 1.15);
     else if (key === "-" || key === "_") actions.zoom(1.15);
     else if (key === "Escape") actions.cancel();

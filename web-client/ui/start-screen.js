@@ -74,7 +74,7 @@ export class StartScreen {
       const when = new Date(e.openedAt).toLocaleString();
       button.textContent = `${e.size.join("×")} · ${e.readOnly ? "view only" : "edit"} · ${when}`;
       button.title = `Session ${e.session}`;
-      button.addEventListener("click", () => open({ session: e.session, token: e.token }));
+      button.addEventListener("click", () => open({ session: e.session, token: e.token, front: e.front || null }));
       const forget = doc.createElement("button");
       forget.type = "button";
       forget.textContent = "×";

@@ -3,7 +3,7 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 
-import { OrbitCamera } from "../../../web-client/math/orbit-camera.js";
+import { ORTHOGRAPHIC_FOV_DEGREES, OrbitCamera } from "../../../web-client/math/orbit-camera.js";
 import { transformPoint } from "../../../web-client/math/mat4.js";
 import { addScaled, cross, dot, length, normalize, sub } from "../../../web-client/math/vec3.js";
 
@@ -170,4 +170,48 @@ test("an orbit around a pivot keeps the pivot where it was on screen and turns t
   c.focus([10, 20, 30]);
   close(c.target, [10, 20, 30], 0, "focus centres the view on the point");
   assert.equal(c.distance, 150, "from the same distance");
+});
+
+test("with the model's front on +x (the pig) the presets turn with it: front looks at its face", () => {
+  const c = new OrbitCamera([128, 128, 128]);
+  c.target = [10, 20, 30];
+  c.distance = 50;
+  c.setFront("+x");
+  c.setPreset("front");
+  close(c.eye, [60, 20, 30], 1e-9, "front eye");
+  c.setPreset("side");
+  close(c.eye, [10, 20, -20], 1e-9, "side eye");
+  c.setFront("-z");
+  c.setPreset("front");
+  close(c.eye, [10, 20, -20], 1e-9, "front eye, -z");
+  c.setFront(null);
+  c.setPreset("front");
+  close(c.eye, [10, 20, 80], 1e-9, "front eye, default");
+});
+
+test("the orthographic view is a narrow fov from farther away: the target's depth keeps its scale, depth barely changes size", () => {
+  const c = new OrbitCamera([128, 128, 128]);
+  c.target = [64, 64, 64];
+  c.distance = 200;
+  const perPixel = c.worldPerPixel(800);
+  const [min, max] = [c.minDistance, c.maxDistance];
+  c.setOrthographic(true);
+  assert.equal(c.orthographic, true);
+  assert.equal(c.fovDegrees, ORTHOGRAPHIC_FOV_DEGREES);
+  assert.ok(Math.abs(c.worldPerPixel(800) / perPixel - 1) < 1e-12, "the same size on screen at the target");
+  const k = c.distance / 200;
+  assert.ok(Math.abs(c.minDistance / min - k) < 1e-9 && Math.abs(c.maxDistance / max - k) < 1e-9, "zoom limits follow");
+  assert.ok(Math.hypot(...c.eye) < 1e5, "the eye stays where the server accepts cameras");
+  // Two points 100 vu apart in depth, same offset sideways: their screen positions differ by
+  // under 3% (by 40% in the default perspective view).
+  const spread = (cam) => {
+    cam.update(800, 800);
+    const near = transformPoint(cam.viewProjection, addScaled(addScaled(cam.target, cam.backward, 50), cam.right, 20));
+    const far = transformPoint(cam.viewProjection, addScaled(addScaled(cam.target, cam.backward, -50), cam.right, 20));
+    return near[0] / far[0] - 1;
+  };
+  assert.ok(spread(c) > 0 && spread(c) < 0.03, `orthographic: ${spread(c)}`);
+  c.setOrthographic(false);
+  assert.ok(Math.abs(c.distance - 200) < 1e-9, "and back to where it was");
+  assert.ok(spread(c) > 0.4, `perspective: ${spread(c)}`);
 });

@@ -31,9 +31,17 @@ test("an edit token is not replaced by a view token of the same session", () => 
   const recent = new RecentSessions(new MemoryStorage());
   recent.remember({ session: "a", token: "edit", readOnly: false, size: [128, 128, 128] }, 1);
   recent.remember({ session: "a", token: "view", readOnly: true, size: [128, 128, 128] }, 2);
-  assert.deepEqual(recent.list(), [{ session: "a", token: "edit", readOnly: false, size: [128, 128, 128], openedAt: 2 }]);
+  assert.deepEqual(recent.list(), [{ session: "a", token: "edit", readOnly: false, size: [128, 128, 128], front: null, openedAt: 2 }]);
   recent.forget("a");
   assert.deepEqual(recent.list(), []);
+});
+
+test("the model's front is kept, and not lost by a later visit that does not know it", () => {
+  const recent = new RecentSessions(new MemoryStorage());
+  recent.remember({ session: "p", token: "edit", readOnly: false, size: [128, 128, 128], front: "+x" }, 1);
+  recent.remember({ session: "p", token: "edit", readOnly: false, size: [128, 128, 128] }, 2);
+  assert.equal(recent.find("p").front, "+x");
+  assert.equal(recent.find("nothing"), null);
 });
 
 test("garbage in the storage, or no storage at all, gives an empty list", () => {
