@@ -4,8 +4,9 @@
 // (RaycastAccel) from the eye and once back from beyond the domain: every ray of the tile starts
 // where the cone first nears a brick with cells that may hold a zero, and stops where it last
 // leaves one. Each ray is clipped to the box [-1, dims] (beyond it the field is +band), then:
-// - in a brick with no such cell, it jumps to the exit of the cube of such bricks around it
-//   (reach); in a brick with some, it jumps to where it enters their box, or leaves the brick;
+// - in a brick with no such cell, it jumps to the exit of the box of such bricks ahead of it in
+//   its octant of directions (reach per octant); in a brick with some, it jumps to where it
+//   enters their box, or leaves the brick, and samples until it leaves that box;
 // - elsewhere it samples the trilinear interpolant d and steps by max(d, kMinStep): d underestimates
 //   the distance to the surface in the clamped part of the band, and near the surface the floor
 //   makes the ray cross the zero set in a few steps instead of creeping towards it;
@@ -186,7 +187,7 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
 
   // A voxel <= 0 puts a possible zero in the 8 cells it is a corner of, so a brick's box grows
   // by one cell downwards, into the bricks below it along each axis.
-  info_ = BrickGrid<BrickInfo>(bd, 1, BrickInfo{255, {kBrickSide, kBrickSide, kBrickSide}, {0, 0, 0}});
+  info_ = BrickGrid<BrickInfo>(bd, 1, BrickInfo{255, {}, {kBrickSide, kBrickSide, kBrickSide}, {0, 0, 0}});
   for (int bz = 0; bz < bd.z; ++bz)
     for (int by = 0; by < bd.y; ++by)
       for (int bx = 0; bx < bd.x; ++bx) {
@@ -217,47 +218,50 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
             }
       }
 
-  // Chessboard distance transform by two raster passes over the 26-neighbourhood; exact for this
-  // metric because a shortest king path can be reordered into forward moves then backward moves.
-  // A pass takes, for each brick, the neighbours it has already visited: 9 in the previous
-  // plane and 3 in the previous row, gathered a row at a time, then the previous brick of the
-  // same row, which is the only sequential dependency.
+  // Per octant of ray directions, the chessboard distance in bricks to the nearest brick with
+  // such cells among those a ray of the octant can still enter (none at a lower index along an
+  // axis it goes up, none at a higher one along an axis it goes down): a forward chessboard
+  // transform, one raster pass against the octant, exact because every brick of that region is
+  // reached by king moves into it. Per brick, a pass takes the 7 neighbours into the octant: 2
+  // in each of the 3 rows already done (gathered a row at a time), then the row's previous
+  // brick, the only sequential dependency. The plain distance, for the tile cones, is the
+  // smallest of the 8.
   const Int3 p = bd + Int3{2, 2, 2};  // the table, its ring included
   const std::size_t n = info_.size(), sy = info_.strideY(), sz = info_.strideZ();
-  std::vector<std::uint8_t> reach(n);
-  for (std::size_t i = 0; i < n; ++i) reach[i] = info_[i].reach;
-  std::vector<int> near(std::size_t(p.x));
-  auto rowMin3 = [&](const std::uint8_t* row) {
-    for (int x = 0; x < p.x; ++x) {
-      int m = row[x];
-      if (x > 0) m = std::min<int>(m, row[x - 1]);
-      if (x + 1 < p.x) m = std::min<int>(m, row[x + 1]);
-      near[std::size_t(x)] = std::min(near[std::size_t(x)], m + 1);
-    }
-  };
-  auto pass = [&](int dir) {
+  std::vector<std::uint8_t> seed(n), reach(n);
+  for (std::size_t i = 0; i < n; ++i) seed[i] = info_[i].reach;
+  std::vector<std::uint8_t> near(std::size_t(p.x));
+  for (int octant = 0; octant < 8; ++octant) {
+    const int s[3] = {octant & 1 ? -1 : 1, octant & 2 ? -1 : 1, octant & 4 ? -1 : 1};
+    // The x range where the neighbour x + s[0] is in the table too; the other end brick has only x.
+    const int xLo = s[0] > 0 ? 0 : 1, xHi = s[0] > 0 ? p.x - 1 : p.x, xEdge = s[0] > 0 ? p.x - 1 : 0;
     for (int zi = 0; zi < p.z; ++zi) {
-      const int z = dir > 0 ? zi : p.z - 1 - zi, zp = z - dir;
+      const int z = s[2] > 0 ? p.z - 1 - zi : zi, zn = z + s[2];
       for (int yi = 0; yi < p.y; ++yi) {
-        const int y = dir > 0 ? yi : p.y - 1 - yi, yp = y - dir;
-        std::uint8_t* row = &reach[sy * std::size_t(y) + sz * std::size_t(z)];
-        std::fill(near.begin(), near.end(), 255);
-        if (zp >= 0 && zp < p.z)
-          for (int yy = y - 1; yy <= y + 1; ++yy)
-            if (yy >= 0 && yy < p.y) rowMin3(&reach[sy * std::size_t(yy) + sz * std::size_t(zp)]);
-        if (yp >= 0 && yp < p.y) rowMin3(&reach[sy * std::size_t(yp) + sz * std::size_t(z)]);
+        const int y = s[1] > 0 ? p.y - 1 - yi : yi, yn = y + s[1];
+        std::fill(near.begin(), near.end(), std::uint8_t(255));
+        for (const auto& [ry, rz] : {std::pair{yn, z}, std::pair{y, zn}, std::pair{yn, zn}}) {
+          if (ry < 0 || ry >= p.y || rz < 0 || rz >= p.z) continue;
+          const std::uint8_t* row = &reach[sy * std::size_t(ry) + sz * std::size_t(rz)];
+          std::uint8_t* out = near.data();
+          for (int x = xLo; x < xHi; ++x)
+            out[x] = std::min<std::uint8_t>(out[x], std::min<std::uint8_t>(std::min(row[x], row[x + s[0]]), 254) + 1);
+          out[xEdge] = std::min<std::uint8_t>(out[xEdge], std::min<std::uint8_t>(row[xEdge], 254) + 1);
+        }
+        const std::size_t base = sy * std::size_t(y) + sz * std::size_t(z);
         int prev = 255;
         for (int xi = 0; xi < p.x; ++xi) {
-          const int x = dir > 0 ? xi : p.x - 1 - xi;
-          prev = std::min({int(row[x]), near[std::size_t(x)], prev + 1, 255});
-          row[x] = std::uint8_t(prev);
+          const int x = s[0] > 0 ? p.x - 1 - xi : xi;
+          prev = seed[base + x] ? std::min({int(near[std::size_t(x)]), prev + 1, 255}) : 0;
+          reach[base + x] = std::uint8_t(prev);
         }
       }
     }
-  };
-  pass(+1);
-  pass(-1);
-  for (std::size_t i = 0; i < n; ++i) info_[i].reach = reach[i];
+    for (std::size_t i = 0; i < n; ++i) {
+      info_[i].octant[octant] = reach[i];
+      info_[i].reach = octant ? std::min(info_[i].reach, reach[i]) : reach[i];
+    }
+  }
 }
 
 // Everything one ray needs, as raw pointers and floats: built once per frame, shared read-only.
@@ -404,12 +408,16 @@ struct RayKernel {
     bool outside;        // false until some point of the ray is known to be outside the solid
     bool done;
     float hit;  // distance to the first zero of the interpolant, +inf for none
+    int octant;    // bit a set when d[a] < 0
+    float tLeave;  // where the ray leaves the cells that may hold a zero it samples in
   };
 
   // Starts a ray from o along the unit direction d that is known to meet no zero before tSafe
   // nor after tEnd (from the tile's cone).
   void start(Ray& r, F3 o, F3 d, float tSafe, float tEnd) const {
     r.o = o, r.d = d, r.done = true, r.hit = kInf;
+    r.tLeave = -kInf;
+    r.octant = (d.x < 0 ? 1 : 0) | (d.y < 0 ? 2 : 0) | (d.z < 0 ? 4 : 0);
     float t0 = 0, t1 = tEnd;
     for (int a = 0; a < 3; ++a) {
       if (d[a] == 0) {
@@ -441,48 +449,54 @@ struct RayKernel {
     return e;
   }
 
-  // One jump or one sample.
-  void step(Ray& r) const {
-    F3 p = r.o + r.d * r.t;
+  // Places a ray that has left the last cells it sampled in: a jump over empty space (false), or
+  // onto the next point of cells that may hold a zero (true, p updated, tLeave where the ray
+  // leaves them).
+  bool findCells(Ray& r, F3& p) const {
     int b[3];
     const RaycastAccel::BrickInfo& in = brickAt(p, b);
     float lo[3], hi[3];
-    bool skip = in.reach > 0;  // jump to where the ray leaves [lo, hi]
-    if (skip) {
-      // The cube of bricks [b - r + 1, b + r - 1] holds no cell that may hold a zero.
-      for (int a = 0; a < 3; ++a)
-        lo[a] = float(kBrickSide * (b[a] - in.reach + 1)), hi[a] = float(kBrickSide * (b[a] + in.reach));
+    const int reach = in.octant[r.octant];
+    if (reach > 0) {
+      // The bricks from b to b + reach - 1 along the ray's octant hold no cell that may hold a zero.
+      for (int a = 0; a < 3; ++a) {
+        const bool down = r.octant & (1 << a);
+        lo[a] = float(kBrickSide * (down ? b[a] - reach + 1 : b[a]));
+        hi[a] = float(kBrickSide * (down ? b[a] + 1 : b[a] + reach));
+      }
     } else {
       // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
       // the ray enters them, or leave the brick.
       float clo[3], chi[3];
       for (int a = 0; a < 3; ++a)
         clo[a] = float(kBrickSide * b[a] + in.lo[a]), chi[a] = float(kBrickSide * b[a] + in.hi[a] + 1);
-      if (p.x < clo[0] || p.y < clo[1] || p.z < clo[2] || p.x > chi[0] || p.y > chi[1] || p.z > chi[2]) {
-        const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
-        if (enter <= leave && leave >= r.t) {
-          if (enter > r.t) {
-            r.t = enter, r.tPrev = enter, r.dPrev = -1, r.outside = true;
-            if (r.t > r.t1) {
-              r.done = true;
-              return;
-            }
-            p = r.o + r.d * r.t;
+      const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
+      if (enter <= leave && leave >= r.t) {
+        r.tLeave = leave;
+        if (enter > r.t) {
+          r.t = enter, r.tPrev = enter, r.dPrev = -1, r.outside = true;
+          if (r.t > r.t1) {
+            r.done = true;
+            return false;
           }
-        } else {
-          skip = true;
-          for (int a = 0; a < 3; ++a) lo[a] = float(kBrickSide * b[a]), hi[a] = lo[a] + kBrickSide;
+          p = r.o + r.d * r.t;
         }
+        return true;
       }
+      for (int a = 0; a < 3; ++a) lo[a] = float(kBrickSide * b[a]), hi[a] = lo[a] + kBrickSide;
     }
-    if (skip) {
-      r.tPrev = std::max(r.t, exitOf(r, lo, hi)), r.dPrev = -1, r.outside = true;
-      // The value at the exit is positive but unknown: sample next just past it. The nudge stays
-      // several float steps above t, so the ray always moves on.
-      r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
-      r.done = r.t > r.t1;
-      return;
-    }
+    r.tPrev = std::max(r.t, exitOf(r, lo, hi)), r.dPrev = -1, r.outside = true;
+    // The value at the exit is positive but unknown: sample next just past it. The nudge stays
+    // several float steps above t, so the ray always moves on.
+    r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
+    r.done = r.t > r.t1;
+    return false;
+  }
+
+  // One jump or one sample.
+  void step(Ray& r) const {
+    F3 p = r.o + r.d * r.t;
+    if (!(r.t <= r.tLeave) && !findCells(r, p)) return;
     const float dist = sample(p);
     if (dist <= 0) {
       r.done = true;
