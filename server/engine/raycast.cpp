@@ -308,14 +308,22 @@ struct RayKernel {
       c[4] = v[kZ], c[5] = v[kZ + 1], c[6] = v[kZ + kY], c[7] = v[kZ + kY + 1];
       return;
     }
-    const int bxs[2] = {Bricks::brickOf(i.x), Bricks::brickOf(i.x + 1)}, lxs[2] = {l.x, Bricks::localOf(i.x + 1)};
-    const int bys[2] = {Bricks::brickOf(i.y), Bricks::brickOf(i.y + 1)}, lys[2] = {l.y, Bricks::localOf(i.y + 1)};
-    const int bzs[2] = {Bricks::brickOf(i.z), Bricks::brickOf(i.z + 1)}, lzs[2] = {l.z, Bricks::localOf(i.z + 1)};
+    // The cell crosses into the next brick along some axes: per axis, the step to the upper
+    // corner in the brick table and in a brick's floats.
+    constexpr int kLocal[3] = {Bricks::index(1, 0, 0), Bricks::index(0, 1, 0), Bricks::index(0, 0, 1)};
+    const int table[3] = {1, sy, sz};
+    int db[3], dl[3];
+    for (int a = 0; a < 3; ++a) {
+      const bool cross = l[a] == Bricks::kMask;
+      db[a] = cross ? table[a] : 0;
+      dl[a] = cross ? -Bricks::kMask * kLocal[a] : kLocal[a];
+    }
+    const float* const* b = bricks + brickIndex(Bricks::brickOf(i));
+    const int li = Bricks::index(l);
     for (int dz = 0; dz < 2; ++dz)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx)
-          c[dx + 2 * dy + 4 * dz] =
-              bricks[brickIndex({bxs[dx], bys[dy], bzs[dz]})][Bricks::index(lxs[dx], lys[dy], lzs[dz])];
+          c[dx + 2 * dy + 4 * dz] = b[dx * db[0] + dy * db[1] + dz * db[2]][li + dx * dl[0] + dy * dl[1] + dz * dl[2]];
   }
 
   float sample(F3 p) const {
@@ -410,6 +418,7 @@ struct RayKernel {
     float hit;  // distance to the first zero of the interpolant, +inf for none
     int octant;    // bit a set when d[a] < 0
     float tLeave;  // where the ray leaves the cells that may hold a zero it samples in
+    float faceBase[3], faceStep[3];  // kBrickSide, -kBrickSide going down along an axis; 0, kBrickSide up
   };
 
   // Starts a ray from o along the unit direction d that is known to meet no zero before tSafe
@@ -418,6 +427,10 @@ struct RayKernel {
     r.o = o, r.d = d, r.done = true, r.hit = kInf;
     r.tLeave = -kInf;
     r.octant = (d.x < 0 ? 1 : 0) | (d.y < 0 ? 2 : 0) | (d.z < 0 ? 4 : 0);
+    for (int a = 0; a < 3; ++a) {
+      r.faceBase[a] = d[a] < 0 ? float(kBrickSide) : 0.0f;
+      r.faceStep[a] = d[a] < 0 ? -float(kBrickSide) : float(kBrickSide);
+    }
     float t0 = 0, t1 = tEnd;
     for (int a = 0; a < 3; ++a) {
       if (d[a] == 0) {
@@ -436,18 +449,6 @@ struct RayKernel {
     r.done = !(r.t <= r.t1);
   }
 
-  float exitOf(const Ray& r, const float lo[3], const float hi[3]) const {
-    float e = kInf;
-    for (int a = 0; a < 3; ++a)
-      if (r.d[a] != 0) e = std::min(e, ((r.d[a] > 0 ? hi[a] : lo[a]) - r.o[a]) * r.inv[a]);
-    return e;
-  }
-  float entryOf(const Ray& r, const float lo[3], const float hi[3]) const {
-    float e = -kInf;
-    for (int a = 0; a < 3; ++a)
-      if (r.d[a] != 0) e = std::max(e, ((r.d[a] > 0 ? lo[a] : hi[a]) - r.o[a]) * r.inv[a]);
-    return e;
-  }
 
   // Places a ray that has left the last cells it sampled in: a jump over empty space (false), or
   // onto the next point of cells that may hold a zero (true, p updated, tLeave where the ray
@@ -455,22 +456,20 @@ struct RayKernel {
   bool findCells(Ray& r, F3& p) const {
     int b[3];
     const RaycastAccel::BrickInfo& in = brickAt(p, b);
-    float lo[3], hi[3];
-    const int reach = in.octant[r.octant];
-    if (reach > 0) {
-      // The bricks from b to b + reach - 1 along the ray's octant hold no cell that may hold a zero.
-      for (int a = 0; a < 3; ++a) {
-        const bool down = r.octant & (1 << a);
-        lo[a] = float(kBrickSide * (down ? b[a] - reach + 1 : b[a]));
-        hi[a] = float(kBrickSide * (down ? b[a] + 1 : b[a] + reach));
-      }
-    } else {
+    // The bricks from b to b + reach - 1 along the ray's octant hold no cell that may hold a zero.
+    int reach = in.octant[r.octant];
+    if (reach == 0) {
       // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
-      // the ray enters them, or leave the brick.
-      float clo[3], chi[3];
-      for (int a = 0; a < 3; ++a)
-        clo[a] = float(kBrickSide * b[a] + in.lo[a]), chi[a] = float(kBrickSide * b[a] + in.hi[a] + 1);
-      const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
+      // the ray enters them, or leave the brick. An axis the ray does not move along has
+      // inv = +inf: a box beside the ray gives an entry of +inf or an exit of -inf, and a face
+      // the ray lies in gives NaN, which max and min ignore.
+      float enter = -kInf, leave = kInf;
+      for (int a = 0; a < 3; ++a) {
+        const float lo = float(kBrickSide * b[a] + in.lo[a]), hi = float(kBrickSide * b[a] + in.hi[a] + 1);
+        const bool down = r.octant & (1 << a);
+        enter = std::max(enter, ((down ? hi : lo) - r.o[a]) * r.inv[a]);
+        leave = std::min(leave, ((down ? lo : hi) - r.o[a]) * r.inv[a]);
+      }
       if (enter <= leave && leave >= r.t) {
         r.tLeave = leave;
         if (enter > r.t) {
@@ -483,9 +482,17 @@ struct RayKernel {
         }
         return true;
       }
-      for (int a = 0; a < 3; ++a) lo[a] = float(kBrickSide * b[a]), hi[a] = lo[a] + kBrickSide;
+      reach = 1;
     }
-    r.tPrev = std::max(r.t, exitOf(r, lo, hi)), r.dPrev = -1, r.outside = true;
+    // Where the ray leaves those bricks: per axis, the face ahead, (b + reach) * kBrickSide going
+    // up and (b + 1 - reach) * kBrickSide going down. An axis the ray does not move along has
+    // inv = +inf and a face ahead of it, so it never decides.
+    float exit = kInf;
+    for (int a = 0; a < 3; ++a) {
+      const float face = float(kBrickSide * b[a]) + r.faceBase[a] + r.faceStep[a] * float(reach);
+      exit = std::min(exit, (face - r.o[a]) * r.inv[a]);
+    }
+    r.tPrev = std::max(r.t, exit), r.dPrev = -1, r.outside = true;
     // The value at the exit is positive but unknown: sample next just past it. The nudge stays
     // several float steps above t, so the ray always moves on.
     r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
