@@ -784,12 +784,18 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
         kernel.start(rays[x - x0], view.eye, dir, tSafe, tEnd * (1 + kConeSlack) / std::max(dot(dir, axis), 1e-6f));
       }
       for (int x = x0; x < x1; x += kGroup) kernel.trace(rays + (x - x0), std::min(kGroup, x1 - x));
-      const F3 bg = shader.backgroundAt(float(y));
+      std::uint8_t bg[3];
+      shader.store(shader.backgroundAt(float(y)), bg, srgb);
       for (int x = x0; x < x1; ++x) {
         const float t = rays[x - x0].hit;
         const std::size_t pi = std::size_t(y) * camera.width + x;
-        if (t < kInf) frame.depth[pi] = t;
-        shader.store(t < kInf ? shader.hit(rays[x - x0].d, t) : bg, &frame.rgb[pi * 3], srgb);
+        std::uint8_t* out = &frame.rgb[pi * 3];
+        if (t < kInf) {
+          frame.depth[pi] = t;
+          shader.store(shader.hit(rays[x - x0].d, t), out, srgb);
+        } else {
+          out[0] = bg[0], out[1] = bg[1], out[2] = bg[2];
+        }
       }
     }
   });
