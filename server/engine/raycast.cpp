@@ -776,7 +776,16 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
       tanA = std::max(tanA, std::sqrt(1 - c * c) / c);
     }
     const float tSafe = kernel.coneStart(view.eye, axis, tanA), tEnd = kernel.coneEnd(view.eye, axis, tanA);
+    // A ray ends at most tEnd (1 + kConeSlack) / cos(angle) <= tEnd (1 + kConeSlack) sqrt(1 + tanA^2)
+    // along it: if the tile's start lies beyond that, every ray ends before it starts.
+    const bool empty = tSafe > tEnd * (1 + kConeSlack) * std::sqrt(1 + tanA * tanA) * (1 + kConeSlack);
     for (int y = y0; y < y1; ++y) {
+      if (empty) {
+        std::uint8_t bg[3];
+        shader.store(shader.backgroundAt(float(y)), bg, srgb);
+        for (int x = x0; x < x1; ++x) std::copy(bg, bg + 3, &frame.rgb[(std::size_t(y) * camera.width + x) * 3]);
+        continue;
+      }
       RayKernel::Ray rays[kTile];
       for (int x = x0; x < x1; ++x) {
         const F3 dir = view.ray(float(x), float(y));
