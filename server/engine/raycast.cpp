@@ -4,8 +4,9 @@
 // (RaycastAccel) from the eye and once back from beyond the domain: every ray of the tile starts
 // where the cone first nears a brick with cells that may hold a zero, and stops where it last
 // leaves one. Each ray is clipped to the box [-1, dims] (beyond it the field is +band), then:
-// - in a brick with no such cell, it jumps to the exit of the cube of such bricks around it
-//   (reach); in a brick with some, it jumps to where it enters their box, or leaves the brick;
+// - in a brick with no such cell, it jumps to the exit of the box of such bricks ahead of it in
+//   its octant of directions (reach per octant); in a brick with some, it jumps to where it
+//   enters their box, or leaves the brick, and samples until it leaves that box;
 // - elsewhere it samples the trilinear interpolant d and steps by max(d, kMinStep): d underestimates
 //   the distance to the surface in the clamped part of the band, and near the surface the floor
 //   makes the ray cross the zero set in a few steps instead of creeping towards it;
@@ -40,7 +41,7 @@ constexpr float kMinStep = 0.3f;
 constexpr float kJumpNudge = 1e-3f;
 constexpr int kConeSteps = 64;
 constexpr float kConeSlack = 1e-3f;  // relative and absolute (vu) margin on the cone's radius
-constexpr int kRefineIterations = 8;
+constexpr int kRefineIterations = 24;
 constexpr float kRefineTolerance = 1e-3f;  // |d| at which the root is taken, vu
 constexpr float kGradientErrorWhite = 0.1f;
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -186,7 +187,7 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
 
   // A voxel <= 0 puts a possible zero in the 8 cells it is a corner of, so a brick's box grows
   // by one cell downwards, into the bricks below it along each axis.
-  info_ = BrickGrid<BrickInfo>(bd, 1, BrickInfo{255, {kBrickSide, kBrickSide, kBrickSide}, {0, 0, 0}});
+  info_ = BrickGrid<BrickInfo>(bd, 1, BrickInfo{255, {}, {kBrickSide, kBrickSide, kBrickSide}, {0, 0, 0}});
   for (int bz = 0; bz < bd.z; ++bz)
     for (int by = 0; by < bd.y; ++by)
       for (int bx = 0; bx < bd.x; ++bx) {
@@ -217,47 +218,50 @@ RaycastAccel::RaycastAccel(const Volume& volume, ThreadPool& pool) : volume_(vol
             }
       }
 
-  // Chessboard distance transform by two raster passes over the 26-neighbourhood; exact for this
-  // metric because a shortest king path can be reordered into forward moves then backward moves.
-  // A pass takes, for each brick, the neighbours it has already visited: 9 in the previous
-  // plane and 3 in the previous row, gathered a row at a time, then the previous brick of the
-  // same row, which is the only sequential dependency.
+  // Per octant of ray directions, the chessboard distance in bricks to the nearest brick with
+  // such cells among those a ray of the octant can still enter (none at a lower index along an
+  // axis it goes up, none at a higher one along an axis it goes down): a forward chessboard
+  // transform, one raster pass against the octant, exact because every brick of that region is
+  // reached by king moves into it. Per brick, a pass takes the 7 neighbours into the octant: 2
+  // in each of the 3 rows already done (gathered a row at a time), then the row's previous
+  // brick, the only sequential dependency. The plain distance, for the tile cones, is the
+  // smallest of the 8.
   const Int3 p = bd + Int3{2, 2, 2};  // the table, its ring included
   const std::size_t n = info_.size(), sy = info_.strideY(), sz = info_.strideZ();
-  std::vector<std::uint8_t> reach(n);
-  for (std::size_t i = 0; i < n; ++i) reach[i] = info_[i].reach;
-  std::vector<int> near(std::size_t(p.x));
-  auto rowMin3 = [&](const std::uint8_t* row) {
-    for (int x = 0; x < p.x; ++x) {
-      int m = row[x];
-      if (x > 0) m = std::min<int>(m, row[x - 1]);
-      if (x + 1 < p.x) m = std::min<int>(m, row[x + 1]);
-      near[std::size_t(x)] = std::min(near[std::size_t(x)], m + 1);
-    }
-  };
-  auto pass = [&](int dir) {
+  std::vector<std::uint8_t> seed(n), reach(n);
+  for (std::size_t i = 0; i < n; ++i) seed[i] = info_[i].reach;
+  std::vector<std::uint8_t> near(std::size_t(p.x));
+  for (int octant = 0; octant < 8; ++octant) {
+    const int s[3] = {octant & 1 ? -1 : 1, octant & 2 ? -1 : 1, octant & 4 ? -1 : 1};
+    // The x range where the neighbour x + s[0] is in the table too; the other end brick has only x.
+    const int xLo = s[0] > 0 ? 0 : 1, xHi = s[0] > 0 ? p.x - 1 : p.x, xEdge = s[0] > 0 ? p.x - 1 : 0;
     for (int zi = 0; zi < p.z; ++zi) {
-      const int z = dir > 0 ? zi : p.z - 1 - zi, zp = z - dir;
+      const int z = s[2] > 0 ? p.z - 1 - zi : zi, zn = z + s[2];
       for (int yi = 0; yi < p.y; ++yi) {
-        const int y = dir > 0 ? yi : p.y - 1 - yi, yp = y - dir;
-        std::uint8_t* row = &reach[sy * std::size_t(y) + sz * std::size_t(z)];
-        std::fill(near.begin(), near.end(), 255);
-        if (zp >= 0 && zp < p.z)
-          for (int yy = y - 1; yy <= y + 1; ++yy)
-            if (yy >= 0 && yy < p.y) rowMin3(&reach[sy * std::size_t(yy) + sz * std::size_t(zp)]);
-        if (yp >= 0 && yp < p.y) rowMin3(&reach[sy * std::size_t(yp) + sz * std::size_t(z)]);
+        const int y = s[1] > 0 ? p.y - 1 - yi : yi, yn = y + s[1];
+        std::fill(near.begin(), near.end(), std::uint8_t(255));
+        for (const auto& [ry, rz] : {std::pair{yn, z}, std::pair{y, zn}, std::pair{yn, zn}}) {
+          if (ry < 0 || ry >= p.y || rz < 0 || rz >= p.z) continue;
+          const std::uint8_t* row = &reach[sy * std::size_t(ry) + sz * std::size_t(rz)];
+          std::uint8_t* out = near.data();
+          for (int x = xLo; x < xHi; ++x)
+            out[x] = std::min<std::uint8_t>(out[x], std::min<std::uint8_t>(std::min(row[x], row[x + s[0]]), 254) + 1);
+          out[xEdge] = std::min<std::uint8_t>(out[xEdge], std::min<std::uint8_t>(row[xEdge], 254) + 1);
+        }
+        const std::size_t base = sy * std::size_t(y) + sz * std::size_t(z);
         int prev = 255;
         for (int xi = 0; xi < p.x; ++xi) {
-          const int x = dir > 0 ? xi : p.x - 1 - xi;
-          prev = std::min({int(row[x]), near[std::size_t(x)], prev + 1, 255});
-          row[x] = std::uint8_t(prev);
+          const int x = s[0] > 0 ? p.x - 1 - xi : xi;
+          prev = seed[base + x] ? std::min({int(near[std::size_t(x)]), prev + 1, 255}) : 0;
+          reach[base + x] = std::uint8_t(prev);
         }
       }
     }
-  };
-  pass(+1);
-  pass(-1);
-  for (std::size_t i = 0; i < n; ++i) info_[i].reach = reach[i];
+    for (std::size_t i = 0; i < n; ++i) {
+      info_[i].octant[octant] = reach[i];
+      info_[i].reach = octant ? std::min(info_[i].reach, reach[i]) : reach[i];
+    }
+  }
 }
 
 // Everything one ray needs, as raw pointers and floats: built once per frame, shared read-only.
@@ -304,14 +308,22 @@ struct RayKernel {
       c[4] = v[kZ], c[5] = v[kZ + 1], c[6] = v[kZ + kY], c[7] = v[kZ + kY + 1];
       return;
     }
-    const int bxs[2] = {Bricks::brickOf(i.x), Bricks::brickOf(i.x + 1)}, lxs[2] = {l.x, Bricks::localOf(i.x + 1)};
-    const int bys[2] = {Bricks::brickOf(i.y), Bricks::brickOf(i.y + 1)}, lys[2] = {l.y, Bricks::localOf(i.y + 1)};
-    const int bzs[2] = {Bricks::brickOf(i.z), Bricks::brickOf(i.z + 1)}, lzs[2] = {l.z, Bricks::localOf(i.z + 1)};
+    // The cell crosses into the next brick along some axes: per axis, the step to the upper
+    // corner in the brick table and in a brick's floats.
+    constexpr int kLocal[3] = {Bricks::index(1, 0, 0), Bricks::index(0, 1, 0), Bricks::index(0, 0, 1)};
+    const int table[3] = {1, sy, sz};
+    int db[3], dl[3];
+    for (int a = 0; a < 3; ++a) {
+      const bool cross = l[a] == Bricks::kMask;
+      db[a] = cross ? table[a] : 0;
+      dl[a] = cross ? -Bricks::kMask * kLocal[a] : kLocal[a];
+    }
+    const float* const* b = bricks + brickIndex(Bricks::brickOf(i));
+    const int li = Bricks::index(l);
     for (int dz = 0; dz < 2; ++dz)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx)
-          c[dx + 2 * dy + 4 * dz] =
-              bricks[brickIndex({bxs[dx], bys[dy], bzs[dz]})][Bricks::index(lxs[dx], lys[dy], lzs[dz])];
+          c[dx + 2 * dy + 4 * dz] = b[dx * db[0] + dy * db[1] + dz * db[2]][li + dx * dl[0] + dy * dl[1] + dz * dl[2]];
   }
 
   float sample(F3 p) const {
@@ -404,12 +416,21 @@ struct RayKernel {
     bool outside;        // false until some point of the ray is known to be outside the solid
     bool done;
     float hit;  // distance to the first zero of the interpolant, +inf for none
+    int octant;    // bit a set when d[a] < 0
+    float tLeave;  // where the ray leaves the cells that may hold a zero it samples in
+    float faceBase[3], faceStep[3];  // kBrickSide, -kBrickSide going down along an axis; 0, kBrickSide up
   };
 
   // Starts a ray from o along the unit direction d that is known to meet no zero before tSafe
   // nor after tEnd (from the tile's cone).
   void start(Ray& r, F3 o, F3 d, float tSafe, float tEnd) const {
     r.o = o, r.d = d, r.done = true, r.hit = kInf;
+    r.tLeave = -kInf;
+    r.octant = (d.x < 0 ? 1 : 0) | (d.y < 0 ? 2 : 0) | (d.z < 0 ? 4 : 0);
+    for (int a = 0; a < 3; ++a) {
+      r.faceBase[a] = d[a] < 0 ? float(kBrickSide) : 0.0f;
+      r.faceStep[a] = d[a] < 0 ? -float(kBrickSide) : float(kBrickSide);
+    }
     float t0 = 0, t1 = tEnd;
     for (int a = 0; a < 3; ++a) {
       if (d[a] == 0) {
@@ -428,61 +449,61 @@ struct RayKernel {
     r.done = !(r.t <= r.t1);
   }
 
-  float exitOf(const Ray& r, const float lo[3], const float hi[3]) const {
-    float e = kInf;
-    for (int a = 0; a < 3; ++a)
-      if (r.d[a] != 0) e = std::min(e, ((r.d[a] > 0 ? hi[a] : lo[a]) - r.o[a]) * r.inv[a]);
-    return e;
-  }
-  float entryOf(const Ray& r, const float lo[3], const float hi[3]) const {
-    float e = -kInf;
-    for (int a = 0; a < 3; ++a)
-      if (r.d[a] != 0) e = std::max(e, ((r.d[a] > 0 ? lo[a] : hi[a]) - r.o[a]) * r.inv[a]);
-    return e;
+
+  // Places a ray that has left the last cells it sampled in: a jump over empty space (false), or
+  // onto the next point of cells that may hold a zero (true, p updated, tLeave where the ray
+  // leaves them).
+  bool findCells(Ray& r, F3& p) const {
+    int b[3];
+    const RaycastAccel::BrickInfo& in = brickAt(p, b);
+    // The bricks from b to b + reach - 1 along the ray's octant hold no cell that may hold a zero.
+    int reach = in.octant[r.octant];
+    if (reach == 0) {
+      // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
+      // the ray enters them, or leave the brick. An axis the ray does not move along has
+      // inv = +inf: a box beside the ray gives an entry of +inf or an exit of -inf, and a face
+      // the ray lies in gives NaN, which max and min ignore.
+      float enter = -kInf, leave = kInf;
+      for (int a = 0; a < 3; ++a) {
+        const float lo = float(kBrickSide * b[a] + in.lo[a]), hi = float(kBrickSide * b[a] + in.hi[a] + 1);
+        const bool down = r.octant & (1 << a);
+        enter = std::max(enter, ((down ? hi : lo) - r.o[a]) * r.inv[a]);
+        leave = std::min(leave, ((down ? lo : hi) - r.o[a]) * r.inv[a]);
+      }
+      if (enter <= leave && leave >= r.t) {
+        r.tLeave = leave;
+        if (enter > r.t) {
+          r.t = enter, r.tPrev = enter, r.dPrev = -1, r.outside = true;
+          if (r.t > r.t1) {
+            r.done = true;
+            return false;
+          }
+          p = r.o + r.d * r.t;
+        }
+        return true;
+      }
+      reach = 1;
+    }
+    // Where the ray leaves those bricks: per axis, the face ahead, (b + reach) * kBrickSide going
+    // up and (b + 1 - reach) * kBrickSide going down. An axis the ray does not move along has
+    // inv = +inf and a face ahead of it, so it never decides.
+    float exit = kInf;
+    for (int a = 0; a < 3; ++a) {
+      const float face = float(kBrickSide * b[a]) + r.faceBase[a] + r.faceStep[a] * float(reach);
+      exit = std::min(exit, (face - r.o[a]) * r.inv[a]);
+    }
+    r.tPrev = std::max(r.t, exit), r.dPrev = -1, r.outside = true;
+    // The value at the exit is positive but unknown: sample next just past it. The nudge stays
+    // several float steps above t, so the ray always moves on.
+    r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
+    r.done = r.t > r.t1;
+    return false;
   }
 
   // One jump or one sample.
   void step(Ray& r) const {
     F3 p = r.o + r.d * r.t;
-    int b[3];
-    const RaycastAccel::BrickInfo& in = brickAt(p, b);
-    float lo[3], hi[3];
-    bool skip = in.reach > 0;  // jump to where the ray leaves [lo, hi]
-    if (skip) {
-      // The cube of bricks [b - r + 1, b + r - 1] holds no cell that may hold a zero.
-      for (int a = 0; a < 3; ++a)
-        lo[a] = float(kBrickSide * (b[a] - in.reach + 1)), hi[a] = float(kBrickSide * (b[a] + in.reach));
-    } else {
-      // Outside the brick's cells that may hold a zero the interpolant is positive: go to where
-      // the ray enters them, or leave the brick.
-      float clo[3], chi[3];
-      for (int a = 0; a < 3; ++a)
-        clo[a] = float(kBrickSide * b[a] + in.lo[a]), chi[a] = float(kBrickSide * b[a] + in.hi[a] + 1);
-      if (p.x < clo[0] || p.y < clo[1] || p.z < clo[2] || p.x > chi[0] || p.y > chi[1] || p.z > chi[2]) {
-        const float enter = entryOf(r, clo, chi), leave = exitOf(r, clo, chi);
-        if (enter <= leave && leave >= r.t) {
-          if (enter > r.t) {
-            r.t = enter, r.tPrev = enter, r.dPrev = -1, r.outside = true;
-            if (r.t > r.t1) {
-              r.done = true;
-              return;
-            }
-            p = r.o + r.d * r.t;
-          }
-        } else {
-          skip = true;
-          for (int a = 0; a < 3; ++a) lo[a] = float(kBrickSide * b[a]), hi[a] = lo[a] + kBrickSide;
-        }
-      }
-    }
-    if (skip) {
-      r.tPrev = std::max(r.t, exitOf(r, lo, hi)), r.dPrev = -1, r.outside = true;
-      // The value at the exit is positive but unknown: sample next just past it. The nudge stays
-      // several float steps above t, so the ray always moves on.
-      r.t = r.tPrev + kJumpNudge + r.tPrev * 1e-6f;
-      r.done = r.t > r.t1;
-      return;
-    }
+    if (!(r.t <= r.tLeave) && !findCells(r, p)) return;
     const float dist = sample(p);
     if (dist <= 0) {
       r.done = true;
@@ -755,7 +776,16 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
       tanA = std::max(tanA, std::sqrt(1 - c * c) / c);
     }
     const float tSafe = kernel.coneStart(view.eye, axis, tanA), tEnd = kernel.coneEnd(view.eye, axis, tanA);
+    // A ray ends at most tEnd (1 + kConeSlack) / cos(angle) <= tEnd (1 + kConeSlack) sqrt(1 + tanA^2)
+    // along it: if the tile's start lies beyond that, every ray ends before it starts.
+    const bool empty = tSafe > tEnd * (1 + kConeSlack) * std::sqrt(1 + tanA * tanA) * (1 + kConeSlack);
     for (int y = y0; y < y1; ++y) {
+      if (empty) {
+        std::uint8_t bg[3];
+        shader.store(shader.backgroundAt(float(y)), bg, srgb);
+        for (int x = x0; x < x1; ++x) std::copy(bg, bg + 3, &frame.rgb[(std::size_t(y) * camera.width + x) * 3]);
+        continue;
+      }
       RayKernel::Ray rays[kTile];
       for (int x = x0; x < x1; ++x) {
         const F3 dir = view.ray(float(x), float(y));
@@ -763,12 +793,18 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
         kernel.start(rays[x - x0], view.eye, dir, tSafe, tEnd * (1 + kConeSlack) / std::max(dot(dir, axis), 1e-6f));
       }
       for (int x = x0; x < x1; x += kGroup) kernel.trace(rays + (x - x0), std::min(kGroup, x1 - x));
-      const F3 bg = shader.backgroundAt(float(y));
+      std::uint8_t bg[3];
+      shader.store(shader.backgroundAt(float(y)), bg, srgb);
       for (int x = x0; x < x1; ++x) {
         const float t = rays[x - x0].hit;
         const std::size_t pi = std::size_t(y) * camera.width + x;
-        if (t < kInf) frame.depth[pi] = t;
-        shader.store(t < kInf ? shader.hit(rays[x - x0].d, t) : bg, &frame.rgb[pi * 3], srgb);
+        std::uint8_t* out = &frame.rgb[pi * 3];
+        if (t < kInf) {
+          frame.depth[pi] = t;
+          shader.store(shader.hit(rays[x - x0].d, t), out, srgb);
+        } else {
+          out[0] = bg[0], out[1] = bg[1], out[2] = bg[2];
+        }
       }
     }
   });

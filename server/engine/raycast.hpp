@@ -44,7 +44,8 @@ struct Frame {
 // (uniform bricks point at shared constant bricks, so sampling never branches on them) padded by
 // one ring of outside bricks; per brick, the box of its cells that may hold a zero of the
 // interpolant (cells with a corner <= 0) and the Chebyshev distance, in bricks, to the nearest
-// brick with such cells, which lets rays jump over empty space in large steps.
+// brick with such cells, in all directions and per octant of ray directions (among the bricks a
+// ray going that way can still enter), which lets rays jump over empty space in large steps.
 // It keeps a copy of the volume (cheap, see volume.hpp), so it stays valid while the original is
 // edited; it is then simply a view of the older version. Building reads every stored voxel once
 // (about 1-3 ms for a radius-100 sphere in 256^3). Immutable once built: any number of threads
@@ -59,6 +60,7 @@ class RaycastAccel {
   friend struct RayKernel;
   struct BrickInfo {
     std::uint8_t reach;          // 0 for a brick with cells that may hold a zero; capped at 255
+    std::uint8_t octant[8];      // the same among the bricks a ray can still enter, per octant
     std::uint8_t lo[3], hi[3];  // those cells, local coordinates; none when lo[0] > hi[0]
   };
 

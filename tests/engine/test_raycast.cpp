@@ -47,6 +47,67 @@ struct SphereScene {
 
 std::size_t index(const Frame& f, int x, int y) { return std::size_t(y) * f.width + x; }
 
+// The first zero of Volume::sample along the unit ray from eye, by samples every 0.02 vu up to
+// 260 vu and bisection (+inf for none), and the smallest |d| met on the way.
+struct March {
+  double depth = std::numeric_limits<double>::infinity();
+  double closest;
+};
+March bruteForce(const Volume& v, Vec3 eye, Vec3 d) {
+  March m{std::numeric_limits<double>::infinity(), std::fabs(v.sample(eye))};
+  for (double s = 0.02; s < 260; s += 0.02) {
+    const double here = v.sample(eye + d * s);
+    m.closest = std::min(m.closest, std::fabs(here));
+    if (here <= 0) {
+      double lo = s - 0.02, hi = s;
+      for (int i = 0; i < 30; ++i) (v.sample(eye + d * (0.5 * (lo + hi))) > 0 ? lo : hi) = 0.5 * (lo + hi);
+      m.depth = hi;
+      break;
+    }
+  }
+  return m;
+}
+
+// Several small solids, one cut by the domain's edge, so that rays skip empty bricks, enter and
+// leave occupied ones, and graze.
+Volume threeSpheres() {
+  return makeFromFunction(
+      {56, 48, 40},
+      [](Vec3 p) {
+        const double a = length(p - Vec3{14, 14, 12}) - 7;
+        const double b = length(p - Vec3{36, 30, 22}) - 10;
+        const double c = length(p - Vec3{54, 8, 30}) - 6;
+        return std::min({a, b, c});
+      },
+      true);
+}
+
+// Compares every pixel of a frame with the brute-force march, grazing rays (|d| < 0.05 vu on a
+// ray that misses) aside: hit or miss must agree, and every hit lies on the zero set within the
+// refinement's tolerance (|d| < 2e-3 vu) and within 0.01 vu of the march's depth where d falls
+// along the ray at least minSlope vu per vu (at a grazing hit the tolerance on d allows a longer
+// distance along the ray). Counts the rays compared and the hits among them.
+void checkAgainstMarch(const Volume& v, const Camera& cam, double minSlope, int& compared, int& hits) {
+  const Frame f = render(v, cam, Shading::Normals, ThreadPool::serial());
+  double worst = 0;
+  for (int y = 0; y < f.height; ++y)
+    for (int x = 0; x < f.width; ++x) {
+      const March m = bruteForce(v, cam.eye, pixelRay(cam, x, y));
+      if (!std::isfinite(m.depth) && m.closest < 0.05) continue;
+      ++compared;
+      const float depth = f.depth[index(f, x, y)];
+      INFO("pixel " << x << ", " << y << ": expected " << m.depth << ", got " << depth);
+      REQUIRE(std::isfinite(depth) == std::isfinite(m.depth));
+      if (!std::isfinite(m.depth)) continue;
+      ++hits;
+      const Vec3 d = pixelRay(cam, x, y);
+      CHECK(std::fabs(v.sample(cam.eye + d * double(depth))) < 2e-3);
+      const double slope = (v.sample(cam.eye + d * (m.depth - 0.01)) - v.sample(cam.eye + d * (m.depth + 0.01))) / 0.02;
+      if (slope >= minSlope) worst = std::max(worst, std::fabs(depth - m.depth));
+    }
+  CHECK(worst < 0.01);
+}
+
 }  // namespace
 
 TEST_CASE("depth matches the analytic ray-sphere distance", "[raycast]") {
@@ -247,47 +308,38 @@ TEST_CASE("gradient-error mode is dark on a distance field and bright where it i
 }
 
 TEST_CASE("depths agree with a brute-force march of the interpolant", "[raycast]") {
-  // Several small solids, one cut by the domain's edge, so that rays skip empty bricks, enter
-  // and leave occupied ones, and graze. The reference samples Volume::sample every 0.02 vu.
-  const Int3 dims{56, 48, 40};
-  const Volume v = makeFromFunction(
-      dims,
-      [](Vec3 p) {
-        const double a = length(p - Vec3{14, 14, 12}) - 7;
-        const double b = length(p - Vec3{36, 30, 22}) - 10;
-        const double c = length(p - Vec3{54, 8, 30}) - 6;
-        return std::min({a, b, c});
-      },
-      true);
-  const Camera cam{{0, 50, 70}, {32, 22, 20}, {0, 1, 0}, 45, 48, 36};
-  const Frame f = render(v, cam, Shading::Normals, ThreadPool::serial());
+  const Volume v = threeSpheres();
   int compared = 0, hits = 0;
-  double worst = 0;
-  for (int y = 0; y < f.height; ++y)
-    for (int x = 0; x < f.width; ++x) {
-      const Vec3 d = pixelRay(cam, x, y);
-      double closest = v.sample(cam.eye), expected = std::numeric_limits<double>::infinity();
-      for (double s = 0.02; s < 260; s += 0.02) {
-        const double here = v.sample(cam.eye + d * s);
-        closest = std::min(closest, std::fabs(here));
-        if (here <= 0) {
-          double lo = s - 0.02, hi = s;
-          for (int i = 0; i < 30; ++i) (v.sample(cam.eye + d * (0.5 * (lo + hi))) > 0 ? lo : hi) = 0.5 * (lo + hi);
-          expected = hi;
-          break;
-        }
-      }
-      if (!std::isfinite(expected) && closest < 0.05) continue;  // grazing: either answer is fine
-      ++compared;
-      const float depth = f.depth[index(f, x, y)];
-      REQUIRE(std::isfinite(depth) == std::isfinite(expected));
-      if (!std::isfinite(expected)) continue;
-      ++hits;
-      worst = std::max(worst, std::fabs(depth - expected));
-    }
+  checkAgainstMarch(v, {{0, 50, 70}, {32, 22, 20}, {0, 1, 0}, 45, 48, 36}, 0, compared, hits);
   CHECK(compared > 1500);
   CHECK(hits > 200);
-  CHECK(worst < 0.01);
+}
+
+TEST_CASE("rays of every octant of directions, and rays along an axis, agree with a brute-force march", "[raycast]") {
+  // Empty-space skipping is per octant of ray directions: one camera from each corner of the
+  // domain, looking at its middle. Then two cameras straight along -z and +x: their centre
+  // pixel's ray (odd frame sizes) has exactly zero components, which decide no face.
+  const Volume v = threeSpheres();
+  const Vec3 middle{28, 24, 20};
+  int compared = 0, hits = 0;
+  for (int octant = 0; octant < 8; ++octant) {
+    const Vec3 eye = middle + Vec3{octant & 1 ? 45.0 : -45.0, octant & 2 ? 40.0 : -40.0, octant & 4 ? 35.0 : -35.0};
+    INFO("camera of octant " << octant);
+    checkAgainstMarch(v, {eye, middle, {0, 1, 0}, 50, 17, 13}, 0.1, compared, hits);
+  }
+  CHECK(compared > 1400);
+  CHECK(hits > 150);
+  for (const Camera& cam : {Camera{{36, 30, 90}, {36, 30, 22}, {0, 1, 0}, 30, 15, 11},
+                            Camera{{-30, 8, 30}, {54, 8, 30}, {0, 1, 0}, 20, 15, 11}}) {
+    int axisCompared = 0, axisHits = 0;
+    checkAgainstMarch(v, cam, 0.1, axisCompared, axisHits);
+    // The centre ray runs through a sphere's centre: sphere b from z = 90 (hit at z = 32),
+    // sphere c, which the domain's edge cuts at x = 55.5, from x = -30 (hit at x = 48).
+    const Frame f = render(v, cam, Shading::Normals, ThreadPool::serial());
+    const double expected = cam.eye.z == 90 ? 90 - 32 : 30 + 48;
+    CHECK(f.depth[index(f, 7, 5)] == Approx(expected).margin(0.05));
+    CHECK(axisHits > 10);
+  }
 }
 
 TEST_CASE("a solid without a band is hit at the boundary of its inside bricks", "[raycast]") {
