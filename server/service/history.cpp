@@ -439,6 +439,11 @@ std::vector<StepInfo> History::list() const {
   return out;
 }
 
+std::optional<StepInfo> History::newest() const {
+  if (undo_.empty()) return std::nullopt;
+  return undo_.back().info;
+}
+
 std::optional<StepInfo> History::find(std::uint64_t revision) const {
   for (const Step& s : undo_)
     if (s.info.revision == revision) return s.info;

@@ -139,6 +139,8 @@ class History {
   // The steps in history order: the undo list oldest first, then the redo list in the order
   // redo() would bring them back (undone set).
   std::vector<StepInfo> list() const;
+  // The newest undo step (the one the last push or amend made, unless undone), or nullopt.
+  std::optional<StepInfo> newest() const;
   // The undo step named by its revision, or nullopt.
   std::optional<StepInfo> find(std::uint64_t revision) const;
   // The volume right after the undo step `revision`, with the undo steps after it reverted: a

@@ -194,6 +194,9 @@ class Session {
 
   // The steps in history order (History::list).
   std::vector<StepInfo> steps() const { return history_.list(); }
+  // The newest undo step: after a change, the step it made or grew (its author and time go in
+  // the journal record, journal_records.hpp stampRecord).
+  std::optional<StepInfo> newestStep() const { return history_.newest(); }
   // The volume right after step `revision` with the later steps reverted (History::volumeAt),
   // or the current volume when revision is the session's; nullopt otherwise. The live volume is
   // not touched: bricks are shared copy-on-write. Reads and unpacks the later steps' bricks, on
