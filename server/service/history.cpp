@@ -7,6 +7,7 @@
 #include <cstring>
 #include <memory>
 #include <stdexcept>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 
@@ -307,6 +308,79 @@ Edit History::sides(const Step& s, const Volume& vol, bool undoSide) const {
   return e;
 }
 
+namespace {
+
+// The first of steps[from..to) that changed one of these bricks (inside `bounds`).
+template <class Steps>
+std::optional<std::size_t> firstTouching(const Steps& steps, const std::vector<Int3>& bricks, const Box& bounds,
+                                         std::size_t from, std::size_t to) {
+  std::unordered_set<std::uint64_t> keys;
+  for (const Int3& b : bricks) keys.insert(brickKey(b));
+  for (std::size_t j = from; j < to; ++j) {
+    if (!boxesMeet(steps[j].info.bricks, bounds)) continue;
+    const auto& s = steps[j];
+    if (s.edit) {
+      for (const auto& c : s.edit->changes)
+        if (keys.count(brickKey(c.brick))) return j;
+    } else {
+      for (const Int3& b : s.packed.bricks)
+        if (keys.count(brickKey(b))) return j;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision) {
+  if (id == 0 || !redo_.empty()) return false;
+  std::size_t i = undo_.size();
+  while (i > 0 && undo_[i - 1].id != id) --i;
+  if (i == 0) return false;
+  --i;
+  if (i + 1 == undo_.size() && undo_[i].edit) return amend(id, more, revision);
+  const std::vector<Int3> moreBricks = bricksOf(more);
+  if (firstTouching(undo_, moreBricks, brickBounds(moreBricks), i + 1, undo_.size())) return false;
+  Step& s = undo_[i];
+  // The step's `after` bricks, which its `before` was packed against: where `more` replaced
+  // one, `more`'s `before` (nothing later touched it), elsewhere what vol holds.
+  std::unordered_map<std::uint64_t, std::size_t> inMore;
+  for (std::size_t k = 0; k < more.changes.size(); ++k) inMore[brickKey(more.changes[k].brick)] = k;
+  std::vector<BrickRef> after;
+  for (const Int3& b : s.packed.bricks) {
+    const auto it = inMore.find(brickKey(b));
+    after.push_back(it != inMore.end() ? more.changes[it->second].before : vol.brick(b));
+  }
+  const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
+  Edit e;
+  e.region = s.region;
+  for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});
+  e.append(more.changes, more.region);
+  if (e.empty()) {
+    // The step now ends where it started: nothing is left to undo.
+    remove(s);
+    undo_.erase(undo_.begin() + std::ptrdiff_t(i));
+    return true;
+  }
+  std::vector<Int3> bricks;
+  std::vector<const BrickRef*> befores, afters;
+  for (const auto& c : e.changes) {
+    bricks.push_back(c.brick);
+    befores.push_back(&c.before);
+    afters.push_back(&c.after);
+  }
+  PackedBricks packed = packBricks(bricks, befores, afters);
+  remove(s);
+  s.packed = std::move(packed);
+  s.region = e.region;
+  s.info.region = e.region;
+  s.info.bricks = brickBounds(bricks);
+  if (revision != 0) s.info.revision = revision;
+  add(s);
+  enforceBudget();
+  return true;
+}
+
 // Both moves build the step's other side and the new packing before changing anything, so a
 // failure (out of memory) leaves the history and the volume as they were.
 const Edit* History::moveToRedo(std::size_t i, Volume& vol) {
@@ -366,24 +440,11 @@ const Edit* History::redo(Volume& vol) {
 
 namespace {
 
-// The bricks a step changed, for a conflict check.
-template <class Step>
-std::vector<Int3> stepBricks(const Step& s) {
-  return s.edit ? bricksOf(*s.edit) : s.packed.bricks;
-}
-
-// The first of steps[from..to) (in the direction of `step`) that changed one of `mine`'s bricks.
+// The first of steps[from..to) that changed one of steps[mine]'s bricks.
 template <class Steps>
 std::optional<std::size_t> firstMeeting(const Steps& steps, std::size_t mine, std::size_t from, std::size_t to) {
   const auto& m = steps[mine];
-  std::unordered_set<std::uint64_t> keys;
-  for (const Int3& b : stepBricks(m)) keys.insert(brickKey(b));
-  for (std::size_t j = from; j < to; ++j) {
-    if (!boxesMeet(steps[j].info.bricks, m.info.bricks)) continue;
-    for (const Int3& b : stepBricks(steps[j]))
-      if (keys.count(brickKey(b))) return j;
-  }
-  return std::nullopt;
+  return firstTouching(steps, m.edit ? bricksOf(*m.edit) : m.packed.bricks, m.info.bricks, from, to);
 }
 
 }  // namespace

@@ -113,6 +113,13 @@ class History {
   // afterwards.
   // revision (when not 0) becomes the step's revision.
   bool amend(StepId id, const Edit& more, std::uint64_t revision = 0);
+  // Like amend(), but step `id` may be any undo step (an author's open stroke while others
+  // sculpt elsewhere): folds `more` (applied to vol after the step) in when nothing is undone
+  // and no later undo step touched any brick `more` changed, so that every brick still holds
+  // the `after` of the newest step that touched it; false (nothing recorded) otherwise. A
+  // packed step is unpacked and packed again with its new bricks (its references are vol's
+  // bricks, or `more`'s `before` where `more` replaced them).
+  bool fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision = 0);
 
   // Publishes the newest step's `before` bricks on vol and moves it to the redo list. Returns
   // the step with both sides (valid until the next call on this History), or null when there

@@ -269,8 +269,9 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 
   if (!message.empty()) {
     Stroke& s = strokes_.at(id);
-    if (lastStroke_ != id || !history_.amend(s.step, message, revision_ + 1))
-      s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)));
+    const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
+                                        : history_.fold(s.step, message, volume_, revision_ + 1);
+    if (!folded) s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)));
     lastStroke_ = id;
   }
   const ApplyResult done = finish(message);

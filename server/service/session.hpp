@@ -161,7 +161,10 @@ class Session {
   // them, so the result does not depend on how the stroke's dabs were grouped into messages.
   // All dabs of one stroke fold into one history step, which stays open while it is the
   // newest step: any other change of the session (apply, undo, redo, load, another stroke's
-  // dabs) closes it and the stroke's next dabs start a new step. The whole message is checked
+  // dabs) closes it and the stroke's next dabs start a new step. A stroke with an author (its
+  // person's own undo) goes on folding into its step across others' changes while nothing is
+  // undone and no later step touched a brick its message changes (History::fold): one stroke
+  // stays one step while other people sculpt elsewhere. The whole message is checked
   // before anything changes, so a throw changes nothing. One revision per call that changed
   // something.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
@@ -227,7 +230,7 @@ class Session {
     Symmetry symmetry;
     bool accumulate = false;
     std::vector<StrokeDab> memory;  // the dab images it applied, oldest first
-    StepAuthor by;
+    StepAuthor by{};
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;

@@ -253,3 +253,46 @@ TEST_CASE("history: volumeAt rebuilds the volume at an earlier step and leaves t
   while (h.canUndo()) h.undo(v);
   CHECK(digest(v) == at[0]);
 }
+
+TEST_CASE("history: fold grows an earlier step when no later step touched the new bricks", "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  const History::StepId a = h.push(blobAt(v, PlusX, pool), by("A", 1));
+  h.push(blobAt(v, MinusX, pool), by("B", 2));
+  // A's step is packed under B's now; A's stroke goes on at +x.
+  REQUIRE(h.fold(a, blobAt(v, PlusX, pool, 2), v, 3));
+  REQUIRE(h.fold(a, blobAt(v, PlusX, pool, 4), v, 4));
+  CHECK(h.undoSteps() == 2);
+  const std::vector<StepInfo> steps = h.list();
+  CHECK(steps[0].revision == 4);
+  CHECK(steps[0].firstRevision == 1);
+  const std::uint64_t all = digest(v);
+
+  // Undone as one step: the volume with B's step alone.
+  REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);
+  CHECK(digest(v) == only({MinusX}, pool));
+  // Nothing folds while something is undone (the caller then takes the change back here).
+  const Edit refused = blobAt(v, PlusY, pool);
+  CHECK_FALSE(h.fold(a, refused, v, 6));
+  v.publish(refused.changes, false);
+  REQUIRE(h.redo(v) != nullptr);
+  CHECK(digest(v) == all);
+  while (h.canUndo()) h.undo(v);
+  CHECK(digest(v) == digest(sphere()));
+
+  SECTION("a later step on the new bricks refuses the fold") {
+    Volume w = sphere();
+    History g;
+    const History::StepId first = g.push(blobAt(w, PlusX, pool), by("A", 1));
+    g.push(blobAt(w, PlusX, pool, 6), by("C", 2));
+    const std::uint64_t before = digest(w);
+    const Edit more = blobAt(w, PlusX, pool, 3);
+    CHECK_FALSE(g.fold(first, more, w, 3));
+    CHECK(g.undoSteps() == 2);
+    w.publish(more.changes, false);
+    CHECK(digest(w) == before);
+    while (g.canUndo()) g.undo(w);
+    CHECK(digest(w) == digest(sphere()));
+  }
+}

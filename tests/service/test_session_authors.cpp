@@ -211,3 +211,55 @@ TEST_CASE("session: forkVolume gives the current or an earlier volume, sharing b
   CHECK(data > 0);
   CHECK(shared == data);
 }
+
+TEST_CASE("session: an author's stroke stays one step while another sculpts elsewhere", "[session][authors]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  const StrokeId a = s.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, kA);
+  const StrokeId b = s.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, kB);
+  // Interleaved messages: A on +x, B on -x.
+  for (int i = 0; i < 3; ++i) {
+    s.strokeDabs(a, {Dab{Vec3{kC + kR, kC + 2 * i, kC}, std::nullopt}}, pool);
+    s.strokeDabs(b, {Dab{Vec3{kC - kR, kC + 2 * i, kC}, std::nullopt}}, pool);
+  }
+  CHECK(s.revision() == 6);
+  std::vector<StepInfo> steps = s.steps();
+  REQUIRE(steps.size() == 2);
+  CHECK(steps[0].author == kA);
+  CHECK(steps[0].firstRevision == 1);
+  CHECK(steps[0].revision == 5);
+  CHECK(steps[1].author == kB);
+  CHECK(steps[1].firstRevision == 2);
+  CHECK(steps[1].revision == 6);
+
+  // B's stroke alone, in one session without A.
+  Session onlyB(sphere());
+  const StrokeId ob = onlyB.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, kB);
+  for (int i = 0; i < 3; ++i) onlyB.strokeDabs(ob, {Dab{Vec3{kC - kR, kC + 2 * i, kC}, std::nullopt}}, pool);
+
+  SECTION("A's undo takes the whole stroke") {
+    const HistoryResult h = s.undoMine(kA.id);
+    REQUIRE(h.changed);
+    CHECK(h.step->firstRevision == 1);
+    CHECK(s.digest() == digest(onlyB.volume()));
+    // A's next message starts a new step (something is undone): it clears the redo list.
+    s.strokeDabs(a, {Dab{Vec3{kC + kR, kC, kC}, std::nullopt}}, pool);
+    CHECK(s.steps().size() == 2);
+    CHECK_FALSE(s.canRedo());
+  }
+  SECTION("someone else's step on the bricks A's next message changes starts a new step") {
+    s.apply(blobOp(Vec3{kC + kR, kC + 8, kC}), pool, kC3);  // r7
+    s.strokeDabs(a, {Dab{Vec3{kC + kR, kC + 7, kC}, std::nullopt}}, pool);  // r8
+    steps = s.steps();
+    REQUIRE(steps.size() == 4);
+    CHECK(steps[3].author == kA);
+    CHECK(steps[3].firstRevision == 8);
+    // A's undo takes that new step only; the next one is blocked by C's.
+    REQUIRE(s.undoMine(kA.id).changed);
+    const HistoryResult h = s.undoMine(kA.id);
+    CHECK_FALSE(h.changed);
+    REQUIRE(h.conflict.has_value());
+    CHECK(h.conflict->author == kC3);
+    CHECK(h.conflict->revision == 7);
+  }
+}
