@@ -169,3 +169,23 @@ TEST_CASE("journal: an undo_mine of a stroke a snapshot cut in two replays the w
   checkRecovered(dir, w, false);
   fs::remove_all(dir);
 }
+
+TEST_CASE("journal: interleaved authored strokes replay into the same steps", "[journal][authors]") {
+  const fs::path dir = freshDir("interleaved");
+  SessionStore store(dir);
+  Writer w(store, "s");
+  const StrokeId a = w.begin(kA);
+  const StrokeId b = w.begin(kB);
+  for (int i = 0; i < 3; ++i) {
+    w.dab(a, {kC + kR, kC + 2 * i, kC}, kA);
+    w.dab(b, {kC - kR, kC + 2 * i, kC}, kB);
+  }
+  REQUIRE(w.live.steps().size() == 2);
+  checkRecovered(dir, w, true);
+  w.mine(true, kA);  // the whole of A's stroke, through the recovered history
+  checkRecovered(dir, w, true);
+  w.end(a);
+  w.end(b);
+  checkRecovered(dir, w, true);
+  fs::remove_all(dir);
+}
