@@ -342,43 +342,43 @@ bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t
   const std::vector<Int3> moreBricks = bricksOf(more);
   if (firstTouching(undo_, moreBricks, brickBounds(moreBricks), i + 1, undo_.size())) return false;
   Step& s = undo_[i];
-  // The step's `after` bricks, which its `before` was packed against: where `more` replaced
-  // one, `more`'s `before` (nothing later touched it), elsewhere what vol holds.
-  std::unordered_map<std::uint64_t, std::size_t> inMore;
-  for (std::size_t k = 0; k < more.changes.size(); ++k) inMore[brickKey(more.changes[k].brick)] = k;
-  std::vector<BrickRef> after;
-  for (const Int3& b : s.packed.bricks) {
-    const auto it = inMore.find(brickKey(b));
-    after.push_back(it != inMore.end() ? more.changes[it->second].before : vol.brick(b));
-  }
-  const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
-  Edit e;
-  e.region = s.region;
-  for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});
-  e.append(more.changes, more.region);
-  if (e.empty()) {
-    // The step now ends where it started: nothing is left to undo.
+  if (!s.edit) {
+    Edit e;
+    // The step's `after` bricks, which its `before` was packed against: where `more` replaced
+    // one, `more`'s `before` (nothing later touched it), elsewhere what vol holds.
+    std::unordered_map<std::uint64_t, std::size_t> inMore;
+    for (std::size_t k = 0; k < more.changes.size(); ++k) inMore[brickKey(more.changes[k].brick)] = k;
+    std::vector<BrickRef> after;
+    for (const Int3& b : s.packed.bricks) {
+      const auto it = inMore.find(brickKey(b));
+      after.push_back(it != inMore.end() ? more.changes[it->second].before : vol.brick(b));
+    }
+    const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
+    e.region = s.region;
+    for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});
     remove(s);
+    s.edit = std::move(e);
+    s.packed = {};
+    add(s);
+  }
+  remove(s);
+  s.edit->append(more.changes, more.region);
+  if (s.edit->empty()) {
+    // The step now ends where it started: nothing is left to undo.
     undo_.erase(undo_.begin() + std::ptrdiff_t(i));
     return true;
   }
-  std::vector<Int3> bricks;
-  std::vector<const BrickRef*> befores, afters;
-  for (const auto& c : e.changes) {
-    bricks.push_back(c.brick);
-    befores.push_back(&c.before);
-    afters.push_back(&c.after);
-  }
-  PackedBricks packed = packBricks(bricks, befores, afters);
-  remove(s);
-  s.packed = std::move(packed);
-  s.region = e.region;
-  s.info.region = e.region;
-  s.info.bricks = brickBounds(bricks);
+  s.info.region = s.region = s.edit->region;
+  s.info.bricks = brickBounds(bricksOf(*s.edit));
   if (revision != 0) s.info.revision = revision;
   add(s);
   enforceBudget();
   return true;
+}
+
+void History::seal(StepId id) {
+  for (std::size_t i = 0; i + 1 < undo_.size(); ++i)
+    if (undo_[i].id == id) pack(undo_[i]);
 }
 
 // Both moves build the step's other side and the new packing before changing anything, so a

@@ -11,7 +11,8 @@
 //   while it waits to be redone, the volume holds its `before`, so only `after` is stored. The
 //   other side is read off the volume when the step moves.
 // - Storage: the newest undo step stays as the Edit it was recorded as (shared brick buffers),
-//   so that a stroke can amend() it; every other step is packed: its bricks' coordinates, a
+//   so that a stroke can amend() it, and so do the steps fold() grew under newer ones until
+//   seal(); every other step is packed: its bricks' coordinates, a
 //   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 1) of the
 //   data bricks' voxels, each as its difference from the same voxel of the other side (the
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
@@ -22,6 +23,7 @@
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
 //   coordinates and kinds (capacity, not size). Uniform (null) bricks cost no frame bytes.
+//   StepInfo (author, tool) is not counted: the caller bounds its strings.
 // - Budget: after push() and amend() the oldest steps are dropped until bytes() <= budget(),
 //   even the newest one if it alone is larger; can_undo then says so. Undo and redo move a
 //   step between the lists and repack it, which changes bytes() by the difference between
@@ -117,9 +119,12 @@ class History {
   // sculpt elsewhere): folds `more` (applied to vol after the step) in when nothing is undone
   // and no later undo step touched any brick `more` changed, so that every brick still holds
   // the `after` of the newest step that touched it; false (nothing recorded) otherwise. A
-  // packed step is unpacked and packed again with its new bricks (its references are vol's
-  // bricks, or `more`'s `before` where `more` replaced them).
+  // packed step is unpacked (its references are vol's bricks, or `more`'s `before` where
+  // `more` replaced them) and stays unpacked, so that the next fold costs what amend() does,
+  // until seal() or its move to the redo list packs it.
   bool fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision = 0);
+  // Packs step `id` if fold() left it unpacked under newer steps (its stroke ended).
+  void seal(StepId id);
 
   // Publishes the newest step's `before` bricks on vol and moves it to the redo list. Returns
   // the step with both sides (valid until the next call on this History), or null when there
@@ -195,7 +200,7 @@ class History {
   Edit sides(const Step& s, const Volume& vol, bool undoSide) const;
 
   std::size_t budget_;
-  std::deque<Step> undo_;  // oldest first; only the last may be unpacked
+  std::deque<Step> undo_;  // oldest first; unpacked: the last, and folded ones until seal()
   std::deque<Step> redo_;  // most recently undone last; all packed
   std::size_t bytes_ = 0;
   std::size_t dropped_ = 0;

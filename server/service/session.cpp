@@ -299,6 +299,7 @@ void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
 
 void Session::endStroke(StrokeId id) {
   openStroke(id);
+  history_.seal(strokes_.at(id).step);
   strokes_.erase(id);
   if (lastStroke_ == id) lastStroke_ = 0;
 }

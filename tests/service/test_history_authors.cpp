@@ -268,6 +268,10 @@ TEST_CASE("history: fold grows an earlier step when no later step touched the ne
   CHECK(steps[0].revision == 4);
   CHECK(steps[0].firstRevision == 1);
   const std::uint64_t all = digest(v);
+  // Folded, the step stays unpacked until sealed (its stroke ended).
+  const std::size_t unpacked = h.bytes();
+  h.seal(a);
+  CHECK(h.bytes() < unpacked);
 
   // Undone as one step: the volume with B's step alone.
   REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);
