@@ -12,8 +12,8 @@
 //   other side is read off the volume when the step moves.
 // - Storage: the newest undo step stays as the Edit it was recorded as (shared brick buffers),
 //   so that a stroke can amend() it, and so do the steps fold() grew under newer ones until
-//   seal(); every other step is packed: its bricks' coordinates, a
-//   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 1) of the
+//   seal(); every other step is packed: its bricks' coordinates, a kind per brick (uniform
+//   outside, uniform inside, data) and one zstd frame (level 1) of the
 //   data bricks' voxels, each as its difference from the same voxel of the other side (the
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
 //   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
@@ -24,16 +24,19 @@
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
 //   coordinates and kinds (capacity, not size). Uniform (null) bricks cost no frame bytes.
 //   StepInfo (author, tool) is not counted: the caller bounds its strings.
-// - Budget: after push() and amend() the oldest steps are dropped until bytes() <= budget(),
+// - Budget: after push(), amend() and fold() the oldest steps are dropped until bytes() <= budget(),
 //   even the newest one if it alone is larger; can_undo then says so. Undo and redo move a
 //   step between the lists and repack it, which changes bytes() by the difference between
 //   its two sides; they drop nothing. A new step clears the redo list.
 // - Steps carry who made them (StepInfo): the caller's author, the tool, the wall-clock time
-//   and the revision; History keeps them and moves them with the step, it never reads them.
+//   and the revision; History keeps them and moves them with the step, and reads only the
+//   author's id (undoOf, redoOf).
 // - Undo of one author's step (undoOf): the author's newest undo step is taken out of the
 //   middle of the list when no later undo step (of anyone) touched any of its bricks; then
-//   the volume there still holds its `after` bricks, and putting its `before` back leaves the
-//   volume as if the step had never been made (the later steps commute with it). Otherwise it
+//   the volume there still holds its `after` bricks, and its `before` goes back bit for bit,
+//   the later steps' bricks staying as they made them. That is the volume as if the step had
+//   never been made whenever the steps commute (a later step did not read the step's bricks
+//   either: a tool reads a margin around what it writes, a global op reads everything). Otherwise it
 //   is refused, naming the first (oldest) later step that touched one of its bricks. The step
 //   goes to the top of the redo list, so redo (session-wide) brings it back as the newest step.
 //   redoOf(author) redoes the author's most recently undone step when no redo step above it
