@@ -7,6 +7,8 @@
 #include <cstring>
 #include <memory>
 #include <stdexcept>
+#include <unordered_map>
+#include <unordered_set>
 #include <utility>
 
 namespace marzipan::service {
@@ -110,6 +112,38 @@ std::vector<const BrickRef*> pointers(const std::vector<BrickRef>& refs) {
   std::vector<const BrickRef*> out;
   for (const auto& r : refs) out.push_back(&r);
   return out;
+}
+
+// The bounding box of changed bricks, in brick coordinates (half-open); empty when none.
+Box brickBounds(const std::vector<Int3>& bricks) {
+  if (bricks.empty()) return {};
+  Box b{bricks[0], bricks[0]};
+  for (const Int3& c : bricks)
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = std::min(b.lo[a], c[a]);
+      b.hi[a] = std::max(b.hi[a], c[a]);
+    }
+  b.hi = {b.hi.x + 1, b.hi.y + 1, b.hi.z + 1};
+  return b;
+}
+
+std::vector<Int3> bricksOf(const Edit& e) {
+  std::vector<Int3> out;
+  out.reserve(e.changes.size());
+  for (const auto& c : e.changes) out.push_back(c.brick);
+  return out;
+}
+
+bool boxesMeet(const Box& a, const Box& b) {
+  for (int i = 0; i < 3; ++i)
+    if (a.hi[i] <= b.lo[i] || b.hi[i] <= a.lo[i]) return false;
+  return !a.empty() && !b.empty();
+}
+
+// Brick coordinates are below 2^21 (a side is at most kMaxDomainSide voxels).
+std::uint64_t brickKey(Int3 b) {
+  return std::uint64_t(std::uint32_t(b.x)) | (std::uint64_t(std::uint32_t(b.y)) << 21) |
+         (std::uint64_t(std::uint32_t(b.z)) << 42);
 }
 
 }  // namespace
@@ -223,25 +257,32 @@ void History::enforceBudget() {
   }
 }
 
-History::StepId History::push(Edit step) {
+History::StepId History::push(Edit step, StepInfo info) {
   if (step.empty()) return 0;
   for (const auto& s : redo_) remove(s);
   redo_.clear();
   if (!undo_.empty()) pack(undo_.back());
   const StepId id = nextId_++;
   const Box region = step.region;
-  undo_.push_back({id, region, std::move(step), {}});
+  info.region = region;
+  info.bricks = brickBounds(bricksOf(step));
+  if (info.firstRevision == 0) info.firstRevision = info.revision;
+  info.undone = false;
+  undo_.push_back({id, region, std::move(info), std::move(step), {}});
   add(undo_.back());
   enforceBudget();
   return id;
 }
 
-bool History::amend(StepId id, const Edit& more) {
+bool History::amend(StepId id, const Edit& more, std::uint64_t revision) {
   if (id == 0 || undo_.empty() || !redo_.empty() || undo_.back().id != id || !undo_.back().edit) return false;
   Step& s = undo_.back();
   remove(s);
   s.edit->append(more.changes, more.region);
   s.region = s.edit->region;
+  s.info.region = s.region;
+  s.info.bricks = brickBounds(bricksOf(*s.edit));
+  if (revision != 0) s.info.revision = revision;
   if (s.edit->empty()) {
     // The step now ends where it started: nothing is left to undo.
     undo_.pop_back();
@@ -252,21 +293,99 @@ bool History::amend(StepId id, const Edit& more) {
   return true;
 }
 
-// Both moves build the step's other side and the new packing before changing anything, so a
-// failure (out of memory) leaves the history and the volume as they were.
-const Edit* History::undo(Volume& vol) {
-  if (undo_.empty()) return nullptr;
-  Step& s = undo_.back();
+Edit History::sides(const Step& s, const Volume& vol, bool undoSide) const {
+  if (s.edit) return *s.edit;
   Edit e;
   e.region = s.region;
-  if (s.edit) {
-    e = *s.edit;
-  } else {
-    std::vector<BrickRef> live;
-    for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
-    const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(live));
-    for (std::size_t i = 0; i < before.size(); ++i) e.changes.push_back({s.packed.bricks[i], before[i], live[i]});
+  std::vector<BrickRef> live;
+  live.reserve(s.packed.bricks.size());
+  for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
+  const std::vector<BrickRef> other = unpackBricks(s.packed, pointers(live));
+  for (std::size_t i = 0; i < other.size(); ++i) {
+    if (undoSide) e.changes.push_back({s.packed.bricks[i], other[i], live[i]});
+    else e.changes.push_back({s.packed.bricks[i], live[i], other[i]});
   }
+  return e;
+}
+
+namespace {
+
+// The first of steps[from..to) that changed one of these bricks (inside `bounds`).
+template <class Steps>
+std::optional<std::size_t> firstTouching(const Steps& steps, const std::vector<Int3>& bricks, const Box& bounds,
+                                         std::size_t from, std::size_t to) {
+  std::unordered_set<std::uint64_t> keys;
+  for (const Int3& b : bricks) keys.insert(brickKey(b));
+  for (std::size_t j = from; j < to; ++j) {
+    if (!boxesMeet(steps[j].info.bricks, bounds)) continue;
+    const auto& s = steps[j];
+    if (s.edit) {
+      for (const auto& c : s.edit->changes)
+        if (keys.count(brickKey(c.brick))) return j;
+    } else {
+      for (const Int3& b : s.packed.bricks)
+        if (keys.count(brickKey(b))) return j;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision) {
+  if (id == 0 || !redo_.empty()) return false;
+  std::size_t i = undo_.size();
+  while (i > 0 && undo_[i - 1].id != id) --i;
+  if (i == 0) return false;
+  --i;
+  if (i + 1 == undo_.size() && undo_[i].edit) return amend(id, more, revision);
+  const std::vector<Int3> moreBricks = bricksOf(more);
+  if (firstTouching(undo_, moreBricks, brickBounds(moreBricks), i + 1, undo_.size())) return false;
+  Step& s = undo_[i];
+  if (!s.edit) {
+    Edit e;
+    // The step's `after` bricks, which its `before` was packed against: where `more` replaced
+    // one, `more`'s `before` (nothing later touched it), elsewhere what vol holds.
+    std::unordered_map<std::uint64_t, std::size_t> inMore;
+    for (std::size_t k = 0; k < more.changes.size(); ++k) inMore[brickKey(more.changes[k].brick)] = k;
+    std::vector<BrickRef> after;
+    for (const Int3& b : s.packed.bricks) {
+      const auto it = inMore.find(brickKey(b));
+      after.push_back(it != inMore.end() ? more.changes[it->second].before : vol.brick(b));
+    }
+    const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
+    e.region = s.region;
+    for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});
+    remove(s);
+    s.edit = std::move(e);
+    s.packed = {};
+    add(s);
+  }
+  remove(s);
+  s.edit->append(more.changes, more.region);
+  if (s.edit->empty()) {
+    // The step now ends where it started: nothing is left to undo.
+    undo_.erase(undo_.begin() + std::ptrdiff_t(i));
+    return true;
+  }
+  s.info.region = s.region = s.edit->region;
+  s.info.bricks = brickBounds(bricksOf(*s.edit));
+  if (revision != 0) s.info.revision = revision;
+  add(s);
+  enforceBudget();
+  return true;
+}
+
+void History::seal(StepId id) {
+  for (std::size_t i = 0; i + 1 < undo_.size(); ++i)
+    if (undo_[i].id == id) pack(undo_[i]);
+}
+
+// Both moves build the step's other side and the new packing before changing anything, so a
+// failure (out of memory) leaves the history and the volume as they were.
+const Edit* History::moveToRedo(std::size_t i, Volume& vol) {
+  Step& s = undo_[i];
+  Edit e = sides(s, vol, true);
   std::vector<Int3> bricks;
   std::vector<const BrickRef*> before, after;
   for (const auto& c : e.changes) {
@@ -279,36 +398,128 @@ const Edit* History::undo(Volume& vol) {
   s.edit.reset();
   s.packed = std::move(packed);
   redo_.push_back(std::move(s));
-  undo_.pop_back();
+  undo_.erase(undo_.begin() + std::ptrdiff_t(i));
   add(redo_.back());
   vol.publish(e.changes, false);
+  movedInfo_ = redo_.back().info;
   moved_ = std::move(e);
   return &moved_;
 }
 
-const Edit* History::redo(Volume& vol) {
-  if (redo_.empty()) return nullptr;
-  Step& s = redo_.back();
-  Edit e;
-  e.region = s.region;
-  std::vector<BrickRef> live;
-  for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
-  const std::vector<BrickRef> after = unpackBricks(s.packed, pointers(live));
-  for (std::size_t i = 0; i < after.size(); ++i) e.changes.push_back({s.packed.bricks[i], live[i], after[i]});
-  std::vector<const BrickRef*> before, afterRefs;
+const Edit* History::moveToUndo(std::size_t i, Volume& vol) {
+  Edit e = sides(redo_[i], vol, false);
+  std::vector<const BrickRef*> before, after;
   for (const auto& c : e.changes) {
     before.push_back(&c.before);
-    afterRefs.push_back(&c.after);
+    after.push_back(&c.after);
   }
-  PackedBricks packed = packBricks(s.packed.bricks, before, afterRefs);
+  PackedBricks packed = packBricks(redo_[i].packed.bricks, before, after);
+  // Only the newest undo step may stay unpacked (redoOf can leave one under a redo list).
+  if (!undo_.empty()) pack(undo_.back());
+  Step& s = redo_[i];
   remove(s);
   s.packed = std::move(packed);
   undo_.push_back(std::move(s));
-  redo_.pop_back();
+  redo_.erase(redo_.begin() + std::ptrdiff_t(i));
   add(undo_.back());
   vol.publish(e.changes, true);
+  movedInfo_ = undo_.back().info;
   moved_ = std::move(e);
   return &moved_;
+}
+
+const Edit* History::undo(Volume& vol) {
+  if (undo_.empty()) return nullptr;
+  return moveToRedo(undo_.size() - 1, vol);
+}
+
+const Edit* History::redo(Volume& vol) {
+  if (redo_.empty()) return nullptr;
+  return moveToUndo(redo_.size() - 1, vol);
+}
+
+namespace {
+
+// The first of steps[from..to) that changed one of steps[mine]'s bricks.
+template <class Steps>
+std::optional<std::size_t> firstMeeting(const Steps& steps, std::size_t mine, std::size_t from, std::size_t to) {
+  const auto& m = steps[mine];
+  return firstTouching(steps, m.edit ? bricksOf(*m.edit) : m.packed.bricks, m.info.bricks, from, to);
+}
+
+}  // namespace
+
+History::AuthorMove History::undoOf(Volume& vol, const std::string& author) {
+  AuthorMove r;
+  if (author.empty()) return r;
+  std::size_t i = undo_.size();
+  while (i > 0 && undo_[i - 1].info.author.id != author) --i;
+  if (i == 0) return r;
+  --i;
+  // The oldest later step that touched one of its bricks holds them now.
+  if (const auto j = firstMeeting(undo_, i, i + 1, undo_.size())) {
+    r.outcome = AuthorMove::Conflict;
+    r.step = undo_[i].info;
+    r.conflict = undo_[*j].info;
+    return r;
+  }
+  r.edit = moveToRedo(i, vol);
+  r.step = movedInfo_;
+  r.outcome = AuthorMove::Moved;
+  return r;
+}
+
+History::AuthorMove History::redoOf(Volume& vol, const std::string& author) {
+  AuthorMove r;
+  if (author.empty()) return r;
+  std::size_t i = redo_.size();
+  while (i > 0 && redo_[i - 1].info.author.id != author) --i;
+  if (i == 0) return r;
+  --i;
+  // The redo steps above it come back first; the nearest one that touched its bricks is in the way.
+  if (const auto j = firstMeeting(redo_, i, i + 1, redo_.size())) {
+    r.outcome = AuthorMove::Conflict;
+    r.step = redo_[i].info;
+    r.conflict = redo_[*j].info;
+    return r;
+  }
+  r.edit = moveToUndo(i, vol);
+  r.step = movedInfo_;
+  r.outcome = AuthorMove::Moved;
+  return r;
+}
+
+std::vector<StepInfo> History::list() const {
+  std::vector<StepInfo> out;
+  out.reserve(steps());
+  for (const Step& s : undo_) out.push_back(s.info);
+  for (auto it = redo_.rbegin(); it != redo_.rend(); ++it) {
+    out.push_back(it->info);
+    out.back().undone = true;
+  }
+  return out;
+}
+
+std::optional<StepInfo> History::newest() const {
+  if (undo_.empty()) return std::nullopt;
+  return undo_.back().info;
+}
+
+std::optional<StepInfo> History::find(std::uint64_t revision) const {
+  for (const Step& s : undo_)
+    if (s.info.revision == revision) return s.info;
+  return std::nullopt;
+}
+
+std::optional<Volume> History::volumeAt(const Volume& live, std::uint64_t revision) const {
+  std::size_t i = 0;
+  while (i < undo_.size() && undo_[i].info.revision != revision) ++i;
+  if (i == undo_.size()) return std::nullopt;
+  Volume v = live;
+  // Newest first: each step's bricks then hold its `after`, which its packing refers to.
+  for (std::size_t j = undo_.size(); j-- > i + 1;) v.publish(sides(undo_[j], v, true).changes, false);
+  v.setRevision(revision);
+  return v;
 }
 
 void History::clear() {
@@ -316,6 +527,7 @@ void History::clear() {
   redo_.clear();
   bytes_ = 0;
   moved_ = Edit{};
+  movedInfo_ = {};
 }
 
 void History::setBudget(std::size_t budgetBytes) {

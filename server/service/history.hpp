@@ -11,8 +11,9 @@
 //   while it waits to be redone, the volume holds its `before`, so only `after` is stored. The
 //   other side is read off the volume when the step moves.
 // - Storage: the newest undo step stays as the Edit it was recorded as (shared brick buffers),
-//   so that a stroke can amend() it; every other step is packed: its bricks' coordinates, a
-//   kind per brick (uniform outside, uniform inside, data) and one zstd frame (level 1) of the
+//   so that a stroke can amend() it, and so do the steps fold() grew under newer ones until
+//   seal(); every other step is packed: its bricks' coordinates, a kind per brick (uniform
+//   outside, uniform inside, data) and one zstd frame (level 1) of the
 //   data bricks' voxels, each as its difference from the same voxel of the other side (the
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
 //   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
@@ -22,10 +23,28 @@
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
 //   coordinates and kinds (capacity, not size). Uniform (null) bricks cost no frame bytes.
-// - Budget: after push() and amend() the oldest steps are dropped until bytes() <= budget(),
+//   StepInfo (author, tool) is not counted: the caller bounds its strings.
+// - Budget: after push(), amend() and fold() the oldest steps are dropped until bytes() <= budget(),
 //   even the newest one if it alone is larger; can_undo then says so. Undo and redo move a
 //   step between the lists and repack it, which changes bytes() by the difference between
 //   its two sides; they drop nothing. A new step clears the redo list.
+// - Steps carry who made them (StepInfo): the caller's author, the tool, the wall-clock time
+//   and the revision; History keeps them and moves them with the step, and reads only the
+//   author's id (undoOf, redoOf).
+// - Undo of one author's step (undoOf): the author's newest undo step is taken out of the
+//   middle of the list when no later undo step (of anyone) touched any of its bricks; then
+//   the volume there still holds its `after` bricks, and its `before` goes back bit for bit,
+//   the later steps' bricks staying as they made them. That is the volume as if the step had
+//   never been made whenever the steps commute (a later step did not read the step's bricks
+//   either: a tool reads a margin around what it writes, a global op reads everything). Otherwise it
+//   is refused, naming the first (oldest) later step that touched one of its bricks. The step
+//   goes to the top of the redo list, so redo (session-wide) brings it back as the newest step.
+//   redoOf(author) redoes the author's most recently undone step when no redo step above it
+//   touched any of its bricks (those would be redone first), else refuses naming the nearest.
+//   Invariant that makes both sound: every brick of the volume holds the `after` of the newest
+//   undo step that touched it, and every redo step's references are what the volume will hold
+//   once the redo steps above it are redone or taken out past it. A new step still clears the
+//   redo list, an author's undone steps included.
 // - Threading: not thread-safe; owned and called by one Session on its strand.
 #pragma once
 
@@ -33,6 +52,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "engine/edit.hpp"
@@ -60,6 +80,26 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
 // throws std::runtime_error for other references or a damaged frame.
 std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<const BrickRef*>& against);
 
+// Who made a step. id is what undoOf() matches (a client id the caller chooses; empty: nobody
+// can undo the step as theirs); name is for people (a display name).
+struct StepAuthor {
+  std::string id, name;
+  friend bool operator==(const StepAuthor&, const StepAuthor&) = default;
+};
+
+// What a step is, for people and for the session's timeline.
+struct StepInfo {
+  // The session revision its last change produced: its name (history lists, conflicts, fork
+  // points). A stroke folds several changes into one step: firstRevision is its first one's.
+  std::uint64_t revision = 0, firstRevision = 0;
+  StepAuthor author;
+  std::string tool;       // the operation's wire name ("tool.apply" op name, a brush, "volume.load")
+  std::int64_t timeMs = 0;  // wall clock of its first change, ms since the Unix epoch
+  Box region;             // voxels it may have touched (clipped to the domain)
+  Box bricks;             // bounding box of the bricks it changed, in brick coordinates (half-open)
+  bool undone = false;    // set by list(): on the redo list
+};
+
 class History {
  public:
   using StepId = std::uint64_t;  // 0 is never a step
@@ -70,12 +110,24 @@ class History {
 
   // Records a step that has already been applied to the volume and clears the redo list.
   // An edit without changes records nothing and returns 0.
-  StepId push(Edit step);
+  // info.region and info.bricks are taken from the edit.
+  StepId push(Edit step, StepInfo info = {});
   // Folds more changes (applied after the step) into step `id` if it is still the newest step,
   // unpacked (pushed or amended last) and nothing is undone; returns false (and records
   // nothing) otherwise, so the caller can push() a new step instead. The budget is enforced
   // afterwards.
-  bool amend(StepId id, const Edit& more);
+  // revision (when not 0) becomes the step's revision.
+  bool amend(StepId id, const Edit& more, std::uint64_t revision = 0);
+  // Like amend(), but step `id` may be any undo step (an author's open stroke while others
+  // sculpt elsewhere): folds `more` (applied to vol after the step) in when nothing is undone
+  // and no later undo step touched any brick `more` changed, so that every brick still holds
+  // the `after` of the newest step that touched it; false (nothing recorded) otherwise. A
+  // packed step is unpacked (its references are vol's bricks, or `more`'s `before` where
+  // `more` replaced them) and stays unpacked, so that the next fold costs what amend() does,
+  // until seal() or its move to the redo list packs it.
+  bool fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision = 0);
+  // Packs step `id` if fold() left it unpacked under newer steps (its stroke ended).
+  void seal(StepId id);
 
   // Publishes the newest step's `before` bricks on vol and moves it to the redo list. Returns
   // the step with both sides (valid until the next call on this History), or null when there
@@ -83,6 +135,34 @@ class History {
   const Edit* undo(Volume& vol);
   // Publishes the most recently undone step's `after` bricks and moves it back.
   const Edit* redo(Volume& vol);
+  // The step the last undo(), redo(), undoOf() or redoOf() moved (valid with its Edit).
+  const StepInfo& moved() const { return movedInfo_; }
+
+  // The outcome of undoOf()/redoOf(): Moved (edit and step as for undo()/redo()), Nothing (the
+  // author has no step to move) or Conflict (nothing changed; conflict is the step in the way).
+  struct AuthorMove {
+    enum Outcome { Moved, Nothing, Conflict } outcome = Nothing;
+    const Edit* edit = nullptr;
+    StepInfo step;      // Moved: the step moved; Conflict: the author's step that was refused
+    StepInfo conflict;  // Conflict: the first step that touched one of its bricks
+  };
+  // Undoes author's newest undo step (see the conventions). An empty author id has no steps.
+  AuthorMove undoOf(Volume& vol, const std::string& author);
+  // Redoes author's most recently undone step (see the conventions).
+  AuthorMove redoOf(Volume& vol, const std::string& author);
+
+  // The steps in history order: the undo list oldest first, then the redo list in the order
+  // redo() would bring them back (undone set).
+  std::vector<StepInfo> list() const;
+  // The newest undo step (the one the last push or amend made, unless undone), or nullopt.
+  std::optional<StepInfo> newest() const;
+  // The undo step named by its revision, or nullopt.
+  std::optional<StepInfo> find(std::uint64_t revision) const;
+  // The volume right after the undo step `revision`, with the undo steps after it reverted: a
+  // copy of live (which must be the volume the steps were recorded on, as for undo()) sharing
+  // every other brick; live is not touched. Steps taken out by undoOf() are, in this view,
+  // never made. nullopt when no undo step has that revision. Its revision() is `revision`.
+  std::optional<Volume> volumeAt(const Volume& live, std::uint64_t revision) const;
 
   void clear();
 
@@ -103,6 +183,7 @@ class History {
   struct Step {
     StepId id;
     Box region;
+    StepInfo info;
     std::optional<Edit> edit;  // the newest undo step before it is packed
     PackedBricks packed;       // undo list: `before` bricks; redo list: `after` bricks
 
@@ -113,14 +194,22 @@ class History {
   void add(const Step& s) { bytes_ += s.bytes(); }
   void remove(const Step& s) { bytes_ -= s.bytes(); }
   void enforceBudget();
+  // Moves undo_[i] to the top of the redo list / redo_[i] to the end of the undo list,
+  // publishing its other side on vol.
+  const Edit* moveToRedo(std::size_t i, Volume& vol);
+  const Edit* moveToUndo(std::size_t i, Volume& vol);
+  // The side of s that the volume does not hold, with the volume's side, as changes (before,
+  // after); s on the undo list when undoSide.
+  Edit sides(const Step& s, const Volume& vol, bool undoSide) const;
 
   std::size_t budget_;
-  std::deque<Step> undo_;  // oldest first; only the last may be unpacked
+  std::deque<Step> undo_;  // oldest first; unpacked: the last, and folded ones until seal()
   std::deque<Step> redo_;  // most recently undone last; all packed
   std::size_t bytes_ = 0;
   std::size_t dropped_ = 0;
   StepId nextId_ = 1;
   Edit moved_;  // what undo()/redo() returned last
+  StepInfo movedInfo_;
 };
 
 }  // namespace marzipan::service

@@ -13,6 +13,13 @@
 //   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a
 //                                            replay whose history lost the step to a snapshot
 //   {"r":R,"load":"load-R.mzv"}              volume.load: the file, stored beside the journal
+//   {"r":R,"undo_mine":"step-R.bin","by":{"id":I,"name":N},"step":[F,L]}  (and "redo_mine"):
+//                                            undo/redo of author I's own step, the one whose
+//                                            changes made revisions F..L; the file as for undo
+// Optional on "op", "stroke", "load" and "stroke_begin" records: "by":{"id":I,"name":N}, who
+// made the step (stroke_begin: who makes the stroke's steps), and "t": its wall-clock time in
+// ms since the Unix epoch, so that replay rebuilds the steps' authors and times (history.list,
+// undo mine). Records without them replay as steps of nobody, timed at the replay.
 // Stroke begin/end records change no revision; they are kept so that replay folds dabs into
 // the same undo steps as the original.
 // A line that is cut short or fails its CRC ends the journal: a crash can only tear the last

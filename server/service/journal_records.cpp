@@ -22,6 +22,7 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
               {"strength", st.strength},
               {"symmetry", symmetry}};
   if (st.accumulate) record["accumulate"] = true;
+  if (!st.by.id.empty() || !st.by.name.empty()) record["by"] = {{"id", st.by.id}, {"name", st.by.name}};
   if (!st.memory.empty()) {
     json applied = json::array();
     for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
@@ -29,6 +30,56 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
   }
   return record;
 }
+
+void stampRecord(json& record, const StepAuthor& by, std::int64_t timeMs) {
+  if (!by.id.empty() || !by.name.empty()) record["by"] = {{"id", by.id}, {"name", by.name}};
+  record["t"] = timeMs;
+}
+
+json authorMoveRecord(bool undo, std::uint64_t revision, const std::string& file, const StepInfo& step) {
+  return {{"r", revision},
+          {undo ? "undo_mine" : "redo_mine", file},
+          {"by", {{"id", step.author.id}, {"name", step.author.name}}},
+          {"step", {step.firstRevision, step.revision}}};
+}
+
+namespace {
+
+StepAuthor authorOf(const json& rec) {
+  const auto it = rec.find("by");
+  if (it == rec.end()) return {};
+  return {it->at("id").get<std::string>(), it->at("name").get<std::string>()};
+}
+
+bool sameBricks(const std::vector<std::pair<Int3, BrickRef>>& a, const std::vector<std::pair<Int3, BrickRef>>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const BrickRef &x = a[i].second, &y = b[i].second;
+    if (a[i].first != b[i].first || x.uniform() != y.uniform()) return false;
+    if (x.uniform() ? x.inside != y.inside : std::memcmp(x.data->v, y.data->v, sizeof(Brick)) != 0) return false;
+  }
+  return true;
+}
+
+// Whether the session's history holds the very step a record names (its changes made
+// revisions first..last, all replayed since the snapshot) as author's next step to move.
+bool historyHolds(const Session& s, const std::string& author, bool undo, std::uint64_t first, std::uint64_t last) {
+  const std::vector<StepInfo> steps = s.steps();
+  const StepInfo* next = nullptr;
+  if (undo) {
+    for (const StepInfo& st : steps)
+      if (!st.undone && st.author.id == author) next = &st;
+  } else {
+    for (const StepInfo& st : steps)
+      if (st.undone && st.author.id == author) {
+        next = &st;
+        break;
+      }
+  }
+  return next && next->firstRevision == first && next->revision == last;
+}
+
+}  // namespace
 
 std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>>& bricks) {
   std::vector<std::uint8_t> b{'M', 'Z', 'B', 'K'};
@@ -80,8 +131,17 @@ std::vector<std::pair<Int3, BrickRef>> decodeStep(std::span<const std::uint8_t> 
 
 void Replay::apply(const json& rec) {
   Session& s = session_;
+  // The step's original time, if the record has it; the system clock again after.
+  struct SystemClockAfter {
+    Session& s;
+    ~SystemClockAfter() { s.setClock(nullptr); }
+  } systemClockAfter{s};
+  if (const auto t = rec.find("t"); t != rec.end()) {
+    const std::int64_t ms = t->get<std::int64_t>();
+    s.setClock([ms] { return ms; });
+  }
   if (rec.contains("op")) {
-    s.apply(protocol::parseOp(rec["op"]), pool_);
+    s.apply(protocol::parseOp(rec["op"]), pool_, authorOf(rec));
   } else if (rec.contains("stroke_begin")) {
     // A stroke announced again at the head of a journal after a snapshot replaces its entry.
     if (const auto it = strokes_.find(rec["stroke_begin"].get<std::uint64_t>()); it != strokes_.end()) {
@@ -94,7 +154,7 @@ void Replay::apply(const json& rec) {
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
                             sym.find('z') != std::string::npos};
     const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
-                                      rec.value("accumulate", false));
+                                      rec.value("accumulate", false), authorOf(rec));
     strokes_[rec["stroke_begin"].get<std::uint64_t>()] = id;
     if (const auto it = rec.find("applied"); it != rec.end()) {
       // What the stroke had applied before the snapshot: its next dabs add only the excess.
@@ -121,8 +181,25 @@ void Replay::apply(const json& rec) {
     // the snapshot and may hold only part of a stroke that began before it.
     const std::string name = rec[rec.contains("undo") ? "undo" : "redo"].get<std::string>();
     s.restore(decodeStep(readFile_(name), name));
+  } else if (rec.contains("undo_mine") || rec.contains("redo_mine")) {
+    // Through the history when it holds the very step (made wholly after the snapshot), so the
+    // other steps stay undoable; its bricks must then be the file's. Otherwise (the step began
+    // before the snapshot, or a plain undo's replay cleared the history) from the file, as undo.
+    const bool undo = rec.contains("undo_mine");
+    const std::string name = rec[undo ? "undo_mine" : "redo_mine"].get<std::string>();
+    const std::vector<std::pair<Int3, BrickRef>> bricks = decodeStep(readFile_(name), name);
+    const StepAuthor by = authorOf(rec);
+    const json& step = rec.at("step");
+    if (historyHolds(s, by.id, undo, step.at(0).get<std::uint64_t>(), step.at(1).get<std::uint64_t>())) {
+      const HistoryResult h = undo ? s.undoMine(by.id) : s.redoMine(by.id);
+      if (!h.changed || !sameBricks(h.restored, bricks))
+        throw std::runtime_error("replayed " + std::string(undo ? "undo_mine" : "redo_mine") + " " + name +
+                                 " does not put the bricks of its file in place");
+    } else {
+      s.restore(bricks);
+    }
   } else if (rec.contains("load")) {
-    s.load(loadVolume(readFile_(rec["load"].get<std::string>())));
+    s.load(loadVolume(readFile_(rec["load"].get<std::string>())), authorOf(rec));
   } else {
     throw std::runtime_error("unknown journal record");
   }

@@ -24,6 +24,13 @@ namespace marzipan::service {
 // at the head of every new journal for the strokes still open.
 nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);
 
+// Adds who made a step ("by", when the author has an id or a name) and when ("t") to the
+// record of a change: an op, a stroke message or a load (see service/journal.hpp).
+void stampRecord(nlohmann::json& record, const StepAuthor& by, std::int64_t timeMs);
+// The record of an undoMine/redoMine that moved `step` to revision `revision`; `file` is what
+// saveStep() returned for the bricks it put in place (HistoryResult::restored).
+nlohmann::json authorMoveRecord(bool undo, std::uint64_t revision, const std::string& file, const StepInfo& step);
+
 // The bricks an undo or redo put in place, as a step file: "MZBK", u32 count, per brick i32 x y
 // z, u8 0 outside / 1 inside / 2 data + 512 f32, then the CRC-32 of all before it; little-endian.
 std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>>& bricks);
@@ -37,7 +44,8 @@ class Replay {
   Replay(Session& session, std::function<std::vector<std::uint8_t>(const std::string& name)> readFile, ThreadPool& pool)
       : session_(session), readFile_(std::move(readFile)), pool_(pool) {}
   // Throws std::runtime_error when a record is unknown or its revision disagrees with the
-  // session's after it.
+  // session's after it, or an undo_mine/redo_mine moved through the history puts other bricks
+  // in place than its file holds.
   void apply(const nlohmann::json& record);
   // Ends the strokes the records left open (their clients are gone).
   void finish();

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -76,6 +77,11 @@ std::vector<Vec3> mirrorImages(Vec3 p, Symmetry s, Int3 dims) {
   return distinct;
 }
 
+std::int64_t systemMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 bool sameBrick(const BrickRef& a, const BrickRef& b) {
   if (a == b) return true;
   return a.data && b.data && std::memcmp(a.data->v, b.data->v, sizeof(a.data->v)) == 0;
@@ -125,7 +131,19 @@ Session::Session(Volume initial, std::size_t historyBudgetBytes)
     : volume_(std::move(initial)),
       history_(historyBudgetBytes),
       revision_(volume_.revision()),
-      digestTerms_(digestTermSum(volume_)) {}
+      digestTerms_(digestTermSum(volume_)),
+      clock_(systemMs) {}
+
+void Session::setClock(std::function<std::int64_t()> nowMs) { clock_ = nowMs ? std::move(nowMs) : systemMs; }
+
+StepInfo Session::stepInfo(const StepAuthor& by, std::string_view tool) const {
+  StepInfo info;
+  info.revision = info.firstRevision = revision_ + 1;
+  info.author = by;
+  info.tool = std::string(tool);
+  info.timeMs = clock_();
+  return info;
+}
 
 void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward) {
   for (const BrickChange& c : changes) {
@@ -152,7 +170,7 @@ ApplyResult Session::finish(const Edit& edit) {
   return r;
 }
 
-ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool) {
+ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool, const StepAuthor& by) {
   Edit edit;
   // A whole-volume op publishes pass by pass: when one fails part way (cancelled, out of
   // memory) this copy (O(tiles), bricks shared) is put back, so a throw changes nothing.
@@ -168,7 +186,7 @@ ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool) {
   }
   // An op that changed nothing is not a change of the session: an open stroke keeps folding.
   if (!edit.empty()) lastStroke_ = 0;
-  history_.push(edit);
+  history_.push(edit, stepInfo(by, protocol::opName(op)));
   return finish(edit);
 }
 
@@ -178,7 +196,7 @@ std::optional<Vec3> Session::pick(const Ray& ray) const {
 }
 
 StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry,
-                              bool accumulate) {
+                              bool accumulate, const StepAuthor& by) {
   const auto known = std::any_of(protocol::kBrushToolNames.begin(), protocol::kBrushToolNames.end(),
                                  [&](const auto& n) { return n.value == tool; });
   if (!known) invalid("tool", "is not a brush tool");
@@ -190,7 +208,7 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
                        "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
                            "); end one first");
   const StrokeId id = nextStroke_++;
-  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}});
+  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by});
   return id;
 }
 
@@ -251,7 +269,9 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 
   if (!message.empty()) {
     Stroke& s = strokes_.at(id);
-    if (lastStroke_ != id || !history_.amend(s.step, message)) s.step = history_.push(message);
+    const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
+                                        : history_.fold(s.step, message, volume_, revision_ + 1);
+    if (!folded) s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)));
     lastStroke_ = id;
   }
   const ApplyResult done = finish(message);
@@ -265,7 +285,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList() const {
   std::vector<std::pair<StrokeId, StrokeParams>> out;
   for (const auto& [id, st] : strokes_)
-    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory}});
+    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory, st.by}});
   return out;
 }
 
@@ -279,6 +299,7 @@ void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
 
 void Session::endStroke(StrokeId id) {
   openStroke(id);
+  history_.seal(strokes_.at(id).step);
   strokes_.erase(id);
   if (lastStroke_ == id) lastStroke_ = 0;
 }
@@ -295,9 +316,39 @@ HistoryResult Session::redo() {
   return historyMoved(e);
 }
 
+HistoryResult Session::undoMine(const std::string& author) { return authorMoved(history_.undoOf(volume_, author), false); }
+
+HistoryResult Session::redoMine(const std::string& author) { return authorMoved(history_.redoOf(volume_, author), true); }
+
+HistoryResult Session::authorMoved(const History::AuthorMove& m, bool forward) {
+  if (m.edit) trackDigest(m.edit->changes, forward);
+  HistoryResult r = historyMoved(m.edit);
+  if (m.outcome == History::AuthorMove::Conflict) {
+    r.step = m.step;
+    r.conflict = m.conflict;
+  }
+  return r;
+}
+
+std::optional<Volume> Session::volumeAt(std::uint64_t revision) const {
+  if (revision == revision_) return volume_;
+  return history_.volumeAt(volume_, revision);
+}
+
+Volume Session::forkVolume(std::optional<std::uint64_t> revision) const {
+  if (!revision) return volume_;
+  std::optional<Volume> v = volumeAt(*revision);
+  if (!v)
+    throw ServiceError(protocol::RpcCode::InvalidParams, "revision",
+                       "revision " + std::to_string(*revision) + " is neither the current one (" +
+                           std::to_string(revision_) + ") nor a step still in this session's history");
+  return std::move(*v);
+}
+
 HistoryResult Session::historyMoved(const Edit* e) {
   HistoryResult r;
   if (e) {
+    r.step = history_.moved();
     lastStroke_ = 0;
     bump();
     r.changed = true;
@@ -332,7 +383,7 @@ HistoryResult Session::restore(const std::vector<std::pair<Int3, BrickRef>>& bri
   return r;
 }
 
-ApplyResult Session::load(Volume vol) {
+ApplyResult Session::load(Volume vol, const StepAuthor& by) {
   lastStroke_ = 0;
   if (vol.dims() != volume_.dims() || vol.band() != volume_.band()) {
     volume_ = std::move(vol);
@@ -357,7 +408,7 @@ ApplyResult Session::load(Volume vol) {
         if (!sameBrick(before, after)) edit.changes.push_back({b, std::move(before), std::move(after)});
       }
   volume_.publish(edit.changes, true);
-  history_.push(edit);
+  history_.push(edit, stepInfo(by, "volume.load"));
   ApplyResult r = finish(edit);
   if (!r.changed) {
     bump();

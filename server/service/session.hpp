@@ -13,7 +13,9 @@
 //   exactly one for every call that changes the field: apply, strokeDabs, undo, redo, load. A
 //   call that changes no voxel (an op with no effect, a message whose rays all miss, undo with
 //   nothing to undo) leaves it alone and says so (`changed`). The volume's own revision() is
-//   kept equal to it, so a saved file carries it.
+//   kept equal to it, so a saved file carries it. undoMine and redoMine count like undo and redo.
+// - Authors: apply, beginStroke and load take the StepAuthor their step is recorded with
+//   (service/history.hpp); the time of a step is read from the session's clock (setClock).
 // - Errors: every public method validates its input and throws ServiceError before changing
 //   anything; engine errors are turned into ServiceError too. After a throw the field, the
 //   history and the revision are exactly as before.
@@ -21,10 +23,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -110,6 +114,10 @@ struct HistoryResult {
   // The bricks the step put in place, as they are now: enough to redo this move on a copy of
   // the volume whose history is gone (the journal keeps them for replay after a snapshot).
   std::vector<std::pair<Int3, BrickRef>> restored;
+  std::optional<StepInfo> step;      // the step moved (changed set)
+  // undoMine/redoMine refused (changed false, nothing changed): the step that holds a brick of
+  // the caller's step (its author and revision name it); step is then the caller's step.
+  std::optional<StepInfo> conflict;
 };
 
 struct SessionStats {
@@ -132,7 +140,7 @@ class Session {
   // history step. Throws ServiceError (EngineRefused when its region misses the domain); any
   // other exception (Cancelled through the thread's Progress, engine/progress.hpp, or
   // std::bad_alloc) also leaves the session exactly as before.
-  ApplyResult apply(const protocol::Op& op, ThreadPool& pool);
+  ApplyResult apply(const protocol::Op& op, ThreadPool& pool, const StepAuthor& by = {});
 
   // The first surface hit of a ray on the live volume, for `tool.apply` with a ray: the caller
   // sets the op's centre to it. Throws InvalidParams (field "ray.origin"/"ray.direction") for a
@@ -142,8 +150,9 @@ class Session {
   // Opens a stroke of one brush tool. radius in [0.5, 1024] vu, strength in (0, 1].
   // accumulate: every message adds (build-up) instead of only what exceeds the stroke's
   // earlier dabs (see strokeDabs).
+  // Its steps are recorded as by's.
   StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {},
-                       bool accumulate = false);
+                       bool accumulate = false, const StepAuthor& by = {});
   // One message of dabs is one application of the brush swept over them (engine applyStroke):
   // each point moves by the strongest dab over it (pressure scales a dab's window; mirror
   // images included), evolved and redistanced once. Rays are picked on the volume as it was
@@ -152,7 +161,10 @@ class Session {
   // them, so the result does not depend on how the stroke's dabs were grouped into messages.
   // All dabs of one stroke fold into one history step, which stays open while it is the
   // newest step: any other change of the session (apply, undo, redo, load, another stroke's
-  // dabs) closes it and the stroke's next dabs start a new step. The whole message is checked
+  // dabs) closes it and the stroke's next dabs start a new step. A stroke with an author (its
+  // person's own undo) goes on folding into its step across others' changes while nothing is
+  // undone and no later step touched a brick its message changes (History::fold): one stroke
+  // stays one step while other people sculpt elsewhere. The whole message is checked
   // before anything changes, so a throw changes nothing. One revision per call that changed
   // something.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
@@ -165,6 +177,12 @@ class Session {
 
   HistoryResult undo();
   HistoryResult redo();
+  // Undoes / redoes author's own newest step (History::undoOf/redoOf): changed with the same
+  // result as undo()/redo(), or not changed with conflict set (refused: a later step of anyone
+  // touched one of its bricks), or neither (the author has no step to move). An empty author
+  // has no steps.
+  HistoryResult undoMine(const std::string& author);
+  HistoryResult redoMine(const std::string& author);
   // Puts these bricks in place as one change that cannot be undone (the history is cleared):
   // an undo or redo replayed from the journal after the step it moves was lost to a snapshot.
   // Throws InvalidParams for a brick outside the grid; a change of nothing still counts.
@@ -175,7 +193,26 @@ class Session {
   // history is cleared (steps of another grid cannot be replayed) and fullRefresh is set.
   // Open strokes stay open (their next dab starts a new step). The revision goes up by one
   // (the file's own revision is ignored), even when the field is identical.
-  ApplyResult load(Volume vol);
+  ApplyResult load(Volume vol, const StepAuthor& by = {});
+
+  // The steps in history order (History::list).
+  std::vector<StepInfo> steps() const { return history_.list(); }
+  // The newest undo step: after a change, the step it made or grew (its author and time go in
+  // the journal record, journal_records.hpp stampRecord).
+  std::optional<StepInfo> newestStep() const { return history_.newest(); }
+  // The volume right after step `revision` with the later steps reverted (History::volumeAt),
+  // or the current volume when revision is the session's; nullopt otherwise. The live volume is
+  // not touched: bricks are shared copy-on-write. Reads and unpacks the later steps' bricks, on
+  // the strand.
+  std::optional<Volume> volumeAt(std::uint64_t revision) const;
+  // The starting volume of a fork: the current volume (no revision) or volumeAt(revision); its
+  // revision() is that revision, the new Session starts from it with an empty history. Throws
+  // InvalidParams (field "revision") when the revision is neither current nor a step's.
+  Volume forkVolume(std::optional<std::uint64_t> revision = std::nullopt) const;
+
+  // Where step times come from (ms since the Unix epoch); the system clock by default. Replay
+  // sets the journal's times; tests a fixed clock.
+  void setClock(std::function<std::int64_t()> nowMs);
 
   // A copy of the current version for readers on other threads (see the conventions above).
   Volume snapshot() const { return volume_; }
@@ -193,6 +230,7 @@ class Session {
     Symmetry symmetry;
     bool accumulate = false;
     std::vector<StrokeDab> memory;  // the dab images it applied, oldest first
+    StepAuthor by{};
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -211,6 +249,7 @@ class Session {
     bool accumulate = false;
     std::vector<StrokeDab> memory;  // empty when accumulating
     History::StepId step = 0;       // the history step its dabs last folded into
+    StepAuthor by;
   };
 
   ApplyResult finish(const Edit& edit);
@@ -219,6 +258,9 @@ class Session {
   void bump();
   // The result of an undo or redo that published `e` (null: there was nothing to move).
   HistoryResult historyMoved(const Edit* e);
+  HistoryResult authorMoved(const History::AuthorMove& m, bool forward);
+  // The record of a step made now, by `by` with `tool`, at the next revision.
+  StepInfo stepInfo(const StepAuthor& by, std::string_view tool) const;
   const Stroke& openStroke(StrokeId id) const;
 
   Volume volume_;
@@ -230,6 +272,7 @@ class Session {
   // The stroke whose step is the newest change of the session (0: none); only its dabs may
   // fold into that step.
   StrokeId lastStroke_ = 0;
+  std::function<std::int64_t()> clock_;
 };
 
 }  // namespace marzipan::service

@@ -1,0 +1,302 @@
+// History (server/service/history.cpp) with authors: undoOf/redoOf take one author's step out
+// of the middle of the history with exact digests (the volume as if the step had never been
+// made), refuse naming the first step in the way, list the steps, and rebuild the volume at an
+// earlier step without touching the live one.
+#include <catch2/catch.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/level_set.hpp"
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+#include "service/history.hpp"
+
+using namespace marzipan;
+using service::History;
+using service::StepInfo;
+
+namespace {
+
+constexpr int kN = 96;
+constexpr double kC = (kN - 1) / 2.0;
+const double kSurface = 0.35 * kN;  // the sphere's radius, from kC
+
+Volume sphere() {
+  static const Volume s = makeSolid(SolidKind::Sphere, {kN, kN, kN});
+  return s;
+}
+
+// Blobs of radius 4 on the six sides of the sphere, far enough apart that no two touch a
+// common brick (a blob touches 9 vu around its centre; centres are 33.6 sqrt 2 = 47.5 vu apart at the closest).
+enum Side { PlusX, MinusX, PlusY, MinusY, PlusZ, MinusZ };
+Vec3 sidePoint(Side s) {
+  Vec3 p{kC, kC, kC};
+  p[s / 2] += (s % 2 ? -1 : 1) * kSurface;
+  return p;
+}
+
+Edit blobAt(Volume& v, Side s, ThreadPool& pool, double dx = 0) {
+  Vec3 p = sidePoint(s);
+  p.y += dx;
+  return addBlob(v, {p, 4, 1}, pool);
+}
+
+StepInfo by(const std::string& id, std::uint64_t revision, const std::string& tool = "blob") {
+  StepInfo i;
+  i.revision = revision;
+  i.author = {id, "name of " + id};
+  i.tool = tool;
+  i.timeMs = 1'700'000'000'000 + std::int64_t(revision);
+  return i;
+}
+
+// The digest of the sphere with these blobs applied in this order, on a fresh copy.
+std::uint64_t only(const std::vector<Side>& sides, ThreadPool& pool) {
+  Volume v = sphere();
+  for (const Side s : sides) blobAt(v, s, pool);
+  return digest(v);
+}
+
+}  // namespace
+
+TEST_CASE("history: undoOf takes an author's step out of the middle as if it had never been made",
+          "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  // A at +x (r1), B at -x (r2), A at +y (r3), B at -y (r4): A's newest is packed in the middle.
+  h.push(blobAt(v, PlusX, pool), by("A", 1));
+  h.push(blobAt(v, MinusX, pool), by("B", 2));
+  h.push(blobAt(v, PlusY, pool), by("A", 3));
+  h.push(blobAt(v, MinusY, pool), by("B", 4));
+  const std::uint64_t all = digest(v);
+  REQUIRE(all == only({PlusX, MinusX, PlusY, MinusY}, pool));
+
+  History::AuthorMove m = h.undoOf(v, "A");
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  REQUIRE(m.edit != nullptr);
+  CHECK(m.step.revision == 3);
+  CHECK(m.step.author.id == "A");
+  CHECK(h.moved().revision == 3);
+  CHECK(digest(v) == only({PlusX, MinusX, MinusY}, pool));
+  CHECK(h.undoSteps() == 3);
+  CHECK(h.redoSteps() == 1);
+
+  m = h.undoOf(v, "A");  // A's r1, the oldest
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  CHECK(m.step.revision == 1);
+  CHECK(digest(v) == only({MinusX, MinusY}, pool));
+
+  CHECK(h.undoOf(v, "A").outcome == History::AuthorMove::Nothing);  // A has no step left
+  CHECK(h.undoOf(v, "").outcome == History::AuthorMove::Nothing);
+  CHECK(h.undoOf(v, "C").outcome == History::AuthorMove::Nothing);
+  CHECK(digest(v) == only({MinusX, MinusY}, pool));
+
+  // The timeline: B's two steps, then A's in the order redo brings them back (r1 first).
+  const std::vector<StepInfo> steps = h.list();
+  REQUIRE(steps.size() == 4);
+  const std::uint64_t revisions[] = {2, 4, 1, 3};
+  const bool undone[] = {false, false, true, true};
+  for (std::size_t i = 0; i < 4; ++i) {
+    INFO("step " << i);
+    CHECK(steps[i].revision == revisions[i]);
+    CHECK(steps[i].undone == undone[i]);
+    CHECK(steps[i].author.name == "name of " + steps[i].author.id);
+    CHECK(steps[i].tool == "blob");
+    CHECK(steps[i].timeMs == 1'700'000'000'000 + std::int64_t(revisions[i]));
+    CHECK(steps[i].firstRevision == revisions[i]);
+    CHECK_FALSE(steps[i].region.empty());
+    // The brick box holds the blob's centre brick.
+    const Vec3 p = sidePoint(std::array<Side, 4>{MinusX, MinusY, PlusX, PlusY}[i]);
+    CHECK(steps[i].bricks.contains(Int3{int(p.x) / 8, int(p.y) / 8, int(p.z) / 8}));
+  }
+
+  // B undoes B's newest, the newest of all (held unpacked).
+  m = h.undoOf(v, "B");
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  CHECK(m.step.revision == 4);
+  CHECK(digest(v) == only({MinusX}, pool));
+
+  // Session-wide redo brings back the top of the redo list: B's r4.
+  REQUIRE(h.redo(v) != nullptr);
+  CHECK(h.moved().revision == 4);
+  CHECK(digest(v) == only({MinusX, MinusY}, pool));
+  // A redoes A's most recently undone step (r1), then the other (r3).
+  m = h.redoOf(v, "A");
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  CHECK(m.step.revision == 1);
+  CHECK(digest(v) == only({MinusX, MinusY, PlusX}, pool));
+  m = h.redoOf(v, "A");
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  CHECK(m.step.revision == 3);
+  CHECK(digest(v) == all);
+  CHECK(h.redoOf(v, "A").outcome == History::AuthorMove::Nothing);
+
+  // The history is consistent after all this: session-wide undo goes back to the sphere.
+  while (h.canUndo()) REQUIRE(h.undo(v) != nullptr);
+  CHECK(digest(v) == digest(sphere()));
+  while (h.canRedo()) REQUIRE(h.redo(v) != nullptr);
+  CHECK(digest(v) == all);
+}
+
+TEST_CASE("history: undoOf refuses when a later step touched its bricks, naming the first one",
+          "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  // A at +x (r1); B overlaps it (r2); C elsewhere (r3); D overlaps A too (r4).
+  h.push(blobAt(v, PlusX, pool), by("A", 1));
+  h.push(blobAt(v, PlusX, pool, 3), by("B", 2));
+  h.push(blobAt(v, MinusX, pool), by("C", 3));
+  h.push(blobAt(v, PlusX, pool, -3), by("D", 4));
+  const std::uint64_t all = digest(v);
+  const std::size_t bytes = h.bytes();
+
+  History::AuthorMove m = h.undoOf(v, "A");
+  REQUIRE(m.outcome == History::AuthorMove::Conflict);
+  CHECK(m.edit == nullptr);
+  CHECK(m.step.revision == 1);
+  CHECK(m.step.author.id == "A");
+  CHECK(m.conflict.revision == 2);  // the first later step in the way, not D's
+  CHECK(m.conflict.author.id == "B");
+  CHECK(m.conflict.author.name == "name of B");
+  // Refused: nothing changed.
+  CHECK(digest(v) == all);
+  CHECK(h.undoSteps() == 4);
+  CHECK(h.redoSteps() == 0);
+  CHECK(h.bytes() == bytes);
+
+  m = h.undoOf(v, "B");
+  REQUIRE(m.outcome == History::AuthorMove::Conflict);
+  CHECK(m.conflict.author.id == "D");
+  CHECK(m.conflict.revision == 4);
+
+  // C's step commutes with everything after it.
+  m = h.undoOf(v, "C");
+  REQUIRE(m.outcome == History::AuthorMove::Moved);
+  Volume expect = sphere();
+  blobAt(expect, PlusX, pool);
+  blobAt(expect, PlusX, pool, 3);
+  blobAt(expect, PlusX, pool, -3);
+  CHECK(digest(v) == digest(expect));
+
+  // D undoes D's, then B can, then A can: each restored exactly.
+  REQUIRE(h.undoOf(v, "D").outcome == History::AuthorMove::Moved);
+  REQUIRE(h.undoOf(v, "B").outcome == History::AuthorMove::Moved);
+  REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);
+  CHECK(digest(v) == digest(sphere()));
+
+  SECTION("redoOf refuses while a step above it on the redo list touched its bricks") {
+    // Redo list, bottom to top: C, D, B, A. B's bricks meet A's, which comes back first.
+    m = h.redoOf(v, "B");
+    REQUIRE(m.outcome == History::AuthorMove::Conflict);
+    CHECK(m.step.revision == 2);
+    CHECK(m.conflict.revision == 1);
+    CHECK(m.conflict.author.id == "A");
+    CHECK(digest(v) == digest(sphere()));
+    CHECK(h.redoSteps() == 4);
+    // C's step lies under the others but touched none of their bricks.
+    REQUIRE(h.redoOf(v, "C").outcome == History::AuthorMove::Moved);
+    Volume c = sphere();
+    blobAt(c, MinusX, pool);
+    CHECK(digest(v) == digest(c));
+    while (h.canRedo()) REQUIRE(h.redo(v) != nullptr);
+    CHECK(digest(v) == all);
+  }
+  SECTION("a new step clears the redo list, authors' undone steps included") {
+    h.push(blobAt(v, MinusZ, pool), by("C", 9));
+    CHECK(h.redoSteps() == 0);
+    CHECK(h.redoOf(v, "A").outcome == History::AuthorMove::Nothing);
+  }
+}
+
+TEST_CASE("history: volumeAt rebuilds the volume at an earlier step and leaves the live one alone",
+          "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  std::vector<std::uint64_t> at{digest(v)};
+  const Side sides[] = {PlusX, MinusX, PlusY, MinusY, PlusZ};
+  for (std::uint64_t r = 1; r <= 5; ++r) {
+    h.push(blobAt(v, sides[r - 1], pool), by(r % 2 ? "A" : "B", 10 * r));
+    at.push_back(digest(v));
+  }
+  const Volume before = v;
+  for (std::uint64_t r = 1; r <= 5; ++r) {
+    INFO("revision " << 10 * r);
+    const std::optional<Volume> past = h.volumeAt(v, 10 * r);
+    REQUIRE(past.has_value());
+    CHECK(digest(*past) == at[r]);
+    CHECK(past->revision() == 10 * r);
+  }
+  CHECK_FALSE(h.volumeAt(v, 7).has_value());
+  CHECK_FALSE(h.volumeAt(v, 0).has_value());
+  // The live volume is the same, brick for brick (the same buffers).
+  CHECK(digest(v) == at[5]);
+  const Int3 bd = v.brickDims();
+  for (int z = 0; z < bd.z; ++z)
+    for (int y = 0; y < bd.y; ++y)
+      for (int x = 0; x < bd.x; ++x) REQUIRE(v.brick({x, y, z}) == before.brick({x, y, z}));
+
+  // With A's r30 taken out, the volume at r40 is the one where it was never made; at r20 the
+  // same as before.
+  REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // A's newest: r50
+  REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // r30
+  CHECK(digest(*h.volumeAt(v, 20)) == at[2]);
+  CHECK(digest(*h.volumeAt(v, 40)) == only({PlusX, MinusX, MinusY}, pool));
+  CHECK_FALSE(h.volumeAt(v, 30).has_value());  // undone: not a step of the present
+  CHECK(h.find(40).has_value());
+  CHECK_FALSE(h.find(30).has_value());
+  // And the history still undoes exactly.
+  while (h.canUndo()) h.undo(v);
+  CHECK(digest(v) == at[0]);
+}
+
+TEST_CASE("history: fold grows an earlier step when no later step touched the new bricks", "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  const History::StepId a = h.push(blobAt(v, PlusX, pool), by("A", 1));
+  h.push(blobAt(v, MinusX, pool), by("B", 2));
+  // A's step is packed under B's now; A's stroke goes on at +x.
+  REQUIRE(h.fold(a, blobAt(v, PlusX, pool, 2), v, 3));
+  REQUIRE(h.fold(a, blobAt(v, PlusX, pool, 4), v, 4));
+  CHECK(h.undoSteps() == 2);
+  const std::vector<StepInfo> steps = h.list();
+  CHECK(steps[0].revision == 4);
+  CHECK(steps[0].firstRevision == 1);
+  const std::uint64_t all = digest(v);
+  // Folded, the step stays unpacked until sealed (its stroke ended).
+  const std::size_t unpacked = h.bytes();
+  h.seal(a);
+  CHECK(h.bytes() < unpacked);
+
+  // Undone as one step: the volume with B's step alone.
+  REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);
+  CHECK(digest(v) == only({MinusX}, pool));
+  // Nothing folds while something is undone (the caller then takes the change back here).
+  const Edit refused = blobAt(v, PlusY, pool);
+  CHECK_FALSE(h.fold(a, refused, v, 6));
+  v.publish(refused.changes, false);
+  REQUIRE(h.redo(v) != nullptr);
+  CHECK(digest(v) == all);
+  while (h.canUndo()) h.undo(v);
+  CHECK(digest(v) == digest(sphere()));
+
+  SECTION("a later step on the new bricks refuses the fold") {
+    Volume w = sphere();
+    History g;
+    const History::StepId first = g.push(blobAt(w, PlusX, pool), by("A", 1));
+    g.push(blobAt(w, PlusX, pool, 6), by("C", 2));
+    const std::uint64_t before = digest(w);
+    const Edit more = blobAt(w, PlusX, pool, 3);
+    CHECK_FALSE(g.fold(first, more, w, 3));
+    CHECK(g.undoSteps() == 2);
+    w.publish(more.changes, false);
+    CHECK(digest(w) == before);
+    while (g.canUndo()) g.undo(w);
+    CHECK(digest(w) == digest(sphere()));
+  }
+}

@@ -1,0 +1,191 @@
+// Journal records (server/service/journal_records.cpp) of authored steps: a session whose
+// changes carry their authors and times, with undo_mine/redo_mine records, recovers (snapshot
+// + journal through SessionStore) to the same digest and revision after every record, with the
+// same steps (authors, tools, times, revisions) when the history survives, through the history
+// when it holds the undone step and from the step file when a snapshot cut it.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+#include "protocol/cpp/ops.hpp"
+#include "service/journal_records.hpp"
+#include "service/session_store.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kN = 96;  // blobs on different sides share no brick (test_history_authors.cpp)
+constexpr double kC = (kN - 1) / 2.0;
+const double kR = 0.35 * kN;
+const StepAuthor kA{"a", "Ada"}, kB{"b", "Bo"};
+
+// What the hub does for each change, on a live session with a journal.
+struct Writer {
+  SessionStore& store;
+  std::string id;
+  Session live{makeSolid(SolidKind::Sphere, {kN, kN, kN})};
+  std::unique_ptr<SessionLog> journal;
+  std::int64_t clock = 1'795'000'000'000;
+
+  Writer(SessionStore& s, std::string i) : store(s), id(std::move(i)) {
+    live.setClock([this] { return clock += 1000; });
+    journal = store.create(id, {"t", "v"}, live.volume());
+  }
+  void op(Vec3 c, const StepAuthor& by) {
+    const protocol::Op o = protocol::BrushOp{protocol::BrushTool::AddBlob, BrushParams{c, 4, 1}};
+    REQUIRE(live.apply(o, ThreadPool::serial(), by).changed);
+    json rec{{"r", live.revision()}, {"op", protocol::toJson(o)}};
+    stampRecord(rec, by, live.newestStep()->timeMs);
+    journal->append(rec);
+  }
+  StrokeId begin(const StepAuthor& by) {
+    const StrokeId s = live.beginStroke(protocol::BrushTool::AddBlob, 4, 1, {}, false, by);
+    for (const auto& [sid, params] : live.openStrokeList())
+      if (sid == s) journal->append(strokeBeginRecord(s, params));
+    return s;
+  }
+  void dab(StrokeId s, Vec3 c, const StepAuthor& by) {
+    REQUIRE(live.strokeDabs(s, {Dab{c, 1.0}}, ThreadPool::serial()).changed);
+    json rec{{"r", live.revision()}, {"stroke", s}, {"dabs", {{c.x, c.y, c.z, 1.0}}}};
+    stampRecord(rec, by, live.newestStep()->timeMs);
+    journal->append(rec);
+  }
+  void end(StrokeId s) {
+    live.endStroke(s);
+    journal->append({{"stroke_end", s}});
+  }
+  void mine(bool undo, const StepAuthor& by) {
+    const HistoryResult h = undo ? live.undoMine(by.id) : live.redoMine(by.id);
+    REQUIRE(h.changed);
+    const std::string file = store.saveStep(id, h.revision, h.restored);
+    journal->append(authorMoveRecord(undo, h.revision, file, *h.step));
+  }
+  void snapshot() {
+    std::vector<json> head;
+    for (const auto& [sid, params] : live.openStrokeList()) head.push_back(strokeBeginRecord(sid, params));
+    journal = store.snapshot(id, live.volume(), head);
+  }
+};
+
+// Recovers `id` from the data directory alone and checks it against the live session.
+void checkRecovered(const fs::path& dir, const Writer& w, bool sameSteps) {
+  SessionStore store(dir);
+  const Recovered r = store.recover(w.id, std::size_t(64) << 20, ThreadPool::serial());
+  CHECK(r.session->revision() == w.live.revision());
+  CHECK(r.session->digest() == w.live.digest());
+  CHECK(digest(r.session->volume()) == w.live.digest());
+  if (!sameSteps) return;
+  const std::vector<StepInfo> got = r.session->steps(), want = w.live.steps();
+  REQUIRE(got.size() == want.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    INFO("step " << i);
+    CHECK(got[i].revision == want[i].revision);
+    CHECK(got[i].firstRevision == want[i].firstRevision);
+    CHECK(got[i].author == want[i].author);
+    CHECK(got[i].tool == want[i].tool);
+    CHECK(got[i].timeMs == want[i].timeMs);
+    CHECK(got[i].undone == want[i].undone);
+  }
+}
+
+fs::path freshDir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("marzipan-records-" + name);
+  fs::remove_all(d);
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("journal: undo_mine and redo_mine replay to the same digest, revision and steps", "[journal][authors]") {
+  const fs::path dir = freshDir("mine");
+  SessionStore store(dir);
+  Writer w(store, "s");
+  w.op({kC + kR, kC, kC}, kA);  // r1
+  const StrokeId s = w.begin(kB);
+  w.dab(s, {kC - kR, kC, kC}, kB);  // r2
+  w.dab(s, {kC - kR, kC + 2, kC}, kB);  // r3
+  w.end(s);
+  w.op({kC, kC + kR, kC}, kA);  // r4
+  checkRecovered(dir, w, true);
+
+  // Through the history: every step was made after the snapshot; the others stay undoable.
+  w.mine(true, kA);  // A's r4
+  checkRecovered(dir, w, true);
+  w.mine(true, kA);  // A's r1, under B's stroke
+  checkRecovered(dir, w, true);
+  w.mine(false, kA);  // redo A's r1
+  checkRecovered(dir, w, true);
+  w.mine(true, kB);  // B's stroke
+  checkRecovered(dir, w, true);
+  {
+    SessionStore again(dir);
+    const Recovered r = again.recover("s", std::size_t(64) << 20, ThreadPool::serial());
+    CHECK(r.session->canUndo());
+    CHECK(r.session->canRedo());
+  }
+
+  // After a snapshot the steps before it are gone from a recovered history: the undo_mine of
+  // one of them replays from its file (and, like undo, leaves no history behind).
+  w.snapshot();
+  w.mine(true, kA);  // A's r1 again
+  checkRecovered(dir, w, false);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("journal: an undo_mine of a stroke a snapshot cut in two replays the whole stroke", "[journal][authors]") {
+  const fs::path dir = freshDir("cut");
+  SessionStore store(dir);
+  Writer w(store, "s");
+  w.op({kC + kR, kC, kC}, kA);
+  const StrokeId s = w.begin(kB);
+  w.dab(s, {kC - kR, kC, kC}, kB);
+  w.snapshot();
+  // After the snapshot the stroke goes on in the same step (first revision 2)...
+  w.dab(s, {kC - kR, kC + 2, kC}, kB);
+  w.dab(s, {kC - kR, kC + 4, kC}, kB);
+  w.end(s);
+  w.op({kC, kC + kR, kC}, kA);
+  REQUIRE(w.live.steps().at(1).firstRevision == 2);
+  // ...while the recovered one holds only its part after the snapshot, as a step of B's too:
+  // replaying B's undo through it would leave the stroke's first dab in place.
+  w.mine(true, kB);
+  Session withoutStroke(makeSolid(SolidKind::Sphere, {kN, kN, kN}));
+  withoutStroke.apply(protocol::BrushOp{protocol::BrushTool::AddBlob, BrushParams{{kC + kR, kC, kC}, 4, 1}},
+                      ThreadPool::serial());
+  withoutStroke.apply(protocol::BrushOp{protocol::BrushTool::AddBlob, BrushParams{{kC, kC + kR, kC}, 4, 1}},
+                      ThreadPool::serial());
+  CHECK(w.live.digest() == withoutStroke.digest());
+  checkRecovered(dir, w, false);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("journal: interleaved authored strokes replay into the same steps", "[journal][authors]") {
+  const fs::path dir = freshDir("interleaved");
+  SessionStore store(dir);
+  Writer w(store, "s");
+  const StrokeId a = w.begin(kA);
+  const StrokeId b = w.begin(kB);
+  for (int i = 0; i < 3; ++i) {
+    w.dab(a, {kC + kR, kC + 2 * i, kC}, kA);
+    w.dab(b, {kC - kR, kC + 2 * i, kC}, kB);
+  }
+  REQUIRE(w.live.steps().size() == 2);
+  checkRecovered(dir, w, true);
+  w.mine(true, kA);  // the whole of A's stroke, through the recovered history
+  checkRecovered(dir, w, true);
+  w.end(a);
+  w.end(b);
+  checkRecovered(dir, w, true);
+  fs::remove_all(dir);
+}
