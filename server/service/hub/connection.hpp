@@ -24,8 +24,8 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/progress.hpp"
-#include "engine/raycast.hpp"
 #include "protocol/cpp/rpc.hpp"
+#include "protocol/cpp/values.hpp"
 #include "service/hub.hpp"
 #include "service/session.hpp"
 

@@ -95,9 +95,8 @@ void sessionStats(HubCore& hub, const Call& call) {
       call, [](const Volume& vol, std::uint64_t, Reply& r) { putMeasures(r.result, measure(vol)); },
       [](LiveSession& s, Reply& r) {
         const SessionStats st = s.session->counters();
-        const Int3 d = s.session->volume().dims();
         r.result = {{"session", s.id},
-                    {"size", json::array({d.x, d.y, d.z})},
+                    {"size", sizeJson(s.session->volume().dims())},
                     {"revision", st.revision},
                     {"clients", Broadcaster::clientList(s)},
                     {"memory_bytes", st.memoryBytes},

@@ -11,9 +11,9 @@ using protocol::RpcCode;
 using protocol::RpcException;
 using protocol::ViewMode;
 
-namespace {
-
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
+
+namespace {
 
 // The peer's address without its port ("1.2.3.4:5", "[::1]:5").
 std::string addressOf(const std::string& peer) {

@@ -32,6 +32,9 @@ namespace marzipan::service {
 
 struct HubCore;
 
+// A grid size as the session's description gives it: [x, y, z] in voxels.
+nlohmann::json sizeJson(Int3 dims);
+
 class SessionRegistry {
  public:
   explicit SessionRegistry(HubCore& hub) : hub_(hub) {}

@@ -22,6 +22,7 @@ enum class Access {
   Editor,   // a client of a session that joined with the edit token
 };
 
+// Valid while the handler runs: work it posts captures copies (the client's shared_ptr, the id).
 struct Call {
   const std::shared_ptr<HubClient>& client;
   const protocol::Request& req;
