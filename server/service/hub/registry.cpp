@@ -116,11 +116,16 @@ std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const protoco
   checkCreateRate(c);
   const std::string id = p.session.value_or(randomText(kSessionIdChars));
   auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, hub_.workers);
+  const auto taken = [&] {
+    return RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
+                        {{"field", "session"}});
+  };
+  // Asked before the lock: the storage may be remote (etcd). One at rest stays; a concurrent
+  // create of the same id meets this one in the map.
+  if (hub_.store->exists(id)) throw taken();
   {
     const std::lock_guard lock(mutex_);
-    if (sessions_.count(id) || hub_.store->exists(id))
-      throw RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
-                         {{"field", "session"}});
+    if (sessions_.count(id)) throw taken();
     if (sessions_.size() >= hub_.limits().maxSessions) throw sessionsFull();
     sessions_[id] = s;
   }
