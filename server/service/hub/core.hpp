@@ -102,7 +102,7 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // the reply on the strand with what needs the live session.
   void offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
                  std::function<void(LiveSession&, Reply&)> atStrand = {});
-  // -32008 when c joined with the view token and the call needs edit rights (on the strand).
+  // -32007 when c joined with the view token and the call needs edit rights (on the strand).
   static void checkAccess(const HubClient& c, Access access);
 
   // One long request's Progress (engine/progress.hpp): op.progress notifications to its

@@ -2,7 +2,7 @@
 // stroke.begin/dabs/end, history.undo/redo (service/hub/methods.hpp). Each runs on the session's
 // strand; a change is journaled before its response (Reply::record), and its clients hear of it
 // after (Broadcaster::changed). The table gives them Access::Editor: a view client's request is
-// refused (-32008) on the strand, after its params were checked.
+// refused (-32007) on the strand, after its params were checked.
 #include "engine/thread_pool.hpp"
 #include "service/apply_op.hpp"
 #include "service/hub/core.hpp"

@@ -13,9 +13,9 @@
 namespace marzipan::service {
 
 // Who may call a method (service/hub/methods.cpp, the table). The dispatcher refuses a method
-// needing a session with -32002 before its params are read; edit rights are checked on the
+// needing a session with -32009 before its params are read; edit rights are checked on the
 // session's strand (where a client's rights live) after the params, so that a malformed request
-// says what is wrong: -32008 for a view client.
+// says what is wrong: -32007 for a view client.
 enum class Access {
   Anyone,   // also outside a session: session.create, session.join, op.cancel
   Member,   // a client of a session, read-only ones included
