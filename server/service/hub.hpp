@@ -128,6 +128,7 @@ class ClientLink {
 };
 
 class HubClient;  // a connection's state, opaque to the network layer
+struct HubCore;   // the pieces of the hub (service/hub/core.hpp)
 
 class Hub {
  public:
@@ -159,8 +160,7 @@ class Hub {
   std::size_t sessionCount() const;
 
  private:
-  struct Impl;
-  std::shared_ptr<Impl> impl_;
+  std::shared_ptr<HubCore> impl_;
 };
 
 }  // namespace marzipan::service

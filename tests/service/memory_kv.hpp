@@ -5,6 +5,7 @@
 // `latency` delays every transaction (outside the lock) like a network round trip.
 #pragma once
 
+#include <atomic>
 #include <map>
 #include <mutex>
 #include <set>
@@ -93,7 +94,7 @@ class MemoryKv : public service::KeyValue {
     return r;
   }
 
-  bool down = false;
+  std::atomic<bool> down{false};  // set by the test while the hub's threads call in
   std::chrono::milliseconds latency{0};  // of each transaction
   int loseAnswers = 0;
   int txns = 0;

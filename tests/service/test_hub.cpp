@@ -24,7 +24,9 @@
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/splats.hpp"
+#include "engine/measures.hpp"
 #include "service/hub.hpp"
+#include "service/measures_json.hpp"
 #include "hub_support.hpp"
 
 using namespace marzipan;
@@ -124,6 +126,31 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   CHECK(points > 4000);
   CHECK(points < 12000);
   CHECK(hub.sessionCount() == 1);
+}
+
+TEST_CASE("session.stats answers PROTOCOL.md's keys, its measures in batch --stats's shape", "[hub]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  const json r = a.result("session.stats");
+  std::set<std::string> keys;
+  for (const auto& [key, value] : r.items()) keys.insert(key);
+  CHECK(keys == std::set<std::string>{"session", "size", "revision", "digest", "clients", "inside_volume", "surface_area",
+                                      "components", "bounds", "gradient_error", "memory_bytes", "history_bytes",
+                                      "can_undo", "can_redo"});
+  // The same measures of the same solid through the one builder batch --stats uses.
+  ThreadPool pool(1);
+  json expected = json::object();
+  putMeasures(expected, measure(makeSolid(SolidKind::Sphere, {64, 64, 64}, Volume::kDefaultBand, pool)));
+  for (const auto& [key, value] : expected.items()) {
+    INFO(key);
+    CHECK(r[key] == value);
+  }
+  CHECK(r["bounds"]["empty"] == false);
+  CHECK(r["bounds"]["lo"].size() == 3);
+  CHECK(r["components"] == 1);
+  CHECK(r["size"] == json({64, 64, 64}));
+  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}}}));
 }
 
 TEST_CASE("the envelope's refusals carry the right codes and never close", "[hub]") {

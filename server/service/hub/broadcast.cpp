@@ -1,0 +1,129 @@
+#include "service/hub/broadcast.hpp"
+
+#include "engine/image_io.hpp"
+#include "engine/raycast.hpp"
+#include "engine/splats.hpp"
+#include "protocol/cpp/splats.hpp"
+#include "service/hub/core.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::ViewMode;
+
+SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
+                      std::span<const std::uint8_t> payload) {
+  return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
+}
+
+void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view cause, const Box& roi,
+                          const std::vector<Int3>& bricks, bool full) {
+  const Session& ss = *s.session;
+  const std::string text = protocol::notificationText("session.changed", {{"revision", ss.revision()},
+                                                                          {"by", by.clientId},
+                                                                          {"cause", cause},
+                                                                          {"roi", protocol::boxJson(roi)},
+                                                                          {"digest", digestText(ss.digest())},
+                                                                          {"can_undo", ss.canUndo()},
+                                                                          {"can_redo", ss.canRedo()}});
+  const auto members = s.members();
+  for (const auto& c : members) c->link->sendText(text);
+  SharedBytes delta;
+  for (const auto& c : members) {
+    if (c->mode == ViewMode::Splats) {
+      if (full) {
+        sendFullSplats(s, *c, 0);
+        continue;
+      }
+      if (!delta) {
+        const Bytes payload = encodeSplats(extractSplats(ss.volume(), bricks));
+        delta = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
+      }
+      c->link->sendBinary(delta, false);
+    } else if (c->mode == ViewMode::Frames) {
+      requestFrame(s, c);
+    }
+  }
+}
+
+json Broadcaster::clientList(const LiveSession& s) {
+  json list = json::array();
+  for (const auto& c : s.members()) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
+  return list;
+}
+
+void Broadcaster::clients(LiveSession& s, const HubClient* except, const json& list) {
+  const std::string text = protocol::notificationText("session.clients", {{"clients", list}});
+  for (const auto& other : s.members())
+    if (other.get() != except) other->link->sendText(text);
+}
+
+SharedBytes Broadcaster::fullSplatsFrame(const Volume& vol, std::uint32_t requestId, std::uint64_t revision,
+                                         std::size_t* bricks, std::size_t* points) {
+  const std::vector<BrickSplats> all = extractAllSplats(vol, hub_.pool);
+  if (bricks) *bricks = all.size();
+  if (points) {
+    *points = 0;
+    for (const BrickSplats& b : all) *points += b.points.size();
+  }
+  return makeFrame(protocol::FrameKind::SplatsFull, requestId, revision, encodeSplats(all));
+}
+
+void Broadcaster::sendFullSplats(LiveSession& s, HubClient& c, std::uint32_t requestId) {
+  c.link->sendBinary(fullSplatsFrame(s.session->volume(), requestId, s.session->revision(), nullptr, nullptr), false);
+}
+
+void Broadcaster::requestFrame(LiveSession& s, const std::shared_ptr<HubClient>& c) {
+  ++c->frameSeq;
+  if (c->rendering) {
+    c->renderAgain = true;
+    return;
+  }
+  startRender(s, c, false);
+}
+
+void Broadcaster::startRender(LiveSession& s, const std::shared_ptr<HubClient>& c, bool still) {
+  c->rendering = true;
+  auto snapshot = std::make_shared<Volume>(s.session->snapshot());
+  const std::uint64_t revision = s.session->revision(), seq = c->frameSeq;
+  const Camera camera = c->camera;
+  const Shading shading = c->shading;
+  const double minVu = c->thicknessMinVu;
+  const int quality = still ? hub_.options.stillQuality : hub_.options.interactiveQuality;
+  // The client may have left s (and joined another session, whose strand owns its view state
+  // then) by the time the render is done: s's strand touches c only while c is still the same
+  // client of s (c->session belongs to the connection's pump, not to this strand).
+  std::weak_ptr<LiveSession> weak = s.weak_from_this();
+  const int clientId = c->clientId;
+  hub_.workers.post([self = hub_.shared_from_this(), weak, c, clientId, snapshot, revision, seq, camera, shading, minVu,
+                     quality, still] {
+    try {
+      const Frame f =
+          render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive, minVu);
+      const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
+      c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
+    } catch (const std::exception& e) {
+      self->log(std::string("frame render failed: ") + e.what());
+    }
+    const auto live = weak.lock();
+    if (!live) return;
+    live->strand->post([self, s = live, c, clientId, seq, still] {
+      if (!s->hasClient(*c, clientId)) return;
+      c->rendering = false;
+      if (c->mode != ViewMode::Frames) return;
+      if (c->renderAgain) {
+        c->renderAgain = false;
+        return self->broadcast.startRender(*s, c, false);
+      }
+      if (still) return;
+      self->workers.postAfter(self->options.stillDelay, [self, s, c, clientId, seq] {
+        s->strand->post([self, s, c, clientId, seq] {
+          if (s->hasClient(*c, clientId) && c->mode == ViewMode::Frames && !c->rendering && c->frameSeq == seq)
+            self->broadcast.startRender(*s, c, true);
+        });
+      });
+    });
+  });
+}
+
+}  // namespace marzipan::service

@@ -1,0 +1,44 @@
+#include "service/hub/methods.hpp"
+
+#include <algorithm>
+#include <array>
+
+namespace marzipan::service {
+
+using protocol::Method;
+
+namespace {
+
+constexpr std::array<MethodEntry, 19> kMethods{{
+    {Method::SessionCreate, Access::Anyone, sessionCreate},
+    {Method::SessionJoin, Access::Anyone, sessionJoin},
+    {Method::SessionLeave, Access::Member, sessionLeave},
+    {Method::SessionStats, Access::Member, sessionStats},
+    {Method::ToolApply, Access::Editor, toolApply},
+    {Method::StrokeBegin, Access::Editor, strokeBegin},
+    {Method::StrokeDabs, Access::Editor, strokeDabs},
+    {Method::StrokeEnd, Access::Editor, strokeEnd},
+    {Method::VolumeMorph, Access::Editor, volumeMorph},
+    {Method::HistoryUndo, Access::Editor, historyUndo},
+    {Method::HistoryRedo, Access::Editor, historyRedo},
+    {Method::ViewSet, Access::Member, viewSet},
+    {Method::RenderFrame, Access::Member, renderFrame},
+    {Method::SplatsGet, Access::Member, splatsGet},
+    {Method::MeshExport, Access::Member, meshExport},
+    {Method::VolumeSave, Access::Member, volumeSave},
+    {Method::VolumeLoad, Access::Editor, volumeLoad},
+    {Method::AnalysisThickness, Access::Member, analysisThickness},
+    // Spelled so that Hub::text did not see it (escapes); see opCancel.
+    {Method::OpCancel, Access::Anyone, opCancel},
+}};
+
+}  // namespace
+
+std::span<const MethodEntry> methodTable() { return kMethods; }
+
+const MethodEntry* findMethod(Method m) {
+  const auto it = std::find_if(kMethods.begin(), kMethods.end(), [m](const MethodEntry& e) { return e.method == m; });
+  return it != kMethods.end() ? &*it : nullptr;
+}
+
+}  // namespace marzipan::service

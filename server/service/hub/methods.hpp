@@ -1,0 +1,67 @@
+// The methods of protocol/PROTOCOL.md, one handler each, found through one table
+// (methods.cpp): method -> access rule and handler, like a tool registry.
+//
+// A handler runs on the connection's pump with the request's params still unread. It parses
+// them (protocol/cpp/rpc.hpp; OpError becomes -32602), checks what needs no session state, and
+// hands its work to HubCore::onStrand (changes, and reads of the live session) or
+// HubCore::offStrand (long reads of a snapshot). Whatever it throws before that is answered by
+// the dispatcher; once it has handed work over, that work answers and calls HubCore::finish, so
+// a handler must either throw or hand over exactly once (or call finish itself).
+//
+// Adding a method: its name, params decoder and result in protocol/ (PROTOCOL.md, schema,
+// rpc.hpp/.cpp, the JS and Python clients), then one handler function declared below and
+// defined in the file of its area, and one row in the table in methods.cpp.
+#pragma once
+
+#include <span>
+
+#include "protocol/cpp/rpc.hpp"
+#include "service/hub/request.hpp"
+
+namespace marzipan::service {
+
+struct HubCore;
+
+using Handler = void (*)(HubCore& hub, const Call& call);
+
+struct MethodEntry {
+  protocol::Method method;
+  Access access;
+  Handler handle;
+};
+
+// Every method's row, in protocol::Method order.
+std::span<const MethodEntry> methodTable();
+// The row of m, or null when the hub does not serve it.
+const MethodEntry* findMethod(protocol::Method m);
+
+// methods_session.cpp: joining, leaving and describing sessions.
+void sessionCreate(HubCore&, const Call&);
+void sessionJoin(HubCore&, const Call&);
+void sessionLeave(HubCore&, const Call&);
+void sessionStats(HubCore&, const Call&);
+void opCancel(HubCore&, const Call&);
+
+// methods_edit.cpp: changes to the volume and its history.
+void toolApply(HubCore&, const Call&);
+void volumeMorph(HubCore&, const Call&);
+void strokeBegin(HubCore&, const Call&);
+void strokeDabs(HubCore&, const Call&);
+void strokeEnd(HubCore&, const Call&);
+void historyUndo(HubCore&, const Call&);
+void historyRedo(HubCore&, const Call&);
+
+// methods_view.cpp: what a client sees.
+void viewSet(HubCore&, const Call&);
+void renderFrame(HubCore&, const Call&);
+void splatsGet(HubCore&, const Call&);
+
+// methods_files.cpp: files out (mesh, volume), files in (volume.load and its upload), analysis.
+void meshExport(HubCore&, const Call&);
+void volumeSave(HubCore&, const Call&);
+void volumeLoad(HubCore&, const Call&);
+void analysisThickness(HubCore&, const Call&);
+// The kind-9 frame that follows a volume.load (c->load holds what it announced).
+void volumeUpload(HubCore&, const std::shared_ptr<HubClient>& c, Bytes bytes);
+
+}  // namespace marzipan::service

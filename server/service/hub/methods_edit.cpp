@@ -1,0 +1,178 @@
+// Handlers of the methods that change a session's volume or history: tool.apply, volume.morph,
+// stroke.begin/dabs/end, history.undo/redo (service/hub/methods.hpp). Each runs on the session's
+// strand; a change is journaled before its response (Reply::record), and its clients hear of it
+// after (Broadcaster::changed). The table gives them Access::Editor: a view client's request is
+// refused (-32007) on the strand, after its params were checked.
+#include "engine/thread_pool.hpp"
+#include "service/apply_op.hpp"
+#include "service/hub/core.hpp"
+#include "service/hub/methods.hpp"
+#include "service/journal_records.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::RpcCode;
+using protocol::RpcException;
+
+namespace {
+
+RpcException notOpenStroke(std::uint64_t stroke) {
+  return RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(stroke) + " is not this connection's open stroke",
+                      {{"field", "stroke"}});
+}
+
+void historyStep(HubCore& hub, const Call& call, bool undo) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, undo](LiveSession& s, Reply& r) {
+    const HistoryResult h = undo ? s.session->undo() : s.session->redo();
+    if (!h.changed) throw RpcException(RpcCode::NothingToUndo, undo ? "nothing to undo" : "nothing to redo");
+    r.result = {{"revision", h.revision}, {"can_undo", h.canUndo}, {"can_redo", h.canRedo}};
+    r.record = [self, &s, undo, h] {
+      const std::string step = self->store->persistent() ? self->store->saveStep(s.id, h.revision, h.restored) : std::string();
+      return json{{"r", h.revision}, {undo ? "undo" : "redo", step}};
+    };
+    r.after = [self, &s, c, h, undo] { self->broadcast.changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
+  });
+}
+
+}  // namespace
+
+void toolApply(HubCore& hub, const Call& call) {
+  const protocol::ToolApplyParams p = protocol::parseToolApplyParams(call.req.params);
+  const auto running = hub.track(call.client, call.req.id);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, p, running](LiveSession& s, Reply& r) {
+    const OpCost cost = estimateCost(s.session->volume(), p.op);
+    self->checkBudget(cost.voxels, "this tool");
+    running->progress->setTotal(cost.passes);
+    protocol::Op op = p.op;
+    std::optional<Vec3> hit;
+    if (p.ray) {
+      hit = s.session->pick(Ray{p.ray->origin, p.ray->direction});
+      if (!hit) {
+        r.result = {{"revision", s.session->revision()}, {"roi", nullptr}, {"hit", nullptr}};
+        return;
+      }
+      if (auto* b = std::get_if<protocol::BrushOp>(&op)) b->params.center = *hit;
+      if (auto* g = std::get_if<protocol::CsgToolOp>(&op)) g->params.center = *hit;
+    }
+    const bool brush = std::holds_alternative<protocol::BrushOp>(op);
+    std::optional<Workers::LongTask> longTask;
+    if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+    const Progress::Scope scope(*running->progress);
+    const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
+    running->done();
+    r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+    if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
+    if (a.changed) {
+      r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(op)}}; };
+      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "tool", a.roi, a.bricks, a.fullRefresh); };
+    }
+  });
+}
+
+void volumeMorph(HubCore& hub, const Call& call) {
+  const protocol::MorphOp op = protocol::parseMorphParams(call.req.params);
+  const auto running = hub.track(call.client, call.req.id);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, op, running](LiveSession& s, Reply& r) {
+    const OpCost cost = estimateCost(s.session->volume(), op);
+    self->checkBudget(cost.voxels, "this morphology");
+    running->progress->setTotal(cost.passes);
+    std::optional<Workers::LongTask> longTask;
+    if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+    const Progress::Scope scope(*running->progress);
+    const ApplyResult a = s.session->apply(op, self->pool);
+    running->done();
+    r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+    if (a.changed) {
+      r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}}; };
+      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
+    }
+  });
+}
+
+void strokeBegin(HubCore& hub, const Call& call) {
+  const protocol::StrokeBeginParams p = protocol::parseStrokeBeginParams(call.req.params);
+  hub.onStrand(call, false, [c = call.client, p](LiveSession& s, Reply& r) {
+    json records = json::array();
+    if (c->stroke) {
+      try {
+        s.session->endStroke(c->stroke);
+        records.push_back({{"stroke_end", c->stroke}});
+      } catch (const ServiceError&) {
+        // The session closed it already (a reload); nothing to end.
+      }
+      c->stroke = 0;
+    }
+    const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
+                                       p.accumulate, {}};
+    c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate);
+    records.push_back(strokeBeginRecord(c->stroke, params));
+    r.record = [records] { return records; };
+    r.result = {{"stroke", c->stroke}};
+  });
+}
+
+void strokeDabs(HubCore& hub, const Call& call) {
+  const protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(call.req.params, hub.limits().maxDabs);
+  const auto running = hub.track(call.client, call.req.id);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, p, running](LiveSession& s, Reply& r) {
+    if (p.stroke != c->stroke) throw notOpenStroke(p.stroke);
+    double voxels = 0;
+    for (const auto& [id, st] : s.session->openStrokeList())
+      if (id == p.stroke) {
+        const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
+        voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images);
+      }
+    self->checkBudget(voxels, "this message's dabs");
+    std::optional<Workers::LongTask> longTask;
+    if (voxels > kLongOpVoxels) longTask.emplace(self->workers);
+    std::vector<Dab> dabs;
+    dabs.reserve(p.dabs.size());
+    for (const protocol::DabParam& d : p.dabs) {
+      Dab dab;
+      if (const auto* center = std::get_if<Vec3>(&d.at)) dab.at = *center;
+      else {
+        const auto& ray = std::get<protocol::RayParam>(d.at);
+        dab.at = Ray{ray.origin, ray.direction};
+      }
+      dab.pressure = d.pressure;
+      dabs.push_back(dab);
+    }
+    const Progress::Scope scope(*running->progress);
+    const ApplyResult a = s.session->strokeDabs(p.stroke, dabs, ThreadPool::serial());
+    running->done();
+    r.result = {{"revision", a.revision},
+                {"applied", a.changed ? dabs.size() - a.missed : 0},
+                {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+    if (a.changed) {
+      json applied = json::array();
+      for (std::size_t i = 0; i < a.hits.size(); ++i)
+        if (a.hits[i]) applied.push_back({a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure});
+      r.record = [stroke = p.stroke, applied, rev = a.revision] {
+        return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}};
+      };
+      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
+    }
+  });
+}
+
+void strokeEnd(HubCore& hub, const Call& call) {
+  const std::uint64_t stroke = protocol::parseStrokeEndParams(call.req.params);
+  hub.onStrand(call, false, [c = call.client, stroke](LiveSession& s, Reply& r) {
+    if (stroke != c->stroke) throw notOpenStroke(stroke);
+    try {
+      s.session->endStroke(stroke);
+    } catch (const ServiceError&) {
+      // Closed by a reload of the session: ending it again is what the client asked.
+    }
+    c->stroke = 0;
+    r.record = [stroke] { return json{{"stroke_end", stroke}}; };
+    r.result = {{"revision", s.session->revision()}, {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
+  });
+}
+
+void historyUndo(HubCore& hub, const Call& call) { historyStep(hub, call, true); }
+void historyRedo(HubCore& hub, const Call& call) { historyStep(hub, call, false); }
+
+}  // namespace marzipan::service

@@ -1,0 +1,118 @@
+// Handlers of session.create, session.join, session.leave, session.stats and op.cancel
+// (service/hub/methods.hpp).
+#include "engine/measures.hpp"
+#include "engine/solids.hpp"
+#include "service/hub/core.hpp"
+#include "service/hub/methods.hpp"
+#include "service/hub/secrets.hpp"
+#include "service/measures_json.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::RpcCode;
+using protocol::RpcException;
+using protocol::ViewMode;
+
+namespace {
+
+void checkProtocol(const std::optional<int>& major) {
+  if (major && *major != protocol::kProtocolMajor)
+    throw RpcException(RpcCode::UnsupportedProtocol,
+                       "protocol major version " + std::to_string(*major) + " is not supported; this server speaks " +
+                           std::to_string(protocol::kProtocolMajor) + "." + std::to_string(protocol::kProtocolMinor),
+                       {{"field", "protocol"},
+                        {"supported", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}}});
+}
+
+void refuseSecondSession(const HubClient& c) {
+  if (c.session) throw RpcException(RpcCode::AlreadyInSession, "already in a session: session.leave first");
+}
+
+}  // namespace
+
+void sessionCreate(HubCore& hub, const Call& call) {
+  const std::shared_ptr<HubClient>& c = call.client;
+  const protocol::CreateParams p = protocol::parseCreateParams(call.req.params);
+  checkProtocol(p.protocol);
+  refuseSecondSession(*c);
+  const int maxSide = hub.limits().maxGridSide;
+  for (int a = 0; a < 3; ++a)
+    if (p.size[a] > maxSide)
+      throw RpcException(RpcCode::LimitExceeded,
+                         "\"size\"[" + std::to_string(a) + "] " + std::to_string(p.size[a]) +
+                             " is over the server's max_grid_side " + std::to_string(maxSide),
+                         {{"limit", "max_grid_side"}, {"value", p.size[a]}, {"max", maxSide}, {"field", "size"}});
+  std::shared_ptr<LiveSession> s = hub.registry.create(*c, p);
+  // c->session is set only once admitted: a refused create leaves the connection as it was.
+  hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
+               [self = hub.shared_from_this(), c, s, view = p.view, dims = p.size, solid = p.solid](LiveSession& ls,
+                                                                                                    Reply& r) {
+                 self->registry.admit(ls, c, false, view, r);
+                 c->session = s;
+                 r.result["token"] = ls.secrets.token;
+                 r.result["view_token"] = ls.secrets.viewToken;
+                 self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) +
+                           "x" + std::to_string(dims.y) + "x" + std::to_string(dims.z) + ") by " + c->peer);
+               });
+}
+
+void sessionJoin(HubCore& hub, const Call& call) {
+  const std::shared_ptr<HubClient>& c = call.client;
+  const protocol::JoinParams p = protocol::parseJoinParams(call.req.params);
+  checkProtocol(p.protocol);
+  refuseSecondSession(*c);
+  std::shared_ptr<LiveSession> s = hub.registry.findOrLoad(p.session, p.token);
+  bool readOnly = false;
+  if (sameSecret(s->secrets.token, p.token)) readOnly = false;
+  else if (sameSecret(s->secrets.viewToken, p.token)) readOnly = true;
+  else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
+  // c->session is set only once admitted: a refused join (a full session) grants nothing.
+  hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
+               [self = hub.shared_from_this(), c, s, view = p.view, readOnly](LiveSession& ls, Reply& r) {
+                 self->registry.admit(ls, c, readOnly, view, r);
+                 // An editor may share a view link; a view client learns nothing more than it had.
+                 if (!readOnly) r.result["view_token"] = ls.secrets.viewToken;
+                 c->session = s;
+                 self->log("session " + ls.id + ": client " + std::to_string(c->clientId) + " (" + c->peer + ") joined" +
+                           (readOnly ? " read-only" : "") + ", " + std::to_string(ls.clients.size()) + " in all");
+               });
+}
+
+void sessionLeave(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  hub.onStrand(call, false, [self = hub.shared_from_this(), c = call.client](LiveSession& s, Reply& r) {
+    self->registry.leave(s, *c);
+    r.result = {{"session", s.id}};
+    c->session.reset();
+  });
+}
+
+void sessionStats(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  // The measures read every brick: off the strand, on the snapshot, so edits go on meanwhile.
+  hub.offStrand(
+      call, [](const Volume& vol, std::uint64_t, Reply& r) { putMeasures(r.result, measure(vol)); },
+      [](LiveSession& s, Reply& r) {
+        const SessionStats st = s.session->counters();
+        r.result = {{"session", s.id},
+                    {"size", sizeJson(s.session->volume().dims())},
+                    {"revision", st.revision},
+                    {"clients", Broadcaster::clientList(s)},
+                    {"memory_bytes", st.memoryBytes},
+                    {"history_bytes", st.historyBytes},
+                    {"can_undo", st.canUndo},
+                    {"can_redo", st.canRedo}};
+      });
+}
+
+// An op.cancel normally overtakes the queue (Hub::text); one that reaches the pump was spelled
+// so that Hub::text did not see it (escapes): nothing of this connection runs while the pump
+// handles a message, so there is nothing to cancel.
+void opCancel(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  hub.sendResult(*call.client, call.req.id, {{"cancelled", false}});
+  hub.finish(call.client);
+}
+
+}  // namespace marzipan::service

@@ -1,0 +1,35 @@
+#include "service/hub/rpc_errors.hpp"
+
+#include "engine/errors.hpp"
+#include "engine/progress.hpp"
+#include "service/session.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::RpcCode;
+
+Failure failureOf(std::exception_ptr e, const std::function<void(const std::string&)>& log) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const protocol::RpcException& x) {
+    return {x.code(), x.what(), x.data()};
+  } catch (const protocol::OpError& x) {
+    return {RpcCode::InvalidParams, x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const ServiceError& x) {
+    return {x.code(), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const EngineError& x) {
+    return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const Cancelled&) {
+    return {RpcCode::Cancelled, "the operation was cancelled (op.cancel or server shutdown); the session is unchanged",
+            nullptr};
+  } catch (const std::exception& x) {
+    if (log) log(std::string("internal error: ") + x.what());
+    return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
+  } catch (...) {
+    if (log) log("internal error");
+    return {RpcCode::Internal, "internal error; the session is unchanged", nullptr};
+  }
+}
+
+}  // namespace marzipan::service

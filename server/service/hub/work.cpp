@@ -1,0 +1,140 @@
+// How a request's work runs (service/hub/core.hpp): on its session's strand or off it on a
+// snapshot, long operations with progress, cancel and a budget, and the answers.
+#include <cstdio>
+
+#include "service/hub/core.hpp"
+
+namespace marzipan::service {
+
+using nlohmann::json;
+using protocol::RpcCode;
+using protocol::RpcException;
+
+// --- answering -------------------------------------------------------------------------------------
+
+void HubCore::sendResult(HubClient& c, const std::optional<json>& id, const json& result) {
+  if (id) c.link->sendText(protocol::resultText(*id, result));
+}
+
+void HubCore::sendError(HubClient& c, const json& id, bool notification, const Failure& f) {
+  if (options.events.error) options.events.error(int(f.code));
+  if (!notification) c.link->sendText(protocol::errorText(id, f.code, f.message, f.data));
+}
+
+void HubCore::sendError(HubClient& c, const std::optional<json>& id, const Failure& f) {
+  sendError(c, id ? *id : json(nullptr), !id.has_value(), f);
+}
+
+// --- running work ----------------------------------------------------------------------------------
+
+void HubCore::checkAccess(const HubClient& c, Access access) {
+  if (access == Access::Editor && c.readOnly)
+    throw RpcException(RpcCode::ReadOnly, "this client joined with the view token: edits are refused");
+}
+
+void HubCore::onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn) {
+  onStrand(call.client, call.client->session, call.req.id, call.arrived, editLatency, call.access, std::move(fn));
+}
+
+void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<json>& id,
+                       Clock::time_point arrived, bool editLatency, Access access,
+                       std::function<void(LiveSession&, Reply&)> fn) {
+  s->strand->post([self = shared_from_this(), c, s, id, arrived, editLatency, access, fn = std::move(fn)] {
+    Reply r;
+    try {
+      if (s->unloaded || !s->session) {
+        if (c->session == s) c->session.reset();
+        if (!s->failure.empty()) throw RpcException(RpcCode::Internal, s->failure);
+        throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
+      }
+      checkAccess(*c, access);
+      fn(*s, r);
+      if (r.record) self->durability.persist(*s, r.record);
+      if (r.frame) c->link->sendBinary(r.frame, false);
+      self->sendResult(*c, id, r.result);
+      if (editLatency && self->options.events.editLatency)
+        self->options.events.editLatency(std::chrono::duration<double>(Clock::now() - arrived).count());
+      if (r.after) r.after();
+    } catch (...) {
+      self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+    }
+    self->finish(c);
+  });
+}
+
+void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
+                        std::function<void(LiveSession&, Reply&)> atStrand) {
+  const std::shared_ptr<HubClient>& c = call.client;
+  std::shared_ptr<LiveSession> s = c->session;
+  s->strand->post([self = shared_from_this(), c, s, id = call.req.id, fn = std::move(fn),
+                   atStrand = std::move(atStrand)]() mutable {
+    if (s->unloaded || !s->session) {
+      self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
+      return self->finish(c);
+    }
+    auto snapshot = std::make_shared<Volume>(s->session->snapshot());
+    const std::uint64_t revision = s->session->revision();
+    auto started = std::make_shared<Reply>();
+    if (atStrand) atStrand(*s, *started);
+    self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn), started] {
+      Reply& r = *started;
+      try {
+        fn(*snapshot, revision, r);
+        if (r.frame) c->link->sendBinary(r.frame, false);
+        self->sendResult(*c, id, r.result);
+      } catch (...) {
+        self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+      }
+      self->finish(c);
+    });
+  });
+}
+
+// --- long operations -------------------------------------------------------------------------------
+
+void HubCore::RunningOp::done() {
+  if (!std::exchange(registered, false)) return;
+  client->clearRunning(progress);
+  const std::lock_guard lock(hub->mutex_);
+  hub->runningOps_.erase(progress.get());
+}
+
+std::shared_ptr<HubCore::RunningOp> HubCore::track(const std::shared_ptr<HubClient>& c, const std::optional<json>& id) {
+  auto progress = std::make_shared<Progress>(
+      [link = c->link, request = id.value_or(json(nullptr))](double fraction) {
+        link->sendText(protocol::notificationText("op.progress", {{"request", request}, {"fraction", fraction}}));
+      },
+      kProgressInterval);
+  auto op = std::make_shared<RunningOp>(RunningOp{shared_from_this(), c, progress});
+  c->setRunning(progress);
+  const std::lock_guard lock(mutex_);
+  runningOps_.insert(progress.get());
+  if (stopping_) progress->cancel();
+  return op;
+}
+
+void HubCore::checkBudget(double voxels, const char* what) const {
+  if (voxels <= limits().maxOpVoxels) return;
+  char text[160];
+  std::snprintf(text, sizeof text, "%s would process about %.3g voxels, over the server's max_op_voxels %.3g", what, voxels,
+                limits().maxOpVoxels);
+  throw RpcException(RpcCode::LimitExceeded, std::string(text) + "; use fewer iterations, a smaller radius or fewer dabs",
+                     {{"limit", "max_op_voxels"}, {"value", voxels}, {"max", limits().maxOpVoxels}});
+}
+
+// --- shutting down ---------------------------------------------------------------------------------
+
+bool HubCore::stopping() const {
+  const std::lock_guard lock(mutex_);
+  return stopping_;
+}
+
+bool HubCore::stop() {
+  const std::lock_guard lock(mutex_);
+  if (std::exchange(stopping_, true)) return false;
+  // Long operations stop at their next chunk or dab and change nothing; the others finish.
+  for (Progress* p : runningOps_) p->cancel();
+  return true;
+}
+
+}  // namespace marzipan::service
