@@ -43,6 +43,9 @@ void sessionStats(HubCore&, const Call&);
 void opCancel(HubCore&, const Call&);
 
 // methods_edit.cpp: changes to the volume and its history.
+// The author a client's steps are recorded with (service/history.hpp): its client id in the
+// session, as text. On the session's strand.
+StepAuthor authorOf(const HubClient& c);
 void toolApply(HubCore&, const Call&);
 void volumeMorph(HubCore&, const Call&);
 void strokeBegin(HubCore&, const Call&);

@@ -17,6 +17,13 @@ using protocol::RpcException;
 
 namespace {
 
+// The time of the newest step, just made or grown by the change being recorded (0: none, a
+// change that cleared the history).
+std::int64_t stepTime(const Session& s) {
+  const std::optional<StepInfo> step = s.newestStep();
+  return step ? step->timeMs : 0;
+}
+
 RpcException notOpenStroke(std::uint64_t stroke) {
   return RpcException(RpcCode::NoSuchStroke, "stroke " + std::to_string(stroke) + " is not this connection's open stroke",
                       {{"field", "stroke"}});
@@ -37,6 +44,8 @@ void historyStep(HubCore& hub, const Call& call, bool undo) {
 }
 
 }  // namespace
+
+StepAuthor authorOf(const HubClient& c) { return {std::to_string(c.clientId), {}}; }
 
 void toolApply(HubCore& hub, const Call& call) {
   const protocol::ToolApplyParams p = protocol::parseToolApplyParams(call.req.params);
@@ -60,12 +69,17 @@ void toolApply(HubCore& hub, const Call& call) {
     std::optional<Workers::LongTask> longTask;
     if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
     const Progress::Scope scope(*running->progress);
-    const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool);
+    const StepAuthor by = authorOf(*c);
+    const ApplyResult a = s.session->apply(op, brush ? ThreadPool::serial() : self->pool, by);
     running->done();
     r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
     if (p.ray) r.result["hit"] = protocol::vec3Json(*hit);
     if (a.changed) {
-      r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(op)}}; };
+      r.record = [op, a, by, t = stepTime(*s.session)] {
+        json rec{{"r", a.revision}, {"op", protocol::toJson(op)}};
+        stampRecord(rec, by, t);
+        return rec;
+      };
       r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "tool", a.roi, a.bricks, a.fullRefresh); };
     }
   });
@@ -81,11 +95,16 @@ void volumeMorph(HubCore& hub, const Call& call) {
     std::optional<Workers::LongTask> longTask;
     if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
     const Progress::Scope scope(*running->progress);
-    const ApplyResult a = s.session->apply(op, self->pool);
+    const StepAuthor by = authorOf(*c);
+    const ApplyResult a = s.session->apply(op, self->pool, by);
     running->done();
     r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
     if (a.changed) {
-      r.record = [op, a] { return json{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}}; };
+      r.record = [op, a, by, t = stepTime(*s.session)] {
+        json rec{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}};
+        stampRecord(rec, by, t);
+        return rec;
+      };
       r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
     }
   });
@@ -105,8 +124,9 @@ void strokeBegin(HubCore& hub, const Call& call) {
       c->stroke = 0;
     }
     const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
-                                       p.accumulate, {}};
-    c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate);
+                                       p.accumulate, {}, authorOf(*c)};
+    c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate,
+                                       params.by);
     records.push_back(strokeBeginRecord(c->stroke, params));
     r.record = [records] { return records; };
     r.result = {{"stroke", c->stroke}};
@@ -149,8 +169,10 @@ void strokeDabs(HubCore& hub, const Call& call) {
       json applied = json::array();
       for (std::size_t i = 0; i < a.hits.size(); ++i)
         if (a.hits[i]) applied.push_back({a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure});
-      r.record = [stroke = p.stroke, applied, rev = a.revision] {
-        return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}};
+      // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
+      // started (a step they folded into keeps its own).
+      r.record = [stroke = p.stroke, applied, rev = a.revision, t = stepTime(*s.session)] {
+        return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}, {"t", t}};
       };
       r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
     }

@@ -9,6 +9,7 @@
 #include "engine/volume_file.hpp"
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
+#include "service/journal_records.hpp"
 
 namespace marzipan::service {
 
@@ -175,10 +176,14 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                          "the file's band half-width is " + std::to_string(vol.band()) + " vu, the session's " +
                              std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
                          {{"field", "file"}});
-    ApplyResult a = s.session->load(std::move(vol));
+    const StepAuthor by = authorOf(*c);
+    ApplyResult a = s.session->load(std::move(vol), by);
     a.fullRefresh = true;
-    r.record = [self, &s, payload, rev = a.revision] {
-      return json{{"r", rev}, {"load", self->store->persistent() ? self->store->saveUpload(s.id, rev, *payload) : std::string()}};
+    const std::optional<StepInfo> step = s.session->newestStep();
+    r.record = [self, &s, payload, rev = a.revision, by, t = step ? step->timeMs : 0] {
+      json rec{{"r", rev}, {"load", self->store->persistent() ? self->store->saveUpload(s.id, rev, *payload) : std::string()}};
+      stampRecord(rec, by, t);
+      return rec;
     };
     r.result = {{"revision", a.revision}, {"digest", digestText(s.session->digest())}, {"roi", protocol::boxJson(a.roi)},
                 {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};

@@ -1,5 +1,7 @@
 #include "service/hub/registry.hpp"
 
+#include <algorithm>
+
 #include "engine/solids.hpp"
 #include "service/hub/core.hpp"
 #include "service/hub/secrets.hpp"
@@ -212,6 +214,13 @@ std::shared_ptr<LiveSession> SessionRegistry::load(const std::string& id, const 
   }
   auto s = std::make_shared<LiveSession>(id, *secrets, hub_.workers);
   s->session = std::move(rec.session);
+  // Client ids are the authors of the recovered steps: a newcomer must not be taken for one of
+  // them by history.undo {scope: "mine"}.
+  for (const StepInfo& step : s->session->steps()) {
+    const std::string& a = step.author.id;
+    if (!a.empty() && a.size() < 10 && std::all_of(a.begin(), a.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
+      s->nextClient = std::max(s->nextClient, std::stoi(a) + 1);
+  }
   s->journal = std::move(rec.journal);
   hub_.durability.scheduleLeaseRenewal();
   {
