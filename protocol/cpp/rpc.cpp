@@ -415,6 +415,23 @@ std::uint64_t parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) 
   return std::uint64_t(bytes);
 }
 
+HistoryScope parseHistoryParams(const json& params, Method m) {
+  checkKeys(params, {"scope"}, paramsContext(m));
+  const json* scope = find(params, "scope");
+  if (!scope) return HistoryScope::Session;
+  const std::string v = stringValue(*scope, "scope");
+  if (v == "session") return HistoryScope::Session;
+  if (v == "mine") return HistoryScope::Mine;
+  fail("scope", "must be \"session\" or \"mine\", got " + inQuotes(v));
+}
+
+std::optional<std::uint64_t> parseForkParams(const json& params) {
+  checkKeys(params, {"revision"}, paramsContext(Method::SessionFork));
+  const json* revision = find(params, "revision");
+  if (!revision) return std::nullopt;
+  return std::uint64_t(integerInRange(*revision, "revision", 0, kMaxSafeInteger));
+}
+
 void parseNoParams(const json& params, Method m) { checkKeys(params, {}, paramsContext(m) + ", which takes none"); }
 
 std::string resultText(const json& id, const json& result) {

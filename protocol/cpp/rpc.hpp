@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 1;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 2;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {
@@ -51,6 +51,7 @@ enum class RpcCode : int {
   SessionExists = -32014,
   HeldElsewhere = -32015,
   Cancelled = -32016,
+  UndoConflict = -32017,
 };
 
 // An error to answer with; `data` is null or an object.
@@ -71,8 +72,9 @@ enum class Method {
   VolumeMorph, HistoryUndo, HistoryRedo, ViewSet, RenderFrame, SplatsGet, MeshExport, VolumeSave, VolumeLoad,
   AnalysisThickness,
   OpCancel,
+  HistoryList, SessionFork,
 };
-inline constexpr std::array<NameOf<Method>, 19> kMethodNames{{
+inline constexpr std::array<NameOf<Method>, 21> kMethodNames{{
     {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
     {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
     {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
@@ -83,6 +85,7 @@ inline constexpr std::array<NameOf<Method>, 19> kMethodNames{{
     {Method::MeshExport, "mesh.export"},       {Method::VolumeSave, "volume.save"},
     {Method::VolumeLoad, "volume.load"},       {Method::AnalysisThickness, "analysis.thickness"},
     {Method::OpCancel, "op.cancel"},
+    {Method::HistoryList, "history.list"},     {Method::SessionFork, "session.fork"},
 }};
 // Methods whose id travels in a binary header (answered by a frame, or naming an upload).
 bool needsFrameId(Method m);
@@ -203,6 +206,11 @@ struct ThicknessParams {
 };
 ThicknessParams parseThicknessParams(const nlohmann::json& params);
 std::uint64_t parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
+// history.undo / history.redo: whose step moves (since 1.2).
+enum class HistoryScope { Session, Mine };
+HistoryScope parseHistoryParams(const nlohmann::json& params, Method m);
+// session.fork: the revision to start from (absent: the current one).
+std::optional<std::uint64_t> parseForkParams(const nlohmann::json& params);
 // Methods without params: refuses any key.
 void parseNoParams(const nlohmann::json& params, Method m);
 

@@ -81,3 +81,218 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   CHECK(hexDigest(*rec) == a.result("session.stats")["digest"].get<std::string>());
   fs::remove_all(dir);
 }
+
+TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for bit", "[hub][history]") {
+  const fs::path dir = freshDir("mine");
+  Hub hub(historyOptions(dir));
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  // A strokes on the left, B on the right, A's stroke first.
+  const json sa = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}});
+  a.result("stroke.dabs", {{"stroke", sa["stroke"]}, {"dabs", {{{"center", {6, 24, 24}}}, {{"center", {6, 27, 24}}}}}});
+  a.result("stroke.end", {{"stroke", sa["stroke"]}});
+  const json sb = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}});
+  b.result("stroke.dabs", {{"stroke", sb["stroke"]}, {"dabs", {{{"center", {41, 24, 24}}}, {{"center", {41, 27, 24}}}}}});
+  b.result("stroke.end", {{"stroke", sb["stroke"]}});
+
+  const json undone = a.result("history.undo", {{"scope", "mine"}});
+  CHECK(undone["revision"] == 3);
+  CHECK(undone["step"]["client"] == 1);
+  CHECK(undone["step"]["revision"] == 1);
+  CHECK(undone["can_redo"] == true);
+  const std::string digest = a.result("session.stats")["digest"];
+
+  // The same session where only B stroked.
+  Hub other(historyOptions());
+  TestClient c(other);
+  c.result("session.create", kCreate);
+  const json sc = c.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}});
+  c.result("stroke.dabs", {{"stroke", sc["stroke"]}, {"dabs", {{{"center", {41, 24, 24}}}, {{"center", {41, 27, 24}}}}}});
+  c.result("stroke.end", {{"stroke", sc["stroke"]}});
+  const std::string onlyB = c.result("session.stats")["digest"];
+  CHECK(digest == onlyB);
+  CHECK(digest != created["digest"].get<std::string>());
+
+  // The journal replays the undo mine through the history: same digest, B's step still B's.
+  {
+    const std::unique_ptr<Session> rec = recoverCopy(dir, "mine", id);
+    CHECK(hexDigest(*rec) == digest);
+    CHECK(rec->revision() == 3);
+    const std::vector<StepInfo> steps = rec->steps();
+    REQUIRE(steps.size() == 2);
+    CHECK(steps[0].author.id == "2");
+    CHECK_FALSE(steps[0].undone);
+    CHECK(steps[1].author.id == "1");
+    CHECK(steps[1].undone);
+  }
+
+  // A has nothing more to undo; B's own undo still works; redo mine brings A's back.
+  CHECK(a.error("history.undo", {{"scope", "mine"}}) == -32012);
+  const json redone = a.result("history.redo", {{"scope", "mine"}});
+  CHECK(redone["revision"] == 4);
+  CHECK(a.error("history.redo", {{"scope", "mine"}}) == -32012);
+  b.result("history.undo", {{"scope", "mine"}});
+  b.result("history.redo", {{"scope", "mine"}});
+  const std::string both = a.result("session.stats")["digest"];
+  CHECK(both != onlyB);
+  {
+    const std::unique_ptr<Session> rec = recoverCopy(dir, "mine2", id);
+    CHECK(hexDigest(*rec) == both);
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("undo mine refuses a step another client changed after it, naming who and which revision", "[hub][history]") {
+  Hub hub(historyOptions());
+  TestClient a(hub), b(hub), v(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  CHECK(a.error("history.undo", {{"scope", "mine"}}) == -32012);  // nothing of A's yet
+  a.result("tool.apply", kLeftBlob);
+  b.result("tool.apply", {{"tool", "add_blob"}, {"center", {7, 25, 24}}, {"radius", 4}});  // over A's blob
+  const std::string before = a.result("session.stats")["digest"];
+  const json refused = a.call("history.undo", {{"scope", "mine"}});
+  INFO(refused.dump());
+  REQUIRE(refused.contains("error"));
+  CHECK(refused["error"]["code"] == -32017);
+  CHECK(refused["error"]["data"]["client"] == 2);
+  CHECK(refused["error"]["data"]["revision"] == 2);
+  CHECK(refused["error"]["data"]["step"] == 1);
+  const std::string message = refused["error"]["message"];
+  CHECK(message.find("client 2") != std::string::npos);
+  CHECK(message.find("revision 2") != std::string::npos);
+  const json stats = a.result("session.stats");
+  CHECK(stats["digest"] == before);
+  CHECK(stats["revision"] == 2);
+  // The session-wide scope still undoes whoever's step is newest.
+  CHECK(a.result("history.undo", {{"scope", "session"}})["step"]["client"] == 2);
+  // Refusals: a bad scope names the field; a view client cannot undo.
+  const json bad = a.call("history.undo", {{"scope", "everyone"}});
+  CHECK(bad["error"]["code"] == -32602);
+  CHECK(bad["error"]["data"]["field"] == "scope");
+  CHECK(a.call("history.redo", {{"scope", 1}})["error"]["data"]["field"] == "scope");
+  CHECK(v.error("history.undo", {{"scope", "mine"}}) == -32007);
+  CHECK(v.error("history.redo", {{"scope", "mine"}}) == -32007);
+  CHECK(a.result("session.stats")["revision"] == 3);
+}
+
+TEST_CASE("history.list gives every step with its author, tool, time and region; view clients may read it",
+          "[hub][history]") {
+  Hub hub(historyOptions());
+  TestClient a(hub), b(hub), v(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  CHECK(v.result("history.list")["steps"] == json::array());
+  a.result("tool.apply", kLeftBlob);
+  const json sb = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 3}});
+  b.result("stroke.dabs", {{"stroke", sb["stroke"]}, {"dabs", {{{"center", {41, 24, 24}}}}}});
+  b.result("stroke.dabs", {{"stroke", sb["stroke"]}, {"dabs", {{{"center", {41, 28, 24}}}}}});
+  b.result("stroke.end", {{"stroke", sb["stroke"]}});
+  a.result("history.undo", {{"scope", "mine"}});
+  const json list = v.result("history.list");
+  INFO(list.dump());
+  CHECK(list["revision"] == 4);
+  const json& steps = list["steps"];
+  REQUIRE(steps.size() == 2);
+  CHECK(steps[0]["client"] == 2);
+  CHECK(steps[0]["tool"] == "add_blob");
+  CHECK(steps[0]["first_revision"] == 2);
+  CHECK(steps[0]["revision"] == 3);
+  CHECK(steps[0]["undone"] == false);
+  CHECK(steps[1]["client"] == 1);
+  CHECK(steps[1]["revision"] == 1);
+  CHECK(steps[1]["first_revision"] == 1);
+  CHECK(steps[1]["undone"] == true);
+  // Regions: around each blob (radius 4 at x = 6; radius 3 at x = 41), within the domain.
+  CHECK(steps[1]["region"]["lo"][0].get<int>() <= 2);
+  CHECK(steps[1]["region"]["hi"][0].get<int>() >= 10);
+  CHECK(steps[1]["region"]["hi"][0].get<int>() < 24);
+  CHECK(steps[0]["region"]["lo"][0].get<int>() > 24);
+  CHECK(steps[0]["region"]["hi"][1].get<int>() >= 31);
+  CHECK(steps[1]["time_ms"].get<std::int64_t>() > 1'700'000'000'000);
+  CHECK(steps[1]["time_ms"] <= steps[0]["time_ms"]);
+  CHECK(v.call("history.list", {{"scope", "mine"}})["error"]["code"] == -32602);
+  TestClient outside(hub);
+  CHECK(outside.error("history.list") == -32009);
+}
+
+TEST_CASE("session.fork starts a new session from the current volume or an earlier revision", "[hub][history]") {
+  const fs::path dir = freshDir("fork");
+  Hub hub(historyOptions(dir));
+  TestClient a(hub), b(hub), v(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  a.result("tool.apply", kLeftBlob);
+  const std::string atOne = a.result("session.stats")["digest"];
+  a.result("tool.apply", kRightBlob);
+  const std::string atTwo = a.result("session.stats")["digest"];
+
+  // Refusals change nothing: an unknown revision, a bad one, outside a session.
+  const json unknown = b.call("session.fork", {{"revision", 7}});
+  CHECK(unknown["error"]["code"] == -32602);
+  CHECK(unknown["error"]["data"]["field"] == "revision");
+  CHECK(b.call("session.fork", {{"revision", -1}})["error"]["data"]["field"] == "revision");
+  CHECK(b.call("session.fork", {{"at", 1}})["error"]["code"] == -32602);
+  TestClient outside(hub);
+  CHECK(outside.error("session.fork") == -32009);
+  CHECK(b.result("session.stats")["session"] == id);
+
+  // B forks at revision 1: a new session with B in it as editor, A's first blob only.
+  const json fork = b.result("session.fork", {{"revision", 1}});
+  INFO(fork.dump());
+  const std::string forkId = fork["session"];
+  CHECK(forkId != id);
+  CHECK(fork["revision"] == 1);
+  CHECK(fork["digest"] == atOne);
+  CHECK(fork["read_only"] == false);
+  CHECK(fork["token"].is_string());
+  CHECK(fork["view_token"].is_string());
+  CHECK(fork["can_undo"] == false);
+  CHECK(fork["forked_from"]["session"] == id);
+  CHECK(fork["forked_from"]["revision"] == 1);
+  CHECK(fork["clients"].size() == 1);
+  // B left the old session as session.leave would.
+  CHECK(a.result("session.stats")["clients"].size() == 2);
+  CHECK(a.result("session.stats")["digest"] == atTwo);
+  // The fork is B's to edit, and A's session does not change with it.
+  b.result("tool.apply", {{"tool", "remove_blob"}, {"center", {24, 42, 24}}, {"radius", 4}});
+  CHECK(b.result("session.stats")["revision"] == 2);
+  CHECK(a.result("session.stats")["digest"] == atTwo);
+  const std::string forkDigest = b.result("session.stats")["digest"];
+  // Persisted like a created session: recovered from the data directory alone.
+  CHECK(hexDigest(*recoverCopy(dir, "fork", forkId)) == forkDigest);
+
+  // A view client may fork the current volume: it becomes the fork's editor.
+  const json viewFork = v.result("session.fork");
+  CHECK(viewFork["digest"] == atTwo);
+  CHECK(viewFork["revision"] == 2);
+  CHECK(viewFork["read_only"] == false);
+  v.result("tool.apply", kLeftBlob);
+  // Others join a fork with its tokens.
+  TestClient d(hub);
+  CHECK(d.result("session.join", {{"session", forkId}, {"token", fork["view_token"]}, {"view", "none"}})["digest"] ==
+        forkDigest);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("session.fork counts against the create limits", "[hub][history]") {
+  HubOptions o = historyOptions();
+  o.limits.maxCreatesPerMinute = 2;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  a.result("session.fork");
+  const json refused = a.call("session.fork");
+  INFO(refused.dump());
+  CHECK(refused["error"]["code"] == -32004);
+  CHECK(refused["error"]["data"]["limit"] == "max_creates_per_minute");
+  CHECK(a.result("session.stats")["revision"] == 0);  // still in its first fork
+}

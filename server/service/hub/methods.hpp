@@ -40,12 +40,15 @@ void sessionCreate(HubCore&, const Call&);
 void sessionJoin(HubCore&, const Call&);
 void sessionLeave(HubCore&, const Call&);
 void sessionStats(HubCore&, const Call&);
+void sessionFork(HubCore&, const Call&);
 void opCancel(HubCore&, const Call&);
 
 // methods_edit.cpp: changes to the volume and its history.
 // The author a client's steps are recorded with (service/history.hpp): its client id in the
 // session, as text. On the session's strand.
 StepAuthor authorOf(const HubClient& c);
+// A step as history.list and history.undo/redo give it (PROTOCOL.md).
+nlohmann::json stepJson(const StepInfo& step);
 void toolApply(HubCore&, const Call&);
 void volumeMorph(HubCore&, const Call&);
 void strokeBegin(HubCore&, const Call&);
@@ -53,6 +56,7 @@ void strokeDabs(HubCore&, const Call&);
 void strokeEnd(HubCore&, const Call&);
 void historyUndo(HubCore&, const Call&);
 void historyRedo(HubCore&, const Call&);
+void historyList(HubCore&, const Call&);
 
 // methods_view.cpp: what a client sees.
 void viewSet(HubCore&, const Call&);

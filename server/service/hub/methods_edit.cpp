@@ -1,8 +1,9 @@
 // Handlers of the methods that change a session's volume or history: tool.apply, volume.morph,
-// stroke.begin/dabs/end, history.undo/redo (service/hub/methods.hpp). Each runs on the session's
-// strand; a change is journaled before its response (Reply::record), and its clients hear of it
-// after (Broadcaster::changed). The table gives them Access::Editor: a view client's request is
-// refused (-32007) on the strand, after its params were checked.
+// stroke.begin/dabs/end, history.undo/redo, and the read-only history.list (service/hub/methods.hpp).
+// Each runs on the session's strand; a change is journaled before its response (Reply::record),
+// and its clients hear of it after (Broadcaster::changed). The table gives the changes
+// Access::Editor: a view client's request is refused (-32007) on the strand, after its params
+// were checked.
 #include "engine/thread_pool.hpp"
 #include "service/apply_op.hpp"
 #include "service/hub/core.hpp"
@@ -29,14 +30,50 @@ RpcException notOpenStroke(std::uint64_t stroke) {
                       {{"field", "stroke"}});
 }
 
+// A step's author as the wire names it: the client id (an integer), or null for a step without
+// one (recorded before authors were).
+json clientOf(const StepAuthor& a) {
+  if (a.id.empty() || a.id.size() > 9 || a.id.find_first_not_of("0123456789") != std::string::npos) return nullptr;
+  return std::stoi(a.id);
+}
+
+std::string describeAuthor(const StepAuthor& a) {
+  std::string who = a.id.empty() ? std::string("an unknown client") : "client " + a.id;
+  if (!a.name.empty()) who += " (" + a.name + ")";
+  return who;
+}
+
+// scope "mine" refused: the step in the way, named by its author and revision.
+RpcException undoConflict(const HistoryResult& h, bool undo) {
+  const StepInfo& mine = *h.step;
+  const StepInfo& other = *h.conflict;
+  const std::string message =
+      undo ? describeAuthor(other.author) + "'s step at revision " + std::to_string(other.revision) + " (" + other.tool +
+                 ") changed bricks of your step at revision " + std::to_string(mine.revision) +
+                 " after it: it cannot be undone alone"
+           : describeAuthor(other.author) + "'s undone step at revision " + std::to_string(other.revision) + " (" +
+                 other.tool + ") holds bricks of your undone step at revision " + std::to_string(mine.revision) +
+                 ": it would have to be redone first";
+  return RpcException(RpcCode::UndoConflict, message,
+                      {{"client", clientOf(other.author)}, {"revision", other.revision}, {"step", mine.revision}});
+}
+
 void historyStep(HubCore& hub, const Call& call, bool undo) {
-  protocol::parseNoParams(call.req.params, call.req.method);
-  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, undo](LiveSession& s, Reply& r) {
-    const HistoryResult h = undo ? s.session->undo() : s.session->redo();
-    if (!h.changed) throw RpcException(RpcCode::NothingToUndo, undo ? "nothing to undo" : "nothing to redo");
+  const protocol::HistoryScope scope = protocol::parseHistoryParams(call.req.params, call.req.method);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, undo, scope](LiveSession& s, Reply& r) {
+    const bool mine = scope == protocol::HistoryScope::Mine;
+    const std::string me = authorOf(*c).id;
+    const HistoryResult h = !mine ? (undo ? s.session->undo() : s.session->redo())
+                                  : (undo ? s.session->undoMine(me) : s.session->redoMine(me));
+    if (h.conflict) throw undoConflict(h, undo);
+    if (!h.changed)
+      throw RpcException(RpcCode::NothingToUndo, mine ? (undo ? "you have no step to undo" : "you have no undone step to redo")
+                                                      : (undo ? "nothing to undo" : "nothing to redo"));
     r.result = {{"revision", h.revision}, {"can_undo", h.canUndo}, {"can_redo", h.canRedo}};
-    r.record = [self, &s, undo, h] {
+    if (h.step) r.result["step"] = stepJson(*h.step);
+    r.record = [self, &s, undo, mine, h] {
       const std::string step = self->store->persistent() ? self->store->saveStep(s.id, h.revision, h.restored) : std::string();
+      if (mine) return authorMoveRecord(undo, h.revision, step, *h.step);
       return json{{"r", h.revision}, {undo ? "undo" : "redo", step}};
     };
     r.after = [self, &s, c, h, undo] { self->broadcast.changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
@@ -46,6 +83,27 @@ void historyStep(HubCore& hub, const Call& call, bool undo) {
 }  // namespace
 
 StepAuthor authorOf(const HubClient& c) { return {std::to_string(c.clientId), {}}; }
+
+json stepJson(const StepInfo& st) {
+  json j{{"revision", st.revision},
+         {"first_revision", st.firstRevision},
+         {"client", clientOf(st.author)},
+         {"tool", st.tool},
+         {"time_ms", st.timeMs},
+         {"region", protocol::boxJson(st.region)},
+         {"undone", st.undone}};
+  if (!st.author.name.empty()) j["name"] = st.author.name;
+  return j;
+}
+
+void historyList(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  hub.onStrand(call, false, [](LiveSession& s, Reply& r) {
+    json steps = json::array();
+    for (const StepInfo& st : s.session->steps()) steps.push_back(stepJson(st));
+    r.result = {{"revision", s.session->revision()}, {"steps", std::move(steps)}};
+  });
+}
 
 void toolApply(HubCore& hub, const Call& call) {
   const protocol::ToolApplyParams p = protocol::parseToolApplyParams(call.req.params);

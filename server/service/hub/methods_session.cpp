@@ -1,4 +1,4 @@
-// Handlers of session.create, session.join, session.leave, session.stats and op.cancel
+// Handlers of session.create, session.fork, session.join, session.leave, session.stats and op.cancel
 // (service/hub/methods.hpp).
 #include "engine/measures.hpp"
 #include "engine/solids.hpp"
@@ -55,6 +55,44 @@ void sessionCreate(HubCore& hub, const Call& call) {
                  self->log("session " + ls.id + ": created (" + solidKindName(solid) + " " + std::to_string(dims.x) +
                            "x" + std::to_string(dims.y) + "x" + std::to_string(dims.z) + ") by " + c->peer);
                });
+}
+
+void sessionFork(HubCore& hub, const Call& call) {
+  const std::optional<std::uint64_t> revision = protocol::parseForkParams(call.req.params);
+  const std::shared_ptr<HubClient>& c = call.client;
+  std::shared_ptr<LiveSession> old = c->session;
+  // Not through onStrand: the old session's strand takes the volume and lets the caller go, then
+  // the new one's admits it and answers. The connection's pump waits for this request, so the
+  // pump-only fields (creates, session) are touched by no one else meanwhile.
+  old->strand->post([self = hub.shared_from_this(), c, old, id = call.req.id, arrived = call.arrived, revision] {
+    std::shared_ptr<LiveSession> fresh;
+    ViewMode view = ViewMode::None;
+    std::uint64_t from = 0;
+    try {
+      if (old->unloaded || !old->session || c->session != old)
+        throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
+      Volume volume = old->session->forkVolume(revision);  // -32602 "revision" before anything changes
+      from = volume.revision();
+      fresh = self->registry.create(*c, std::nullopt, [volume](HubCore&) { return volume; });
+      // Frames need a camera sent again (view.set); splats follow as after session.create.
+      view = c->mode == ViewMode::Splats ? ViewMode::Splats : ViewMode::None;
+      self->registry.leave(*old, *c);
+      c->session.reset();
+    } catch (...) {
+      self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+      return self->finish(c);
+    }
+    self->onStrand(c, fresh, id, arrived, false, Access::Anyone,
+                   [self, c, fresh, view, from, oldId = old->id](LiveSession& ls, Reply& r) {
+                     self->registry.admit(ls, c, false, view, r);
+                     c->session = fresh;
+                     r.result["token"] = ls.secrets.token;
+                     r.result["view_token"] = ls.secrets.viewToken;
+                     r.result["forked_from"] = {{"session", oldId}, {"revision", from}};
+                     self->log("session " + ls.id + ": forked from " + oldId + " at revision " + std::to_string(from) +
+                               " by " + c->peer);
+                   });
+  });
 }
 
 void sessionJoin(HubCore& hub, const Call& call) {

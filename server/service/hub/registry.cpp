@@ -115,8 +115,17 @@ void SessionRegistry::checkCreateRate(HubClient& c) {
 }
 
 std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const protocol::CreateParams& p) {
+  const Int3 dims = p.size;
+  const SolidKind solid = p.solid;
+  return create(c, p.session, [dims, solid](HubCore& hub) {
+    return makeSolid(solid, dims, Volume::kDefaultBand, hub.pool);
+  });
+}
+
+std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const std::optional<std::string>& proposed,
+                                                     std::function<Volume(HubCore&)> build) {
   checkCreateRate(c);
-  const std::string id = p.session.value_or(randomText(kSessionIdChars));
+  const std::string id = proposed.value_or(randomText(kSessionIdChars));
   auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, hub_.workers);
   const auto taken = [&] {
     return RpcException(RpcCode::SessionExists, "a session with id \"" + id + "\" exists already; propose another",
@@ -132,13 +141,10 @@ std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const protoco
     sessions_[id] = s;
   }
   HubCore::emit(hub_.options.events.sessions, 1);
-  const Int3 dims = p.size;
-  const SolidKind solid = p.solid;
   // The volume is built on the strand, before anything else can reach the new session.
-  s->strand->post([self = hub_.shared_from_this(), s, dims, solid] {
+  s->strand->post([self = hub_.shared_from_this(), s, build = std::move(build)] {
     try {
-      s->session = std::make_unique<Session>(makeSolid(solid, dims, Volume::kDefaultBand, self->pool),
-                                             self->limits().historyBytes);
+      s->session = std::make_unique<Session>(build(*self), self->limits().historyBytes);
       if (self->store->persistent()) {
         if (!self->store->acquire(s->id)) throw self->durability.heldElsewhere(s->id, "another server holds this session id");
         s->journal = self->store->create(s->id, s->secrets, s->session->volume());

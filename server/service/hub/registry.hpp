@@ -15,7 +15,9 @@
 #include <chrono>
 #include <cstddef>
 #include <deque>
+#include <functional>
 #include <future>
+#include <optional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -51,6 +53,10 @@ class SessionRegistry {
   // lease and first snapshot) is built on its strand before anything else runs there. Counts
   // the create against max_creates_per_minute (per connection and per address) first.
   std::shared_ptr<LiveSession> create(HubClient& c, const protocol::CreateParams& p);
+  // The same with the volume build() makes on the new session's strand (session.fork: a copy
+  // of another session's volume, sharing its bricks); proposed: the id, else a random one.
+  std::shared_ptr<LiveSession> create(HubClient& c, const std::optional<std::string>& proposed,
+                                      std::function<Volume(HubCore&)> build);
   // The live session of this id, loading it from the storage when it sleeps there.
   std::shared_ptr<LiveSession> findOrLoad(const std::string& id, const std::string& token);
 
