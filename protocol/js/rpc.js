@@ -7,7 +7,7 @@
 // header carries the id as a u32), can use them; after 2^32 - 1 they start again at 1.
 
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 1 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 2 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 
@@ -32,6 +32,8 @@ export const METHODS = Object.freeze([
   "volume.load",
   "analysis.thickness",
   "op.cancel",
+  "history.list",
+  "session.fork",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -67,6 +69,7 @@ export const RpcErrorCode = Object.freeze({
   SessionExists: -32014,
   SessionHeldElsewhere: -32015,
   Cancelled: -32016,
+  UndoConflict: -32017,
 });
 
 const ERROR_NAMES = new Map(Object.entries(RpcErrorCode).map(([name, code]) => [code, name]));

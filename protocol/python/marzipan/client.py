@@ -570,11 +570,28 @@ class Client:
         end = await self.end_stroke(stroke)
         return {"stroke": stroke, "applied": applied, **end}
 
-    async def undo(self) -> dict:
-        return await self._result("history.undo", {})
+    async def undo(self, scope: str | None = None) -> dict:
+        """history.undo: the session's newest step (scope None or "session"), or this client's
+        own newest step (scope "mine"; UndoConflict when another step touched its bricks
+        since). Returns {revision, can_undo, can_redo, step}."""
+        return await self._result("history.undo", _without_none(scope=scope))
 
-    async def redo(self) -> dict:
-        return await self._result("history.redo", {})
+    async def redo(self, scope: str | None = None) -> dict:
+        """history.redo, scoped as undo()."""
+        return await self._result("history.redo", _without_none(scope=scope))
+
+    async def history(self) -> list:
+        """history.list: the session's steps, oldest first, then the undone ones in redo order:
+        [{revision, first_revision, client, tool, time_ms, region, undone}]."""
+        return (await self._result("history.list", {}))["steps"]
+
+    async def fork(self, revision: int | None = None) -> dict:
+        """session.fork: a new session from the current volume or an earlier `revision` still
+        in history; this client leaves its session and is the new one's editor. Returns the
+        result as create_session() (session, token, view_token, ...) with forked_from."""
+        result = await self._result("session.fork", _without_none(revision=revision))
+        self._remember_session(result)
+        return result
 
     # --------------------------------------------------------------------------- bulk answers
 

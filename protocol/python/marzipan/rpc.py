@@ -37,6 +37,8 @@ METHODS = (
     "volume.load",
     "analysis.thickness",
     "op.cancel",
+    "history.list",
+    "session.fork",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
@@ -65,6 +67,7 @@ class ErrorCode(enum.IntEnum):
     SESSION_EXISTS = -32014
     SESSION_HELD_ELSEWHERE = -32015
     CANCELLED = -32016
+    UNDO_CONFLICT = -32017
 
 
 class MarzipanError(Exception):
@@ -120,6 +123,20 @@ class SessionHeldElsewhere(RpcError):
 
 class Cancelled(RpcError): pass
 
+class UndoConflict(RpcError):
+    """-32017 (since 1.2): history.undo/redo with scope "mine" refused because another step
+    touched the bricks of the caller's step; `client` and `revision` name that step."""
+
+    @property
+    def client(self) -> int | None:
+        value = self.data.get("client")
+        return value if isinstance(value, int) else None
+
+    @property
+    def revision(self) -> int | None:
+        value = self.data.get("revision")
+        return value if isinstance(value, int) else None
+
 
 _ERROR_CLASSES = {
     ErrorCode.PARSE_ERROR: ParseError,
@@ -138,6 +155,7 @@ _ERROR_CLASSES = {
     ErrorCode.NOT_IN_SESSION: NotInSession,
     ErrorCode.ALREADY_IN_SESSION: AlreadyInSession,
     ErrorCode.NO_SUCH_STROKE: NoSuchStroke,
+    ErrorCode.UNDO_CONFLICT: UndoConflict,
     ErrorCode.NOTHING_TO_UNDO_REDO: NothingToUndoRedo,
     ErrorCode.UPLOAD_MISSING: UploadMissing,
     ErrorCode.SESSION_EXISTS: SessionExists,

@@ -33,7 +33,8 @@ test("RpcErrorCode holds exactly the codes of PROTOCOL.md's error table", () => 
   assert.equal(rpcErrorName(-32014), "SessionExists");
   assert.equal(rpcErrorName(-32015), "SessionHeldElsewhere");
   assert.equal(rpcErrorName(-32016), "Cancelled");
-  assert.equal(rpcErrorName(-32017), "");
+  assert.equal(rpcErrorName(-32017), "UndoConflict");
+  assert.equal(rpcErrorName(-32018), "");
 });
 
 test("responses with a result are classified as results", () => {
