@@ -362,8 +362,9 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
 
 RenderFrameParams parseRenderFrameParams(const json& params, int maxSide) {
   const std::string context = paramsContext(Method::RenderFrame);
-  checkKeys(params, {"camera", "width", "height", "format", "quality", "shading", "min_vu"}, context);
+  checkKeys(params, {"camera", "width", "height", "format", "quality", "shading", "min_vu", "revision"}, context);
   RenderFrameParams p;
+  if (const json* rev = find(params, "revision")) p.revision = std::uint64_t(integerInRange(*rev, "revision", 0, kMaxSafeInteger));
   const std::string format = stringValue(require(params, "format", context), "format");
   if (format == "jpeg") p.format = ImageKind::Jpeg;
   else if (format == "png") p.format = ImageKind::Png;

@@ -180,6 +180,7 @@ struct RenderFrameParams {
   int quality = 90;
   Shading shading = Shading::Lit;
   double minVu = 1;  // thickness shading: red below this many vu
+  std::optional<std::uint64_t> revision;  // an earlier revision still in history (since 1.2)
 };
 
 // Session ids and tokens as PROTOCOL.md spells them.

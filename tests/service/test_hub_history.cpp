@@ -10,6 +10,7 @@
 
 #include "engine/measures.hpp"
 #include "engine/thread_pool.hpp"
+#include "protocol/cpp/frames.hpp"
 #include "service/hub.hpp"
 #include "service/session_store.hpp"
 #include "hub_support.hpp"
@@ -53,6 +54,25 @@ std::unique_ptr<Session> recoverCopy(const fs::path& dir, const std::string& nam
 }
 
 std::string hexDigest(const Session& s) { return digestHex(s.volume()); }
+
+// The PNG render.frame sends for params (its binary frame, without the header), and its result.
+std::pair<Bytes, json> framePng(TestClient& c, json params) {
+  params["camera"] = {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}};
+  params["width"] = 64;
+  params["height"] = 48;
+  params["format"] = "png";
+  const int id = c.nextId;
+  const json r = c.result("render.frame", params);
+  const std::size_t at = c.link->waitFor([&](const auto& m) {
+    const Bytes* b = std::get_if<Bytes>(&m);
+    if (!b) return false;
+    const auto d = protocol::decodeFrameHeader(*b);
+    return d && d.frame->header.requestId == std::uint32_t(id);
+  });
+  const Bytes f = std::get<Bytes>(c.link->at(at));
+  REQUIRE(protocol::decodeFrameHeader(f).frame->header.revision == r["revision"].get<std::uint64_t>());
+  return {Bytes(f.begin() + protocol::kFrameHeaderBytes, f.end()), r};
+}
 
 }  // namespace
 
@@ -295,4 +315,28 @@ TEST_CASE("session.fork counts against the create limits", "[hub][history]") {
   CHECK(refused["error"]["code"] == -32004);
   CHECK(refused["error"]["data"]["limit"] == "max_creates_per_minute");
   CHECK(a.result("session.stats")["revision"] == 0);  // still in its first fork
+}
+
+TEST_CASE("render.frame of an earlier revision draws the volume of that step, the session unchanged", "[hub][history]") {
+  Hub hub(historyOptions());
+  TestClient a(hub), v(hub), one(hub);
+  const json created = a.result("session.create", kCreate);
+  v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
+  a.result("tool.apply", kLeftBlob);
+  a.result("tool.apply", kRightBlob);
+  // The same volume as revision 1, made on its own.
+  one.result("session.create", kCreate);
+  one.result("tool.apply", kLeftBlob);
+  const auto [expected, oneResult] = framePng(one, json::object());
+  const auto [past, pastResult] = framePng(v, {{"revision", 1}});
+  const auto [now, nowResult] = framePng(v, json::object());
+  CHECK(pastResult["revision"] == 1);
+  CHECK(nowResult["revision"] == 2);
+  CHECK(past == expected);
+  CHECK(now != past);
+  const json unknown = v.call("render.frame", {{"camera", {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}}},
+                                               {"width", 8}, {"height", 8}, {"format", "png"}, {"revision", 5}});
+  CHECK(unknown["error"]["code"] == -32602);
+  CHECK(unknown["error"]["data"]["field"] == "revision");
+  CHECK(a.result("session.stats")["revision"] == 2);
 }

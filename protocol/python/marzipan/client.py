@@ -604,13 +604,14 @@ class Client:
 
     async def frame(self, camera: dict, width: int, height: int, format: str = "png", *,
                     quality: int | None = None, shading: str | None = None,
-                    min_vu: float | None = None) -> bytes:
+                    min_vu: float | None = None, revision: int | None = None) -> bytes:
         """render.frame: the image file (PNG or JPEG) of `camera` = {eye, target, up?, fov?}
         at width x height; shading "lit" (default), "normals", "gradient_error" or "thickness"
-        (with min_vu: walls thinner than that are red)."""
+        (with min_vu: walls thinner than that are red); `revision`: the volume right after that
+        step of history() instead of the current one."""
         _, frame = await self.call("render.frame", _without_none(
             camera=camera, width=width, height=height, format=format, quality=quality, shading=shading,
-            min_vu=min_vu))
+            min_vu=min_vu, revision=revision))
         return bytes(frame.payload)
 
     async def export_mesh(self, format: str = "stl", max_triangles: int | None = None,

@@ -99,9 +99,11 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
                 Clock::time_point arrived, bool editLatency, Access access, std::function<void(LiveSession&, Reply&)> fn);
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports, measures), answers and lets the connection go on. atStrand, when given, starts
-  // the reply on the strand with what needs the live session.
+  // the reply on the strand with what needs the live session. at: the snapshot is the volume
+  // at that revision instead (Session::volumeAt, which unpacks the later steps' bricks on the
+  // strand); -32602 field "revision" when the history has no such step.
   void offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
-                 std::function<void(LiveSession&, Reply&)> atStrand = {});
+                 std::function<void(LiveSession&, Reply&)> atStrand = {}, std::optional<std::uint64_t> at = std::nullopt);
   // -32007 when c joined with the view token and the call needs edit rights (on the strand).
   static void checkAccess(const HubClient& c, Access access);
 

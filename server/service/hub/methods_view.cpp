@@ -37,7 +37,7 @@ void renderFrame(HubCore& hub, const Call& call) {
     r.frame = makeFrame(png ? protocol::FrameKind::FramePng : protocol::FrameKind::FrameJpeg, frameId, revision, file);
     r.result = {{"revision", revision}, {"width", f.width}, {"height", f.height}, {"format", png ? "png" : "jpeg"},
                 {"bytes", file.size()}};
-  });
+  }, {}, p.revision);
 }
 
 void splatsGet(HubCore& hub, const Call& call) {

@@ -63,17 +63,23 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
 }
 
 void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
-                        std::function<void(LiveSession&, Reply&)> atStrand) {
+                        std::function<void(LiveSession&, Reply&)> atStrand, std::optional<std::uint64_t> at) {
   const std::shared_ptr<HubClient>& c = call.client;
   std::shared_ptr<LiveSession> s = c->session;
   s->strand->post([self = shared_from_this(), c, s, id = call.req.id, fn = std::move(fn),
-                   atStrand = std::move(atStrand)]() mutable {
+                   atStrand = std::move(atStrand), at]() mutable {
     if (s->unloaded || !s->session) {
       self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
       return self->finish(c);
     }
-    auto snapshot = std::make_shared<Volume>(s->session->snapshot());
-    const std::uint64_t revision = s->session->revision();
+    std::shared_ptr<Volume> snapshot;
+    try {
+      snapshot = std::make_shared<Volume>(at ? s->session->forkVolume(at) : s->session->snapshot());
+    } catch (...) {
+      self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+      return self->finish(c);
+    }
+    const std::uint64_t revision = at ? *at : s->session->revision();
     auto started = std::make_shared<Reply>();
     if (atStrand) atStrand(*s, *started);
     self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn), started] {

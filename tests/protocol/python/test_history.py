@@ -1,7 +1,8 @@
 """Undo mine, history and fork of protocol/python/marzipan/client.py against `marzipan serve`
 ($MARZIPAN_BIN on a free port): two clients each stroke, A's undo(scope="mine") removes A's
 stroke and leaves B's (the digest of a session where only B stroked), a conflict names the
-other client, history() lists the authors, fork() opens the chosen revision."""
+other client, history() lists the authors, fork() opens the chosen revision, and frame() of an
+earlier revision draws what that fork holds."""
 
 import asyncio
 import unittest
@@ -93,13 +94,21 @@ class HistoryAgainstServer(unittest.TestCase):
                 await a.apply("add_blob", center=[41, 24, 24], radius=4)
                 with self.assertRaises(rpc.InvalidParams) as unknown:
                     await a.fork(revision=9)
+                camera = {"eye": [24, 30, 120], "target": [24, 24, 24]}
+                past = await a.frame(camera, 64, 48, revision=1)
+                current = await a.frame(camera, 64, 48)
                 forked = await a.fork(revision=1)
+                forked_frame = await a.frame(camera, 64, 48)
                 stats = await a.stats()
                 async with Client.connect(self.url, session=created["session"]) as b:
                     rejoined = await b.join(created["session"], created["view_token"])
-                return created, at_one, unknown.exception, forked, stats, rejoined, a.session, a.token
+                return (created, at_one, unknown.exception, forked, stats, rejoined, a.session, a.token,
+                        (past, current, forked_frame))
 
-        created, at_one, unknown, forked, stats, rejoined, session, token = run(go())
+        created, at_one, unknown, forked, stats, rejoined, session, token, frames = run(go())
+        past, current, forked_frame = frames
+        self.assertEqual(past, forked_frame, "render.frame of revision 1 draws what the fork at 1 holds")
+        self.assertNotEqual(past, current)
         self.assertEqual(unknown.field, "revision")
         self.assertNotEqual(forked["session"], created["session"])
         self.assertEqual((session, token), (forked["session"], forked["token"]))
