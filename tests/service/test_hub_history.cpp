@@ -340,3 +340,33 @@ TEST_CASE("render.frame of an earlier revision draws the volume of that step, th
   CHECK(unknown["error"]["data"]["field"] == "revision");
   CHECK(a.result("session.stats")["revision"] == 2);
 }
+
+TEST_CASE("redo mine refuses a step under another client's undone step that holds its bricks", "[hub][history]") {
+  const fs::path dir = freshDir("redo");
+  Hub hub(historyOptions(dir));
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  a.result("tool.apply", kLeftBlob);
+  b.result("tool.apply", {{"tool", "add_blob"}, {"center", {7, 25, 24}}, {"radius", 4}});  // over A's blob
+  a.result("history.undo");  // B's step
+  a.result("history.undo");  // A's step: now above B's on the redo list
+  const std::string before = a.result("session.stats")["digest"];
+  const json refused = b.call("history.redo", {{"scope", "mine"}});
+  INFO(refused.dump());
+  REQUIRE(refused.contains("error"));
+  CHECK(refused["error"]["code"] == -32017);
+  CHECK(refused["error"]["data"]["client"] == 1);
+  CHECK(refused["error"]["data"]["revision"] == 1);
+  CHECK(refused["error"]["data"]["step"] == 2);
+  CHECK(a.result("session.stats")["digest"] == before);
+  // A redoes its own first; then B's redo mine goes through, back to both blobs.
+  CHECK(a.result("history.redo", {{"scope", "mine"}})["step"]["client"] == 1);
+  CHECK(b.result("history.redo", {{"scope", "mine"}})["step"]["client"] == 2);
+  CHECK(b.error("history.redo", {{"scope", "mine"}}) == -32012);
+  const json stats = a.result("session.stats");
+  CHECK(stats["revision"] == 6);
+  CHECK(hexDigest(*recoverCopy(dir, "redo", id)) == stats["digest"].get<std::string>());
+  fs::remove_all(dir);
+}
