@@ -92,6 +92,18 @@ export function ownerUrl(error, currentUrl) {
   return url.href;
 }
 
+// What -32017 (undo conflict, since 1.2) names: `client` (the author of the step in the way, or
+// null when not recorded), `revision` (that step's) and `step` (the revision of the caller's
+// step that history.undo/redo {scope: "mine"} refused); null for any other error or a malformed
+// data.
+export function undoConflictOf(error) {
+  if (error?.code !== RpcErrorCode.UndoConflict) return null;
+  const { client = null, revision, step } = error.data ?? {};
+  const count = (v) => Number.isSafeInteger(v) && v >= 1;
+  if (!(client === null || count(client)) || !count(revision) || !count(step)) return null;
+  return { client, revision, step };
+}
+
 // Kinds of incoming message that classifyMessage tells apart.
 export const MessageKind = Object.freeze({
   Result: "result", // {jsonrpc, id, result}: the answer to a request

@@ -3,7 +3,9 @@
 // author moves: replay reaches the same digest).
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <filesystem>
+#include <thread>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -88,6 +90,7 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   b.result("stroke.dabs", {{"stroke", stroke["stroke"]}, {"dabs", {{{"center", {41, 24, 24}}}, {{"center", {41, 26, 24}}}}}});
   b.result("stroke.end", {{"stroke", stroke["stroke"]}});
   a.result("volume.morph", {{"kind", "dilate"}, {"radius", 1}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the replay's clock is later
   const std::unique_ptr<Session> rec = recoverCopy(dir, "authors", id);
   const std::vector<StepInfo> steps = rec->steps();
   REQUIRE(steps.size() == 3);
@@ -96,6 +99,14 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   CHECK(steps[1].author.id == "2");
   CHECK(steps[2].author.id == "1");
   CHECK(steps[2].tool == "morph");
+  // The times are the journal's, not the replay's clock: those history.list gives live.
+  const json live = a.result("history.list")["steps"];
+  REQUIRE(live.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    CHECK(steps[i].timeMs == live[i]["time_ms"].get<std::int64_t>());
+    CHECK(steps[i].revision == live[i]["revision"].get<std::uint64_t>());
+    CHECK(steps[i].firstRevision == live[i]["first_revision"].get<std::uint64_t>());
+  }
   CHECK(steps[0].timeMs > 1'700'000'000'000);
   CHECK(steps[0].timeMs <= steps[2].timeMs);
   CHECK(hexDigest(*rec) == a.result("session.stats")["digest"].get<std::string>());

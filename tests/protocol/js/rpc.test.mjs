@@ -14,6 +14,7 @@ import {
   classifyMessage,
   ownerUrl,
   rpcErrorName,
+  undoConflictOf,
 } from "../../../protocol/js/rpc.js";
 import { protocolMarkdown, vectors } from "./vectors.mjs";
 
@@ -152,4 +153,17 @@ test("ownerUrl: -32015's data.owner as the URL to reconnect to, path and session
   assert.equal(ownerUrl({ code: -32015, message: "m", data: { owner: "host-1234" } }, "ws://a:1/ws"), null);
   assert.equal(ownerUrl({ code: -32015, message: "m", data: { owner: "evil.example:80/x" } }, "ws://a:1/ws"), null);
   assert.equal(ownerUrl({ code: -32001, message: "m", data: { owner: "b:1" } }, "ws://a:1/ws"), null);
+});
+
+test("undoConflictOf reads -32017's data and nothing else", () => {
+  const vector = vectors.errors.find((e) => e.code === RpcErrorCode.UndoConflict);
+  const c = classifyMessage(vector.text);
+  assert.deepEqual(undoConflictOf(c.error), { client: 2, revision: 5, step: 3 });
+  const conflict = (data) => undoConflictOf({ code: -32017, message: "m", data });
+  assert.deepEqual(conflict({ client: null, revision: 5, step: 3 }), { client: null, revision: 5, step: 3 });
+  assert.equal(conflict({ client: 2, revision: "5", step: 3 }), null);
+  assert.equal(conflict({ client: 0, revision: 5, step: 3 }), null);
+  assert.equal(conflict(undefined), null);
+  assert.equal(undoConflictOf({ code: -32012, message: "m", data: { client: 2, revision: 5, step: 3 } }), null);
+  assert.equal(undoConflictOf(undefined), null);
 });
