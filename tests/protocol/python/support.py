@@ -105,3 +105,19 @@ class ServerProcess:
             self.data_dir.cleanup()
             self.data_dir = None
         return code
+
+
+class ServerTestCase(unittest.TestCase):
+    """A test class sharing one `marzipan serve` (cls.server, its WebSocket URL cls.url); the
+    server must exit 0 on SIGTERM after the class's tests. Decorate subclasses with needs_server."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.server = ServerProcess().start()
+        cls.url = cls.server.ws_url
+
+    @classmethod
+    def tearDownClass(cls):
+        code = cls.server.stop()
+        if code not in (0, None):
+            raise AssertionError(f"marzipan serve exited with {code} after SIGTERM")

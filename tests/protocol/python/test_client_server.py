@@ -10,7 +10,7 @@ import struct
 import unittest
 import zlib
 
-from support import ServerProcess, needs_server
+from support import ServerProcess, ServerTestCase, needs_server
 
 from marzipan import rpc
 from marzipan.client import Client, new_session_id
@@ -44,17 +44,7 @@ async def take_until(client, predicate, timeout=10):
 
 
 @needs_server
-class AgainstServer(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.server = ServerProcess().start()
-        cls.url = cls.server.ws_url
-
-    @classmethod
-    def tearDownClass(cls):
-        code = cls.server.stop()
-        if code not in (0, None):
-            raise AssertionError(f"marzipan serve exited with {code} after SIGTERM")
+class AgainstServer(ServerTestCase):
 
     def test_create_answers_every_documented_field(self):
         async def go():

@@ -7,7 +7,7 @@ earlier revision draws what that fork holds."""
 import asyncio
 import unittest
 
-from support import ServerProcess, needs_server
+from support import ServerTestCase, needs_server
 
 from marzipan import rpc
 from marzipan.client import Client
@@ -22,17 +22,7 @@ RIGHT = [[41, 24, 24], [41, 27, 24]]
 
 
 @needs_server
-class HistoryAgainstServer(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.server = ServerProcess().start()
-        cls.url = cls.server.ws_url
-
-    @classmethod
-    def tearDownClass(cls):
-        code = cls.server.stop()
-        if code not in (0, None):
-            raise AssertionError(f"marzipan serve exited with {code} after SIGTERM")
+class HistoryAgainstServer(ServerTestCase):
 
     def test_undo_mine_removes_only_my_stroke(self):
         async def go():
