@@ -447,45 +447,39 @@ std::optional<std::size_t> firstMeeting(const Steps& steps, std::size_t mine, st
   return firstTouching(steps, m.edit ? bricksOf(*m.edit) : m.packed.bricks, m.info.bricks, from, to);
 }
 
+// The author's newest step of `steps` moved by move(index), unless a later step of the same
+// list touched one of its bricks: the oldest such step holds them now and is in the way (on
+// the redo list, the steps above come back first).
+template <class Steps, class Move>
+History::AuthorMove moveNewestOf(const Steps& steps, const std::string& author, Move&& move) {
+  History::AuthorMove r;
+  if (author.empty()) return r;
+  std::size_t i = steps.size();
+  while (i > 0 && steps[i - 1].info.author.id != author) --i;
+  if (i == 0) return r;
+  --i;
+  if (const auto j = firstMeeting(steps, i, i + 1, steps.size())) {
+    r.outcome = History::AuthorMove::Conflict;
+    r.step = steps[i].info;
+    r.conflict = steps[*j].info;
+    return r;
+  }
+  r.edit = move(i);
+  r.outcome = History::AuthorMove::Moved;
+  return r;
+}
+
 }  // namespace
 
 History::AuthorMove History::undoOf(Volume& vol, const std::string& author) {
-  AuthorMove r;
-  if (author.empty()) return r;
-  std::size_t i = undo_.size();
-  while (i > 0 && undo_[i - 1].info.author.id != author) --i;
-  if (i == 0) return r;
-  --i;
-  // The oldest later step that touched one of its bricks holds them now.
-  if (const auto j = firstMeeting(undo_, i, i + 1, undo_.size())) {
-    r.outcome = AuthorMove::Conflict;
-    r.step = undo_[i].info;
-    r.conflict = undo_[*j].info;
-    return r;
-  }
-  r.edit = moveToRedo(i, vol);
-  r.step = movedInfo_;
-  r.outcome = AuthorMove::Moved;
+  AuthorMove r = moveNewestOf(undo_, author, [&](std::size_t i) { return moveToRedo(i, vol); });
+  if (r.outcome == AuthorMove::Moved) r.step = movedInfo_;
   return r;
 }
 
 History::AuthorMove History::redoOf(Volume& vol, const std::string& author) {
-  AuthorMove r;
-  if (author.empty()) return r;
-  std::size_t i = redo_.size();
-  while (i > 0 && redo_[i - 1].info.author.id != author) --i;
-  if (i == 0) return r;
-  --i;
-  // The redo steps above it come back first; the nearest one that touched its bricks is in the way.
-  if (const auto j = firstMeeting(redo_, i, i + 1, redo_.size())) {
-    r.outcome = AuthorMove::Conflict;
-    r.step = redo_[i].info;
-    r.conflict = redo_[*j].info;
-    return r;
-  }
-  r.edit = moveToUndo(i, vol);
-  r.step = movedInfo_;
-  r.outcome = AuthorMove::Moved;
+  AuthorMove r = moveNewestOf(redo_, author, [&](std::size_t i) { return moveToUndo(i, vol); });
+  if (r.outcome == AuthorMove::Moved) r.step = movedInfo_;
   return r;
 }
 
