@@ -9,7 +9,7 @@ using protocol::Method;
 
 namespace {
 
-constexpr std::array<MethodEntry, 19> kMethods{{
+constexpr std::array<MethodEntry, 20> kMethods{{
     {Method::SessionCreate, Access::Anyone, sessionCreate},
     {Method::SessionJoin, Access::Anyone, sessionJoin},
     {Method::SessionLeave, Access::Member, sessionLeave},
@@ -30,6 +30,7 @@ constexpr std::array<MethodEntry, 19> kMethods{{
     {Method::AnalysisThickness, Access::Member, analysisThickness},
     // Spelled so that Hub::text did not see it (escapes); see opCancel.
     {Method::OpCancel, Access::Anyone, opCancel},
+    {Method::Presence, Access::Member, presence},
 }};
 
 }  // namespace
