@@ -7,7 +7,7 @@
 // header carries the id as a u32), can use them; after 2^32 - 1 they start again at 1.
 
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 1 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 2 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 
@@ -32,6 +32,7 @@ export const METHODS = Object.freeze([
   "volume.load",
   "analysis.thickness",
   "op.cancel",
+  "presence",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

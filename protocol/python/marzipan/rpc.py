@@ -14,7 +14,7 @@ import json
 import re
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 1}
+PROTOCOL_VERSION = {"major": 1, "minor": 2}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (
@@ -37,6 +37,7 @@ METHODS = (
     "volume.load",
     "analysis.thickness",
     "op.cancel",
+    "presence",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).
