@@ -229,10 +229,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
                                         latestWins] { self->enqueue(text, binary, latestWins); });
   }
-  // A transient text (ClientLink::sendTransient).
-  void sendTransient(std::shared_ptr<const std::string> text, std::uint64_t key) {
-    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), key] {
-      self->enqueueTransient(text, key);
+  // Transient texts (ClientLink::sendTransient), handed over at once.
+  void sendTransient(std::vector<service::ClientLink::Transient> texts) {
+    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
+      for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
     });
   }
 
@@ -263,8 +263,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) override {
       if (const auto ws = ws_.lock()) ws->send(nullptr, std::move(frame), latestWins);
     }
-    void sendTransient(std::shared_ptr<const std::string> text, std::uint64_t key) override {
-      if (const auto ws = ws_.lock()) ws->sendTransient(std::move(text), key);
+    void sendTransient(std::vector<Transient> texts) override {
+      if (const auto ws = ws_.lock()) ws->sendTransient(std::move(texts));
     }
     void close(int code, std::string reason) override {
       if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));

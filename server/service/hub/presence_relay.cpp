@@ -30,7 +30,7 @@ void PresenceRelay::leave(LiveSession& s, const HubClient& c) {
   const auto gone =
       std::make_shared<const std::string>(protocol::notificationText("presence", {{"client", c.clientId}, {"gone", true}}));
   for (const auto& other : s.members())
-    if (other.get() != &c) other->link->sendTransient(gone, std::uint64_t(c.clientId));
+    if (other.get() != &c) other->link->sendTransient({{gone, std::uint64_t(c.clientId)}});
 }
 
 void PresenceRelay::update(const std::shared_ptr<LiveSession>& s, const HubClient& c, const protocol::PresenceParams& p) {
@@ -71,9 +71,12 @@ void PresenceRelay::flush(const std::shared_ptr<LiveSession>& s) {
     s->presence.flushScheduled = false;
     return;
   }
-  for (const auto& c : s->members())
-    for (const PresenceCoalescer::Delivery& d : s->presence.coalescer.take(PresenceCoalescer::ClientId(c->clientId)))
-      c->link->sendTransient(d.payload, d.sender);
+  for (const auto& c : s->members()) {
+    std::vector<ClientLink::Transient> batch;
+    for (PresenceCoalescer::Delivery& d : s->presence.coalescer.take(PresenceCoalescer::ClientId(c->clientId)))
+      batch.push_back({std::move(d.payload), d.sender});
+    if (!batch.empty()) c->link->sendTransient(std::move(batch));
+  }
   arm(s, true);
 }
 
