@@ -3,6 +3,7 @@
 #include "rpc.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include "json_checks.hpp"
 
@@ -78,9 +79,8 @@ RayParam rayValue(const json& v, std::string_view key) {
   }
 }
 
-Camera cameraValue(const json& params, int maxSide) {
-  const std::string context = "a frame";
-  const json& c = require(params, "camera", context);
+// The camera object {eye, target, up?, fov?} of view.set, render.frame and presence.
+Camera cameraObject(const json& c) {
   if (!c.is_object()) fail("camera", "must be an object {eye, target, up?, fov?}, got " + describe(c));
   Camera cam;
   try {
@@ -96,6 +96,12 @@ Camera cameraValue(const json& params, int maxSide) {
   } catch (const OpError& e) {
     throw OpError("camera", "\"camera\": " + e.message());
   }
+  return cam;
+}
+
+Camera cameraValue(const json& params, int maxSide) {
+  const std::string context = "a frame";
+  Camera cam = cameraObject(require(params, "camera", context));
   for (const char* key : {"width", "height"}) {
     const std::int64_t side = integerInRange(require(params, key, context), key, 1, std::int64_t(1) << 31);
     if (side > maxSide)
@@ -200,7 +206,7 @@ ParsedRequest parseRequest(std::string_view text) {
 
 CreateParams parseCreateParams(const json& params) {
   const std::string context = paramsContext(Method::SessionCreate);
-  checkKeys(params, {"size", "solid", "session", "protocol", "view"}, context);
+  checkKeys(params, {"size", "solid", "session", "protocol", "view", "name"}, context);
   CreateParams p;
   const json& size = require(params, "size", context);
   if (!size.is_array() || size.size() != 3)
@@ -228,12 +234,13 @@ CreateParams parseCreateParams(const json& params) {
   }
   p.protocol = protocolValue(params);
   if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
+  if (const json* n = find(params, "name")) p.name = nameValue(*n);
   return p;
 }
 
 JoinParams parseJoinParams(const json& params) {
   const std::string context = paramsContext(Method::SessionJoin);
-  checkKeys(params, {"session", "token", "protocol", "view"}, context);
+  checkKeys(params, {"session", "token", "protocol", "view", "name"}, context);
   JoinParams p;
   p.session = stringValue(require(params, "session", context), "session");
   if (!isSessionId(p.session)) fail("session", "must be 1 to 64 characters of A-Z a-z 0-9 _ -, got " + inQuotes(p.session));
@@ -241,6 +248,7 @@ JoinParams parseJoinParams(const json& params) {
   if (!isToken(p.token)) fail("token", "must be 1 to 128 characters of A-Z a-z 0-9 _ -");
   p.protocol = protocolValue(params);
   if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
+  if (const json* n = find(params, "name")) p.name = nameValue(*n);
   return p;
 }
 
@@ -434,6 +442,109 @@ std::optional<std::uint64_t> parseForkParams(const json& params) {
 }
 
 void parseNoParams(const json& params, Method m) { checkKeys(params, {}, paramsContext(m) + ", which takes none"); }
+
+// --- presence ----------------------------------------------------------------------------------
+
+namespace {
+
+// The code points of valid UTF-8 (the transport and the JSON parser checked it).
+std::vector<char32_t> codePoints(std::string_view s) {
+  std::vector<char32_t> out;
+  for (std::size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    const int n = b < 0x80 ? 1 : b < 0xE0 ? 2 : b < 0xF0 ? 3 : 4;
+    char32_t c = n == 1 ? b : n == 2 ? (b & 0x1F) : n == 3 ? (b & 0x0F) : (b & 0x07);
+    for (int k = 1; k < n && i + std::size_t(k) < s.size(); ++k) c = c << 6 | (static_cast<unsigned char>(s[i + std::size_t(k)]) & 0x3F);
+    out.push_back(c);
+    i += std::size_t(n);
+  }
+  return out;
+}
+
+bool isSpace(char32_t c) { return c == ' ' || c == 0xA0 || c == 0x3000 || (c >= 0x2000 && c <= 0x200B) || c == 0xFEFF; }
+
+// Characters a name must not hold: they would break or reorder the text around it in a UI.
+bool isControl(char32_t c) {
+  return c < 0x20 || (c >= 0x7F && c <= 0x9F) || c == 0x2028 || c == 0x2029 || (c >= 0x202A && c <= 0x202E) ||
+         (c >= 0x2066 && c <= 0x2069);
+}
+
+}  // namespace
+
+std::string nameValue(const json& v) {
+  const std::string raw = stringValue(v, "name");
+  const std::vector<char32_t> cps = codePoints(raw);
+  std::size_t lo = 0, hi = cps.size();
+  while (lo < hi && isSpace(cps[lo])) ++lo;
+  while (hi > lo && isSpace(cps[hi - 1])) --hi;
+  if (hi == lo) fail("name", "must hold at least one character besides white space");
+  if (hi - lo > kMaxNameChars)
+    fail("name", "must be at most " + std::to_string(kMaxNameChars) + " characters, got " + std::to_string(hi - lo));
+  for (std::size_t i = lo; i < hi; ++i)
+    if (isControl(cps[i])) fail("name", "must not hold control characters (U+" + [&] {
+                              char buf[8];
+                              std::snprintf(buf, sizeof buf, "%04X", unsigned(cps[i]));
+                              return std::string(buf);
+                            }() + ")");
+  // Cut the raw bytes at the trimmed code points.
+  std::size_t begin = 0, end = 0, index = 0;
+  for (std::size_t i = 0; i <= raw.size(); ++index) {
+    if (index == lo) begin = i;
+    if (index == hi) {
+      end = i;
+      break;
+    }
+    const auto b = static_cast<unsigned char>(raw[i]);
+    i += b < 0x80 ? 1 : b < 0xE0 ? 2 : b < 0xF0 ? 3 : 4;
+  }
+  return raw.substr(begin, end - begin);
+}
+
+PresenceParams parsePresenceParams(const json& params) {
+  const std::string context = paramsContext(Method::Presence);
+  checkKeys(params, {"brush", "camera"}, context);
+  PresenceParams p;
+  if (const json* b = find(params, "brush")) {
+    if (!b->is_object()) fail("brush", "must be an object {tool, radius, point, normal, active}, got " + describe(*b));
+    try {
+      const std::string what = "a brush";
+      checkKeys(*b, {"tool", "radius", "point", "normal", "active"}, what);
+      BrushPresence brush;
+      brush.tool = stringValue(require(*b, "tool", what), "tool");
+      if (!fromWireName(kBrushToolNames, brush.tool) && !fromWireName(kCsgToolNames, brush.tool))
+        fail("tool", "must be one of " + listNames(kBrushToolNames) + ", " + listNames(kCsgToolNames) + ", got " +
+                         inQuotes(brush.tool));
+      brush.radius = numberInRange(require(*b, "radius", what), "radius", kMinToolRadius, kMaxToolRadius);
+      brush.point = vec3Value(require(*b, "point", what), "point", kMaxCoordinate);
+      const Vec3 n = vec3Value(require(*b, "normal", what), "normal", kMaxCoordinate);
+      const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      if (!(length > 1e-12)) fail("normal", "must not be zero");
+      brush.normal = {n.x / length, n.y / length, n.z / length};
+      brush.active = booleanValue(require(*b, "active", what), "active");
+      p.brush = std::move(brush);
+    } catch (const OpError& e) {
+      throw OpError("brush", "\"brush\": " + e.message());
+    }
+  }
+  if (const json* c = find(params, "camera")) {
+    p.camera = cameraObject(*c);
+    try {
+      p.camera->validate();
+    } catch (const std::exception& e) {
+      fail("camera", std::string("\"camera\": ") + e.what());
+    }
+  }
+  return p;
+}
+
+json brushJson(const BrushPresence& b) {
+  return {{"tool", b.tool}, {"radius", b.radius}, {"point", vec3Json(b.point)}, {"normal", vec3Json(b.normal)},
+          {"active", b.active}};
+}
+
+json cameraJson(const Camera& c) {
+  return {{"eye", vec3Json(c.eye)}, {"target", vec3Json(c.target)}, {"up", vec3Json(c.up)}, {"fov", c.fovY_degrees}};
+}
 
 std::string resultText(const json& id, const json& result) {
   return json{{"jsonrpc", "2.0"}, {"id", id}, {"result", result}}.dump(-1, ' ', false, json::error_handler_t::replace);

@@ -72,9 +72,9 @@ enum class Method {
   VolumeMorph, HistoryUndo, HistoryRedo, ViewSet, RenderFrame, SplatsGet, MeshExport, VolumeSave, VolumeLoad,
   AnalysisThickness,
   OpCancel,
-  HistoryList, SessionFork,
+  HistoryList, SessionFork, Presence,
 };
-inline constexpr std::array<NameOf<Method>, 21> kMethodNames{{
+inline constexpr std::array<NameOf<Method>, 22> kMethodNames{{
     {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
     {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
     {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
@@ -86,6 +86,7 @@ inline constexpr std::array<NameOf<Method>, 21> kMethodNames{{
     {Method::VolumeLoad, "volume.load"},       {Method::AnalysisThickness, "analysis.thickness"},
     {Method::OpCancel, "op.cancel"},
     {Method::HistoryList, "history.list"},     {Method::SessionFork, "session.fork"},
+    {Method::Presence, "presence"},
 }};
 // Methods whose id travels in a binary header (answered by a frame, or naming an upload).
 bool needsFrameId(Method m);
@@ -136,11 +137,13 @@ struct CreateParams {
   std::optional<std::string> session;  // the id the client proposes
   std::optional<int> protocol;
   ViewMode view = ViewMode::Splats;
+  std::optional<std::string> name;  // the display name, trimmed (since 1.2)
 };
 struct JoinParams {
   std::string session, token;
   std::optional<int> protocol;
   ViewMode view = ViewMode::Splats;
+  std::optional<std::string> name;
 };
 struct ToolApplyParams {
   Op op;                       // a tool op; its centre is a placeholder when `ray` is set
@@ -182,6 +185,31 @@ struct RenderFrameParams {
   double minVu = 1;  // thickness shading: red below this many vu
   std::optional<std::uint64_t> revision;  // an earlier revision still in history (since 1.2)
 };
+
+// --- presence (since 1.2; PROTOCOL.md, "Presence") -----------------------------------------------
+// What a client reports of itself: its brush under the pointer and its camera. Each presence
+// replaces the sender's whole previous one (a part left out is none).
+struct BrushPresence {
+  std::string tool;  // a brush or CSG tool name (kBrushToolNames, kCsgToolNames)
+  double radius = kDefaultBrushRadius;  // [kMinToolRadius, kMaxToolRadius] vu
+  Vec3 point;   // within +-kMaxCoordinate vu
+  Vec3 normal;  // unit length (the decoder normalizes any finite, non-zero vector)
+  bool active = false;  // sculpting now (a stroke is open)
+};
+struct PresenceParams {
+  std::optional<BrushPresence> brush;
+  std::optional<Camera> camera;  // eye, target, up, fov as in view.set (width, height unused)
+};
+inline constexpr std::size_t kMaxNameChars = 64;  // code points of a display name
+
+// The display name of session.create/join: trimmed of white space at both ends, 1 to
+// kMaxNameChars code points, no control characters (C0, DEL, C1), line or paragraph
+// separators, or bidirectional embedding/override/isolate controls. OpError field "name".
+std::string nameValue(const nlohmann::json& v);
+PresenceParams parsePresenceParams(const nlohmann::json& params);
+// The canonical JSON of a presence's parts, as the server forwards them.
+nlohmann::json brushJson(const BrushPresence& b);
+nlohmann::json cameraJson(const Camera& c);
 
 // Session ids and tokens as PROTOCOL.md spells them.
 bool isSessionId(std::string_view s);  // [A-Za-z0-9_-]{1,64}

@@ -34,6 +34,7 @@ export const METHODS = Object.freeze([
   "op.cancel",
   "history.list",
   "session.fork",
+  "presence",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

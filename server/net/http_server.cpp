@@ -229,6 +229,12 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
                                         latestWins] { self->enqueue(text, binary, latestWins); });
   }
+  // Transient texts (ClientLink::sendTransient), handed over at once.
+  void sendTransient(std::vector<service::ClientLink::Transient> texts) {
+    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
+      for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
+    });
+  }
 
   void close(websocket::close_code code, std::string reason) {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), code, reason = std::move(reason)] {
@@ -242,6 +248,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::shared_ptr<const std::vector<std::uint8_t>> binary;
     bool latestWins = false;
     std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
+    bool transient = false;  // presence: replaced by its key, overtaken by everything else
+    std::uint64_t key = 0;
     std::size_t size() const { return text ? text->size() : binary->size(); }
   };
 
@@ -254,6 +262,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
     void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) override {
       if (const auto ws = ws_.lock()) ws->send(nullptr, std::move(frame), latestWins);
+    }
+    void sendTransient(std::vector<Transient> texts) override {
+      if (const auto ws = ws_.lock()) ws->sendTransient(std::move(texts));
     }
     void close(int code, std::string reason) override {
       if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));
@@ -336,6 +347,32 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       queuedBytes_ += out.charge;
       if (queuedBytes_ > bound) return startClose(websocket::close_code::policy_error, "too far behind");
     }
+    // Waiting transient texts stay at the back: everything else goes ahead of them.
+    auto at = queue_.end();
+    while (at != queue_.begin() + (writing_ ? 1 : 0) && std::prev(at)->transient) --at;
+    queue_.insert(at, std::move(out));
+    if (!writing_) doWrite();
+  }
+
+  // Transient texts wait at the back of the queue, at most one per key (the newest) and at most
+  // kMaxTransients in all (the oldest goes), so a congested client never has a backlog of them.
+  static constexpr std::size_t kMaxTransients = 64;
+  void enqueueTransient(std::shared_ptr<const std::string> text, std::uint64_t key) {
+    if (closing_) return;
+    const std::size_t first = writing_ ? 1 : 0;
+    std::size_t waiting = 0, oldest = queue_.size();
+    for (std::size_t i = first; i < queue_.size(); ++i) {
+      if (!queue_[i].transient) continue;
+      if (queue_[i].key == key) {
+        queue_[i].text = std::move(text);
+        return;
+      }
+      if (waiting++ == 0) oldest = i;
+    }
+    if (waiting >= kMaxTransients) queue_.erase(queue_.begin() + std::ptrdiff_t(oldest));
+    Out out{std::move(text), nullptr, false};
+    out.transient = true;
+    out.key = key;
     queue_.push_back(std::move(out));
     if (!writing_) doWrite();
   }

@@ -123,6 +123,17 @@ class ClientLink {
   // A binary frame (header + payload). latestWins: a pushed image that a newer one may replace
   // while it still waits in the queue; otherwise never dropped.
   virtual void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) = 0;
+  // JSON-RPC texts that may be dropped (presence): one with the same `key` still waiting
+  // replaces it, any other message overtakes it while it waits, and it never counts against
+  // max_queue_bytes. Links without a queue of their own send it as any text.
+  // Transient texts, each with its key, in order (one hand-over to the link for all of them).
+  struct Transient {
+    std::shared_ptr<const std::string> text;
+    std::uint64_t key;
+  };
+  virtual void sendTransient(std::vector<Transient> texts) {
+    for (Transient& t : texts) sendText(*t.text);
+  }
   // Close the WebSocket with this code and reason (<= 123 bytes).
   virtual void close(int code, std::string reason) = 0;
 };

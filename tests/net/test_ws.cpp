@@ -254,6 +254,57 @@ TEST_CASE("ws: a client that stops reading neither stalls the others nor grows m
   CHECK(fast.call(100, "session.stats")["result"]["clients"].size() == 1);
 }
 
+// Presence is transient (PROTOCOL.md, "Presence"): to a client whose queue is congested the
+// server keeps only the newest presence of each sender, behind everything else. The slow
+// client asks for many full splat buffers (tens of MB, far beyond the socket buffers) and
+// does not read while the other sends presence at 60 Hz; when it reads at last, every answer
+// came, and after the last one there is exactly one presence, the newest. Plain FIFO would put
+// the ~40 presences sent meanwhile there.
+TEST_CASE("ws: a congested client gets only the newest presence of a sender, after its answers", "[net][ws][presence]") {
+  HubOptions o;
+  o.limits.maxGridSide = 256;
+  Server s("ws-presence-congested", o);
+  Client fast(s.server->port());
+  const json created = fast.call(1, "session.create", {{"size", {256, 256, 256}}, {"solid", "sphere"}, {"view", "none"}});
+  REQUIRE(created.contains("result"));
+  Client slow(s.server->port());
+  REQUIRE(slow.call(1, "session.join", {{"session", created["result"]["session"]}, {"token", created["result"]["token"]},
+                                        {"view", "none"}})
+              .contains("result"));
+  constexpr int kRequests = 40;
+  for (int i = 0; i < kRequests; ++i)
+    slow.sendText(json{{"jsonrpc", "2.0"}, {"id", 10 + i}, {"method", "splats.get"}, {"params", json::object()}}.dump());
+  const auto start = std::chrono::steady_clock::now();
+  constexpr int kUpdates = 150;  // 2.5 s at 60 Hz
+  for (int i = 1; i <= kUpdates; ++i) {
+    fast.sendText(json{{"jsonrpc", "2.0"},
+                       {"method", "presence"},
+                       {"params", {{"camera", {{"eye", {128, 128, 600 + i}}, {"target", {128, 128, 128}}}}}}}
+                      .dump());
+    std::this_thread::sleep_until(start + i * std::chrono::microseconds(16'667));
+  }
+  REQUIRE(fast.call(2, "session.stats").contains("result"));  // every presence was handled
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  int answers = 0, presencesAfterLast = 0;
+  double newestAfterLast = 0;
+  while (answers < kRequests || newestAfterLast != 600 + kUpdates) {
+    const auto m = slow.read();
+    REQUIRE(m);
+    if (!m->text) continue;
+    const json j = json::parse(m->data);
+    if (j.contains("id")) {
+      REQUIRE(j.contains("result"));
+      ++answers;
+      presencesAfterLast = 0;
+    } else if (j["method"] == "presence") {
+      ++presencesAfterLast;
+      newestAfterLast = j["params"]["camera"]["eye"][2].get<double>();
+    }
+  }
+  CHECK(answers == kRequests);
+  CHECK(presencesAfterLast == 1);
+}
+
 TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {
   HubOptions o;
   o.limits.maxQueuedBytes = std::size_t(64) << 10;

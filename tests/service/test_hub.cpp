@@ -115,7 +115,7 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   CHECK(r["limits"]["max_grid_side"] == 128);
   CHECK(r["limits"]["max_dabs"] == 256);
   CHECK(r["read_only"] == false);
-  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}}}));
+  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}, {"name", "Sculptor 1"}, {"color", "#e6194b"}}}));
   const std::size_t full = a.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsFull); });
   const Bytes frame = std::get<Bytes>(a.link->at(full));
   CHECK(headerOf(frame).requestId == 0);
@@ -150,7 +150,7 @@ TEST_CASE("session.stats answers PROTOCOL.md's keys, its measures in batch --sta
   CHECK(r["bounds"]["lo"].size() == 3);
   CHECK(r["components"] == 1);
   CHECK(r["size"] == json({64, 64, 64}));
-  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}}}));
+  CHECK(r["clients"] == json::array({{{"client", 1}, {"read_only", false}, {"name", "Sculptor 1"}, {"color", "#e6194b"}}}));
 }
 
 TEST_CASE("the envelope's refusals carry the right codes and never close", "[hub]") {

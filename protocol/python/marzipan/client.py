@@ -154,6 +154,9 @@ class Client:
         self.limits = {}
         self.protocol = None
         self.revision = None  # the newest revision seen in a result, notification or frame
+        # The other clients' newest presence by client id ({client, name, color, brush?,
+        # camera?}), kept from `presence` notifications; a client is removed on its `gone`.
+        self.others: dict[int, dict] = {}
         self._route = route  # the session id in the connection's URL
         self._route_used = False  # a session was created or joined under _route
         self._ws = None
@@ -265,6 +268,8 @@ class Client:
         if isinstance(message, Notification):
             if message.method == "session.changed":
                 self._see_revision(message.params.get("revision"))
+            elif message.method == "presence":
+                self._see_presence(message.params)
             self._push(message)
             return
         if message.id is None:
@@ -317,6 +322,15 @@ class Client:
         if pending.frame is not None:
             raise ProtocolError(f"{pending.method}: two binary frames answer request {frame.request_id}")
         pending.frame = frame
+
+    def _see_presence(self, params: dict):
+        client = params.get("client")
+        if not isinstance(client, int) or isinstance(client, bool):
+            raise ProtocolError(f"a presence notification without a client id: {params!r}")
+        if params.get("gone"):
+            self.others.pop(client, None)
+        else:
+            self.others[client] = params
 
     def _see_revision(self, revision):
         if isinstance(revision, int) and not isinstance(revision, bool):
@@ -435,13 +449,14 @@ class Client:
         self._route_used = True
 
     async def create_session(self, size, solid: str, *, session: str | None = None, view: str = "none",
-                             protocol: int | None = 1) -> dict:
+                             protocol: int | None = 1, name: str | None = None) -> dict:
         """session.create: a new session of `size` = [nx, ny, nz] voxels (or one int for a cube)
         holding `solid` (empty sphere box torus cylinder dumbbell pig). Proposes `session`, or
         the id this connection was opened with; outside a session, a connection whose id was
         used already reconnects under a new one first. `view` "none" (default here: updates
         carry notifications only) or "splats" (a full splat buffer follows, deltas after every
-        change). Returns the result: session, token, view_token, client, size, revision, ..."""
+        change). `name`: the display name the others see (protocol 1.2; default "Sculptor N").
+        Returns the result: session, token, view_token, client, size, revision, clients, ..."""
         if isinstance(size, int):
             size = [size, size, size]
         if self.session is None:
@@ -449,20 +464,20 @@ class Client:
             if wanted != self._route:
                 await self._reopen(wanted)
         params = _without_none(size=list(size), solid=solid, session=session or self._route,
-                               protocol=protocol, view=view)
+                               protocol=protocol, view=view, name=name)
         result = await self._result("session.create", params)
         self._remember_session(result)
         return result
 
     async def join(self, session: str, token: str, *, view: str = "none", protocol: int | None = 1,
-                   follow_owner: bool = False) -> dict:
+                   follow_owner: bool = False, name: str | None = None) -> dict:
         """session.join with the edit or the view token; reconnects under `session` first when
         this connection was opened for another id (the load balancer routes on it).
         `follow_owner`: on -32015 naming the owning server (servers sharing etcd), reconnect to
         it directly and join there once; only where clients can reach the servers themselves."""
         if self.session is None and session != self._route:
             await self._reopen(session)
-        params = _without_none(session=session, token=token, protocol=protocol, view=view)
+        params = _without_none(session=session, token=token, protocol=protocol, view=view, name=name)
         try:
             result = await self._result("session.join", params)
         except SessionHeldElsewhere as e:
@@ -481,6 +496,7 @@ class Client:
 
     async def leave(self) -> dict:
         result = await self._result("session.leave", {})
+        self.others = {}
         self.session = self.client_id = self.read_only = None
         self.token = self.view_token = None
         return result
@@ -569,6 +585,23 @@ class Client:
             raise
         end = await self.end_stroke(stroke)
         return {"stroke": stroke, "applied": applied, **end}
+
+    # ------------------------------------------------------------------------------- presence
+
+    async def presence(self, brush: dict | None = None, camera: dict | None = None, *, answer: bool = False):
+        """presence (protocol 1.2): tells the session's other clients where this client's brush
+        is and what it looks at. `brush` = {tool, radius, point: [x, y, z], normal: [x, y, z],
+        active: bool}; `camera` = {eye, target, up?, fov?} as for view.set. Each call replaces
+        the previous presence as a whole (leave out brush when the pointer is off the model); a
+        view client's brush is dropped by the server. Sent as a notification (no answer, the
+        way to send at pointer rate) unless `answer`, which waits for the server's {} and so
+        raises InvalidParams for a presence it refuses. The others' presence arrives as
+        `presence` notifications among the updates and is kept in `others`."""
+        params = _without_none(brush=brush, camera=camera)
+        if answer:
+            return await self._result("presence", params)
+        await self.notify("presence", params)
+        return None
 
     async def undo(self, scope: str | None = None) -> dict:
         """history.undo: the session's newest step (scope None or "session"), or this client's

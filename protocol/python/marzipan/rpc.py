@@ -39,6 +39,7 @@ METHODS = (
     "op.cancel",
     "history.list",
     "session.fork",
+    "presence",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

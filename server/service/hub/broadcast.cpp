@@ -48,7 +48,8 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
 
 json Broadcaster::clientList(const LiveSession& s) {
   json list = json::array();
-  for (const auto& c : s.members()) list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}});
+  for (const auto& c : s.members())
+    list.push_back({{"client", c->clientId}, {"read_only", c->readOnly}, {"name", c->name}, {"color", c->color}});
   return list;
 }
 

@@ -121,9 +121,11 @@ class HubClient {
   std::atomic<bool> editor{false}, member{false};
   std::atomic<Clock::rep> outsideSince{Clock::now().time_since_epoch().count()};
 
-  // The session's strand only.
+  // The session's strand only; clientId, readOnly, name and color are also read by the pump
+  // while it is a member (they change only in admit, before the pump sees its session).
   int clientId = 0;
   bool readOnly = false;
+  std::string name, color;  // display name and "#rrggbb" (since 1.2)
   protocol::ViewMode mode = protocol::ViewMode::None;
   Camera camera;
   Shading shading = Shading::Lit;

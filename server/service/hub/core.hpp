@@ -11,6 +11,7 @@
 //   registry      create/find/load, admit/leave, unload/idle, the lobby deadline
 //   durability    persist and roll back, snapshots, fsync timer, leases, old-session sweep
 //   broadcast     session.changed/clients, splat buffers, the frame-push state machine
+//   presence_relay names, colours and presence notifications, coalesced per sender
 //   request       Call, Access, Reply: a request as its handler sees it
 //   methods       the table of methods (name -> handler, access rule) and the handlers
 //   work.cpp      onStrand/offStrand, long operations (progress, cancel, budget), sending
@@ -35,6 +36,7 @@
 #include "service/hub/connection.hpp"
 #include "service/hub/durability.hpp"
 #include "service/hub/live_session.hpp"
+#include "service/hub/presence_relay.hpp"
 #include "service/hub/registry.hpp"
 #include "service/hub/request.hpp"
 #include "service/hub/rpc_errors.hpp"
@@ -59,6 +61,7 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   SessionRegistry registry{*this};
   Durability durability{*this};
   Broadcaster broadcast{*this};
+  PresenceRelay presence{*this};
 
   const HubLimits& limits() const { return options.limits; }
   void log(const std::string& line) const {

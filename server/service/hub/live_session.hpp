@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "service/hub/connection.hpp"
+#include "service/hub/presence_relay.hpp"
 #include "service/session.hpp"
 #include "service/session_storage.hpp"
 #include "service/workers.hpp"
@@ -36,6 +37,9 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   std::vector<std::weak_ptr<HubClient>> clients;
   int nextClient = 1;
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
+
+  // Presence of the clients (its own locks; see service/hub/presence_relay.hpp).
+  SessionPresence presence;
 
   // The clients still alive: all of them, except while the hub shuts down.
   std::vector<std::shared_ptr<HubClient>> members() const {

@@ -9,7 +9,7 @@ using protocol::Method;
 
 namespace {
 
-constexpr std::array<MethodEntry, 21> kMethods{{
+constexpr std::array<MethodEntry, 22> kMethods{{
     {Method::SessionCreate, Access::Anyone, sessionCreate},
     {Method::SessionJoin, Access::Anyone, sessionJoin},
     {Method::SessionLeave, Access::Member, sessionLeave},
@@ -33,6 +33,7 @@ constexpr std::array<MethodEntry, 21> kMethods{{
     {Method::HistoryList, Access::Member, historyList},
     // A view client may fork: it sees the whole volume already, and the fork is its own.
     {Method::SessionFork, Access::Member, sessionFork},
+    {Method::Presence, Access::Member, presence},
 }};
 
 }  // namespace

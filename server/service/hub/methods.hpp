@@ -63,6 +63,9 @@ void viewSet(HubCore&, const Call&);
 void renderFrame(HubCore&, const Call&);
 void splatsGet(HubCore&, const Call&);
 
+// methods_presence.cpp: what a client tells the others of itself (brush, camera).
+void presence(HubCore&, const Call&);
+
 // methods_files.cpp: files out (mesh, volume), files in (volume.load and its upload), analysis.
 void meshExport(HubCore&, const Call&);
 void volumeSave(HubCore&, const Call&);

@@ -46,9 +46,9 @@ void sessionCreate(HubCore& hub, const Call& call) {
   std::shared_ptr<LiveSession> s = hub.registry.create(*c, p);
   // c->session is set only once admitted: a refused create leaves the connection as it was.
   hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
-               [self = hub.shared_from_this(), c, s, view = p.view, dims = p.size, solid = p.solid](LiveSession& ls,
-                                                                                                    Reply& r) {
-                 self->registry.admit(ls, c, false, view, r);
+               [self = hub.shared_from_this(), c, s, view = p.view, dims = p.size, solid = p.solid,
+                name = p.name](LiveSession& ls, Reply& r) {
+                 self->registry.admit(ls, c, false, view, r, name);
                  c->session = s;
                  r.result["token"] = ls.secrets.token;
                  r.result["view_token"] = ls.secrets.viewToken;
@@ -83,8 +83,8 @@ void sessionFork(HubCore& hub, const Call& call) {
       return self->finish(c);
     }
     self->onStrand(c, fresh, id, arrived, false, Access::Anyone,
-                   [self, c, fresh, view, from, oldId = old->id](LiveSession& ls, Reply& r) {
-                     self->registry.admit(ls, c, false, view, r);
+                   [self, c, fresh, view, from, oldId = old->id, name = c->name](LiveSession& ls, Reply& r) {
+                     self->registry.admit(ls, c, false, view, r, name);  // the fork keeps the caller's name
                      c->session = fresh;
                      r.result["token"] = ls.secrets.token;
                      r.result["view_token"] = ls.secrets.viewToken;
@@ -107,8 +107,8 @@ void sessionJoin(HubCore& hub, const Call& call) {
   else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
   // c->session is set only once admitted: a refused join (a full session) grants nothing.
   hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
-               [self = hub.shared_from_this(), c, s, view = p.view, readOnly](LiveSession& ls, Reply& r) {
-                 self->registry.admit(ls, c, readOnly, view, r);
+               [self = hub.shared_from_this(), c, s, view = p.view, readOnly, name = p.name](LiveSession& ls, Reply& r) {
+                 self->registry.admit(ls, c, readOnly, view, r, name);
                  // An editor may share a view link; a view client learns nothing more than it had.
                  if (!readOnly) r.result["view_token"] = ls.secrets.viewToken;
                  c->session = s;

@@ -242,7 +242,8 @@ std::shared_ptr<LiveSession> SessionRegistry::load(const std::string& id, const 
 
 // --- clients -------------------------------------------------------------------------------------
 
-void SessionRegistry::admit(LiveSession& s, const std::shared_ptr<HubClient>& c, bool readOnly, ViewMode view, Reply& r) {
+void SessionRegistry::admit(LiveSession& s, const std::shared_ptr<HubClient>& c, bool readOnly, ViewMode view, Reply& r,
+                            const std::optional<std::string>& name) {
   const HubLimits& l = hub_.limits();
   if (s.clients.size() >= l.maxClientsPerSession)
     throw RpcException(RpcCode::SessionFull, "the session has its " + std::to_string(l.maxClientsPerSession) + " clients",
@@ -254,7 +255,10 @@ void SessionRegistry::admit(LiveSession& s, const std::shared_ptr<HubClient>& c,
   c->member = true;
   c->editor = !readOnly;
   c->rendering = c->renderAgain = false;  // a render of an earlier membership no longer counts
+  c->name = name ? *name : "Sculptor " + std::to_string(c->clientId);
+  c->color = PresenceRelay::colorFor(s);
   s.clients.push_back(c);
+  hub_.presence.join(s, *c);
   {
     const std::lock_guard lock(mutex_);
     ++s.clientCount;
@@ -294,6 +298,7 @@ void SessionRegistry::leave(LiveSession& s, HubClient& c) {
     c.stroke = 0;
   }
   s.clients.erase(it);
+  hub_.presence.leave(s, c);
   c.mode = ViewMode::None;
   c.editor = false;
   c.member = false;

@@ -62,7 +62,9 @@ class SessionRegistry {
 
   // On the strand: c becomes a client of s; the response holds the session's description and
   // is followed by the full splat buffer (splats mode) and session.clients to the others.
-  void admit(LiveSession& s, const std::shared_ptr<HubClient>& c, bool readOnly, protocol::ViewMode view, Reply& r);
+  // `name`: its display name (default "Sculptor N", N its client id); it gets a colour.
+  void admit(LiveSession& s, const std::shared_ptr<HubClient>& c, bool readOnly, protocol::ViewMode view, Reply& r,
+             const std::optional<std::string>& name = std::nullopt);
   // On the strand: c leaves s (ending its stroke); the others hear of it. A session nobody
   // changed is unloaded when its last client leaves.
   void leave(LiveSession& s, HubClient& c);

@@ -62,7 +62,7 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(r["protocol"], {"major": 1, "minor": 2})
         self.assertEqual(set(r["limits"]), LIMIT_KEYS)
         self.assertEqual((r["can_undo"], r["can_redo"], r["read_only"]), (False, False, False))
-        self.assertEqual(r["clients"], [{"client": 1, "read_only": False}])
+        self.assertEqual(r["clients"], [{"client": 1, "read_only": False, "name": "Sculptor 1", "color": "#e6194b"}])
 
     def test_edits_undo_and_redo_move_revision_and_digest_exactly(self):
         async def go():
@@ -352,8 +352,9 @@ class AgainstServer(ServerTestCase):
         self.assertNotIn("token", joined)
         self.assertEqual(full[-1].request_id, 0)
         self.assertGreater(decode_splats(full[-1].payload).point_count, 1000)
-        self.assertEqual(clients[-1].params["clients"], [{"client": 1, "read_only": False},
-                                                         {"client": 2, "read_only": True}])
+        self.assertEqual(clients[-1].params["clients"],
+                         [{"client": 1, "read_only": False, "name": "Sculptor 1", "color": "#e6194b"},
+                          {"client": 2, "read_only": True, "name": "Sculptor 2", "color": "#3cb44b"}])
         changed = [u for u in seen if isinstance(u, Notification) and u.method == "session.changed"]
         self.assertEqual(len(changed), 1)
         params = changed[0].params
