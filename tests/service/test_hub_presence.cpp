@@ -241,3 +241,15 @@ TEST_CASE("a client that leaves is gone for the others, and its presence with it
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   CHECK(presences(a).size() == 2);
 }
+
+TEST_CASE("a fork keeps the caller's display name", "[hub][presence]") {
+  Hub hub(presenceOptions());
+  TestClient a(hub);
+  json params = kCreate;
+  params["name"] = "Ada";
+  a.result("session.create", params);
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {16, 26, 16}}, {"radius", 4}});
+  const json fork = a.result("session.fork", json::object());
+  REQUIRE(fork["clients"].size() == 1);
+  CHECK(fork["clients"][0]["name"] == "Ada");
+}
