@@ -344,15 +344,30 @@ bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t
   Step& s = undo_[i];
   if (!s.edit) {
     Edit e;
-    // The step's `after` bricks, which its `before` was packed against: where `more` replaced
-    // one, `more`'s `before` (nothing later touched it), elsewhere what vol holds.
-    std::unordered_map<std::uint64_t, std::size_t> inMore;
-    for (std::size_t k = 0; k < more.changes.size(); ++k) inMore[brickKey(more.changes[k].brick)] = k;
-    std::vector<BrickRef> after;
-    for (const Int3& b : s.packed.bricks) {
-      const auto it = inMore.find(brickKey(b));
-      after.push_back(it != inMore.end() ? more.changes[it->second].before : vol.brick(b));
+    // The step's `after` bricks, which its `before` was packed against. The volume before
+    // `more` is `more`'s `before` where it changed a brick (no later step touched those), vol
+    // elsewhere; the later steps are then taken back over it, newest first, so that each one's
+    // own `after` is what it is read against, and every brick holds what step i left.
+    std::unordered_map<std::uint64_t, BrickRef> earlier;
+    for (const auto& c : more.changes) earlier[brickKey(c.brick)] = c.before;
+    const auto at = [&](const Int3& b) {
+      const auto it = earlier.find(brickKey(b));
+      return it != earlier.end() ? it->second : vol.brick(b);
+    };
+    for (std::size_t j = undo_.size(); j-- > i + 1;) {
+      const Step& later = undo_[j];
+      if (later.edit) {
+        for (const auto& c : later.edit->changes) earlier[brickKey(c.brick)] = c.before;
+        continue;
+      }
+      std::vector<BrickRef> refs;
+      refs.reserve(later.packed.bricks.size());
+      for (const Int3& b : later.packed.bricks) refs.push_back(at(b));
+      std::vector<BrickRef> before = unpackBricks(later.packed, pointers(refs));
+      for (std::size_t k = 0; k < before.size(); ++k) earlier[brickKey(later.packed.bricks[k])] = std::move(before[k]);
     }
+    std::vector<BrickRef> after;
+    for (const Int3& b : s.packed.bricks) after.push_back(at(b));
     const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
     e.region = s.region;
     for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});

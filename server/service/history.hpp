@@ -122,9 +122,10 @@ class History {
   // sculpt elsewhere): folds `more` (applied to vol after the step) in when nothing is undone
   // and no later undo step touched any brick `more` changed, so that every brick still holds
   // the `after` of the newest step that touched it; false (nothing recorded) otherwise. A
-  // packed step is unpacked (its references are vol's bricks, or `more`'s `before` where
-  // `more` replaced them) and stays unpacked, so that the next fold costs what amend() does,
-  // until seal() or its move to the redo list packs it.
+  // packed step is unpacked against its own `after` bricks (vol's, with `more` and the later
+  // steps taken back over them: the later steps are unpacked too, once) and stays unpacked,
+  // so that the next fold costs what amend() does, until seal() or its move to the redo list
+  // packs it.
   bool fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t revision = 0);
   // Packs step `id` if fold() left it unpacked under newer steps (its stroke ended).
   void seal(StepId id);

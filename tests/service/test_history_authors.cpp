@@ -300,3 +300,33 @@ TEST_CASE("history: fold grows an earlier step when no later step touched the ne
     CHECK(digest(w) == digest(sphere()));
   }
 }
+
+// The load tool found this: a stroke's step packed under another sculptor's new step that
+// overlaps some of its bricks, then folded elsewhere, was unpacked against the volume's bricks
+// (the later step's) instead of its own `after`, and every dab failed with an internal error.
+TEST_CASE("history: fold grows a packed step whose other bricks a later step changed", "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  // A blob of radius 4 reaches 9 vu: A's first dab covers brick rows y 4..7, B's (12 vu up)
+  // rows 6..8, A's next dab (12 vu down) rows 3..5, which B does not touch.
+  const History::StepId a = h.push(blobAt(v, PlusX, pool), by("A", 1));
+  const std::uint64_t afterA = digest(v);
+  h.push(blobAt(v, PlusX, pool, 12), by("B", 2));
+  const std::uint64_t afterB = digest(v);
+  REQUIRE(h.fold(a, blobAt(v, PlusX, pool, -12), v, 3));
+  CHECK(h.undoSteps() == 2);
+  const std::uint64_t all = digest(v);
+  h.seal(a);
+
+  // A's step is in B's way for undo mine, so the session-wide undo takes both back exactly.
+  CHECK(h.undoOf(v, "A").outcome == History::AuthorMove::Conflict);
+  REQUIRE(h.undo(v) != nullptr);
+  REQUIRE(h.undo(v) != nullptr);
+  CHECK(digest(v) == digest(sphere()));
+  REQUIRE(h.redo(v) != nullptr);
+  CHECK(digest(v) != afterA);  // the fold is part of A's step
+  REQUIRE(h.redo(v) != nullptr);
+  CHECK(digest(v) == all);
+  CHECK(afterB != all);
+}
