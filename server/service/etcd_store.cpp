@@ -99,6 +99,7 @@ void EtcdOwner::stop() {
     held_ = false;
   }
   wake_.notify_all();
+  renewed_.notify_all();
   keeper_.join();
   if (lease == 0) return;
   try {
@@ -109,17 +110,22 @@ void EtcdOwner::stop() {
   }
 }
 
+bool EtcdOwner::liveLease() const {
+  return held_ && Clock::now() - lastRenewed_ < std::chrono::seconds(options_.leaseTtlSeconds);
+}
+
 bool EtcdOwner::leaseHeld() const {
   const std::lock_guard lock(mutex_);
-  return held_ && Clock::now() - lastRenewed_ < std::chrono::seconds(options_.leaseTtlSeconds);
+  return liveLease();
 }
 
 void EtcdOwner::keepAlive() {
   const auto ttl = std::chrono::seconds(options_.leaseTtlSeconds);
   std::unique_lock lock(mutex_);
   while (!stopping_) {
-    wake_.wait_for(lock, held_ ? ttl / 3 : kRetryPause * 5, [this] { return stopping_; });
+    wake_.wait_for(lock, held_ ? ttl / 3 : kRetryPause * 5, [this] { return stopping_ || renewNow_; });
     if (stopping_) break;
+    renewNow_ = false;
     const bool held = held_;
     const std::int64_t lease = lease_;
     lock.unlock();
@@ -151,11 +157,13 @@ void EtcdOwner::keepAlive() {
       lease_ = granted;
       held_ = true;
       lastRenewed_ = sent;
+      renewed_.notify_all();
       continue;
     }
     if (!held) continue;
     if (lostWhy.empty()) {
       lastRenewed_ = sent;
+      renewed_.notify_all();
     } else if (lostWhy == "the lease expired" || Clock::now() - lastRenewed_ >= ttl) {
       held_ = false;
       const auto lost = lost_;
@@ -163,6 +171,8 @@ void EtcdOwner::keepAlive() {
       loseLease(lostWhy);
       if (lost) lost();
       lock.lock();
+      // A server that was stopped or cut off serves again as soon as etcd grants a new lease.
+      renewNow_ = true;
     }
   }
 }
@@ -178,8 +188,13 @@ void EtcdOwner::fenced(const std::string& id) {
 EtcdOwner::Claim EtcdOwner::claim(const std::string& id) {
   std::int64_t lease = 0;
   {
-    const std::lock_guard lock(mutex_);
-    if (!held_) throw KvUnavailable("this server holds no etcd lease");
+    std::unique_lock lock(mutex_);
+    if (!liveLease()) {
+      renewNow_ = true;
+      wake_.notify_all();
+      renewed_.wait_for(lock, kLeaseWait, [this] { return stopping_ || liveLease(); });
+    }
+    if (stopping_ || !liveLease()) throw KvUnavailable("this server holds no live etcd lease");
     lease = lease_;
   }
   const std::string key = ownerKey(id);

@@ -135,8 +135,9 @@ class EtcdOwner {
   EtcdOwner(const EtcdOwner&) = delete;
   EtcdOwner& operator=(const EtcdOwner&) = delete;
 
-  // Grants the lease and starts keeping it alive; `lost` is called once (from the keep-alive
-  // thread) when it is lost. Throws KvUnavailable when etcd cannot be reached.
+  // Grants the lease and starts keeping it alive; `lost` is called (from the keep-alive thread)
+  // each time it is lost, and a new lease is asked for at once. Throws KvUnavailable when etcd
+  // cannot be reached.
   void start(std::function<void()> lost = {});
   // Revokes the lease (every session it owns is free at once) and stops the keep-alive.
   void stop();
@@ -147,7 +148,9 @@ class EtcdOwner {
     EtcdSessionState state;                // what is at rest (when owned)
     std::string owner;                     // the other owner's address (when not)
   };
-  // Takes the session if no one owns it; reads back its state when taken.
+  // Takes the session if no one owns it; reads back its state when taken. Without a live lease
+  // (lost, or not renewed within its TTL, e.g. after the process was stopped) it has the
+  // keep-alive thread renew or replace it and waits up to kLeaseWait; then KvUnavailable.
   Claim claim(const std::string& id);
   // The address of the session's owner, if any.
   std::optional<std::string> ownerOf(const std::string& id);
@@ -176,8 +179,13 @@ class EtcdOwner {
   const EtcdOptions options_;
   const EtcdEvents events_;
 
+  static constexpr std::chrono::milliseconds kLeaseWait{1500};
+  bool liveLease() const;  // with mutex_ held
+
   mutable std::mutex mutex_;  // guards everything below
-  std::condition_variable wake_;
+  std::condition_variable wake_;     // the keep-alive thread: stop, or renew now
+  std::condition_variable renewed_;  // claim(): a lease was renewed or granted
+  bool renewNow_ = false;
   std::int64_t lease_ = 0;
   bool held_ = false, stopping_ = false;
   std::chrono::steady_clock::time_point lastRenewed_;

@@ -220,6 +220,30 @@ TEST_CASE("etcd store: a lost lease is reported, refuses appends at once, and a 
   CHECK(again.journal->token() > c.journal->token());
 }
 
+// A server stopped (SIGSTOP) or cut off past its lease's TTL used to refuse every new session
+// ("holds no etcd lease") until its keep-alive thread's next retry; the failover test met it.
+TEST_CASE("etcd store: after an outage past the lease's TTL the next claim waits for a new lease", "[etcd]") {
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  std::atomic<int> lost{0};
+  EtcdOwner a(kv, "a", opt);
+  a.start([&] { ++lost; });
+  auto c = a.claim("s");
+  kv.down = true;
+  for (int i = 0; i < 60 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  REQUIRE(lost == 1);
+  CHECK_FALSE(a.leaseHeld());
+  // Still down: the claim waits its bounded time, then says etcd is out of reach.
+  CHECK_THROWS_AS(a.claim("t"), KvUnavailable);
+  kv.down = false;
+  kv.expire(leaseOf(kv, a, "s"));
+  auto t = a.claim("t");
+  REQUIRE(t.journal);
+  CHECK(a.leaseHeld());
+  CHECK(lost == 1);
+}
+
 TEST_CASE("etcd store: a graceful stop revokes the lease, freeing every session at once", "[etcd]") {
   MemoryKv kv;
   EtcdOwner b(kv, "b");

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <exception>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -33,7 +34,7 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   // The strand only.
   std::unique_ptr<Session> session;
   std::unique_ptr<SessionLog> journal;  // with a persistent storage
-  std::string failure;                  // why the session could not be created
+  std::exception_ptr failure;           // why the session could not be created
   std::vector<std::weak_ptr<HubClient>> clients;
   int nextClient = 1;
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal

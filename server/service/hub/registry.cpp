@@ -152,7 +152,7 @@ std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const std::op
       }
     } catch (const std::exception& e) {
       self->log("session " + s->id + ": creating it failed: " + e.what());
-      s->failure = std::string("the session could not be created: ") + e.what();
+      s->failure = std::current_exception();
       s->session.reset();
       s->unloaded = true;
       {

@@ -2,6 +2,7 @@
 
 #include "engine/errors.hpp"
 #include "engine/progress.hpp"
+#include "service/key_value.hpp"
 #include "service/session.hpp"
 
 namespace marzipan::service {
@@ -20,6 +21,10 @@ Failure failureOf(std::exception_ptr e, const std::function<void(const std::stri
     return {x.code(), x.message(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
   } catch (const EngineError& x) {
     return {RpcCode::EngineRefused, x.what(), x.field().empty() ? json(nullptr) : json{{"field", x.field()}}};
+  } catch (const KvUnavailable&) {
+    // etcd did not answer in time, or this server is between two leases.
+    return {RpcCode::Busy, "the coordination store (etcd) did not answer this server in time; retry later",
+            {{"retry_after_ms", 1000}}};
   } catch (const Cancelled&) {
     return {RpcCode::Cancelled, "the operation was cancelled (op.cancel or server shutdown); the session is unchanged",
             nullptr};

@@ -19,7 +19,8 @@ struct Failure {
 };
 
 // Validation errors (RpcException, protocol::OpError, ServiceError, EngineError) keep their code
-// and field; Cancelled is -32016; anything unexpected is -32000 whose text goes to `log` only.
+// and field; Cancelled is -32016; KvUnavailable (etcd out of reach, or no live lease) is -32005
+// with retry_after_ms; anything unexpected is -32000 whose text goes to `log` only.
 Failure failureOf(std::exception_ptr e, const std::function<void(const std::string&)>& log);
 
 }  // namespace marzipan::service

@@ -44,7 +44,7 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
     try {
       if (s->unloaded || !s->session) {
         if (c->session == s) c->session.reset();
-        if (!s->failure.empty()) throw RpcException(RpcCode::Internal, s->failure);
+        if (s->failure) std::rethrow_exception(s->failure);
         throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
       }
       checkAccess(*c, access);
