@@ -188,7 +188,7 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   await row.hover();
   await a.waitForFunction((r) => document.getElementById("timeline-preview-image").dataset.revision === String(r), rA2, { timeout: 30000 });
   assert.equal(await a.evaluate(() => document.getElementById("timeline-preview-image").naturalWidth), 192);
-  writeFileSync(join(artifacts, "timeline.png"), await a.locator(".panel").screenshot());
+  writeFileSync(join(artifacts, "timeline.png"), await a.locator("#timeline-panel").screenshot());
 
   // Fork from A's second stroke: the page opens a new session at that revision, whose digest
   // is the one the session had then (before B's stroke over it); B stays in the old session,

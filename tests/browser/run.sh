@@ -6,6 +6,8 @@
 #        (no FILE: all of them, as ctest runs them)
 #        (MARZIPAN_BROWSER_ARTIFACTS=DIR for the screenshots; default build/browser-artifacts)
 set -euo pipefail
+# MARZIPAN may be relative to where this was started; it is resolved before leaving there.
+if [ -n "${MARZIPAN:-}" ] && [ -x "$MARZIPAN" ]; then MARZIPAN="$(cd "$(dirname "$MARZIPAN")" && pwd)/$(basename "$MARZIPAN")"; fi
 cd "$(dirname "$0")"
 chromium="${CHROMIUM:-/usr/lib/chromium/chromium}"
 marzipan="${MARZIPAN:-../../build/server/marzipan}"
