@@ -185,6 +185,7 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   const rows = await a.$$eval("#timeline li", (lis) => lis.map((li) => [Number(li.dataset.revision), li.dataset.author]));
   assert.deepEqual(rows, [[rB2, `#${idB}`], [rA2, "you"], [rA, "you"], [rB, `#${idB}`]], "newest first, with authors");
   const row = a.locator(`#timeline li[data-revision="${rA2}"]`);
+  await a.locator("#timeline-panel").scrollIntoViewIfNeeded(); // the screenshot below scrolls no more
   await row.hover();
   await a.waitForFunction((r) => document.getElementById("timeline-preview-image").dataset.revision === String(r), rA2, { timeout: 30000 });
   assert.equal(await a.evaluate(() => document.getElementById("timeline-preview-image").naturalWidth), 192);
