@@ -14,6 +14,7 @@ import { RpcError } from "./net/rpc-error.js";
 import { FrameFeed } from "./net/frame-feed.js";
 import { PickSync } from "./net/pick-sync.js";
 import { SessionClient } from "./net/session-client.js";
+import { timelineRows } from "./net/undo-scope.js";
 import { parseSessionLink, sessionLink } from "./net/session-link.js";
 import { Renderer } from "./render/renderer.js";
 import { SplatStore } from "./render/splat-store.js";
@@ -29,11 +30,13 @@ import { ShareDialog } from "./ui/share-dialog.js";
 import { installShortcuts } from "./ui/shortcuts.js";
 import { StartScreen } from "./ui/start-screen.js";
 import { StatusBar } from "./ui/status-bar.js";
+import { Timeline } from "./ui/timeline.js";
 import { GLOBAL_OPS } from "./ui/tools.js";
 
 const STATUS_REFRESH_MS = 500;
 const FRAME_TIME_FRAMES = 60;
 const HINT_KEY = "marzipan.hint-dismissed";
+const PREVIEW_SIZE = [192, 144]; // the timeline's preview, CSS pixels (index.html)
 
 // Where the starting solids face (server/engine/solids.hpp): the Front view looks at that side.
 const SOLID_FRONTS = Object.freeze({ pig: "+x" });
@@ -54,6 +57,13 @@ export class App {
     this.offline = new OfflineBanner(doc);
     this.help = new HelpDialog(doc);
     this.shareDialog = new ShareDialog(doc);
+    this.timeline = new Timeline(doc, {
+      opened: () => this.#refreshTimeline(),
+      preview: (revision) => this.#previewAt(revision),
+      fork: (revision) => this.#fork(revision),
+    });
+    this.timelineLoading = null; // the history.list in flight; one at a time
+    this.timelineStale = false; // the session changed while it was in flight
     this.frameFeed = new FrameFeed(this.session, this.camera, this.renderer, () =>
       this.status.frame(this.frameFeed.last, this.frameFeed.received),
     );
@@ -173,6 +183,7 @@ export class App {
       }
       this.#updateAvailability();
       this.renderer.requestRedraw();
+      this.#refreshTimeline();
     });
     s.addEventListener("state", (e) => {
       this.status.state(e.detail);
@@ -180,6 +191,7 @@ export class App {
       this.frameFeed.sessionChanged();
       this.pickSync.changed();
       this.#updateAvailability();
+      this.#refreshTimeline();
     });
     s.addEventListener("clients", (e) => this.status.clients(e.detail.clients, s.info && s.info.client));
     s.addEventListener("progress", (e) => this.messages.fraction(e.detail.fraction));
@@ -225,6 +237,51 @@ export class App {
     this.renderer.gridBox = near ? gridBoxEdges(size) : [];
     this.canvas.dataset.gridEdge = near ? "near" : "clear";
     document.getElementById("grid-note").hidden = !near;
+  }
+
+  // Reloads the timeline's steps while its panel is open: one history.list at a time, and one
+  // more after it when the session changed meanwhile (session.changed, undo, a join).
+  async #refreshTimeline() {
+    if (!this.timeline.open || !this.session.connected) return;
+    if (this.timelineLoading) {
+      this.timelineStale = true;
+      return;
+    }
+    this.timelineStale = false;
+    this.timelineLoading = this.session.historyList();
+    try {
+      const { revision, steps } = await this.timelineLoading;
+      this.timeline.show(timelineRows(steps, this.session.info.client), revision, this.session.readOnly);
+    } catch {
+      // reported by the session's "error" event
+    } finally {
+      this.timelineLoading = null;
+    }
+    if (this.timelineStale) this.#refreshTimeline();
+  }
+
+  // The volume right after the step of `revision`, from this page's camera, as a PNG Blob.
+  async #previewAt(revision) {
+    const [width, height] = PREVIEW_SIZE;
+    const { frame } = await this.session.renderFrame({ camera: this.camera.toProtocol(), width, height, format: "png", revision });
+    return new Blob([frame.payload], { type: "image/png" });
+  }
+
+  // Forks the session at `revision` and opens the fork here: its link becomes the page's
+  // address (the old session's link still opens the old session, which goes on without us).
+  async #fork(revision) {
+    this.input.cancel();
+    const from = this.session.info.session;
+    try {
+      const result = await this.messages.during(`Forking at revision ${revision}`, this.session.fork(revision));
+      this.joinToken = result.token;
+      this.win.history.replaceState(null, "", sessionLink(this.win.location.href, result.session, this.joinToken, this.front));
+      this.recent.remember({ session: result.session, token: this.joinToken, readOnly: false, size: result.size, front: this.front });
+      this.messages.notice(`This page is now a new session forked from ${from} at revision ${result.forked_from.revision}; its link is in the address bar.`);
+      if (this.controls.settings.view === "frames") await this.frameFeed.start(this.controls.settings.shading);
+    } catch {
+      // reported by the session's "error" event
+    }
   }
 
   // Frames the model (its splats), or the whole domain when it has none.

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# Runs the browser tests (client.test.mjs) the way ctest does, refusing to start without what
+# Runs the browser tests (client.test.mjs, collab.test.mjs) the way ctest does, refusing to start without what
 # they need rather than skipping: Debian's chromium, the npm dependency installed by
 # tests/install-build-test.sh, and a built marzipan.
-# Usage: MARZIPAN=build/server/marzipan bash tests/browser/run.sh
+# Usage: MARZIPAN=build/server/marzipan bash tests/browser/run.sh [FILE.test.mjs ...]
+#        (no FILE: all of them, as ctest runs them)
 #        (MARZIPAN_BROWSER_ARTIFACTS=DIR for the screenshots; default build/browser-artifacts)
 set -euo pipefail
+# MARZIPAN may be relative to where this was started; it is resolved before leaving there.
+if [ -n "${MARZIPAN:-}" ] && [ -x "$MARZIPAN" ]; then MARZIPAN="$(cd "$(dirname "$MARZIPAN")" && pwd)/$(basename "$MARZIPAN")"; fi
 cd "$(dirname "$0")"
 chromium="${CHROMIUM:-/usr/lib/chromium/chromium}"
 marzipan="${MARZIPAN:-../../build/server/marzipan}"
@@ -14,4 +17,5 @@ fail() { echo "tests/browser: $*" >&2; exit 1; }
 [ -x "$marzipan" ] || fail "no marzipan executable at $marzipan: build it, or set MARZIPAN"
 export MARZIPAN="$(cd "$(dirname "$marzipan")" && pwd)/$(basename "$marzipan")"
 export CHROMIUM="$chromium"
-exec node --test --test-concurrency=1 client.test.mjs
+[ $# -gt 0 ] || set -- client.test.mjs collab.test.mjs
+exec node --test --test-concurrency=1 "$@"

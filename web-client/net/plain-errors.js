@@ -2,6 +2,8 @@
 // own words (method, message, code) kept as the detail for whoever wants them.
 // plainError(error) -> {text, detail}; detail is "" when the plain text says everything.
 
+import { undoConflictText } from "./undo-scope.js";
+
 // What went wrong, by the code's name in PROTOCOL.md's table (RpcError.codeName); a function
 // receives the RpcError for texts that depend on the method or the server's message.
 const TEXTS = {
@@ -28,6 +30,11 @@ const TEXTS = {
   SessionExists: "A session with this id exists already.",
   SessionHeldElsewhere: "This session is open on another server; reconnecting there may take a moment.",
   Cancelled: "The operation was cancelled; the session is unchanged.",
+  // e.conflict: net/rpc-error.js reads data {client, revision, step} with protocol/js undoConflictOf.
+  UndoConflict: (e) =>
+    e.conflict
+      ? undoConflictText(e.conflict, e.method === "history.redo", e.self)
+      : "A later step changed the same place as yours, so it cannot be taken back alone; nothing changed.",
 };
 
 export function plainError(error) {

@@ -3,7 +3,7 @@
 // the WebSocket never opened (ConnectionRefused).
 // Callers branch on `code` and `data`; `message` is the server's sentence for a person.
 
-import { rpcErrorName } from "/protocol/js/rpc.js";
+import { rpcErrorName, undoConflictOf } from "/protocol/js/rpc.js";
 
 export class RpcError extends Error {
   constructor(method, { code, message, data }) {
@@ -12,6 +12,8 @@ export class RpcError extends Error {
     this.method = method;
     this.code = code;
     this.data = data;
+    this.conflict = undoConflictOf({ code, data }); // {client, revision, step} for -32017, else null
+    this.self = null; // this page's client id, when the session client knows it
   }
 
   // "InvalidParams" for -32602; the number itself for a code this client does not know.

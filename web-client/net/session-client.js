@@ -19,6 +19,7 @@ import { PROTOCOL_VERSION, RpcErrorCode } from "/protocol/js/rpc.js";
 import { Connection } from "./connection.js";
 import { RpcError } from "./rpc-error.js";
 import { newSessionId, socketUrl } from "./session-link.js";
+import { undoScope } from "./undo-scope.js";
 
 const RECONNECT_FIRST_MS = 500;
 const RECONNECT_MAX_MS = 8000;
@@ -112,6 +113,8 @@ export class SessionClient extends EventTarget {
     try {
       return await this.#connection.request(method, params, afterSend);
     } catch (e) {
+      // Lets an error's text name this page's own client as "you" (plain-errors.js).
+      if (e instanceof RpcError && this.info) e.self = this.info.client;
       this.#emit("error", { error: e, context: method });
       throw e;
     }
@@ -143,15 +146,37 @@ export class SessionClient extends EventTarget {
     return result;
   }
 
-  async undo() {
-    const { result } = await this.request("history.undo", {});
+  // The scope undo and redo use now (net/undo-scope.js): "mine" while another editor is in.
+  get undoScope() {
+    return undoScope(this.clients, this.info ? this.info.client : null);
+  }
+
+  async undo(scope = this.undoScope) {
+    const { result } = await this.request("history.undo", { scope });
     this.#history(result);
     return result;
   }
 
-  async redo() {
-    const { result } = await this.request("history.redo", {});
+  async redo(scope = this.undoScope) {
+    const { result } = await this.request("history.redo", { scope });
     this.#history(result);
+    return result;
+  }
+
+  // {revision, steps}: the session's steps, oldest first, then the undone ones (history.list).
+  async historyList() {
+    const { result } = await this.request("history.list", {});
+    return result;
+  }
+
+  // A new session from this one's volume at `revision` (the current one when left out): this
+  // client leaves the old session and is the fork's only client, with its edit token; a full
+  // splat buffer follows as after a join, and a later rejoin goes to the fork.
+  async fork(revision) {
+    const { result } = await this.request("session.fork", revision === undefined ? {} : { revision });
+    this.#credentials = { session: result.session, token: result.token };
+    this.info = null;
+    this.#joined(result, false);
     return result;
   }
 

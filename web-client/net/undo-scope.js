@@ -1,0 +1,60 @@
+// Which undo a person means (PROTOCOL.md, history.undo `scope`), and what the timeline shows of
+// each step of history.list. Pure functions, no DOM and no protocol imports, for the unit tests.
+// Conventions: clients are the session's {client, read_only} list (session.clients); `self` is
+// this page's client id; steps are history.list's step objects.
+
+// "mine" while another client who can edit is in the session, so that Ctrl+Z never takes back a
+// collaborator's stroke; "session" when this page is the only editor (viewers make no steps):
+// then the session's newest step is this page's or that of someone who left, and undoing it
+// is what a person alone expects.
+export function undoScope(clients, self) {
+  return clients.some((c) => c.client !== self && !c.read_only) ? "mine" : "session";
+}
+
+// The name of a step's author: "you", "#5", or "someone" when the server did not record it.
+export function authorName(client, self) {
+  if (client === null || client === undefined) return "someone";
+  return client === self ? "you" : `#${client}`;
+}
+
+// What the person reads when an undo (or redo) of their own step is refused because a later
+// step changed the same bricks: who, at which revision, and what to do instead. `conflict` is
+// protocol/js undoConflictOf's {client, revision, step}; `redo` says which request it was.
+export function undoConflictText(conflict, redo, self = null) {
+  const who = conflict.client === null ? "a later step" : conflict.client === self ? "your own later step" : `client #${conflict.client}`;
+  const verb = redo ? "redo" : "undo";
+  return (
+    `Cannot ${verb} your step at revision ${conflict.step}: ${who} changed the same place at revision ${conflict.revision}. ` +
+    `Nothing changed; ${conflict.client === self ? "undo that step first" : "ask them to undo theirs first"}, or fork from the timeline.`
+  );
+}
+
+// Tool wire names as a person reads them.
+const TOOL_NAMES = {
+  add_blob: "add blob",
+  remove_blob: "remove blob",
+  smooth: "smooth",
+  sharpen: "sharpen",
+  csg_add: "CSG add",
+  csg_subtract: "CSG subtract",
+  csg_intersect: "CSG intersect",
+  morph: "whole volume",
+  "volume.load": "load .mzv",
+};
+
+// One timeline row per step: {revision, author, tool, time ("HH:MM:SS" local), undone, mine}.
+export function timelineRows(steps, self, timeOf = localTime) {
+  return steps.map((s) => ({
+    revision: s.revision,
+    author: authorName(s.client, self),
+    tool: Object.hasOwn(TOOL_NAMES, s.tool) ? TOOL_NAMES[s.tool] : String(s.tool).replace(/_/g, " "),
+    time: timeOf(s.time_ms),
+    undone: Boolean(s.undone),
+    mine: s.client === self,
+  }));
+}
+
+function localTime(ms) {
+  const d = new Date(ms);
+  return [d.getHours(), d.getMinutes(), d.getSeconds()].map((v) => String(v).padStart(2, "0")).join(":");
+}
