@@ -57,6 +57,11 @@ std::unique_ptr<Session> recoverCopy(const fs::path& dir, const std::string& nam
 
 std::string hexDigest(const Session& s) { return digestHex(s.volume()); }
 
+// c joins the session `created` (session.create's result) with its edit or view token, without a view.
+void joinWith(TestClient& c, const json& created, const char* token = "token") {
+  c.result("session.join", {{"session", created["session"]}, {"token", created[token]}, {"view", "none"}});
+}
+
 // The PNG render.frame sends for params (its binary frame, without the header), and its result.
 std::pair<Bytes, json> framePng(TestClient& c, json params) {
   params["camera"] = {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}};
@@ -84,7 +89,7 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  joinWith(b, created);
   a.result("tool.apply", kLeftBlob);
   const json stroke = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 3}});
   b.result("stroke.dabs", {{"stroke", stroke["stroke"]}, {"dabs", {{{"center", {41, 24, 24}}}, {{"center", {41, 26, 24}}}}}});
@@ -119,7 +124,7 @@ TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  joinWith(b, created);
   // A strokes on the left, B on the right, A's stroke first.
   const json sa = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}});
   a.result("stroke.dabs", {{"stroke", sa["stroke"]}, {"dabs", {{{"center", {6, 24, 24}}}, {{"center", {6, 27, 24}}}}}});
@@ -180,8 +185,8 @@ TEST_CASE("undo mine refuses a step another client changed after it, naming who 
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
-  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  joinWith(b, created);
+  joinWith(v, created, "view_token");
   CHECK(a.error("history.undo", {{"scope", "mine"}}) == -32012);  // nothing of A's yet
   a.result("tool.apply", kLeftBlob);
   b.result("tool.apply", {{"tool", "add_blob"}, {"center", {7, 25, 24}}, {"radius", 4}});  // over A's blob
@@ -217,8 +222,8 @@ TEST_CASE("history.list gives every step with its author, tool, time and region;
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
-  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  joinWith(b, created);
+  joinWith(v, created, "view_token");
   CHECK(v.result("history.list")["steps"] == json::array());
   a.result("tool.apply", kLeftBlob);
   const json sb = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 3}});
@@ -259,8 +264,8 @@ TEST_CASE("session.fork starts a new session from the current volume or an earli
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
-  v.result("session.join", {{"session", id}, {"token", created["view_token"]}, {"view", "none"}});
+  joinWith(b, created);
+  joinWith(v, created, "view_token");
   a.result("tool.apply", kLeftBlob);
   const std::string atOne = a.result("session.stats")["digest"];
   a.result("tool.apply", kRightBlob);
@@ -332,7 +337,7 @@ TEST_CASE("render.frame of an earlier revision draws the volume of that step, th
   Hub hub(historyOptions());
   TestClient a(hub), v(hub), one(hub);
   const json created = a.result("session.create", kCreate);
-  v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
+  joinWith(v, created, "view_token");
   a.result("tool.apply", kLeftBlob);
   a.result("tool.apply", kRightBlob);
   // The same volume as revision 1, made on its own.
@@ -358,7 +363,7 @@ TEST_CASE("redo mine refuses a step under another client's undone step that hold
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
-  b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  joinWith(b, created);
   a.result("tool.apply", kLeftBlob);
   b.result("tool.apply", {{"tool", "add_blob"}, {"center", {7, 25, 24}}, {"radius", 4}});  // over A's blob
   a.result("history.undo");  // B's step

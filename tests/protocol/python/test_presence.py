@@ -7,7 +7,7 @@ import asyncio
 import time
 import unittest
 
-from support import ServerProcess, needs_server
+from support import ServerTestCase, needs_server
 
 from marzipan import rpc
 from marzipan.client import Client
@@ -39,18 +39,7 @@ async def presences(client, until, timeout=10):
 
 
 @needs_server
-class PresenceAgainstServer(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.server = ServerProcess().start()
-        cls.url = cls.server.ws_url
-
-    @classmethod
-    def tearDownClass(cls):
-        code = cls.server.stop()
-        if code not in (0, None):
-            raise AssertionError(f"marzipan serve exited with {code} after SIGTERM")
-
+class PresenceAgainstServer(ServerTestCase):
     def test_two_sculptors_and_a_viewer_see_each_other(self):
         async def go():
             async with Client.connect(self.url) as a, Client.connect(self.url) as b, Client.connect(self.url) as v:
