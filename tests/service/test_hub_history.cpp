@@ -58,8 +58,16 @@ std::unique_ptr<Session> recoverCopy(const fs::path& dir, const std::string& nam
 std::string hexDigest(const Session& s) { return digestHex(s.volume()); }
 
 // c joins the session `created` (session.create's result) with its edit or view token, without a view.
-void joinWith(TestClient& c, const json& created, const char* token = "token") {
-  c.result("session.join", {{"session", created["session"]}, {"token", created[token]}, {"view", "none"}});
+// The display name the server gave the caller of session.create/join, from its result's clients.
+std::string ownName(const json& joined) {
+  for (const json& c : joined["clients"])
+    if (c["client"] == joined["client"]) return c["name"];
+  FAIL("the caller is not in its own clients list");
+  return {};
+}
+
+json joinWith(TestClient& c, const json& created, const char* token = "token") {
+  return c.result("session.join", {{"session", created["session"]}, {"token", created[token]}, {"view", "none"}});
 }
 
 // The PNG render.frame sends for params (its binary frame, without the header), and its result.
@@ -100,6 +108,8 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   const std::vector<StepInfo> steps = rec->steps();
   REQUIRE(steps.size() == 3);
   CHECK(steps[0].author.id == "1");
+  CHECK(steps[0].author.name == ownName(created));
+  CHECK(steps[0].author.name != "");
   CHECK(steps[0].tool == "add_blob");
   CHECK(steps[1].author.id == "2");
   CHECK(steps[2].author.id == "1");
@@ -220,9 +230,11 @@ TEST_CASE("history.list gives every step with its author, tool, time and region;
           "[hub][history]") {
   Hub hub(historyOptions());
   TestClient a(hub), b(hub), v(hub);
-  const json created = a.result("session.create", kCreate);
+  json create = kCreate;
+  create["name"] = "Ada";
+  const json created = a.result("session.create", create);
   const std::string id = created["session"];
-  joinWith(b, created);
+  const json bJoined = joinWith(b, created);
   joinWith(v, created, "view_token");
   CHECK(v.result("history.list")["steps"] == json::array());
   a.result("tool.apply", kLeftBlob);
@@ -241,7 +253,10 @@ TEST_CASE("history.list gives every step with its author, tool, time and region;
   CHECK(steps[0]["first_revision"] == 2);
   CHECK(steps[0]["revision"] == 3);
   CHECK(steps[0]["undone"] == false);
+  // Each step names its author as they were called then.
+  CHECK(steps[0]["name"] == ownName(bJoined));
   CHECK(steps[1]["client"] == 1);
+  CHECK(steps[1]["name"] == "Ada");
   CHECK(steps[1]["revision"] == 1);
   CHECK(steps[1]["first_revision"] == 1);
   CHECK(steps[1]["undone"] == true);

@@ -82,7 +82,8 @@ void historyStep(HubCore& hub, const Call& call, bool undo) {
 
 }  // namespace
 
-StepAuthor authorOf(const HubClient& c) { return {std::to_string(c.clientId), {}}; }
+// The step keeps the display name the author had then: a timeline still names who left.
+StepAuthor authorOf(const HubClient& c) { return {std::to_string(c.clientId), c.name}; }
 
 json stepJson(const StepInfo& st) {
   json j{{"revision", st.revision},
