@@ -11,10 +11,12 @@ export function undoScope(clients, self) {
   return clients.some((c) => c.client !== self && !c.read_only) ? "mine" : "session";
 }
 
-// The name of a step's author: "you", "#5", or "someone" when the server did not record it.
-export function authorName(client, self) {
+// The name of a step's author: "you", their display name (history.list's `name`, since 1.2),
+// "#5" when the step has none, or "someone" when the server did not record the author.
+export function authorName(client, self, name) {
   if (client === null || client === undefined) return "someone";
-  return client === self ? "you" : `#${client}`;
+  if (client === self) return "you";
+  return typeof name === "string" && name ? name : `#${client}`;
 }
 
 // What the person reads when an undo (or redo) of their own step is refused because a later
@@ -46,7 +48,7 @@ const TOOL_NAMES = {
 export function timelineRows(steps, self, timeOf = localTime) {
   return steps.map((s) => ({
     revision: s.revision,
-    author: authorName(s.client, self),
+    author: authorName(s.client, self, s.name),
     tool: Object.hasOwn(TOOL_NAMES, s.tool) ? TOOL_NAMES[s.tool] : String(s.tool).replace(/_/g, " "),
     time: timeOf(s.time_ms),
     undone: Boolean(s.undone),

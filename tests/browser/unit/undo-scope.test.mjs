@@ -45,5 +45,9 @@ test("timeline rows: author, tool as read, time, undone", () => {
     { revision: 8, author: "someone", tool: "new tool", time: "t2000", undone: true, mine: false },
   ]);
   assert.equal(authorName(undefined, 3), "someone");
+  // Since protocol 1.2 a step carries its author's display name: the timeline says it.
+  const named = timelineRows([{ ...steps[1], name: "Bea" }, { ...steps[0], name: "Ada" }, { ...steps[1], name: "" }], 3, (ms) => `t${ms}`);
+  assert.deepEqual(named.map((r) => r.author), ["Bea", "you", "#5"]);
+  assert.equal(authorName(5, 3, "Bea"), "Bea");
   assert.match(timelineRows(steps.slice(0, 1), 3)[0].time, /^\d\d:\d\d:\d\d$/);
 });
