@@ -262,7 +262,8 @@ export class App {
     this.timelineLoading = this.session.historyList();
     try {
       const { revision, steps } = await this.timelineLoading;
-      this.timeline.show(timelineRows(steps, this.session.info.client), revision, this.session.readOnly);
+      const names = new Map(this.session.clients.map((c) => [c.client, c.name]));
+      this.timeline.show(timelineRows(steps, this.session.info.client, undefined, names), revision, this.session.readOnly);
     } catch {
       // reported by the session's "error" event
     } finally {

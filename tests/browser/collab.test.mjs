@@ -187,9 +187,9 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   const said = (await errorsShown(a)).at(-1);
   assert.equal(
     said,
-    `Cannot undo your step at revision ${rA2}: client #${idB} changed the same place at revision ${rB2}. Nothing changed; ask them to undo theirs first, or fork from the timeline.`,
+    `Cannot undo your step at revision ${rA2}: Bea (client #${idB}) changed the same place at revision ${rB2}. Nothing changed; ask them to undo theirs first, or fork from the timeline.`,
   );
-  await a.waitForSelector(`.message.error >> text=client #${idB} changed the same place at revision ${rB2}`, { timeout: 5000 });
+  await a.waitForSelector(`.message.error >> text=Bea (client #${idB}) changed the same place at revision ${rB2}`, { timeout: 5000 });
   writeFileSync(join(artifacts, "undo-conflict.png"), await a.screenshot());
   assert.equal(await revision(a), rB2, "the refused undo changed nothing");
   assert.equal(await digest(a), dConflict);

@@ -121,8 +121,12 @@ export class SessionClient extends EventTarget {
     try {
       return await this.#connection.request(method, params, afterSend);
     } catch (e) {
-      // Lets an error's text name this page's own client as "you" (plain-errors.js).
-      if (e instanceof RpcError && this.info) e.self = this.info.client;
+      // Lets an error's text name this page's own client as "you" and the others by their
+      // display names (plain-errors.js).
+      if (e instanceof RpcError && this.info) {
+        e.self = this.info.client;
+        e.names = new Map(this.clients.map((c) => [c.client, c.name]));
+      }
       this.#emit("error", { error: e, context: method });
       throw e;
     }
