@@ -48,6 +48,11 @@ export class Follow {
     if (this.leader === client) this.#stop("they left");
   }
 
+  // The reason following stopped has been told long enough.
+  forgetReason() {
+    if (this.leader === null) this.reason = null;
+  }
+
   // Leaving the session.
   reset() {
     if (this.leader !== null) this.#stop(null);

@@ -15,6 +15,7 @@ import { Follow } from "./follow.js";
 import { PeopleList, followNote, peopleRows } from "./people.js";
 
 const STALE_CHECK_MS = 1000;
+const STOPPED_NOTE_MS = 6000; // how long the note says why following stopped
 const MARK_LOG = 16;
 
 export class PresenceView {
@@ -26,7 +27,8 @@ export class PresenceView {
     this.marks = new EditMarks();
     this.shown = []; // the rings drawn last: [{client, center, radius, active}]
     this.marked = []; // the newest MARK_LOG edits marked: [{client, color, roi}] (for a look from the console)
-    this.follow = new Follow(() => this.#showPeople());
+    this.follow = new Follow((state) => this.#followChanged(state));
+    this.noteTimer = 0;
     this.people = new PeopleList(doc, (client) => this.#toggleFollow(client));
     this.labels = doc.getElementById("presence-labels");
     this.sender = new PresenceSender({
@@ -109,6 +111,16 @@ export class PresenceView {
       this.applyCamera(camera);
       this.cameraFollowed();
     }
+  }
+
+  #followChanged({ following, reason }) {
+    clearTimeout(this.noteTimer);
+    if (!following && reason)
+      this.noteTimer = setTimeout(() => {
+        this.follow.forgetReason();
+        this.#showPeople();
+      }, STOPPED_NOTE_MS);
+    this.#showPeople();
   }
 
   #changed() {

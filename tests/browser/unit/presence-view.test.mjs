@@ -112,6 +112,8 @@ test("following: a click follows (taking the newest camera), the leader's camera
   assert.equal(f.leader, 6, "someone else leaving does not stop it");
   f.gone(6);
   assert.deepEqual(changes.at(-1), { leader: null, following: false, reason: "they left" });
+  f.forgetReason();
+  assert.equal(f.reason, null);
   f.toggle(7);
   assert.equal(f.toggle(7), null);
   assert.equal(f.following, false, "a second click on the leader stops");
