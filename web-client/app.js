@@ -24,6 +24,7 @@ import { HelpDialog } from "./ui/help-dialog.js";
 import { Messages } from "./ui/messages.js";
 import { OfflineBanner } from "./ui/offline-banner.js";
 import { PointerInput } from "./ui/pointer-input.js";
+import { PresenceView } from "./ui/presence-view.js";
 import { RecentSessions } from "./ui/recent-sessions.js";
 import { Sculpt } from "./ui/sculpt.js";
 import { ShareDialog } from "./ui/share-dialog.js";
@@ -36,6 +37,7 @@ import { GLOBAL_OPS } from "./ui/tools.js";
 const STATUS_REFRESH_MS = 500;
 const FRAME_TIME_FRAMES = 60;
 const HINT_KEY = "marzipan.hint-dismissed";
+const NAME_KEY = "marzipan.name"; // the display name this browser last gave (start screen)
 const PREVIEW_SIZE = [192, 144]; // the timeline's preview, CSS pixels (index.html)
 
 // Where the starting solids face (server/engine/solids.hpp): the Front view looks at that side.
@@ -53,7 +55,7 @@ export class App {
     this.messages = new Messages(doc);
     this.status = new StatusBar(doc);
     this.recent = new RecentSessions(localStorageOf(win));
-    this.startScreen = new StartScreen(doc, this.recent);
+    this.startScreen = new StartScreen(doc, this.recent, localStorageOf(win), NAME_KEY);
     this.offline = new OfflineBanner(doc);
     this.help = new HelpDialog(doc);
     this.shareDialog = new ShareDialog(doc);
@@ -79,6 +81,14 @@ export class App {
       renderer: this.renderer,
       controls: this.controls,
       messages: this.messages,
+    });
+    this.presence = new PresenceView({
+      doc,
+      session: this.session,
+      camera: this.camera,
+      renderer: this.renderer,
+      sculpt: this.sculpt,
+      applyCamera: (camera) => this.#followCamera(camera),
     });
     this.input = new PointerInput(this.canvas, this.camera, {
       hover: (x, y) => this.sculpt.hover(x, y),
@@ -143,12 +153,13 @@ export class App {
       this.store.clear();
     }
     this.fitOnNextFull = true;
+    const name = this.startScreen.name;
     if (choice.create) {
-      const result = await this.session.create(choice.create);
+      const result = await this.session.create({ ...choice.create, name });
       this.joinToken = result.token;
       this.front = SOLID_FRONTS[choice.create.solid] || null;
     } else {
-      await this.session.join(choice.join);
+      await this.session.join({ ...choice.join, name });
       this.joinToken = choice.join.token;
       const known = this.recent.find(choice.join.session);
       this.front = choice.join.front || (known && known.front) || null;
@@ -251,7 +262,8 @@ export class App {
     this.timelineLoading = this.session.historyList();
     try {
       const { revision, steps } = await this.timelineLoading;
-      this.timeline.show(timelineRows(steps, this.session.info.client), revision, this.session.readOnly);
+      const names = new Map(this.session.clients.map((c) => [c.client, c.name]));
+      this.timeline.show(timelineRows(steps, this.session.info.client, undefined, names), revision, this.session.readOnly);
     } catch {
       // reported by the session's "error" event
     } finally {
@@ -291,7 +303,17 @@ export class App {
     else this.camera.fit(null, null, aspect);
   }
 
+  // The person moved the camera (orbit, pan, zoom, presets, focus): following stops.
   #cameraChanged() {
+    this.frameFeed.cameraMoved();
+    this.sculpt.refresh();
+    this.presence.cameraMoved();
+  }
+
+  // Following someone (ui/presence-view.js): their camera becomes this page's.
+  #followCamera(camera) {
+    this.camera.setFromProtocol(camera);
+    this.doc.getElementById("orthographic").checked = this.camera.orthographic;
     this.frameFeed.cameraMoved();
     this.sculpt.refresh();
   }

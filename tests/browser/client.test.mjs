@@ -61,8 +61,13 @@ async function settled(page, timeout = 30000) {
   await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
 }
 
+// The picture the canvas draws: the HTML over it that says who else is in the session (the
+// people list, the name labels over their rings; web-client/ui/presence-view.js) is hidden for
+// the shot, since the checks below read the model and the backdrop from its pixels.
+const CANVAS_ONLY = ".people, .presence-labels { visibility: hidden !important; }";
+
 async function shot(page, name) {
-  const png = await page.locator("#view").screenshot();
+  const png = await page.locator("#view").screenshot({ style: CANVAS_ONLY });
   writeFileSync(join(artifacts, `${name}.png`), png);
   return decodePng(png);
 }

@@ -68,8 +68,12 @@ export class OrbitCamera {
   // Switches between the perspective and the (telephoto) orthographic view, keeping what is
   // at the target's depth the same size on screen.
   setOrthographic(on) {
+    this.#setFov(on ? ORTHOGRAPHIC_FOV_DEGREES : DEFAULT_FOV_DEGREES);
+  }
+
+  #setFov(degrees) {
     const before = this.#lens;
-    this.fovDegrees = on ? ORTHOGRAPHIC_FOV_DEGREES : DEFAULT_FOV_DEGREES;
+    this.fovDegrees = degrees;
     const k = this.#lens / before;
     this.minDistance *= k;
     this.maxDistance *= k;
@@ -238,6 +242,26 @@ export class OrbitCamera {
   // The camera object of PROTOCOL.md (view.set, render.frame).
   toProtocol() {
     return { eye: this.eye, target: [...this.target], up: this.up, fov: this.fovDegrees };
+  }
+
+  // Takes the camera object of PROTOCOL.md (another client's, for following it): the same eye,
+  // target and fov; yaw and pitch from the view direction, and at the poles (looking straight
+  // down or up, where the direction says nothing of the yaw) from `up`. The distance is kept
+  // within this camera's limits (the same grid gives the same limits). A camera that rolls
+  // (an `up` off the plane of the view direction and y) cannot be an orbit camera's: its roll
+  // is dropped.
+  setFromProtocol({ eye, target, up = [0, 1, 0], fov = DEFAULT_FOV_DEGREES }) {
+    if (fov !== this.fovDegrees) this.#setFov(fov);
+    const d = sub(eye, target);
+    const distance = length(d);
+    const b = d.map((v) => v / distance);
+    this.pitch = Math.asin(clamp(b[1], -1, 1));
+    const horizontal = Math.hypot(b[0], b[2]);
+    // up = (-sin(pitch) sin(yaw), cos(pitch), -sin(pitch) cos(yaw)) (see `up`)
+    if (horizontal > 1e-6) this.yaw = Math.atan2(b[0], b[2]);
+    else this.yaw = b[1] > 0 ? Math.atan2(-up[0], -up[2]) : Math.atan2(up[0], up[2]);
+    this.target = [...target];
+    this.distance = clamp(distance, this.minDistance, this.maxDistance);
   }
 
   // A plain copy of the orbit state, and back: for change detection and resets.

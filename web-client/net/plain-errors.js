@@ -33,7 +33,7 @@ const TEXTS = {
   // e.conflict: net/rpc-error.js reads data {client, revision, step} with protocol/js undoConflictOf.
   UndoConflict: (e) =>
     e.conflict
-      ? undoConflictText(e.conflict, e.method === "history.redo", e.self)
+      ? undoConflictText(e.conflict, e.method === "history.redo", e.self, e.names)
       : "A later step changed the same place as yours, so it cannot be taken back alone; nothing changed.",
 };
 

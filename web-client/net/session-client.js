@@ -10,6 +10,8 @@
 //   `because` says why the connection of an open session dropped ("code 1006"), null while it holds
 //   "joined" {info, rejoined}; "state" {revision, digest, canUndo, canRedo, cause?, by?};
 //   "clients" {clients}; "splats" {full, revision, payload}; "frame" {kind, revision, payload};
+//   "presence" (params of a `presence` notification: another client's brush and camera, or
+//   {client, gone});
 //   "rtt" {method, ms}; "error" {error, context}: every error a request got (RpcError) and
 //   every protocol problem, for the person to read; "lost" {error}: the session cannot be
 //   rejoined (it no longer exists, or the token no longer opens it).
@@ -24,6 +26,9 @@ import { undoScope } from "./undo-scope.js";
 const RECONNECT_FIRST_MS = 500;
 const RECONNECT_MAX_MS = 8000;
 const CREATE_ATTEMPTS = 3; // fresh ids to try when the proposed one exists (-32014)
+// Presence is not sent while this much is waiting in the socket: it would only queue behind
+// strokes, and the next one replaces it anyway.
+const PRESENCE_BACKLOG_BYTES = 64 * 1024;
 
 export class SessionClient extends EventTarget {
   #connection = null;
@@ -52,8 +57,9 @@ export class SessionClient extends EventTarget {
     return Boolean(this.info && this.info.read_only);
   }
 
-  // Creates a session of size^3 voxels starting as `solid`, proposing a fresh id.
-  async create({ size, solid }) {
+  // Creates a session of size^3 voxels starting as `solid`, proposing a fresh id. `name`: this
+  // client's display name (PROTOCOL.md "Presence"); empty or left out, the server names it.
+  async create({ size, solid, name }) {
     for (let attempt = 1; ; ++attempt) {
       const session = newSessionId();
       try {
@@ -64,8 +70,9 @@ export class SessionClient extends EventTarget {
           session,
           protocol: PROTOCOL_VERSION.major,
           view: "splats",
+          ...nameParam(name),
         });
-        this.#credentials = { session: result.session, token: result.token };
+        this.#credentials = { session: result.session, token: result.token, name };
         this.#joined(result, false);
         return result;
       } catch (e) {
@@ -78,8 +85,8 @@ export class SessionClient extends EventTarget {
     }
   }
 
-  // Joins an existing session with an edit or a view token.
-  async join({ session, token }) {
+  // Joins an existing session with an edit or a view token (`name` as for create).
+  async join({ session, token, name }) {
     try {
       await this.#connect(session);
       const { result } = await this.#connection.request("session.join", {
@@ -87,8 +94,9 @@ export class SessionClient extends EventTarget {
         token,
         protocol: PROTOCOL_VERSION.major,
         view: "splats",
+        ...nameParam(name),
       });
-      this.#credentials = { session, token };
+      this.#credentials = { session, token, name };
       this.#joined(result, false);
       return result;
     } catch (e) {
@@ -113,8 +121,12 @@ export class SessionClient extends EventTarget {
     try {
       return await this.#connection.request(method, params, afterSend);
     } catch (e) {
-      // Lets an error's text name this page's own client as "you" (plain-errors.js).
-      if (e instanceof RpcError && this.info) e.self = this.info.client;
+      // Lets an error's text name this page's own client as "you" and the others by their
+      // display names (plain-errors.js).
+      if (e instanceof RpcError && this.info) {
+        e.self = this.info.client;
+        e.names = new Map(this.clients.map((c) => [c.client, c.name]));
+      }
       this.#emit("error", { error: e, context: method });
       throw e;
     }
@@ -123,6 +135,14 @@ export class SessionClient extends EventTarget {
   // Bytes waiting in the socket: lets senders of frequent messages hold back.
   get bufferedAmount() {
     return this.#connection ? this.#connection.bufferedAmount : 0;
+  }
+
+  // This client's presence (PROTOCOL.md "Presence"), a notification: false when it was not sent
+  // (offline, or the socket still holds PRESENCE_BACKLOG_BYTES).
+  sendPresence(params) {
+    if (!this.connected || !this.#connection || !this.info || this.bufferedAmount > PRESENCE_BACKLOG_BYTES) return false;
+    this.#connection.notify("presence", params);
+    return true;
   }
 
   // --- edits ------------------------------------------------------------------------------
@@ -174,7 +194,7 @@ export class SessionClient extends EventTarget {
   // splat buffer follows as after a join, and a later rejoin goes to the fork.
   async fork(revision) {
     const { result } = await this.request("session.fork", revision === undefined ? {} : { revision });
-    this.#credentials = { session: result.session, token: result.token };
+    this.#credentials = { session: result.session, token: result.token, name: this.#credentials && this.#credentials.name };
     this.info = null;
     this.#joined(result, false);
     return result;
@@ -292,6 +312,7 @@ export class SessionClient extends EventTarget {
         token: creds.token,
         protocol: PROTOCOL_VERSION.major,
         view: "splats",
+        ...nameParam(creds.name),
       });
       this.#joined(result, true);
     } catch (e) {
@@ -345,6 +366,8 @@ export class SessionClient extends EventTarget {
       this.#setClients(params.clients);
     } else if (method === "op.progress") {
       this.#emit("progress", params);
+    } else if (method === "presence") {
+      this.#emit("presence", params);
     }
   }
 
@@ -391,4 +414,10 @@ export class SessionClient extends EventTarget {
   #emit(type, detail) {
     this.dispatchEvent(new CustomEvent(type, { detail }));
   }
+}
+
+// The `name` param of create and join: left out when there is none to give.
+function nameParam(name) {
+  const trimmed = typeof name === "string" ? name.trim() : "";
+  return trimmed ? { name: trimmed } : {};
 }

@@ -11,17 +11,22 @@ export function undoScope(clients, self) {
   return clients.some((c) => c.client !== self && !c.read_only) ? "mine" : "session";
 }
 
-// The name of a step's author: "you", "#5", or "someone" when the server did not record it.
-export function authorName(client, self) {
+// The name of a step's author: "you", their display name (history.list's `name`, since 1.2),
+// "#5" when the step has none, or "someone" when the server did not record the author.
+export function authorName(client, self, name) {
   if (client === null || client === undefined) return "someone";
-  return client === self ? "you" : `#${client}`;
+  if (client === self) return "you";
+  return typeof name === "string" && name ? name : `#${client}`;
 }
 
 // What the person reads when an undo (or redo) of their own step is refused because a later
 // step changed the same bricks: who, at which revision, and what to do instead. `conflict` is
-// protocol/js undoConflictOf's {client, revision, step}; `redo` says which request it was.
-export function undoConflictText(conflict, redo, self = null) {
-  const who = conflict.client === null ? "a later step" : conflict.client === self ? "your own later step" : `client #${conflict.client}`;
+// protocol/js undoConflictOf's {client, revision, step}; `redo` says which request it was;
+// `names` maps client ids to display names (session.clients), for naming the other person.
+export function undoConflictText(conflict, redo, self = null, names = new Map()) {
+  const name = names.get(conflict.client);
+  const other = name ? `${name} (client #${conflict.client})` : `client #${conflict.client}`;
+  const who = conflict.client === null ? "a later step" : conflict.client === self ? "your own later step" : other;
   const verb = redo ? "redo" : "undo";
   return (
     `Cannot ${verb} your step at revision ${conflict.step}: ${who} changed the same place at revision ${conflict.revision}. ` +
@@ -43,10 +48,13 @@ const TOOL_NAMES = {
 };
 
 // One timeline row per step: {revision, author, tool, time ("HH:MM:SS" local), undone, mine}.
-export function timelineRows(steps, self, timeOf = localTime) {
+// `names` maps client ids to the display names of the clients in the session now
+// (session.clients): a step without a `name` of its own is named after its author while they
+// are there (the server records names on steps only from 1.2 on, and may leave them out).
+export function timelineRows(steps, self, timeOf = localTime, names = new Map()) {
   return steps.map((s) => ({
     revision: s.revision,
-    author: authorName(s.client, self),
+    author: authorName(s.client, self, s.name || names.get(s.client)),
     tool: Object.hasOwn(TOOL_NAMES, s.tool) ? TOOL_NAMES[s.tool] : String(s.tool).replace(/_/g, " "),
     time: timeOf(s.time_ms),
     undone: Boolean(s.undone),

@@ -72,8 +72,9 @@ export class BrushCursor {
   }
 
   // cursor: {rings: [{center, normal, radius, width, color, alpha, primary}], segments: [[a, b]],
-  // color}: the segments are drawn as 1-pixel lines in `color`.
-  draw(camera, { rings, segments, color }) {
+  // color, alpha?}: the segments are drawn as 1-pixel lines in `color` (opacity `alpha`, 0.9
+  // when left out).
+  draw(camera, { rings, segments, color, alpha = 0.9 }) {
     if (!rings.length && !segments.length) return;
     const gl = this.gl;
     const { program, uniforms } = this.program;
@@ -104,7 +105,7 @@ export class BrushCursor {
       gl.bindBuffer(gl.ARRAY_BUFFER, this.lineBuffer);
       gl.bufferData(gl.ARRAY_BUFFER, this.lineData.subarray(0, n), gl.DYNAMIC_DRAW);
       gl.uniformMatrix4fv(this.lines.uniforms.u_viewProjection, false, camera.viewProjection);
-      gl.uniform4fv(this.lines.uniforms.u_color, [...color, 0.9]);
+      gl.uniform4fv(this.lines.uniforms.u_color, [...color, alpha]);
       gl.drawArrays(gl.LINES, 0, 2 * segments.length);
     }
     gl.disable(gl.BLEND);

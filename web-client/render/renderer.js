@@ -5,7 +5,8 @@
 // has exactly the canvas's size in device pixels (CSS size x devicePixelRatio, from
 // ResizeObserver's device-pixel box where the browser has it), so the picture is sharp and
 // undistorted at any window size and pixel ratio. Views: "splats" draws the client's splats,
-// "frames" the newest server frame; the brush cursor is drawn over either.
+// "frames" the newest server frame; the brush cursor is drawn over either, and so are the other
+// clients' brush rings and the marks of their edits (ui/presence-view.js sets `others`).
 // Ownership: the renderer reads the SplatStore and the camera; it never changes them except
 // for the camera's matrices (update()) and the store's GPU change log (sync).
 
@@ -27,6 +28,8 @@ export class Renderer {
     this.shading = "lit";
     this.cursorShape = { rings: [], segments: [], color: [1, 1, 1] }; // ui/sculpt.js sets it
     this.gridBox = []; // the grid's edges while the model nears them (app.js, math/grid-edge.js)
+    // The others' rings and their edits' marks (math/presence-rings.js): {rings, marks: [{segments, color, alpha}]}.
+    this.others = { rings: [], marks: [] };
     this.onBeforeDraw = [];
     this.onAfterDraw = [];
     this.width = 1;
@@ -143,6 +146,8 @@ export class Renderer {
       if (this.view === "splats") this.splats.draw(this.camera, this.shading);
     }
     if (this.gridBox.length) this.cursor.draw(this.camera, { rings: [], segments: this.gridBox, color: GRID_COLOR });
+    for (const mark of this.others.marks) this.cursor.draw(this.camera, { rings: [], segments: mark.segments, color: mark.color, alpha: mark.alpha });
+    this.cursor.draw(this.camera, { rings: this.others.rings, segments: [], color: [1, 1, 1] });
     this.cursor.draw(this.camera, this.cursorShape);
     this.lastDrawMs = performance.now() - start;
     ++this.frameCount;

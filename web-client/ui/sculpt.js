@@ -40,6 +40,7 @@ export class Sculpt {
     this.lastPoint = null; // the last surface point the pointer was on (the orbit pivot beside the model)
     this.stroke = null; // {sender, spacer}
     this.openStrokes = 0; // strokes whose stroke.end has not answered yet
+    this.onCursor = () => {}; // the brush under the pointer moved, or a stroke began or ended (presence)
     renderer.onBeforeDraw.push(() => this.stroke && this.stroke.sender.flush());
   }
 
@@ -85,6 +86,15 @@ export class Sculpt {
     this.#updateCursor();
   }
 
+  // What the others see of this page's brush (PROTOCOL.md "Presence"): {tool, radius, point,
+  // normal, active} while the pointer is on the model of a session this page may edit, else
+  // null. The tool is the stroke's own while one is open (a modifier may have inverted it).
+  get presenceBrush() {
+    if (!this.hit || !this.editable) return null;
+    const s = this.controls.settings;
+    return { tool: this.stroke ? this.stroke.tool : s.tool, radius: s.radius, point: this.hit.point, normal: this.hit.normal, active: Boolean(this.stroke) };
+  }
+
   // "stroke" or "click" when a press at (x, y) sculpts, "blocked" when it lands on the model
   // of a session that is open with edit rights but offline (it does nothing then, not even
   // orbit), null when it should orbit instead.
@@ -101,6 +111,7 @@ export class Sculpt {
     const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
     const tool = toolWithModifier(s.tool, modifier);
     this.stroke = {
+      tool,
       sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, accumulate: STROKES_ACCUMULATE }, maxDabs),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
       lazy: new LazyMouse(s.lazy || 0),
@@ -133,6 +144,7 @@ export class Sculpt {
     this.stroke = null;
     sender.end().finally(() => this.#setOpenStrokes(this.openStrokes - 1));
     this.renderer.requestRedraw();
+    this.onCursor();
   }
 
   // A CSG tool applied where the ray under (x, y) meets the surface.
@@ -193,6 +205,7 @@ export class Sculpt {
     }
     this.renderer.cursorShape = cursor;
     this.renderer.requestRedraw();
+    this.onCursor();
   }
 
   // The readout sits just right of and below the brush centre on screen.

@@ -2,15 +2,22 @@
 // reopen one of the recent sessions this browser keeps (ui/recent-sessions.js). It resolves
 // with what the person chose; the app does the connecting and reports failures back with
 // showError(), leaving the screen open for another try. Opened while a session is open, it
-// says that choosing leaves that session.
+// says that choosing leaves that session. It also asks for the person's display name (shown to
+// the others in the session, PROTOCOL.md "Presence"), remembered in localStorage under
+// `nameKey` and used for links opened without this screen too.
 
 import { parseSessionLink } from "../net/session-link.js";
 
 export class StartScreen {
-  // recent: a RecentSessions.
-  constructor(doc, recent) {
+  // recent: a RecentSessions; storage: localStorage or null.
+  constructor(doc, recent, storage = null, nameKey = "marzipan.name") {
     this.doc = doc;
     this.recent = recent;
+    this.storage = storage;
+    this.nameKey = nameKey;
+    this.nameField = doc.getElementById("your-name");
+    this.nameField.value = this.#storedName();
+    this.nameField.addEventListener("change", () => this.#storeName(this.nameField.value.trim()));
     this.dialog = doc.getElementById("start");
     this.error = doc.getElementById("start-error");
     this.dialog.addEventListener("cancel", (e) => {
@@ -86,6 +93,30 @@ export class StartScreen {
       });
       li.append(button, forget);
       list.append(li);
+    }
+  }
+
+  // The display name to give the server: the field's (as stored when it last changed), "" for
+  // none (the server then says "Sculptor N").
+  get name() {
+    const typed = this.nameField.value.trim();
+    if (typed) this.#storeName(typed);
+    return typed || this.#storedName();
+  }
+
+  #storedName() {
+    try {
+      return (this.storage && this.storage.getItem(this.nameKey)) || "";
+    } catch {
+      return "";
+    }
+  }
+
+  #storeName(name) {
+    try {
+      if (this.storage) name ? this.storage.setItem(this.nameKey, name) : this.storage.removeItem(this.nameKey);
+    } catch {
+      // refused or full: the name holds for this page only
     }
   }
 

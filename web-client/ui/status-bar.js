@@ -64,7 +64,7 @@ export class StatusBar {
 
   clients(clients, self) {
     const others = clients.filter((c) => c.client !== self);
-    const names = clients.map((c) => `#${c.client}${c.client === self ? " (you)" : ""}${c.read_only ? " viewing" : ""}`);
+    const names = clients.map((c) => `${c.name || `#${c.client}`}${c.client === self ? " (you)" : ""}${c.read_only ? " viewing" : ""}`);
     const el = this.$("clients");
     el.textContent = others.length ? `${clients.length} here` : "only you";
     el.title = `Clients in this session: ${names.join(", ")}`;

@@ -22,6 +22,7 @@ test("a conflict names the client and the revision in the way, and the caller's 
   );
   assert.match(undoConflictText({ client: 3, revision: 12, step: 9 }, true, 3), /^Cannot redo your step at revision 9: your own later step changed the same place at revision 12\. Nothing changed; undo that step first/);
   assert.match(undoConflictText({ client: null, revision: 4, step: 2 }, false, 3), /a later step changed the same place at revision 4/);
+  assert.match(undoConflictText({ client: 5, revision: 12, step: 9 }, false, 3, new Map([[5, "Bea"]])), /: Bea \(client #5\) changed the same place at revision 12\./, "by name while they are in");
 });
 
 test("plain-errors tells -32017 with the conflict, and without one still says nothing changed", () => {
@@ -45,5 +46,13 @@ test("timeline rows: author, tool as read, time, undone", () => {
     { revision: 8, author: "someone", tool: "new tool", time: "t2000", undone: true, mine: false },
   ]);
   assert.equal(authorName(undefined, 3), "someone");
+  // Since protocol 1.2 a step carries its author's display name: the timeline says it.
+  const named = timelineRows([{ ...steps[1], name: "Bea" }, { ...steps[0], name: "Ada" }, { ...steps[1], name: "" }], 3, (ms) => `t${ms}`);
+  assert.deepEqual(named.map((r) => r.author), ["Bea", "you", "#5"]);
+  assert.equal(authorName(5, 3, "Bea"), "Bea");
+  // A step without a name of its own takes its author's from the session's clients while they are in.
+  const fromClients = timelineRows(steps, 3, (ms) => `t${ms}`, new Map([[5, "Bea"], [3, "Ada"]]));
+  assert.deepEqual(fromClients.map((r) => r.author), ["you", "Bea", "someone"]);
+  assert.equal(timelineRows([{ ...steps[1], name: "Old" }], 3, (ms) => `t${ms}`, new Map([[5, "Bea"]]))[0].author, "Old", "the step's own name first");
   assert.match(timelineRows(steps.slice(0, 1), 3)[0].time, /^\d\d:\d\d:\d\d$/);
 });
