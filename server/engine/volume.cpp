@@ -187,11 +187,17 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             const float* d = old.data ? old.data->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
-            for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
-              // NaN passes std::clamp and would reach every reader; refuse it before publishing.
-              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-              changed = changed || std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
+            // A whole row without a branch per voxel (almost every row is unchanged).
+            int nan = 0, differs = 0;
+            const int n = here.hi.x - here.lo.x;
+            if (d) {
+              for (int x = 0; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != d[x];
+            } else {
+              for (int x = 0; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != uniform;
             }
+            // NaN passes std::clamp and would reach every reader; refuse it before publishing.
+            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+            changed = differs != 0;
           }
         if (!changed) continue;
         auto nb = std::make_shared<Brick>();
