@@ -41,8 +41,13 @@ using Buckets = std::vector<std::vector<Entry>>;
 // dropping those whose m is not below the root (Sethian's upwind rule).
 inline double solveEikonal(double m[3], double c[3], int n) {
   if (n == 1) return m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // the common case: one upwind axis
-  for (int i = 1; i < n; ++i)  // insertion sort of at most three
-    for (int j = i; j > 0 && m[j] < m[j - 1]; --j) std::swap(m[j], m[j - 1]), std::swap(c[j], c[j - 1]);
+  auto order = [&](int j) {  // one step of an insertion sort: m[j - 1] <= m[j] after it
+    if (!(m[j] < m[j - 1])) return false;
+    std::swap(m[j], m[j - 1]), std::swap(c[j], c[j - 1]);
+    return true;
+  };
+  order(1);
+  if (n == 3 && order(2)) order(1);
   double a = c[0], b = c[0] * m[0], cc = c[0] * m[0] * m[0];
   double u = m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
   for (int k = 1; k < n && u > m[k]; ++k) {
@@ -116,7 +121,8 @@ class SideMarcher {
         st_[e.index] |= kUse | kTaken;
         // A neighbour already at or below this value would drop it from its stencil (the
         // upwind rule), so this voxel cannot lower it.
-        auto visit = [&](std::size_t n) {
+        // Inlined here, with update() out of line: about half of the visits update nothing.
+        auto visit = [&](std::size_t n) __attribute__((always_inline)) {
           if ((st_[n] & kOpen) && mag(n) > e.dist) update(n);
         };
         if (st_[e.index] & kInside) {
@@ -171,7 +177,7 @@ class SideMarcher {
     return (s & kOther) ? -double(mag(n2)) : kInf;
   }
 
-  void update(std::size_t n) {
+  [[gnu::noinline]] void update(std::size_t n) {
     if (st_[n] & kInside) {
       updateAt<true>(n);
     } else {

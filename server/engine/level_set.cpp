@@ -178,17 +178,23 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     const float* v = g.v.data();
     pool.parallelFor(blocks, [&](std::size_t b) {
       progress.check();
-      const std::size_t end = std::min(list.size(), (b + 1) * kBlock);
-      for (std::size_t k = b * kBlock; k < end; ++k) {
-        const std::size_t i = list[k];
-        const double f = speed[k];
-        if (m.kind == Motion::Kind::Advect) {
+      const std::size_t begin = b * kBlock, end = std::min(list.size(), (b + 1) * kBlock);
+      // One loop per kind of motion, decided once per block, not per voxel.
+      if (m.kind == Motion::Kind::Advect) {
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::size_t i = list[k];
+          const double f = speed[k];
           next[k] = v[i] - float(m.dt * f) * upwindGradient(v, i, stride, f > 0);
-        } else {
-          double lap = v[i + 1] + v[i - 1] + v[i + g.sx] + v[i - g.sx] + v[i + g.sxy] + v[i - g.sxy] - 6.0 * v[i];
-          lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
-          next[k] = float(v[i] + m.dt * f * lap);
         }
+        return;
+      }
+      const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+      const bool limited = std::isfinite(m.curvatureLimit);  // clamping to +-infinity changes nothing
+      for (std::size_t k = begin; k < end; ++k) {
+        const float* p = v + list[k];
+        double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
+        if (limited) lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
+        next[k] = float(p[0] + m.dt * double(speed[k]) * lap);
       }
     });
     for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
