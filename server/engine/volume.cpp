@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <sstream>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "errors.hpp"
 #include "stencil.hpp"
@@ -190,11 +193,19 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
             // A whole row without a branch per voxel (almost every row is unchanged).
             int nan = 0, differs = 0;
             const int n = here.hi.x - here.lo.x;
-            if (d) {
-              for (int x = 0; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != d[x];
-            } else {
-              for (int x = 0; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != uniform;
+            int x = 0;
+#if defined(__SSE2__)
+            // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
+            const __m128 lo = _mm_set1_ps(-band_), hi = _mm_set1_ps(band_), u = _mm_set1_ps(uniform);
+            __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
+            for (; x + 4 <= n; x += 4) {
+              const __m128 sv = _mm_loadu_ps(s + x);
+              bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
+              ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), d ? _mm_loadu_ps(d + x) : u));
             }
+            nan = _mm_movemask_ps(bad), differs = _mm_movemask_ps(ne);
+#endif
+            for (; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
             // NaN passes std::clamp and would reach every reader; refuse it before publishing.
             if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
             changed = differs != 0;
