@@ -100,8 +100,13 @@ void Volume::gather(const Box& box, float* out) const {
           for (int y = here.lo.y; y < here.hi.y; ++y) {
             float* row = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
                          sxy * std::size_t(z - box.lo.z);
-            if (d) {
+            // Whole brick rows are the rule: a fixed-size copy is a few instructions, not a call.
+            if (d && n == kBrickSide) {
+              std::memcpy(row, d + Bricks::index(0, y - o.y, z - o.z), sizeof(float) * kBrickSide);
+            } else if (d) {
               std::memcpy(row, d + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
+            } else if (n == kBrickSide) {
+              std::fill(row, row + kBrickSide, u);
             } else {
               std::fill(row, row + n, u);
             }
@@ -198,11 +203,19 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
             // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
             const __m128 lo = _mm_set1_ps(-band_), hi = _mm_set1_ps(band_), u = _mm_set1_ps(uniform);
             __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
-            for (; x + 4 <= n; x += 4) {
-              const __m128 sv = _mm_loadu_ps(s + x);
+            auto four = [&](int at, __m128 prev) {
+              const __m128 sv = _mm_loadu_ps(s + at);
               bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
-              ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), d ? _mm_loadu_ps(d + x) : u));
+              ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), prev));
+            };
+            if (n == 8 && d) {  // a whole brick row, the rule
+              four(0, _mm_loadu_ps(d)), four(4, _mm_loadu_ps(d + 4));
+              x = 8;
+            } else if (n == 8) {
+              four(0, u), four(4, u);
+              x = 8;
             }
+            for (; x + 4 <= n; x += 4) four(x, d ? _mm_loadu_ps(d + x) : u);
             nan = _mm_movemask_ps(bad), differs = _mm_movemask_ps(ne);
 #endif
             for (; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
