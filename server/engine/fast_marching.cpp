@@ -38,25 +38,30 @@ struct Entry {
 using Buckets = std::vector<std::vector<Entry>>;
 
 // Solves sum_k c_k (u - m_k)^2 = 1 for the largest root, using the axes in increasing m and
-// dropping those whose m is not below the root (Sethian's upwind rule).
-inline double solveEikonal(double m[3], double c[3], int n) {
-  if (n == 1) return m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // the common case: one upwind axis
-  auto order = [&](int j) {  // one step of an insertion sort: m[j - 1] <= m[j] after it
-    if (!(m[j] < m[j - 1])) return false;
-    std::swap(m[j], m[j - 1]), std::swap(c[j], c[j - 1]);
+// dropping those whose m is not below the root (Sethian's upwind rule). Spelled out for one,
+// two and three axes with the values in registers: it runs once per update.
+inline double solveEikonal(const double m[3], const double c[3], int n) {
+  if (n == 1) return m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
+  double m0 = m[0], m1 = m[1], m2 = n == 3 ? m[2] : 0.0, c0 = c[0], c1 = c[1], c2 = n == 3 ? c[2] : 0.0;
+  // An insertion sort (stable for equal m).
+  if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
+  if (n == 3 && m2 < m1) {
+    std::swap(m1, m2), std::swap(c1, c2);
+    if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
+  }
+  double a = c0, b = c0 * m0, cc = c0 * m0 * m0;
+  double u = m0 + (c0 == 1.0 ? 1.0 : 2.0 / 3.0);
+  // Adds the next axis while its m is below the root; false when the sum stops there.
+  auto add = [&](double mk, double ck) {
+    if (!(u > mk)) return false;
+    const double a2 = a + ck, b2 = b + ck * mk, c2k = cc + ck * mk * mk;
+    const double disc = b2 * b2 - a2 * (c2k - 1.0);
+    if (disc < 0) return false;
+    a = a2, b = b2, cc = c2k;
+    u = (b + std::sqrt(disc)) / a;
     return true;
   };
-  order(1);
-  if (n == 3 && order(2)) order(1);
-  double a = c[0], b = c[0] * m[0], cc = c[0] * m[0] * m[0];
-  double u = m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
-  for (int k = 1; k < n && u > m[k]; ++k) {
-    const double a2 = a + c[k], b2 = b + c[k] * m[k], c2 = cc + c[k] * m[k] * m[k];
-    const double disc = b2 * b2 - a2 * (c2 - 1.0);
-    if (disc < 0) break;
-    a = a2, b = b2, cc = c2;
-    u = (b + std::sqrt(disc)) / a;
-  }
+  if (add(m1, c1) && n == 3) add(m2, c2);
   return u;
 }
 
