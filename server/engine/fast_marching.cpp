@@ -29,7 +29,7 @@ constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source of this 
 constexpr std::uint8_t kOpen = 2;    // an unknown voxel of this side: the march may lower it
 constexpr std::uint8_t kOther = 4;   // a source of the other side: a second point with its sign
 constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for the retake count)
-constexpr std::uint8_t kInside = kInterior;
+constexpr std::uint8_t kInside = kInterior;  // copied from the flags: no bounds checks needed
 
 struct Entry {
   std::uint32_t index;
