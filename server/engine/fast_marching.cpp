@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "thread_pool.hpp"
 
@@ -20,10 +22,14 @@ constexpr float kMonotoneRun = 0.2f;  // see MarchOrder::Second
 // under a millisecond.
 constexpr std::size_t kBucketsPerCheck = 4;
 
-// Bits of the per-side array of voxels the march made known (the shared flags stay read-only
-// while both sides run, so neither side writes a byte the other reads).
-constexpr std::uint8_t kReached = 1;  // taken from the queue: its value may be used
-constexpr std::uint8_t kTaken = 2;    // taken at least once (for the retake count)
+// Each side's own byte per voxel of the grid, built from the shared flags when the side starts:
+// what the side may read there, in one load. The shared flags stay read-only while both sides
+// run, and each side writes only its own array, so neither writes a byte the other reads.
+constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source of this side, or reached
+constexpr std::uint8_t kOpen = 2;    // an unknown voxel of this side: the march may lower it
+constexpr std::uint8_t kOther = 4;   // a source of the other side: a second point with its sign
+constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for the retake count)
+constexpr std::uint8_t kInside = kInterior;  // copied from the flags: no bounds checks needed
 
 struct Entry {
   std::uint32_t index;
@@ -32,34 +38,73 @@ struct Entry {
 using Buckets = std::vector<std::vector<Entry>>;
 
 // Solves sum_k c_k (u - m_k)^2 = 1 for the largest root, using the axes in increasing m and
-// dropping those whose m is not below the root (Sethian's upwind rule).
-double solveEikonal(double m[3], double c[3], int n) {
-  for (int i = 1; i < n; ++i)  // insertion sort of at most three
-    for (int j = i; j > 0 && m[j] < m[j - 1]; --j) std::swap(m[j], m[j - 1]), std::swap(c[j], c[j - 1]);
-  double a = c[0], b = c[0] * m[0], cc = c[0] * m[0] * m[0];
-  double u = m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
-  for (int k = 1; k < n && u > m[k]; ++k) {
-    const double a2 = a + c[k], b2 = b + c[k] * m[k], c2 = cc + c[k] * m[k] * m[k];
-    const double disc = b2 * b2 - a2 * (c2 - 1.0);
-    if (disc < 0) break;
-    a = a2, b = b2, cc = c2;
-    u = (b + std::sqrt(disc)) / a;
+// dropping those whose m is not below the root (Sethian's upwind rule). Spelled out for one,
+// two and three axes with the values in registers: it runs once per update.
+inline double solveEikonal(const double m[3], const double c[3], int n) {
+  if (n == 1) return m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
+  double m0 = m[0], m1 = m[1], m2 = n == 3 ? m[2] : 0.0, c0 = c[0], c1 = c[1], c2 = n == 3 ? c[2] : 0.0;
+  // An insertion sort (stable for equal m).
+  if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
+  if (n == 3 && m2 < m1) {
+    std::swap(m1, m2), std::swap(c1, c2);
+    if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
   }
+  double a = c0, b = c0 * m0, cc = c0 * m0 * m0;
+  double u = m0 + (c0 == 1.0 ? 1.0 : 2.0 / 3.0);
+  // Adds the next axis while its m is below the root; false when the sum stops there.
+  auto add = [&](double mk, double ck) {
+    if (!(u > mk)) return false;
+    const double a2 = a + ck, b2 = b + ck * mk, c2k = cc + ck * mk * mk;
+    const double disc = b2 * b2 - a2 * (c2k - 1.0);
+    if (disc < 0) return false;
+    a = a2, b = b2, cc = c2k;
+    u = (b + std::sqrt(disc)) / a;
+    return true;
+  };
+  if (add(m1, c1) && n == 3) add(m2, c2);
   return u;
 }
 
-// One side of the surface. It reads the shared flags, the values of its own side and of the
-// other side's sources, and writes only its own side's unknown voxels and `reached` bytes:
+// One side of the surface. It reads its own state array, the values of its own side and of
+// the other side's sources, and writes only its own side's unknown voxels and its state array:
 // the two sides may run at the same time on one grid.
 class SideMarcher {
  public:
-  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::uint8_t* reached, float band, bool second,
+  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::vector<std::uint8_t>& state, float band, bool second,
               std::uint8_t negBit, Buckets& buckets)
-      : g_(g), v_(g.v.data()), flags_(flags), reached_(reached), band_(band), second_(second), negBit_(negBit),
-        buckets_(buckets) {
+      : g_(g), v_(g.v.data()), band_(band), second_(second), negBit_(negBit), buckets_(buckets) {
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
     for (auto& b : buckets_) b.clear();
+    // 16 bytes per step: the grid is the gathered box, the band only a few percent of it.
+    state.resize(g.v.size());
+    st_ = state.data();
+    std::size_t i = 0;
+    const std::size_t n = state.size();
+#if defined(__SSE2__)
+    const __m128i negMask = _mm_set1_epi8(char(kNeg)), sideNeg = _mm_set1_epi8(char(negBit));
+    const __m128i usableMask = _mm_set1_epi8(char(kKnown | kIgnored)), known = _mm_set1_epi8(char(kKnown));
+    const __m128i frozen = _mm_set1_epi8(char(kFrozen)), zero = _mm_setzero_si128();
+    const __m128i interior = _mm_set1_epi8(char(kInterior)), use = _mm_set1_epi8(char(kUse));
+    const __m128i open = _mm_set1_epi8(char(kOpen)), other = _mm_set1_epi8(char(kOther));
+    for (; i + 16 <= n; i += 16) {
+      const __m128i f = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flags + i));
+      const __m128i own = _mm_cmpeq_epi8(_mm_and_si128(f, negMask), sideNeg);
+      const __m128i usable = _mm_cmpeq_epi8(_mm_and_si128(f, usableMask), known);
+      const __m128i unfrozen = _mm_cmpeq_epi8(_mm_and_si128(f, frozen), zero);
+      __m128i st = _mm_and_si128(f, interior);
+      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, usable), use));
+      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, unfrozen), open));
+      st = _mm_or_si128(st, _mm_and_si128(_mm_andnot_si128(own, usable), other));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(st_ + i), st);
+    }
+#endif
+    for (; i < n; ++i) {
+      const std::uint8_t f = flags[i];
+      const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
+      st_[i] = std::uint8_t((f & kInterior) | (own && usable ? kUse : 0) | (own && !(f & kFrozen) ? kOpen : 0) |
+                            (!own && usable ? kOther : 0));
+    }
   }
 
   // progress: this side's share, advanced as its buckets are taken.
@@ -77,13 +122,23 @@ class SideMarcher {
         const Entry e = bucket[k];
         if (e.dist != mag(e.index)) continue;  // superseded by a lower entry
         ++stats_.accepted;
-        if (reached_[e.index] & kTaken) ++stats_.retaken;
-        reached_[e.index] |= kReached | kTaken;
+        if (st_[e.index] & kTaken) ++stats_.retaken;
+        st_[e.index] |= kUse | kTaken;
         // A neighbour already at or below this value would drop it from its stencil (the
         // upwind rule), so this voxel cannot lower it.
-        forNeighbours(e.index, [&](std::size_t n) {
-          if ((flags_[n] & (kFrozen | kNeg)) == negBit_ && mag(n) > e.dist) update(n);
-        });
+        // Inlined here, with update() out of line: about half of the visits update nothing.
+        auto visit = [&](std::size_t n) __attribute__((always_inline)) {
+          if ((st_[n] & kOpen) && mag(n) > e.dist) update(n);
+        };
+        if (st_[e.index] & kInside) {
+          for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
+        } else {
+          const Int3 p = g_.point(e.index) - g_.box.lo;
+          for (int a = 0; a < 3; ++a) {
+            if (p[a] > 0) visit(e.index - stride_[a]);
+            if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
+          }
+        }
       }
       bucket.clear();
     }
@@ -94,31 +149,23 @@ class SideMarcher {
   // Sources of this side that border one of its unknown voxels: only these can lower anything.
   static bool feeds(const DenseGrid& g, const std::uint8_t* flags, std::size_t i) {
     const std::uint8_t side = flags[i] & kNeg;
-    bool any = false;
-    forEachNeighbour(g, flags, i, [&](std::size_t n) { any = any || (flags[n] & (kFrozen | kNeg)) == side; });
-    return any;
+    const std::size_t stride[3] = {1, g.sx, g.sxy};
+    auto open = [&](std::size_t n) { return (flags[n] & (kFrozen | kNeg)) == side; };
+    if (flags[i] & kInterior) {
+      for (int a = 0; a < 3; ++a)
+        if (open(i - stride[a]) || open(i + stride[a])) return true;
+      return false;
+    }
+    const Int3 p = g.point(i) - g.box.lo;
+    for (int a = 0; a < 3; ++a) {
+      if (p[a] > 0 && open(i - stride[a])) return true;
+      if (p[a] + 1 < g.size[a] && open(i + stride[a])) return true;
+    }
+    return false;
   }
 
  private:
   float mag(std::size_t i) const { return std::fabs(v_[i]); }
-
-  template <class F>
-  static void forEachNeighbour(const DenseGrid& g, const std::uint8_t* flags, std::size_t i, F&& fn) {
-    const std::size_t stride[3] = {1, g.sx, g.sxy};
-    if (flags[i] & kInterior) {
-      for (int a = 0; a < 3; ++a) fn(i - stride[a]), fn(i + stride[a]);
-      return;
-    }
-    const Int3 p = g.point(i) - g.box.lo;
-    for (int a = 0; a < 3; ++a) {
-      if (p[a] > 0) fn(i - stride[a]);
-      if (p[a] + 1 < g.size[a]) fn(i + stride[a]);
-    }
-  }
-  template <class F>
-  void forNeighbours(std::size_t i, F&& fn) const {
-    forEachNeighbour(g_, flags_, i, fn);
-  }
 
   void push(std::size_t i, float d, std::size_t minBucket) {
     const std::size_t b = std::max(minBucket, std::size_t(d * kBucketsPerVu));
@@ -130,37 +177,38 @@ class SideMarcher {
   // it the first layer off the surface is only first order, and its bias shows in every
   // curvature.
   double secondUpwind(std::size_t n2) const {
-    const std::uint8_t f = flags_[n2];
-    if (f & kIgnored) return kInf;
-    if ((f & kNeg) == negBit_) return ((f & kKnown) || (reached_[n2] & kReached)) ? mag(n2) : kInf;
-    return (f & kKnown) ? -double(mag(n2)) : kInf;
+    const std::uint8_t s = st_[n2];
+    if (s & kUse) return mag(n2);
+    return (s & kOther) ? -double(mag(n2)) : kInf;
   }
 
-  // Usable as an upwind value: known, on this side.
-  bool usable(std::size_t n) const {
-    const std::uint8_t f = flags_[n];
-    if ((f & (kIgnored | kNeg)) != negBit_) return false;
-    return (f & kKnown) || (reached_[n] & kReached);
+  [[gnu::noinline]] void update(std::size_t n) {
+    if (st_[n] & kInside) {
+      updateAt<true>(n);
+    } else {
+      updateAt<false>(n);
+    }
   }
 
-  // Recomputes voxel n (unknown, this side) from its known neighbours.
-  void update(std::size_t n) {
-    const bool interior = flags_[n] & kInterior;
+  // Recomputes voxel n (unknown, this side) from its known neighbours. Inside: n is at least 2
+  // voxels from every face of the grid, so no neighbour needs a bounds check.
+  template <bool Inside>
+  void updateAt(std::size_t n) {
     Int3 q{};
-    if (!interior) q = g_.point(n) - g_.box.lo;
+    if constexpr (!Inside) q = g_.point(n) - g_.box.lo;
     double m[3], c[3];
     int count = 0;
     for (int a = 0; a < 3; ++a) {
       const std::size_t s = stride_[a];
-      const bool hasLo = interior || q[a] > 0, hasHi = interior || q[a] + 1 < g_.size[a];
+      const bool hasLo = Inside || q[a] > 0, hasHi = Inside || q[a] + 1 < g_.size[a];
       float best = kInf;
       int dir = 0;
-      if (hasLo && usable(n - s)) best = mag(n - s), dir = -1;
-      if (hasHi && usable(n + s) && mag(n + s) < best) best = mag(n + s), dir = +1;
+      if (hasLo && (st_[n - s] & kUse)) best = mag(n - s), dir = -1;
+      if (hasHi && (st_[n + s] & kUse) && mag(n + s) < best) best = mag(n + s), dir = +1;
       if (dir == 0) continue;
       m[count] = best;
       c[count] = 1.0;
-      if (second_ && (interior || (q[a] + 2 * dir >= 0 && q[a] + 2 * dir < g_.size[a]))) {
+      if (second_ && (Inside || (q[a] + 2 * dir >= 0 && q[a] + 2 * dir < g_.size[a]))) {
         const double b = secondUpwind(dir > 0 ? n + 2 * s : n - 2 * s);
         if (best - b >= kMonotoneRun) {
           m[count] = (4.0 * best - b) / 3.0;
@@ -179,8 +227,7 @@ class SideMarcher {
 
   DenseGrid& g_;
   float* v_;
-  const std::uint8_t* flags_;
-  std::uint8_t* reached_;
+  std::uint8_t* st_ = nullptr;
   float band_;
   bool second_;
   std::uint8_t negBit_;
@@ -194,7 +241,7 @@ class SideMarcher {
 // multi-megabyte arrays each time cost as much in page faults as the marching itself.
 struct Scratch {
   std::vector<std::uint8_t> flags;    // fastMarch's classification
-  std::vector<std::uint8_t> reached;  // per voxel, kReached | kTaken (each side its own voxels)
+  std::vector<std::uint8_t> state[2];  // each side's own (SideMarcher)
   std::vector<std::uint32_t> candidates;
   std::vector<std::uint32_t> seeds[2];
   Buckets buckets[2];
@@ -210,8 +257,6 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
                                ThreadPool& pool, ProgressShare progress) {
   Scratch& s = scratch();
-  s.reached.resize(g.v.size());
-  std::memset(s.reached.data(), 0, s.reached.size());
   for (auto& seeds : s.seeds) seeds.clear();
   const std::uint8_t* f = flags.data();
   for (const std::uint32_t i : candidates) {
@@ -221,7 +266,7 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
   const bool second = order == MarchOrder::Second;
   MarchStats side[2];
   auto runSide = [&](std::size_t k) {
-    SideMarcher m(g, f, s.reached.data(), band, second, k ? kNeg : 0, s.buckets[k]);
+    SideMarcher m(g, f, s.state[k], band, second, k ? kNeg : 0, s.buckets[k]);
     side[k] = m.run(s.seeds[k], progress.part(0.5));
   };
   if (pool.threads() > 1 && !s.seeds[0].empty() && !s.seeds[1].empty()) {

@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "chunked_pass.hpp"
 #include "volume.hpp"
@@ -33,6 +37,42 @@ void forEachRun(std::span<const Box> boxes, int y, int z, std::vector<std::pair<
   }
 }
 
+// The dense passes over a tool's box visit ten to twenty times more voxels than its band, so
+// they test 16 voxels per step. Both give exactly what their scalar loops give.
+
+// Bit k set when |v[k]| != band (16 voxels).
+std::uint32_t nearMask16(const float* v, float band) {
+#if defined(__SSE2__)
+  const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)), b = _mm_set1_ps(band);
+  std::uint32_t m = 0;
+  for (int k = 0; k < 4; ++k)
+    m |= std::uint32_t(_mm_movemask_ps(_mm_cmpneq_ps(_mm_and_ps(_mm_loadu_ps(v + 4 * k), abs), b))) << (4 * k);
+  return m;
+#else
+  std::uint32_t m = 0;
+  for (int k = 0; k < 16; ++k) m |= std::uint32_t(std::fabs(v[k]) != band) << k;
+  return m;
+#endif
+}
+
+// f[x] = base | (v[x] < 0 ? kNeg : 0) for x < n.
+void signFlags(const float* v, std::uint8_t* f, int n, std::uint8_t base) {
+  int x = 0;
+#if defined(__SSE2__)
+  const __m128 zero = _mm_setzero_ps();
+  const __m128i neg = _mm_set1_epi8(char(kNeg)), b = _mm_set1_epi8(char(base));
+  for (; x + 16 <= n; x += 16) {
+    const __m128i m0 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x), zero));
+    const __m128i m1 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 4), zero));
+    const __m128i m2 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 8), zero));
+    const __m128i m3 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 12), zero));
+    const __m128i bytes = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));  // 0 or -1 each
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(f + x), _mm_or_si128(b, _mm_and_si128(bytes, neg)));
+  }
+#endif
+  for (; x < n; ++x) f[x] = std::uint8_t(base | (v[x] < 0 ? kNeg : 0));
+}
+
 struct Scratch {
   std::vector<std::uint8_t> flags;
   BandVoxels band;
@@ -62,8 +102,7 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Pro
       // Far voxels are the rule: test 16 at a time without a branch, then visit the others.
       int x = 0;
       for (; x + 16 <= n; x += 16) {
-        std::uint32_t near = 0;
-        for (int k = 0; k < 16; ++k) near |= std::uint32_t(std::fabs(v[x + k]) != band) << k;
+        std::uint32_t near = nearMask16(v + x, band);
         while (near) {
           const int k = __builtin_ctz(near);
           near &= near - 1;
@@ -102,7 +141,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
         std::uint8_t* f = flags + row;
         const float* rv = v + row;
-        for (int x = 0; x < sx; ++x) f[x] = std::uint8_t(base | (rv[x] < 0 ? kNeg : 0));
+        signFlags(rv, f, sx, base);
         if (z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy)
           for (int x = xLo; x < xHi; ++x) f[x] |= kInterior;
       }

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <sstream>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "errors.hpp"
 #include "stencil.hpp"
@@ -97,8 +100,13 @@ void Volume::gather(const Box& box, float* out) const {
           for (int y = here.lo.y; y < here.hi.y; ++y) {
             float* row = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
                          sxy * std::size_t(z - box.lo.z);
-            if (d) {
+            // Whole brick rows are the rule: a fixed-size copy is a few instructions, not a call.
+            if (d && n == kBrickSide) {
+              std::memcpy(row, d + Bricks::index(0, y - o.y, z - o.z), sizeof(float) * kBrickSide);
+            } else if (d) {
               std::memcpy(row, d + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
+            } else if (n == kBrickSide) {
+              std::fill(row, row + kBrickSide, u);
             } else {
               std::fill(row, row + n, u);
             }
@@ -187,11 +195,33 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             const float* d = old.data ? old.data->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
-            for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
-              // NaN passes std::clamp and would reach every reader; refuse it before publishing.
-              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-              changed = changed || std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
+            // A whole row without a branch per voxel (almost every row is unchanged).
+            int nan = 0, differs = 0;
+            const int n = here.hi.x - here.lo.x;
+            int x = 0;
+#if defined(__SSE2__)
+            // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
+            const __m128 lo = _mm_set1_ps(-band_), hi = _mm_set1_ps(band_), u = _mm_set1_ps(uniform);
+            __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
+            auto four = [&](int at, __m128 prev) {
+              const __m128 sv = _mm_loadu_ps(s + at);
+              bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
+              ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), prev));
+            };
+            if (n == 8 && d) {  // a whole brick row, the rule
+              four(0, _mm_loadu_ps(d)), four(4, _mm_loadu_ps(d + 4));
+              x = 8;
+            } else if (n == 8) {
+              four(0, u), four(4, u);
+              x = 8;
             }
+            for (; x + 4 <= n; x += 4) four(x, d ? _mm_loadu_ps(d + x) : u);
+            nan = _mm_movemask_ps(bad), differs = _mm_movemask_ps(ne);
+#endif
+            for (; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
+            // NaN passes std::clamp and would reach every reader; refuse it before publishing.
+            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+            changed = differs != 0;
           }
         if (!changed) continue;
         auto nb = std::make_shared<Brick>();
