@@ -211,6 +211,23 @@ TEST_CASE("hostile .vdb uploads are refused with -32006 and change nothing", "[h
     refused(std::span(vdb.data(), keep), "not a readable .vdb");
   refused(mzv, "not a readable .vdb");
 
+  // Lengths OpenVDB would trust (it sizes and fills a string before reading it): a grid name of
+  // 2 GiB, 4 billion metadata entries or 2 billion grids in a few bytes, and a file version this
+  // server does not read. The first 57 bytes are the saved file's header.
+  const auto crafted = [&](std::initializer_list<std::uint32_t> words) {
+    Bytes b(vdb.begin(), vdb.begin() + 57);
+    for (const std::uint32_t w : words)
+      for (int i = 0; i < 4; ++i) b.push_back(std::uint8_t(w >> (8 * i)));
+    b.resize(b.size() + 64, 0);
+    return b;
+  };
+  refused(crafted({0, 1, 0x7FFFFFF0u}), "a name declares 2147483632 bytes");
+  refused(crafted({0xFFFFFFFFu}), "declares 4294967295 metadata entries");
+  refused(crafted({0, 0x7FFFFFFFu}), "declares 2147483647 grids");
+  Bytes oldVersion = vdb;
+  oldVersion[8] = 221;
+  refused(oldVersion, "file format version 221");
+
   // A level set centred on the origin (as OpenVDB's tools make them) reaches below 0.
   openvdb::initialize();
   const auto sphere = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(10.f, openvdb::Vec3f(0, 0, 0), 1.f, 3.f);
