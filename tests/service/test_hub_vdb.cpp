@@ -189,6 +189,31 @@ TEST_CASE("a session saved as .vdb holds its distances over the whole band and l
   CHECK(b.result("session.stats")["digest"] != mzvResult["digest"]);
 }
 
+TEST_CASE("a session loaded from a .vdb comes back from the data directory after a restart", "[hub][vdb][openvdb]") {
+  const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-vdb-restart";
+  std::filesystem::remove_all(dir);
+  HubOptions o = vdbOptions();
+  o.dataDir = dir;
+  json created, loaded;
+  {
+    Hub hub(o);
+    TestClient a(hub);
+    created = a.result("session.create", kCreate);
+    a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+    const auto [saved, vdb] = save(a, "vdb", protocol::FrameKind::VolumeVdb);
+    a.result("history.undo");
+    loaded = load(a, vdb, "vdb");
+    INFO(loaded.dump());
+    CHECK(loaded["result"]["digest"] == saved["digest"]);
+  }
+  Hub again(o);
+  TestClient b(again);
+  const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  CHECK(joined["digest"] == loaded["result"]["digest"]);
+  CHECK(joined["revision"] == loaded["result"]["revision"]);
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("hostile .vdb uploads are refused with -32006 and change nothing", "[hub][vdb][openvdb]") {
   Hub hub(vdbOptions());
   TestClient a(hub);

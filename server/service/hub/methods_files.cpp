@@ -10,7 +10,9 @@
 #include "engine/thickness.hpp"
 #include "engine/volume_file.hpp"
 #ifdef MARZIPAN_HAS_OPENVDB
+#include <istream>
 #include <sstream>
+#include <streambuf>
 
 #include "engine/openvdb/vdb_io.hpp"
 #endif
@@ -89,11 +91,34 @@ Bytes volumeFileBytes(const Volume& vol, protocol::VolumeFormat f) {
   return saveVolume(vol);
 }
 
+#ifdef MARZIPAN_HAS_OPENVDB
+// A seekable read-only stream over bytes held elsewhere: an upload of up to max_binary_bytes is
+// read where it lies, not copied into a string stream first.
+class BytesBuf : public std::streambuf {
+ public:
+  explicit BytesBuf(const Bytes& b) {
+    char* p = const_cast<char*>(reinterpret_cast<const char*>(b.data()));
+    setg(p, p, p + b.size());
+  }
+
+ protected:
+  pos_type seekoff(off_type off, std::ios::seekdir dir, std::ios::openmode) override {
+    const off_type base = dir == std::ios::beg ? 0 : dir == std::ios::cur ? gptr() - eback() : egptr() - eback();
+    const off_type to = base + off;
+    if (to < 0 || to > egptr() - eback()) return pos_type(off_type(-1));
+    setg(eback(), eback() + to, egptr());
+    return pos_type(to);
+  }
+  pos_type seekpos(pos_type pos, std::ios::openmode m) override { return seekoff(off_type(pos), std::ios::beg, m); }
+};
+#endif
+
 // A .vdb upload holds distances by index: it takes the session's grid size and band.
 Volume volumeFromFile(const Bytes& file, protocol::VolumeFormat f, Int3 dims, float band) {
 #ifdef MARZIPAN_HAS_OPENVDB
   if (f == protocol::VolumeFormat::Vdb) {
-    std::istringstream in(std::string(file.begin(), file.end()), std::ios::binary);
+    BytesBuf buf(file);
+    std::istream in(&buf);
     return loadVdb(in, dims, band);
   }
 #endif
@@ -215,10 +240,7 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                                                                                format = load.format](LiveSession& s,
                                                                                                      Reply& r) {
     const HubLimits& l = self->limits();
-    Volume vol =
-        volumeFromFile(*payload, format, s.session->volume().dims(), s.session->volume().band());
-    // The journal keeps every load as a .mzv (a server without OpenVDB replays it too).
-    if (format == protocol::VolumeFormat::Vdb) *payload = saveVolume(vol);
+    Volume vol = volumeFromFile(*payload, format, s.session->volume().dims(), s.session->volume().band());
     if (vol.memoryBytes() > l.maxVolumeBytes)
       throw RpcException(RpcCode::LimitExceeded,
                          "the file's volume holds " + std::to_string(vol.memoryBytes()) +
@@ -237,6 +259,8 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                          "the file's band half-width is " + std::to_string(vol.band()) + " vu, the session's " +
                              std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
                          {{"field", "file"}});
+    // The journal keeps every load as a .mzv (a server without OpenVDB replays it too).
+    if (format == protocol::VolumeFormat::Vdb) *payload = saveVolume(vol);
     const StepAuthor by = authorOf(*c);
     ApplyResult a = s.session->load(std::move(vol), by);
     a.fullRefresh = true;
