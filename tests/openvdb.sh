@@ -12,3 +12,5 @@ cmake --build "$build" -j "$(nproc)" --target openvdb_tests service_tests cli_te
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)" -R '^(openvdb:|service:.*(\.vdb|format)|cli:.*\.vdb)'
 MARZIPAN_BIN="$PWD/$build/server/marzipan" /usr/bin/python3 tests/protocol/python/test_client_server.py \
   AgainstServer.test_vdb_files_round_trip_where_the_server_has_openvdb_and_are_refused_elsewhere
+MARZIPAN_BIN="$PWD/$build/server/marzipan" /usr/bin/python3 tests/protocol/python/test_cli.py \
+  AgainstServer.test_out_vdb_writes_an_openvdb_file_or_says_the_server_has_no_openvdb
