@@ -95,8 +95,8 @@ Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, cons
 // header, the file's metadata, the first grid's descriptor, compression, metadata and transform
 // type. OpenVDB sizes a string or a metadata value from its declared 32-bit length and fills it
 // before reading (up to 4 GiB from a few bytes), so each length must fit in the bytes that follow.
-// Only the layouts of file versions 222 to 224 (OpenVDB 3 to 12) are accepted. Leaves the stream
-// where it was.
+// Only the layouts of file versions 222 (OpenVDB 3) to this OpenVDB's own are accepted. Leaves
+// the stream where it was.
 class DeclaredLengths {
  public:
   explicit DeclaredLengths(std::istream& in) : in_(in), start_(in.tellg()) {
