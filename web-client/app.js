@@ -6,6 +6,7 @@
 // it. `window.marzipan` is this App, for looking at its state from the browser's console.
 
 import { FRAME_HEADER_BYTES } from "/protocol/js/frames.js";
+import { volumeFormats } from "/protocol/js/rpc.js";
 import { decodeSplats } from "/protocol/js/splats.js";
 import { gridBoxEdges, nearGridEdge } from "./math/grid-edge.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
@@ -19,7 +20,7 @@ import { parseSessionLink, sessionLink } from "./net/session-link.js";
 import { Renderer } from "./render/renderer.js";
 import { SplatStore } from "./render/splat-store.js";
 import { Controls } from "./ui/controls.js";
-import { download, fileName, readFile } from "./ui/files.js";
+import { download, fileName, readFile, volumeFormatOf } from "./ui/files.js";
 import { HelpDialog } from "./ui/help-dialog.js";
 import { Messages } from "./ui/messages.js";
 import { OfflineBanner } from "./ui/offline-banner.js";
@@ -339,7 +340,8 @@ export class App {
 
   #updateAvailability() {
     const s = this.session;
-    this.controls.setAvailability({ connected: s.connected, readOnly: s.readOnly, canUndo: s.canUndo, canRedo: s.canRedo });
+    this.controls.setAvailability({ connected: s.connected, readOnly: s.readOnly, canUndo: s.canUndo, canRedo: s.canRedo,
+                                    volumeFormats: volumeFormats(this.session.info && this.session.info.limits) });
     this.doc.getElementById("hint-text").textContent = s.readOnly
       ? "View only: drag to orbit · middle-drag to pan · wheel or pinch to zoom · ? for all shortcuts"
       : "Drag on the model to sculpt · Space+drag or right-drag to orbit · middle-drag to pan · wheel or pinch to zoom · ? for all shortcuts";
@@ -360,7 +362,7 @@ export class App {
       onCamera: (name) => this.#cameraPreset(name),
       onView: (view, shading) => this.#setView(view, shading),
       onExport: (format) => this.#exportMesh(format),
-      onSaveVolume: () => this.#saveVolume(),
+      onSaveVolume: (format) => this.#saveVolume(format),
       onLoadVolume: (file) => this.#loadVolume(file),
       onSnapshot: () => this.#snapshot(),
       onStats: () => this.#stats(),
@@ -474,10 +476,10 @@ export class App {
     document.getElementById("mesh-scale-grid").textContent = size && v > 0 ? `The grid is ${size.map((n) => formatMm(n * v)).join(" × ")} mm.` : "";
   }
 
-  async #saveVolume() {
+  async #saveVolume(format) {
     try {
-      const { result, frame } = await this.messages.during("Saving the volume", this.session.saveVolume());
-      download(frame.payload, fileName(this.session.info.session, result.revision, "mzv"));
+      const { result, frame } = await this.messages.during("Saving the volume", this.session.saveVolume(format));
+      download(frame.payload, fileName(this.session.info.session, result.revision, format));
     } catch {
       // reported by the session's "error" event
     }
@@ -490,7 +492,12 @@ export class App {
       this.messages.error(new Error(`${file.name} is ${formatBytes(bytes.byteLength)}, over the server's upload limit of ${formatBytes(limit - FRAME_HEADER_BYTES)}`));
       return;
     }
-    await this.#quietly(this.messages.during(`Loading ${file.name}`, this.session.loadVolume(bytes)));
+    const format = volumeFormatOf(file.name);
+    if (!volumeFormats(this.session.info.limits).includes(format)) {
+      this.messages.error(new Error(`${file.name} is an OpenVDB file; this server was built without OpenVDB and loads .mzv files only`));
+      return;
+    }
+    await this.#quietly(this.messages.during(`Loading ${file.name}`, this.session.loadVolume(bytes, format)));
   }
 
   async #snapshot() {

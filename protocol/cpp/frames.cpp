@@ -36,6 +36,7 @@ std::string_view frameKindName(FrameKind kind) {
     case FrameKind::VolumeFile: return "volume_file";
     case FrameKind::VolumeUpload: return "volume_upload";
     case FrameKind::MeshGlb: return "mesh_glb";
+    case FrameKind::VolumeVdb: return "volume_vdb";
   }
   return {};
 }
@@ -69,7 +70,7 @@ FrameDecodeResult decodeFrameHeader(std::span<const std::uint8_t> bytes, std::ui
                                                   " is not supported (supported: 1)");
   const std::uint32_t kind = le::get16(p + kKindOffset);
   if (!isFrameKind(kind))
-    return refuse(FrameErrorCode::BadKind, "binary frame kind " + std::to_string(kind) + " is unknown (known: 1 to 10)");
+    return refuse(FrameErrorCode::BadKind, "binary frame kind " + std::to_string(kind) + " is unknown (known: 1 to 11)");
   h.kind = FrameKind(kind);
   h.requestId = le::get32(p + kRequestIdOffset);
   h.revision = le::get64(p + kRevisionOffset);

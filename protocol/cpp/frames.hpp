@@ -36,10 +36,11 @@ enum class FrameKind : std::uint16_t {
   MeshObj = 6,       // server -> client: Wavefront OBJ text
   MeshPly = 7,       // server -> client: binary little-endian PLY
   VolumeFile = 8,    // server -> client: a .mzv file (engine/volume_file.hpp)
-  VolumeUpload = 9,  // client -> server: a .mzv file for the volume.load request it names
+  VolumeUpload = 9,  // client -> server: the file (.mzv or .vdb, as it says) for the volume.load it names
   MeshGlb = 10,      // server -> client: binary glTF 2.0 (.glb)
+  VolumeVdb = 11,    // server -> client: an OpenVDB level set (.vdb), volume.save {format: "vdb"} (1.3)
 };
-inline constexpr std::uint16_t kMinFrameKind = 1, kMaxFrameKind = 10;
+inline constexpr std::uint16_t kMinFrameKind = 1, kMaxFrameKind = 11;
 
 // True for the values of FrameKind.
 constexpr bool isFrameKind(std::uint32_t value) { return value >= kMinFrameKind && value <= kMaxFrameKind; }
@@ -59,7 +60,7 @@ enum class FrameErrorCode {
   ShortHeader,     // fewer than 24 bytes
   BadMagic,        // bytes 0-3 are not "MZPN"
   BadVersion,      // format version other than 1
-  BadKind,         // kind outside 1..10
+  BadKind,         // kind outside 1..11
   TooLarge,        // declared payload length above the caller's limit
   LengthMismatch,  // declared payload length differs from the bytes after the header
 };

@@ -413,15 +413,38 @@ ThicknessParams parseThicknessParams(const json& params) {
   return p;
 }
 
-std::uint64_t parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) {
+std::string_view volumeFormatName(VolumeFormat f) { return f == VolumeFormat::Vdb ? "vdb" : "mzv"; }
+
+namespace {
+
+VolumeFormat volumeFormatParam(const json& params) {
+  const json* f = find(params, "format");
+  if (!f) return VolumeFormat::Mzv;
+  const std::string v = stringValue(*f, "format");
+  if (v == "mzv") return VolumeFormat::Mzv;
+  if (v == "vdb") return VolumeFormat::Vdb;
+  fail("format", "must be \"mzv\" or \"vdb\", got " + inQuotes(v));
+}
+
+}  // namespace
+
+VolumeFormat parseVolumeSaveParams(const json& params) {
+  checkKeys(params, {"format"}, paramsContext(Method::VolumeSave));
+  return volumeFormatParam(params);
+}
+
+VolumeLoadParams parseVolumeLoadParams(const json& params, std::uint64_t maxBytes) {
   const std::string context = paramsContext(Method::VolumeLoad);
-  checkKeys(params, {"bytes"}, context);
+  checkKeys(params, {"bytes", "format"}, context);
+  VolumeLoadParams p;
+  p.format = volumeFormatParam(params);
   const std::int64_t bytes = integerInRange(require(params, "bytes", context), "bytes", 52, kMaxSafeInteger);
   if (std::uint64_t(bytes) > maxBytes)
     throw RpcException(RpcCode::LimitExceeded,
                        "\"bytes\" " + std::to_string(bytes) + " is over the largest upload, " + std::to_string(maxBytes),
                        {{"limit", "max_binary_bytes"}, {"value", bytes}, {"max", maxBytes}, {"field", "bytes"}});
-  return std::uint64_t(bytes);
+  p.bytes = std::uint64_t(bytes);
+  return p;
 }
 
 HistoryScope parseHistoryParams(const json& params, Method m) {

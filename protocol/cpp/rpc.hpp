@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 2;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 3;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {
@@ -234,7 +234,16 @@ struct ThicknessParams {
   std::uint32_t maxPlaces = 64;
 };
 ThicknessParams parseThicknessParams(const nlohmann::json& params);
-std::uint64_t parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
+// volume.save / volume.load: the file's format (since 1.3; absent: mzv). Whether this server
+// reads and writes "vdb" is the server's to check (limits.volume_formats).
+enum class VolumeFormat { Mzv, Vdb };
+std::string_view volumeFormatName(VolumeFormat f);
+VolumeFormat parseVolumeSaveParams(const nlohmann::json& params);
+struct VolumeLoadParams {
+  std::uint64_t bytes = 0;  // the upload's payload length, 52 .. maxBytes
+  VolumeFormat format = VolumeFormat::Mzv;
+};
+VolumeLoadParams parseVolumeLoadParams(const nlohmann::json& params, std::uint64_t maxBytes);
 // history.undo / history.redo: whose step moves (since 1.2).
 enum class HistoryScope { Session, Mine };
 HistoryScope parseHistoryParams(const nlohmann::json& params, Method m);

@@ -32,8 +32,9 @@ export const FrameKind = Object.freeze({
   MeshObj: 6, // server -> client: Wavefront OBJ text
   MeshPly: 7, // server -> client: binary little-endian PLY
   VolumeFile: 8, // server -> client: a .mzv file
-  VolumeUpload: 9, // client -> server: a .mzv file for the volume.load request it names
+  VolumeUpload: 9, // client -> server: the file (.mzv or .vdb) for the volume.load request it names
   MeshGlb: 10, // server -> client: binary glTF 2.0 (.glb)
+  VolumeVdb: 11, // server -> client: an OpenVDB level set (.vdb), volume.save {format: "vdb"} (1.3)
 });
 
 const KIND_NAMES = [
@@ -48,6 +49,7 @@ const KIND_NAMES = [
   "volume_file",
   "volume_upload",
   "mesh_glb",
+  "volume_vdb",
 ];
 
 // The spelling of the golden vectors (tests/protocol/vectors) and of frameErrorCodeName in C++.
@@ -55,14 +57,14 @@ export const FrameErrorCode = Object.freeze({
   ShortHeader: "short_header", // fewer than 24 bytes
   BadMagic: "bad_magic", // bytes 0-3 are not "MZPN"
   BadVersion: "bad_version", // format version other than 1
-  BadKind: "bad_kind", // kind outside 1..10
+  BadKind: "bad_kind", // kind outside 1..11
   TooLarge: "too_large", // declared payload length above the caller's limit
   LengthMismatch: "length_mismatch", // declared payload length differs from the bytes after the header
 });
 
 // True for the values of FrameKind.
 export function isFrameKind(value) {
-  return Number.isInteger(value) && value >= 1 && value <= 10;
+  return Number.isInteger(value) && value >= 1 && value <= 11;
 }
 
 // "splats_full", "splats_delta", ..., "volume_upload"; "" for other values.
@@ -110,7 +112,7 @@ export function decodeFrame(data, { maxPayload = MAX_FRAME_PAYLOAD } = {}) {
     );
   const kind = view.getUint16(KIND_OFFSET, true);
   if (!isFrameKind(kind))
-    return refuse(FrameErrorCode.BadKind, `binary frame kind ${kind} is unknown (known: 1 to 10)`);
+    return refuse(FrameErrorCode.BadKind, `binary frame kind ${kind} is unknown (known: 1 to 11)`);
   const requestId = view.getUint32(REQUEST_ID_OFFSET, true);
   const revision = view.getBigUint64(REVISION_OFFSET, true);
   const payloadLength = view.getUint32(LENGTH_OFFSET, true);

@@ -6,8 +6,10 @@
 // integers in [1, 2^32 - 1], so every request, including those answered by a binary frame (whose
 // header carries the id as a u32), can use them; after 2^32 - 1 they start again at 1.
 
+import { FrameKind } from "./frames.js";
+
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 2 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 3 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 
@@ -203,4 +205,16 @@ export function classifyMessage(text) {
   if (!Number.isSafeInteger(e.code)) return invalid('"error.code" must be an integer');
   if (typeof e.message !== "string") return invalid('"error.message" must be a string');
   return { kind: MessageKind.Error, id: m.id, error: e };
+}
+
+// The volume file formats a server's volume.save and volume.load take (protocol 1.3): its
+// limits.volume_formats, ["mzv"] or ["mzv", "vdb"] (built with OpenVDB); ["mzv"] before 1.3.
+export function volumeFormats(limits) {
+  const listed = limits && Array.isArray(limits.volume_formats) ? limits.volume_formats : [];
+  return listed.includes("mzv") ? [...listed] : ["mzv", ...listed];
+}
+
+// The frame kind that answers volume.save in `format` ("mzv": 8, "vdb": 11).
+export function volumeFileKind(format) {
+  return format === "vdb" ? FrameKind.VolumeVdb : FrameKind.VolumeFile;
 }

@@ -319,7 +319,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     const protocol::ParsedRequest p = protocol::parseRequest(text);
     if (!p.request || p.request->method != protocol::Method::VolumeLoad) return 0;
     try {
-      return protocol::parseVolumeLoadParams(p.request->params, limits.maxBinaryBytes - protocol::kFrameHeaderBytes) +
+      return protocol::parseVolumeLoadParams(p.request->params, limits.maxBinaryBytes - protocol::kFrameHeaderBytes).bytes +
              protocol::kFrameHeaderBytes;
     } catch (const std::exception&) {
       return 0;  // the hub answers the bad params

@@ -49,7 +49,7 @@ void decodeParams(const Request& r) {
       break;
     }
     case Method::VolumeLoad: {
-      const std::uint64_t bytes = parseVolumeLoadParams(p, kMaxUploadBytes);
+      const std::uint64_t bytes = parseVolumeLoadParams(p, kMaxUploadBytes).bytes;
       expect(bytes >= 52 && bytes <= kMaxUploadBytes, "an upload size is within [52, max_binary_bytes - 24]");
       break;
     }
@@ -57,8 +57,8 @@ void decodeParams(const Request& r) {
     case Method::SessionStats:
     case Method::HistoryUndo:
     case Method::HistoryRedo:
-    case Method::SplatsGet:
-    case Method::VolumeSave: parseNoParams(p, r.method); break;
+    case Method::SplatsGet: parseNoParams(p, r.method); break;
+    case Method::VolumeSave: (void)parseVolumeSaveParams(p); break;
   }
 }
 

@@ -240,12 +240,14 @@ export class SessionClient extends EventTarget {
     return this.request("mesh.export", { format });
   }
 
-  saveVolume() {
-    return this.request("volume.save", {});
+  // format: "mzv" (the default) or "vdb" (servers with OpenVDB, limits.volume_formats).
+  saveVolume(format = "mzv") {
+    return this.request("volume.save", format === "mzv" ? {} : { format });
   }
 
-  async loadVolume(bytes) {
-    const { result } = await this.request("volume.load", { bytes: bytes.byteLength }, (id) =>
+  async loadVolume(bytes, format = "mzv") {
+    const params = format === "mzv" ? { bytes: bytes.byteLength } : { bytes: bytes.byteLength, format };
+    const { result } = await this.request("volume.load", params, (id) =>
       this.#connection.sendUpload(FrameKind.VolumeUpload, id, bytes),
     );
     this.#history(result);

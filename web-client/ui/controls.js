@@ -64,7 +64,8 @@ export class Controls {
     $("shading").addEventListener("change", (e) => this.setShading(e.target.value));
     for (const b of doc.querySelectorAll("[data-camera]")) b.addEventListener("click", () => handlers.onCamera(b.dataset.camera));
     for (const b of doc.querySelectorAll("[data-export]")) b.addEventListener("click", () => handlers.onExport(b.dataset.export));
-    $("save-volume").addEventListener("click", () => handlers.onSaveVolume());
+    $("save-volume").addEventListener("click", () => handlers.onSaveVolume("mzv"));
+    $("save-vdb").addEventListener("click", () => handlers.onSaveVolume("vdb"));
     $("load-volume").addEventListener("change", (e) => {
       const file = e.target.files[0];
       e.target.value = "";
@@ -198,7 +199,7 @@ export class Controls {
   // Enables or disables what needs a connection, edit rights, or history. A view-only client
   // keeps View and Files (and they are not marked disabled); its sculpting controls are off and
   // a badge in the top bar says why.
-  setAvailability({ connected, readOnly, canUndo, canRedo }) {
+  setAvailability({ connected, readOnly, canUndo, canRedo, volumeFormats = ["mzv"] }) {
     const edit = connected && !readOnly;
     const $ = this.$;
     for (const id of ["global-apply", "load-volume"]) $(id).disabled = !edit;
@@ -207,7 +208,12 @@ export class Controls {
     $("redo").disabled = $("quick-redo").disabled = !edit || !canRedo;
     $("quickbar").hidden = Boolean(readOnly);
     for (const b of this.doc.querySelectorAll("[data-export]")) b.disabled = !connected;
-    for (const id of ["save-volume", "stats-refresh", "share"]) $(id).disabled = !connected;
+    for (const id of ["save-volume", "save-vdb", "stats-refresh", "share"]) $(id).disabled = !connected;
+    // .vdb only where the server was built with OpenVDB.
+    const vdb = volumeFormats.includes("vdb");
+    $("save-vdb").hidden = !vdb;
+    $("load-volume").accept = vdb ? ".mzv,.vdb" : ".mzv";
+    $("load-volume-text").textContent = vdb ? "Load .mzv/.vdb" : "Load .mzv";
     for (const id of ["tool-palette", "brush", "global", "history"]) {
       $(id).disabled = Boolean(readOnly);
       $(id).setAttribute("aria-disabled", String(!edit));

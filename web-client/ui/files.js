@@ -1,7 +1,12 @@
 // Files in and out of the page: downloads of what the server sends (meshes, volume files) and
 // of snapshots, and reading a file the person picks.
 
-const MIME = { stl: "model/stl", obj: "model/obj", ply: "application/octet-stream", glb: "model/gltf-binary", mzv: "application/octet-stream", png: "image/png" };
+const MIME = { stl: "model/stl", obj: "model/obj", ply: "application/octet-stream", glb: "model/gltf-binary", mzv: "application/octet-stream", vdb: "application/octet-stream", png: "image/png" };
+
+// The volume format of a picked file, by its extension: "vdb" for .vdb, else "mzv".
+export function volumeFormatOf(name) {
+  return /\.vdb$/i.test(name) ? "vdb" : "mzv";
+}
 
 // Offers `data` (a Blob, or bytes) as a download named `name`.
 export function download(data, name) {

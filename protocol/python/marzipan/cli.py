@@ -154,7 +154,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--load", metavar="FILE.mzv", help="start from a volume file (a session of its size)")
     b.add_argument("--join", metavar="SESSION", help="work in this existing session instead of a new one")
     b.add_argument("--token", help="the edit token of --join's session")
-    b.add_argument("--out", metavar="FILE", help="write the result: .stl .obj .ply .glb (mesh, vu) or .mzv")
+    b.add_argument("--out", metavar="FILE",
+                   help="write the result: .stl .obj .ply .glb (mesh, vu), .mzv, or .vdb (servers with OpenVDB)")
     b.add_argument("--max-triangles", type=_int_in(1, (1 << 32) - 1), metavar="N",
                    help="decimate the --out mesh to at most N triangles")
     b.add_argument("--max-error", type=float, metavar="E",
@@ -190,10 +191,10 @@ def _check_usage(parser, a):
         fail("--load starts from the file: no --size or --solid")
     if a.load and not a.load.lower().endswith(".mzv"):
         fail("--load takes a .mzv volume file over the network (meshes: `marzipan batch --load`)")
-    if a.out and os.path.splitext(a.out)[1].lower() not in (*_MESH_FORMATS, ".mzv"):
-        fail(f"--out {a.out}: the extension must be .stl, .obj, .ply, .glb or .mzv")
+    if a.out and os.path.splitext(a.out)[1].lower() not in (*_MESH_FORMATS, ".mzv", ".vdb"):
+        fail(f"--out {a.out}: the extension must be .stl, .obj, .ply, .glb, .mzv or .vdb")
     decimate = a.max_triangles is not None or a.max_error is not None
-    if decimate and (not a.out or a.out.lower().endswith(".mzv")):
+    if decimate and (not a.out or a.out.lower().endswith((".mzv", ".vdb"))):
         fail("--max-triangles and --max-error apply to a mesh written with --out")
     if a.max_error is not None and not (0 < a.max_error <= 1e6):
         fail("--max-error takes a number of vu above 0")
@@ -266,8 +267,8 @@ async def run_batch(a) -> int:
         outputs = []
         if a.out:
             ext = os.path.splitext(a.out)[1].lower()
-            if ext == ".mzv":
-                data = await client.save()
+            if ext in (".mzv", ".vdb"):
+                data = await client.save(format=ext[1:])
             elif a.max_triangles is not None or a.max_error is not None:
                 result, data = await client.export_mesh_with_result(_MESH_FORMATS[ext], a.max_triangles, a.max_error)
                 print(json.dumps({"mesh": a.out, "source_triangles": result["source_triangles"],

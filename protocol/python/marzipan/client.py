@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import os
 import secrets
 import urllib.parse
 
@@ -400,7 +401,7 @@ class Client:
         elif method == "splats.get":
             kinds = {FrameKind.SPLATS_FULL}
         elif method == "volume.save":
-            kinds = {FrameKind.VOLUME_FILE}
+            kinds = {FrameKind.VOLUME_FILE, FrameKind.VOLUME_VDB}
         elif method == "volume.load":
             kinds = set()
         request_id = self._ids.take(self._pending)
@@ -673,13 +674,44 @@ class Client:
         _, frame = await self.call("splats.get", {})
         return decode_splats(frame.payload)
 
-    async def save(self) -> bytes:
-        """volume.save: the session's volume as a .mzv file."""
-        _, frame = await self.call("volume.save", {})
-        return bytes(frame.payload)
+    @property
+    def volume_formats(self) -> list[str]:
+        """The formats save() and load() take on this server (limits.volume_formats, since 1.3):
+        ["mzv"], or ["mzv", "vdb"] for a server built with OpenVDB; ["mzv"] before 1.3."""
+        return list(self.limits.get("volume_formats", ["mzv"]))
 
-    async def load(self, data: bytes) -> dict:
-        """volume.load: replaces the volume by a .mzv file of the session's grid size (one undo
-        step). Returns {revision, digest, roi, can_undo, can_redo}."""
-        result, _ = await self.call("volume.load", {"bytes": len(data)}, upload=data)
+    async def save(self, format: str = "mzv") -> bytes:
+        """volume.save: the session's volume as a .mzv file, or with format="vdb" as an OpenVDB
+        level set (.vdb; a server built with OpenVDB, see volume_formats)."""
+        return (await self.save_with_result(format))[1]
+
+    async def save_with_result(self, format: str = "mzv") -> tuple[dict, bytes]:
+        """save, with the result {revision, digest, bytes, format}."""
+        params = {} if format == "mzv" else {"format": format}
+        result, frame = await self.call("volume.save", params)
+        want = FrameKind.VOLUME_VDB if format == "vdb" else FrameKind.VOLUME_FILE
+        if frame.kind != want:
+            raise ProtocolError(f"volume.save as {format} was answered by a frame of kind {int(frame.kind)}")
+        return result, bytes(frame.payload)
+
+    async def load(self, data: bytes | str | os.PathLike | None = None, format: str | None = None, *,
+                   path: str | os.PathLike | None = None) -> dict:
+        """volume.load: replaces the volume by a file of the session's grid size (one undo step):
+        `data` the file's bytes, or `path` (also given as `data`) a file to read. `format` "mzv"
+        or "vdb" (an OpenVDB level set, index (i, j, k) = voxel (i, j, k), clamped to the band;
+        servers built with OpenVDB); by default from the path's extension, else "mzv". Returns
+        {revision, digest, roi, can_undo, can_redo}."""
+        if isinstance(data, (str, os.PathLike)):
+            path, data = data, None
+        if (data is None) == (path is None):
+            raise TypeError("load() takes the file's bytes or a path, one of them")
+        if path is not None:
+            if format is None and str(path).lower().endswith(".vdb"):
+                format = "vdb"
+            with open(path, "rb") as f:
+                data = f.read()
+        params = {"bytes": len(data)}
+        if format not in (None, "mzv"):
+            params["format"] = format
+        result, _ = await self.call("volume.load", params, upload=data)
         return result

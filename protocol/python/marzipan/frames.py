@@ -38,8 +38,9 @@ class FrameKind(enum.IntEnum):
     MESH_OBJ = 6  # server -> client: Wavefront OBJ text
     MESH_PLY = 7  # server -> client: binary little-endian PLY
     VOLUME_FILE = 8  # server -> client: a .mzv file
-    VOLUME_UPLOAD = 9  # client -> server: a .mzv file for the volume.load request it names
+    VOLUME_UPLOAD = 9  # client -> server: the file (.mzv or .vdb) for the volume.load request it names
     MESH_GLB = 10  # server -> client: binary glTF 2.0 (.glb)
+    VOLUME_VDB = 11  # server -> client: an OpenVDB level set (.vdb), volume.save {format: "vdb"} (1.3)
 
 
 def frame_kind_name(kind: int) -> str:
@@ -54,7 +55,7 @@ class FrameErrorCode(str, enum.Enum):
     SHORT_HEADER = "short_header"  # fewer than 24 bytes
     BAD_MAGIC = "bad_magic"  # bytes 0-3 are not "MZPN"
     BAD_VERSION = "bad_version"  # format version other than 1
-    BAD_KIND = "bad_kind"  # kind outside 1..10
+    BAD_KIND = "bad_kind"  # kind outside 1..11
     TOO_LARGE = "too_large"  # declared payload length above the caller's limit
     LENGTH_MISMATCH = "length_mismatch"  # declared payload length differs from the bytes after the header
 
@@ -117,8 +118,8 @@ def decode_frame(data, max_payload: int = MAX_FRAME_PAYLOAD) -> Frame:
             FrameErrorCode.BAD_VERSION,
             f"binary frame format version {version} is not supported (supported: 1)",
         )
-    if not 1 <= kind <= 10:
-        raise FrameError(FrameErrorCode.BAD_KIND, f"binary frame kind {kind} is unknown (known: 1 to 10)")
+    if not 1 <= kind <= 11:
+        raise FrameError(FrameErrorCode.BAD_KIND, f"binary frame kind {kind} is unknown (known: 1 to 11)")
     if payload_length > max_payload:
         raise FrameError(
             FrameErrorCode.TOO_LARGE,
@@ -137,7 +138,7 @@ def decode_frame(data, max_payload: int = MAX_FRAME_PAYLOAD) -> Frame:
 def encode_frame(kind: int, request_id: int, revision: int, payload=b"") -> bytes:
     """The header followed by the payload. Raises ValueError for a kind outside FrameKind, a
     request id outside u32, a revision outside u64 or a payload over MAX_FRAME_PAYLOAD."""
-    if isinstance(kind, bool) or not isinstance(kind, int) or not 1 <= kind <= 10:
+    if isinstance(kind, bool) or not isinstance(kind, int) or not 1 <= kind <= 11:
         raise ValueError(f"binary frame kind {kind!r} is unknown")
     if isinstance(request_id, bool) or not isinstance(request_id, int) or not 0 <= request_id <= 0xFFFFFFFF:
         raise ValueError(f"binary frame request id {request_id!r} is not a u32")

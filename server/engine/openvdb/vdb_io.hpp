@@ -5,8 +5,13 @@
 // (i, j, k) at the point (i, j, k), as in volume.hpp; background = the band half-width w;
 // active voxels are those with |d| < w; inactive values carry the sign (-w inside, +w
 // outside), as OpenVDB's level-set tools expect.
+//
+// The stream forms serve clients (volume.save / volume.load over the API) without temporary
+// files; the path forms serve `marzipan batch`. Both write the same grid; a file written to a
+// stream is OpenVDB's stream layout (io::Stream), which io::Stream reads back.
 #pragma once
 
+#include <iosfwd>
 #include <string>
 
 #include "engine/volume.hpp"
@@ -15,11 +20,22 @@ namespace marzipan {
 
 // Writes the volume as a .vdb file (replacing it). Throws EngineError(InvalidArgument, "path").
 void saveVdb(const Volume& vol, const std::string& path);
+// Writes the volume as a .vdb stream to `out`.
+void saveVdb(const Volume& vol, std::ostream& out);
 
 // Reads the first float grid of a .vdb file into a new volume of `dims` (band as in Volume):
 // voxel (i, j, k) takes the grid's value at index (i, j, k), clamped to +-band; a grid with
 // another background scale still gives distances in its index space. Throws
-// EngineError(Format) for an unreadable file or one without a float grid.
+// EngineError(Format, "file") for an unreadable file, one without a float grid, a grid whose
+// active voxels or tiles reach outside [0, dims), or a non-finite value inside the domain.
 Volume loadVdb(const std::string& path, Int3 dims, float band = Volume::kDefaultBand);
+// The same from a seekable stream holding a whole .vdb file (a client's upload), of file format
+// version 222 to 224. Every length OpenVDB would trust before the first grid's tree (names,
+// metadata values, counts) is checked against the stream's length first, and a read past the
+// end throws at once. The caller bounds the stream's length: OpenVDB builds the grid's tree
+// before it can be checked, and a tree takes at most about 33 times the bytes that describe it
+// (an internal node of 32 KiB per 1 KiB of masks), so the memory of a read is bounded by that
+// multiple of the upload.
+Volume loadVdb(std::istream& in, Int3 dims, float band = Volume::kDefaultBand);
 
 }  // namespace marzipan

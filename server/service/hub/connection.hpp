@@ -112,6 +112,7 @@ class HubClient {
     std::uint32_t frameId;
     std::uint64_t bytes;
     Clock::time_point arrived;
+    protocol::VolumeFormat format;
   };
   std::optional<PendingLoad> load;
   std::deque<Clock::time_point> creates;  // this connection's session.create in the last minute

@@ -69,6 +69,9 @@ void presence(HubCore&, const Call&);
 // methods_files.cpp: files out (mesh, volume), files in (volume.load and its upload), analysis.
 void meshExport(HubCore&, const Call&);
 void volumeSave(HubCore&, const Call&);
+// The volume.save / volume.load formats of this build, for limits.volume_formats: ["mzv"], or
+// ["mzv", "vdb"] with OpenVDB.
+nlohmann::json volumeFormatsJson();
 void volumeLoad(HubCore&, const Call&);
 void analysisThickness(HubCore&, const Call&);
 // The kind-9 frame that follows a volume.load (c->load holds what it announced).

@@ -1,12 +1,21 @@
 // Handlers of mesh.export, volume.save, volume.load (with its upload) and analysis.thickness
 // (service/hub/methods.hpp): whole-volume files out and in, and the thickness analysis. The
-// outputs are sized from the band before any work (max_output_bytes).
+// outputs are sized from the band before any work (max_output_bytes). Volume files are .mzv,
+// and .vdb (OpenVDB level sets) in a build with OpenVDB, read and written in memory: the server
+// writes no temporary file for a client.
 #include "engine/brick.hpp"
 #include "engine/decimate.hpp"
 #include "engine/marching_cubes.hpp"
 #include "engine/mesh_io.hpp"
 #include "engine/thickness.hpp"
 #include "engine/volume_file.hpp"
+#ifdef MARZIPAN_HAS_OPENVDB
+#include <istream>
+#include <sstream>
+#include <streambuf>
+
+#include "engine/openvdb/vdb_io.hpp"
+#endif
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
 #include "service/journal_records.hpp"
@@ -53,7 +62,73 @@ protocol::FrameKind meshFrameKind(const std::string& format) {
                            : protocol::FrameKind::MeshPly;
 }
 
+#ifdef MARZIPAN_HAS_OPENVDB
+constexpr bool kWithOpenVdb = true;
+#else
+constexpr bool kWithOpenVdb = false;
+#endif
+
+// A format this build cannot read or write is an invalid params value, checked before anything
+// else happens (the upload is then never expected).
+void requireVolumeFormat(protocol::VolumeFormat f) {
+  if (f == protocol::VolumeFormat::Vdb && !kWithOpenVdb)
+    throw RpcException(RpcCode::InvalidParams,
+                       "\"format\" \"vdb\" is not available: this server was built without OpenVDB (its "
+                       "limits.volume_formats lists what it reads and writes)",
+                       {{"field", "format"}});
+}
+
+Bytes volumeFileBytes(const Volume& vol, protocol::VolumeFormat f) {
+#ifdef MARZIPAN_HAS_OPENVDB
+  if (f == protocol::VolumeFormat::Vdb) {
+    std::ostringstream out(std::ios::binary);
+    saveVdb(vol, out);
+    const std::string s = std::move(out).str();
+    return Bytes(s.begin(), s.end());
+  }
+#endif
+  (void)f;
+  return saveVolume(vol);
+}
+
+#ifdef MARZIPAN_HAS_OPENVDB
+// A seekable read-only stream over bytes held elsewhere: an upload of up to max_binary_bytes is
+// read where it lies, not copied into a string stream first.
+class BytesBuf : public std::streambuf {
+ public:
+  explicit BytesBuf(const Bytes& b) {
+    char* p = const_cast<char*>(reinterpret_cast<const char*>(b.data()));
+    setg(p, p, p + b.size());
+  }
+
+ protected:
+  pos_type seekoff(off_type off, std::ios::seekdir dir, std::ios::openmode) override {
+    const off_type base = dir == std::ios::beg ? 0 : dir == std::ios::cur ? gptr() - eback() : egptr() - eback();
+    const off_type to = base + off;
+    if (to < 0 || to > egptr() - eback()) return pos_type(off_type(-1));
+    setg(eback(), eback() + to, egptr());
+    return pos_type(to);
+  }
+  pos_type seekpos(pos_type pos, std::ios::openmode m) override { return seekoff(off_type(pos), std::ios::beg, m); }
+};
+#endif
+
+// A .vdb upload holds distances by index: it takes the session's grid size and band.
+Volume volumeFromFile(const Bytes& file, protocol::VolumeFormat f, Int3 dims, float band) {
+#ifdef MARZIPAN_HAS_OPENVDB
+  if (f == protocol::VolumeFormat::Vdb) {
+    BytesBuf buf(file);
+    std::istream in(&buf);
+    return loadVdb(in, dims, band);
+  }
+#endif
+  (void)f, (void)dims, (void)band;
+  return ::marzipan::loadVolume(file);
+}
+
 }  // namespace
+
+nlohmann::json volumeFormatsJson() { return kWithOpenVdb ? json{"mzv", "vdb"} : json{"mzv"}; }
 
 void meshExport(HubCore& hub, const Call& call) {
   const protocol::MeshExportParams p = protocol::parseMeshExportParams(call.req.params);
@@ -88,11 +163,17 @@ void meshExport(HubCore& hub, const Call& call) {
 }
 
 void volumeSave(HubCore& hub, const Call& call) {
-  protocol::parseNoParams(call.req.params, call.req.method);
-  hub.offStrand(call, [frameId = call.req.frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
-    const Bytes file = saveVolume(vol);
-    r.frame = makeFrame(protocol::FrameKind::VolumeFile, frameId, revision, file);
-    r.result = {{"revision", revision}, {"digest", digestHex(vol)}, {"bytes", file.size()}};
+  const protocol::VolumeFormat format = protocol::parseVolumeSaveParams(call.req.params);
+  requireVolumeFormat(format);
+  hub.offStrand(call, [format, frameId = call.req.frameId](const Volume& vol, std::uint64_t revision, Reply& r) {
+    const Bytes file = volumeFileBytes(vol, format);
+    if (file.size() > protocol::kMaxFramePayload)
+      throw RpcException(RpcCode::LimitExceeded, "the volume file is larger than one frame can carry (4 GiB)",
+                         {{"limit", "frame_payload"}, {"max", protocol::kMaxFramePayload}});
+    const bool vdb = format == protocol::VolumeFormat::Vdb;
+    r.frame = makeFrame(vdb ? protocol::FrameKind::VolumeVdb : protocol::FrameKind::VolumeFile, frameId, revision, file);
+    r.result = {{"revision", revision}, {"digest", digestHex(vol)}, {"bytes", file.size()},
+                {"format", protocol::volumeFormatName(format)}};
   });
 }
 
@@ -113,14 +194,15 @@ void analysisThickness(HubCore& hub, const Call& call) {
 // right is checked on the strand (where it lives); a view client's upload is then dropped as
 // unanswered.
 void volumeLoad(HubCore& hub, const Call& call) {
-  const std::uint64_t bytes =
+  const protocol::VolumeLoadParams p =
       protocol::parseVolumeLoadParams(call.req.params, hub.limits().maxBinaryBytes - protocol::kFrameHeaderBytes);
+  requireVolumeFormat(p.format);
   auto s = call.client->session;
-  s->strand->post([self = hub.shared_from_this(), c = call.client, id = *call.req.id, frameId = call.req.frameId, bytes,
+  s->strand->post([self = hub.shared_from_this(), c = call.client, id = *call.req.id, frameId = call.req.frameId, p,
                    arrived = call.arrived, access = call.access] {
     try {
       HubCore::checkAccess(*c, access);
-      c->load = HubClient::PendingLoad{id, frameId, bytes, arrived};
+      c->load = HubClient::PendingLoad{id, frameId, p.bytes, arrived, p.format};
     } catch (...) {
       self->sendError(*c, id, false, failureOf(std::current_exception(), self->options.events.log));
     }
@@ -154,10 +236,11 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
   auto payload = std::make_shared<Bytes>(bytes.begin() + protocol::kFrameHeaderBytes, bytes.end());
   bytes.clear();
   // The edit right was checked when the volume.load was accepted.
-  hub.onStrand(c, c->session, load.id, load.arrived, true, Access::Member, [self = hub.shared_from_this(), c, payload](
-                                                                               LiveSession& s, Reply& r) {
+  hub.onStrand(c, c->session, load.id, load.arrived, true, Access::Member, [self = hub.shared_from_this(), c, payload,
+                                                                               format = load.format](LiveSession& s,
+                                                                                                     Reply& r) {
     const HubLimits& l = self->limits();
-    Volume vol = ::marzipan::loadVolume(*payload);
+    Volume vol = volumeFromFile(*payload, format, s.session->volume().dims(), s.session->volume().band());
     if (vol.memoryBytes() > l.maxVolumeBytes)
       throw RpcException(RpcCode::LimitExceeded,
                          "the file's volume holds " + std::to_string(vol.memoryBytes()) +
@@ -176,6 +259,8 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                          "the file's band half-width is " + std::to_string(vol.band()) + " vu, the session's " +
                              std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
                          {{"field", "file"}});
+    // The journal keeps every load as a .mzv (a server without OpenVDB replays it too).
+    if (format == protocol::VolumeFormat::Vdb) *payload = saveVolume(vol);
     const StepAuthor by = authorOf(*c);
     ApplyResult a = s.session->load(std::move(vol), by);
     a.fullRefresh = true;

@@ -4,6 +4,7 @@
 
 #include "engine/solids.hpp"
 #include "service/hub/core.hpp"
+#include "service/hub/methods.hpp"
 #include "service/hub/secrets.hpp"
 
 namespace marzipan::service {
@@ -44,7 +45,8 @@ json limitsJson(const HubLimits& l) {
           {"max_creates_per_minute", l.maxCreatesPerMinute},
           {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute},
           {"max_session_age_days", l.maxSessionAge.count() / 24},
-          {"max_op_voxels", l.maxOpVoxels}};
+          {"max_op_voxels", l.maxOpVoxels},
+          {"volume_formats", volumeFormatsJson()}};
 }
 
 }  // namespace

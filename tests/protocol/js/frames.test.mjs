@@ -47,7 +47,7 @@ test("every binary vector decodes to its fields and re-encodes to the same bytes
     assert.deepEqual(encodeFrame(h.kind, h.requestId, h.revision, payload), bytes, v.name);
     kinds.add(h.kind);
   }
-  assert.equal(kinds.size, 10);
+  assert.equal(kinds.size, 11);
 });
 
 test("ArrayBuffers and views at an offset decode alike", () => {
@@ -72,9 +72,9 @@ test("FrameKind names the kinds of the vectors", () => {
   for (const v of vectors.binary) assert.equal(FrameKind[camel(v.header.kind_name)], v.header.kind, v.name);
   assert.deepEqual(
     Object.values(FrameKind),
-    [1, 2, 3, 4, 5, 6, 7, 8, 9, 10],
+    [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11],
   );
-  for (const k of [0, 11, 65535, 1.5, -1, NaN]) {
+  for (const k of [0, 12, 65535, 1.5, -1, NaN]) {
     assert.equal(isFrameKind(k), false);
     assert.equal(frameKindName(k), "");
   }
@@ -128,7 +128,7 @@ test("encoding writes every field little-endian at its offset", () => {
 
 test("encoding refuses values the header cannot carry", () => {
   const payload = new Uint8Array([1]);
-  for (const kind of [0, 11, 1.5, "1"]) assert.throws(() => encodeFrame(kind, 1, 1n, payload), RangeError);
+  for (const kind of [0, 12, 1.5, "1"]) assert.throws(() => encodeFrame(kind, 1, 1n, payload), RangeError);
   for (const id of [-1, 2 ** 32, 0.5, NaN]) assert.throws(() => encodeFrame(FrameKind.MeshStl, id, 1n, payload), RangeError);
   for (const rev of [-1n, 1n << 64n, -1, 2 ** 53, 0.5])
     assert.throws(() => encodeFrame(FrameKind.MeshStl, 1, rev, payload), RangeError);

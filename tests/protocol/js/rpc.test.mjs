@@ -15,7 +15,10 @@ import {
   ownerUrl,
   rpcErrorName,
   undoConflictOf,
+  volumeFileKind,
+  volumeFormats,
 } from "../../../protocol/js/rpc.js";
+import { FrameKind } from "../../../protocol/js/frames.js";
 import { protocolMarkdown, vectors } from "./vectors.mjs";
 
 test("the method lists and the protocol version are those of the vectors", () => {
@@ -166,4 +169,16 @@ test("undoConflictOf reads -32017's data and nothing else", () => {
   assert.equal(conflict(undefined), null);
   assert.equal(undoConflictOf({ code: -32012, message: "m", data: { client: 2, revision: 5, step: 3 } }), null);
   assert.equal(undoConflictOf(undefined), null);
+});
+
+test("volumeFormats reads limits.volume_formats of the vectors' join result, mzv before 1.3", () => {
+  const joined = vectors.responses.find((v) => v.method === "session.join" && v.text.includes("volume_formats"));
+  assert.deepEqual(volumeFormats(JSON.parse(joined.text).result.limits), ["mzv", "vdb"]);
+  assert.deepEqual(volumeFormats({ max_text_bytes: 1048576 }), ["mzv"]);
+  assert.deepEqual(volumeFormats(undefined), ["mzv"]);
+  assert.deepEqual(volumeFormats({ volume_formats: ["mzv"] }), ["mzv"]);
+  assert.equal(volumeFileKind("vdb"), FrameKind.VolumeVdb);
+  assert.equal(volumeFileKind("mzv"), FrameKind.VolumeFile);
+  const vdbFrame = vectors.binary.find((v) => v.header.kind_name === "volume_vdb");
+  assert.equal(vdbFrame.header.kind, volumeFileKind("vdb"));
 });

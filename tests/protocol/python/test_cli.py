@@ -141,6 +141,16 @@ class AgainstServer(unittest.TestCase):
         self.assertEqual(json.loads(saved.stdout)["digest"], json.loads(loaded.stdout)["digest"])
         self.assertTrue((d / "v.obj").read_text().startswith(("#", "v ")))
 
+    def test_out_vdb_writes_an_openvdb_file_or_says_the_server_has_no_openvdb(self):
+        d = self.dir
+        result = self.cli(str(d / "ops.jsonl"), "--size", "64", "--solid", "pig", "--out", str(d / "v.vdb"))
+        if result.returncode == 0:
+            self.assertEqual((d / "v.vdb").read_bytes()[:8], bytes.fromhex("2042445600000000"))  # OpenVDB's magic
+        else:
+            self.assertEqual(result.returncode, 1, result.stderr)
+            self.assertIn("built without OpenVDB", result.stderr)
+            self.assertFalse((d / "v.vdb").exists())
+
     def test_joining_a_session_applies_the_ops_there(self):
         from marzipan.client import Client
 

@@ -5,8 +5,10 @@ session, and the exact numbers the server reports (digests, byte counts, splat g
 import asyncio
 import json
 import math
+import os
 import re
 import struct
+import tempfile
 import unittest
 import zlib
 
@@ -24,7 +26,7 @@ LIMIT_KEYS = {"max_text_bytes", "max_binary_bytes", "max_grid_side", "max_sessio
               "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds",
               "max_queue_bytes", "max_connections", "max_connections_per_address", "lobby_seconds",
               "max_volume_bytes", "max_output_bytes", "max_creates_per_minute", "max_creates_per_address_per_minute",
-              "max_session_age_days", "max_op_voxels"}
+              "max_session_age_days", "max_op_voxels", "volume_formats"}
 
 
 def run(coroutine, timeout=120):
@@ -59,7 +61,7 @@ class AgainstServer(ServerTestCase):
         self.assertNotEqual(r["token"], r["view_token"])
         self.assertEqual((r["client"], r["size"], r["revision"]), (1, [40, 32, 24], 0))
         self.assertRegex(r["digest"], HEX16)
-        self.assertEqual(r["protocol"], {"major": 1, "minor": 2})
+        self.assertEqual(r["protocol"], {"major": 1, "minor": 3})
         self.assertEqual(set(r["limits"]), LIMIT_KEYS)
         self.assertEqual((r["can_undo"], r["can_redo"], r["read_only"]), (False, False, False))
         self.assertEqual(r["clients"], [{"client": 1, "read_only": False, "name": "Sculptor 1", "color": "#e6194b"}])
@@ -159,7 +161,7 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(errors["outside"].field, "center")
         self.assertEqual(errors["op in tool.apply"].field, "op")
         self.assertEqual(errors["solid"].field, "solid")
-        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 2})
+        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 3})
         self.assertEqual(errors["exists"].code, -32014)
         self.assertEqual(errors["grid"].data.get("limit"), "max_grid_side")
         self.assertEqual(errors["frame side"].data.get("limit"), "max_frame_side")
@@ -259,6 +261,51 @@ class AgainstServer(ServerTestCase):
         self.assertTrue(undone["can_redo"])
         self.assertEqual(before_load["digest"], changed["digest"])
         self.assertEqual(refused.field, "file")
+
+    def test_vdb_files_round_trip_where_the_server_has_openvdb_and_are_refused_elsewhere(self):
+        """The server's limits.volume_formats decides: a build with OpenVDB saves a .vdb that
+        loads back with the same digest (from bytes and from a path); one without refuses "vdb"
+        with InvalidParams on "format" and changes nothing."""
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(32, "torus")
+                await client.apply("add_blob", center=[16, 24, 16], radius=5)
+                before = await client.stats()
+                formats = client.volume_formats
+                if "vdb" not in formats:
+                    with self.assertRaises(rpc.InvalidParams) as save_refused:
+                        await client.save(format="vdb")
+                    with self.assertRaises(rpc.InvalidParams) as load_refused:
+                        await client.load(b"\x20BDV" + bytes(60), format="vdb")
+                    return formats, before, await client.stats(), (save_refused.exception, load_refused.exception)
+                result, vdb = await client.save_with_result(format="vdb")
+                await client.apply("csg_subtract", shape="sphere", center=[16, 16, 16], radius=9)
+                loaded = await client.load(vdb, format="vdb")
+                with tempfile.TemporaryDirectory() as d:
+                    path = os.path.join(d, "torus.vdb")
+                    with open(path, "wb") as f:
+                        f.write(vdb)
+                    await client.undo()
+                    from_path = await client.load(path)
+                with self.assertRaises(rpc.EngineRefused) as refused:
+                    await client.load(vdb[: len(vdb) // 2], format="vdb")
+                return formats, before, (result, vdb, loaded, from_path), refused.exception
+
+        formats, before, outcome, refusal = run(go())
+        if "vdb" not in formats:
+            self.assertEqual(formats, ["mzv"])
+            self.assertEqual(outcome["digest"], before["digest"])
+            for e in refusal:
+                self.assertEqual(e.field, "format")
+                self.assertIn("built without OpenVDB", str(e))
+            return
+        result, vdb, loaded, from_path = outcome
+        self.assertEqual(formats, ["mzv", "vdb"])
+        self.assertEqual((result["format"], result["bytes"], result["digest"]), ("vdb", len(vdb), before["digest"]))
+        self.assertEqual(vdb[:4], b"\x20BDV")  # OpenVDB's magic, 0x56444220 little-endian
+        self.assertEqual(loaded["digest"], before["digest"])
+        self.assertEqual(from_path["digest"], before["digest"])
+        self.assertEqual(refusal.field, "file")
 
     def test_a_load_not_followed_by_its_upload_fails_and_the_next_request_is_served(self):
         async def go():

@@ -37,7 +37,7 @@ class GoldenVectors(unittest.TestCase):
                 self.assertIs(frame.payload.obj, data, "the payload is a view of the input, not a copy")
                 self.assertEqual(encode_frame(frame.kind, frame.request_id, frame.revision, frame.payload), data)
                 kinds.add(frame.kind)
-        self.assertEqual(kinds, set(range(1, 11)))
+        self.assertEqual(kinds, set(range(1, 12)))
 
     def test_bytearray_and_memoryview_at_an_offset_decode_alike(self):
         for v in VECTORS["binary"]:
@@ -53,8 +53,8 @@ class GoldenVectors(unittest.TestCase):
     def test_frame_kind_names_are_those_of_the_vectors(self):
         for v in VECTORS["binary"]:
             self.assertEqual(FrameKind[v["header"]["kind_name"].upper()], v["header"]["kind"], v["name"])
-        self.assertEqual([int(k) for k in FrameKind], list(range(1, 11)))
-        for k in (0, 11, 65535, -1):
+        self.assertEqual([int(k) for k in FrameKind], list(range(1, 12)))
+        for k in (0, 12, 65535, -1):
             self.assertEqual(frame_kind_name(k), "")
 
     def test_invalid_vectors_are_refused_with_their_code(self):
@@ -119,7 +119,7 @@ class Checks(unittest.TestCase):
 
     def test_encode_refuses_what_the_header_cannot_hold(self):
         for kind, request_id, revision in [
-            (0, 1, 0), (11, 1, 0), (True, 1, 0), (1, -1, 0), (1, 1 << 32, 0), (1, 1.0, 0),
+            (0, 1, 0), (12, 1, 0), (True, 1, 0), (1, -1, 0), (1, 1 << 32, 0), (1, 1.0, 0),
             (1, 1, -1), (1, 1, 1 << 64), (1, 1, 2.0),
         ]:
             with self.assertRaises(ValueError, msg=(kind, request_id, revision)):
