@@ -360,7 +360,7 @@ ViewSetParams parseViewSetParams(const json& params, int maxSide) {
   if (p.mode == ViewMode::Frames) {
     p.camera = cameraValue(params, maxSide);
     if (const json* s = find(params, "shading")) p.shading = shadingValue(*s);
-    if (const auto m = minVuValue(params, p.shading)) p.minVu = *m;
+    if (const auto minVu = minVuValue(params, p.shading)) p.minVu = *minVu;
   } else {
     for (const char* key : {"camera", "width", "height", "shading", "min_vu"})
       if (find(params, key)) fail(key, "is only for mode \"frames\"");

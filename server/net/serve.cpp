@@ -87,6 +87,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       maxPerAddress{"--max-connections-per-address", "MARZIPAN_MAX_CONNECTIONS_PER_ADDRESS", {}},
       lobbySeconds{"--lobby-seconds", "MARZIPAN_LOBBY_SECONDS", {}},
       volumeMb{"--max-volume-mb", "MARZIPAN_MAX_VOLUME_MB", {}}, outputMb{"--max-output-mb", "MARZIPAN_MAX_OUTPUT_MB", {}},
+      vdbMb{"--max-vdb-mb", "MARZIPAN_MAX_VDB_MB", {}},
       createRate{"--max-creates-per-minute", "MARZIPAN_MAX_CREATES_PER_MINUTE", {}},
       createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
       maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}},
@@ -96,7 +97,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
                                &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
-                               &volumeMb, &outputMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels,
+                               &volumeMb, &outputMb, &vdbMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels,
                                &etcd,      &etcdLease};
 
   for (Setting* s : settings) {
@@ -176,6 +177,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   }
   setLimit(volumeMb, limits.maxVolumeBytes, 1, 1u << 20, std::uint64_t(1) << 20);
   setLimit(outputMb, limits.maxOutputBytes, 1, 4095, std::uint64_t(1) << 20);
+  setLimit(vdbMb, limits.maxVdbBytes, 1, 4095, std::uint64_t(1) << 20);
   setLimit(createRate, limits.maxCreatesPerMinute, 1, 1000000);
   setLimit(createRateAddress, limits.maxCreatesPerAddressPerMinute, 1, 1000000);
   if (maxAgeDays.value) {
@@ -338,6 +340,8 @@ Limits (PROTOCOL.md, "Versions and limits"):
                              refused [MARZIPAN_MAX_VOLUME_MB]; 256
   --max-output-mb N          largest mesh file or splat buffer one request may build,
                              estimated before any work [MARZIPAN_MAX_OUTPUT_MB]; 256
+  --max-vdb-mb N             largest .vdb file a volume.load may send (reading one takes
+                             up to ~33 times its size) [MARZIPAN_MAX_VDB_MB]; 16
   --max-creates-per-minute N   session.create per connection in 60 s
                              [MARZIPAN_MAX_CREATES_PER_MINUTE]; 10
   --max-creates-per-address-per-minute N  the same per client address

@@ -68,6 +68,11 @@ struct HubLimits {
   // The largest answer a request may build (mesh.export's file, splats.get's buffer), estimated
   // from the band before any work; beyond it -32004.
   std::size_t maxOutputBytes = std::size_t(256) << 20;
+  // The largest .vdb file a volume.load may announce (-32004 beyond). OpenVDB builds a file's
+  // tree before anything can check it against the session: a crafted file's topology costs
+  // about 33 times its size in memory while it is read (64 bytes on disk per 2 KiB leaf), so
+  // this bounds that transient memory at ~0.5 GiB; a 256^3 sphere's .vdb is 2.7 MB.
+  std::size_t maxVdbBytes = std::size_t(16) << 20;
   // session.create per connection and per client address in any 60 s; beyond them -32004.
   std::size_t maxCreatesPerMinute = 10;
   std::size_t maxCreatesPerAddressPerMinute = 30;

@@ -277,6 +277,40 @@ TEST_CASE("hostile .vdb uploads are refused with -32006 and change nothing", "[h
   CHECK(load(a, vdb, "vdb")["result"]["digest"] == saved["digest"]);
 }
 
+// OpenVDB allocates a file's tree before it can be checked: a .vdb upload is bounded by its own
+// limit, refused when announced, before a byte of it is buffered for reading.
+TEST_CASE("a .vdb upload over max_vdb_bytes is refused when announced", "[hub][vdb][openvdb]") {
+  Bytes vdb;
+  {
+    Hub hub(vdbOptions());
+    TestClient a(hub);
+    a.result("session.create", kCreate);
+    vdb = save(a, "vdb", protocol::FrameKind::VolumeVdb).second;
+    CHECK(a.result("session.stats")["revision"] == 0);
+  }
+  HubOptions o = vdbOptions();
+  o.limits.maxVdbBytes = vdb.size() - 1;
+  Hub hub(o);
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate);
+  CHECK(created["limits"]["max_vdb_bytes"] == vdb.size() - 1);
+  a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+  const json before = a.result("session.stats");
+  const json r = load(a, vdb, "vdb");
+  INFO(r.dump());
+  CHECK(r["error"]["code"] == -32004);
+  CHECK(r["error"]["data"]["limit"] == "max_vdb_bytes");
+  CHECK(r["error"]["data"]["value"] == vdb.size());
+  CHECK(r["error"]["data"]["field"] == "bytes");
+  CHECK(a.result("session.stats")["digest"] == before["digest"]);
+  // At exactly max_vdb_bytes the same file loads.
+  o.limits.maxVdbBytes = vdb.size();
+  Hub roomy(o);
+  TestClient b(roomy);
+  b.result("session.create", kCreate);
+  CHECK(load(b, vdb, "vdb").contains("result"));
+}
+
 #else
 
 TEST_CASE("a server built without OpenVDB refuses format vdb and lists only mzv", "[hub][vdb]") {

@@ -197,6 +197,12 @@ void volumeLoad(HubCore& hub, const Call& call) {
   const protocol::VolumeLoadParams p =
       protocol::parseVolumeLoadParams(call.req.params, hub.limits().maxBinaryBytes - protocol::kFrameHeaderBytes);
   requireVolumeFormat(p.format);
+  const std::size_t maxVdb = hub.limits().maxVdbBytes;
+  if (p.format == protocol::VolumeFormat::Vdb && p.bytes > maxVdb)
+    throw RpcException(RpcCode::LimitExceeded,
+                       "a .vdb upload of " + std::to_string(p.bytes) + " bytes is over max_vdb_bytes " +
+                           std::to_string(maxVdb) + " (reading a .vdb takes many times its size)",
+                       {{"limit", "max_vdb_bytes"}, {"value", p.bytes}, {"max", maxVdb}, {"field", "bytes"}});
   auto s = call.client->session;
   s->strand->post([self = hub.shared_from_this(), c = call.client, id = *call.req.id, frameId = call.req.frameId, p,
                    arrived = call.arrived, access = call.access] {
@@ -239,13 +245,13 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
   hub.onStrand(c, c->session, load.id, load.arrived, true, Access::Member, [self = hub.shared_from_this(), c, payload,
                                                                                format = load.format](LiveSession& s,
                                                                                                      Reply& r) {
-    const HubLimits& l = self->limits();
+    const std::size_t maxVolume = self->limits().maxVolumeBytes;
     Volume vol = volumeFromFile(*payload, format, s.session->volume().dims(), s.session->volume().band());
-    if (vol.memoryBytes() > l.maxVolumeBytes)
+    if (vol.memoryBytes() > maxVolume)
       throw RpcException(RpcCode::LimitExceeded,
                          "the file's volume holds " + std::to_string(vol.memoryBytes()) +
-                             " bytes of bricks, over max_volume_bytes " + std::to_string(l.maxVolumeBytes),
-                         {{"limit", "max_volume_bytes"}, {"value", vol.memoryBytes()}, {"max", l.maxVolumeBytes}, {"field", "file"}});
+                             " bytes of bricks, over max_volume_bytes " + std::to_string(maxVolume),
+                         {{"limit", "max_volume_bytes"}, {"value", vol.memoryBytes()}, {"max", maxVolume}, {"field", "file"}});
     const Int3 d = s.session->volume().dims();
     if (vol.dims() != d)
       throw RpcException(RpcCode::EngineRefused,

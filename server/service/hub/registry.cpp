@@ -42,6 +42,7 @@ json limitsJson(const HubLimits& l) {
           {"lobby_seconds", l.lobby.count()},
           {"max_volume_bytes", l.maxVolumeBytes},
           {"max_output_bytes", l.maxOutputBytes},
+          {"max_vdb_bytes", l.maxVdbBytes},
           {"max_creates_per_minute", l.maxCreatesPerMinute},
           {"max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute},
           {"max_session_age_days", l.maxSessionAge.count() / 24},

@@ -25,7 +25,7 @@ HEX16 = re.compile(r"^[0-9a-f]{16}$")
 LIMIT_KEYS = {"max_text_bytes", "max_binary_bytes", "max_grid_side", "max_sessions", "max_clients_per_session",
               "max_dabs", "max_frame_side", "history_bytes", "idle_session_seconds", "ping_seconds",
               "max_queue_bytes", "max_connections", "max_connections_per_address", "lobby_seconds",
-              "max_volume_bytes", "max_output_bytes", "max_creates_per_minute", "max_creates_per_address_per_minute",
+              "max_volume_bytes", "max_output_bytes", "max_vdb_bytes", "max_creates_per_minute", "max_creates_per_address_per_minute",
               "max_session_age_days", "max_op_voxels", "volume_formats"}
 
 
