@@ -6,7 +6,9 @@
 // (service/hub/connection.hpp); one pump task at a time takes the next message, parses it
 // (protocol/cpp/rpc.hpp), finds its method's row and hands the request to its handler, which
 // posts the work to the session's strand. Only when that work has sent its answer does the pump
-// take the next message, so a connection's answers come in request order.
+// take the next message, so a connection's answers come in request order. The pump runs on the
+// workers, except for a presence arriving on an idle connection: that is handled at once on the
+// network thread that received it (see enqueue).
 #include "service/hub.hpp"
 
 #include <future>
