@@ -78,14 +78,19 @@ void PresenceRelay::flush(const std::shared_ptr<LiveSession>& s) {
   }
   // Every receiver's share at one instant: one batch each, all due again together.
   auto taken = s->presence.coalescer.takeAll();
-  for (const auto& c : s->members()) {
-    const auto mine = std::lower_bound(taken.begin(), taken.end(), PresenceCoalescer::ClientId(c->clientId),
-                                       [](const auto& t, PresenceCoalescer::ClientId id) { return t.first < id; });
-    if (mine == taken.end() || mine->first != PresenceCoalescer::ClientId(c->clientId)) continue;
-    std::vector<ClientLink::Transient> batch;
-    batch.reserve(mine->second.size());
-    for (const PresenceCoalescer::Delivery& d : mine->second) batch.push_back({d.payload->text(), d.sender});
-    c->link->sendTransient(std::move(batch));
+  try {
+    for (const auto& c : s->members()) {
+      const auto mine = std::lower_bound(taken.begin(), taken.end(), PresenceCoalescer::ClientId(c->clientId),
+                                         [](const auto& t, PresenceCoalescer::ClientId id) { return t.first < id; });
+      if (mine == taken.end() || mine->first != PresenceCoalescer::ClientId(c->clientId)) continue;
+      std::vector<ClientLink::Transient> batch;
+      batch.reserve(mine->second.size());
+      for (const PresenceCoalescer::Delivery& d : mine->second) batch.push_back({d.payload->text(), d.sender});
+      c->link->sendTransient(std::move(batch));
+    }
+  } catch (const std::exception& e) {
+    // Encoding checked values cannot fail; should it, this flush is lost, not the next ones.
+    if (hub_.options.events.log) hub_.options.events.log(std::string("presence: flush failed: ") + e.what());
   }
   arm(s, true);
 }
