@@ -23,6 +23,10 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
@@ -229,10 +233,12 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
                                         latestWins] { self->enqueue(text, binary, latestWins); });
   }
-  // Transient texts (ClientLink::sendTransient), handed over at once.
+  // Transient texts (ClientLink::sendTransient), handed over at once and written as one batch.
   void sendTransient(std::vector<service::ClientLink::Transient> texts) {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
+      if (self->closing_) return;
       for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
+      if (!self->writing_) self->doWrite();
     });
   }
 
@@ -356,9 +362,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   // Transient texts wait at the back of the queue, at most one per key (the newest) and at most
   // kMaxTransients in all (the oldest goes), so a congested client never has a backlog of them.
+  // The caller starts the write.
   static constexpr std::size_t kMaxTransients = 64;
   void enqueueTransient(std::shared_ptr<const std::string> text, std::uint64_t key) {
-    if (closing_) return;
     const std::size_t first = writing_ ? 1 : 0;
     std::size_t waiting = 0, oldest = queue_.size();
     for (std::size_t i = first; i < queue_.size(); ++i) {
@@ -374,12 +380,28 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     out.transient = true;
     out.key = key;
     queue_.push_back(std::move(out));
-    if (!writing_) doWrite();
+  }
+
+  // A batch of transient texts (a presence flush: one from each other client) leaves in one TCP
+  // push instead of one per message: the socket is corked while a transient with more behind it
+  // is written and uncorked when the queue runs dry. Anything else is written uncorked, so it
+  // goes out at once with the transients before it and never waits for those after it.
+  void cork(bool on) {
+#ifdef TCP_CORK
+    if (corked_ == on) return;
+    corked_ = on;
+    const int value = on ? 1 : 0;
+    ::setsockopt(beast::get_lowest_layer(ws_).socket().native_handle(), IPPROTO_TCP, TCP_CORK, &value, sizeof value);
+#else
+    (void)on;
+#endif
   }
 
   void doWrite() {
     writing_ = true;
     const Out& out = queue_.front();
+    if (!out.transient) cork(false);
+    else if (queue_.size() > 1) cork(true);
     ws_.text(out.text != nullptr);
     if (out.text) {
       ws_.async_write(asio::buffer(*out.text), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
@@ -394,6 +416,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     if (ec) return fail(ec, "write");
     queuedBytes_ -= queue_.front().charge;
     queue_.pop_front();
+    if (queue_.empty()) cork(false);
     if (closeAfterWrite_) return doClose();
     if (!queue_.empty() && !closing_) doWrite();
   }
@@ -413,6 +436,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   void doClose() {
     closeAfterWrite_ = false;
+    cork(false);
     queue_.clear();
     state_->log("ws: closing " + peer_ + " with " + std::to_string(int(closeReason_.code)) + " " + closeReasonText_);
     ws_.async_close(closeReason_, [self = shared_from_this()](beast::error_code) {});
@@ -434,6 +458,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::deque<Out> queue_;
   std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
   bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
+  bool corked_ = false;  // TCP_CORK is set on the socket (see cork())
   websocket::close_reason closeReason_;
   std::string closeReasonText_;
 };

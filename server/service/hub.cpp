@@ -6,7 +6,9 @@
 // (service/hub/connection.hpp); one pump task at a time takes the next message, parses it
 // (protocol/cpp/rpc.hpp), finds its method's row and hands the request to its handler, which
 // posts the work to the session's strand. Only when that work has sent its answer does the pump
-// take the next message, so a connection's answers come in request order.
+// take the next message, so a connection's answers come in request order. The pump runs on the
+// workers, except for a presence arriving on an idle connection: that is handled at once on the
+// network thread that received it (see enqueue).
 #include "service/hub.hpp"
 
 #include <future>
@@ -51,8 +53,16 @@ HubCore::HubCore(HubOptions o)
 // --- the connection's queue and pump -------------------------------------------------------------
 
 void HubCore::enqueue(const std::shared_ptr<HubClient>& c, Incoming in) {
+  const bool mayBePresence = isPresenceSized(in);
   const ConnectionQueue::Admission a = c->queue.push(in, limits(), Clock::now());
-  if (a.start) workers.post([self = shared_from_this(), c] { self->pump(c); });
+  // A presence on an idle connection is handled here, on the caller's (network) thread: it is
+  // microseconds of parsing and a hand-over to the relay, and at pointer rate from every client
+  // the hop to a worker (a wake-up each) cost more than the handling. Whatever else the message
+  // turns out to be goes to the workers once parsed (handleText).
+  if (a.start) {
+    if (mayBePresence) pump(c, true);
+    else workers.post([self = shared_from_this(), c] { self->pump(c); });
+  }
   if (a.queued || a.refusal.empty()) return;
   // Answered at once without queueing, outside the queue's lock: the link may send inline and,
   // past its queue bound, disconnect this client. An upload cannot be answered alone: its
@@ -83,7 +93,12 @@ void HubCore::cleanup(const std::shared_ptr<HubClient>& c) {
   });
 }
 
-void HubCore::pump(const std::shared_ptr<HubClient>& c) {
+bool HubCore::isPresenceSized(const Incoming& in) {
+  const auto* text = std::get_if<std::string>(&in.message);
+  return text && text->size() <= kMaxInlineBytes && text->find("\"presence\"") != std::string::npos;
+}
+
+void HubCore::pump(const std::shared_ptr<HubClient>& c, bool onCaller) {
   Incoming in;
   switch (c->queue.take(in)) {
     case ConnectionQueue::Next::Idle: return;
@@ -99,7 +114,7 @@ void HubCore::pump(const std::shared_ptr<HubClient>& c) {
                 {RpcCode::UploadMissing, "volume.load was not followed by its upload (a kind-9 binary frame with request id " +
                                              std::to_string(load.frameId) + ")", nullptr});
     }
-    handleText(c, std::get<std::string>(in.message), in.arrived);
+    handleText(c, std::get<std::string>(in.message), in.arrived, onCaller);
   } catch (...) {
     sendError(*c, json(nullptr), false, failureOf(std::current_exception(), options.events.log));
     finish(c);
@@ -108,14 +123,29 @@ void HubCore::pump(const std::shared_ptr<HubClient>& c) {
 
 // --- dispatch --------------------------------------------------------------------------------------
 
-void HubCore::handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived) {
-  const protocol::ParsedRequest parsed = protocol::parseRequest(text);
+void HubCore::handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived,
+                         bool onCaller) {
+  protocol::ParsedRequest parsed = protocol::parseRequest(text);
   if (!parsed.request) {
     const protocol::RpcError& e = *parsed.error;
     sendError(*c, e.id, e.notification, {e.code, e.message, e.data});
     return finish(c);
   }
-  const protocol::Request& req = *parsed.request;
+  if (onCaller && parsed.request->method != protocol::Method::Presence) {
+    workers.post([self = shared_from_this(), c, req = std::move(*parsed.request), arrived] {
+      try {
+        self->dispatch(c, req, arrived);
+      } catch (...) {
+        self->sendError(*c, req.id, failureOf(std::current_exception(), self->options.events.log));
+        self->finish(c);
+      }
+    });
+    return;
+  }
+  dispatch(c, *parsed.request, arrived);
+}
+
+void HubCore::dispatch(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived) {
   if (options.events.request) options.events.request(protocol::nameOf(protocol::kMethodNames, req.method));
   // A binary-answered method sent as a notification has nowhere to put its answer.
   if (!req.id && protocol::needsFrameId(req.method)) return finish(c);

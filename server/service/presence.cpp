@@ -32,16 +32,28 @@ bool PresenceCoalescer::update(ClientId sender, Payload payload) {
 std::vector<PresenceCoalescer::Delivery> PresenceCoalescer::take(ClientId receiver) {
   const Clock::time_point now = now_();
   const std::lock_guard lock(mutex_);
-  std::vector<Delivery> out;
   const auto r = clients_.find(receiver);
-  if (r == clients_.end()) return out;
+  if (r == clients_.end()) return {};
+  return takeLocked(receiver, r->second, now);
+}
+
+std::vector<std::pair<PresenceCoalescer::ClientId, std::vector<PresenceCoalescer::Delivery>>> PresenceCoalescer::takeAll() {
+  const Clock::time_point now = now_();
+  const std::lock_guard lock(mutex_);
+  std::vector<std::pair<ClientId, std::vector<Delivery>>> out;
+  for (auto& [id, c] : clients_)
+    if (auto d = takeLocked(id, c, now); !d.empty()) out.emplace_back(id, std::move(d));
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return out;
+}
+
+std::vector<PresenceCoalescer::Delivery> PresenceCoalescer::takeLocked(ClientId receiver, Client& r, Clock::time_point now) {
+  std::vector<Delivery> out;
   for (const auto& [sender, s] : clients_) {
     if (sender == receiver || s.seq == 0) continue;
-    const auto got = r->second.received.find(sender);
-    if (got != r->second.received.end() &&
-        (got->second.seq == s.seq || now < got->second.at + interval_))
-      continue;
-    r->second.received[sender] = {s.seq, now};
+    const auto got = r.received.find(sender);
+    if (got != r.received.end() && (got->second.seq == s.seq || now < got->second.at + interval_)) continue;
+    r.received[sender] = {s.seq, now};
     out.push_back({sender, s.seq, s.newest});
   }
   std::sort(out.begin(), out.end(), [](const Delivery& a, const Delivery& b) { return a.sender < b.sender; });

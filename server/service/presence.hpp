@@ -10,7 +10,8 @@
 //   yet delivered. A receiver that takes late (a slow socket) gets the newest of each sender,
 //   never a backlog. A receiver never gets its own updates, nor one it already got.
 // - Payloads are opaque and shared (the same buffer goes to every receiver): the owner encodes
-//   a notification once.
+//   a notification once, and lazily (PresenceText): only an update some receiver takes is ever
+//   encoded, so a sender faster than the interval costs no encoding for what is dropped.
 // - Clients are known from join() to leave(); updates from an unknown sender are refused
 //   (false) and change nothing; leave() drops the client's pending update with it.
 // - Threading: every method takes the component's mutex, so the owner may call from any
@@ -25,15 +26,37 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace marzipan::service {
+
+// One update's text, made by `encode` on the first call of text() (from any thread, once), or
+// given ready.
+class PresenceText {
+ public:
+  explicit PresenceText(std::function<std::string()> encode) : encode_(std::move(encode)) {}
+  explicit PresenceText(std::string text) : text_(std::make_shared<const std::string>(std::move(text))) {}
+
+  const std::shared_ptr<const std::string>& text() const {
+    std::call_once(once_, [this] {
+      if (!text_) text_ = std::make_shared<const std::string>(encode_());
+      encode_ = nullptr;
+    });
+    return text_;
+  }
+
+ private:
+  mutable std::once_flag once_;
+  mutable std::function<std::string()> encode_;
+  mutable std::shared_ptr<const std::string> text_;
+};
 
 class PresenceCoalescer {
  public:
   using ClientId = std::uint64_t;
   using Clock = std::chrono::steady_clock;
-  using Payload = std::shared_ptr<const std::string>;
+  using Payload = std::shared_ptr<const PresenceText>;
   static constexpr std::chrono::milliseconds kDefaultInterval{50};
 
   struct Delivery {
@@ -52,6 +75,9 @@ class PresenceCoalescer {
   // The updates that may go to `receiver` now, one per sender, in sender order; marks them
   // delivered. Empty for a client not joined.
   std::vector<Delivery> take(ClientId receiver);
+  // take() for every receiver at one instant (so that all of them are due again together one
+  // interval later), in receiver order; receivers with nothing to take are left out.
+  std::vector<std::pair<ClientId, std::vector<Delivery>>> takeAll();
   // When take(receiver) will next have something (already past: now), or nullopt when nothing
   // is pending for it.
   std::optional<Clock::time_point> nextDue(ClientId receiver) const;
@@ -72,6 +98,7 @@ class PresenceCoalescer {
   };
 
   std::optional<Clock::time_point> dueLocked(ClientId receiver, const Client& r) const;
+  std::vector<Delivery> takeLocked(ClientId receiver, Client& r, Clock::time_point now);
 
   std::function<Clock::time_point()> now_;
   std::chrono::milliseconds interval_;

@@ -12,9 +12,13 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <memory>
 #include <optional>
+#include <set>
+#include <vector>
 #include <string>
 #include <thread>
 
@@ -332,6 +336,49 @@ TEST_CASE("ws: a congested client gets only the newest presence of a sender, aft
   }
   CHECK(answers == kRequests);
   CHECK(presencesAfterLast == 1);
+}
+
+// A presence flush hands each receiver one batch, which the server writes with the socket
+// corked so that it leaves in one TCP push (http_server.cpp, WsSession::cork). The cork must
+// come off when the batch is written: Linux would otherwise hold the batch until its 200 ms
+// cork timeout. Each round, three clients send presence (as requests, so it is handled when
+// answered) and the fourth waits for all three; a round takes at most the 50 ms flush spacing
+// and the flush, so the median over 20 rounds is far below 200 ms unless batches stall.
+TEST_CASE("ws: a batch of presence leaves at once and whole", "[net][ws][presence]") {
+  Server s("ws-presence-batch");
+  Client receiver(s.server->port());
+  const json created = receiver.call(1, "session.create", {{"size", {32, 32, 32}}, {"solid", "sphere"}, {"view", "none"}});
+  REQUIRE(created.contains("result"));
+  std::vector<std::unique_ptr<Client>> senders;
+  for (int i = 0; i < 3; ++i) {
+    senders.push_back(std::make_unique<Client>(s.server->port()));
+    REQUIRE(senders.back()->call(1, "session.join", {{"session", created["result"]["session"]},
+                                                      {"token", created["result"]["token"]}, {"view", "none"}})
+                .contains("result"));
+  }
+  std::vector<double> roundMs;
+  for (int round = 1; round <= 20; ++round) {
+    for (auto& c : senders)
+      REQUIRE(c->call(100 + round, "presence", {{"camera", {{"eye", {16, 16, 600 + round}}, {"target", {16, 16, 16}}}}})
+                  .contains("result"));
+    const auto start = std::chrono::steady_clock::now();
+    std::set<int> got;
+    while (got.size() < senders.size()) {
+      const auto m = receiver.read();
+      REQUIRE(m);
+      if (!m->text) continue;
+      const json j = json::parse(m->data);
+      if (j.value("method", "") == "presence" && j["params"].contains("camera") &&
+          j["params"]["camera"]["eye"][2] == 600 + round)
+        got.insert(j["params"]["client"].get<int>());
+    }
+    roundMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
+  std::sort(roundMs.begin(), roundMs.end());
+  INFO("round times (ms), sorted: " << json(roundMs).dump());
+  CHECK(roundMs[roundMs.size() / 2] < 150);
+  // And the connection still answers at once after the batches.
+  CHECK(receiver.call(2, "session.stats").contains("result"));
 }
 
 TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {

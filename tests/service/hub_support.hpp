@@ -8,6 +8,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <thread>
 #include <variant>
 #include <vector>
 
@@ -28,16 +29,19 @@ struct CaptureLink : ClientLink {
   std::mutex mutex;
   std::condition_variable cv;
   std::vector<std::variant<json, Bytes>> messages;
+  std::vector<std::thread::id> senders;  // the thread that sent each message
   int closeCode = 0;
 
   void sendText(std::string text) override {
     const std::lock_guard lock(mutex);
     messages.emplace_back(json::parse(text));
+    senders.push_back(std::this_thread::get_id());
     cv.notify_all();
   }
   void sendBinary(std::shared_ptr<const Bytes> frame, bool) override {
     const std::lock_guard lock(mutex);
     messages.emplace_back(*frame);
+    senders.push_back(std::this_thread::get_id());
     cv.notify_all();
   }
   void close(int code, std::string) override {

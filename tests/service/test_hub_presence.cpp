@@ -221,6 +221,35 @@ TEST_CASE("many presence updates reach the others at most every 50 ms, the newes
   }
 }
 
+// Presence is handled by the thread that hands it over when its connection is idle (no hop to
+// a worker); a message that only names "presence" is handed to the workers once parsed.
+TEST_CASE("a presence on an idle connection is handled at once by the thread that hands it over", "[hub][presence]") {
+  Hub hub(presenceOptions());
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate);
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  const auto answeredHere = [&](const json& request) {
+    const std::size_t mark = a.link->size();
+    hub.text(a.client, request.dump());
+    const std::lock_guard lock(a.link->mutex);  // no waiting: the answer is there already
+    return a.link->messages.size() == mark + 1 && isResponse(a.link->messages[mark], request["id"]) &&
+           a.link->senders[mark] == std::this_thread::get_id();
+  };
+  CHECK(answeredHere({{"jsonrpc", "2.0"}, {"id", 50}, {"method", "presence"}, {"params", {{"camera", kCamera}}}}));
+  CHECK(answeredHere({{"jsonrpc", "2.0"}, {"id", 51}, {"method", "presence"}, {"params", {{"brush", 3}}}}));
+  CHECK(std::get<json>(a.link->at(a.link->size() - 1))["error"]["code"] == -32602);
+  // The valid one reached b.
+  b.link->waitFor([](const auto& m) { return isNotification(m, "presence"); });
+  // Another method whose text says "presence" is handled by a worker, even its refusal of bad
+  // params (which session.stats checks before any work).
+  const std::size_t mark = a.link->size();
+  hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", "presence"}, {"method", "session.stats"}, {"params", {{"x", 1}}}}.dump());
+  const std::size_t at = a.link->waitFor([](const auto& m) { return isResponse(m, "presence"); }, mark);
+  const std::lock_guard lock(a.link->mutex);
+  CHECK(std::get<json>(a.link->messages[at])["error"]["code"] == -32602);
+  CHECK(a.link->senders[at] != std::this_thread::get_id());
+}
+
 TEST_CASE("a client that leaves is gone for the others, and its presence with it", "[hub][presence]") {
   Hub hub(presenceOptions());
   TestClient a(hub);

@@ -4,12 +4,14 @@
 
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "service/presence.hpp"
 
 using marzipan::service::PresenceCoalescer;
+using marzipan::service::PresenceText;
 using namespace std::chrono_literals;
 using Clock = PresenceCoalescer::Clock;
 
@@ -22,7 +24,7 @@ struct FakeClock {
   }
 };
 
-PresenceCoalescer::Payload text(const std::string& s) { return std::make_shared<const std::string>(s); }
+PresenceCoalescer::Payload text(const std::string& s) { return std::make_shared<const PresenceText>(s); }
 
 }  // namespace
 
@@ -43,7 +45,7 @@ TEST_CASE("presence: a 60 Hz sender reaches an eager receiver at most 20 times a
     for (const auto& d : p.take(2)) {
       CHECK(d.sender == 1);
       CHECK(d.seq == sent);  // the newest, never an older one
-      CHECK(*d.payload == "move " + std::to_string(i));
+      CHECK(*d.payload->text() == "move " + std::to_string(i));
       deliveries.push_back(clock.t);
       lastDelivered = d.seq;
     }
@@ -79,10 +81,10 @@ TEST_CASE("presence: a slow receiver gets only the newest update of each sender"
   REQUIRE(got.size() == 2);
   CHECK(got[0].sender == 7);
   CHECK(got[0].seq == 300);
-  CHECK(*got[0].payload == "seven 299");
+  CHECK(*got[0].payload->text() == "seven 299");
   CHECK(got[1].sender == 8);
   CHECK(got[1].seq == 100);
-  CHECK(*got[1].payload == "eight 297");
+  CHECK(*got[1].payload->text() == "eight 297");
   // 7 gets 8's newest only, 8 gets 7's only; the payload buffer is shared, not copied.
   const auto to8 = p.take(8);
   REQUIRE(to8.size() == 1);
@@ -117,7 +119,7 @@ TEST_CASE("presence: nextDue tells when a held update may go, per receiver and o
   clock.t = t0 + 50ms;
   const auto d = p.take(2);
   REQUIRE(d.size() == 1);
-  CHECK(*d[0].payload == "b");
+  CHECK(*d[0].payload->text() == "b");
   CHECK_FALSE(p.nextDue().has_value());
 }
 
@@ -159,7 +161,7 @@ TEST_CASE("presence: each sender has its own rate to each receiver", "[presence]
     for (PresenceCoalescer::ClientId c = 1; c <= 16; ++c) p.update(c, text(std::to_string(c)));
     for (PresenceCoalescer::ClientId r = 1; r <= 16; ++r)
       for (const auto& d : p.take(r)) {
-        CHECK(*d.payload == std::to_string(d.sender));
+        CHECK(*d.payload->text() == std::to_string(d.sender));
         ++counts[r][d.sender];
       }
   }
@@ -169,4 +171,51 @@ TEST_CASE("presence: each sender has its own rate to each receiver", "[presence]
       if (r == s) CHECK(counts[r][s] == 0);
       else CHECK((counts[r][s] >= 18 && counts[r][s] <= 20));  // 0 .. 983 ms: 20 intervals
     }
+}
+
+TEST_CASE("presence: takeAll serves every receiver at one instant and encodes each taken update once", "[presence]") {
+  FakeClock clock;
+  PresenceCoalescer p(clock.fn());
+  for (PresenceCoalescer::ClientId c = 1; c <= 4; ++c) p.join(c);
+  int encoded = 0, made = 0;
+  // 4 clients moving at 60 Hz for one second; the owner flushes whenever something is due, as
+  // the hub's relay does, with takeAll.
+  int flushes = 0;
+  std::optional<Clock::time_point> lastFlush;
+  const Clock::time_point start = clock.t;
+  for (int i = 0; i < 60; ++i) {
+    clock.t = start + std::chrono::milliseconds(i * 1000 / 60);
+    for (PresenceCoalescer::ClientId c = 1; c <= 4; ++c) {
+      const std::string body = std::to_string(c) + "@" + std::to_string(i);
+      p.update(c, std::make_shared<const PresenceText>([&encoded, body] {
+        ++encoded;
+        return body;
+      }));
+      ++made;
+    }
+    const auto due = p.nextDue();
+    REQUIRE(due.has_value());
+    // Every pair was served at the last flush: all are due again together, one interval later.
+    if (lastFlush) CHECK(*due == *lastFlush + 50ms);
+    if (*due > clock.t) continue;
+    lastFlush = clock.t;
+    const auto taken = p.takeAll();
+    ++flushes;
+    // Every receiver at once, in order, each with the newest of the 3 others.
+    REQUIRE(taken.size() == 4);
+    for (std::size_t r = 0; r < taken.size(); ++r) {
+      CHECK(taken[r].first == r + 1);
+      REQUIRE(taken[r].second.size() == 3);
+      for (const auto& d : taken[r].second) CHECK(*d.payload->text() == std::to_string(d.sender) + "@" + std::to_string(i));
+    }
+    // The same update goes to every receiver as one buffer: sender 2's to receivers 1 and 3.
+    REQUIRE(taken[0].second[0].sender == 2);
+    REQUIRE(taken[2].second[1].sender == 2);
+    CHECK(taken[0].second[0].payload->text() == taken[2].second[1].payload->text());
+  }
+  // 0, 50, ..., 950 ms: 20 flushes, each taking one update of each of the 4 senders; only those
+  // 80 of the 240 updates were ever encoded, each once however many receivers got it.
+  CHECK(flushes == 20);
+  CHECK(made == 240);
+  CHECK(encoded == 80);
 }

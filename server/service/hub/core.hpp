@@ -130,8 +130,16 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   bool stopping_ = false;
   std::set<Progress*> runningOps_;
 
-  void pump(const std::shared_ptr<HubClient>& c);
-  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived);
+  // A text this short that names "presence" is pumped on the network thread that received it
+  // when its connection is idle (enqueue); a presence is a few hundred bytes.
+  static constexpr std::size_t kMaxInlineBytes = 2048;
+  static bool isPresenceSized(const Incoming& in);
+  // Handles the connection's next message. onCaller: on the thread that enqueued it, where only
+  // a presence is handled; anything else is parsed there and handed to the workers.
+  void pump(const std::shared_ptr<HubClient>& c, bool onCaller = false);
+  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, bool onCaller);
+  // A parsed request to its method's handler, through the table.
+  void dispatch(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived);
   void handleBinary(const std::shared_ptr<HubClient>& c, Bytes bytes);
 };
 

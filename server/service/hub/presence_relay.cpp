@@ -34,10 +34,15 @@ void PresenceRelay::leave(LiveSession& s, const HubClient& c) {
 }
 
 void PresenceRelay::update(const std::shared_ptr<LiveSession>& s, const HubClient& c, const protocol::PresenceParams& p) {
-  json params = {{"client", c.clientId}, {"name", c.name}, {"color", c.color}};
-  if (p.brush && !c.readOnly) params["brush"] = protocol::brushJson(*p.brush);
-  if (p.camera) params["camera"] = protocol::cameraJson(*p.camera);
-  auto text = std::make_shared<const std::string>(protocol::notificationText("presence", params));
+  // Encoded on its first delivery (flush), if any: most updates of a 60 Hz sender are replaced
+  // before they are due.
+  auto text = std::make_shared<const PresenceText>(
+      [id = c.clientId, name = c.name, color = c.color, brush = c.readOnly ? std::nullopt : p.brush, camera = p.camera] {
+        json params = {{"client", id}, {"name", name}, {"color", color}};
+        if (brush) params["brush"] = protocol::brushJson(*brush);
+        if (camera) params["camera"] = protocol::cameraJson(*camera);
+        return protocol::notificationText("presence", params);
+      });
   if (!s->presence.coalescer.update(PresenceCoalescer::ClientId(c.clientId), std::move(text))) return;
   arm(s, false);
 }
@@ -71,11 +76,21 @@ void PresenceRelay::flush(const std::shared_ptr<LiveSession>& s) {
     s->presence.flushScheduled = false;
     return;
   }
-  for (const auto& c : s->members()) {
-    std::vector<ClientLink::Transient> batch;
-    for (PresenceCoalescer::Delivery& d : s->presence.coalescer.take(PresenceCoalescer::ClientId(c->clientId)))
-      batch.push_back({std::move(d.payload), d.sender});
-    if (!batch.empty()) c->link->sendTransient(std::move(batch));
+  // Every receiver's share at one instant: one batch each, all due again together.
+  auto taken = s->presence.coalescer.takeAll();
+  try {
+    for (const auto& c : s->members()) {
+      const auto mine = std::lower_bound(taken.begin(), taken.end(), PresenceCoalescer::ClientId(c->clientId),
+                                         [](const auto& t, PresenceCoalescer::ClientId id) { return t.first < id; });
+      if (mine == taken.end() || mine->first != PresenceCoalescer::ClientId(c->clientId)) continue;
+      std::vector<ClientLink::Transient> batch;
+      batch.reserve(mine->second.size());
+      for (const PresenceCoalescer::Delivery& d : mine->second) batch.push_back({d.payload->text(), d.sender});
+      c->link->sendTransient(std::move(batch));
+    }
+  } catch (const std::exception& e) {
+    // Encoding checked values cannot fail; should it, this flush is lost, not the next ones.
+    if (hub_.options.events.log) hub_.options.events.log(std::string("presence: flush failed: ") + e.what());
   }
   arm(s, true);
 }

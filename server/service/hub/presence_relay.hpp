@@ -3,11 +3,16 @@
 // (service/presence.hpp) at most every 50 ms per sender and receiver, newest only.
 //
 // Conventions:
-// - Threads: update() runs on the sender's pump and never touches the strand: it encodes the
-//   notification once and hands it to the coalescer (its own lock). Deliveries run on the
-//   session's strand (flush), so they are ordered with joins and leaves, and a flush is a few
-//   microseconds between edits; they are armed on a timer for the coalescer's nextDue, at
-//   least kFlushSpacing apart. Nothing is journaled or in the undo history.
+// - Threads: update() runs on the sender's pump and never touches the strand: it hands the
+//   update, to be encoded on its first delivery (PresenceText), to the coalescer (its own
+//   lock). Deliveries run on the session's strand (flush), so they are ordered with joins and
+//   leaves, and a flush is a few microseconds between edits; they are armed on a timer for the
+//   coalescer's nextDue, at least kFlushSpacing apart. Nothing is journaled or in the undo
+//   history.
+// - Cost: kFlushSpacing equals the coalescer's interval, so a busy session has one flush per
+//   interval, and it carries every sender's newest update: each receiver gets them in one
+//   hand-over (one batch for the network to write at once) instead of one every few
+//   milliseconds. Each update is encoded once, when first taken, and shared by its receivers.
 // - To a receiver each delivery is a transient text (ClientLink::sendTransient) keyed by the
 //   sender: a congested connection holds at most the newest presence of each sender, and its
 //   responses and splat deltas overtake them.
@@ -39,9 +44,9 @@ struct SessionPresence {
 
 class PresenceRelay {
  public:
-  // Flushes of one session are at least this far apart (a delivery may wait this much longer
-  // than the coalescer's interval).
-  static constexpr std::chrono::milliseconds kFlushSpacing{10};
+  // Flushes of one session are at least this far apart: a presence waits at most this long
+  // (plus the timer's lateness) before it goes, as with the coalescer's interval alone.
+  static constexpr std::chrono::milliseconds kFlushSpacing = PresenceCoalescer::kDefaultInterval;
   // Colours given to a session's clients: the first one no member has, "#rrggbb".
   static constexpr std::size_t kPaletteSize = 16;
   static const char* const kPalette[kPaletteSize];
