@@ -14,7 +14,7 @@ import assert from "node:assert/strict";
 import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, startBrowser, startServer } from "./harness.mjs";
+import { ensureArtifactsDir, settled, startBrowser, startServer } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
 
 const artifacts = ensureArtifactsDir();
@@ -41,25 +41,6 @@ const data = (page, id, key) => page.evaluate(([i, k]) => document.getElementByI
 const revision = async (page) => Number(await data(page, "revision", "revision"));
 const digest = (page) => text(page, "stat-digest");
 
-// Waits until the session is connected, the splats shown are those of the session's revision
-// and no stroke is still on the wire: the picture is settled.
-async function settled(page, timeout = 30000) {
-  await page.waitForFunction(
-    () => {
-      const $ = (id) => document.getElementById(id);
-      const rev = $("revision").dataset.revision;
-      return (
-        $("connection").dataset.state === "connected" &&
-        Number($("stat-points").dataset.points || 0) > 0 &&
-        $("stat-points").dataset.revision === rev &&
-        ($("view").dataset.strokes || "0") === "0"
-      );
-    },
-    null,
-    { timeout },
-  );
-  await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
-}
 
 // The picture the canvas draws: the HTML over it that says who else is in the session (the
 // people list, the name labels over their rings; web-client/ui/presence-view.js) is hidden for

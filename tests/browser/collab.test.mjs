@@ -14,7 +14,7 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, startBrowser, startServer } from "./harness.mjs";
+import { ensureArtifactsDir, settled, startBrowser, startServer } from "./harness.mjs";
 
 const artifacts = ensureArtifactsDir();
 let server;
@@ -38,24 +38,6 @@ const digest = (page) => page.locator("#stat-digest").textContent();
 const clientId = (page) => page.evaluate(() => window.marzipan.session.info.client);
 const errorsShown = (page) => page.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").map((m) => m.text));
 
-// Connected, the splats shown are the session's revision's, no stroke on the wire.
-async function settled(page, timeout = 60000) {
-  await page.waitForFunction(
-    () => {
-      const $ = (id) => document.getElementById(id);
-      const rev = $("revision").dataset.revision;
-      return (
-        $("connection").dataset.state === "connected" &&
-        Number($("stat-points").dataset.points || 0) > 0 &&
-        $("stat-points").dataset.revision === rev &&
-        ($("view").dataset.strokes || "0") === "0"
-      );
-    },
-    null,
-    { timeout },
-  );
-  await page.waitForTimeout(150);
-}
 
 // Both pages at the same revision (each sees the other's edits) and settled.
 async function bothAt(a, b, rev) {

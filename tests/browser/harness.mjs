@@ -99,3 +99,23 @@ export function ensureArtifactsDir() {
   mkdirSync(artifactsDir, { recursive: true });
   return artifactsDir;
 }
+
+// Waits until the session is connected, the splats shown are those of the session's revision
+// and no stroke is still on the wire: the picture is settled.
+export async function settled(page, timeout = 60000) {
+  await page.waitForFunction(
+    () => {
+      const $ = (id) => document.getElementById(id);
+      const rev = $("revision").dataset.revision;
+      return (
+        $("connection").dataset.state === "connected" &&
+        Number($("stat-points").dataset.points || 0) > 0 &&
+        $("stat-points").dataset.revision === rev &&
+        ($("view").dataset.strokes || "0") === "0"
+      );
+    },
+    null,
+    { timeout },
+  );
+  await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
+}
