@@ -380,7 +380,11 @@ async def check_etcd_leader_kill(t, report):
         report["first_edit_after_etcd_leader_kill_seconds"] = round(time.monotonic() - t0, 2)
         report["edits_refused_during_election"] = refused
     # Whether the session stayed or had to be joined again, every acknowledged edit is there.
-    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
+    # Not a takeover (the owner kept its session): the limit only bounds the wait, and the time
+    # is reported. Once in about a dozen runs no connection through HAProxy reached any server
+    # for 10 s here (2026-11-24, cause not found): the report shows whether it recurs.
+    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), 3 * TAKEOVER_LIMIT)
+    report["rejoin_after_etcd_leader_kill_seconds"] = round(took, 2)
     for _ in range(5):
         assert (await s.apply(rpc))[0] == "ok"
     await check_against_reference(t, s, rpc, "after the etcd leader was killed")
