@@ -293,13 +293,13 @@ bool History::amend(StepId id, const Edit& more, std::uint64_t revision) {
   return true;
 }
 
-Edit History::sides(const Step& s, const Volume& vol, bool undoSide) const {
+Edit History::sides(const Step& s, const std::function<BrickRef(const Int3&)>& at, bool undoSide) const {
   if (s.edit) return *s.edit;
   Edit e;
   e.region = s.region;
   std::vector<BrickRef> live;
   live.reserve(s.packed.bricks.size());
-  for (const Int3& b : s.packed.bricks) live.push_back(vol.brick(b));
+  for (const Int3& b : s.packed.bricks) live.push_back(at(b));
   const std::vector<BrickRef> other = unpackBricks(s.packed, pointers(live));
   for (std::size_t i = 0; i < other.size(); ++i) {
     if (undoSide) e.changes.push_back({s.packed.bricks[i], other[i], live[i]});
@@ -354,18 +354,8 @@ bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t
       const auto it = earlier.find(brickKey(b));
       return it != earlier.end() ? it->second : vol.brick(b);
     };
-    for (std::size_t j = undo_.size(); j-- > i + 1;) {
-      const Step& later = undo_[j];
-      if (later.edit) {
-        for (const auto& c : later.edit->changes) earlier[brickKey(c.brick)] = c.before;
-        continue;
-      }
-      std::vector<BrickRef> refs;
-      refs.reserve(later.packed.bricks.size());
-      for (const Int3& b : later.packed.bricks) refs.push_back(at(b));
-      std::vector<BrickRef> before = unpackBricks(later.packed, pointers(refs));
-      for (std::size_t k = 0; k < before.size(); ++k) earlier[brickKey(later.packed.bricks[k])] = std::move(before[k]);
-    }
+    for (std::size_t j = undo_.size(); j-- > i + 1;)
+      for (const BrickChange& c : sides(undo_[j], at, true).changes) earlier[brickKey(c.brick)] = c.before;
     std::vector<BrickRef> after;
     for (const Int3& b : s.packed.bricks) after.push_back(at(b));
     const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));

@@ -51,6 +51,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -200,8 +201,12 @@ class History {
   const Edit* moveToRedo(std::size_t i, Volume& vol);
   const Edit* moveToUndo(std::size_t i, Volume& vol);
   // The side of s that the volume does not hold, with the volume's side, as changes (before,
-  // after); s on the undo list when undoSide.
-  Edit sides(const Step& s, const Volume& vol, bool undoSide) const;
+  // after); s on the undo list when undoSide. `at` gives the bricks the volume holds (vol's,
+  // or a view of them with later steps taken back, as fold() needs).
+  Edit sides(const Step& s, const std::function<BrickRef(const Int3&)>& at, bool undoSide) const;
+  Edit sides(const Step& s, const Volume& vol, bool undoSide) const {
+    return sides(s, [&](const Int3& b) { return vol.brick(b); }, undoSide);
+  }
 
   std::size_t budget_;
   std::deque<Step> undo_;  // oldest first; unpacked: the last, and folded ones until seal()
