@@ -35,6 +35,18 @@ std::int64_t leaseOf(MemoryKv& kv, EtcdOwner& o, const std::string& id) {
   return e[0].lease;
 }
 
+// A started owner "a" on a lease of 1 s, counting the losses it reports.
+struct ShortLease {
+  MemoryKv kv;
+  std::atomic<int> lost{0};
+  EtcdOwner a{kv, "a", [] {
+                EtcdOptions o;
+                o.leaseTtlSeconds = 1;
+                return o;
+              }()};
+  ShortLease() { a.start([this] { ++lost; }); }
+};
+
 }  // namespace
 
 TEST_CASE("etcd store: one owner per session; the other server learns its address", "[etcd]") {
@@ -201,12 +213,8 @@ TEST_CASE("etcd store: unreachable etcd refuses appends; the outcome unknown, th
 }
 
 TEST_CASE("etcd store: a lost lease is reported, refuses appends at once, and a new lease serves new claims", "[etcd]") {
-  MemoryKv kv;
-  EtcdOptions opt;
-  opt.leaseTtlSeconds = 1;
-  std::atomic<int> lost{0};
-  EtcdOwner a(kv, "a", opt);
-  a.start([&] { ++lost; });
+  ShortLease owner;
+  auto& [kv, lost, a] = owner;
   auto c = a.claim("s");
   kv.expire(leaseOf(kv, a, "s"));
   for (int i = 0; i < 40 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -223,12 +231,8 @@ TEST_CASE("etcd store: a lost lease is reported, refuses appends at once, and a 
 // A server stopped (SIGSTOP) or cut off past its lease's TTL used to refuse every new session
 // ("holds no etcd lease") until its keep-alive thread's next retry; the failover test met it.
 TEST_CASE("etcd store: after an outage past the lease's TTL the next claim waits for a new lease", "[etcd]") {
-  MemoryKv kv;
-  EtcdOptions opt;
-  opt.leaseTtlSeconds = 1;
-  std::atomic<int> lost{0};
-  EtcdOwner a(kv, "a", opt);
-  a.start([&] { ++lost; });
+  ShortLease owner;
+  auto& [kv, lost, a] = owner;
   auto c = a.claim("s");
   kv.down = true;
   for (int i = 0; i < 60 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
