@@ -6,9 +6,12 @@
 #include <cstdint>
 #include <fstream>
 #include <istream>
+#include <iterator>
 #include <mutex>
 #include <new>
 #include <ostream>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include <openvdb/openvdb.h>
@@ -91,85 +94,100 @@ Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, cons
   return vol;
 }
 
-// Walks the part of a .vdb stream whose lengths OpenVDB trusts, up to the first grid's tree: the
-// header, the file's metadata, the first grid's descriptor, compression, metadata and transform
-// type. OpenVDB sizes a string or a metadata value from its declared 32-bit length and fills it
-// before reading (up to 4 GiB from a few bytes), so each length must fit in the bytes that follow.
-// Only the layouts of file versions 222 (OpenVDB 3) to this OpenVDB's own are accepted. Leaves
-// the stream where it was.
-class DeclaredLengths {
+// What of a client's .vdb upload OpenVDB is given: the header and the file's metadata, the grid
+// count rewritten to 1, and the one grid that will be read (its descriptor, metadata, transform
+// and tree). OpenVDB sizes a string or a metadata value from its declared 32-bit length and fills
+// it before reading (up to 4 GiB from a few bytes), and reads every grid a file lists, so every
+// length it would trust before that grid's tree is checked against the bytes that follow, and the
+// grids it would not need are never shown to it. A file written with grid offsets (io::File, as
+// VFX tools write) is walked grid by grid to its first float grid; one written without them (a
+// stream, as volume.save writes) can only be read from its first grid, which must be the float
+// one. Only the layouts of file versions 222 (OpenVDB 3) to this OpenVDB's own are accepted.
+class FirstFloatGrid {
  public:
-  explicit DeclaredLengths(std::istream& in) : in_(in), start_(in.tellg()) {
-    in_.seekg(0, std::ios::end);
-    const std::streamoff end = in_.tellg();
-    in_.seekg(start_);
-    if (start_ < 0 || end < start_) fail("a .vdb must come from a seekable stream");
-    left_ = std::uint64_t(end - start_);
-  }
-  ~DeclaredLengths() {
-    in_.clear();
-    in_.seekg(start_);
-  }
+  explicit FirstFloatGrid(std::string file) : file_(std::move(file)) {}
 
-  void check() {
+  // The bytes to hand OpenVDB's stream reader.
+  std::string cut() {
     if (u64() != std::uint64_t(openvdb::OPENVDB_MAGIC)) fail("not a .vdb file (no OpenVDB magic number)");
     const std::uint32_t version = u32();
     if (version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION || version > openvdb::OPENVDB_FILE_VERSION)
       fail("file format version " + std::to_string(version) + " is not one this server reads (222 to " +
            std::to_string(openvdb::OPENVDB_FILE_VERSION) + ")");
-    skip(4 + 4 + 1 + 36);  // library major and minor, has-offsets flag, UUID as 36 characters
+    skip(4 + 4);  // library major and minor
+    const bool offsets = byte() != 0;
+    skip(36);  // UUID as 36 characters
     metaMap();
+    const std::size_t countAt = at_;
     const std::int32_t grids = std::int32_t(u32());
-    if (grids < 0 || std::uint64_t(grids) > left_ / 40) fail("declares " + std::to_string(grids) + " grids");
-    if (grids == 0) return;
-    string();  // unique name
-    string();  // grid type
-    string();  // instance parent
-    skip(3 * 8 + 4);  // grid, block and end offsets; the grid's compression flags
-    metaMap();
-    string();  // the transform's map type
+    if (grids < 0 || std::uint64_t(grids) > left() / 40) fail("declares " + std::to_string(grids) + " grids");
+    if (grids == 0) fail("holds no float grid");
+    for (std::int32_t i = 0; i < grids; ++i) {
+      const std::size_t descriptorAt = at_;
+      string();  // unique name
+      const std::string type = string();
+      string();  // instance parent
+      skip(8 + 8);  // grid and block offsets
+      const std::uint64_t end = u64();
+      if (offsets && (end <= at_ || end > file_.size()))
+        fail("grid " + std::to_string(i) + "'s end offset lies outside the file");
+      const bool isFloat = type == openvdb::FloatGrid::gridType() || type == openvdb::FloatGrid::gridType() + "_HalfFloat";
+      if (isFloat || !offsets) {
+        if (!isFloat)
+          fail("its first grid holds " + type + ", not floats, and without grid offsets no later grid can be found");
+        skip(4);  // the grid's compression flags
+        metaMap();
+        string();  // the transform's map type
+        std::string out = file_.substr(0, countAt);
+        for (int b = 0; b < 4; ++b) out.push_back(char(b == 0 ? 1 : 0));
+        out.append(file_, descriptorAt, offsets ? std::size_t(end) - descriptorAt : std::string::npos);
+        return out;
+      }
+      at_ = std::size_t(end);
+    }
+    fail("holds no float grid");
   }
 
  private:
   [[noreturn]] static void fail(const std::string& what) {
     throw EngineError(ErrorKind::Format, "file", "not a readable .vdb file: " + what);
   }
+  std::uint64_t left() const { return file_.size() - at_; }
   void skip(std::uint64_t n) {
-    if (n > left_) fail("it ends inside its header or metadata");
-    in_.seekg(std::streamoff(n), std::ios::cur);
-    left_ -= n;
+    if (n > left()) fail("it ends inside its header or metadata");
+    at_ += std::size_t(n);
   }
   std::uint64_t read(int bytes) {
-    if (std::uint64_t(bytes) > left_) fail("it ends inside its header or metadata");
-    unsigned char b[8] = {};
-    in_.read(reinterpret_cast<char*>(b), bytes);
-    left_ -= std::uint64_t(bytes);
+    if (std::uint64_t(bytes) > left()) fail("it ends inside its header or metadata");
     std::uint64_t v = 0;
-    for (int i = bytes - 1; i >= 0; --i) v = v << 8 | b[i];
+    for (int i = bytes - 1; i >= 0; --i) v = v << 8 | std::uint8_t(file_[at_ + std::size_t(i)]);
+    at_ += std::size_t(bytes);
     return v;
   }
+  std::uint8_t byte() { return std::uint8_t(read(1)); }
   std::uint32_t u32() { return std::uint32_t(read(4)); }
   std::uint64_t u64() { return read(8); }
-  void string() {
+  std::string string() {
     const std::uint32_t n = u32();
-    if (n > left_) fail("a name declares " + std::to_string(n) + " bytes, more than the file holds");
-    skip(n);
+    if (n > left()) fail("a name declares " + std::to_string(n) + " bytes, more than the file holds");
+    std::string s = file_.substr(at_, n);
+    at_ += n;
+    return s;
   }
   void metaMap() {
     const std::uint32_t count = u32();
-    if (count > left_ / 12) fail("declares " + std::to_string(count) + " metadata entries");
+    if (count > left() / 12) fail("declares " + std::to_string(count) + " metadata entries");
     for (std::uint32_t i = 0; i < count; ++i) {
       string();  // name
       string();  // type name
       const std::uint32_t n = u32();
-      if (n > left_) fail("a metadata value declares " + std::to_string(n) + " bytes, more than the file holds");
+      if (n > left()) fail("a metadata value declares " + std::to_string(n) + " bytes, more than the file holds");
       skip(n);
     }
   }
 
-  std::istream& in_;
-  std::streamoff start_;
-  std::uint64_t left_ = 0;
+  std::string file_;
+  std::size_t at_ = 0;
 };
 
 }  // namespace
@@ -209,24 +227,21 @@ Volume loadVdb(const std::string& path, Int3 dims, float band) {
 
 Volume loadVdb(std::istream& in, Int3 dims, float band) {
   initialize();
-  openvdb::GridPtrVecPtr grids;
+  std::string file{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::istringstream grid(FirstFloatGrid(std::move(file)).cut());
   // A read past the end throws at once: OpenVDB's loops over declared counts (tiles, children)
   // would otherwise go on over a failed stream, allocating a node for each.
-  DeclaredLengths(in).check();
-  const std::ios::iostate before = in.exceptions();
-  in.exceptions(std::ios::failbit | std::ios::badbit);
+  grid.exceptions(std::ios::failbit | std::ios::badbit);
+  openvdb::GridPtrVecPtr grids;
   try {
     // delayLoad = false: with delayed loading OpenVDB copies the stream into a temporary file.
-    grids = openvdb::io::Stream(in, false).getGrids();
+    grids = openvdb::io::Stream(grid, false).getGrids();
   } catch (const std::bad_alloc&) {
     // Sizes declared in the tree (node counts, compressed lengths) that no memory can hold.
-    in.exceptions(before);
     throw EngineError(ErrorKind::Format, "file", "not a readable .vdb file: it declares more data than the server can hold");
   } catch (const std::exception& e) {
-    in.exceptions(before);
     throw EngineError(ErrorKind::Format, "file", std::string("not a readable .vdb file: ") + e.what());
   }
-  in.exceptions(before);
   return volumeOf(grids, dims, band, "the .vdb file");
 }
 

@@ -29,13 +29,15 @@ void saveVdb(const Volume& vol, std::ostream& out);
 // EngineError(Format, "file") for an unreadable file, one without a float grid, a grid whose
 // active voxels or tiles reach outside [0, dims), or a non-finite value inside the domain.
 Volume loadVdb(const std::string& path, Int3 dims, float band = Volume::kDefaultBand);
-// The same from a seekable stream holding a whole .vdb file (a client's upload), of file format
-// version 222 to 224. Every length OpenVDB would trust before the first grid's tree (names,
-// metadata values, counts) is checked against the stream's length first, and a read past the
-// end throws at once. The caller bounds the stream's length: OpenVDB builds the grid's tree
-// before it can be checked, and a tree takes at most about 33 times the bytes that describe it
-// (an internal node of 32 KiB per 1 KiB of masks), so the memory of a read is bounded by that
-// multiple of the upload.
+// The same from a stream holding a whole .vdb file (a client's upload), of file format version
+// 222 to 224. OpenVDB is shown only the header and the grid to be read: every length it would
+// trust before that grid's tree (names, metadata values, counts) is checked against the file's
+// length first, later grids are never parsed, and a read past the end throws at once. The first
+// float grid is found through the grid offsets of a file that has them (io::File writes them);
+// a file without them (a stream) must have it first. The caller bounds the stream's length:
+// OpenVDB builds the grid's tree before it can be checked, and a tree takes at most about 33
+// times the bytes that describe it (an internal node of 32 KiB per 1 KiB of masks), so the
+// memory of a read is bounded by that multiple of the upload.
 Volume loadVdb(std::istream& in, Int3 dims, float band = Volume::kDefaultBand);
 
 }  // namespace marzipan
