@@ -92,24 +92,14 @@ Bytes volumeFileBytes(const Volume& vol, protocol::VolumeFormat f) {
 }
 
 #ifdef MARZIPAN_HAS_OPENVDB
-// A seekable read-only stream over bytes held elsewhere: an upload of up to max_binary_bytes is
-// read where it lies, not copied into a string stream first.
+// A read-only stream over bytes held elsewhere (loadVdb takes a stream; it keeps the one copy
+// it cuts the grid from).
 class BytesBuf : public std::streambuf {
  public:
   explicit BytesBuf(const Bytes& b) {
     char* p = const_cast<char*>(reinterpret_cast<const char*>(b.data()));
     setg(p, p, p + b.size());
   }
-
- protected:
-  pos_type seekoff(off_type off, std::ios::seekdir dir, std::ios::openmode) override {
-    const off_type base = dir == std::ios::beg ? 0 : dir == std::ios::cur ? gptr() - eback() : egptr() - eback();
-    const off_type to = base + off;
-    if (to < 0 || to > egptr() - eback()) return pos_type(off_type(-1));
-    setg(eback(), eback() + to, egptr());
-    return pos_type(to);
-  }
-  pos_type seekpos(pos_type pos, std::ios::openmode m) override { return seekoff(off_type(pos), std::ios::beg, m); }
 };
 #endif
 
