@@ -128,10 +128,14 @@ class SideMarcher {
         if (st_[e.index] & kTaken) ++stats_.retaken;
         st_[e.index] |= kUse | kTaken;
         // A neighbour already at or below this value would drop it from its stencil (the
-        // upwind rule), so this voxel cannot lower it.
-        // Inlined here, with update() out of line: about half of the visits update nothing.
+        // upwind rule), so this voxel cannot lower it. About half of the visits update nothing:
+        // the others are listed first and updated after, in the same order, by one inlined copy
+        // of the interior update (an update writes only its own voxel, which no other visit reads).
+        std::size_t todo[6];
+        int count = 0;
         auto visit = [&](std::size_t n) __attribute__((always_inline)) {
-          if ((st_[n] & kOpen) && mag(n) > e.dist) update(n);
+          todo[count] = n;
+          count += (st_[n] & kOpen) && mag(n) > e.dist;
         };
         if (st_[e.index] & kInside) {
           for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
@@ -140,6 +144,13 @@ class SideMarcher {
           for (int a = 0; a < 3; ++a) {
             if (p[a] > 0) visit(e.index - stride_[a]);
             if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
+          }
+        }
+        for (int t = 0; t < count; ++t) {
+          if (st_[todo[t]] & kInside) {
+            updateAt<true>(todo[t]);
+          } else {
+            updateBorder(todo[t]);
           }
         }
       }
@@ -185,18 +196,12 @@ class SideMarcher {
     return (s & kOther) ? -double(mag(n2)) : kInf;
   }
 
-  [[gnu::noinline]] void update(std::size_t n) {
-    if (st_[n] & kInside) {
-      updateAt<true>(n);
-    } else {
-      updateAt<false>(n);
-    }
-  }
+  [[gnu::noinline]] void updateBorder(std::size_t n) { updateAt<false>(n); }
 
   // Recomputes voxel n (unknown, this side) from its known neighbours. Inside: n is at least 2
   // voxels from every face of the grid, so no neighbour needs a bounds check.
   template <bool Inside>
-  void updateAt(std::size_t n) {
+  [[gnu::always_inline]] inline void updateAt(std::size_t n) {
     Int3 q{};
     if constexpr (!Inside) q = g_.point(n) - g_.box.lo;
     double m[3], c[3];
