@@ -242,15 +242,19 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       const std::uint8_t f = flags[i];
       if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
       const float value = v[i];
-      const Int3 p = list->point[k];
+      // Whether the voxel has a neighbour on each side of axis a: always, 2 voxels from every
+      // face (the position is read only near the faces).
+      const bool inner = f & kInterior;
+      auto hasLo = [&](int a) { return inner || list->point[k][a] > g.box.lo[a]; };
+      auto hasHi = [&](int a) { return inner || list->point[k][a] + 1 < g.box.hi[a]; };
       // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
       bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
       if (!adjacent && std::fabs(value) < 1.75f) {
         const bool neg = value < 0;
         for (int a = 0; a < 3 && !adjacent; ++a) {
           const std::size_t st = g.stride(a);
-          if ((f & kInterior) || p[a] > g.box.lo[a]) adjacent = (v[i - st] < 0) != neg;
-          if (!adjacent && ((f & kInterior) || p[a] + 1 < g.box.hi[a])) adjacent = (v[i + st] < 0) != neg;
+          if (hasLo(a)) adjacent = (v[i - st] < 0) != neg;
+          if (!adjacent && hasHi(a)) adjacent = (v[i + st] < 0) != neg;
         }
       }
       if (!adjacent) {
@@ -262,9 +266,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);
-        const double lo = p[a] > g.box.lo[a] ? v[i - st] : v[i];
-        const double hi = p[a] + 1 < g.box.hi[a] ? v[i + st] : v[i];
-        const double span = (p[a] > g.box.lo[a] ? 1 : 0) + (p[a] + 1 < g.box.hi[a] ? 1 : 0);
+        const bool l = hasLo(a), h = hasHi(a);
+        const double lo = l ? v[i - st] : v[i];
+        const double hi = h ? v[i + st] : v[i];
+        const double span = (l ? 1 : 0) + (h ? 1 : 0);
         const double d = span > 0 ? (hi - lo) / span : 0;
         g2 += d * d;
       }
@@ -275,8 +280,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       double bound = 1.0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);
-        if (p[a] > g.box.lo[a] && (v[i - st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i - st]));
-        if (p[a] + 1 < g.box.hi[a] && (v[i + st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i + st]));
+        if (hasLo(a) && (v[i - st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i - st]));
+        if (hasHi(a) && (v[i + st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i + st]));
       }
       const double len = std::sqrt(g2);
       const double mag = len > 1e-6 ? std::min(std::fabs(val) / len, bound) : bound;
