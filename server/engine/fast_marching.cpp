@@ -21,6 +21,9 @@ constexpr float kMonotoneRun = 0.2f;  // see MarchOrder::Second
 // Buckets between checks of the caller's progress: a bucket of a tool's region takes well
 // under a millisecond.
 constexpr std::size_t kBucketsPerCheck = 4;
+// Fewer candidates than this (a small tool's band) are marched on the calling thread, one side
+// after the other: waking a pool thread would cost about as much as the march itself.
+constexpr std::size_t kParallelCandidates = std::size_t(1) << 13;
 
 // Each side's own byte per voxel of the grid, built from the shared flags when the side starts:
 // what the side may read there, in one load. The shared flags stay read-only while both sides
@@ -125,10 +128,14 @@ class SideMarcher {
         if (st_[e.index] & kTaken) ++stats_.retaken;
         st_[e.index] |= kUse | kTaken;
         // A neighbour already at or below this value would drop it from its stencil (the
-        // upwind rule), so this voxel cannot lower it.
-        // Inlined here, with update() out of line: about half of the visits update nothing.
+        // upwind rule), so this voxel cannot lower it. About half of the visits update nothing:
+        // the others are listed first and updated after, in the same order, by one inlined copy
+        // of the interior update (an update writes only its own voxel, which no other visit reads).
+        std::size_t todo[6];
+        int count = 0;
         auto visit = [&](std::size_t n) __attribute__((always_inline)) {
-          if ((st_[n] & kOpen) && mag(n) > e.dist) update(n);
+          todo[count] = n;
+          count += (st_[n] & kOpen) && mag(n) > e.dist;
         };
         if (st_[e.index] & kInside) {
           for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
@@ -137,6 +144,13 @@ class SideMarcher {
           for (int a = 0; a < 3; ++a) {
             if (p[a] > 0) visit(e.index - stride_[a]);
             if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
+          }
+        }
+        for (int t = 0; t < count; ++t) {
+          if (st_[todo[t]] & kInside) {
+            updateAt<true>(todo[t]);
+          } else {
+            updateBorder(todo[t]);
           }
         }
       }
@@ -182,18 +196,12 @@ class SideMarcher {
     return (s & kOther) ? -double(mag(n2)) : kInf;
   }
 
-  [[gnu::noinline]] void update(std::size_t n) {
-    if (st_[n] & kInside) {
-      updateAt<true>(n);
-    } else {
-      updateAt<false>(n);
-    }
-  }
+  [[gnu::noinline]] void updateBorder(std::size_t n) { updateAt<false>(n); }
 
   // Recomputes voxel n (unknown, this side) from its known neighbours. Inside: n is at least 2
   // voxels from every face of the grid, so no neighbour needs a bounds check.
   template <bool Inside>
-  void updateAt(std::size_t n) {
+  [[gnu::always_inline]] inline void updateAt(std::size_t n) {
     Int3 q{};
     if constexpr (!Inside) q = g_.point(n) - g_.box.lo;
     double m[3], c[3];
@@ -257,23 +265,31 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
                                ThreadPool& pool, ProgressShare progress) {
   Scratch& s = scratch();
-  for (auto& seeds : s.seeds) seeds.clear();
   const std::uint8_t* f = flags.data();
-  for (const std::uint32_t i : candidates) {
-    if ((f[i] & (kKnown | kIgnored)) != kKnown || !(std::fabs(g.v[i]) < band)) continue;
-    if (SideMarcher::feeds(g, f, i)) s.seeds[(f[i] & kNeg) ? 1 : 0].push_back(i);
-  }
   const bool second = order == MarchOrder::Second;
   MarchStats side[2];
-  auto runSide = [&](std::size_t k) {
+  auto seed = [&](std::uint32_t i) {
+    return (f[i] & (kKnown | kIgnored)) == kKnown && std::fabs(g.v[i]) < band && SideMarcher::feeds(g, f, i);
+  };
+  auto march = [&](std::size_t k) {
     SideMarcher m(g, f, s.state[k], band, second, k ? kNeg : 0, s.buckets[k]);
     side[k] = m.run(s.seeds[k], progress.part(0.5));
   };
-  if (pool.threads() > 1 && !s.seeds[0].empty() && !s.seeds[1].empty()) {
-    pool.parallelFor(2, runSide);
+  if (pool.threads() > 1 && candidates.size() >= kParallelCandidates) {
+    // Each side picks its own seeds, so that neither waits for the other.
+    pool.parallelFor(2, [&](std::size_t k) {
+      const std::uint8_t negBit = k ? kNeg : 0;
+      s.seeds[k].clear();
+      for (const std::uint32_t i : candidates)
+        if ((f[i] & kNeg) == negBit && seed(i)) s.seeds[k].push_back(i);
+      march(k);
+    });
   } else {
-    runSide(0);
-    runSide(1);
+    for (auto& seeds : s.seeds) seeds.clear();
+    for (const std::uint32_t i : candidates)
+      if (seed(i)) s.seeds[(f[i] & kNeg) ? 1 : 0].push_back(i);
+    march(0);
+    march(1);
   }
   return {side[0].accepted + side[1].accepted, side[0].retaken + side[1].retaken};
 }

@@ -3,7 +3,8 @@
 // Each side of the surface is marched outward from its Source voxels: a voxel's distance is
 // computed only from known voxels of its own sign (and the other side's sources, for the
 // second-order stencil). The two sides are therefore independent, and run at once on two
-// threads when the pool has them; the result does not depend on it. The priority queue is an
+// threads when the pool has them and the band is large enough to pay for waking one (8192
+// candidates); the result does not depend on it. The priority queue is an
 // exact bucket queue: buckets of 1/32 vu are taken in order, and a voxel lowered after it was
 // taken is taken again, so the result is the same as that of a binary-heap marcher (up to
 // float rounding) at a fraction of the cost. The march works in place on the grid's values.

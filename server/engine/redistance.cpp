@@ -17,9 +17,8 @@ namespace {
 using namespace march_flag;
 constexpr std::uint8_t kReset = kCallerA;      // in the region and to be reset unless kept
 constexpr std::uint8_t kNormalize = kCallerB;  // a kept voxel here is normalized
-// The caller's progress: checked per z-slice of the dense passes and every so many band
-// voxels; the classification counts as this share of the call, the march as the rest.
-constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+// The caller's progress: checked per z-slice of the dense passes and per piece of the band
+// list; the classification counts as this share of the call, the march as the rest.
 constexpr double kSetupShare = 0.3;
 
 // Calls fn(first, end) for the x-runs [first, end) of row (y, z) covered by the union of
@@ -73,18 +72,40 @@ void signFlags(const float* v, std::uint8_t* f, int n, std::uint8_t base) {
   for (; x < n; ++x) f[x] = std::uint8_t(base | (v[x] < 0 ? kNeg : 0));
 }
 
+// A tool's grid is split into fixed pieces (z-slabs of the grid, runs of the band list), each
+// worked on alone: the result does not depend on the thread count. Grids smaller than this
+// are worked on the calling thread only: waking the pool would cost more than it saves.
+constexpr std::size_t kParallelVoxels = std::size_t(1) << 17;
+constexpr int kSlabSlices = 8;
+constexpr std::size_t kListPiece = std::size_t(1) << 13;
+
+// One run of the band list: its kept voxels to normalize (with their new values) and its
+// unknown voxels to reset.
+struct ListPiece {
+  std::vector<std::uint32_t> kept;
+  std::vector<float> scaled;
+  std::vector<std::uint32_t> farUnknown;
+};
+
 struct Scratch {
   std::vector<std::uint8_t> flags;
   BandVoxels band;
-  std::vector<std::size_t> kept;  // positions in the band list
-  std::vector<float> scaled;
-  std::vector<std::uint32_t> farUnknown;
-  std::vector<Box> boxes;
-  std::vector<std::pair<int, int>> runs;
+  std::vector<ListPiece> pieces;
+  std::vector<Box> resetBoxes, normalizeBoxes;
 };
 Scratch& scratch() {
   thread_local Scratch s;
   return s;
+}
+
+// fn(piece) for piece in [0, n): on the pool when `parallel`, else here.
+template <class F>
+void forPieces(ThreadPool& pool, bool parallel, std::size_t n, F&& fn) {
+  if (parallel && n > 1) {
+    pool.parallelFor(n, fn);
+  } else {
+    for (std::size_t k = 0; k < n; ++k) fn(k);
+  }
 }
 
 }  // namespace
@@ -129,61 +150,74 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   s.flags.resize(g.v.size());
   std::uint8_t* flags = s.flags.data();
   float* v = g.v.data();
+  const bool parallel = pool.threads() > 1 && g.v.size() >= kParallelVoxels;
+
+  // The region's voxels to reset, and where kept voxels are normalized.
+  auto clipped = [&](std::span<const Box> boxes, std::vector<Box>& out) {
+    out.clear();
+    for (const Box& b : boxes) out.push_back(b.intersect(r));
+    if (boxes.empty()) out.push_back(r);
+    return std::span<const Box>(out);
+  };
+  const std::span<const Box> reset = clipped(options.resetBoxes, s.resetBoxes);
+  const std::span<const Box> normalize =
+      options.normalizeKept
+          ? clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1} : options.normalizeBoxes,
+                    s.normalizeBoxes)
+          : std::span<const Box>{};
+  const int exactSide = options.exactSide;
+  const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
 
   // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
+  // Then, in the region, reset (unless on the side that is already exact) and marked for
+  // normalizing. Row by row: each row's flags depend on that row only.
   const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
   {
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
-    std::size_t row = 0;
-    for (int z = 0; z < sz; ++z) {
-      progress.check();
-      for (int y = 0; y < sy; ++y, row += std::size_t(sx)) {
-        std::uint8_t* f = flags + row;
-        const float* rv = v + row;
-        signFlags(rv, f, sx, base);
-        if (z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy)
-          for (int x = xLo; x < xHi; ++x) f[x] |= kInterior;
-      }
-    }
-  }
-
-  // The region's voxels to reset, and where kept voxels are normalized.
-  auto clipped = [&](std::span<const Box> boxes) {
-    s.boxes.clear();
-    for (const Box& b : boxes) s.boxes.push_back(b.intersect(r));
-    if (boxes.empty()) s.boxes.push_back(r);
-    return std::span<const Box>(s.boxes);
-  };
-  const int exactSide = options.exactSide;
-  const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
-  {
-    const std::span<const Box> reset = clipped(options.resetBoxes);
-    for (int z = r.lo.z; z < r.hi.z; ++z) {
-      progress.check();
-      for (int y = r.lo.y; y < r.hi.y; ++y)
-        forEachRun(reset, y, z, s.runs, [&](int lo, int hi) {
-          std::uint8_t* f = flags + g.index({lo, y, z});
-          for (int x = 0; x < hi - lo; ++x) {
-            const std::uint8_t keep = f[x] & (kNeg | kInterior);
-            // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
-            const bool exact = exactSide != 0 && (keep & kNeg) == exactNeg;
-            f[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
+    const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
+    forPieces(pool, parallel, slabs, [&](std::size_t slab) {
+      std::vector<std::pair<int, int>> runs;
+      const int zEnd = std::min(sz, int(slab + 1) * kSlabSlices);
+      for (int z = int(slab) * kSlabSlices; z < zEnd; ++z) {
+        progress.check();
+        const int vz = g.box.lo.z + z;
+        const bool zInRegion = vz >= r.lo.z && vz < r.hi.z;
+        for (int y = 0; y < sy; ++y) {
+          std::uint8_t* f = flags + std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
+          const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
+          signFlags(v + (f - flags), f, sx, inner ? std::uint8_t(base | kInterior) : base);
+          if (inner) {
+            for (int x = 0; x < xLo; ++x) f[x] &= std::uint8_t(~kInterior);
+            for (int x = xHi; x < sx; ++x) f[x] &= std::uint8_t(~kInterior);
           }
-        });
-    }
-  }
-  if (options.normalizeKept) {
-    const std::span<const Box> normalize = clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1}
-                                                                                : options.normalizeBoxes);
-    for (int z = r.lo.z; z < r.hi.z; ++z) {
-      progress.check();
-      for (int y = r.lo.y; y < r.hi.y; ++y)
-        forEachRun(normalize, y, z, s.runs, [&](int lo, int hi) {
-          std::uint8_t* f = flags + g.index({lo, y, z});
-          for (int x = 0; x < hi - lo; ++x) f[x] |= kNormalize;
-        });
-    }
+          const int vy = g.box.lo.y + y;
+          if (!zInRegion || vy < r.lo.y || vy >= r.hi.y) continue;
+          const int x0 = g.box.lo.x;  // runs are in volume coordinates
+          // The byte stores below may alias anything a reference points at: the loops go
+          // through a pointer of their own so that they can be vectorized.
+          forEachRun(reset, vy, vz, runs, [&](int lo, int hi) {
+            std::uint8_t* const run = f + (lo - x0);
+            const int n = hi - lo;
+            if (exactSide == 0) {
+              for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
+              return;
+            }
+            for (int x = 0; x < n; ++x) {
+              const std::uint8_t keep = run[x] & (kNeg | kInterior);
+              // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
+              const bool exact = (keep & kNeg) == exactNeg;
+              run[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
+            }
+          });
+          forEachRun(normalize, vy, vz, runs, [&](int lo, int hi) {
+            std::uint8_t* const run = f + (lo - x0);
+            const int n = hi - lo;
+            for (int x = 0; x < n; ++x) run[x] |= kNormalize;
+          });
+        }
+      }
+    });
   }
 
   // Only voxels of the band list can be kept, or need a value written before the march.
@@ -192,65 +226,75 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     s.band.collect(g, r.grown(1), band, {progress.progress, 0});
     list = &s.band;
   }
-  s.kept.clear();
-  s.farUnknown.clear();
-  for (std::size_t k = 0; k < list->index.size(); ++k) {
-    if (k % kVoxelsPerCheck == 0) progress.check();
-    const std::uint32_t i = list->index[k];
-    const std::uint8_t f = flags[i];
-    if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
-    const float value = v[i];
-    // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
-    bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
-    if (!adjacent && std::fabs(value) < 1.75f) {
-      const bool neg = value < 0;
-      const Int3 p = list->point[k];
-      for (int a = 0; a < 3 && !adjacent; ++a) {
-        const std::size_t st = g.stride(a);
-        if ((f & kInterior) || p[a] > g.box.lo[a]) adjacent = (v[i - st] < 0) != neg;
-        if (!adjacent && ((f & kInterior) || p[a] + 1 < g.box.hi[a])) adjacent = (v[i + st] < 0) != neg;
+  // Reads only the values as they were (the kept test and the normalization read neighbours),
+  // and writes only its own voxels' flags; the values are written once every piece is done.
+  const std::size_t pieces = (list->index.size() + kListPiece - 1) / kListPiece;
+  if (s.pieces.size() < pieces) s.pieces.resize(pieces);
+  forPieces(pool, parallel, pieces, [&](std::size_t piece) {
+    progress.check();
+    ListPiece& out = s.pieces[piece];
+    out.kept.clear();
+    out.scaled.clear();
+    out.farUnknown.clear();
+    const std::size_t end = std::min(list->index.size(), (piece + 1) * kListPiece);
+    for (std::size_t k = piece * kListPiece; k < end; ++k) {
+      const std::uint32_t i = list->index[k];
+      const std::uint8_t f = flags[i];
+      if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+      const float value = v[i];
+      // Whether the voxel has a neighbour on each side of axis a: always, 2 voxels from every
+      // face (the position is read only near the faces).
+      const bool inner = f & kInterior;
+      auto hasLo = [&](int a) { return inner || list->point[k][a] > g.box.lo[a]; };
+      auto hasHi = [&](int a) { return inner || list->point[k][a] + 1 < g.box.hi[a]; };
+      // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
+      bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
+      if (!adjacent && std::fabs(value) < 1.75f) {
+        const bool neg = value < 0;
+        for (int a = 0; a < 3 && !adjacent; ++a) {
+          const std::size_t st = g.stride(a);
+          if (hasLo(a)) adjacent = (v[i - st] < 0) != neg;
+          if (!adjacent && hasHi(a)) adjacent = (v[i + st] < 0) != neg;
+        }
       }
-    }
-    if (adjacent) {
+      if (!adjacent) {
+        out.farUnknown.push_back(i);
+        continue;
+      }
       flags[i] = std::uint8_t(f | kKnown | kFrozen);
-      if (f & kNormalize) s.kept.push_back(k);
-    } else {
-      s.farUnknown.push_back(i);
-    }
-  }
-  if (options.normalizeKept) {
-    s.scaled.resize(s.kept.size());
-    for (std::size_t j = 0; j < s.kept.size(); ++j) {
-      const std::size_t i = list->index[s.kept[j]];
-      const Int3 p = list->point[s.kept[j]];
+      if (!(f & kNormalize)) continue;
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);
-        const double lo = p[a] > g.box.lo[a] ? v[i - st] : v[i];
-        const double hi = p[a] + 1 < g.box.hi[a] ? v[i + st] : v[i];
-        const double span = (p[a] > g.box.lo[a] ? 1 : 0) + (p[a] + 1 < g.box.hi[a] ? 1 : 0);
+        const bool l = hasLo(a), h = hasHi(a);
+        const double lo = l ? v[i - st] : v[i];
+        const double hi = h ? v[i + st] : v[i];
+        const double span = (l ? 1 : 0) + (h ? 1 : 0);
         const double d = span > 0 ? (hi - lo) / span : 0;
         g2 += d * d;
       }
       // The surface crosses an edge to an opposite-sign neighbour within t = v / (v - v_n) vu,
       // so no distance exceeds the nearest such t; this bounds the result where the gradient
       // is small (a kink between two surfaces), where v / |grad| alone would explode.
-      const double value = v[i];
+      const double val = value;
       double bound = 1.0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);
-        if (p[a] > g.box.lo[a] && (v[i - st] < 0) != (value < 0)) bound = std::min(bound, value / (value - v[i - st]));
-        if (p[a] + 1 < g.box.hi[a] && (v[i + st] < 0) != (value < 0))
-          bound = std::min(bound, value / (value - v[i + st]));
+        if (hasLo(a) && (v[i - st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i - st]));
+        if (hasHi(a) && (v[i + st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i + st]));
       }
       const double len = std::sqrt(g2);
-      const double mag = len > 1e-6 ? std::min(std::fabs(value) / len, bound) : bound;
-      s.scaled[j] = float(std::copysign(mag, value));
+      const double mag = len > 1e-6 ? std::min(std::fabs(val) / len, bound) : bound;
+      out.kept.push_back(i);
+      out.scaled.push_back(float(std::copysign(mag, val)));
     }
-    for (std::size_t j = 0; j < s.kept.size(); ++j) v[list->index[s.kept[j]]] = s.scaled[j];
-  }
+  });
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
-  for (const std::uint32_t i : s.farUnknown) v[i] = v[i] < 0 ? -band : band;
+  forPieces(pool, parallel, pieces, [&](std::size_t piece) {
+    const ListPiece& in = s.pieces[piece];
+    for (std::size_t j = 0; j < in.kept.size(); ++j) v[in.kept[j]] = in.scaled[j];
+    for (const std::uint32_t i : in.farUnknown) v[i] = v[i] < 0 ? -band : band;
+  });
   progress.advance(kSetupShare);
   return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));
 }

@@ -59,8 +59,9 @@ struct RedistanceOptions {
 
 // Redistances `region` (clipped to grid.box) of the grid in place. A voxel is adjacent to
 // the zero set when it is 0 or one of its 6 neighbours has the other sign (0 counts as outside).
-// The two sides of the surface are marched on two threads when the pool has them (the same
-// result either way).
+// The two sides of the surface are marched on two threads, and the classification before the
+// march is split into fixed pieces on the pool, when the pool has threads and the grid is large
+// enough to pay for waking them (the same result either way).
 MarchStats redistanceRegion(DenseGrid& grid, const Box& region, float band, Outside outside,
                             const RedistanceOptions& options = {}, ThreadPool& pool = ThreadPool::serial());
 
