@@ -135,22 +135,30 @@ struct PreparedDab {
 class SweptWindow {
  public:
   SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory)
-      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {}
+      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {
+    // The memory newest first: the voxels this message moves lie under its dabs, next to the
+    // last ones the stroke applied, so the search below mostly ends after a few.
+    std::reverse(memory_.begin(), memory_.end());
+  }
 
+  // The scale, or a value <= 0 where the memory reaches this message's window (how far it
+  // exceeds it does not matter: the voxel does not move).
   double at(Int3 p, Vec3 q) const {
-    const double w = strongest(dabs_, p, q);
+    const double w = strongest(dabs_, p, q, std::numeric_limits<double>::infinity());
     if (w <= 0 || memory_.empty()) return w;
-    return w - strongest(memory_, p, q);
+    return w - strongest(memory_, p, q, w);
   }
 
  private:
-  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q) const {
+  // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
+  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, double enough) const {
     double best = 0;
     for (const PreparedDab& d : dabs) {
       if (!d.roi.contains(p)) continue;
       double w = d.weight;
       for (int a = 0; a < 3 && w > 0; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
       best = std::max(best, w);
+      if (best >= enough) break;
     }
     return best;
   }
