@@ -151,12 +151,14 @@ class SweptWindow {
 
  private:
   // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
+  // A dab stops being multiplied out once it falls to the best so far: its factors are in
+  // [0, 1] and rounding is monotone, so the rest cannot lift it above.
   double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, double enough) const {
     double best = 0;
     for (const PreparedDab& d : dabs) {
       if (!d.roi.contains(p)) continue;
       double w = d.weight;
-      for (int a = 0; a < 3 && w > 0; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
+      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
       best = std::max(best, w);
       if (best >= enough) break;
     }
