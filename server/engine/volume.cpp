@@ -118,9 +118,22 @@ double Volume::sample(Vec3 p) const {
   const int i = int(std::floor(p.x)), j = int(std::floor(p.y)), k = int(std::floor(p.z));
   const double fx = p.x - i, fy = p.y - j, fz = p.z - k;
   double c[2][2][2];
-  for (int dz = 0; dz < 2; ++dz)
-    for (int dy = 0; dy < 2; ++dy)
-      for (int dx = 0; dx < 2; ++dx) c[dz][dy][dx] = at(i + dx, j + dy, k + dz);
+  const Int3 l = Bricks::localOf(Int3{i, j, k});
+  if (i >= 0 && j >= 0 && k >= 0 && i + 1 < dims_.x && j + 1 < dims_.y && k + 1 < dims_.z &&
+      l.x < kBrickSide - 1 && l.y < kBrickSide - 1 && l.z < kBrickSide - 1) {
+    // The eight corners lie in one brick of the domain (most points): one table look-up, the
+    // values at() would read.
+    float u;
+    const float* d = brickData(Bricks::brickOf(Int3{i, j, k}), &u);
+    const int base = Bricks::index(l);
+    for (int dz = 0; dz < 2; ++dz)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) c[dz][dy][dx] = d ? d[base + Bricks::index(dx, dy, dz)] : u;
+  } else {
+    for (int dz = 0; dz < 2; ++dz)
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) c[dz][dy][dx] = at(i + dx, j + dy, k + dz);
+  }
   const double c00 = c[0][0][0] + fx * (c[0][0][1] - c[0][0][0]);
   const double c10 = c[0][1][0] + fx * (c[0][1][1] - c[0][1][0]);
   const double c01 = c[1][0][0] + fx * (c[1][0][1] - c[1][0][0]);
