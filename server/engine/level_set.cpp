@@ -176,6 +176,7 @@ struct ToolScratch {
   BandVoxels band;
   std::vector<std::uint32_t> list;
   std::vector<float> speed, next;
+  std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
 };
 ToolScratch& toolScratch() {
@@ -219,15 +220,25 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     return;
   }
   std::vector<float>& next = s.next;
-  next.resize(list.size());
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
+  // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
+  // which holds the same values off the list, instead of writing a list and copying it back
+  // every sub-step. An even count ends in g.v.
+  const bool twoGrids = m.substeps > 2 && m.substeps % 2 == 0;
+  if (twoGrids) {
+    s.other.assign(g.v.begin(), g.v.end());
+  } else {
+    next.resize(list.size());
+  }
   for (int step = 0; step < m.substeps; ++step) {
-    const float* v = g.v.data();
+    const bool fromOther = twoGrids && step % 2 == 1;
+    const float* v = fromOther ? s.other.data() : g.v.data();
+    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : nullptr;
     pool.parallelFor(blocks, [&](std::size_t b) {
       progress.check();
       const std::size_t begin = b * kBlock, end = std::min(list.size(), (b + 1) * kBlock);
-      // One loop per kind of motion, decided once per block, not per voxel.
+      // One loop per kind of motion and destination, decided once per block, not per voxel.
       if (m.kind == Motion::Kind::Advect) {
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t i = list[k];
@@ -238,14 +249,20 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
       }
       const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
       const bool limited = std::isfinite(m.curvatureLimit);  // clamping to +-infinity changes nothing
-      for (std::size_t k = begin; k < end; ++k) {
+      auto curvature = [&](std::size_t k) {
         const float* p = v + list[k];
         double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
         if (limited) lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
-        next[k] = float(p[0] + m.dt * double(speed[k]) * lap);
+        return float(p[0] + m.dt * double(speed[k]) * lap);
+      };
+      if (out) {
+        for (std::size_t k = begin; k < end; ++k) out[list[k]] = curvature(k);
+      } else {
+        for (std::size_t k = begin; k < end; ++k) next[k] = curvature(k);
       }
     });
-    for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    if (!out)
+      for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
     progress.advance(1.0 / m.substeps);
   }
 }
@@ -366,6 +383,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     ~TrimScratch() {
       constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
       if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
+      if (toolScratch().other.capacity() > kKeptScratchVoxels) toolScratch().other = {};
     }
   } trim;
   if (groups.empty()) return total;
