@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <utility>
 #include <vector>
 
 #include "geometry.hpp"
@@ -14,11 +16,33 @@ namespace marzipan {
 struct ProgressShare;
 class Volume;
 
+// An allocator whose resize() leaves new floats unset: a scratch grid that grows is then
+// written whole by gatherFrom() before anything reads it, and zero-filling it first cost as
+// much as the gather.
+template <class T>
+struct UninitializedAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = UninitializedAllocator<U>;
+  };
+  UninitializedAllocator() = default;
+  template <class U>
+  UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
 struct DenseGrid {
   Box box;
   Int3 size;
   std::size_t sx = 0, sxy = 0;  // strides of y and z
-  std::vector<float> v;
+  std::vector<float, UninitializedAllocator<float>> v;
 
   DenseGrid() = default;
   explicit DenseGrid(const Box& b, float fillValue = 0.0f)

@@ -135,22 +135,32 @@ struct PreparedDab {
 class SweptWindow {
  public:
   SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory)
-      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {}
+      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {
+    // The memory newest first: the voxels this message moves lie under its dabs, next to the
+    // last ones the stroke applied, so the search below mostly ends after a few.
+    std::reverse(memory_.begin(), memory_.end());
+  }
 
+  // The scale, or a value <= 0 where the memory reaches this message's window (how far it
+  // exceeds it does not matter: the voxel does not move).
   double at(Int3 p, Vec3 q) const {
-    const double w = strongest(dabs_, p, q);
+    const double w = strongest(dabs_, p, q, std::numeric_limits<double>::infinity());
     if (w <= 0 || memory_.empty()) return w;
-    return w - strongest(memory_, p, q);
+    return w - strongest(memory_, p, q, w);
   }
 
  private:
-  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q) const {
+  // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
+  // A dab stops being multiplied out once it falls to the best so far: its factors are in
+  // [0, 1] and rounding is monotone, so the rest cannot lift it above.
+  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, double enough) const {
     double best = 0;
     for (const PreparedDab& d : dabs) {
       if (!d.roi.contains(p)) continue;
       double w = d.weight;
-      for (int a = 0; a < 3 && w > 0; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
+      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
       best = std::max(best, w);
+      if (best >= enough) break;
     }
     return best;
   }
@@ -166,6 +176,7 @@ struct ToolScratch {
   BandVoxels band;
   std::vector<std::uint32_t> list;
   std::vector<float> speed, next;
+  std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
 };
 ToolScratch& toolScratch() {
@@ -209,15 +220,25 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     return;
   }
   std::vector<float>& next = s.next;
-  next.resize(list.size());
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
+  // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
+  // which holds the same values off the list, instead of writing a list and copying it back
+  // every sub-step. An even count ends in g.v.
+  const bool twoGrids = m.substeps > 2 && m.substeps % 2 == 0;
+  if (twoGrids) {
+    s.other.assign(g.v.begin(), g.v.end());
+  } else {
+    next.resize(list.size());
+  }
   for (int step = 0; step < m.substeps; ++step) {
-    const float* v = g.v.data();
+    const bool fromOther = twoGrids && step % 2 == 1;
+    const float* v = fromOther ? s.other.data() : g.v.data();
+    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : nullptr;
     pool.parallelFor(blocks, [&](std::size_t b) {
       progress.check();
       const std::size_t begin = b * kBlock, end = std::min(list.size(), (b + 1) * kBlock);
-      // One loop per kind of motion, decided once per block, not per voxel.
+      // One loop per kind of motion and destination, decided once per block, not per voxel.
       if (m.kind == Motion::Kind::Advect) {
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t i = list[k];
@@ -228,14 +249,20 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
       }
       const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
       const bool limited = std::isfinite(m.curvatureLimit);  // clamping to +-infinity changes nothing
-      for (std::size_t k = begin; k < end; ++k) {
+      auto curvature = [&](std::size_t k) {
         const float* p = v + list[k];
         double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
         if (limited) lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
-        next[k] = float(p[0] + m.dt * double(speed[k]) * lap);
+        return float(p[0] + m.dt * double(speed[k]) * lap);
+      };
+      if (out) {
+        for (std::size_t k = begin; k < end; ++k) out[list[k]] = curvature(k);
+      } else {
+        for (std::size_t k = begin; k < end; ++k) next[k] = curvature(k);
       }
     });
-    for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    if (!out)
+      for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
     progress.advance(1.0 / m.substeps);
   }
 }
@@ -356,6 +383,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     ~TrimScratch() {
       constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
       if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
+      if (toolScratch().other.capacity() > kKeptScratchVoxels) toolScratch().other = {};
     }
   } trim;
   if (groups.empty()) return total;

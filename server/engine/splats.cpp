@@ -313,6 +313,15 @@ std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
 }
 
 std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes) {
+  const float band = vol.band();
+  // The layer of a changed brick that its neighbour on side s of axis a reads, before and after.
+  auto layer = [&](const BrickRef& ref, int a, int s, float* out) {
+    if (ref.data) {
+      forFace(ref.data->v, a, s < 0 ? 0 : kBrickSide - 1, [&](int k, float v) { out[k] = v; });
+    } else {
+      std::fill(out, out + kBrickSide * kBrickSide, ref.inside ? -band : band);
+    }
+  };
   std::vector<Int3> out;
   out.reserve(changes.size() * 7);
   for (const auto& c : changes) {
@@ -321,7 +330,13 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
       for (int s = -1; s <= 1; s += 2) {
         Int3 nb = c.brick;
         nb[a] += s;
-        if (inGrid(vol, nb)) out.push_back(nb);
+        if (!inGrid(vol, nb)) continue;
+        // The neighbour's splats read only that layer of this brick: when it is the same bit
+        // for bit, they are too (unless the neighbour changed itself, and is listed for that).
+        float before[kBrickSide * kBrickSide], after[kBrickSide * kBrickSide];
+        layer(c.before, a, s, before);
+        layer(c.after, a, s, after);
+        if (std::memcmp(before, after, sizeof before) != 0) out.push_back(nb);
       }
   }
   auto order = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };

@@ -11,8 +11,9 @@
 // than a voxel) the splat stays at p with normal +z. Splats of a brick come in voxel order
 // (x fastest, then y, then z), so extraction is deterministic and independent of threads.
 //
-// The splat of voxel p reads p's six neighbours, so a changed brick alters the splats of its
-// six face neighbours too: bricksAroundChanges() lists what to re-extract after an edit.
+// The splat of voxel p reads p's six neighbours, so a changed brick alters the splats of those
+// face neighbours whose adjacent layer of it changed: bricksAroundChanges() lists what to
+// re-extract after an edit.
 //
 // The wire encoding of splats is protocol/cpp/splats.hpp.
 #pragma once
@@ -42,8 +43,9 @@ std::vector<BrickSplats> extractSplats(const Volume& vol, const std::vector<Int3
 // Every brick that has splats, in z, y, x order (a full picture).
 std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool = ThreadPool::serial());
 
-// The bricks whose splats may differ after `changes`: each changed brick and its six face
-// neighbours within vol.brickDims(), sorted z, y, x and without duplicates.
+// The bricks whose splats may differ after `changes`: each changed brick, and each of its six
+// face neighbours within vol.brickDims() whose layer of the changed brick next to it differs
+// (bit for bit) between before and after; sorted z, y, x and without duplicates.
 std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes);
 
 }  // namespace marzipan

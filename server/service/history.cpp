@@ -207,7 +207,7 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
   for (std::size_t i = 0; i < p.kinds.size(); ++i) {
     BrickRef r;
     if (p.kinds[i] == PackedBricks::kData) {
-      auto b = std::make_shared<Brick>();
+      auto b = std::make_shared_for_overwrite<Brick>();  // joinPlanes sets every voxel, in order
       joinPlanes(planes.data() + kBrickBytes * next++, against[i]->data ? against[i]->data->v : nullptr, *b);
       r.data = std::move(b);
     } else {

@@ -147,9 +147,26 @@ StepInfo Session::stepInfo(const StepAuthor& by, std::string_view tool) const {
 
 void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward) {
   for (const BrickChange& c : changes) {
-    digestTerms_ -= brickDigestTerm(c.brick, forward ? c.before : c.after);
-    digestTerms_ += brickDigestTerm(c.brick, forward ? c.after : c.before);
+    const BrickRef& from = forward ? c.before : c.after;
+    const BrickRef& to = forward ? c.after : c.before;
+    const std::uint64_t key = std::uint64_t(std::uint32_t(c.brick.x)) | std::uint64_t(std::uint32_t(c.brick.y)) << 21 |
+                              std::uint64_t(std::uint32_t(c.brick.z)) << 42;
+    const auto it = cachedTerms_.find(key);
+    const bool known = it != cachedTerms_.end() && from.data && it->second.data == from.data;
+    digestTerms_ -= known ? it->second.term : brickDigestTerm(c.brick, from);
+    const std::uint64_t term = brickDigestTerm(c.brick, to);
+    digestTerms_ += term;
+    if (it != cachedTerms_.end()) {
+      it->second = {to.data, term};
+    } else if (cachedTerms_.size() < kMaxCachedTerms) {
+      cachedTerms_.emplace(key, CachedTerm{to.data, term});
+    }
   }
+}
+
+void Session::resetDigest() {
+  digestTerms_ = digestTermSum(volume_);
+  cachedTerms_.clear();
 }
 
 void Session::bump() {
@@ -387,7 +404,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
   lastStroke_ = 0;
   if (vol.dims() != volume_.dims() || vol.band() != volume_.band()) {
     volume_ = std::move(vol);
-    digestTerms_ = digestTermSum(volume_);
+    resetDigest();
     history_.clear();
     bump();
     ApplyResult r;

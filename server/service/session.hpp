@@ -29,6 +29,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <variant>
 #include <vector>
 
@@ -255,6 +256,8 @@ class Session {
   ApplyResult finish(const Edit& edit);
   // Swaps the digest terms of bricks that went from `from` to what the volume now holds.
   void trackDigest(const std::vector<BrickChange>& changes, bool forward);
+  // Forgets the cached terms (the volume was replaced without trackDigest).
+  void resetDigest();
   void bump();
   // The result of an undo or redo that published `e` (null: there was nothing to move).
   HistoryResult historyMoved(const Edit* e);
@@ -267,6 +270,17 @@ class Session {
   History history_;
   std::uint64_t revision_;
   std::uint64_t digestTerms_;  // sum of brickDigestTerm over the live volume
+  // The term of the buffer each brick slot got from its last change, with that buffer: a
+  // stroke replaces the same bricks message after message, and the replaced brick's term is
+  // then known instead of hashed again. Holding the buffer keeps its address from naming
+  // another brick; it is the volume's own (resetDigest() drops them when it is replaced).
+  // At most kMaxCachedTerms slots (about 1 MiB); further ones are hashed each time.
+  struct CachedTerm {
+    std::shared_ptr<const Brick> data;
+    std::uint64_t term = 0;
+  };
+  static constexpr std::size_t kMaxCachedTerms = std::size_t(1) << 14;
+  std::unordered_map<std::uint64_t, CachedTerm> cachedTerms_;
   std::map<StrokeId, Stroke> strokes_;
   StrokeId nextStroke_ = 1;
   // The stroke whose step is the newest change of the session (0: none); only its dabs may

@@ -211,6 +211,31 @@ TEST_CASE("re-extracting the bricks around an edit matches a fresh extraction", 
   }
 }
 
+TEST_CASE("the bricks around a change leave out neighbours whose adjacent layer of it did not change", "[splats]") {
+  const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+  // A stored brick well inside the grid (the sphere's surface crosses it).
+  const Int3 b = Bricks::brickOf(Int3{51, 32, 30});
+  const BrickRef before = v.brick(b);
+  REQUIRE(before.data);
+  auto changedAt = [&](Int3 local) {
+    auto data = std::make_shared<Brick>(*before.data);
+    data->v[Bricks::index(local)] += 0.25f;
+    return std::vector<BrickChange>{{b, before, BrickRef{data, false}}};
+  };
+  // An interior voxel: no neighbour reads it.
+  CHECK(bricksAroundChanges(v, changedAt({3, 4, 5})) == std::vector<Int3>{b});
+  // A voxel on the low x face: only the neighbour on that side reads it.
+  CHECK(bricksAroundChanges(v, changedAt({0, 4, 5})) == std::vector<Int3>{b - Int3{1, 0, 0}, b});
+  // A corner voxel: three neighbours, in z, y, x order.
+  CHECK(bricksAroundChanges(v, changedAt({7, 7, 7})) ==
+        std::vector<Int3>{b, b + Int3{1, 0, 0}, b + Int3{0, 1, 0}, b + Int3{0, 0, 1}});
+  // A uniform brick turning to the other side changes every layer.
+  const Int3 inside = Bricks::brickOf(Int3{32, 32, 30});
+  REQUIRE(!v.brick(inside).data);
+  REQUIRE(v.brick(inside).inside);
+  CHECK(bricksAroundChanges(v, {{inside, v.brick(inside), BrickRef{nullptr, false}}}).size() == 7);
+}
+
 TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
   const Volume v = makeSolid(SolidKind::Dumbbell, {64, 48, 48});
   auto bricks = extractAllSplats(v);

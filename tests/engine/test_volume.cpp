@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstring>
 #include <vector>
 
@@ -99,6 +100,32 @@ TEST_CASE("trilinear sampling reproduces a linear field and its gradient exactly
   const Vec3 gv = v.voxelGradient({5, 6, 7});
   CHECK(gv.x == Approx(0.05).margin(1e-6));
   CHECK(gv.y == Approx(-0.02).margin(1e-6));
+}
+
+TEST_CASE("sampling reads the same eight voxels inside a brick, across bricks and at the domain's edge",
+          "[volume][sampling]") {
+  // A sphere cut by the domain's faces (sides not multiples of the brick), so that corners lie
+  // in stored, uniform and absent bricks and beyond the domain.
+  const Volume v = makeSphere({44, 37, 29}, {20.3, 17.6, 12.2}, 15);
+  auto reference = [&](Vec3 p) {
+    const int i = int(std::floor(p.x)), j = int(std::floor(p.y)), k = int(std::floor(p.z));
+    const double fx = p.x - i, fy = p.y - j, fz = p.z - k;
+    auto c = [&](int dx, int dy, int dz) { return double(v.at(i + dx, j + dy, k + dz)); };
+    const double c00 = c(0, 0, 0) + fx * (c(1, 0, 0) - c(0, 0, 0));
+    const double c10 = c(0, 1, 0) + fx * (c(1, 1, 0) - c(0, 1, 0));
+    const double c01 = c(0, 0, 1) + fx * (c(1, 0, 1) - c(0, 0, 1));
+    const double c11 = c(0, 1, 1) + fx * (c(1, 1, 1) - c(0, 1, 1));
+    const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
+    return c0 + fz * (c1 - c0);
+  };
+  int checked = 0;
+  for (double z = -1.5; z < 30.5; z += 0.75)
+    for (double y = -1.25; y < 38.5; y += 0.5)
+      for (double x = -1.75; x < 45.5; x += 0.5, ++checked) {
+        const Vec3 p{x + 0.125 * std::sin(y + z), y, z};
+        REQUIRE(v.sample(p) == reference(p));
+      }
+  CHECK(checked > 100000);
 }
 
 TEST_CASE("memory grows with surface area, not with the domain", "[volume][memory]") {
