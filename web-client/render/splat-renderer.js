@@ -10,8 +10,8 @@
 // the gradient, and the vertex shader gives each corner the normal there, which the
 // interpolation carries exactly over the flat disc; where the surface bends fast (rims) the
 // discs then shade as one smooth surface instead of a row of beads. Discs whose normal faces
-// clearly away from the eye are
-// dropped in the vertex shader (the front side of a closed surface hides them anyway).
+// clearly away from the eye are dropped in the vertex shader (the front side of a closed
+// surface hides them anyway).
 // Blending (where the GPU can render to half floats, EXT_color_buffer_float): drawn opaque,
 // overlapping discs read as fish scales and sharp rims as strings of beads, since each pixel
 // shows one disc's flat normal. So the discs are drawn in three passes instead: (1) depth only,
