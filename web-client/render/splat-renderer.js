@@ -2,11 +2,16 @@
 // point's normal, cut to a circle in the fragment shader. The vertex shader reads its point
 // from the splat texture by vertex id (render/splat-buffer.js): vertex v belongs to point
 // floor(v / 6) and is corner v % 6 of its quad.
-// Conventions: world in vu, y up; a disc's radius is DISC_RADIUS vu, a little over half the
-// voxel spacing so that the discs of neighbouring voxels overlap without holes at any zoom
-// (the splat size follows perspective because the discs are real geometry, and the depth
-// buffer holds each disc's true plane). Discs whose normal faces clearly away from the eye are
-// dropped in the vertex shader (the front side of a closed surface hides them anyway).
+// Conventions: world in vu, y up; a disc's radius is DISC_RADIUS vu (render/splat-store.js),
+// a little over half the voxel spacing so that the discs of neighbouring voxels overlap
+// without holes at any zoom (the splat size follows perspective because the discs are real
+// geometry, and the depth buffer holds each disc's true plane). A disc's normal may vary
+// linearly across it (math/splat-shading.js, "Phong splatting"): then its second texel holds
+// the gradient, and the vertex shader gives each corner the normal there, which the
+// interpolation carries exactly over the flat disc; where the surface bends fast (rims) the
+// discs then shade as one smooth surface instead of a row of beads. Discs whose normal faces
+// clearly away from the eye are dropped in the vertex shader (the front side of a closed
+// surface hides them anyway).
 // Blending (where the GPU can render to half floats, EXT_color_buffer_float): drawn opaque,
 // overlapping discs read as fish scales and sharp rims as strings of beads, since each pixel
 // shows one disc's flat normal. So the discs are drawn in three passes instead: (1) depth only,
@@ -19,8 +24,10 @@
 
 import { CLAY_GLSL, createProgram } from "./gl-program.js";
 import { SplatBuffer, TEXTURE_WIDTH } from "./splat-buffer.js";
+import { DISC_RADIUS } from "./splat-store.js";
+import { MAX_GRADIENT } from "../math/splat-shading.js";
 
-export const DISC_RADIUS = 0.8;
+export { DISC_RADIUS };
 // Discs turned away from the eye by up to this cosine are still drawn: at the silhouette they
 // fill the gaps between the thin ellipses of the discs seen edge-on.
 const BACK_FACING = 0.25;
@@ -40,12 +47,17 @@ out vec2 v_corner;
 const float BACK_FACING = ${BACK_FACING.toFixed(3)};
 // An equilateral triangle around the unit circle: three vertices per disc, half of a quad's six.
 const vec2 CORNERS[3] = vec2[3](vec2(0.0, 2.0), vec2(-1.7320508, -1.0), vec2(1.7320508, -1.0));
+vec3 unpack(uint packed) {
+  return (vec3(packed & 1023u, (packed >> 10) & 1023u, (packed >> 20) & 1023u) - 512.0) / 511.0;
+}
 void main() {
   int point = gl_VertexID / 3;
-  uvec4 texel = texelFetch(u_points, ivec2(point % ${TEXTURE_WIDTH}, point / ${TEXTURE_WIDTH}), 0);
+  int first = 2 * point; // its two texels: first and first + 1, in one row
+  ivec2 at = ivec2(first % ${TEXTURE_WIDTH}, first / ${TEXTURE_WIDTH});
+  uvec4 texel = texelFetch(u_points, at, 0);
   vec3 position = uintBitsToFloat(texel.xyz);
   uint packed = texel.w;
-  vec3 n = (vec3(packed & 1023u, (packed >> 10) & 1023u, (packed >> 20) & 1023u) - 512.0) / 511.0;
+  vec3 n = unpack(packed);
   if ((packed & ${1 << 30}u) == 0u || dot(n, normalize(u_eye - position)) < -BACK_FACING) {
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0); // outside the clip volume: no fragments
     return;
@@ -56,6 +68,12 @@ void main() {
   vec3 t = normalize(cross(helper, n));
   vec3 b = cross(n, t);
   vec3 p = position + u_radius * (corner.x * t + corner.y * b);
+  // The normal varies linearly over the disc (math/splat-shading.js): its value at the corner,
+  // interpolated, is exact everywhere on the flat disc.
+  if ((packed & ${2 ** 31}u) != 0u) {
+    uvec4 gradient = texelFetch(u_points, at + ivec2(1, 0), 0);
+    n += u_radius * ${MAX_GRADIENT.toFixed(1)} * (corner.x * unpack(gradient.x) + corner.y * unpack(gradient.y));
+  }
   v_normal = n;
   v_toEye = u_eye - p;
   v_corner = corner;
