@@ -267,10 +267,17 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             float* d = nb->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z);
-            for (int x = 0; x < here.hi.x - here.lo.x; ++x) {
-              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-              d[x] = std::clamp(s[x], -band_, band_);
+            // The bounds in locals (stores through d may alias band_) and the NaN test after
+            // the row: the loop has no branch and is vectorized. nb is dropped when it throws.
+            const float lo = -band_, hi = band_;
+            const int n = here.hi.x - here.lo.x;
+            int nan = 0;
+            for (int x = 0; x < n; ++x) {
+              const float value = s[x];
+              nan |= value != value;
+              d[x] = std::clamp(value, lo, hi);
             }
+            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
           }
         const BrickRef next = canonicalBrick(b, std::move(nb));
         const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
