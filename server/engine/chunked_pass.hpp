@@ -2,7 +2,9 @@
 // (brick-aligned and independent of the thread count, so results are bit-identical for any
 // number of threads). Each chunk is gathered with a ghost margin, worked on densely, and
 // only its interior is written back. Chunks far from every stored brick are skipped: their
-// field is uniform and a band-local operation cannot change it.
+// field is uniform and a band-local operation cannot change it. For the same reason only the
+// bricks of a chunk within the margin of a stored brick are compared for changes. Each thread
+// gathers into its own grid, kept from pass to pass (its pages are not cleared again).
 // A Progress installed for the calling thread (progress.hpp) is checked before every chunk
 // and advanced by one unit per pass.
 #pragma once

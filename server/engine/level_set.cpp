@@ -413,10 +413,11 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
   const int margin = int(std::ceil(band)) + 2 + kStencilReach * (m.substeps + 1);
   Edit e;
   e.region = vol.domain();
+  const Volume& source = vol;  // read by the chunks, unchanged until the pass publishes
   e.changes = chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool& inner) {
     const Box region = g.box.grown(-kStencilReach);
     BandVoxels& voxels = toolScratch().band;
-    voxels.collect(g, region.grown(1), band);
+    voxels.collect(g, region.grown(1), band, source);
     evolve(g, region, band, m, nullptr, voxels, inner);
     RedistanceOptions options;
     options.band = &voxels;

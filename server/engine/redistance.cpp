@@ -55,7 +55,7 @@ std::uint32_t nearMask16(const float* v, float band) {
 }
 
 // f[x] = base | (v[x] < 0 ? kNeg : 0) for x < n.
-void signFlags(const float* v, std::uint8_t* f, int n, std::uint8_t base) {
+[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, int n, std::uint8_t base) {
   int x = 0;
 #if defined(__SSE2__)
   const __m128 zero = _mm_setzero_ps();
@@ -110,35 +110,75 @@ void forPieces(ThreadPool& pool, bool parallel, std::size_t n, F&& fn) {
 
 }  // namespace
 
+namespace {
+
+// Appends the voxels of row (y, z) of g in [lo, hi) (volume x) whose value is not +-band.
+[[gnu::always_inline]] inline void collectRow(const DenseGrid& g, int lo, int hi, int y, int z, float band, BandVoxels& out) {
+  const std::size_t row = g.index({lo, y, z});
+  const float* v = g.v.data() + row;
+  const int n = hi - lo;
+  // Far voxels are the rule: test 16 at a time without a branch, then visit the others.
+  int x = 0;
+  for (; x + 16 <= n; x += 16) {
+    std::uint32_t near = nearMask16(v + x, band);
+    while (near) {
+      const int k = __builtin_ctz(near);
+      near &= near - 1;
+      out.index.push_back(std::uint32_t(row + std::size_t(x + k)));
+      out.point.push_back({lo + x + k, y, z});
+    }
+  }
+  for (; x < n; ++x)
+    if (std::fabs(v[x]) != band) {
+      out.index.push_back(std::uint32_t(row + std::size_t(x)));
+      out.point.push_back({lo + x, y, z});
+    }
+}
+
+}  // namespace
+
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
   index.clear();
   point.clear();
   for (int z = box.lo.z; z < box.hi.z; ++z) {
     progress.check();
-    for (int y = box.lo.y; y < box.hi.y; ++y) {
-      const std::size_t row = g.index({box.lo.x, y, z});
-      const float* v = g.v.data() + row;
-      const int n = box.hi.x - box.lo.x;
-      // Far voxels are the rule: test 16 at a time without a branch, then visit the others.
-      int x = 0;
-      for (; x + 16 <= n; x += 16) {
-        std::uint32_t near = nearMask16(v + x, band);
-        while (near) {
-          const int k = __builtin_ctz(near);
-          near &= near - 1;
-          index.push_back(std::uint32_t(row + std::size_t(x + k)));
-          point.push_back({box.lo.x + x + k, y, z});
-        }
-      }
-      for (; x < n; ++x)
-        if (std::fabs(v[x]) != band) {
-          index.push_back(std::uint32_t(row + std::size_t(x)));
-          point.push_back({box.lo.x + x, y, z});
-        }
-    }
+    for (int y = box.lo.y; y < box.hi.y; ++y) collectRow(g, box.lo.x, box.hi.x, y, z, band, *this);
   }
   progress.advance(1);
+}
+
+void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Volume& vol) {
+  box = b.intersect(g.box);
+  index.clear();
+  point.clear();
+  const Box stored = box.intersect(vol.domain());
+  if (stored.empty()) return;
+  // Per row of bricks (by, bz): the x-runs of stored bricks, clipped to the box, in increasing x.
+  // Then the rows in index order (z, y), each through its brick row's runs.
+  const Box bricks = Bricks::bricksOf(stored);
+  const Int3 nb = bricks.size();
+  std::vector<std::vector<std::pair<int, int>>> runs(std::size_t(nb.y) * std::size_t(nb.z));
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by) {
+      auto& row = runs[std::size_t(by - bricks.lo.y) + std::size_t(nb.y) * std::size_t(bz - bricks.lo.z)];
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        float u;
+        if (!vol.brickData({bx, by, bz}, &u)) continue;
+        const int lo = std::max(bx * kBrickSide, stored.lo.x), hi = std::min((bx + 1) * kBrickSide, stored.hi.x);
+        if (!row.empty() && row.back().second == lo) {
+          row.back().second = hi;
+        } else {
+          row.push_back({lo, hi});
+        }
+      }
+    }
+  for (int z = stored.lo.z; z < stored.hi.z; ++z)
+    for (int y = stored.lo.y; y < stored.hi.y; ++y) {
+      const auto& row = runs[std::size_t(Bricks::brickOf(y) - bricks.lo.y) +
+                             std::size_t(nb.y) * std::size_t(Bricks::brickOf(z) - bricks.lo.z)];
+      for (const auto& [lo, hi] : row) collectRow(g, lo, hi, y, z, band, *this);
+    }
 }
 
 MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
@@ -176,6 +216,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
     const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
+    // A chunk of a whole-volume pass resets and normalizes its whole region, which spans each
+    // row but the 2 voxels at either end (those without kInterior): one pass per row does.
+    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && normalize.size() == 1 &&
+                           normalize[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
       std::vector<std::pair<int, int>> runs;
       const int zEnd = std::min(sz, int(slab + 1) * kSlabSlices);
@@ -186,13 +230,23 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         for (int y = 0; y < sy; ++y) {
           std::uint8_t* f = flags + std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
           const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
+          const int vy = g.box.lo.y + y;
+          const bool inRegion = zInRegion && vy >= r.lo.y && vy < r.hi.y;
+          if (inRegion && wholeRows) {
+            // The bytes the passes below would give: the 2 voxels at either end as they are,
+            // the others reset, marked for normalizing, with kInterior on inner rows.
+            signFlags(v + (f - flags), f, xLo, base);
+            signFlags(v + (f - flags) + xLo, f + xLo, xHi - xLo,
+                      std::uint8_t(kReset | kNormalize | (inner ? kInterior : 0)));
+            signFlags(v + (f - flags) + xHi, f + xHi, sx - xHi, base);
+            continue;
+          }
           signFlags(v + (f - flags), f, sx, inner ? std::uint8_t(base | kInterior) : base);
           if (inner) {
             for (int x = 0; x < xLo; ++x) f[x] &= std::uint8_t(~kInterior);
             for (int x = xHi; x < sx; ++x) f[x] &= std::uint8_t(~kInterior);
           }
-          const int vy = g.box.lo.y + y;
-          if (!zInRegion || vy < r.lo.y || vy >= r.hi.y) continue;
+          if (!inRegion) continue;
           const int x0 = g.box.lo.x;  // runs are in volume coordinates
           // The byte stores below may alias anything a reference points at: the loops go
           // through a pointer of their own so that they can be vectorized.

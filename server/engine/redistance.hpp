@@ -28,6 +28,10 @@ struct BandVoxels {
 
   // progress: checked per z-slice, advanced by its whole share at the end.
   void collect(const DenseGrid& grid, const Box& box, float band, const ProgressShare& progress = {});
+  // The same list, when the grid holds vol's values as gathered (DenseGrid::gatherFrom): the
+  // bricks vol does not store read exactly +-band there, so only the stored ones are scanned.
+  // A whole-volume pass's chunk is mostly such bricks.
+  void collect(const DenseGrid& grid, const Box& box, float band, const Volume& vol);
 };
 
 // How to treat the voxels of the region before marching.

@@ -84,9 +84,32 @@ void Volume::gather(const Box& box, float* out) const {
   if (box.empty()) return;
   const std::size_t sx = std::size_t(s.x), sxy = sx * std::size_t(s.y);
   const Box inside = box.intersect(domain());
-  // Everything outside the domain reads as air; inside, brick by brick (one table look-up each).
-  if (inside.voxels() != box.voxels()) std::fill(out, out + sxy * std::size_t(s.z), band_);
-  if (inside.empty()) return;
+  const float air = band_;
+  if (inside.empty()) {
+    std::fill(out, out + sxy * std::size_t(s.z), air);
+    return;
+  }
+  // Everything outside the domain reads as air: the slices, rows and row ends it covers.
+  if (inside.voxels() != box.voxels()) {
+    const int x0 = inside.lo.x - box.lo.x, x1 = inside.hi.x - box.lo.x;
+    for (int z = box.lo.z; z < box.hi.z; ++z) {
+      float* slice = out + sxy * std::size_t(z - box.lo.z);
+      if (z < inside.lo.z || z >= inside.hi.z) {
+        std::fill(slice, slice + sxy, air);
+        continue;
+      }
+      for (int y = box.lo.y; y < box.hi.y; ++y) {
+        float* row = slice + sx * std::size_t(y - box.lo.y);
+        if (y < inside.lo.y || y >= inside.hi.y) {
+          std::fill(row, row + sx, air);
+          continue;
+        }
+        std::fill(row, row + x0, air);
+        std::fill(row + x1, row + sx, air);
+      }
+    }
+  }
+  // Inside, brick by brick (one table look-up each).
   const Box bricks = Bricks::bricksOf(inside);
   for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
     for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
@@ -96,15 +119,23 @@ void Volume::gather(const Box& box, float* out) const {
         float u;
         const float* d = brickData({bx, by, bz}, &u);
         const int n = here.hi.x - here.lo.x;
-        for (int z = here.lo.z; z < here.hi.z; ++z)
-          for (int y = here.lo.y; y < here.hi.y; ++y) {
-            float* row = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
-                         sxy * std::size_t(z - box.lo.z);
+        // Locals only: the stores through `out` may alias members, which would be reloaded
+        // every row otherwise.
+        float* const first = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(here.lo.y - box.lo.y) +
+                             sxy * std::size_t(here.lo.z - box.lo.z);
+        const int ny = here.hi.y - here.lo.y, nz = here.hi.z - here.lo.z;
+        const float* const src = d ? d + Bricks::index(here.lo.x - o.x, here.lo.y - o.y, here.lo.z - o.z) : nullptr;
+        for (int z = 0; z < nz; ++z)
+          for (int y = 0; y < ny; ++y) {
+            float* const row = first + sx * std::size_t(y) + sxy * std::size_t(z);
             // Whole brick rows are the rule: a fixed-size copy is a few instructions, not a call.
-            if (d && n == kBrickSide) {
-              std::memcpy(row, d + Bricks::index(0, y - o.y, z - o.z), sizeof(float) * kBrickSide);
-            } else if (d) {
-              std::memcpy(row, d + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z), sizeof(float) * std::size_t(n));
+            if (src) {
+              const float* const from = src + Bricks::index(0, y, z);
+              if (n == kBrickSide) {
+                std::memcpy(row, from, sizeof(float) * kBrickSide);
+              } else {
+                std::memcpy(row, from, sizeof(float) * std::size_t(n));
+              }
             } else if (n == kBrickSide) {
               std::fill(row, row + kBrickSide, u);
             } else {
@@ -253,23 +284,17 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
                                     std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
                                                          std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
             float* d = nb->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z);
+            // The bounds in locals (stores through d may alias band_) and the NaN test after
+            // the row: the loop has no branch and is vectorized. nb is dropped when it throws.
+            const float lo = -band_, hi = band_;
             const int n = here.hi.x - here.lo.x;
-            int x = 0;
-#if defined(__SSE2__)
-            // Four at a time, as in the comparison above (min/max is std::clamp but for NaN).
-            const __m128 lo = _mm_set1_ps(-band_), hi = _mm_set1_ps(band_);
-            __m128 bad = _mm_setzero_ps();
-            for (; x + 4 <= n; x += 4) {
-              const __m128 sv = _mm_loadu_ps(s + x);
-              bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
-              _mm_storeu_ps(d + x, _mm_max_ps(_mm_min_ps(sv, hi), lo));
+            int nan = 0;
+            for (int x = 0; x < n; ++x) {
+              const float value = s[x];
+              nan |= value != value;
+              d[x] = std::clamp(value, lo, hi);
             }
-            if (_mm_movemask_ps(bad)) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-#endif
-            for (; x < n; ++x) {
-              if (std::isnan(s[x])) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-              d[x] = std::clamp(s[x], -band_, band_);
-            }
+            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
           }
         const BrickRef next = canonicalBrick(b, std::move(nb));
         const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)

@@ -49,6 +49,23 @@ TEST_CASE("scatter and gather round-trip values and clamp to the band", "[volume
   CHECK(v.at(40, 0, 0) == v.band());
 }
 
+TEST_CASE("gather reads every voxel as at() does, also boxes reaching outside the domain", "[volume]") {
+  // Partial last bricks, stored and uniform ones on both sides of the surface, and boxes that
+  // stick out of every face, lie wholly outside, or cut bricks on all sides.
+  const Volume v = makeSphere({37, 30, 21}, {18.2, 14.7, 10.4}, 9.3);
+  REQUIRE(v.presentBricks() > 0);
+  for (const Box& b : {Box{{-6, -3, -9}, {45, 33, 27}}, Box{{5, 3, 1}, {31, 26, 20}}, Box{{36, -2, 4}, {39, 9, 5}},
+                       Box{{-4, -4, -4}, {-1, 2, 3}}, Box{{0, 0, 0}, {37, 30, 21}}}) {
+    std::vector<float> out(std::size_t(b.voxels()), std::nanf(""));
+    v.gather(b, out.data());
+    std::size_t i = 0, mismatches = 0;
+    for (int z = b.lo.z; z < b.hi.z; ++z)
+      for (int y = b.lo.y; y < b.hi.y; ++y)
+        for (int x = b.lo.x; x < b.hi.x; ++x, ++i) mismatches += !(out[i] == v.at(x, y, z));
+    CHECK(mismatches == 0);
+  }
+}
+
 TEST_CASE("bricks that become uniform are not stored", "[volume]") {
   Volume v({32, 32, 32});
   const Box b{{0, 0, 0}, {32, 32, 32}};
