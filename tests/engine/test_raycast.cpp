@@ -515,11 +515,12 @@ TEST_CASE("previews stay close to the interactive frame over whole frames", "[ra
     INFO(e);
     CHECK(e.hits > 90000);
     CHECK(e.hitMissed == 0);
-    CHECK(e.worstChannel <= 2);  // measured 2
-    CHECK(e.meanChannel < 0.2);  // 0.137
-    CHECK(e.worstDepth < 0.1);   // 0.080 vu
-    CHECK(e.meanDepth < 0.005);  // 0.0028 vu
-    CHECK(e.within2 == 1.0);
+    CHECK(e.worstChannel <= 3);  // measured 3
+    CHECK(e.meanChannel < 0.2);  // 0.157
+    // 0.92 vu near the silhouette, where the surface turns away between rays two pixels apart.
+    CHECK(e.worstDepth < 1.0);
+    CHECK(e.meanDepth < 0.015);  // 0.011 vu
+    CHECK(e.within2 > 0.9999);
   }
   SECTION("the pig at 128^3 from two sides") {
     const RaycastAccel accel(makeSolid(SolidKind::Pig, {128, 128, 128}), pool);
@@ -530,10 +531,11 @@ TEST_CASE("previews stay close to the interactive frame over whole frames", "[ra
       CHECK(e.hits > 15000);
       CHECK(e.hitMissed == 0);
       CHECK(e.worstChannel <= 32);  // measured 28 and 25
-      CHECK(e.meanChannel < 0.65);  // 0.55 and 0.52
-      CHECK(e.worstDepth < 0.3);    // 0.22 and 0.27 vu
-      CHECK(e.meanDepth < 0.01);    // 0.0077 and 0.0065 vu
+      CHECK(e.meanChannel < 0.65);  // 0.58 and 0.54
+      CHECK(e.worstDepth < 1.7);    // 1.37 and 1.51 vu
+      CHECK(e.meanDepth < 0.016);   // 0.013 and 0.013 vu
       CHECK(e.within2 > 0.98);      // 0.987 and 0.984
+      CHECK(e.worstChannel > 0);    // the preview does blend: it is not the Interactive frame
     }
   }
   SECTION("an edited shape: a sphere cut by a box and two slots, with a thin rod (creases, silhouettes, a thin part)") {
@@ -553,11 +555,11 @@ TEST_CASE("previews stay close to the interactive frame over whole frames", "[ra
     CHECK(e.hits > 15000);
     CHECK(e.hitMissed == 0);
     CHECK(e.worstChannel <= 64);  // measured 56
-    CHECK(e.meanChannel < 0.45);  // 0.34
+    CHECK(e.meanChannel < 0.45);  // 0.36
     // 9.1 vu: a pixel just behind a jagged depth edge whose neighbours above and below are both in
     // front of it, so the preview moves the edge by a pixel there.
     CHECK(e.worstDepth < 10);
-    CHECK(e.meanDepth < 0.01);    // 0.0071 vu
+    CHECK(e.meanDepth < 0.02);     // 0.016 vu
     CHECK(e.within2 > 0.99);      // 0.994
   }
 }
