@@ -35,9 +35,9 @@ namespace marzipan {
 // Preview frames, streamed while a client edits or orbits, are Interactive frames reconstructed
 // from fewer rays: the pixels with even x and y are traced, every other pixel takes the mean of
 // its lattice neighbours where they agree (all missed; or all hit at close depths with close
-// normals and colours) and is traced otherwise, starting just before their nearest hit
-// (raycast.cpp). A solid narrower than two pixels can vanish between lattice rays; the error
-// against the Interactive frame is measured over whole frames in the tests.
+// normals and colours) and is traced otherwise (raycast.cpp). A solid narrower than two pixels
+// can vanish between lattice rays; the error against the Interactive frame is measured over
+// whole frames in the tests.
 enum class FrameQuality { Interactive, Still, Preview };
 
 struct Frame {

@@ -1,14 +1,15 @@
 // Ray-cast frames: a lit 512x512 view of a radius-100 sphere in 256^3 from a 3/4 view, JPEG
-// (quality 75) included, as the viewer requests it. median_ms is the frame streamed while a client
-// edits or orbits (a Preview, render_ms) + its encode (encode_ms) from a prepared RaycastAccel (one per volume version: a camera orbit reuses it); accel_ms is the build that an
+// (quality 75) included, as the viewer requests it. median_ms is the frame streamed while a
+// client edits or orbits (a Preview, render_ms) + its encode (encode_ms), from a prepared
+// RaycastAccel (one per volume version: a camera orbit reuses it); accel_ms is the build that an
 // edit adds once, and frame_with_accel_ms the whole of a frame right after an edit. still_ms is a
 // still frame (smooth normals, five-sample occlusion, anti-aliased edges) with its JPEG
 // (quality 90, as the server pushes it), still_encode_ms that encode alone. cpu_ms is the CPU
 // time of render + encode (all threads of the process): on a loaded machine wall time includes
 // waiting for a core and CPU time does not, so it is the figure to compare there.
-// interactive_ms is the full-rate Interactive frame (every pixel traced) that previews stood in
-// for until 2026-11-25, render alone, with interactive_cpu_ms its CPU time. Each thread count gets
-// its own line: opt.threads, then 1 thread.
+// interactive_ms is the full-rate Interactive frame (every pixel traced), streamed until previews
+// replaced it on 2026-11-25, render alone, with interactive_cpu_ms its CPU time. Each thread
+// count gets its own line: opt.threads, then 1 thread.
 #include <chrono>
 #include <ctime>
 #include <algorithm>
@@ -111,7 +112,7 @@ MARZIPAN_BENCH("raycast_512") {
                  {"interactive_cpu_ms", median(fullCpuMs)},
                  {"still_ms", median(stillMs)},
                  {"still_encode_ms", median(stillEncodeMs)},
-                 {"rays_per_s", double(side) * side / (render / 1000.0)},
+                 {"pixels_per_s", double(side) * side / (render / 1000.0)},
                  {"hit_fraction", double(hits) / (double(side) * side)},
                  {"jpeg_bytes", bytes}});
   }
