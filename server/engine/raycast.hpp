@@ -11,8 +11,8 @@
 // - Frame::rgb is width*height*3 bytes (R, G, B), rows from the top; Frame::depth is the
 //   distance from the eye to the hit along the ray, in vu (+inf where the ray meets nothing).
 // - Pixels are identical for any thread count: the frame is split into fixed 16x16 tiles and
-//   every pixel is computed from its own rays only (a still frame's second, anti-aliasing pass
-//   reads the finished first pass).
+//   every pixel is computed from its own rays and from pixels an earlier pass finished (a
+//   preview's lattice pixels; a still frame's anti-aliasing pass reads the finished first pass).
 #pragma once
 
 #include <cstdint>
@@ -32,7 +32,13 @@ namespace marzipan {
 // blended trilinearly: continuous across cells, so a smooth surface shows no voxel steps), take
 // five ambient-occlusion samples instead of two, and anti-alias: pixels on a silhouette, a
 // depth jump or a colour crease get four more rays on a rotated grid, averaged in linear light.
-enum class FrameQuality { Interactive, Still };
+// Preview frames, streamed while a client edits or orbits, are Interactive frames reconstructed
+// from fewer rays: the pixels with even x and y are traced, every other pixel takes the mean of
+// its lattice neighbours where they agree (all missed; or all hit at close depths with close
+// normals and colours) and is traced otherwise (raycast.cpp). A solid narrower than two pixels
+// can vanish between lattice rays; the error against the Interactive frame is measured over
+// whole frames in the tests.
+enum class FrameQuality { Interactive, Still, Preview };
 
 struct Frame {
   int width = 0, height = 0;

@@ -1,11 +1,14 @@
 // Ray-cast frames: a lit 512x512 view of a radius-100 sphere in 256^3 from a 3/4 view, JPEG
-// (quality 75) included, as the viewer requests it. median_ms is render + encode from a prepared
+// (quality 75) included, as the viewer requests it. median_ms is the frame streamed while a
+// client edits or orbits (a Preview, render_ms) + its encode (encode_ms), from a prepared
 // RaycastAccel (one per volume version: a camera orbit reuses it); accel_ms is the build that an
 // edit adds once, and frame_with_accel_ms the whole of a frame right after an edit. still_ms is a
 // still frame (smooth normals, five-sample occlusion, anti-aliased edges) with its JPEG
 // (quality 90, as the server pushes it), still_encode_ms that encode alone. cpu_ms is the CPU
 // time of render + encode (all threads of the process): on a loaded machine wall time includes
-// waiting for a core and CPU time does not, so it is the figure to compare there. Each thread
+// waiting for a core and CPU time does not, so it is the figure to compare there.
+// interactive_ms is the full-rate Interactive frame (every pixel traced), streamed until previews
+// replaced it on 2026-11-25, render alone, with interactive_cpu_ms its CPU time. Each thread
 // count gets its own line: opt.threads, then 1 thread.
 #include <chrono>
 #include <ctime>
@@ -54,7 +57,7 @@ MARZIPAN_BENCH("raycast_512") {
   if (opt.threads != 1) counts.push_back(1);
   for (int threads : counts) {
     ThreadPool pool(threads);
-    std::vector<double> renderMs, encodeMs, cpuMs, accelMs, withAccelMs, stillMs, stillEncodeMs;
+    std::vector<double> renderMs, encodeMs, cpuMs, accelMs, withAccelMs, stillMs, stillEncodeMs, fullMs, fullCpuMs;
     std::size_t bytes = 0;
     std::unique_ptr<RaycastAccel> accel;
     Frame last;
@@ -68,7 +71,7 @@ MARZIPAN_BENCH("raycast_512") {
         [&] {
           const double cpu0 = processCpuMs();
           auto t0 = Clock::now();
-          Frame frame = render(*accel, camera, Shading::Lit, pool);
+          Frame frame = render(*accel, camera, Shading::Lit, pool, FrameQuality::Preview);
           renderMs.push_back(msSince(t0));
           t0 = Clock::now();
           bytes = encodeJpeg(frame.rgb, frame.width, frame.height, 75).size();
@@ -77,6 +80,13 @@ MARZIPAN_BENCH("raycast_512") {
           withAccelMs.push_back(accelMs.back() + renderMs.back() + encodeMs.back());
           last = std::move(frame);
         });
+    for (int i = 0; i < reps; ++i) {
+      const double cpu0 = processCpuMs();
+      const auto t0 = Clock::now();
+      const Frame full = render(*accel, camera, Shading::Lit, pool, FrameQuality::Interactive);
+      fullMs.push_back(msSince(t0));
+      fullCpuMs.push_back(processCpuMs() - cpu0);
+    }
     for (int i = 0; i < reps; ++i) {
       const auto t0 = Clock::now();
       const Frame still = render(*accel, camera, Shading::Lit, pool, FrameQuality::Still);
@@ -98,9 +108,11 @@ MARZIPAN_BENCH("raycast_512") {
                  {"cpu_ms", median(cpuMs)},
                  {"accel_ms", median(accelMs)},
                  {"frame_with_accel_ms", median(withAccelMs)},
+                 {"interactive_ms", median(fullMs)},
+                 {"interactive_cpu_ms", median(fullCpuMs)},
                  {"still_ms", median(stillMs)},
                  {"still_encode_ms", median(stillEncodeMs)},
-                 {"rays_per_s", double(side) * side / (render / 1000.0)},
+                 {"pixels_per_s", double(side) * side / (render / 1000.0)},
                  {"hit_fraction", double(hits) / (double(side) * side)},
                  {"jpeg_bytes", bytes}});
   }

@@ -100,7 +100,7 @@ void Broadcaster::startRender(LiveSession& s, const std::shared_ptr<HubClient>& 
                      quality, still] {
     try {
       const Frame f =
-          render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Interactive, minVu);
+          render(*snapshot, camera, shading, self->pool, still ? FrameQuality::Still : FrameQuality::Preview, minVu);
       const Bytes jpeg = encodeJpeg(f.rgb, f.width, f.height, quality);
       c->link->sendBinary(makeFrame(protocol::FrameKind::FrameJpeg, 0, revision, jpeg), true);
     } catch (const std::exception& e) {
