@@ -379,6 +379,30 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(undone["digest"], before["digest"])
         self.assertFalse(undone["can_undo"])
 
+    def test_a_stroke_with_a_height_rises_by_it_however_often_it_passes(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(48, "box")
+                before = await client.stats()
+                face = before["bounds"]["hi"][0]
+                path = [[face, 24, z] for z in (20, 22, 24, 26, 28)]
+                once = await client.stroke("add_blob", path, radius=6, height=3)
+                after_once = await client.stats()
+                await client.undo()
+                thrice = await client.stroke("add_blob", path + path[::-1] + path, radius=6, height=3)
+                after_thrice = await client.stats()
+                with self.assertRaises(rpc.InvalidParams) as refused:
+                    await client.begin_stroke("smooth", height=1)
+                return before, once, after_once, thrice, after_thrice, refused.exception
+
+        before, once, after_once, thrice, after_thrice, refused = run(go())
+        self.assertEqual((once["applied"], thrice["applied"]), (5, 15))
+        face = before["bounds"]["hi"][0]
+        self.assertAlmostEqual(after_once["bounds"]["hi"][0] - face, 3, delta=0.3)
+        added = after_once["inside_volume"] - before["inside_volume"]
+        self.assertAlmostEqual(after_thrice["inside_volume"] - before["inside_volume"], added, delta=0.005 * added)
+        self.assertEqual(refused.data.get("field"), "height")
+
     def test_two_clients_see_each_others_changes(self):
         async def go():
             async with Client.connect(self.url) as owner:
