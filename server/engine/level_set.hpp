@@ -64,8 +64,10 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // window is constant along n over the height (a flank of a ridge reads its own distance from
 // the ridge's line, not a shorter one). The surface moves as if carried along n (speed times
 // n . its own normal, 0 where it faces away): then the moves of several applications add up
-// exactly, in whatever pieces they come. Without a height, add and remove move the surface
-// strength vu per application as before (bit for bit).
+// exactly, in whatever pieces they come. A group of dabs with nothing left to add changes
+// nothing (no redistance), and the redistances of a stroke with a height do not normalize the
+// kept voxels (that crept a crest outward message by message). Without a height, add and
+// remove move the surface strength vu per application as before (bit for bit).
 enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen };
 
 struct StrokeSettings {

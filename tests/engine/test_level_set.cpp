@@ -431,6 +431,15 @@ TEST_CASE("a stroke with a height builds the same however often it passes and ho
   const auto [one, ridge] = added(line, 1);
   INFO("one pass: " << one << " vu^3, ridge " << ridge << " vu");
   CHECK(std::fabs(ridge - 4) <= 0.1);
+  {
+    // Where the stroke already stands at its height a message changes nothing at all: no
+    // redistance creeping over its crest, pass after pass.
+    Volume v = strokeSlab();
+    applyStroke(v, st, line, {});
+    const std::uint64_t d = digest(v);
+    CHECK(applyStroke(v, st, line, line).empty());
+    CHECK(digest(v) == d);
+  }
   // Twelve passes back and forth over the same dabs, one message a pass or eight.
   std::vector<StrokeDab> same;
   for (int p = 0; p < 12; ++p) same.insert(same.end(), line.begin(), line.end()), std::reverse(same.end() - std::ptrdiff_t(line.size()), same.end());
