@@ -391,10 +391,10 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       const double most = std::fabs(height) * largestWindow(g, group.box, band, window, scratch.band, share.part(0));
       if (!(most > 0)) {
         // Nothing to add here: the stroke already stands at its height (no redistance either).
-        share.advance(1);
+        share.advance(1 - kGatherShare - kCollectShare);
         return;
       }
-      steps = int(std::ceil(most - 1e-9));
+      steps = std::max(1, int(std::ceil(most - 1e-9)));
       m = advection(height / steps);
     }
     for (int step = 0; step < steps; ++step) {
