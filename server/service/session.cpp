@@ -412,6 +412,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
     volume_ = std::move(vol);
     digestTerms_ = digestTermSum(volume_);
     history_.clear();
+    for (auto& [id, stroke] : strokes_) stroke.start = volume_;
     bump();
     ApplyResult r;
     r.revision = revision_;
@@ -431,6 +432,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
         if (!sameBrick(before, after)) edit.changes.push_back({b, std::move(before), std::move(after)});
       }
   volume_.publish(edit.changes, true);
+  for (auto& [id, stroke] : strokes_) stroke.start = volume_;
   history_.push(edit, stepInfo(by, "volume.load"));
   ApplyResult r = finish(edit);
   if (!r.changed) {

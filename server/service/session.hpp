@@ -204,7 +204,8 @@ class Session {
   // Replaces the field by `vol`'s (a `volume.load`). With the same dims and band it is one
   // undoable step holding only the bricks that differ; otherwise the domain changes, the
   // history is cleared (steps of another grid cannot be replayed) and fullRefresh is set.
-  // Open strokes stay open (their next dab starts a new step). The revision goes up by one
+  // Open strokes stay open (their next dab starts a new step) and start over from the loaded
+  // volume: their rays pick on it, their normals are read on it. The revision goes up by one
   // (the file's own revision is ignored), even when the field is identical.
   ApplyResult load(Volume vol, const StepAuthor& by = {});
 
