@@ -7,7 +7,7 @@
 // store replaces a changed brick's entry, never its arrays, so that list stays intact) and
 // sends them as centres: a dab never lands on what the stroke itself just added, so a stroke
 // cannot climb its own growth into a tentacle however long the pointer scrubs one place (it
-// rises at most about the brush radius above where it began). Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
+// rises its height, or building up at most about the brush radius, above where it began). Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
 // mirrored images, x' = nx - 1 - x for a mirror across x. A modifier held at the press (ui/
 // gesture-map.js) inverts the tool or makes it smooth for that stroke; with the stabiliser on
 // (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
