@@ -2,6 +2,7 @@
 // it appears in the message (json_checks.hpp).
 #include "rpc.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -273,7 +274,7 @@ ToolApplyParams parseToolApplyParams(const json& params) {
 
 StrokeBeginParams parseStrokeBeginParams(const json& params) {
   const std::string context = paramsContext(Method::StrokeBegin);
-  checkKeys(params, {"tool", "radius", "strength", "symmetry", "accumulate"}, context);
+  checkKeys(params, {"tool", "radius", "strength", "symmetry", "accumulate", "height"}, context);
   StrokeBeginParams p;
   const std::string tool = stringValue(require(params, "tool", context), "tool");
   const auto t = fromWireName(kBrushToolNames, tool);
@@ -295,6 +296,16 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
     }
   }
   if (const json* a = find(params, "accumulate")) p.accumulate = booleanValue(*a, "accumulate");
+  if (const json* h = find(params, "height")) {
+    if (p.tool != BrushTool::AddBlob && p.tool != BrushTool::RemoveBlob)
+      fail("height", "is only for add_blob and remove_blob, not " + inQuotes(tool));
+    if (p.accumulate) fail("height", "is for strokes that remember what they applied, not with \"accumulate\": true");
+    const double most = std::min(p.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
+    p.height = finiteNumber(*h, "height");
+    if (!(*p.height > 0 && *p.height <= most))
+      fail("height", "must be in (0, " + formatNumber(most) + "] vu (at most half the radius, at most 64), got " +
+                         formatNumber(*p.height));
+  }
   return p;
 }
 

@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 3;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 4;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {
@@ -154,6 +154,10 @@ struct StrokeBeginParams {
   double radius = kDefaultBrushRadius, strength = kDefaultStrength;
   bool mirrorX = false, mirrorY = false, mirrorZ = false;
   bool accumulate = false;  // every stroke.dabs adds (build-up), see PROTOCOL.md
+  // vu: add/remove blob move the surface by this at most, however often the stroke passes
+  // (since 1.4); in (0, min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight)], not with
+  // accumulate
+  std::optional<double> height;
 };
 struct DabParam {
   std::variant<Vec3, RayParam> at;

@@ -55,6 +55,11 @@ struct BrushParams {
   double strength = 1;    // in (0, 1]: see each tool
 };
 
+// A stroke's height (stroke.begin `height`, engine StrokeSettings::height), in vu: at most half
+// the radius (the risen surface stays well inside the dab's ROI cube) and at most 64 vu (the
+// work grows with it).
+inline constexpr double kMaxStrokeHeightPerRadius = 0.5, kMaxStrokeHeight = 64;
+
 // Constructive tools (server/engine/csg.hpp).
 enum class CsgOp { Add, Subtract, Intersect };
 enum class ToolShape { Sphere, Box, Cylinder };

@@ -127,15 +127,19 @@ struct PreparedDab {
   Vec3 center;
   double weight;
   Box roi;
+  Vec3 normal;  // StrokeDab::normal
 };
 
-// The speed scale of a swept brush at a band voxel p with foot point q: the largest window
-// weight * W(q) over the message's dabs whose ROI holds p, less the largest the stroke already
-// applied there (memory), or 0. With one dab and no memory it is W(q) itself.
+// The speed scale of a swept brush at a band voxel p with foot point q and unit normal n: the
+// largest window weight * W(q) over the message's dabs whose ROI holds p, less the largest the
+// stroke already applied there (memory), or 0. With one dab and no memory it is W(q) itself.
+// anchor: 0, or a stroke's signed height (+H add, -H remove): each dab's W is then read at q
+// moved back along the dab's normal (else n) by (q - c).normal clamped between 0 and the anchor,
+// and scaled by normal . n (level_set.hpp, strokes).
 class SweptWindow {
  public:
-  SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory)
-      : inverseRadius_(1.0 / radius), dabs_(std::move(dabs)), memory_(std::move(memory)) {
+  SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory, double anchor = 0)
+      : inverseRadius_(1.0 / radius), anchor_(anchor), dabs_(std::move(dabs)), memory_(std::move(memory)) {
     // The memory newest first: the voxels this message moves lie under its dabs, next to the
     // last ones the stroke applied, so the search below mostly ends after a few.
     std::reverse(memory_.begin(), memory_.end());
@@ -143,31 +147,50 @@ class SweptWindow {
 
   // The scale, or a value <= 0 where the memory reaches this message's window (how far it
   // exceeds it does not matter: the voxel does not move).
-  double at(Int3 p, Vec3 q) const {
-    const double w = strongest(dabs_, p, q, std::numeric_limits<double>::infinity());
+  double at(Int3 p, Vec3 q, Vec3 n) const {
+    const double w = strongest(dabs_, p, q, n, std::numeric_limits<double>::infinity());
     if (w <= 0 || memory_.empty()) return w;
-    return w - strongest(memory_, p, q, w);
+    return w - strongest(memory_, p, q, n, w);
   }
 
  private:
   // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
   // A dab stops being multiplied out once it falls to the best so far: its factors are in
   // [0, 1] and rounding is monotone, so the rest cannot lift it above.
-  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, double enough) const {
+  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, Vec3 n, double enough) const {
     double best = 0;
     for (const PreparedDab& d : dabs) {
       if (!d.roi.contains(p)) continue;
+      Vec3 x = q;
       double w = d.weight;
-      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(q[a] - d.center[a]) * inverseRadius_);
+      if (anchor_ != 0) {
+        const Vec3 axis = d.normal == Vec3{} ? n : d.normal;
+        const double along = dot(q - d.center, axis);
+        x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
+        // Moving the surface along the axis by s is moving it along its normal by s (axis . n).
+        w *= std::max(0.0, dot(axis, n));
+      }
+      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
       best = std::max(best, w);
       if (best >= enough) break;
     }
     return best;
   }
 
-  double inverseRadius_;
+  double inverseRadius_, anchor_;
   std::vector<PreparedDab> dabs_, memory_;
 };
+
+// The unit normal (central differences) and foot point p - d n of grid voxel i at p: the window
+// is read there, so that it is constant along normals (velocity extension).
+struct FootPoint {
+  Vec3 normal, point;
+};
+FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
+  const Vec3 n =
+      normalized(GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
+  return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
+}
 
 // Scratch reused by the tools on each thread: fresh grids and lists each application cost
 // page faults (the kernel clearing pages) as large as the work itself.
@@ -205,11 +228,8 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     if (!region.contains(p)) continue;
     double w = 1;
     if (window) {
-      // Foot point by the central-difference gradient: the window is constant along normals.
-      const Vec3 n = normalized(
-          GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
-      const Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * d;
-      w = window->at(p, q);
+      const FootPoint f = footPoint(g, i, p);
+      w = window->at(p, f.point, f.normal);
       if (w <= 0) continue;
     }
     list.push_back(std::uint32_t(i));
@@ -267,14 +287,37 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   }
 }
 
+// The largest window over the band voxels of region (|phi| < band) that evolve would move.
+double largestWindow(const DenseGrid& g, const Box& region, float band, const SweptWindow& window,
+                     const BandVoxels& voxels, const ProgressShare& progress) {
+  double largest = 0;
+  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k])) continue;
+    const FootPoint f = footPoint(g, i, voxels.point[k]);
+    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal));
+  }
+  return largest;
+}
+
 void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
   requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
   requireFinite(st.strength, "strength");
   if (!(st.strength > 0 && st.strength <= 1))
     throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
+  if (st.height) {
+    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob)
+      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob and remove_blob");
+    const double most = std::min(st.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
+    if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
+      throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
+  }
   for (const StrokeDab& d : dabs) {
     if (!isFinite(d.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
     if (!(d.weight > 0 && d.weight <= 1)) throw EngineError(ErrorKind::InvalidArgument, "weight", "must be in (0, 1]");
+    if (!isFinite(d.normal) || (d.normal != Vec3{} && !(std::fabs(dot(d.normal, d.normal) - 1) <= 1e-6)))
+      throw EngineError(ErrorKind::InvalidArgument, "normal", "must be a unit vector or zero");
     if (boxAround(d.center, {st.radius, st.radius, st.radius}).intersect(vol.domain()).empty())
       throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
   }
@@ -299,7 +342,8 @@ void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab
 Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs,
                  std::span<const StrokeDab> memory, ThreadPool& pool) {
   checkStroke(vol, st, dabs);
-  const Motion m = strokeMotion(st);
+  // With a height: the signed height, the window's anchor and each sub-step's speed scale.
+  const double height = !st.height ? 0 : st.tool == Brush::AddBlob ? *st.height : -*st.height;
   const float band = vol.band();
   const double r = st.radius;
   // The surface moves only inside the dabs' ROIs (W = 0 on their boundaries, voxels outside
@@ -313,7 +357,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
   const int gatherMargin = std::max(reach + 1, kStencilReach);
   std::vector<PreparedDab> prepared;
   for (const StrokeDab& d : dabs)
-    prepared.push_back({d.center, d.weight, boxAround(d.center, {r, r, r}).intersect(vol.domain())});
+    prepared.push_back({d.center, d.weight, boxAround(d.center, {r, r, r}).intersect(vol.domain()), d.normal});
 
   // Dabs far apart (mirror images, a fast stroke) are worked on in separate grids: groups whose
   // gathered boxes do not meet the others' written regions are independent, so this is the
@@ -353,7 +397,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     for (const std::size_t i : group.dabs) mine.push_back(prepared[i]);
     for (const StrokeDab& d : memory) {
       const Box roi = boxAround(d.center, {r, r, r}).intersect(vol.domain());
-      if (!roi.intersect(group.box).empty()) remembered.push_back({d.center, d.weight, roi});
+      if (!roi.intersect(group.box).empty()) remembered.push_back({d.center, d.weight, roi, d.normal});
     }
     const Box region = group.box.grown(reach).intersect(vol.domain());
     ToolScratch& scratch = toolScratch();
@@ -366,14 +410,36 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       scratch.normalizeBoxes.push_back(d.roi);
     }
     scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
-    const SweptWindow window(r, std::move(mine), std::move(remembered));
-    evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare));
-    RedistanceOptions options;
-    options.resetBoxes = scratch.resetBoxes;
-    options.normalizeBoxes = scratch.normalizeBoxes;
-    options.band = &scratch.band;
-    options.progress = share.part(kRedistanceShare);
-    redistanceRegion(g, region, band, Outside::Source, options, pool);
+    const SweptWindow window(r, std::move(mine), std::move(remembered), height);
+    // A height moves the surface up to |height| * the largest window: sub-steps of <= 1 vu.
+    int steps = 1;
+    Motion m = strokeMotion(st);
+    if (height != 0) {
+      const double most = std::fabs(height) * largestWindow(g, group.box, band, window, scratch.band, share.part(0));
+      if (!(most > 0)) {
+        // Nothing to add here: the stroke already stands at its height (no redistance either).
+        share.advance(1 - kGatherShare - kCollectShare);
+        return;
+      }
+      steps = std::max(1, int(std::ceil(most - 1e-9)));
+      m = advection(height / steps);
+    }
+    for (int step = 0; step < steps; ++step) {
+      // The previous sub-step's march changed the band: list it again (counted in the first).
+      if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
+      evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
+      RedistanceOptions options;
+      options.resetBoxes = scratch.resetBoxes;
+      options.normalizeBoxes = scratch.normalizeBoxes;
+      // Normalizing the kept voxels moves a sharp crest outward by ~0.003 vu each time (measured
+      // on a ridge of 4 vu at radius 8): harmless once per application, but a stroke with a
+      // height passes over its crest again and again with little or nothing left to add. Its
+      // kept values come from moves of at most 1 vu and are left as they are.
+      if (height != 0) options.normalizeKept = false;
+      options.band = &scratch.band;
+      options.progress = share.part(kRedistanceShare / steps);
+      redistanceRegion(g, region, band, Outside::Source, options, pool);
+    }
     share.check();  // the last check: nothing below stops part way
     total.append(vol.scatter(region, g.v.data(), g.box), region);
     share.advance(1 - kGatherShare - kCollectShare - kEvolveShare - kRedistanceShare);

@@ -18,6 +18,7 @@
 // and advanced by one unit per local call, one per pass of a global one.
 #pragma once
 
+#include <optional>
 #include <span>
 
 #include "edit.hpp"
@@ -50,20 +51,50 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // voxel then moves only by the excess of this application's window over the largest earlier
 // one, so a stroke moves each point of the surface by its strongest dab, however its dabs were
 // grouped into applications. An empty memory lets every application add (build-up).
+//
+// A stroke with a height H (add and remove blob only) moves each point of the surface by H
+// times that excess window, so a stroke with memory raises (lowers) the surface under a dab's
+// centre by H, however its dabs were grouped. H may be several vu, more than the band is wide:
+// the application runs in ceil(H * largest excess) sub-steps of at most 1 vu, each evolved and
+// redistanced like one application, on one gathered grid. For the height to come out right the
+// window must not shrink as the surface rises through it, so with a height each dab's window is
+// read at the foot point q moved back along the dab's normal n (StrokeDab::normal) by (q - c).n
+// clamped to [0, H] (add; [-H, 0] remove), the part of q's offset that the stroke's own motion
+// may have put there: a point the stroke moved reads the window of where it started, and the
+// window is constant along n over the height (a flank of a ridge reads its own distance from
+// the ridge's line, not a shorter one). The surface moves as if carried along n (speed times
+// n . its own normal, 0 where it faces away): then the moves of several applications add up
+// exactly, in whatever pieces they come. A group of dabs with nothing left to add changes
+// nothing (no redistance), and the redistances of a stroke with a height do not normalize the
+// kept voxels (that crept a crest outward message by message). Without a height, add and
+// remove move the surface strength vu per application as before (bit for bit).
 enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen };
 
 struct StrokeSettings {
+  StrokeSettings() = default;
+  StrokeSettings(Brush t, double r, double s, std::optional<double> h = std::nullopt)
+      : tool(t), radius(r), strength(s), height(h) {}
+
   Brush tool = Brush::AddBlob;
   double radius = 8;    // as BrushParams::radius
-  double strength = 1;  // as BrushParams::strength
+  double strength = 1;  // as BrushParams::strength; unused by add / remove blob with a height
+  // vu, in (0, min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight)] (values.hpp); add
+  // and remove blob only.
+  std::optional<double> height;
 };
 
 struct StrokeDab {
+  StrokeDab() = default;
+  StrokeDab(Vec3 c, double w = 1, Vec3 n = {}) : center(c), weight(w), normal(n) {}
+
   Vec3 center;        // vu; the dab's ROI must meet the domain
   double weight = 1;  // in (0, 1]: scales the dab's window (a pen's pressure)
+  // A stroke with a height only: the unit outward normal of the surface at the centre as it was
+  // when the stroke began, the direction the window is anchored along; zero: each voxel's own.
+  Vec3 normal;
 };
 
-// Throws EngineError (field "center", "weight", "radius" or "strength") for a dab that
+// Throws EngineError (field "center", "weight", "radius", "strength" or "height") for a dab that
 // applyStroke would refuse; the volume is not read beyond its domain.
 void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab);
 // Applies `dabs` as one application (nothing when empty). Every dab is checked before

@@ -5,9 +5,12 @@
 // that follows, one space, one JSON object, "\n". Records (R = the revision after the change;
 // S = the session's stroke id; positions in vu, already resolved: a ray's hit, not the ray):
 //   {"r":R,"op":{...}}                       tool.apply / volume.morph: the canonical op object
-//   {"r":R,"stroke":S,"dabs":[[x,y,z,p],...]} stroke.dabs: the centres that applied, pressure p
+//   {"r":R,"stroke":S,"dabs":[[x,y,z,p(,nx,ny,nz)],...]} stroke.dabs: the centres that applied,
+//                                          pressure p, and in a stroke with a height the normal
+//                                          each was anchored along
 //   {"stroke_begin":S,"tool":T,"radius":r,"strength":s,"symmetry":"xz"[,"accumulate":true]
-//    [,"applied":[[x,y,z,w],...]]}          "applied": the dab images an open stroke had applied
+//    [,"height":h][,"applied":[[x,y,z,w(,nx,ny,nz)],...]]}
+//                                          "applied": the dab images an open stroke had applied
 //                                            (its memory), when re-announced after a snapshot
 //   {"stroke_end":S}
 //   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a

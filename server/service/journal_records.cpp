@@ -22,10 +22,15 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
               {"strength", st.strength},
               {"symmetry", symmetry}};
   if (st.accumulate) record["accumulate"] = true;
+  if (st.height) record["height"] = *st.height;
   if (!st.by.id.empty() || !st.by.name.empty()) record["by"] = {{"id", st.by.id}, {"name", st.by.name}};
   if (!st.memory.empty()) {
     json applied = json::array();
-    for (const StrokeDab& d : st.memory) applied.push_back({d.center.x, d.center.y, d.center.z, d.weight});
+    for (const StrokeDab& d : st.memory) {
+      json dab{d.center.x, d.center.y, d.center.z, d.weight};
+      if (d.normal != Vec3{}) dab.insert(dab.end(), {d.normal.x, d.normal.y, d.normal.z});
+      applied.push_back(std::move(dab));
+    }
     record["applied"] = std::move(applied);
   }
   return record;
@@ -153,15 +158,20 @@ void Replay::apply(const json& rec) {
     const std::string sym = rec.value("symmetry", "");
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
                             sym.find('z') != std::string::npos};
+    std::optional<double> height;
+    if (const auto h = rec.find("height"); h != rec.end()) height = h->get<double>();
     const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
-                                      rec.value("accumulate", false), authorOf(rec));
+                                      rec.value("accumulate", false), authorOf(rec), height);
     strokes_[rec["stroke_begin"].get<std::uint64_t>()] = id;
     if (const auto it = rec.find("applied"); it != rec.end()) {
       // What the stroke had applied before the snapshot: its next dabs add only the excess.
       std::vector<StrokeDab> applied;
       for (const json& d : *it) {
-        const StrokeDab dab{Vec3{d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>()}, d.at(3).get<double>()};
-        if (!isFinite(dab.center) || !(dab.weight > 0 && dab.weight <= 1)) throw std::runtime_error("bad stroke memory");
+        const Vec3 normal = d.size() == 7 ? Vec3{d[4].get<double>(), d[5].get<double>(), d[6].get<double>()} : Vec3{};
+        const StrokeDab dab{Vec3{d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>()}, d.at(3).get<double>(),
+                            normal};
+        if (!isFinite(dab.center) || !isFinite(dab.normal) || !(dab.weight > 0 && dab.weight <= 1))
+          throw std::runtime_error("bad stroke memory");
         applied.push_back(dab);
       }
       s.setStrokeMemory(id, std::move(applied));
@@ -174,7 +184,11 @@ void Replay::apply(const json& rec) {
     }
   } else if (rec.contains("stroke")) {
     std::vector<Dab> dabs;
-    for (const json& d : rec.at("dabs")) dabs.push_back(Dab{Vec3{d[0], d[1], d[2]}, d[3].get<double>()});
+    for (const json& d : rec.at("dabs")) {
+      Dab dab{Vec3{d[0], d[1], d[2]}, d[3].get<double>(), std::nullopt};
+      if (d.size() == 7) dab.normal = Vec3{d[4], d[5], d[6]};
+      dabs.push_back(std::move(dab));
+    }
     s.strokeDabs(strokes_.at(rec["stroke"].get<std::uint64_t>()), dabs, pool_);
   } else if (rec.contains("undo") || rec.contains("redo")) {
     // From the bricks it put in place, not from the replayed history: that history starts at

@@ -19,7 +19,7 @@
 
 namespace marzipan::service {
 
-// The record of a stroke's start: tool, radius, strength, symmetry, accumulate, and what it
+// The record of a stroke's start: tool, radius, strength, symmetry, accumulate, height, and what it
 // applied so far (its memory), which recovery reads back. The hub writes it at stroke.begin and
 // at the head of every new journal for the strokes still open.
 nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);

@@ -58,23 +58,34 @@ Vec3 unitDirection(Vec3 d) {
   return normalized(d / m);
 }
 
-std::vector<Vec3> mirrorImages(Vec3 p, Symmetry s, Int3 dims) {
-  std::vector<Vec3> out{p};
+// A dab's mirror images with their normals (the normal mirrored alike).
+std::vector<StrokeDab> mirrorImages(const StrokeDab& dab, Symmetry s, Int3 dims) {
+  std::vector<StrokeDab> out{dab};
   const bool on[3] = {s.x, s.y, s.z};
   for (int a = 0; a < 3; ++a) {
     if (!on[a]) continue;
     const std::size_t n = out.size();
     for (std::size_t i = 0; i < n; ++i) {
-      Vec3 q = out[i];
-      q[a] = (dims[a] - 1) - q[a];
+      StrokeDab q = out[i];
+      q.center[a] = (dims[a] - 1) - q.center[a];
+      q.normal[a] = -q.normal[a];
       out.push_back(q);
     }
   }
   // A dab on a mirror plane is its own image: apply it once.
-  std::vector<Vec3> distinct;
-  for (const Vec3& q : out)
-    if (std::find(distinct.begin(), distinct.end(), q) == distinct.end()) distinct.push_back(q);
+  std::vector<StrokeDab> distinct;
+  for (const StrokeDab& q : out)
+    if (std::none_of(distinct.begin(), distinct.end(), [&](const StrokeDab& d) { return d.center == q.center; }))
+      distinct.push_back(q);
   return distinct;
+}
+
+// The unit outward normal of vol's surface at a point on it, or zero where the field there has
+// no slope to speak of (a point off the band).
+Vec3 surfaceNormal(const Volume& vol, Vec3 p) {
+  const Vec3 g = vol.gradient(p);
+  const double length = std::sqrt(dot(g, g));
+  return isFinite(g) && length > 0.5 ? g / length : Vec3{};
 }
 
 std::int64_t systemMs() {
@@ -213,19 +224,26 @@ std::optional<Vec3> Session::pick(const Ray& ray) const {
 }
 
 StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry,
-                              bool accumulate, const StepAuthor& by) {
+                              bool accumulate, const StepAuthor& by, std::optional<double> height) {
   const auto known = std::any_of(protocol::kBrushToolNames.begin(), protocol::kBrushToolNames.end(),
                                  [&](const auto& n) { return n.value == tool; });
   if (!known) invalid("tool", "is not a brush tool");
   if (!std::isfinite(radius) || radius < protocol::kMinToolRadius || radius > protocol::kMaxToolRadius)
     invalid("radius", "must be a number of vu in [0.5, 1024]");
   if (!std::isfinite(strength) || strength <= 0 || strength > 1) invalid("strength", "must be in (0, 1]");
+  if (height) {
+    if (tool != protocol::BrushTool::AddBlob && tool != protocol::BrushTool::RemoveBlob)
+      invalid("height", "is only for add_blob and remove_blob");
+    if (accumulate) invalid("height", "is for strokes that remember what they applied, not for accumulating ones");
+    if (!std::isfinite(*height) || *height <= 0 || *height > std::min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight))
+      invalid("height", "must be in (0, min(radius / 2, 64)] vu");
+  }
   if (strokes_.size() >= kMaxOpenStrokes)
     throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
                        "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
                            "); end one first");
   const StrokeId id = nextStroke_++;
-  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by});
+  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by, height, volume_});
   return id;
 }
 
@@ -247,7 +265,9 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   }
 
   ApplyResult result;
-  const StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength};
+  const StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength, stroke.height};
+  // The surface as the stroke began (a load that changed the grid since: as it is now).
+  const Volume& start = stroke.start.dims() == volume_.dims() ? stroke.start : volume_;
   std::vector<StrokeDab> images;
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     std::optional<Vec3> centre;
@@ -255,14 +275,17 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
       centre = *c;
     } else {
       const Ray& ray = std::get<Ray>(dabs[i].at);
-      centre = pickSurface(volume_, ray.origin, ray.direction);
+      centre = pickSurface(start, ray.origin, ray.direction);
       if (!centre) ++result.missed;
     }
     result.hits.push_back(centre);
+    // A stroke with a height anchors each dab along the starting surface's normal there.
+    Vec3 normal;
+    if (stroke.height && centre) normal = dabs[i].normal ? *dabs[i].normal : surfaceNormal(start, *centre);
+    result.normals.push_back(normal);
     const double pressure = dabs[i].pressure.value_or(1.0);
     if (!centre || pressure == 0) continue;
-    for (const Vec3& c : mirrorImages(*centre, stroke.symmetry, volume_.dims())) {
-      const StrokeDab dab{c, pressure};
+    for (const StrokeDab& dab : mirrorImages(StrokeDab{*centre, pressure, normal}, stroke.symmetry, volume_.dims())) {
       try {
         checkStrokeDab(volume_, settings, dab);
       } catch (const EngineError& e) {
@@ -302,7 +325,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList() const {
   std::vector<std::pair<StrokeId, StrokeParams>> out;
   for (const auto& [id, st] : strokes_)
-    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory, st.by}});
+    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory, st.by, st.height}});
   return out;
 }
 
@@ -406,6 +429,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
     volume_ = std::move(vol);
     resetDigest();
     history_.clear();
+    for (auto& [id, stroke] : strokes_) stroke.start = volume_;
     bump();
     ApplyResult r;
     r.revision = revision_;
@@ -425,6 +449,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
         if (!sameBrick(before, after)) edit.changes.push_back({b, std::move(before), std::move(after)});
       }
   volume_.publish(edit.changes, true);
+  for (auto& [id, stroke] : strokes_) stroke.start = volume_;
   history_.push(edit, stepInfo(by, "volume.load"));
   ApplyResult r = finish(edit);
   if (!r.changed) {

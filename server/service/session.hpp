@@ -86,8 +86,15 @@ struct Symmetry {
 };
 
 struct Dab {
+  Dab() = default;
+  Dab(std::variant<Vec3, Ray> a, std::optional<double> p = std::nullopt, std::optional<Vec3> n = std::nullopt)
+      : at(a), pressure(p), normal(n) {}
+
   std::variant<Vec3, Ray> at;       // a centre, or a pick ray (its first surface hit)
   std::optional<double> pressure;  // in [0, 1], scales the stroke's strength; 1 when absent; 0 = no dab
+  // A stroke with a height: the starting surface's unit normal at the centre (StrokeDab::normal)
+  // as recorded in the journal; absent: taken from the stroke's starting volume.
+  std::optional<Vec3> normal;
 };
 
 using StrokeId = std::uint64_t;  // 0 is never a stroke
@@ -103,6 +110,9 @@ struct ApplyResult {
   // strokeDabs only, one per dab in order: the centre used (before mirroring), or nullopt for
   // a ray that missed the surface (that dab did nothing). A centre dab reports its centre.
   std::vector<std::optional<Vec3>> hits;
+  // strokeDabs only, one per dab: the normal it was anchored along (zero: none; a stroke
+  // without a height, or a missed ray), for the journal.
+  std::vector<Vec3> normals;
   std::size_t missed = 0;  // how many rays missed
 };
 
@@ -150,14 +160,17 @@ class Session {
 
   // Opens a stroke of one brush tool. radius in [0.5, 1024] vu, strength in (0, 1].
   // accumulate: every message adds (build-up) instead of only what exceeds the stroke's
-  // earlier dabs (see strokeDabs).
-  // Its steps are recorded as by's.
+  // earlier dabs (see strokeDabs). height (add/remove blob, not accumulating; vu in (0,
+  // min(radius / 2, 64)]): the stroke moves the surface by at most this (engine StrokeSettings),
+  // each dab anchored along the starting surface's normal at its centre.
+  // Its steps are recorded as by's. The stroke keeps the volume as it began (bricks shared).
   StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {},
-                       bool accumulate = false, const StepAuthor& by = {});
+                       bool accumulate = false, const StepAuthor& by = {},
+                       std::optional<double> height = std::nullopt);
   // One message of dabs is one application of the brush swept over them (engine applyStroke):
   // each point moves by the strongest dab over it (pressure scales a dab's window; mirror
   // images included), evolved and redistanced once. Rays are picked on the volume as it was
-  // before the message. Unless the stroke accumulates it remembers the dabs it applied (its
+  // when the stroke began. Unless the stroke accumulates it remembers the dabs it applied (its
   // newest kMaxStrokeMemory images), and a later message moves a point only by what exceeds
   // them, so the result does not depend on how the stroke's dabs were grouped into messages.
   // All dabs of one stroke fold into one history step, which stays open while it is the
@@ -192,7 +205,8 @@ class Session {
   // Replaces the field by `vol`'s (a `volume.load`). With the same dims and band it is one
   // undoable step holding only the bricks that differ; otherwise the domain changes, the
   // history is cleared (steps of another grid cannot be replayed) and fullRefresh is set.
-  // Open strokes stay open (their next dab starts a new step). The revision goes up by one
+  // Open strokes stay open (their next dab starts a new step) and start over from the loaded
+  // volume: their rays pick on it, their normals are read on it. The revision goes up by one
   // (the file's own revision is ignored), even when the field is identical.
   ApplyResult load(Volume vol, const StepAuthor& by = {});
 
@@ -232,6 +246,7 @@ class Session {
     bool accumulate = false;
     std::vector<StrokeDab> memory;  // the dab images it applied, oldest first
     StepAuthor by{};
+    std::optional<double> height{};
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -251,6 +266,8 @@ class Session {
     std::vector<StrokeDab> memory;  // empty when accumulating
     History::StepId step = 0;       // the history step its dabs last folded into
     StepAuthor by;
+    std::optional<double> height;
+    Volume start;  // the volume as the stroke began: rays pick on it, normals are read on it
   };
 
   ApplyResult finish(const Edit& edit);

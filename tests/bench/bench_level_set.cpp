@@ -129,6 +129,31 @@ MARZIPAN_BENCH("stroke16") {
         {"one_dab_cpu_ms", one.cpu_median_ms}, {"cpu_ratio_to_one_dab", sixteen.cpu_median_ms / one.cpu_median_ms}});
 }
 
+// The same message of 16 dabs (radius 8) in a stroke with a height of 4 vu (strength 1 in the
+// web client): four sub-steps of evolve and redistance, so about four times stroke16.
+MARZIPAN_BENCH("stroke16_height4") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{7};
+  std::normal_distribution<double> gauss;
+  constexpr double r = 8;
+  const StrokeSettings plain{Brush::AddBlob, r, 1}, tall{Brush::AddBlob, r, 1, 4.0};
+  std::vector<StrokeDab> dabs;
+  auto place = [&] {
+    const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+    const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
+    dabs.clear();
+    for (int i = 0; i < 16; ++i) dabs.push_back({s.centre + dir * s.radius + along * (r / 4 * (i - 7.5)), 1.0, dir});
+  };
+  const int reps = opt.quick ? 5 : 51;
+  const Timing one = measure(reps, place, [&] { applyStroke(v, plain, dabs, {}, pool); });
+  const Timing four = measure(reps, place, [&] { applyStroke(v, tall, dabs, {}, pool); });
+  emit("stroke16_height4", opt.threads, four,
+       {{"radius", r}, {"dabs", 16}, {"height", 4}, {"no_height_ms", one.median_ms},
+        {"ratio_to_no_height", four.median_ms / one.median_ms}});
+}
+
 MARZIPAN_BENCH("mcf_global") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);

@@ -273,11 +273,11 @@ namespace {
 // A slab whose top face is y = 16, long in x.
 Volume strokeSlab() { return makeBox({80, 40, 40}, {39.5, 12, 19.5}, {36, 4, 16}); }
 
-// Dabs along the slab's top from x0 to x1 at z = 19.5, `spacing` apart.
+// Dabs along the slab's top from x0 to x1 at z = 19.5, `spacing` apart, with the top's normal.
 std::vector<StrokeDab> strokeLine(double x0, double x1, double spacing) {
   std::vector<StrokeDab> dabs;
   const int n = int(std::round((x1 - x0) / spacing));
-  for (int i = 0; i <= n; ++i) dabs.push_back({{x0 + (x1 - x0) * i / n, 16, 19.5}, 1.0});
+  for (int i = 0; i <= n; ++i) dabs.push_back({{x0 + (x1 - x0) * i / n, 16, 19.5}, 1.0, {0, 1, 0}});
   return dabs;
 }
 
@@ -380,6 +380,108 @@ TEST_CASE("a stroke adds the same volume however its dabs are grouped or spaced"
   CHECK(insideVolume(v) - before > 2 * one);
 }
 
+namespace {
+
+// Distance from `centre` along `dir` (unit) to the surface, by bisection of the interpolant
+// between `inside` and `outside` vu.
+double surfaceAlong(const Volume& v, Vec3 centre, Vec3 dir, double inside, double outside) {
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (inside + outside);
+    (v.sample(centre + dir * mid) < 0 ? inside : outside) = mid;
+  }
+  return 0.5 * (inside + outside);
+}
+
+}  // namespace
+
+TEST_CASE("a stroke with a height moves the surface under its dab by that height", "[level_set][stroke][height]") {
+  // A sphere of radius 30; one dab on its surface (off the grid's axes), radius 8.
+  const Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2});
+  const Vec3 top = centre + up * 30.0;
+  for (const double h : {0.5, 1.0, 2.5, 4.0}) {
+    for (const Brush tool : {Brush::AddBlob, Brush::RemoveBlob}) {
+      Volume v = makeSphere({96, 96, 96}, centre, 30);
+      const double r0 = surfaceAlong(v, centre, up, 20, 40);
+      const StrokeDab dab{top, 1.0, up};
+      applyStroke(v, {tool, 8, 1, h}, {&dab, 1}, {});
+      const double moved = surfaceAlong(v, centre, up, 20, 40) - r0;
+      const double sign = tool == Brush::AddBlob ? 1 : -1;
+      INFO("height " << h << (tool == Brush::AddBlob ? " add" : " remove") << ": moved " << moved);
+      CHECK(std::fabs(moved - sign * h) <= 0.03 * h + 0.05);
+      // Every point of the band is still a distance to the new surface.
+      const GradientError e = gradientError(v);
+      INFO("gradient error max " << e.max << " mean " << e.mean);
+      CHECK(e.max <= 0.1);
+      CHECK(e.mean <= 0.005);
+    }
+  }
+}
+
+TEST_CASE("a stroke with a height builds the same however often it passes and however it is grouped",
+          "[level_set][stroke][height]") {
+  // Along the top of the slab, radius 8, height 4, dabs r/4 apart.
+  const StrokeSettings st{Brush::AddBlob, 8, 1, 4.0};
+  const double before = insideVolume(strokeSlab());
+  const auto line = strokeLine(20, 60, 2);
+  const auto added = [&](const std::vector<StrokeDab>& dabs, std::size_t messages, bool accumulate = false) {
+    Volume v = strokeSlab();
+    sendStroke(v, st, dabs, messages, accumulate);
+    return std::pair{insideVolume(v) - before, ridgeHeight(v, 40)};
+  };
+  const auto [one, ridge] = added(line, 1);
+  INFO("one pass: " << one << " vu^3, ridge " << ridge << " vu");
+  CHECK(std::fabs(ridge - 4) <= 0.1);
+  {
+    // Where the stroke already stands at its height a message changes nothing at all: no
+    // redistance creeping over its crest, pass after pass.
+    Volume v = strokeSlab();
+    applyStroke(v, st, line, {});
+    const std::uint64_t d = digest(v);
+    CHECK(applyStroke(v, st, line, line).empty());
+    CHECK(digest(v) == d);
+  }
+  // Twelve passes back and forth over the same dabs, one message a pass or eight.
+  std::vector<StrokeDab> same;
+  for (int p = 0; p < 12; ++p) same.insert(same.end(), line.begin(), line.end()), std::reverse(same.end() - std::ptrdiff_t(line.size()), same.end());
+  for (const std::size_t messages : {std::size_t(12), std::size_t(96)}) {
+    const double a = added(same, messages).first;
+    INFO("twelve passes in " << messages << " messages: " << a << " vu^3");
+    CHECK(std::fabs(a - one) <= 0.01 * one);
+  }
+  // Twelve passes whose dabs fall elsewhere each time, as a pointer's do: they fill in the
+  // shallow dips between one pass's dabs (3 % of the height halfway between dabs r/4 apart).
+  std::vector<StrokeDab> scrub;
+  for (int p = 0; p < 12; ++p) {
+    auto dabs = strokeLine(20 + 0.17 * p, 60 - 0.13 * p, 2 - 0.05 * p);
+    if (p % 2) std::reverse(dabs.begin(), dabs.end());
+    scrub.insert(scrub.end(), dabs.begin(), dabs.end());
+  }
+  const double scrubbed = added(scrub, 96).first;
+  INFO("twelve shifted passes in 96 messages: " << scrubbed << " vu^3");
+  CHECK(std::fabs(scrubbed - one) <= 0.02 * one);
+  // One pass in 4 or 21 messages.
+  for (const std::size_t messages : {std::size_t(4), std::size_t(21)}) {
+    const double a = added(line, messages).first;
+    INFO(messages << " messages: " << a << " vu^3");
+    CHECK(std::fabs(a - one) <= 0.05 * one);
+  }
+  // Without a memory every message adds its height again.
+  CHECK(added(same, 12, true).first > 3 * one);
+}
+
+TEST_CASE("a stroke with a height is undone exactly by its edit's old bricks", "[level_set][stroke][height][cow]") {
+  Volume v = makeSolid(SolidKind::Torus, {64, 64, 64});
+  const std::uint64_t d0 = digest(v);
+  const StrokeDab dabs[] = {{{50, 32, 32}, 1.0}, {{49, 36, 32}, 0.7}};
+  const Edit e = applyStroke(v, {Brush::AddBlob, 8, 1, 3.5}, dabs, {});
+  const std::uint64_t d1 = digest(v);
+  CHECK(d1 != d0);
+  v.publish(e.changes, false);
+  CHECK(digest(v) == d0);
+  v.publish(e.changes, true);
+  CHECK(digest(v) == d1);
+}
+
 TEST_CASE("strokes refuse bad dabs and change nothing", "[level_set][stroke][errors]") {
   Volume v = strokeSlab();
   const std::uint64_t d0 = digest(v);
@@ -390,6 +492,22 @@ TEST_CASE("strokes refuse bad dabs and change nothing", "[level_set][stroke][err
     CHECK_THROWS_AS(applyStroke(v, st, dabs, {}), EngineError);
   }
   CHECK_THROWS_AS(applyStroke(v, {Brush::Smooth, 6, 0}, {&good, 1}, {}), EngineError);
+  // A height is for add and remove blob only, in (0, min(radius / 2, 64)] vu.
+  for (const auto& [tool, height] : std::vector<std::pair<Brush, double>>{{Brush::Smooth, 1},
+                                                                         {Brush::Sharpen, 1},
+                                                                         {Brush::AddBlob, 0},
+                                                                         {Brush::AddBlob, -1},
+                                                                         {Brush::RemoveBlob, 3.01},
+                                                                         {Brush::AddBlob, std::nan("")},
+                                                                         {Brush::AddBlob, INFINITY}}) {
+    INFO("height " << height);
+    try {
+      applyStroke(v, {tool, 6, 1, height}, {&good, 1}, {});
+      FAIL("accepted");
+    } catch (const EngineError& e) {
+      CHECK(e.field() == "height");
+    }
+  }
   CHECK(digest(v) == d0);
   CHECK(applyStroke(v, st, {}, {}).empty());
 }

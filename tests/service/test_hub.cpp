@@ -111,7 +111,7 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   CHECK(r["size"] == json({64, 64, 64}));
   CHECK(r["revision"] == 0);
   CHECK(r["client"] == 1);
-  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 3}}));
+  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 4}}));
   CHECK(r["limits"]["max_grid_side"] == 128);
   CHECK(r["limits"]["max_dabs"] == 256);
   CHECK(r["read_only"] == false);
@@ -561,6 +561,42 @@ TEST_CASE("stroke.dabs refuses more than max_dabs and zero pressure", "[hub]") {
   CHECK(a.error("stroke.begin", {{"tool", "smooth"}, {"accumulate", "yes"}}) == -32602);
   CHECK(a.result("stroke.begin", {{"tool", "smooth"}, {"accumulate", true}})["stroke"] == 2);
   CHECK(a.result("session.stats")["revision"] == 0);
+}
+
+TEST_CASE("a stroke with a height rises by it however often it passes, its rays picked as the stroke began",
+          "[hub][stroke]") {
+  Hub hub(smallOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate64);  // a sphere of radius 22.4 about 31.5
+  for (const json& bad : {json{{"tool", "smooth"}, {"height", 1}}, json{{"tool", "sharpen"}, {"height", 1}},
+                          json{{"tool", "add_blob"}, {"accumulate", true}, {"height", 1}},
+                          json{{"tool", "add_blob"}, {"radius", 8}, {"height", 4.01}},
+                          json{{"tool", "remove_blob"}, {"height", -1}}, json{{"tool", "add_blob"}, {"height", "3"}}}) {
+    INFO(bad.dump());
+    const json e = a.call("stroke.begin", bad)["error"];
+    CHECK(e["code"] == -32602);
+    CHECK(e["data"]["field"] == "height");
+  }
+  const double before = a.result("session.stats")["inside_volume"];
+  // Rays straight down onto the top of the sphere, along x.
+  json rays = json::array();
+  for (double x = 24; x <= 39; x += 1.5) rays.push_back({{"ray", {{"origin", {x, 100, 31.5}}, {"direction", {0, -1, 0}}}}});
+  const auto stroke = [&](int passes) {
+    const json s = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 8}, {"height", 3}});
+    for (int p = 0; p < passes; ++p) a.result("stroke.dabs", {{"stroke", s["stroke"]}, {"dabs", rays}});
+    a.result("stroke.end", {{"stroke", s["stroke"]}});
+    const json stats = a.result("session.stats");
+    a.result("history.undo");
+    return stats;
+  };
+  const json once = stroke(1), thrice = stroke(3);
+  const double added = once["inside_volume"].get<double>() - before;
+  const double top = once["bounds"]["hi"][1].get<double>() - (31.5 + 22.4);
+  INFO("one pass adds " << added << " vu^3 and raises the top " << top << " vu; three passes add "
+                        << thrice["inside_volume"].get<double>() - before);
+  CHECK(top == Approx(3).margin(0.5));  // bounds are a voxel box
+  CHECK(std::fabs(thrice["inside_volume"].get<double>() - before - added) <= 0.005 * added);
+  CHECK(a.result("session.stats")["inside_volume"] == before);
 }
 
 TEST_CASE("render.frame sends an image of the requested size before its response", "[hub]") {

@@ -403,6 +403,32 @@ TEST_CASE("session: load of the same size is one undoable step, of another size 
   CHECK_FALSE(s.canRedo());
 }
 
+TEST_CASE("session: a stroke's rays pick the surface as the stroke began, or as a load left it", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  const StrokeId id = s.beginStroke(BrushTool::AddBlob, 6, 1, {}, false, {}, 3.0);
+  const Dab down = ray({kC + 0.3, 100, kC - 0.2}, {0, -1, 0});
+  const ApplyResult first = s.strokeDabs(id, {down}, pool);
+  REQUIRE(first.changed);
+  REQUIRE(first.hits[0]);
+  const auto exact = analyticHit(kCentre, kR, {kC + 0.3, 100, kC - 0.2}, {0, -1, 0});
+  CHECK(first.hits[0]->y == Approx(exact->y).margin(0.05));
+  // The normal it was anchored along: the sphere's there.
+  CHECK(dot(first.normals[0], normalized(*exact - kCentre)) > 0.999);
+  CHECK(s.volume().sample(*first.hits[0]) < -2.5);  // the stroke raised the surface above it
+  // The same ray again lands where it landed, not on the stroke's own growth: nothing to add.
+  const ApplyResult again = s.strokeDabs(id, {down}, pool);
+  CHECK(*again.hits[0] == *first.hits[0]);
+  CHECK_FALSE(again.changed);
+  // A load starts the open stroke over from the loaded volume.
+  const Volume torus = makeSolid(SolidKind::Torus, {kN, kN, kN});
+  s.load(torus);
+  const Dab ontoTorus = ray({kC + 12, 100, kC}, {0, -1, 0});
+  const ApplyResult loaded = s.strokeDabs(id, {ontoTorus}, pool);
+  REQUIRE(loaded.hits[0]);
+  CHECK(std::fabs(torus.sample(*loaded.hits[0])) < 0.05);
+}
+
 TEST_CASE("session: stats report measures, revision and digest", "[session]") {
   ThreadPool pool(1);
   Volume start = sphere();

@@ -115,7 +115,9 @@ TEST_CASE("every acknowledged change is recoverable from the data directory alon
 TEST_CASE("a stroke cut by snapshots recovers its memory: the same digest after every message", "[store]") {
   // A snapshot after every 3 journal records (the re-announced stroke and two messages), so that the stroke's messages fall on both sides
   // of them; its overlapping dabs only add what exceeds the earlier ones, so a replay that
-  // forgot them would build up and read another digest.
+  // forgot them would build up and read another digest. A stroke with a height anchors its dabs
+  // on normals of the volume as the stroke began, which a replay after a snapshot no longer has:
+  // they come from the journal.
   const fs::path dir = freshDir("stroke"), copy = freshDir("stroke-copy");
   HubOptions o;
   o.workers = 2;
@@ -125,8 +127,10 @@ TEST_CASE("a stroke cut by snapshots recovers its memory: the same digest after 
   Driver a(hub);
   const json created = a.call("session.create", {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}});
   const std::string id = created["session"];
-  for (const bool accumulate : {false, true}) {
-    const json begun = a.call("stroke.begin", {{"tool", "add_blob"}, {"radius", 5}, {"symmetry", {"x"}}, {"accumulate", accumulate}});
+  for (const json& kind : {json{{"accumulate", false}}, json{{"accumulate", true}}, json{{"height", 2.5}}}) {
+    json params{{"tool", "add_blob"}, {"radius", 5}, {"symmetry", {"x"}}};
+    params.update(kind);
+    const json begun = a.call("stroke.begin", params);
     const std::uint64_t stroke = begun["stroke"];
     for (int m = 0; m < 6; ++m) {
       const double x = 18 + m;
@@ -134,7 +138,7 @@ TEST_CASE("a stroke cut by snapshots recovers its memory: the same digest after 
       const json stats = a.call("session.stats");
       fs::remove_all(copy);
       fs::copy(dir, copy, fs::copy_options::recursive);
-      INFO("accumulate " << accumulate << ", message " << m);
+      INFO(kind.dump() << ", message " << m);
       CHECK(recoveredDigest(copy, id) == stats["digest"].get<std::string>());
     }
     a.call("stroke.end", {{"stroke", stroke}});

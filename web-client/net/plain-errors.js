@@ -10,16 +10,14 @@ const TEXTS = {
   ParseError: "The server could not read a message from this page. Reloading the page usually helps.",
   InvalidRequest: "The server could not read a message from this page. Reloading the page usually helps.",
   UnknownMethod: "This page asked for something the server does not offer: the page and the server are of different versions. Reload the page.",
-  InvalidParams: (e) =>
-    e.method === "volume.load" ? "This file is not a Marzipan volume (.mzv) that fits this session." : "The server refused a value this page sent.",
+  InvalidParams: (e) => (e.method === "volume.load" ? refusedVolume(e) : "The server refused a value this page sent."),
   InternalError: "The server could not store the change, so nothing changed. Try again in a moment.",
   NoSuchSession: "This session does not exist on the server (any more).",
   BadToken: "The link's token does not open this session: check that the whole link was copied.",
   SessionFull: "This session is full: too many people are in it right now.",
   LimitExceeded: (e) => `That goes beyond what this server allows: ${sentence(e.message)}`,
   Busy: "The server is busy: slow down for a moment.",
-  EngineRefused: (e) =>
-    e.method === "volume.load" ? "This file is not a Marzipan volume (.mzv) that fits this session." : `The sculpting engine refused it: ${sentence(e.message)}`,
+  EngineRefused: (e) => (e.method === "volume.load" ? refusedVolume(e) : `The sculpting engine refused it: ${sentence(e.message)}`),
   ReadOnlyToken: "You joined with a view link: you can watch, but not sculpt.",
   UnsupportedProtocolVersion: "The server speaks a newer version of the protocol: reload the page.",
   NotInSession: "This page is not in a session: open one from the start screen.",
@@ -47,6 +45,13 @@ export function plainError(error) {
   if (error && error.name === "ConnectionLost") return { text: "The connection dropped before the server answered.", detail: error.message };
   if (error && error.name === "ConnectionRefused") return { text: "The server could not be reached.", detail: error.message };
   return { text: error && error.message ? error.message : String(error), detail: "" };
+}
+
+// A refused volume.load, named by the format the file was sent as (e.format, set by
+// net/session-client.js loadVolume; "mzv" when absent).
+function refusedVolume(e) {
+  const what = e.format === "vdb" ? "an OpenVDB level set (.vdb)" : "a Marzipan volume (.mzv)";
+  return `This file is not ${what} that fits this session.`;
 }
 
 // A server message as the end of a sentence: one final period.

@@ -10,9 +10,36 @@
 
 const MAX_IN_FLIGHT = 3;
 
+// How high a stroke of add_blob / remove_blob stands (stroke.begin `height`, vu): strength times
+// HEIGHT_PER_RADIUS of the radius, at most MAX_HEIGHT. Half the radius is the most the server
+// takes; at radius 8 and strength 1 that is a ridge of 4 vu, plain to see on a 128^3 model and
+// nowhere near a tentacle. The cap keeps a big brush's message affordable (the server's work
+// grows with the height: a sub-step per vu).
+export const HEIGHT_PER_RADIUS = 0.5;
+export const MAX_HEIGHT = 16;
+
+// The stroke.begin params for the brush settings {tool, radius, strength, symmetry, buildUp}.
+// add_blob / remove_blob: a `height`, so that the stroke rises (sinks) that far however often
+// the pointer passes (the stroke memory, PROTOCOL.md), or with buildUp `accumulate`: every
+// message adds again, paint-like. smooth / sharpen take no height: they accumulate, since
+// passing again is how one smooths more.
+export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = false }) {
+  const params = { tool, radius, strength };
+  if (symmetry && symmetry.length) params.symmetry = symmetry;
+  const shaping = tool === "add_blob" || tool === "remove_blob";
+  if (shaping && !buildUp) {
+    // Rounded down to 1/1000 vu, so that it never exceeds half the radius.
+    params.height = Math.max(0.001, Math.floor(1000 * strength * Math.min(HEIGHT_PER_RADIUS * radius, MAX_HEIGHT)) / 1000);
+  } else {
+    params.accumulate = true;
+  }
+  return params;
+}
+
 export class StrokeSender {
-  // session: net/session-client.js; maxDabs: the server's max_dabs limit.
-  constructor(session, { tool, radius, strength, symmetry, accumulate }, maxDabs = 256) {
+  // session: net/session-client.js; settings: as strokeBeginParams takes them; maxDabs: the
+  // server's max_dabs limit.
+  constructor(session, settings, maxDabs = 256) {
     this.session = session;
     this.maxDabs = maxDabs;
     this.queue = [];
@@ -21,10 +48,8 @@ export class StrokeSender {
     this.failed = false;
     this.applied = 0; // dabs the server reported as applied
     this.stroke = null;
-    const params = { tool, radius, strength };
-    if (symmetry && symmetry.length) params.symmetry = symmetry;
-    if (accumulate) params.accumulate = true;
-    this.begun = session.beginStroke(params).then(
+    this.params = strokeBeginParams(settings);
+    this.begun = session.beginStroke(this.params).then(
       (id) => {
         this.stroke = id;
         this.flush();

@@ -4,7 +4,8 @@
 // Conventions: radius in vu (0.5 to 1024, the server's range; the slider covers 1 to 64 and
 // the keys go beyond); strength in (0, 1] for brushes; for CSG tools the same slider sets the
 // blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x", "y", "z");
-// lazy: the stroke stabiliser's slack in CSS pixels (0 = off).
+// lazy: the stroke stabiliser's slack in CSS pixels (0 = off); buildUp: add / remove blob strokes
+// add with every message instead of standing at a height (net/stroke-sender.js).
 
 import { GLOBAL_OPS, TOOLS, toolById } from "./tools.js";
 
@@ -28,6 +29,7 @@ export class Controls {
       view: "splats",
       shading: "lit",
       lazy: 0,
+      buildUp: false,
     };
     const $ = (id) => doc.getElementById(id);
     this.$ = $;
@@ -39,6 +41,7 @@ export class Controls {
     this.radius.addEventListener("input", () => this.setRadius(Number(this.radius.value)));
     this.strength.addEventListener("input", () => this.setStrength(Number(this.strength.value)));
     $("shape").addEventListener("change", (e) => (this.settings.shape = e.target.value));
+    $("build-up").addEventListener("change", (e) => (this.settings.buildUp = e.target.checked));
     $("lazy").addEventListener("input", (e) => {
       this.settings.lazy = Number(e.target.value);
       this.#syncBrush();
@@ -184,6 +187,7 @@ export class Controls {
     this.$("shape-row").hidden = !click;
     this.$("lazy-value").textContent = s.lazy ? `${s.lazy} px` : "off";
     this.doc.querySelector(".symmetry").hidden = click;
+    this.$("build-up-label").hidden = !(s.tool === "add_blob" || s.tool === "remove_blob");
   }
 
   #globalOpChanged() {

@@ -7,7 +7,7 @@
 // store replaces a changed brick's entry, never its arrays, so that list stays intact) and
 // sends them as centres: a dab never lands on what the stroke itself just added, so a stroke
 // cannot climb its own growth into a tentacle however long the pointer scrubs one place (it
-// rises at most about the brush radius above where it began). Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
+// rises its height, or building up at most about the brush radius, above where it began). Mirror symmetry is the server's (stroke.begin `symmetry`): the cursor shows the
 // mirrored images, x' = nx - 1 - x for a mirror across x. A modifier held at the press (ui/
 // gesture-map.js) inverts the tool or makes it smooth for that stroke; with the stabiliser on
 // (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
@@ -24,13 +24,6 @@ import { BrushDrag } from "./brush-drag.js";
 import { toolWithModifier } from "./tools.js";
 
 export const DAB_SPACING = 0.25;
-// Strokes build up, message by message (stroke.begin "accumulate"). Without it a stroke moves
-// each point at most as far as one application of the brush does (1 vu at strength 1, the
-// protocol's stroke memory), which on a 128^3 model is too little to see; until the engine
-// scales a stroke's height with its radius and strength, the client asks for build-up. The
-// build-up stays bounded because the dabs are picked on the stroke's starting surface: each
-// dab's window ends one radius from a centre on that surface.
-const STROKES_ACCUMULATE = true;
 
 export class Sculpt {
   constructor({ session, store, camera, renderer, controls, messages }) {
@@ -112,7 +105,9 @@ export class Sculpt {
     const tool = toolWithModifier(s.tool, modifier);
     this.stroke = {
       tool,
-      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, accumulate: STROKES_ACCUMULATE }, maxDabs),
+      // add / remove blob strokes have a height set by strength and radius (or build up, the
+      // "Build up" option): net/stroke-sender.js strokeBeginParams
+      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, buildUp: s.buildUp }, maxDabs),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
       lazy: new LazyMouse(s.lazy || 0),
       surface: [...this.store.bricks.values()], // the splats at the press, for picking its dabs

@@ -549,12 +549,14 @@ class Client:
         return await self._result("volume.morph", {"kind": kind, "radius": radius})
 
     async def begin_stroke(self, tool: str, *, radius: float | None = None, strength: float | None = None,
-                           symmetry=None, accumulate: bool | None = None) -> int:
+                           symmetry=None, accumulate: bool | None = None, height: float | None = None) -> int:
         """stroke.begin; accumulate=True makes every stroke.dabs add (build-up) instead of only
-        what exceeds the stroke's earlier dabs (protocol 1.1)."""
+        what exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; add_blob
+        and remove_blob, at most half the radius, not with accumulate): the stroke moves the
+        surface by at most this, however often it passes."""
         result = await self._result("stroke.begin", _without_none(
             tool=tool, radius=radius, strength=strength, symmetry=list(symmetry) if symmetry else None,
-            accumulate=accumulate))
+            accumulate=accumulate, height=height))
         return result["stroke"]
 
     async def stroke_dabs(self, stroke: int, dabs) -> dict:
@@ -564,14 +566,14 @@ class Client:
         return await self._result("stroke.end", {"stroke": stroke})
 
     async def stroke(self, tool: str, dabs, *, radius: float | None = None, strength: float | None = None,
-                     symmetry=None, accumulate: bool | None = None) -> dict:
+                     symmetry=None, accumulate: bool | None = None, height: float | None = None) -> dict:
         """A whole stroke, one undo step: stroke.begin, the dabs (centres [x, y, z] or dicts
         {center | ray, pressure?}) in messages of at most max_dabs, stroke.end. Returns
         {stroke, applied, revision, can_undo, can_redo}."""
         dabs = [_dab(d) for d in dabs]
         per_message = int(self.limits.get("max_dabs", 256)) or 256
         stroke = await self.begin_stroke(tool, radius=radius, strength=strength, symmetry=symmetry,
-                                         accumulate=accumulate)
+                                         accumulate=accumulate, height=height)
         applied = 0
         try:
             for start in range(0, len(dabs), per_message):

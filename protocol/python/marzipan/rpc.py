@@ -14,7 +14,7 @@ import json
 import re
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 3}
+PROTOCOL_VERSION = {"major": 1, "minor": 4}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (

@@ -183,9 +183,9 @@ void strokeBegin(HubCore& hub, const Call& call) {
       c->stroke = 0;
     }
     const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
-                                       p.accumulate, {}, authorOf(*c)};
+                                       p.accumulate, {}, authorOf(*c), p.height};
     c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate,
-                                       params.by);
+                                       params.by, params.height);
     records.push_back(strokeBeginRecord(c->stroke, params));
     r.record = [records] { return records; };
     r.result = {{"stroke", c->stroke}};
@@ -201,7 +201,9 @@ void strokeDabs(HubCore& hub, const Call& call) {
     for (const auto& [id, st] : s.session->openStrokeList())
       if (id == p.stroke) {
         const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
-        voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images);
+        // A height takes a sub-step per vu (engine applyStroke).
+        const double substeps = st.height ? std::ceil(*st.height) : 1;
+        voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images) * substeps;
       }
     self->checkBudget(voxels, "this message's dabs");
     std::optional<Workers::LongTask> longTask;
@@ -227,7 +229,11 @@ void strokeDabs(HubCore& hub, const Call& call) {
     if (a.changed) {
       json applied = json::array();
       for (std::size_t i = 0; i < a.hits.size(); ++i)
-        if (a.hits[i]) applied.push_back({a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure});
+        if (a.hits[i]) {
+          json dab{a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure};
+          if (const Vec3 n = a.normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
+          applied.push_back(std::move(dab));
+        }
       // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
       // started (a step they folded into keeps its own).
       r.record = [stroke = p.stroke, applied, rev = a.revision, t = stepTime(*s.session)] {

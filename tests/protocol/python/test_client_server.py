@@ -61,7 +61,7 @@ class AgainstServer(ServerTestCase):
         self.assertNotEqual(r["token"], r["view_token"])
         self.assertEqual((r["client"], r["size"], r["revision"]), (1, [40, 32, 24], 0))
         self.assertRegex(r["digest"], HEX16)
-        self.assertEqual(r["protocol"], {"major": 1, "minor": 3})
+        self.assertEqual(r["protocol"], {"major": 1, "minor": 4})
         self.assertEqual(set(r["limits"]), LIMIT_KEYS)
         self.assertEqual((r["can_undo"], r["can_redo"], r["read_only"]), (False, False, False))
         self.assertEqual(r["clients"], [{"client": 1, "read_only": False, "name": "Sculptor 1", "color": "#e6194b"}])
@@ -161,7 +161,7 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(errors["outside"].field, "center")
         self.assertEqual(errors["op in tool.apply"].field, "op")
         self.assertEqual(errors["solid"].field, "solid")
-        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 3})
+        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 4})
         self.assertEqual(errors["exists"].code, -32014)
         self.assertEqual(errors["grid"].data.get("limit"), "max_grid_side")
         self.assertEqual(errors["frame side"].data.get("limit"), "max_frame_side")
@@ -378,6 +378,30 @@ class AgainstServer(ServerTestCase):
         self.assertGreater(after["inside_volume"], before["inside_volume"])
         self.assertEqual(undone["digest"], before["digest"])
         self.assertFalse(undone["can_undo"])
+
+    def test_a_stroke_with_a_height_rises_by_it_however_often_it_passes(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(48, "box")
+                before = await client.stats()
+                face = before["bounds"]["hi"][0]
+                path = [[face, 24, z] for z in (20, 22, 24, 26, 28)]
+                once = await client.stroke("add_blob", path, radius=6, height=3)
+                after_once = await client.stats()
+                await client.undo()
+                thrice = await client.stroke("add_blob", path + path[::-1] + path, radius=6, height=3)
+                after_thrice = await client.stats()
+                with self.assertRaises(rpc.InvalidParams) as refused:
+                    await client.begin_stroke("smooth", height=1)
+                return before, once, after_once, thrice, after_thrice, refused.exception
+
+        before, once, after_once, thrice, after_thrice, refused = run(go())
+        self.assertEqual((once["applied"], thrice["applied"]), (5, 15))
+        face = before["bounds"]["hi"][0]
+        self.assertAlmostEqual(after_once["bounds"]["hi"][0] - face, 3, delta=0.3)
+        added = after_once["inside_volume"] - before["inside_volume"]
+        self.assertAlmostEqual(after_thrice["inside_volume"] - before["inside_volume"], added, delta=0.005 * added)
+        self.assertEqual(refused.data.get("field"), "height")
 
     def test_two_clients_see_each_others_changes(self):
         async def go():
