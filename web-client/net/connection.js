@@ -56,7 +56,7 @@ export class Connection extends EventTarget {
     if (!this.isOpen) return Promise.reject(new ConnectionLost(method));
     const { id, text } = this.#builder.request(method, params);
     return new Promise((resolve, reject) => {
-      this.#pending.set(id, { method, resolve, reject, sentAt: performance.now(), frame: null });
+      this.#pending.set(id, { method, params, resolve, reject, sentAt: performance.now(), frame: null });
       this.#socket.send(text);
       if (afterSend) afterSend(id);
     });
@@ -111,7 +111,7 @@ export class Connection extends EventTarget {
     }
     this.#pending.delete(m.id);
     this.#emit("rtt", { method: pending.method, ms: performance.now() - pending.sentAt });
-    if (m.kind === MessageKind.Error) pending.reject(new RpcError(pending.method, m.error));
+    if (m.kind === MessageKind.Error) pending.reject(new RpcError(pending.method, m.error, pending.params));
     else pending.resolve({ result: m.result, frame: pending.frame });
   }
 }

@@ -47,10 +47,10 @@ export function plainError(error) {
   return { text: error && error.message ? error.message : String(error), detail: "" };
 }
 
-// A refused volume.load, named by the format the file was sent as (e.format, set by
-// net/session-client.js loadVolume; "mzv" when absent).
+// A refused volume.load, named by the format the file was sent as (the request's params.format;
+// "mzv" when absent). The text is made when the error is first shown, as the request fails.
 function refusedVolume(e) {
-  const what = e.format === "vdb" ? "an OpenVDB level set (.vdb)" : "a Marzipan volume (.mzv)";
+  const what = e.params && e.params.format === "vdb" ? "an OpenVDB level set (.vdb)" : "a Marzipan volume (.mzv)";
   return `This file is not ${what} that fits this session.`;
 }
 

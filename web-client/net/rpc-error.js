@@ -6,10 +6,12 @@
 import { rpcErrorName, undoConflictOf } from "/protocol/js/rpc.js";
 
 export class RpcError extends Error {
-  constructor(method, { code, message, data }) {
+  // params: the request's own (what a refusal's text may depend on, e.g. volume.load's format).
+  constructor(method, { code, message, data }, params = {}) {
     super(message);
     this.name = "RpcError";
     this.method = method;
+    this.params = params;
     this.code = code;
     this.data = data;
     this.conflict = undoConflictOf({ code, data }); // {client, revision, step} for -32017, else null

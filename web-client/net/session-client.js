@@ -247,14 +247,7 @@ export class SessionClient extends EventTarget {
 
   async loadVolume(bytes, format = "mzv") {
     const params = format === "mzv" ? { bytes: bytes.byteLength } : { bytes: bytes.byteLength, format };
-    let result;
-    try {
-      ({ result } = await this.request("volume.load", params, (id) => this.#connection.sendUpload(FrameKind.VolumeUpload, id, bytes)));
-    } catch (e) {
-      // the refusal names the format it was read as (net/plain-errors.js)
-      if (e instanceof RpcError) e.format = format;
-      throw e;
-    }
+    const { result } = await this.request("volume.load", params, (id) => this.#connection.sendUpload(FrameKind.VolumeUpload, id, bytes));
     this.#history(result);
     if (result.digest) this.digest = result.digest;
     this.#emitState();

@@ -12,12 +12,15 @@ test("a refused upload says the file is not a volume, with the server's words as
   assert.equal(detail, "volume.load: not a Marzipan volume file (bad magic) [-32006 EngineRefused]");
 });
 
+// The format is the request's own (RpcError.params, net/connection.js): the text is made as the
+// request fails, before the caller could add anything to the error.
 test("a refused .vdb upload names OpenVDB, not .mzv", () => {
-  const refused = { ...rpc("volume.load", -32006, "EngineRefused", "not an OpenVDB level set: no grid of class level set"), format: "vdb" };
+  const vdb = { bytes: 200, format: "vdb" };
+  const refused = { ...rpc("volume.load", -32006, "EngineRefused", "not an OpenVDB level set: no grid of class level set"), params: vdb };
   assert.equal(plainError(refused).text, "This file is not an OpenVDB level set (.vdb) that fits this session.");
-  const invalid = { ...rpc("volume.load", -32602, "InvalidParams", "bytes: too large", { field: "bytes" }), format: "vdb" };
+  const invalid = { ...rpc("volume.load", -32602, "InvalidParams", "bytes: too large", { field: "bytes" }), params: vdb };
   assert.equal(plainError(invalid).text, "This file is not an OpenVDB level set (.vdb) that fits this session.");
-  assert.equal(plainError({ ...refused, format: "mzv" }).text, "This file is not a Marzipan volume (.mzv) that fits this session.");
+  assert.equal(plainError({ ...refused, params: { bytes: 200 } }).text, "This file is not a Marzipan volume (.mzv) that fits this session.");
 });
 
 test("limits keep the server's sentence; undo and redo say which", () => {
