@@ -104,26 +104,38 @@ MARZIPAN_BENCH("dab") {
   }
 }
 
+// n dabs r/4 apart along a random line through a random point of the sphere, each carrying the
+// sphere's normal there (the starting normal a stroke with a height reads; others ignore it).
+class DabLine {
+ public:
+  DabLine(const Sphere& s, double r, unsigned seed) : s_(s), r_(r), rng_(seed) {}
+  void place(std::vector<StrokeDab>& dabs, int n) {
+    const Vec3 dir = normalized({gauss_(rng_), gauss_(rng_), gauss_(rng_)});
+    const Vec3 along = normalized(cross(dir, normalized({gauss_(rng_), gauss_(rng_), gauss_(rng_)})));
+    dabs.clear();
+    for (int i = 0; i < n; ++i) dabs.push_back({s_.centre + dir * s_.radius + along * (r_ / 4 * (i - (n - 1) / 2.0)), 1.0, dir});
+  }
+
+ private:
+  Sphere s_;
+  double r_;
+  std::mt19937 rng_;
+  std::normal_distribution<double> gauss_;
+};
+
 // One stroke.dabs message of 16 dabs r/4 apart along a line on the sphere (one application of
 // the swept brush), next to a single dab of the same radius: the target is <= 2x.
 MARZIPAN_BENCH("stroke16") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);
   Volume v = makeSphere(s.dims, s.centre, s.radius);
-  std::mt19937 rng{6};
-  std::normal_distribution<double> gauss;
   constexpr double r = 8;
   const StrokeSettings st{Brush::AddBlob, r, 1};
+  DabLine line(s, r, 6);
   std::vector<StrokeDab> dabs;
-  auto place = [&](int n) {
-    const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
-    const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
-    dabs.clear();
-    for (int i = 0; i < n; ++i) dabs.push_back({s.centre + dir * s.radius + along * (r / 4 * (i - (n - 1) / 2.0)), 1.0});
-  };
   const int reps = opt.quick ? 5 : 101;
-  const Timing one = measure(reps, [&] { place(1); }, [&] { applyStroke(v, st, dabs, {}, pool); });
-  const Timing sixteen = measure(reps, [&] { place(16); }, [&] { applyStroke(v, st, dabs, {}, pool); });
+  const Timing one = measure(reps, [&] { line.place(dabs, 1); }, [&] { applyStroke(v, st, dabs, {}, pool); });
+  const Timing sixteen = measure(reps, [&] { line.place(dabs, 16); }, [&] { applyStroke(v, st, dabs, {}, pool); });
   emit("stroke16", opt.threads, sixteen,
        {{"radius", r}, {"dabs", 16}, {"one_dab_ms", one.median_ms}, {"ratio_to_one_dab", sixteen.median_ms / one.median_ms},
         {"one_dab_cpu_ms", one.cpu_median_ms}, {"cpu_ratio_to_one_dab", sixteen.cpu_median_ms / one.cpu_median_ms}});
@@ -135,17 +147,11 @@ MARZIPAN_BENCH("stroke16_height4") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);
   Volume v = makeSphere(s.dims, s.centre, s.radius);
-  std::mt19937 rng{7};
-  std::normal_distribution<double> gauss;
   constexpr double r = 8;
   const StrokeSettings plain{Brush::AddBlob, r, 1}, tall{Brush::AddBlob, r, 1, 4.0};
+  DabLine line(s, r, 7);
   std::vector<StrokeDab> dabs;
-  auto place = [&] {
-    const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
-    const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
-    dabs.clear();
-    for (int i = 0; i < 16; ++i) dabs.push_back({s.centre + dir * s.radius + along * (r / 4 * (i - 7.5)), 1.0, dir});
-  };
+  const auto place = [&] { line.place(dabs, 16); };
   const int reps = opt.quick ? 5 : 51;
   const Timing one = measure(reps, place, [&] { applyStroke(v, plain, dabs, {}, pool); });
   const Timing four = measure(reps, place, [&] { applyStroke(v, tall, dabs, {}, pool); });

@@ -9,39 +9,22 @@
 // Conventions: pixel positions in CSS pixels of the page; screenshots, downloads and the frame
 // time go to MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
 
-import { test, before, after } from "node:test";
+import { test } from "node:test";
 import assert from "node:assert/strict";
 import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, settled, startBrowser, startServer } from "./harness.mjs";
+import { digest, ensureArtifactsDir, revision, serverAndBrowser, settled } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
 import { backdropPixels, rimRipple, rimRoughness } from "./rim.mjs";
 
 const artifacts = ensureArtifactsDir();
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await startBrowser({ hasTouch: true });
-});
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) {
-    const { code, signal } = await server.close();
-    assert.equal(code, 0, `marzipan serve exited with ${code} (${signal}); its log:\n${server.log()}`);
-  }
-});
+const env = serverAndBrowser({ hasTouch: true });
 
 // --- reading the page ------------------------------------------------------------------------
 
 const text = (page, id) => page.locator(`#${id}`).textContent();
 const data = (page, id, key) => page.evaluate(([i, k]) => document.getElementById(i).dataset[k], [id, key]);
-const revision = async (page) => Number(await data(page, "revision", "revision"));
-const digest = (page) => text(page, "stat-digest");
-
 
 // The picture the canvas draws: the HTML over it that says who else is in the session (the
 // people list, the name labels over their rings; web-client/ui/presence-view.js) is hidden for
@@ -97,7 +80,7 @@ async function drag(page, from, to, steps = 20) {
 }
 
 async function createSession(page, size, solid) {
-  await page.goto(`${server.url}/`);
+  await page.goto(`${env.server.url}/`);
   await page.selectOption("#create-size", String(size));
   await page.selectOption("#create-solid", solid);
   await page.click("#create-button");
@@ -131,7 +114,7 @@ function checkStl(bytes, size) {
 
 test("create, sculpt, undo, share, watch frames, export and reconnect", { timeout: 300000 }, async (t) => {
   const errors = [];
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   collectErrors(page, errors);
   // Every WebSocket of this page goes through a proxy the test holds, so it can cut the
   // connection the way a network drop does.
@@ -235,8 +218,8 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const editLink = await page.locator("#share-edit").inputValue();
   const viewLink = await page.locator("#share-view").inputValue();
   await page.keyboard.press("Escape");
-  assert.ok(editLink.startsWith(`${server.url}/#session=`), editLink);
-  const second = await browser.context.newPage();
+  assert.ok(editLink.startsWith(`${env.server.url}/#session=`), editLink);
+  const second = await env.browser.context.newPage();
   collectErrors(second, errors);
   await second.goto(editLink);
   await settled(second);
@@ -270,9 +253,9 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
 
   // A view link joins read-only: it can look, not edit. This page is on a high-density
   // screen: its canvas must have twice its CSS size in pixels.
-  const viewer = await browser.context.newPage();
+  const viewer = await env.browser.context.newPage();
   collectErrors(viewer, errors);
-  const cdp = await browser.context.newCDPSession(viewer);
+  const cdp = await env.browser.context.newCDPSession(viewer);
   await cdp.send("Emulation.setDeviceMetricsOverride", { width: 900, height: 640, deviceScaleFactor: 2, mobile: false });
   await viewer.goto(viewLink);
   await settled(viewer);
@@ -308,7 +291,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
     assert.ok(box.y + box.height <= 760, `#${id} is on screen without scrolling (bottom ${box.y + box.height})`);
   }
   assert.equal(await page.locator("#quickbar").isVisible(), false, "no compact toolbar on a wide screen");
-  const phone = await browser.context.newPage();
+  const phone = await env.browser.context.newPage();
   collectErrors(phone, errors);
   await phone.setViewportSize({ width: 390, height: 844 });
   await phone.goto(editLink);
@@ -518,7 +501,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.ok(modelFraction(snapshot, [0.4, 0.4, 0.6, 0.6]) > 0.9, "the snapshot shows the model");
 
   // Touch: a pinch that begins on the model zooms without a dab; one finger on it sculpts.
-  const touchScreen = await browser.context.newCDPSession(page);
+  const touchScreen = await env.browser.context.newCDPSession(page);
   const touch = (type, points) =>
     touchScreen.send("Input.dispatchTouchEvent", { type, touchPoints: points.map(([x, y], id) => ({ x, y, id })) });
   const rTouch = await revision(page);
@@ -632,7 +615,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
 
 test("Space+drag orbits around the point under the press; the stabiliser calms a shaky drag", { timeout: 180000 }, async (t) => {
   const errors = [];
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   collectErrors(page, errors);
   const sent = [];
   page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
@@ -692,7 +675,7 @@ test("Space+drag orbits around the point under the press; the stabiliser calms a
 
 test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000 }, async (t) => {
   const errors = [];
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   collectErrors(page, errors);
   await createSession(page, 256, "sphere"); // radius 0.35 * 256 = 89.6 vu
   await page.selectOption("#global-op", "dilate");
@@ -734,7 +717,7 @@ test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000
 
 test("a whole-volume smoothing fills the progress bar and Cancel stops it, changing nothing; the pig's front and the orthographic view", { timeout: 180000 }, async (t) => {
   const errors = [];
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   collectErrors(page, errors);
   await createSession(page, 128, "pig");
   await page.selectOption("#global-op", "smooth");
@@ -886,7 +869,7 @@ async function scrub(page, [x, y], half, passes) {
 
 test("a stroke's dabs land on the surface as it was at the press, and it stands at its height however often it passes", { timeout: 360000 }, async (t) => {
   const errors = [];
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   collectErrors(page, errors);
   const sent = [];
   page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));

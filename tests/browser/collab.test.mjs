@@ -9,32 +9,15 @@
 // Conventions: pixel positions in CSS pixels of the page; screenshots go to
 // MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
 
-import { test, before, after } from "node:test";
+import { test } from "node:test";
 import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, settled, startBrowser, startServer } from "./harness.mjs";
+import { digest, ensureArtifactsDir, revision, serverAndBrowser, settled } from "./harness.mjs";
 
 const artifacts = ensureArtifactsDir();
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await startBrowser();
-});
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) {
-    const { code, signal } = await server.close();
-    assert.equal(code, 0, `marzipan serve exited with ${code} (${signal}); its log:\n${server.log()}`);
-  }
-});
-
-const revision = async (page) => Number(await page.evaluate(() => document.getElementById("revision").dataset.revision));
-const digest = (page) => page.locator("#stat-digest").textContent();
+const env = serverAndBrowser();
 const clientId = (page) => page.evaluate(() => window.marzipan.session.info.client);
 const errorsShown = (page) => page.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").map((m) => m.text));
 
@@ -68,7 +51,7 @@ async function stroke(page, dx) {
 // Creates a 128³ sphere session on `page` as `name` (typed into the start screen); resolves with
 // {link, viewLink}.
 async function createSession(page, name) {
-  await page.goto(`${server.url}/`);
+  await page.goto(`${env.server.url}/`);
   await page.fill("#your-name", name);
   await page.selectOption("#create-size", "128");
   await page.selectOption("#create-solid", "sphere");
@@ -82,7 +65,7 @@ async function createSession(page, name) {
 // A new page that opens `link` as `name`: the pages share one browser profile, so the name this
 // browser remembers (localStorage, ui/start-screen.js) is set before the page's scripts run.
 async function openNamed(link, name) {
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   await page.addInitScript((n) => localStorage.setItem("marzipan.name", n), name);
   await page.goto(link);
   await settled(page);
@@ -101,7 +84,7 @@ function recordSent(page) {
 }
 
 test("two sculptors: undo mine leaves the other's stroke, a conflict is named, the timeline forks at a revision", { timeout: 300000 }, async () => {
-  const a = await browser.context.newPage();
+  const a = await env.browser.context.newPage();
   const sentA = recordSent(a);
   const { link } = await createSession(a, "Ada");
   const b = await openNamed(link, "Bea");
@@ -263,7 +246,7 @@ async function orbit(page, dx) {
 }
 
 test("presence: rings move while a sculptor drags, the people list, following a camera until you orbit, a viewer follows too", { timeout: 300000 }, async () => {
-  const a = await browser.context.newPage();
+  const a = await env.browser.context.newPage();
   const sentA = recordSent(a);
   const { link, viewLink } = await createSession(a, "Ada");
   const b = await openNamed(link, "Bea");

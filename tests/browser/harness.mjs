@@ -4,11 +4,13 @@
 // MARZIPAN_BROWSER_ARTIFACTS (where screenshots and downloads go) come from the environment,
 // with this checkout's defaults; both processes are ended by the returned close functions.
 
+import assert from "node:assert/strict";
 import { spawn } from "node:child_process";
 import { mkdirSync, mkdtempSync, rmSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join, resolve } from "node:path";
 import { fileURLToPath } from "node:url";
+import { after, before } from "node:test";
 import { chromium } from "playwright-core";
 
 export const repoRoot = resolve(dirname(fileURLToPath(import.meta.url)), "../..");
@@ -119,3 +121,26 @@ export async function settled(page, timeout = 60000) {
   );
   await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
 }
+
+// A test file's server and browser: started before its first test, closed after its last, the
+// server required to exit cleanly. The returned object's `server` and `browser` are set once the
+// tests run.
+export function serverAndBrowser(browserOptions = {}) {
+  const env = { server: null, browser: null };
+  before(async () => {
+    env.server = await startServer();
+    env.browser = await startBrowser(browserOptions);
+  });
+  after(async () => {
+    if (env.browser) await env.browser.close();
+    if (env.server) {
+      const { code, signal } = await env.server.close();
+      assert.equal(code, 0, `marzipan serve exited with ${code} (${signal}); its log:\n${env.server.log()}`);
+    }
+  });
+  return env;
+}
+
+// The page's session revision and digest as its status bar shows them.
+export const revision = async (page) => Number(await page.evaluate(() => document.getElementById("revision").dataset.revision));
+export const digest = (page) => page.locator("#stat-digest").textContent();

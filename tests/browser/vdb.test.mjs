@@ -6,39 +6,22 @@
 // nothing.
 // Conventions: as client.test.mjs (artifacts in MARZIPAN_BROWSER_ARTIFACTS).
 
-import { test, before, after } from "node:test";
+import { test } from "node:test";
 import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, settled, startBrowser, startServer } from "./harness.mjs";
+import { digest, ensureArtifactsDir, revision, serverAndBrowser, settled } from "./harness.mjs";
 
 const artifacts = ensureArtifactsDir();
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await startBrowser();
-});
-
-after(async () => {
-  if (browser) await browser.close();
-  if (server) {
-    const { code, signal } = await server.close();
-    assert.equal(code, 0, `marzipan serve exited with ${code} (${signal}); its log:\n${server.log()}`);
-  }
-});
-
-const revision = async (page) => Number(await page.evaluate(() => document.getElementById("revision").dataset.revision));
-const digest = (page) => page.locator("#stat-digest").textContent();
+const env = serverAndBrowser();
 const revisionAbove = (page, r) => page.waitForFunction((rev) => Number(document.getElementById("revision").dataset.revision) > rev, r);
 
 test("Save .vdb and Load .vdb where the server lists the format", { timeout: 180000 }, async () => {
-  const page = await browser.context.newPage();
+  const page = await env.browser.context.newPage();
   const errors = [];
   page.on("pageerror", (e) => errors.push(e.message));
-  await page.goto(`${server.url}/`);
+  await page.goto(`${env.server.url}/`);
   await page.selectOption("#create-size", "64");
   await page.click("#create-button");
   await settled(page);
