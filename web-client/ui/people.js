@@ -49,9 +49,15 @@ export class PeopleList {
     this.section = doc.getElementById("people");
     this.list = doc.getElementById("people-list");
     this.note = doc.getElementById("follow-note");
+    this.shown = null; // the rows and note last shown, as JSON
   }
 
+  // Rebuilds the rows only when they changed: presence arrives many times a second while others
+  // move their pointers, and a list rebuilt each time detaches the Follow button under a click.
   show(rows, note) {
+    const shown = JSON.stringify([rows, note]);
+    if (shown === this.shown) return;
+    this.shown = shown;
     const items = rows.map((row) => {
       const li = this.doc.createElement("li");
       li.dataset.client = String(row.client);

@@ -7,7 +7,7 @@ import assert from "node:assert/strict";
 import { EDIT_MARK_MS, EditMarks, boxEdges, hexColor, presenceRings, project } from "../../../web-client/math/presence-rings.js";
 import { OrbitCamera, ORTHOGRAPHIC_FOV_DEGREES } from "../../../web-client/math/orbit-camera.js";
 import { Follow } from "../../../web-client/ui/follow.js";
-import { followNote, peopleRows } from "../../../web-client/ui/people.js";
+import { PeopleList, followNote, peopleRows } from "../../../web-client/ui/people.js";
 
 const near = (a, b, eps = 1e-9) => a.every((v, k) => Math.abs(v - b[k]) <= eps * Math.max(1, Math.abs(b[k])));
 
@@ -171,4 +171,50 @@ test("taking another client's camera gives exactly its eye, target and up, at th
   follower.setFromProtocol({ eye: [64, 64, 300], target: [64, 64, 64] });
   assert.equal(follower.orthographic, false, "a camera without fov is the default 40°");
   assert.ok(near(follower.eye, [64, 64, 300]));
+});
+
+// Just enough of a document for PeopleList: elements keep their children and count rebuilds.
+class FakeElement {
+  constructor(tag) {
+    Object.assign(this, { tag, children: [], dataset: {}, style: {}, attributes: {}, listeners: {}, rebuilt: 0, hidden: false });
+    this.classList = { add: () => {} };
+  }
+  append(...c) {
+    this.children.push(...c);
+  }
+  replaceChildren(...c) {
+    this.children = c;
+    this.rebuilt += 1;
+  }
+  setAttribute(k, v) {
+    this.attributes[k] = v;
+  }
+  addEventListener(type, f) {
+    this.listeners[type] = f;
+  }
+}
+
+test("the people list is rebuilt only when its rows change, so a Follow button stays under a click", () => {
+  const byId = { people: new FakeElement("section"), "people-list": new FakeElement("ul"), "follow-note": new FakeElement("p") };
+  const doc = { getElementById: (id) => byId[id], createElement: (tag) => new FakeElement(tag) };
+  const followed = [];
+  const list = new PeopleList(doc, (client) => followed.push(client));
+  const clients = [
+    { client: 1, name: "Ada", color: "#ff0000" },
+    { client: 2, name: "Bea", color: "#00ff00" },
+  ];
+  const board = (x) => new Map([[1, { brush: { tool: "add_blob", active: false, center: [x, 0, 0] } }]]);
+  list.show(peopleRows(clients, 2, board(1), new Map(), null), "");
+  const button = byId["people-list"].children.find((li) => li.dataset.client === "1").children[0];
+  assert.equal(button.className, "follow");
+  // Ada's pointer moves: her presence changes, her row does not.
+  for (let x = 2; x < 40; ++x) list.show(peopleRows(clients, 2, board(x), new Map(), null), "");
+  assert.equal(byId["people-list"].rebuilt, 1);
+  assert.equal(byId["people-list"].children.find((li) => li.dataset.client === "1").children[0], button, "the same button");
+  button.listeners.click();
+  assert.deepEqual(followed, [1]);
+  // Her stroke begins: the row says so.
+  list.show(peopleRows(clients, 2, new Map([[1, { brush: { tool: "add_blob", active: true } }]]), new Map(), null), "");
+  assert.equal(byId["people-list"].rebuilt, 2);
+  assert.equal(byId["people-list"].children.find((li) => li.dataset.client === "1").dataset.doing, "add blob · sculpting");
 });
