@@ -73,6 +73,20 @@ WEB_CLIENT_MAX_IN_FLIGHT = 3
 WEB_CLIENT_MAX_DABS = 256  # the server's default --max-dabs, which the client adopts
 WEB_CLIENT_STROKE_S = 1.5  # each stroke lasts 0.8-1.2 times this
 WEB_CLIENT_PAUSE_S = 0.25  # between a stroke's end and the next one's begin
+# web-client/net/stroke-sender.js strokeBeginParams: add/remove blob strokes stand at a height of
+# strength x half the radius (at most 16 vu; the server works a sub-step per vu), smoothing builds up.
+WEB_CLIENT_HEIGHT_PER_RADIUS = 0.5
+WEB_CLIENT_MAX_HEIGHT = 16.0
+
+
+def web_client_stroke_params(tool: str, radius: float, strength: float) -> dict:
+    params = {"tool": tool, "radius": radius, "strength": strength}
+    if tool in ("add_blob", "remove_blob"):
+        height = strength * min(WEB_CLIENT_HEIGHT_PER_RADIUS * radius, WEB_CLIENT_MAX_HEIGHT)
+        params["height"] = max(0.001, math.floor(1000 * height) / 1000)
+    else:
+        params["accumulate"] = True
+    return params
 # Deltas of a 128^3 session are tens of KiB, full buffers a few hundred; 64 MiB covers far larger grids.
 MAX_MESSAGE_BYTES = 64 << 20
 SETUP_TIMEOUT_S = 60.0
@@ -340,8 +354,8 @@ class LoadClient:
         while time.monotonic() < end:
             tool = TOOLS[(self.index + stroke_number) % len(TOOLS)]
             stroke_number += 1
-            params = {"tool": tool, "radius": round(self.rng.uniform(4, 10), 2),
-                      "strength": round(self.rng.uniform(0.3, 0.8), 2)}
+            params = web_client_stroke_params(tool, round(self.rng.uniform(4, 10), 2),
+                                              round(self.rng.uniform(0.3, 0.8), 2))
             drag = Drag(self.rng, self.args["size"])
             frames = max(1, round(self.rng.uniform(0.8, 1.2) * WEB_CLIENT_STROKE_S * WEB_CLIENT_FRAME_HZ))
             queue = []  # (dab, pointer time)
