@@ -63,7 +63,7 @@ TEST_CASE("redistancing a large region gives a distance field, the same on 1 and
   CHECK(sum / double(count) <= 0.008);
 }
 
-TEST_CASE("only the reset boxes are redistanced; every other voxel keeps its value bit for bit", "[redistance]") {
+TEST_CASE("only the reset boxes are redistanced, every other voxel keeps its value bit for bit", "[redistance]") {
   const DenseGrid before = wrongSlopeSphere({36.4, 35.3, 36.8}, 25.1);
   const Box region = before.box.grown(-4);
   const Box resetBoxes[] = {{{10, 8, 30}, {40, 30, 64}}, {{30, 40, 6}, {66, 64, 30}}};

@@ -141,7 +141,7 @@ TEST_CASE("etcd live: range, txn compares, leases and failover past a dead endpo
   CHECK(kv.range(p + "big").empty());
 }
 
-TEST_CASE("etcd live: two servers, one owner; a paused owner past its lease is fenced by etcd", "[.][etcd-live]") {
+TEST_CASE("etcd live: two servers, one owner, a paused owner past its lease is fenced by etcd", "[.][etcd-live]") {
   EtcdClient kvA(liveEndpoints()), kvB(liveEndpoints());
   marzipan::service::EtcdOptions opt;
   opt.prefix = uniquePrefix("fence");

@@ -141,7 +141,7 @@ std::uint64_t getU64(const std::string& s, std::size_t at) {
 // Files from other tools hold several grids (a velocity beside the surface); OpenVDB's stream
 // reader would read every one, trusting each name's declared length before its bytes, so only the
 // grid that is used may reach it.
-TEST_CASE("a .vdb upload of several grids gives its first float grid; later grids are never parsed", "[openvdb][errors]") {
+TEST_CASE("a .vdb upload of several grids gives its first float grid, and later grids are never parsed", "[openvdb][errors]") {
   openvdb::initialize();
   const Volume pig = makeSolid(SolidKind::Pig, {72, 64, 56});
   std::stringstream one(std::ios::in | std::ios::out | std::ios::binary);

@@ -51,7 +51,7 @@ std::int64_t leaseOf(MemoryKv& kv, EtcdStorage& s, const std::string& id) {
 
 }  // namespace
 
-TEST_CASE("etcd storage: one server owns a session; another answers -32015 naming it, and takes over after the lease",
+TEST_CASE("etcd storage: one server owns a session, another answers -32015 naming it, and takes over after the lease",
           "[hub][etcd]") {
   const auto dir = scratch("takeover");
   MemoryKv kv;
@@ -96,7 +96,7 @@ TEST_CASE("etcd storage: one server owns a session; another answers -32015 namin
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("etcd storage: a server stopped gracefully frees its sessions at once; the next loads the last revision",
+TEST_CASE("etcd storage: a server stopped gracefully frees its sessions at once, the next loads the last revision",
           "[hub][etcd]") {
   const auto dir = scratch("graceful");
   MemoryKv kv;
@@ -125,7 +125,7 @@ TEST_CASE("etcd storage: a server stopped gracefully frees its sessions at once;
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the session; joined again, it has every acknowledged edit",
+TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the session, joined again, it has every acknowledged edit",
           "[hub][etcd]") {
   const auto dir = scratch("down");
   MemoryKv kv;

@@ -49,7 +49,7 @@ struct ShortLease {
 
 }  // namespace
 
-TEST_CASE("etcd store: one owner per session; the other server learns its address", "[etcd]") {
+TEST_CASE("etcd store: one owner per session, the other server learns its address", "[etcd]") {
   MemoryKv kv;
   EtcdOwner a(kv, "a:8080"), b(kv, "b:8080");
   a.start();
@@ -70,7 +70,7 @@ TEST_CASE("etcd store: one owner per session; the other server learns its addres
   CHECK(again.journal->token() > ca.journal->token());
 }
 
-TEST_CASE("etcd store: appends come back in order with their token; a stale owner is fenced", "[etcd]") {
+TEST_CASE("etcd store: appends come back in order with their token, a stale owner is fenced", "[etcd]") {
   MemoryKv kv;
   std::atomic<int> fencedCount{0};
   EtcdEvents ev;
@@ -199,7 +199,7 @@ TEST_CASE("etcd store: a change beyond etcd's request limit is refused cleanly",
   CHECK(st.journal[0].seq == 0);
 }
 
-TEST_CASE("etcd store: unreachable etcd refuses appends; the outcome unknown, the journal asks to be read back", "[etcd]") {
+TEST_CASE("etcd store: unreachable etcd refuses appends, the outcome unknown, the journal asks to be read back", "[etcd]") {
   MemoryKv kv;
   EtcdOptions opt;
   opt.leaseTtlSeconds = 1;

@@ -211,7 +211,7 @@ TEST_CASE("a proposed session id is used, and a taken one refused", "[hub]") {
   CHECK(b.error("session.create", params) == -32014);
 }
 
-TEST_CASE("two clients see each other's edits; a view token cannot edit", "[hub]") {
+TEST_CASE("two clients see each other's edits, a view token cannot edit", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate64);
@@ -471,7 +471,7 @@ TEST_CASE("the requester gets its response, then the notification, then the delt
   CHECK(note < delta);
 }
 
-TEST_CASE("undo and redo restore exact digests; splat deltas add up to a fresh full buffer", "[hub]") {
+TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh full buffer", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
   a.result("session.create", kCreate64);
@@ -650,7 +650,7 @@ TEST_CASE("frames mode pushes a frame at once and after every change, then a sti
     CHECK_FALSE(isFrame(a.link->at(i), protocol::FrameKind::SplatsDelta));
 }
 
-TEST_CASE("mesh.export and volume.save send files; volume.load takes one back as one undo step", "[hub]") {
+TEST_CASE("mesh.export and volume.save send files, volume.load takes one back as one undo step", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
   a.result("session.create", kCreate64);
@@ -760,7 +760,7 @@ TEST_CASE("limits: sessions, clients per session, and requests in flight", "[hub
   CHECK(busy >= 3);
 }
 
-TEST_CASE("a connection that floods requests is throttled; another one is not", "[hub]") {
+TEST_CASE("a connection that floods requests is throttled, another one is not", "[hub]") {
   HubOptions o = smallOptions();
   o.limits.maxRequestsPerSecond = 5;
   Hub hub(o);
@@ -892,7 +892,7 @@ TEST_CASE("leaving and disconnecting update the others' client lists", "[hub]") 
   CHECK(a.error("session.stats") == -32009);
 }
 
-TEST_CASE("analysis.thickness finds the thinnest places; frames shade thickness", "[hub]") {
+TEST_CASE("analysis.thickness finds the thinnest places, frames shade thickness", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
   a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});

@@ -102,7 +102,7 @@ TEST_CASE("the bytes waiting are bounded by max_text_bytes + max_binary_bytes", 
   CHECK(q.push(six, l, t).queued);  // the upload's bytes left the queue with it
 }
 
-TEST_CASE("a closed queue drops what waits; whoever owns it then cleans up", "[hub][connection]") {
+TEST_CASE("a closed queue drops what waits, whoever owns it then cleans up", "[hub][connection]") {
   const auto t = Clock::now() + 1s;
   SECTION("closed while an owner handles a message: the owner cleans up") {
     ConnectionQueue q;

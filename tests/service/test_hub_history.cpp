@@ -226,7 +226,7 @@ TEST_CASE("undo mine refuses a step another client changed after it, naming who 
   CHECK(a.result("session.stats")["revision"] == 3);
 }
 
-TEST_CASE("history.list gives every step with its author, tool, time and region; view clients may read it",
+TEST_CASE("history.list gives every step with its author, tool, time and region, view clients may read it",
           "[hub][history]") {
   Hub hub(historyOptions());
   TestClient a(hub), b(hub), v(hub);

@@ -58,7 +58,7 @@ std::filesystem::path scratch(const std::string& name) {
 
 }  // namespace
 
-TEST_CASE("a long global smoothing reports progress; op.cancel stops it and changes nothing, also after a reload", "[hub][long]") {
+TEST_CASE("a long global smoothing reports progress, op.cancel stops it and changes nothing, also after a reload", "[hub][long]") {
   const auto dir = scratch("cancel");
   HubOptions o = longOptions();
   o.dataDir = dir;
@@ -104,7 +104,7 @@ TEST_CASE("a long global smoothing reports progress; op.cancel stops it and chan
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("progress comes at most four times a second and only rises; morphology reports too", "[hub][long]") {
+TEST_CASE("progress comes at most four times a second and only rises, morphology reports too", "[hub][long]") {
   Hub hub(longOptions());
   TestClient a(hub);
   a.result("session.create", kCreatePig);
@@ -213,7 +213,7 @@ TEST_CASE("shutdown cancels a long operation and returns within seconds, keeping
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("volume.load of a file with another band width is refused; the undo history stays", "[hub]") {
+TEST_CASE("volume.load of a file with another band width is refused, the undo history stays", "[hub]") {
   Hub hub(longOptions());
   TestClient a(hub);
   a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
@@ -259,7 +259,7 @@ TEST_CASE("with --fsync-ms, records an append did not sync are synced by a timer
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("parallel joins of a session at rest load it once; a full server refuses before loading", "[hub][durability]") {
+TEST_CASE("parallel joins of a session at rest load it once, a full server refuses before loading", "[hub][durability]") {
   const auto dir = scratch("joins");
   HubOptions o = longOptions();
   o.dataDir = dir;

@@ -51,7 +51,7 @@ void sendNotification(TestClient& t, const json& params) {
 
 }  // namespace
 
-TEST_CASE("names are trimmed and checked; colours differ within a session and are reused", "[hub][presence]") {
+TEST_CASE("names are trimmed and checked, colours differ within a session and are reused", "[hub][presence]") {
   Hub hub(presenceOptions());
   TestClient a(hub), b(hub), c(hub), bad(hub);
   json params = kCreate;
@@ -90,7 +90,7 @@ TEST_CASE("names are trimmed and checked; colours differ within a session and ar
   CHECK(again["clients"].back()["color"] == "#3cb44b");
 }
 
-TEST_CASE("presence is checked strictly; a refusal forwards nothing", "[hub][presence]") {
+TEST_CASE("presence is checked strictly, a refusal forwards nothing", "[hub][presence]") {
   Hub hub(presenceOptions());
   TestClient a(hub), b(hub);
   CHECK(a.error("presence", {{"camera", kCamera}}) == -32009);
@@ -141,7 +141,7 @@ TEST_CASE("presence is checked strictly; a refusal forwards nothing", "[hub][pre
   CHECK(responses == a.nextId - 1);  // none to the notification
 }
 
-TEST_CASE("presence goes to the others only, canonical; a view client's brush is dropped", "[hub][presence]") {
+TEST_CASE("presence goes to the others only, canonical, a view client's brush is dropped", "[hub][presence]") {
   Hub hub(presenceOptions());
   TestClient a(hub), b(hub), v(hub);
   json params = kCreate;

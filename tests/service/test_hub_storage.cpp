@@ -173,7 +173,7 @@ TEST_CASE("a failed journal append rolls the session back: revision, digest and 
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("a fenced append refuses the edit and closes the session; its clients are told to join again",
+TEST_CASE("a fenced append refuses the edit and closes the session, its clients are told to join again",
           "[hub][storage]") {
   const auto dir = scratch("fenced");
   auto storage = std::make_shared<FaultyStorage>(dir);
