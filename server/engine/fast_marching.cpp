@@ -1,6 +1,7 @@
 #include "fast_marching.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #if defined(__SSE2__)
@@ -21,6 +22,15 @@ constexpr float kMonotoneRun = 0.2f;  // see MarchOrder::Second
 // Buckets between checks of the caller's progress: a bucket of a tool's region takes well
 // under a millisecond.
 constexpr std::size_t kBucketsPerCheck = 4;
+// A voxel's root lies at most 1 vu above its smallest usable neighbour (one axis at first order;
+// more axes and Sethian's terms only lower it). So its first solve waits 1 vu after its first
+// neighbour was taken: by then the other neighbours it uses are known too, and one solve does
+// what one per neighbour did (1.1 solves per voxel taken instead of 2.7 on a sphere's band).
+// It is then taken in the bucket it is solved in, up to 0.6 vu after its value's own; a voxel
+// taken meanwhile that it lowers is taken again (the retake rule), so the result stays that of
+// an exact queue: on a sphere's band the distances agree with solving at every neighbour taken
+// within 5e-7 vu, with 1.3% of the voxels retaken instead of 1.1%.
+constexpr std::size_t kDeferBuckets = std::size_t(kBucketsPerVu);
 // Fewer candidates than this (a small tool's band) are marched on the calling thread, one side
 // after the other: waking a pool thread would cost about as much as the march itself.
 constexpr std::size_t kParallelCandidates = std::size_t(1) << 13;
@@ -33,38 +43,47 @@ constexpr std::uint8_t kOpen = 2;    // an unknown voxel of this side: the march
 constexpr std::uint8_t kOther = 4;   // a source of the other side: a second point with its sign
 constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for the retake count)
 constexpr std::uint8_t kInside = kInterior;  // copied from the flags: no bounds checks needed
+constexpr std::uint8_t kPending = 32;  // a deferred first solve of this voxel is in the queue
 
 struct Entry {
   std::uint32_t index;
-  float dist;
+  float dist;  // the voxel's value when pushed; negative: a deferred first solve
 };
 using Buckets = std::vector<std::vector<Entry>>;
 
+// 1 / a for the sums a of two or three weights c, each 1 or 9/4, by 4a: the solves multiply by
+// it instead of dividing.
+constexpr auto kInverse = [] {
+  std::array<float, 28> t{};
+  for (int k = 1; k < 28; ++k) t[std::size_t(k)] = 4.0f / float(k);
+  return t;
+}();
+
 // Solves sum_k c_k (u - m_k)^2 = 1 for the largest root, using the axes in increasing m and
-// dropping those whose m is not below the root (Sethian's upwind rule). Spelled out for one,
-// two and three axes with the values in registers: it runs once per update.
-inline double solveEikonal(const double m[3], const double c[3], int n) {
-  if (n == 1) return m[0] + (c[0] == 1.0 ? 1.0 : 2.0 / 3.0);  // 1 / sqrt(c): c is 1 or 9/4
-  double m0 = m[0], m1 = m[1], m2 = n == 3 ? m[2] : 0.0, c0 = c[0], c1 = c[1], c2 = n == 3 ? c[2] : 0.0;
-  // An insertion sort (stable for equal m).
-  if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
-  if (n == 3 && m2 < m1) {
-    std::swap(m1, m2), std::swap(c1, c2);
-    if (m1 < m0) std::swap(m0, m1), std::swap(c0, c1);
-  }
-  double a = c0, b = c0 * m0, cc = c0 * m0 * m0;
-  double u = m0 + (c0 == 1.0 ? 1.0 : 2.0 / 3.0);
-  // Adds the next axis while its m is below the root; false when the sum stops there.
-  auto add = [&](double mk, double ck) {
-    if (!(u > mk)) return false;
-    const double a2 = a + ck, b2 = b + ck * mk, c2k = cc + ck * mk * mk;
-    const double disc = b2 * b2 - a2 * (c2k - 1.0);
-    if (disc < 0) return false;
-    a = a2, b = b2, cc = c2k;
-    u = (b + std::sqrt(disc)) / a;
-    return true;
+// dropping those whose m is not below the root (Sethian's upwind rule); an axis with m =
+// infinity is never used, and with none the root is infinity. In float, as the result is
+// stored: with every m measured from the smallest, no term cancels another.
+inline float solveEikonal(float m[3], float c[3]) {
+  // A sorting network of three compare-exchanges (ties keep their order).
+  auto order = [&](int i, int j) __attribute__((always_inline)) {
+    const bool swap = m[j] < m[i];
+    const float mi = swap ? m[j] : m[i], mj = swap ? m[i] : m[j];
+    const float ci = swap ? c[j] : c[i], cj = swap ? c[i] : c[j];
+    m[i] = mi, m[j] = mj, c[i] = ci, c[j] = cj;
   };
-  if (add(m1, c1) && n == 3) add(m2, c2);
+  order(0, 1), order(1, 2), order(0, 1);
+  const float m0 = m[0];
+  float u = m0 + (c[0] == 1.0f ? 1.0f : 2.0f / 3.0f);  // 1 / sqrt(c)
+  float a = c[0], b = 0, cc = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (!(m[k] < u)) break;
+    const float d = m[k] - m0;
+    const float a2 = a + c[k], b2 = b + c[k] * d, cc2 = cc + c[k] * d * d;
+    const float disc = b2 * b2 - a2 * (cc2 - 1.0f);
+    if (!(disc >= 0.0f)) break;  // only by rounding: the root lies beyond m[k]
+    a = a2, b = b2, cc = cc2;
+    u = m0 + (b + std::sqrt(disc)) * kInverse[std::size_t(a * 4.0f)];
+  }
   return u;
 }
 
@@ -123,36 +142,13 @@ class SideMarcher {
       auto& bucket = buckets_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
         const Entry e = bucket[k];
+        if (e.dist < 0) {  // a deferred first solve
+          st_[e.index] &= std::uint8_t(~kPending);
+          update(e.index);
+          continue;
+        }
         if (e.dist != mag(e.index)) continue;  // superseded by a lower entry
-        ++stats_.accepted;
-        if (st_[e.index] & kTaken) ++stats_.retaken;
-        st_[e.index] |= kUse | kTaken;
-        // A neighbour already at or below this value would drop it from its stencil (the
-        // upwind rule), so this voxel cannot lower it. About half of the visits update nothing:
-        // the others are listed first and updated after, in the same order, by one inlined copy
-        // of the interior update (an update writes only its own voxel, which no other visit reads).
-        std::size_t todo[6];
-        int count = 0;
-        auto visit = [&](std::size_t n) __attribute__((always_inline)) {
-          todo[count] = n;
-          count += (st_[n] & kOpen) && mag(n) > e.dist;
-        };
-        if (st_[e.index] & kInside) {
-          for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
-        } else {
-          const Int3 p = g_.point(e.index) - g_.box.lo;
-          for (int a = 0; a < 3; ++a) {
-            if (p[a] > 0) visit(e.index - stride_[a]);
-            if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
-          }
-        }
-        for (int t = 0; t < count; ++t) {
-          if (st_[todo[t]] & kInside) {
-            updateAt<true>(todo[t]);
-          } else {
-            updateBorder(todo[t]);
-          }
-        }
+        accept(e);
       }
       bucket.clear();
     }
@@ -186,51 +182,105 @@ class SideMarcher {
     buckets_[std::min(b, buckets_.size() - 1)].push_back({std::uint32_t(i), d});
   }
 
-  // The second upwind value two steps away along one axis, or infinity. The signed field is
-  // smooth across the surface, so a source of the other sign serves with its sign: without
-  // it the first layer off the surface is only first order, and its bias shows in every
-  // curvature.
-  double secondUpwind(std::size_t n2) const {
-    const std::uint8_t s = st_[n2];
-    if (s & kUse) return mag(n2);
-    return (s & kOther) ? -double(mag(n2)) : kInf;
+  // Voxel e is taken: its value becomes usable, and its open neighbours above it are solved
+  // again (a neighbour at or below e would drop e from its stencil: the upwind rule). One that
+  // has no value yet is not solved now: its first solve is deferred by kDeferBuckets, and every
+  // neighbour taken meanwhile joins it. One that has a value is solved at once, as it is due
+  // before the deferral would end.
+  void accept(const Entry& e) {
+    ++stats_.accepted;
+    if (st_[e.index] & kTaken) ++stats_.retaken;
+    st_[e.index] |= kUse | kTaken;
+    // The neighbours to solve now are listed first and solved after, in the same order (a
+    // solve writes only its own voxel, which no other visit reads).
+    std::size_t todo[6];
+    int count = 0;
+    const std::size_t deferTo = std::max(current_, std::size_t(e.dist * kBucketsPerVu) + kDeferBuckets);
+    auto visit = [&](std::size_t n) __attribute__((always_inline)) {
+      const std::uint8_t s = st_[n];
+      const float m = mag(n);
+      if ((s & (kOpen | kPending)) != kOpen || !(m > e.dist)) return;
+      if (m < band_) {
+        todo[count++] = n;
+      } else {
+        st_[n] = std::uint8_t(s | kPending);
+        buckets_[std::min(deferTo, buckets_.size() - 1)].push_back({std::uint32_t(n), -1.0f});
+      }
+    };
+    if (st_[e.index] & kInside) {
+      for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
+    } else {
+      const Int3 p = g_.point(e.index) - g_.box.lo;
+      for (int a = 0; a < 3; ++a) {
+        if (p[a] > 0) visit(e.index - stride_[a]);
+        if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
+      }
+    }
+    for (int t = 0; t < count; ++t) update(todo[t]);
   }
 
-  [[gnu::noinline]] void updateBorder(std::size_t n) { updateAt<false>(n); }
-
-  // Recomputes voxel n (unknown, this side) from its known neighbours. Inside: n is at least 2
-  // voxels from every face of the grid, so no neighbour needs a bounds check.
-  template <bool Inside>
-  [[gnu::always_inline]] inline void updateAt(std::size_t n) {
-    Int3 q{};
-    if constexpr (!Inside) q = g_.point(n) - g_.box.lo;
-    double m[3], c[3];
-    int count = 0;
-    for (int a = 0; a < 3; ++a) {
-      const std::size_t s = stride_[a];
-      const bool hasLo = Inside || q[a] > 0, hasHi = Inside || q[a] + 1 < g_.size[a];
-      float best = kInf;
-      int dir = 0;
-      if (hasLo && (st_[n - s] & kUse)) best = mag(n - s), dir = -1;
-      if (hasHi && (st_[n + s] & kUse) && mag(n + s) < best) best = mag(n + s), dir = +1;
-      if (dir == 0) continue;
-      m[count] = best;
-      c[count] = 1.0;
-      if (second_ && (Inside || (q[a] + 2 * dir >= 0 && q[a] + 2 * dir < g_.size[a]))) {
-        const double b = secondUpwind(dir > 0 ? n + 2 * s : n - 2 * s);
-        if (best - b >= kMonotoneRun) {
-          m[count] = (4.0 * best - b) / 3.0;
-          c[count] = 9.0 / 4.0;
-        }
-      }
-      ++count;
-    }
-    if (count == 0) return;
-    const float u = float(solveEikonal(m, c, count));  // compared as stored, or a root rounded
-    if (u < mag(n) && u < band_) {                      // up would be pushed again forever
+  // Solves voxel n (unknown, this side) from its usable neighbours and lowers it to the root.
+  void update(std::size_t n) {
+    ++stats_.solved;
+    const float u = (st_[n] & kInside) ? solveInside(n) : solveBorder(n);
+    if (u < mag(n) && u < band_) {  // compared as stored, or a root rounded up would be pushed again forever
       v_[n] = negBit_ ? -u : u;
       push(n, u, current_);
     }
+  }
+
+  // One axis of n's stencil: the smaller usable neighbour on it (ties: the lower one), as the
+  // term c (u - m)^2 with c = 1, or Sethian's second-order term c = 9/4 with
+  // m = a + (a - b) / 3 where the voxel b beyond it is known and the run is monotone.
+  // m = infinity when the axis has no usable neighbour. A source of the other sign serves as
+  // b with its sign: the signed field is smooth across the surface, and without it the first
+  // layer off the surface would be only first order, its bias showing in every curvature.
+  // Inside: n is at least 2 voxels from every face of the grid, so every load is in the grid
+  // and the selection needs no branch.
+  [[gnu::always_inline]] inline void axisInside(std::size_t n, std::size_t s, float& m, float& c) const {
+    const float lo = (st_[n - s] & kUse) ? mag(n - s) : kInf;
+    const float hi = (st_[n + s] & kUse) ? mag(n + s) : kInf;
+    const bool up = hi < lo;
+    const float a = up ? hi : lo;
+    const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
+    const std::uint8_t s2 = st_[n2];
+    const float x = mag(n2);
+    const float b = (s2 & kUse) ? x : ((s2 & kOther) ? -x : kInf);
+    second(a, b, m, c);
+  }
+  [[gnu::always_inline]] inline void second(float a, float b, float& m, float& c) const {
+    const bool two = second_ && a - b >= kMonotoneRun;  // false for b = infinity
+    m = two ? a + (a - b) * (1.0f / 3.0f) : a;
+    c = two ? 9.0f / 4.0f : 1.0f;
+  }
+
+  float solveInside(std::size_t n) const {
+    float m[3], c[3];
+    for (int a = 0; a < 3; ++a) axisInside(n, stride_[a], m[a], c[a]);
+    return solveEikonal(m, c);
+  }
+
+  [[gnu::noinline]] float solveBorder(std::size_t n) const {
+    const Int3 q = g_.point(n) - g_.box.lo;
+    float m[3], c[3];
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t s = stride_[a];
+      const float lo = q[a] > 0 && (st_[n - s] & kUse) ? mag(n - s) : kInf;
+      const float hi = q[a] + 1 < g_.size[a] && (st_[n + s] & kUse) ? mag(n + s) : kInf;
+      const bool up = hi < lo;
+      const int at2 = q[a] + (up ? 2 : -2);
+      float b = kInf;
+      if (at2 >= 0 && at2 < g_.size[a]) {
+        const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
+        if (st_[n2] & kUse) {
+          b = mag(n2);
+        } else if (st_[n2] & kOther) {
+          b = -mag(n2);
+        }
+      }
+      second(up ? hi : lo, b, m[a], c[a]);
+    }
+    return solveEikonal(m, c);
   }
 
   DenseGrid& g_;
@@ -291,7 +341,7 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
     march(0);
     march(1);
   }
-  return {side[0].accepted + side[1].accepted, side[0].retaken + side[1].retaken};
+  return {side[0].accepted + side[1].accepted, side[0].retaken + side[1].retaken, side[0].solved + side[1].solved};
 }
 
 MarchStats fastMarch(DenseGrid& g, const std::vector<MarchState>& state, float band, MarchOrder order) {

@@ -7,7 +7,8 @@
 // candidates); the result does not depend on it. The priority queue is an
 // exact bucket queue: buckets of 1/32 vu are taken in order, and a voxel lowered after it was
 // taken is taken again, so the result is the same as that of a binary-heap marcher (up to
-// float rounding) at a fraction of the cost. The march works in place on the grid's values.
+// float rounding) at a fraction of the cost. A voxel's first solve waits until the neighbours
+// it uses are known (about one solve per voxel). The march works in place on the grid's values.
 #pragma once
 
 #include <cstddef>
@@ -39,6 +40,7 @@ enum class MarchOrder {
 struct MarchStats {
   std::size_t accepted = 0;   // voxels taken from the queue, retakes included
   std::size_t retaken = 0;    // voxels lowered after they were taken
+  std::size_t solved = 0;     // eikonal solves (each voxel is solved about once per side it is marched on)
 };
 
 // grid: signed values; state: one MarchState per voxel of grid (same index).
