@@ -73,15 +73,16 @@ TEST_CASE("marching out from a sphere's surface voxels is accurate within the ba
 }
 
 TEST_CASE("the march solves each voxel about once, and takes few voxels twice", "[fmm]") {
-  // A voxel's first solve waits until the neighbours it uses are known: one solve per voxel
-  // taken, where solving at each neighbour taken did 2.7.
+  // A voxel's first solve waits until the neighbours it uses are known: fewer solves than
+  // voxels taken (the sources are taken unsolved), where solving at each neighbour taken did
+  // 2.7 per voxel taken.
   const Vec3 c{40.3, 39.6, 40.1};
   auto exact = [&](Vec3 p) { return length(p - c) - 30.2; };
   for (const MarchOrder order : {MarchOrder::Second, MarchOrder::First}) {
     const ErrorStats s = marchAndCompare(80, 3.0f, order, 1.0, 3.0, exact);
     INFO("accepted " << s.march.accepted << " retaken " << s.march.retaken << " solved " << s.march.solved);
     CHECK(s.march.accepted > 40000);
-    CHECK(s.march.solved <= s.march.accepted * 5 / 4);
+    CHECK(s.march.solved <= s.march.accepted);
     CHECK(s.march.retaken <= s.march.accepted / 50);
   }
 }
