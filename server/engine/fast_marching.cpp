@@ -45,9 +45,12 @@ constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for 
 constexpr std::uint8_t kInside = kInterior;  // copied from the flags: no bounds checks needed
 constexpr std::uint8_t kPending = 32;  // a deferred first solve of this voxel is in the queue
 constexpr std::uint8_t kSeen = 64;     // a solve of this voxel was deferred at least once
-// A root lies at least 2 / sqrt(27) vu above its smallest usable neighbour (three terms of 9/4),
-// less a bucket for the order within one.
-constexpr float kMinRise = 0.3849f - 1.0f / kBucketsPerVu;
+// How far a root lies at least above its smallest usable neighbour a, less a bucket for the
+// order within one. First order: 1 / sqrt(3) (three axes at a). Second order: a term of 9/4 has
+// m >= a + 0.2 / 3 (the monotone run), and of the mixes of terms at a three such are lowest,
+// 0.2 / 3 + 2 / sqrt(27).
+constexpr float kMinRiseFirst = 0.5773f - 1.0f / kBucketsPerVu;
+constexpr float kMinRiseSecond = 0.4516f - 1.0f / kBucketsPerVu;
 
 struct Entry {
   std::uint32_t index;
@@ -203,9 +206,9 @@ class SideMarcher {
   // again (a neighbour at or below e would drop e from its stencil: the upwind rule). One that
   // has no value yet is not solved now: its first solve is deferred by kDeferBuckets, and every
   // neighbour taken meanwhile joins it. One that has a value is solved at once, as it is due
-  // before the deferral would end. One whose neighbours taken so far all lie within kMinRise of
-  // the band's end is not solved at all: its root would lie beyond it (a third of the first
-  // solves on a sphere's band).
+  // before the deferral would end. One whose neighbours taken so far all lie within the least
+  // rise of a root (kMinRiseSecond) of the band's end is not solved at all: its root would lie
+  // beyond it.
   void accept(const Entry& e) {
     ++stats_.accepted;
     if (st_[e.index] & kTaken) ++stats_.retaken;
@@ -315,7 +318,7 @@ class SideMarcher {
   Buckets& buckets_;
   std::size_t stride_[3];
   std::size_t current_ = 0;
-  float beyond_ = band_ - kMinRise;  // see accept()
+  float beyond_ = band_ - (second_ ? kMinRiseSecond : kMinRiseFirst);  // see accept()
   MarchStats stats_;
 };
 
