@@ -219,9 +219,11 @@ class SideMarcher {
     int count = 0;
     const std::size_t deferTo = std::max(current_, std::size_t(e.dist * kBucketsPerVu) + kDeferBuckets);
     auto visit = [&](std::size_t n) __attribute__((always_inline)) {
+      // The state first: the other side may be writing a voxel that is not open on this one.
       const std::uint8_t s = st_[n];
+      if ((s & (kOpen | kPending)) != kOpen) return;
       const float m = mag(n);
-      if ((s & (kOpen | kPending)) != kOpen || !(m > e.dist)) return;
+      if (!(m > e.dist)) return;
       if (m < band_) {
         todo[count++] = n;
       } else if ((s & kSeen) || e.dist < beyond_) {
@@ -270,8 +272,9 @@ class SideMarcher {
     const float a = up ? hi : lo;
     const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
     const std::uint8_t s2 = st_[n2];
-    const float x = mag(n2);
-    const float b = (s2 & kUse) ? x : ((s2 & kOther) ? -x : kInf);
+    // Read only where the state allows: elsewhere the other side may be writing.
+    const float x = (s2 & (kUse | kOther)) ? mag(n2) : kInf;
+    const float b = (s2 & kOther) ? -x : x;
     second(a, b, m, c);
   }
   [[gnu::always_inline]] inline void second(float a, float b, float& m, float& c) const {
