@@ -431,6 +431,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
+      options.movedBoxes = scratch.normalizeBoxes;  // evolve changes voxels of the ROIs only
       // Normalizing the kept voxels moves a sharp crest outward by ~0.003 vu each time (measured
       // on a ridge of 4 vu at radius 8): harmless once per application, but a stroke with a
       // height passes over its crest again and again with little or nothing left to add. Its

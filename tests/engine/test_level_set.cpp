@@ -689,8 +689,10 @@ TEST_CASE("the edit path's results are pinned: random tools give the digests the
     digests.push_back(digestHex(v));
     return digests;
   };
-  const std::vector<std::string> pinned = {"1fe25d054820b841", "190b018c39c9cd3e", "4a05e5f3e57f468b",
-                                           "83cfbbaab425fc7a", "62d4f363387c327f"};
+  // Re-recorded 2026-11-25 when a local tool stopped resetting the far voxels of its shell whose
+  // distances still hold (redistance.hpp, movedBoxes; values within 0.03 vu of before).
+  const std::vector<std::string> pinned = {"32e4be70c3c81842", "4490ffc4b687ac78", "b64a1d76d9a1dbb5",
+                                           "5e062713f4e873b3", "d14bf090a875ddb5"};
   ThreadPool one(1), two(2);
   CHECK(run(one) == pinned);
   CHECK(run(two) == pinned);
