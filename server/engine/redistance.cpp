@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -118,6 +119,7 @@ struct ListPiece {
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
+  std::vector<Box> nearMoved;  // scratch of the pass
 };
 
 struct Scratch {
@@ -230,6 +232,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     out.clear();
     for (const Box& b : boxes) out.push_back(b.intersect(r));
     if (boxes.empty()) out.push_back(r);
+    std::sort(out.begin(), out.end(), [](const Box& a, const Box& b) { return a.lo.x < b.lo.x; });
     return std::span<const Box>(out);
   };
   const std::span<const Box> reset = clipped(options.resetBoxes, s.resetBoxes);
@@ -244,9 +247,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
 
   // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
   // Then, in the reset boxes, reset (unless on the side that is already exact), and in the
-  // normalize boxes marked for normalizing (both idempotent, so overlapping boxes are simply
-  // passed one after the other). Slab by slab of whole z-slices: the grid of a small tool has
-  // short rows, and a slice is one run of the sign pass.
+  // normalize boxes marked for normalizing, run by run of their union. Slab by slab of whole
+  // z-slices: the grid of a small tool has short rows, and a slice is one run of the sign pass.
   const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
   {
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
@@ -273,22 +275,30 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           for (int x = xHi; x < sx; ++x) f[x] &= notInterior;
         }
       }
-      // Box by box, the rows of this slab (volume coordinates).
-      auto rows = [&](const Box& b, auto&& fn) {
-        const int bz0 = std::max(b.lo.z, g.box.lo.z + z0), bz1 = std::min(b.hi.z, g.box.lo.z + z1);
-        const int n = b.hi.x - b.lo.x;
-        if (n <= 0) return;
-        for (int z = bz0; z < bz1; ++z)
-          for (int y = b.lo.y; y < b.hi.y; ++y) fn(flags + g.index({b.lo.x, y, z}), n);
+      // The x-runs of the union of `boxes` (sorted by lo.x) in each row of this slab, each once.
+      auto rows = [&](std::span<const Box> boxes, auto&& fn) {
+        for (int z = g.box.lo.z + z0; z < g.box.lo.z + z1; ++z)
+          for (int y = g.box.lo.y; y < g.box.hi.y; ++y) {
+            bool open = false;  // a run [lo, hi) is being merged
+            int lo = 0, hi = 0;
+            for (const Box& b : boxes) {
+              if (y < b.lo.y || y >= b.hi.y || z < b.lo.z || z >= b.hi.z || b.lo.x >= b.hi.x) continue;
+              if (open && b.lo.x <= hi) {
+                hi = std::max(hi, b.hi.x);
+                continue;
+              }
+              if (open) fn(flags + g.index({lo, y, z}), hi - lo);
+              open = true, lo = b.lo.x, hi = b.hi.x;
+            }
+            if (open) fn(flags + g.index({lo, y, z}), hi - lo);
+          }
       };
-      for (const Box& b : reset) {
-        if (exactSide == 0) {
-          rows(b, [](std::uint8_t* run, int n) {
-            for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
-          });
-          continue;
-        }
-        rows(b, [exactNeg](std::uint8_t* run, int n) {
+      if (exactSide == 0) {
+        rows(reset, [](std::uint8_t* run, int n) {
+          for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
+        });
+      } else {
+        rows(reset, [exactNeg](std::uint8_t* run, int n) {
           for (int x = 0; x < n; ++x) {
             const std::uint8_t keep = run[x] & (kNeg | kInterior);
             // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
@@ -297,10 +307,9 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           }
         });
       }
-      for (const Box& b : normalize)
-        rows(b, [](std::uint8_t* run, int n) {
-          for (int x = 0; x < n; ++x) run[x] |= kNormalize;
-        });
+      rows(normalize, [](std::uint8_t* run, int n) {
+        for (int x = 0; x < n; ++x) run[x] |= kNormalize;
+      });
     });
   }
 
@@ -320,6 +329,25 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     out.kept.clear();
     out.scaled.clear();
     out.farUnknown.clear();
+    // The moved boxes that may matter to the list's current row (y, z): those whose cells lie
+    // within band + kFootMargin of it on both axes (no voxel further from them can be nearer
+    // than its value, inside them, or have its foot point near them). The list is in index
+    // order, so its rows come one after the other.
+    std::vector<Box>& near = out.nearMoved;
+    const double reach = double(band) + kFootMargin;
+    int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
+    auto nearRow = [&](Int3 p) -> std::span<const Box> {
+      if (p.y != rowY || p.z != rowZ) {
+        rowY = p.y, rowZ = p.z;
+        near.clear();
+        for (const Box& b : moved) {
+          const double dy = p.y < b.lo.y - 1 ? b.lo.y - 1 - p.y : std::max(0, p.y - b.hi.y);
+          const double dz = p.z < b.lo.z - 1 ? b.lo.z - 1 - p.z : std::max(0, p.z - b.hi.z);
+          if (dy * dy + dz * dz < reach * reach) near.push_back(b);
+        }
+      }
+      return near;
+    };
     const std::size_t end = std::min(list->index.size(), (piece + 1) * kListPiece);
     for (std::size_t k = piece * kListPiece; k < end; ++k) {
       const std::uint32_t i = list->index[k];
@@ -343,7 +371,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       }
       if (!adjacent) {
         if (!moved.empty()) {
-          const Shell c = shellClass(g, v, i, list->point[k], hasLo, hasHi, moved);
+          const Shell c = shellClass(g, v, i, list->point[k], hasLo, hasHi, nearRow(list->point[k]));
           if (c != Shell::Reset) {
             flags[i] = std::uint8_t(f | (c == Shell::Kept ? (kKnown | kFrozen) : kUpperBound));
             continue;
