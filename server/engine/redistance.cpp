@@ -119,7 +119,7 @@ struct ListPiece {
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
-  std::vector<Box> nearMoved;  // scratch of the pass
+  std::vector<Box> nearMovedZ, nearMoved;  // scratch of the pass
 };
 
 struct Scratch {
@@ -276,13 +276,18 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         }
       }
       // The x-runs of the union of `boxes` (sorted by lo.x) in each row of this slab, each once.
+      std::vector<Box> slice;  // the boxes holding the current z, in the same order
       auto rows = [&](std::span<const Box> boxes, auto&& fn) {
-        for (int z = g.box.lo.z + z0; z < g.box.lo.z + z1; ++z)
+        for (int z = g.box.lo.z + z0; z < g.box.lo.z + z1; ++z) {
+          slice.clear();
+          for (const Box& b : boxes)
+            if (z >= b.lo.z && z < b.hi.z && b.lo.x < b.hi.x) slice.push_back(b);
+          if (slice.empty()) continue;
           for (int y = g.box.lo.y; y < g.box.hi.y; ++y) {
             bool open = false;  // a run [lo, hi) is being merged
             int lo = 0, hi = 0;
-            for (const Box& b : boxes) {
-              if (y < b.lo.y || y >= b.hi.y || z < b.lo.z || z >= b.hi.z || b.lo.x >= b.hi.x) continue;
+            for (const Box& b : slice) {
+              if (y < b.lo.y || y >= b.hi.y) continue;
               if (open && b.lo.x <= hi) {
                 hi = std::max(hi, b.hi.x);
                 continue;
@@ -292,6 +297,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
             }
             if (open) fn(flags + g.index({lo, y, z}), hi - lo);
           }
+        }
       };
       if (exactSide == 0) {
         rows(reset, [](std::uint8_t* run, int n) {
@@ -333,16 +339,23 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     // within band + kFootMargin of it on both axes (no voxel further from them can be nearer
     // than its value, inside them, or have its foot point near them). The list is in index
     // order, so its rows come one after the other.
+    std::vector<Box>& nearZ = out.nearMovedZ;
     std::vector<Box>& near = out.nearMoved;
     const double reach = double(band) + kFootMargin;
     int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
+    auto cellDistance = [](int x, int lo, int hi) { return double(x < lo - 1 ? lo - 1 - x : std::max(0, x - hi)); };
     auto nearRow = [&](Int3 p) -> std::span<const Box> {
-      if (p.y != rowY || p.z != rowZ) {
-        rowY = p.y, rowZ = p.z;
+      if (p.z != rowZ) {
+        rowZ = p.z, rowY = std::numeric_limits<int>::min();
+        nearZ.clear();
+        for (const Box& b : moved)
+          if (cellDistance(p.z, b.lo.z, b.hi.z) < reach) nearZ.push_back(b);
+      }
+      if (p.y != rowY) {
+        rowY = p.y;
         near.clear();
-        for (const Box& b : moved) {
-          const double dy = p.y < b.lo.y - 1 ? b.lo.y - 1 - p.y : std::max(0, p.y - b.hi.y);
-          const double dz = p.z < b.lo.z - 1 ? b.lo.z - 1 - p.z : std::max(0, p.z - b.hi.z);
+        for (const Box& b : nearZ) {
+          const double dy = cellDistance(p.y, b.lo.y, b.hi.y), dz = cellDistance(p.z, b.lo.z, b.hi.z);
           if (dy * dy + dz * dz < reach * reach) near.push_back(b);
         }
       }
