@@ -254,8 +254,36 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
     const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
+    // A chunk of a whole-volume pass resets and normalizes its whole region, which spans each
+    // row but the 2 voxels at either end (those without kInterior).
+    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && normalize.size() == 1 &&
+                           normalize[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
       const int z0 = int(slab) * kSlabSlices, z1 = std::min(sz, z0 + kSlabSlices);
+      if (wholeRows) {
+        // The bytes the passes below would give, in one pass per row: the 2 voxels at either
+        // end as they are, the others reset, marked for normalizing, with kInterior on inner rows.
+        for (int z = z0; z < z1; ++z) {
+          progress.check();
+          const int vz = g.box.lo.z + z;
+          for (int y = 0; y < sy; ++y) {
+            const std::size_t row = std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
+            const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
+            const int vy = g.box.lo.y + y;
+            if (vz >= r.lo.z && vz < r.hi.z && vy >= r.lo.y && vy < r.hi.y) {
+              signFlags(v + row, flags + row, xLo, base);
+              signFlags(v + row + xLo, flags + row + xLo, xHi - xLo,
+                        std::uint8_t(kReset | kNormalize | (inner ? kInterior : 0)));
+              signFlags(v + row + xHi, flags + row + xHi, sx - xHi, base);
+            } else {
+              signFlags(v + row, flags + row, sx, base);
+              if (inner)
+                for (int x = xLo; x < xHi; ++x) flags[row + std::size_t(x)] |= kInterior;
+            }
+          }
+        }
+        return;
+      }
       for (int z = z0; z < z1; ++z) {
         progress.check();
         const std::size_t slice = std::size_t(z) * g.sxy;
