@@ -28,7 +28,7 @@ constexpr std::size_t kParallelCandidates = std::size_t(1) << 13;
 // Each side's own byte per voxel of the grid, built from the shared flags when the side starts:
 // what the side may read there, in one load. The shared flags stay read-only while both sides
 // run, and each side writes only its own array, so neither writes a byte the other reads.
-constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source or upper bound of this side, or reached
+constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source or bound of this side, or reached
 constexpr std::uint8_t kOpen = 2;    // an unknown voxel of this side: the march may lower it
 constexpr std::uint8_t kOther = 4;   // a source of the other side: a second point with its sign
 constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for the retake count)
@@ -108,8 +108,8 @@ class SideMarcher {
       const std::uint8_t f = flags[i];
       const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
       const bool bound = f & kUpperBound;
-      st_[i] = std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) | (own && !(f & kFrozen) ? kOpen : 0) |
-                            (!own && usable ? kOther : 0));
+      st_[i] = std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) |
+                            (own && !(f & kFrozen) ? kOpen : 0) | (!own && usable ? kOther : 0));
     }
   }
 

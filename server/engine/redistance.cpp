@@ -51,8 +51,9 @@ Shell shellClass(const DenseGrid& g, const float* v, std::size_t i, Int3 p, HasL
                  std::span<const Box> moved) {
   if (std::any_of(moved.begin(), moved.end(), [&](const Box& b) { return b.contains(p); })) return Shell::Reset;
   const double value = v[i];
-  if (std::none_of(moved.begin(), moved.end(), [&](const Box& b) { return squaredDistanceToCells(p, b) < value * value; }))
-    return Shell::Kept;
+  const bool nearer = std::any_of(moved.begin(), moved.end(),
+                                  [&](const Box& b) { return squaredDistanceToCells(p, b) < value * value; });
+  if (!nearer) return Shell::Kept;  // no moved cell is nearer than its value
   double grad[3];
   for (int a = 0; a < 3; ++a) {
     const std::size_t st = g.stride(a);
