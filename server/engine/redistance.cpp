@@ -17,7 +17,7 @@ namespace {
 
 using namespace march_flag;
 constexpr std::uint8_t kReset = kCallerA;      // in the region and to be reset unless kept
-constexpr std::uint8_t kNormalize = kCallerB;  // a kept voxel here is normalized
+constexpr std::uint8_t kMarked = kCallerB;  // in a box where kept voxels are normalized
 // The caller's progress: checked per z-slice of the dense passes and per piece of the band
 // list; the classification counts as this share of the call, the march as the rest.
 constexpr double kSetupShare = 0.3;
@@ -43,13 +43,12 @@ double squaredDistanceToCells(Int3 p, const Box& b) {
 
 enum class Shell { Kept, UpperBound, Reset };
 
-// What becomes of far voxel i at p of a region whose surface moved only through the cells of
-// `moved` (RedistanceOptions::movedBoxes). hasLo(a) / hasHi(a): whether it has a neighbour below
-// / above on axis a.
+// What becomes of far voxel i at p, outside every box of `moved`, of a region whose surface
+// moved only through the cells of those boxes (RedistanceOptions::movedBoxes). hasLo(a) /
+// hasHi(a): whether it has a neighbour below / above on axis a.
 template <class HasLo, class HasHi>
 Shell shellClass(const DenseGrid& g, const float* v, std::size_t i, Int3 p, HasLo&& hasLo, HasHi&& hasHi,
                  std::span<const Box> moved) {
-  if (std::any_of(moved.begin(), moved.end(), [&](const Box& b) { return b.contains(p); })) return Shell::Reset;
   const double value = v[i];
   const bool nearer = std::any_of(moved.begin(), moved.end(),
                                   [&](const Box& b) { return squaredDistanceToCells(p, b) < value * value; });
@@ -237,18 +236,23 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     return std::span<const Box>(out);
   };
   const std::span<const Box> reset = clipped(options.resetBoxes, s.resetBoxes);
-  const std::span<const Box> normalize =
-      options.normalizeKept
+  // The marked boxes: the moved boxes when there are any (kept voxels are normalized only
+  // there, and a voxel there is reset without looking at the boxes again), else the boxes
+  // where kept voxels are normalized.
+  const std::span<const Box> moved = options.movedBoxes;
+  const bool normalizeKept = options.normalizeKept;
+  const std::span<const Box> marked =
+      !moved.empty() ? clipped(moved, s.normalizeBoxes)
+      : normalizeKept
           ? clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1} : options.normalizeBoxes,
                     s.normalizeBoxes)
           : std::span<const Box>{};
-  const std::span<const Box> moved = options.movedBoxes;
   const int exactSide = options.exactSide;
   const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
 
   // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
   // Then, in the reset boxes, reset (unless on the side that is already exact), and in the
-  // normalize boxes marked for normalizing, run by run of their union. Slab by slab of whole
+  // marked boxes marked, run by run of their union. Slab by slab of whole
   // z-slices: the grid of a small tool has short rows, and a slice is one run of the sign pass.
   const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
   {
@@ -257,8 +261,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
     // A chunk of a whole-volume pass resets and normalizes its whole region, which spans each
     // row but the 2 voxels at either end (those without kInterior).
-    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && normalize.size() == 1 &&
-                           normalize[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
+    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && marked.size() == 1 &&
+                           marked[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
       const int z0 = int(slab) * kSlabSlices, z1 = std::min(sz, z0 + kSlabSlices);
       if (wholeRows) {
@@ -274,7 +278,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
             if (vz >= r.lo.z && vz < r.hi.z && vy >= r.lo.y && vy < r.hi.y) {
               signFlags(v + row, flags + row, xLo, base);
               signFlags(v + row + xLo, flags + row + xLo, xHi - xLo,
-                        std::uint8_t(kReset | kNormalize | (inner ? kInterior : 0)));
+                        std::uint8_t(kReset | kMarked | (inner ? kInterior : 0)));
               signFlags(v + row + xHi, flags + row + xHi, sx - xHi, base);
             } else {
               signFlags(v + row, flags + row, sx, base);
@@ -342,8 +346,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           }
         });
       }
-      rows(normalize, [](std::uint8_t* run, int n) {
-        for (int x = 0; x < n; ++x) run[x] |= kNormalize;
+      rows(marked, [](std::uint8_t* run, int n) {
+        for (int x = 0; x < n; ++x) run[x] |= kMarked;
       });
     });
   }
@@ -413,7 +417,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       }
       if (!adjacent) {
         if (!moved.empty()) {
-          const Shell c = shellClass(g, v, i, list->point[k], hasLo, hasHi, nearRow(list->point[k]));
+          const Shell c = (f & kMarked) ? Shell::Reset
+                                        : shellClass(g, v, i, list->point[k], hasLo, hasHi, nearRow(list->point[k]));
           if (c != Shell::Reset) {
             flags[i] = std::uint8_t(f | (c == Shell::Kept ? (kKnown | kFrozen) : kUpperBound));
             continue;
@@ -423,7 +428,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         continue;
       }
       flags[i] = std::uint8_t(f | kKnown | kFrozen);
-      if (!(f & kNormalize)) continue;
+      if (!normalizeKept || !(f & kMarked)) continue;
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);

@@ -55,7 +55,8 @@ struct RedistanceOptions {
   // foot point lies well away from those cells, its nearest surface did not move: its value is
   // an upper bound, which the march lowers only where the moved surface comes nearer. Only the
   // others are reset. The march then works on the band the moved surface affects, not the
-  // whole of the reset boxes.
+  // whole of the reset boxes. Kept voxels are then normalized only inside these boxes
+  // (normalizeBoxes is not read).
   std::span<const Box> movedBoxes;
   // +1 / -1: the values on the outside / inside are already exact distances (a union's
   // outside, an intersection's inside) and are kept; only the other side is marched.
