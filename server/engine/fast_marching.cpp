@@ -38,7 +38,7 @@ constexpr std::size_t kParallelCandidates = std::size_t(1) << 13;
 // Each side's own byte per voxel of the grid, built from the shared flags when the side starts:
 // what the side may read there, in one load. The shared flags stay read-only while both sides
 // run, and each side writes only its own array, so neither writes a byte the other reads.
-constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source of this side, or reached
+constexpr std::uint8_t kUse = 1;     // a usable upwind value: a source or bound of this side, or reached
 constexpr std::uint8_t kOpen = 2;    // an unknown voxel of this side: the march may lower it
 constexpr std::uint8_t kOther = 4;   // a source of the other side: a second point with its sign
 constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for the retake count)
@@ -116,13 +116,15 @@ class SideMarcher {
     const __m128i frozen = _mm_set1_epi8(char(kFrozen)), zero = _mm_setzero_si128();
     const __m128i interior = _mm_set1_epi8(char(kInterior)), use = _mm_set1_epi8(char(kUse));
     const __m128i open = _mm_set1_epi8(char(kOpen)), other = _mm_set1_epi8(char(kOther));
+    const __m128i upper = _mm_set1_epi8(char(kUpperBound));
     for (; i + 16 <= n; i += 16) {
       const __m128i f = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flags + i));
       const __m128i own = _mm_cmpeq_epi8(_mm_and_si128(f, negMask), sideNeg);
       const __m128i usable = _mm_cmpeq_epi8(_mm_and_si128(f, usableMask), known);
       const __m128i unfrozen = _mm_cmpeq_epi8(_mm_and_si128(f, frozen), zero);
+      const __m128i bound = _mm_cmpeq_epi8(_mm_and_si128(f, upper), upper);
       __m128i st = _mm_and_si128(f, interior);
-      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, usable), use));
+      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, _mm_or_si128(usable, bound)), use));
       st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, unfrozen), open));
       st = _mm_or_si128(st, _mm_and_si128(_mm_andnot_si128(own, usable), other));
       _mm_storeu_si128(reinterpret_cast<__m128i*>(st_ + i), st);
@@ -131,8 +133,9 @@ class SideMarcher {
     for (; i < n; ++i) {
       const std::uint8_t f = flags[i];
       const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
-      st_[i] = std::uint8_t((f & kInterior) | (own && usable ? kUse : 0) | (own && !(f & kFrozen) ? kOpen : 0) |
-                            (!own && usable ? kOther : 0));
+      const bool bound = f & kUpperBound;
+      st_[i] = std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) |
+                            (own && !(f & kFrozen) ? kOpen : 0) | (!own && usable ? kOther : 0));
     }
   }
 
@@ -169,11 +172,13 @@ class SideMarcher {
     return stats_;
   }
 
-  // Sources of this side that border one of its unknown voxels: only these can lower anything.
+  // Sources (and upper bounds) of this side that border one of its unknown voxels other than
+  // upper bounds: only these can lower anything. An upper bound is lowered only by the part of
+  // the surface that moved, which reaches it through the other unknown voxels.
   static bool feeds(const DenseGrid& g, const std::uint8_t* flags, std::size_t i) {
     const std::uint8_t side = flags[i] & kNeg;
     const std::size_t stride[3] = {1, g.sx, g.sxy};
-    auto open = [&](std::size_t n) { return (flags[n] & (kFrozen | kNeg)) == side; };
+    auto open = [&](std::size_t n) { return (flags[n] & (kFrozen | kNeg | kUpperBound)) == side; };
     if (flags[i] & kInterior) {
       for (int a = 0; a < 3; ++a)
         if (open(i - stride[a]) || open(i + stride[a])) return true;
@@ -349,7 +354,8 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
   const bool second = order == MarchOrder::Second;
   MarchStats side[2];
   auto seed = [&](std::uint32_t i) {
-    return (f[i] & (kKnown | kIgnored)) == kKnown && std::fabs(g.v[i]) < band && SideMarcher::feeds(g, f, i);
+    return ((f[i] & (kKnown | kIgnored)) == kKnown || (f[i] & kUpperBound)) && std::fabs(g.v[i]) < band &&
+           SideMarcher::feeds(g, f, i);
   };
   auto march = [&](std::size_t k) {
     SideMarcher m(g, f, s.state[k], band, second, k ? kNeg : 0, s.buckets[k]);

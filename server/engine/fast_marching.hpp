@@ -60,12 +60,17 @@ inline constexpr std::uint8_t kInterior = 16; // at least 2 voxels from every fa
 // Free for the caller's own bookkeeping; the marcher does not read them.
 inline constexpr std::uint8_t kCallerA = 32;
 inline constexpr std::uint8_t kCallerB = 64;
+// An unknown voxel whose value is already an upper bound of its distance (the distance to a
+// part of the surface that did not move): its side reads it from the start, and the march
+// lowers it only where the rest of the surface comes nearer. It is no source of the other side.
+inline constexpr std::uint8_t kUpperBound = 128;
 }  // namespace march_flag
 
 // The march proper. flags: one march_flag byte per grid voxel. Every unknown voxel (no
-// kFrozen) must already hold +-band with its side's sign. candidates: every source of the
-// grid with |value| < band that may border an unknown voxel of its side, in increasing index
-// order (a superset is fine). Writes only unknown voxels. progress: checked every few buckets
+// kFrozen) must already hold +-band with its side's sign, or a smaller upper bound marked
+// kUpperBound. candidates: every source or upper bound of the grid with |value| < band that may
+// border an unknown voxel of its side, in increasing index order (a superset is fine). Writes
+// only unknown voxels. progress: checked every few buckets
 // of each side (throws Cancelled, leaving the grid part-marched) and advanced in step with the
 // buckets taken.
 MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>& flags,

@@ -347,12 +347,13 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
   const float band = vol.band();
   const double r = st.radius;
   // The surface moves only inside the dabs' ROIs (W = 0 on their boundaries, voxels outside
-  // are not evolved), so the new zero set lies within one voxel of them: every voxel further
-  // than band + 1 from every ROI keeps its distance, and every band voxel nearer may now be
-  // closer to the moved surface than to the old one. That shell is reset and marched too, from
-  // the kept voxels inside and outside the ROIs; the old field beyond it is the source the
-  // march continues from (its distances are still right there).
-  const int reach = int(std::ceil(band)) + 1;
+  // are not evolved), so the new zero set differs from the old only in the cells touching them:
+  // a voxel band + 1 or more from every ROI (band or more from those cells) keeps its distance,
+  // and a band voxel nearer may now be closer to the moved surface than to the old one. That
+  // shell is redistanced too, where it may have changed (redistance.hpp, movedBoxes), from the
+  // kept voxels inside and outside the ROIs; the old field beyond it is the source the march
+  // continues from (its distances are still right there).
+  const int reach = int(std::ceil(band + 1)) - 1;
   // One more voxel for the kept-voxel test at the region's edge, and the stencils' reach.
   const int gatherMargin = std::max(reach + 1, kStencilReach);
   std::vector<PreparedDab> prepared;
@@ -431,6 +432,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
+      options.movedBoxes = scratch.normalizeBoxes;  // evolve changes voxels of the ROIs only
       // Normalizing the kept voxels moves a sharp crest outward by ~0.003 vu each time (measured
       // on a ridge of 4 vu at radius 8): harmless once per application, but a stroke with a
       // height passes over its crest again and again with little or nothing left to add. Its

@@ -6,9 +6,10 @@
 // t_a = |q_a - c_a| / radius, evaluated at each voxel's foot point q = p - d grad d (the
 // velocity extension: F is constant along normals, so phi - t F stays a distance field).
 // W is 0 on the ROI boundary, so the surface moves only inside the ROI; the band voxels
-// within band + 1 vu of the ROI are redistanced too, so that after every application the
-// whole band is a distance field to the new surface. The returned Edit's region is that
-// grown box (clipped to the domain); nothing beyond it changes.
+// nearer than band + 1 vu to the ROI (nearer than band to the cells its voxels touch) are
+// redistanced too where they may have changed, so that after every application the whole band
+// is a distance field to the new surface. The returned Edit's region is the ROI grown by those
+// voxels (clipped to the domain); nothing beyond it changes.
 //
 // Global tools use W = 1 over the whole volume. All tools: sign and units as in volume.hpp;
 // the volume is modified in place and the returned Edit holds the replaced bricks; invalid

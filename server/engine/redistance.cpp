@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -16,24 +17,57 @@ namespace {
 
 using namespace march_flag;
 constexpr std::uint8_t kReset = kCallerA;      // in the region and to be reset unless kept
-constexpr std::uint8_t kNormalize = kCallerB;  // a kept voxel here is normalized
+constexpr std::uint8_t kMarked = kCallerB;  // in a box where kept voxels are normalized
 // The caller's progress: checked per z-slice of the dense passes and per piece of the band
 // list; the classification counts as this share of the call, the march as the rest.
 constexpr double kSetupShare = 0.3;
 
-// Calls fn(first, end) for the x-runs [first, end) of row (y, z) covered by the union of
-// `boxes`, each run once, in increasing x.
-template <class F>
-void forEachRun(std::span<const Box> boxes, int y, int z, std::vector<std::pair<int, int>>& runs, F&& fn) {
-  runs.clear();
-  for (const Box& b : boxes)
-    if (y >= b.lo.y && y < b.hi.y && z >= b.lo.z && z < b.hi.z && b.lo.x < b.hi.x) runs.push_back({b.lo.x, b.hi.x});
-  if (runs.size() > 1) std::sort(runs.begin(), runs.end());
-  for (std::size_t k = 0; k < runs.size();) {
-    int lo = runs[k].first, hi = runs[k].second;
-    for (++k; k < runs.size() && runs[k].first <= hi; ++k) hi = std::max(hi, runs[k].second);
-    fn(lo, hi);
+// A voxel of a moved box's shell keeps its value when its foot point lies this far (vu) or
+// further from the cells the tool may have moved the surface through: the foot point is
+// estimated by central differences, which err by a fraction of a voxel near the surface.
+constexpr double kFootMargin = 0.5;
+// ... and when its central-difference gradient is this close to unit length (elsewhere, a kink
+// or a stale value, the foot point says nothing).
+constexpr double kFootGradientTolerance = 0.25;
+
+// Squared distance from p to the cells touching box b's voxels, the points within 1 vu of them.
+double squaredDistanceToCells(Int3 p, const Box& b) {
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = b.lo[a] - 1, hi = b.hi[a], x = p[a];
+    const double d = x < lo ? lo - x : (x > hi ? x - hi : 0.0);
+    d2 += d * d;
   }
+  return d2;
+}
+
+enum class Shell { Kept, UpperBound, Reset };
+
+// What becomes of far voxel i at p, outside every box of `moved`, of a region whose surface
+// moved only through the cells of those boxes (RedistanceOptions::movedBoxes). hasLo(a) /
+// hasHi(a): whether it has a neighbour below / above on axis a.
+template <class HasLo, class HasHi>
+Shell shellClass(const DenseGrid& g, const float* v, std::size_t i, Int3 p, HasLo&& hasLo, HasHi&& hasHi,
+                 std::span<const Box> moved) {
+  const double value = v[i];
+  const bool nearer = std::any_of(moved.begin(), moved.end(),
+                                  [&](const Box& b) { return squaredDistanceToCells(p, b) < value * value; });
+  if (!nearer) return Shell::Kept;  // no moved cell is nearer than its value
+  double grad[3];
+  for (int a = 0; a < 3; ++a) {
+    const std::size_t st = g.stride(a);
+    grad[a] = hasLo(a) && hasHi(a) ? 0.5 * (double(v[i + st]) - double(v[i - st])) : 0.0;
+  }
+  const double len = std::sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]);
+  if (!(std::fabs(len - 1) <= kFootGradientTolerance)) return Shell::Reset;
+  double foot[3];
+  for (int a = 0; a < 3; ++a) foot[a] = p[a] - value * grad[a] / len;
+  const bool nearMoved = std::any_of(moved.begin(), moved.end(), [&](const Box& b) {
+    for (int a = 0; a < 3; ++a)
+      if (foot[a] < b.lo[a] - 1 - kFootMargin || foot[a] > b.hi[a] + kFootMargin) return false;
+    return true;
+  });
+  return nearMoved ? Shell::Reset : Shell::UpperBound;
 }
 
 // The dense passes over a tool's box visit ten to twenty times more voxels than its band, so
@@ -85,6 +119,7 @@ struct ListPiece {
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
+  std::vector<Box> nearMovedZ, nearMoved;  // scratch of the pass
 };
 
 struct Scratch {
@@ -197,11 +232,18 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     out.clear();
     for (const Box& b : boxes) out.push_back(b.intersect(r));
     if (boxes.empty()) out.push_back(r);
+    std::sort(out.begin(), out.end(), [](const Box& a, const Box& b) { return a.lo.x < b.lo.x; });
     return std::span<const Box>(out);
   };
   const std::span<const Box> reset = clipped(options.resetBoxes, s.resetBoxes);
-  const std::span<const Box> normalize =
-      options.normalizeKept
+  // The marked boxes: the moved boxes when there are any (kept voxels are normalized only
+  // there, and a voxel there is reset without looking at the boxes again), else the boxes
+  // where kept voxels are normalized.
+  const std::span<const Box> moved = options.movedBoxes;
+  const bool normalizeKept = options.normalizeKept;
+  const std::span<const Box> marked =
+      !moved.empty() ? clipped(moved, s.normalizeBoxes)
+      : normalizeKept
           ? clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1} : options.normalizeBoxes,
                     s.normalizeBoxes)
           : std::span<const Box>{};
@@ -209,68 +251,104 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
 
   // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
-  // Then, in the region, reset (unless on the side that is already exact) and marked for
-  // normalizing. Row by row: each row's flags depend on that row only.
+  // Then, in the reset boxes, reset (unless on the side that is already exact), and in the
+  // marked boxes marked, run by run of their union. Slab by slab of whole
+  // z-slices: the grid of a small tool has short rows, and a slice is one run of the sign pass.
   const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
   {
     const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
     const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
     const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
     // A chunk of a whole-volume pass resets and normalizes its whole region, which spans each
-    // row but the 2 voxels at either end (those without kInterior): one pass per row does.
-    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && normalize.size() == 1 &&
-                           normalize[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
+    // row but the 2 voxels at either end (those without kInterior).
+    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && marked.size() == 1 &&
+                           marked[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
-      std::vector<std::pair<int, int>> runs;
-      const int zEnd = std::min(sz, int(slab + 1) * kSlabSlices);
-      for (int z = int(slab) * kSlabSlices; z < zEnd; ++z) {
+      const int z0 = int(slab) * kSlabSlices, z1 = std::min(sz, z0 + kSlabSlices);
+      if (wholeRows) {
+        // The bytes the passes below would give, in one pass per row: the 2 voxels at either
+        // end as they are, the others reset, marked for normalizing, with kInterior on inner rows.
+        for (int z = z0; z < z1; ++z) {
+          progress.check();
+          const int vz = g.box.lo.z + z;
+          for (int y = 0; y < sy; ++y) {
+            const std::size_t row = std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
+            const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
+            const int vy = g.box.lo.y + y;
+            if (vz >= r.lo.z && vz < r.hi.z && vy >= r.lo.y && vy < r.hi.y) {
+              signFlags(v + row, flags + row, xLo, base);
+              signFlags(v + row + xLo, flags + row + xLo, xHi - xLo,
+                        std::uint8_t(kReset | kMarked | (inner ? kInterior : 0)));
+              signFlags(v + row + xHi, flags + row + xHi, sx - xHi, base);
+            } else {
+              signFlags(v + row, flags + row, sx, base);
+              if (inner)
+                for (int x = xLo; x < xHi; ++x) flags[row + std::size_t(x)] |= kInterior;
+            }
+          }
+        }
+        return;
+      }
+      for (int z = z0; z < z1; ++z) {
         progress.check();
-        const int vz = g.box.lo.z + z;
-        const bool zInRegion = vz >= r.lo.z && vz < r.hi.z;
+        const std::size_t slice = std::size_t(z) * g.sxy;
+        const bool innerZ = z >= 2 && z + 2 < sz;
+        signFlags(v + slice, flags + slice, int(g.sxy), innerZ ? std::uint8_t(base | kInterior) : base);
+        if (!innerZ) continue;
+        // The byte stores may alias anything a reference points at: the loops go through
+        // pointers of their own so that they can be vectorized.
+        constexpr std::uint8_t notInterior = std::uint8_t(~kInterior);
         for (int y = 0; y < sy; ++y) {
-          std::uint8_t* f = flags + std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
-          const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
-          const int vy = g.box.lo.y + y;
-          const bool inRegion = zInRegion && vy >= r.lo.y && vy < r.hi.y;
-          if (inRegion && wholeRows) {
-            // The bytes the passes below would give: the 2 voxels at either end as they are,
-            // the others reset, marked for normalizing, with kInterior on inner rows.
-            signFlags(v + (f - flags), f, xLo, base);
-            signFlags(v + (f - flags) + xLo, f + xLo, xHi - xLo,
-                      std::uint8_t(kReset | kNormalize | (inner ? kInterior : 0)));
-            signFlags(v + (f - flags) + xHi, f + xHi, sx - xHi, base);
+          std::uint8_t* const f = flags + slice + std::size_t(y) * g.sx;
+          if (y < 2 || y + 2 >= sy) {
+            for (int x = 0; x < sx; ++x) f[x] &= notInterior;
             continue;
           }
-          signFlags(v + (f - flags), f, sx, inner ? std::uint8_t(base | kInterior) : base);
-          if (inner) {
-            for (int x = 0; x < xLo; ++x) f[x] &= std::uint8_t(~kInterior);
-            for (int x = xHi; x < sx; ++x) f[x] &= std::uint8_t(~kInterior);
-          }
-          if (!inRegion) continue;
-          const int x0 = g.box.lo.x;  // runs are in volume coordinates
-          // The byte stores below may alias anything a reference points at: the loops go
-          // through a pointer of their own so that they can be vectorized.
-          forEachRun(reset, vy, vz, runs, [&](int lo, int hi) {
-            std::uint8_t* const run = f + (lo - x0);
-            const int n = hi - lo;
-            if (exactSide == 0) {
-              for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
-              return;
-            }
-            for (int x = 0; x < n; ++x) {
-              const std::uint8_t keep = run[x] & (kNeg | kInterior);
-              // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
-              const bool exact = (keep & kNeg) == exactNeg;
-              run[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
-            }
-          });
-          forEachRun(normalize, vy, vz, runs, [&](int lo, int hi) {
-            std::uint8_t* const run = f + (lo - x0);
-            const int n = hi - lo;
-            for (int x = 0; x < n; ++x) run[x] |= kNormalize;
-          });
+          for (int x = 0; x < xLo; ++x) f[x] &= notInterior;
+          for (int x = xHi; x < sx; ++x) f[x] &= notInterior;
         }
       }
+      // The x-runs of the union of `boxes` (sorted by lo.x) in each row of this slab, each once.
+      std::vector<Box> slice;  // the boxes holding the current z, in the same order
+      auto rows = [&](std::span<const Box> boxes, auto&& fn) {
+        for (int z = g.box.lo.z + z0; z < g.box.lo.z + z1; ++z) {
+          slice.clear();
+          for (const Box& b : boxes)
+            if (z >= b.lo.z && z < b.hi.z && b.lo.x < b.hi.x) slice.push_back(b);
+          if (slice.empty()) continue;
+          for (int y = g.box.lo.y; y < g.box.hi.y; ++y) {
+            bool open = false;  // a run [lo, hi) is being merged
+            int lo = 0, hi = 0;
+            for (const Box& b : slice) {
+              if (y < b.lo.y || y >= b.hi.y) continue;
+              if (open && b.lo.x <= hi) {
+                hi = std::max(hi, b.hi.x);
+                continue;
+              }
+              if (open) fn(flags + g.index({lo, y, z}), hi - lo);
+              open = true, lo = b.lo.x, hi = b.hi.x;
+            }
+            if (open) fn(flags + g.index({lo, y, z}), hi - lo);
+          }
+        }
+      };
+      if (exactSide == 0) {
+        rows(reset, [](std::uint8_t* run, int n) {
+          for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
+        });
+      } else {
+        rows(reset, [exactNeg](std::uint8_t* run, int n) {
+          for (int x = 0; x < n; ++x) {
+            const std::uint8_t keep = run[x] & (kNeg | kInterior);
+            // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
+            const bool exact = (keep & kNeg) == exactNeg;
+            run[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
+          }
+        });
+      }
+      rows(marked, [](std::uint8_t* run, int n) {
+        for (int x = 0; x < n; ++x) run[x] |= kMarked;
+      });
     });
   }
 
@@ -290,6 +368,32 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     out.kept.clear();
     out.scaled.clear();
     out.farUnknown.clear();
+    // The moved boxes that may matter to the list's current row (y, z): those whose cells lie
+    // within band + kFootMargin of it on both axes (no voxel further from them can be nearer
+    // than its value, inside them, or have its foot point near them). The list is in index
+    // order, so its rows come one after the other.
+    std::vector<Box>& nearZ = out.nearMovedZ;
+    std::vector<Box>& near = out.nearMoved;
+    const double reach = double(band) + kFootMargin;
+    int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
+    auto cellDistance = [](int x, int lo, int hi) { return double(x < lo - 1 ? lo - 1 - x : std::max(0, x - hi)); };
+    auto nearRow = [&](Int3 p) -> std::span<const Box> {
+      if (p.z != rowZ) {
+        rowZ = p.z, rowY = std::numeric_limits<int>::min();
+        nearZ.clear();
+        for (const Box& b : moved)
+          if (cellDistance(p.z, b.lo.z, b.hi.z) < reach) nearZ.push_back(b);
+      }
+      if (p.y != rowY) {
+        rowY = p.y;
+        near.clear();
+        for (const Box& b : nearZ) {
+          const double dy = cellDistance(p.y, b.lo.y, b.hi.y), dz = cellDistance(p.z, b.lo.z, b.hi.z);
+          if (dy * dy + dz * dz < reach * reach) near.push_back(b);
+        }
+      }
+      return near;
+    };
     const std::size_t end = std::min(list->index.size(), (piece + 1) * kListPiece);
     for (std::size_t k = piece * kListPiece; k < end; ++k) {
       const std::uint32_t i = list->index[k];
@@ -312,11 +416,19 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         }
       }
       if (!adjacent) {
+        if (!moved.empty()) {
+          const Shell c = (f & kMarked) ? Shell::Reset
+                                        : shellClass(g, v, i, list->point[k], hasLo, hasHi, nearRow(list->point[k]));
+          if (c != Shell::Reset) {
+            flags[i] = std::uint8_t(f | (c == Shell::Kept ? (kKnown | kFrozen) : kUpperBound));
+            continue;
+          }
+        }
         out.farUnknown.push_back(i);
         continue;
       }
       flags[i] = std::uint8_t(f | kKnown | kFrozen);
-      if (!(f & kNormalize)) continue;
+      if (!normalizeKept || !(f & kMarked)) continue;
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
         const std::size_t st = g.stride(a);

@@ -48,6 +48,16 @@ struct RedistanceOptions {
   // normalizes only where it moved the surface, so that the zero set around it stays exactly
   // where it was.
   std::span<const Box> normalizeBoxes;
+  // When not empty (a local tool): the boxes of voxels the caller changed; the surface moved
+  // only through the cells touching them. A far voxel (not adjacent to the zero set) of the
+  // reset boxes outside them was a distance to the old surface. When no such cell is nearer
+  // than its value, that is still its distance, and it is kept as a source. Otherwise, when its
+  // foot point lies well away from those cells, its nearest surface did not move: its value is
+  // an upper bound, which the march lowers only where the moved surface comes nearer. Only the
+  // others are reset. The march then works on the band the moved surface affects, not the
+  // whole of the reset boxes. Kept voxels are then normalized only inside these boxes
+  // (normalizeBoxes is not read).
+  std::span<const Box> movedBoxes;
   // +1 / -1: the values on the outside / inside are already exact distances (a union's
   // outside, an intersection's inside) and are kept; only the other side is marched.
   int exactSide = 0;

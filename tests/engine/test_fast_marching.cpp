@@ -4,6 +4,7 @@
 
 #include "engine/dense_grid.hpp"
 #include "engine/fast_marching.hpp"
+#include "engine/thread_pool.hpp"
 
 using namespace marzipan;
 
@@ -101,4 +102,50 @@ TEST_CASE("each side is marched only from sources of its own sign, clamped at th
   CHECK(g.v[g.index({10, 2, 2})] == Approx(2.5f));
   CHECK(g.v[g.index({0, 1, 1})] == -3.0f);
   CHECK(g.v[g.index({15, 1, 1})] == 3.0f);
+}
+
+TEST_CASE("upper bounds are read from the start and lowered only where a nearer source reaches them",
+          "[fmm]") {
+  // The plane x = 9.5 (distance x - 9.5, exact for the marcher along x). Where y < 12 its two
+  // nearest layers are sources and everything else is unknown at +-band. Where y >= 12 there
+  // are no sources: the voxels within 1 vu of the plane hold their distance as an upper bound,
+  // and so do those at x = 11 for z < 8, too high by 0.7; the rest is unknown.
+  using namespace march_flag;
+  constexpr float band = 3;
+  DenseGrid g({{0, 0, 0}, {24, 24, 24}});
+  std::vector<std::uint8_t> flags(g.v.size());
+  std::vector<std::uint32_t> candidates;
+  auto exact = [](Int3 p) { return float(p.x - 9.5); };
+  for (std::size_t i = 0; i < g.v.size(); ++i) {
+    const Int3 p = g.point(i);
+    const float e = exact(p);
+    const bool inner = p.x >= 2 && p.x < 22 && p.y >= 2 && p.y < 22 && p.z >= 2 && p.z < 22;
+    std::uint8_t f = std::uint8_t((e < 0 ? kNeg : 0) | (inner ? kInterior : 0));
+    g.v[i] = e < 0 ? -band : band;
+    if (std::fabs(e) < 1) {
+      g.v[i] = e;
+      f |= p.y < 12 ? std::uint8_t(kKnown | kFrozen) : kUpperBound;
+    } else if (p.y >= 12 && p.x == 11 && p.z < 8) {
+      g.v[i] = e + 0.7f;
+      f |= kUpperBound;
+    }
+    flags[i] = f;
+    if (std::fabs(g.v[i]) < band) candidates.push_back(std::uint32_t(i));
+  }
+  const DenseGrid before = g;
+  fastMarchClassified(g, flags, candidates, band, MarchOrder::Second, ThreadPool::serial());
+  std::size_t marched = 0, wrong = 0, boundsChanged = 0;
+  for (std::size_t i = 0; i < g.v.size(); ++i) {
+    const Int3 p = g.point(i);
+    const float e = exact(p);
+    if (std::fabs(e) < 1 && p.y >= 12) boundsChanged += g.v[i] != before.v[i];  // exact already
+    if (std::fabs(e) < 1 || std::fabs(e) >= band) continue;
+    ++marched;
+    // Without upper bounds read from the start, the half y >= 12 would be reached only sideways
+    // from the other half (too high) or not at all (+-band); the high bounds would stay high.
+    wrong += std::fabs(g.v[i] - e) > 1e-5f;
+  }
+  CHECK(marched == 24 * 24 * 4);  // x = 7, 8, 11, 12
+  CHECK(wrong == 0);
+  CHECK(boundsChanged == 0);
 }

@@ -548,9 +548,10 @@ TEST_CASE("local tools move the surface only inside their region of interest", "
   CHECK_FALSE(e.empty());
   CHECK_FALSE(a.empty());
   const Box sRoi = boxAround(sp.center, {6, 6, 6}), aRoi = boxAround(ap.center, {6, 6, 6});
-  // The edit's region is the ROI grown by the band and one voxel: beyond it nothing changes;
-  // between the ROI and it only distances change (they follow the moved surface), never a sign.
-  const int reach = int(std::ceil(v.band())) + 1;
+  // The edit's region is the ROI grown by the voxels nearer than band + 1 to it (nearer than the
+  // band to the cells the tool moved): beyond it nothing changes; between the ROI and it only
+  // distances change (they follow the moved surface), never a sign.
+  const int reach = int(std::ceil(v.band() + 1)) - 1;
   CHECK(e.region == sRoi.grown(reach).intersect(v.domain()));
   CHECK(a.region == aRoi.grown(reach).intersect(v.domain()));
   int changedOutsideRoi = 0;
@@ -691,8 +692,13 @@ TEST_CASE("the edit path's results are pinned: random tools give the digests the
     digests.push_back(digestHex(v));
     return digests;
   };
-  const std::vector<std::string> pinned = {"f1b7b7f1da5cd9d5", "87a44cf4ef0e6333", "440c8904690d89bf",
-                                           "a525fb488d88ef96", "6819611b41eeb09d"};
+  // Re-recorded 2026-11-25 when a local tool stopped resetting the far voxels of its shell whose
+  // distances still hold (redistance.hpp, movedBoxes; values within 0.03 vu of before), its
+  // shell stopped one voxel short of band + 1 from the ROI (those voxels cannot change), and the
+  // march began solving in float with deferred first solves (fast_marching.hpp; its own pinned
+  // set differed from the old one in the last bits only). Every accuracy test passed unchanged.
+  const std::vector<std::string> pinned = {"b17a7b4f55f432aa", "d949296d0a360c80", "871201d0907c2dd9",
+                                           "199f8124b97d4239", "e54d4c8702ceb9aa"};
   ThreadPool one(1), two(2);
   CHECK(run(one) == pinned);
   CHECK(run(two) == pinned);

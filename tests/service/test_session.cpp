@@ -153,10 +153,18 @@ TEST_CASE("session: a new step after undos clears the redo list", "[session]") {
 
 TEST_CASE("session: the history budget drops the oldest steps", "[session]") {
   ThreadPool pool(2);
-  // Room for some of the 8 steps, counted as held: older steps packed (history.hpp).
-  const std::size_t budget = 40 * History::kBytesPerBrick;
+  auto step = [&](Session& s, int i) { s.apply(blob(BrushTool::AddBlob, {kSurface, kC - 14 + 4 * i, kC}, 4), pool); };
+  // Room for the newest of the 8 steps and about half of the older ones, counted as held: the
+  // newest unpacked, older steps packed (history.hpp). What a step holds depends on how many
+  // bricks the tool changes, so it is measured first.
+  Session unbounded(sphere());
+  step(unbounded, 0);
+  const std::size_t newest = unbounded.history().bytes();
+  for (int i = 1; i < 8; ++i) step(unbounded, i);
+  REQUIRE(unbounded.history().droppedSteps() == 0);
+  const std::size_t budget = (unbounded.history().bytes() + newest) / 2;
   Session s(sphere(), budget);
-  for (int i = 0; i < 8; ++i) s.apply(blob(BrushTool::AddBlob, {kSurface, kC - 14 + 4 * i, kC}, 4), pool);
+  for (int i = 0; i < 8; ++i) step(s, i);
   CHECK(s.history().bytes() <= budget);
   CHECK(s.history().undoSteps() > 0);
   CHECK(s.history().droppedSteps() > 0);
