@@ -65,41 +65,15 @@ double window1(double t) {
 }
 
 // Godunov |grad phi| with second-order ENO one-sided differences, upwind for speed sign.
-// Single precision: the field is stored in floats and the differences are of order 1.
+// Single precision: the field is stored in floats and the differences are of order 1. The
+// scalar form below is the definition; with SSE2, advectionRuns does its float operations in
+// its order in four lanes at once (four voxels along x), so the same bits.
 #if defined(__SSE2__)
-// The three axes in the lanes of one vector (the fourth is unused): per axis the same float
-// operations in the same order as the scalar version below, and the axes summed in order, so
-// the same bits.
 __m128 minmod4(__m128 a, __m128 b) {
   const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
   const __m128 aSmaller = _mm_cmplt_ps(_mm_and_ps(a, abs), _mm_and_ps(b, abs));
   const __m128 smaller = _mm_or_ps(_mm_and_ps(aSmaller, a), _mm_andnot_ps(aSmaller, b));
   return _mm_andnot_ps(_mm_cmple_ps(_mm_mul_ps(a, b), _mm_setzero_ps()), smaller);
-}
-
-float upwindGradient(const float* v, std::size_t i, const std::size_t stride[3], bool outward) {
-  const std::size_t sy = stride[1], sz = stride[2];
-  const __m128 vm2 = _mm_setr_ps(v[i - 2], v[i - 2 * sy], v[i - 2 * sz], 0.0f);
-  const __m128 vm1 = _mm_setr_ps(v[i - 1], v[i - sy], v[i - sz], 0.0f);
-  const __m128 vp1 = _mm_setr_ps(v[i + 1], v[i + sy], v[i + sz], 0.0f);
-  const __m128 vp2 = _mm_setr_ps(v[i + 2], v[i + 2 * sy], v[i + 2 * sz], 0.0f);
-  const __m128 v0 = _mm_set1_ps(v[i]), two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
-  const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);  // vp1 - 2 v0 + vm1
-  const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
-                               _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
-  const __m128 dp = _mm_sub_ps(_mm_sub_ps(vp1, v0),
-                               _mm_mul_ps(half, minmod4(centre, _mm_add_ps(_mm_sub_ps(vp2, _mm_mul_ps(two, vp1)), v0))));
-  // std::max(x, 0) is (x < 0 ? 0 : x), which is _mm_max_ps(0, x) bit for bit (also -0 and NaN);
-  // std::min(x, 0) likewise _mm_min_ps(0, x).
-  const __m128 a1 = outward ? _mm_max_ps(zero, dm) : _mm_min_ps(zero, dm);
-  const __m128 a2 = outward ? _mm_min_ps(zero, dp) : _mm_max_ps(zero, dp);
-  alignas(16) float t[4];
-  _mm_store_ps(t, _mm_add_ps(_mm_mul_ps(a1, a1), _mm_mul_ps(a2, a2)));
-  float g2 = 0;
-  g2 += t[0];
-  g2 += t[1];
-  g2 += t[2];
-  return std::sqrt(g2);
 }
 #else
 float minmod(float a, float b) {
@@ -192,19 +166,145 @@ FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
   return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
 }
 
+// The voxels evolve moves, in grid index order, cut into runs that follow each other along x
+// (a band is mostly such runs): a run's voxels are read and written four at a time.
+struct Run {
+  std::uint32_t index;  // grid index of its first voxel
+  std::uint32_t first;  // position of that voxel in the list
+  std::uint32_t count;
+};
+
 // Scratch reused by the tools on each thread: fresh grids and lists each application cost
 // page faults (the kernel clearing pages) as large as the work itself.
 struct ToolScratch {
   DenseGrid grid;
   BandVoxels band;
   std::vector<std::uint32_t> list;
-  std::vector<float> speed, next;
+  std::vector<Run> runs;
+  std::vector<std::size_t> blocks;  // evolve's blocks of runs: the first run of each, then runs.size()
+  std::vector<double> factor;       // curvature: dt * F per listed voxel
+  std::vector<float> step, next;    // advection: float(dt * F) per listed voxel; a sub-step's values
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
 };
 ToolScratch& toolScratch() {
   thread_local ToolScratch s;
   return s;
+}
+
+#if defined(__SSE2__)
+// Writes the first n (1..3) lanes of x: a run's last voxels, whose neighbours past the run may
+// be another block's.
+void storePartial(float* out, __m128 x, std::uint32_t n) {
+  if (n == 1) {
+    _mm_store_ss(out, x);
+    return;
+  }
+  _mm_storel_pi(reinterpret_cast<__m64*>(out), x);
+  if (n == 3) _mm_store_ss(out + 2, _mm_movehl_ps(x, x));
+}
+#endif
+
+// One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
+// array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
+// The neighbours are summed in float in this order and the rest is done in double, as
+//   double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
+//   return float(p[0] + factor * std::clamp(lap, -limit, limit));
+// would, voxel by voxel (the lanes do the same operations, so the same bits). A run's last
+// lanes read up to 3 voxels past it (evolve's region lies kStencilReach inside the grid, so they
+// are in it) and factor up to 3 entries past the list (evolve pads it).
+void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, const Run* end, const double* factor,
+                   std::ptrdiff_t sy, std::ptrdiff_t sz, double limit) {
+  const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
+#if defined(__SSE2__)
+  const __m128d six = _mm_set1_pd(6.0), lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
+  auto four = [&](const float* q, const double* f) {
+    __m128 sum = _mm_add_ps(_mm_loadu_ps(q + 1), _mm_loadu_ps(q - 1));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q + sy));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q - sy));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q + sz));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q - sz));
+    const __m128 c = _mm_loadu_ps(q);
+    const __m128d c0 = _mm_cvtps_pd(c), c1 = _mm_cvtps_pd(_mm_movehl_ps(c, c));
+    __m128d lap0 = _mm_sub_pd(_mm_cvtps_pd(sum), _mm_mul_pd(six, c0));
+    __m128d lap1 = _mm_sub_pd(_mm_cvtps_pd(_mm_movehl_ps(sum, sum)), _mm_mul_pd(six, c1));
+    if (limited) {
+      // std::clamp(x, lo, hi) is (x < lo ? lo : hi < x ? hi : x): max(lo, x), then min(hi, .).
+      lap0 = _mm_min_pd(hi, _mm_max_pd(lo, lap0));
+      lap1 = _mm_min_pd(hi, _mm_max_pd(lo, lap1));
+    }
+    const __m128d out0 = _mm_add_pd(c0, _mm_mul_pd(_mm_loadu_pd(f), lap0));
+    const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
+    return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
+  };
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = dst + (dstIsGrid ? r->index : r->first);
+    const double* f = factor + r->first;
+    std::uint32_t j = 0;
+    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, f + j));
+    if (j < r->count) storePartial(out + j, four(p + j, f + j), r->count - j);
+  }
+#else
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = dst + (dstIsGrid ? r->index : r->first);
+    const double* f = factor + r->first;
+    for (std::uint32_t j = 0; j < r->count; ++j) {
+      const float* q = p + j;
+      double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
+      if (limited) lap = std::clamp(lap, -limit, limit);
+      out[j] = float(q[0] + f[j] * lap);
+    }
+  }
+#endif
+}
+
+// One upwind advection step over runs [r, end): next[run.first + j] = phi - step |grad phi|,
+// step = float(dt F), |grad phi| by upwindGradient (outward where step > 0; where step is
+// +-0 the direction does not change the result). Reads past a run's end as curvatureRuns.
+void advectionRuns(const float* v, float* next, const Run* r, const Run* end, const float* step,
+                   const std::size_t stride[3]) {
+#if defined(__SSE2__)
+  // Four voxels along x in the lanes, each lane doing upwindGradient's float operations in
+  // its order (the axes summed x, y, z onto 0). std::max(x, 0) is (x < 0 ? 0 : x), which is
+  // _mm_max_ps(0, x) bit for bit (also -0 and NaN); std::min(x, 0) likewise _mm_min_ps(0, x).
+  const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
+  auto four = [&](const float* q, const float* st) {
+    const __m128 dtF = _mm_loadu_ps(st);
+    const __m128 outward = _mm_cmpgt_ps(dtF, zero);
+    const __m128 v0 = _mm_loadu_ps(q);
+    __m128 g2 = zero;
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t s = stride[a];
+      const __m128 vm2 = _mm_loadu_ps(q - 2 * s), vm1 = _mm_loadu_ps(q - s);
+      const __m128 vp1 = _mm_loadu_ps(q + s), vp2 = _mm_loadu_ps(q + 2 * s);
+      const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);
+      const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
+                                   _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
+      const __m128 dp = _mm_sub_ps(_mm_sub_ps(vp1, v0),
+                                   _mm_mul_ps(half, minmod4(centre, _mm_add_ps(_mm_sub_ps(vp2, _mm_mul_ps(two, vp1)), v0))));
+      const __m128 a1 = _mm_or_ps(_mm_and_ps(outward, _mm_max_ps(zero, dm)), _mm_andnot_ps(outward, _mm_min_ps(zero, dm)));
+      const __m128 a2 = _mm_or_ps(_mm_and_ps(outward, _mm_min_ps(zero, dp)), _mm_andnot_ps(outward, _mm_max_ps(zero, dp)));
+      g2 = _mm_add_ps(g2, _mm_add_ps(_mm_mul_ps(a1, a1), _mm_mul_ps(a2, a2)));
+    }
+    return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
+  };
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = next + r->first;
+    const float* st = step + r->first;
+    std::uint32_t j = 0;
+    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, st + j));
+    if (j < r->count) storePartial(out + j, four(p + j, st + j), r->count - j);
+  }
+#else
+  for (; r != end; ++r) {
+    const float* st = step + r->first;
+    for (std::uint32_t j = 0; j < r->count; ++j)
+      next[r->first + j] = v[r->index + j] - st[j] * upwindGradient(v, r->index + j, stride, st[j] > 0);
+  }
+#endif
 }
 
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
@@ -215,9 +315,12 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
             const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
   ToolScratch& s = toolScratch();
   std::vector<std::uint32_t>& list = s.list;
-  std::vector<float>& speed = s.speed;
+  std::vector<Run>& runs = s.runs;
+  const bool curvature = m.kind == Motion::Kind::Curvature;
   list.clear();
-  speed.clear();
+  runs.clear();
+  s.factor.clear();
+  s.step.clear();
   const std::size_t stride[3] = {1, g.sx, g.sxy};
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
@@ -232,16 +335,41 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
       w = window->at(p, f.point, f.normal);
       if (w <= 0) continue;
     }
+    const double speed = float(m.speed * w);
+    if (curvature) {
+      s.factor.push_back(m.dt * speed);
+    } else {
+      s.step.push_back(float(m.dt * speed));
+    }
+    // Consecutive indices share a row: region lies inside the grid, off its last column.
+    if (!runs.empty() && list.back() + 1 == i) {
+      ++runs.back().count;
+    } else {
+      runs.push_back({std::uint32_t(i), std::uint32_t(list.size()), 1});
+    }
     list.push_back(std::uint32_t(i));
-    speed.push_back(float(m.speed * w));
   }
   if (list.empty()) {
     progress.advance(1);
     return;
   }
-  std::vector<float>& next = s.next;
+  // The kernels read up to 3 entries past the last run.
+  s.factor.resize(s.factor.size() + 3, 0.0);
+  s.step.resize(s.step.size() + 3, 0.0f);
+  // Fixed blocks of whole runs, each of at least kBlock voxels but the last.
   constexpr std::size_t kBlock = 4096;
-  const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
+  std::vector<std::size_t>& blocks = s.blocks;
+  blocks.clear();
+  for (std::size_t r = 0, inBlock = kBlock; r < runs.size(); ++r) {
+    if (inBlock >= kBlock) {
+      blocks.push_back(r);
+      inBlock = 0;
+    }
+    inBlock += runs[r].count;
+  }
+  blocks.push_back(runs.size());
+  const std::size_t blockCount = blocks.size() - 1;
+  std::vector<float>& next = s.next;
   // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
   // which holds the same values off the list, instead of writing a list and copying it back
   // every sub-step. An even count ends in g.v.
@@ -251,38 +379,23 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   } else {
     next.resize(list.size());
   }
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
   for (int step = 0; step < m.substeps; ++step) {
     const bool fromOther = twoGrids && step % 2 == 1;
     const float* v = fromOther ? s.other.data() : g.v.data();
-    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : nullptr;
-    pool.parallelFor(blocks, [&](std::size_t b) {
+    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : next.data();
+    pool.parallelFor(blockCount, [&](std::size_t b) {
       progress.check();
-      const std::size_t begin = b * kBlock, end = std::min(list.size(), (b + 1) * kBlock);
-      // One loop per kind of motion and destination, decided once per block, not per voxel.
-      if (m.kind == Motion::Kind::Advect) {
-        for (std::size_t k = begin; k < end; ++k) {
-          const std::size_t i = list[k];
-          const double f = speed[k];
-          next[k] = v[i] - float(m.dt * f) * upwindGradient(v, i, stride, f > 0);
-        }
-        return;
-      }
-      const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
-      const bool limited = std::isfinite(m.curvatureLimit);  // clamping to +-infinity changes nothing
-      auto curvature = [&](std::size_t k) {
-        const float* p = v + list[k];
-        double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
-        if (limited) lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
-        return float(p[0] + m.dt * double(speed[k]) * lap);
-      };
-      if (out) {
-        for (std::size_t k = begin; k < end; ++k) out[list[k]] = curvature(k);
+      const Run* first = runs.data() + blocks[b];
+      const Run* last = runs.data() + blocks[b + 1];
+      if (curvature) {
+        curvatureRuns(v, out, twoGrids, first, last, s.factor.data(), sy, sz, m.curvatureLimit);
       } else {
-        for (std::size_t k = begin; k < end; ++k) next[k] = curvature(k);
+        advectionRuns(v, out, first, last, s.step.data(), stride);
       }
     });
-    if (!out)
-      for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    if (!twoGrids)
+      for (const Run& r : runs) std::copy_n(next.data() + r.first, r.count, g.v.data() + r.index);
     progress.advance(1.0 / m.substeps);
   }
 }
