@@ -1,8 +1,11 @@
 #include "level_set.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <limits>
+#include <memory>
+#include <thread>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -307,6 +310,101 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
 #endif
 }
 
+// The m.substeps curvature steps of evolve between g.v and s.other (both holding g's values), on
+// the pool without waking it for each step. The runs are cut into pieces of whole z-slices; a
+// voxel's neighbours then lie in its own piece or the two next to it. Step j of piece p reads
+// the grid that holds step j - 1 and writes the other, over step j - 2: it may run once its
+// neighbours have done step j - 1 (what it reads is there, and they are done reading step
+// j - 2), so neighbours only ever run the same step at once, reading one grid and writing
+// the other at their own voxels. Threads take whichever piece is ready, lowest step first;
+// each voxel's value is computed as in a plain loop over the steps, so the result is the
+// same for any thread count and any order.
+void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& pool, const ProgressShare& progress) {
+  const std::vector<Run>& runs = s.runs;
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  float* const grids[2] = {g.v.data(), s.other.data()};
+  constexpr std::size_t kPieceVoxels = 2048;
+  std::vector<std::size_t>& pieces = s.blocks;  // the first run of each piece, then runs.size()
+  pieces.clear();
+  for (std::size_t r = 0, inPiece = kPieceVoxels; r < runs.size(); ++r) {
+    if (inPiece >= kPieceVoxels && (r == 0 || runs[r].index / g.sxy != runs[r - 1].index / g.sxy)) {
+      pieces.push_back(r);
+      inPiece = 0;
+    }
+    inPiece += runs[r].count;
+  }
+  pieces.push_back(runs.size());
+  const int count = int(pieces.size()) - 1, steps = m.substeps;
+  auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
+    curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
+                  runs.data() + pieces[std::size_t(p) + 1], s.factor.data(), sy, sz, m.curvatureLimit);
+  };
+  const int participants = std::min(pool.threads(), count);
+  if (participants <= 1) {
+    for (int step = 0; step < steps; ++step) {
+      progress.check();
+      for (int p = 0; p < count; ++p) runStep(p, step);
+      progress.advance(1.0 / steps);
+    }
+    return;
+  }
+  // done[p]: steps piece p has finished; claimed[p]: a thread is running its next step.
+  std::unique_ptr<std::atomic<int>[]> done(new std::atomic<int>[std::size_t(count)]);
+  std::unique_ptr<std::atomic<bool>[]> claimed(new std::atomic<bool>[std::size_t(count)]);
+  for (int p = 0; p < count; ++p) {
+    done[std::size_t(p)].store(0, std::memory_order_relaxed);
+    claimed[std::size_t(p)].store(false, std::memory_order_relaxed);
+  }
+  std::atomic<int> finished{0};
+  std::atomic<bool> failed{false};
+  auto ready = [&](int p, int d) {
+    return (p == 0 || done[std::size_t(p - 1)].load(std::memory_order_acquire) >= d) &&
+           (p + 1 == count || done[std::size_t(p + 1)].load(std::memory_order_acquire) >= d);
+  };
+  pool.parallelFor(std::size_t(participants), [&](std::size_t) {
+    int idle = 0;
+    while (finished.load(std::memory_order_acquire) < count && !failed.load(std::memory_order_relaxed)) {
+      int best = -1, bestStep = steps;
+      for (int p = 0; p < count; ++p) {
+        const int d = done[std::size_t(p)].load(std::memory_order_acquire);
+        if (d < bestStep && !claimed[std::size_t(p)].load(std::memory_order_relaxed) && ready(p, d)) {
+          best = p;
+          bestStep = d;
+        }
+      }
+      bool mine = false;
+      if (best >= 0 && claimed[std::size_t(best)].compare_exchange_strong(mine, true, std::memory_order_acq_rel)) {
+        // Another thread may have run a step of it between the scan and the claim.
+        const int d = done[std::size_t(best)].load(std::memory_order_acquire);
+        if (d < steps && ready(best, d)) {
+          try {
+            progress.check();
+            runStep(best, d);
+          } catch (...) {
+            failed.store(true, std::memory_order_relaxed);
+            claimed[std::size_t(best)].store(false, std::memory_order_release);
+            throw;
+          }
+          done[std::size_t(best)].store(d + 1, std::memory_order_release);
+          if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
+          progress.advance(1.0 / (double(steps) * count));
+          idle = 0;
+        }
+        claimed[std::size_t(best)].store(false, std::memory_order_release);
+        continue;
+      }
+      // Nothing ready: the pieces next to the ones left are being worked on by another thread.
+      if (++idle < 64) {
+#if defined(__SSE2__)
+        _mm_pause();
+#endif
+      } else {
+        std::this_thread::yield();
+      }
+    }
+  });
+}
+
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
 // foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
 // kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
@@ -356,6 +454,16 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   // The kernels read up to 3 entries past the last run.
   s.factor.resize(s.factor.size() + 3, 0.0);
   s.step.resize(s.step.size() + 3, 0.0f);
+  std::vector<float>& next = s.next;
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
+  // which holds the same values off the list, instead of writing a list and copying it back
+  // every sub-step. An even count ends in g.v.
+  if (m.substeps > 2 && m.substeps % 2 == 0) {
+    s.other.assign(g.v.begin(), g.v.end());
+    curvatureSteps(g, s, m, pool, progress);
+    return;
+  }
   // Fixed blocks of whole runs, each of at least kBlock voxels but the last.
   constexpr std::size_t kBlock = 4096;
   std::vector<std::size_t>& blocks = s.blocks;
@@ -368,34 +476,19 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     inBlock += runs[r].count;
   }
   blocks.push_back(runs.size());
-  const std::size_t blockCount = blocks.size() - 1;
-  std::vector<float>& next = s.next;
-  // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
-  // which holds the same values off the list, instead of writing a list and copying it back
-  // every sub-step. An even count ends in g.v.
-  const bool twoGrids = m.substeps > 2 && m.substeps % 2 == 0;
-  if (twoGrids) {
-    s.other.assign(g.v.begin(), g.v.end());
-  } else {
-    next.resize(list.size());
-  }
-  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  next.resize(list.size());
   for (int step = 0; step < m.substeps; ++step) {
-    const bool fromOther = twoGrids && step % 2 == 1;
-    const float* v = fromOther ? s.other.data() : g.v.data();
-    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : next.data();
-    pool.parallelFor(blockCount, [&](std::size_t b) {
+    pool.parallelFor(blocks.size() - 1, [&](std::size_t b) {
       progress.check();
       const Run* first = runs.data() + blocks[b];
       const Run* last = runs.data() + blocks[b + 1];
       if (curvature) {
-        curvatureRuns(v, out, twoGrids, first, last, s.factor.data(), sy, sz, m.curvatureLimit);
+        curvatureRuns(g.v.data(), next.data(), false, first, last, s.factor.data(), sy, sz, m.curvatureLimit);
       } else {
-        advectionRuns(v, out, first, last, s.step.data(), stride);
+        advectionRuns(g.v.data(), next.data(), first, last, s.step.data(), stride);
       }
     });
-    if (!twoGrids)
-      for (const Run& r : runs) std::copy_n(next.data() + r.first, r.count, g.v.data() + r.index);
+    for (const Run& r : runs) std::copy_n(next.data() + r.first, r.count, g.v.data() + r.index);
     progress.advance(1.0 / m.substeps);
   }
 }

@@ -56,6 +56,30 @@ TEST_CASE("a brush over most of a 192^3 volume, cancelled from another thread, s
   CHECK(digest(v) == before);
 }
 
+TEST_CASE("smoothing on two threads, cancelled in its sub-steps, stops and changes nothing", "[progress]") {
+  // The 32 sub-steps run as pieces that two threads take in turn; one thread's Cancelled must
+  // stop the other too (it would otherwise wait for the piece next to it for ever).
+  Volume v = makeSphere({128, 128, 128}, {64, 64, 64}, 45);
+  const std::uint64_t before = digest(v);
+  ThreadPool pool(2);
+  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set.cpp).
+  for (const double at : {0.16, 0.22, 0.28}) {
+    Progress progress(
+        [&](double fraction) {
+          if (fraction > at) progress.cancel();
+        },
+        std::chrono::milliseconds(0));
+    {
+      const Progress::Scope scope(progress);
+      REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), Cancelled);
+    }
+    INFO("cancelled past " << at << ", stopped at " << progress.fraction());
+    CHECK(progress.fraction() > at);
+    CHECK(progress.fraction() < 0.3);
+    CHECK(digest(v) == before);
+  }
+}
+
 TEST_CASE("a CSG tool cancelled from another thread stops part way and changes nothing, also an intersect",
           "[progress]") {
   Volume v = makeSphere({160, 160, 160}, {80, 80, 80}, 60);
