@@ -122,35 +122,86 @@ class SweptWindow {
     std::reverse(memory_.begin(), memory_.end());
   }
 
+  // A caller's walk over the voxels of a grid in index order (rows along x): the dabs whose ROI
+  // holds the current row, listed once per row, and where the search starts, the dabs that
+  // were the strongest at the voxel before. Once the strongest is known, the others stop at
+  // their first factors. Neither changes the result: the same dabs are searched, and the
+  // largest window does not depend on the order.
+  struct Cursor {
+    int y = std::numeric_limits<int>::min(), z = 0;
+    std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
+    std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
+  };
+
   // The scale, or a value <= 0 where the memory reaches this message's window (how far it
   // exceeds it does not matter: the voxel does not move).
-  double at(Int3 p, Vec3 q, Vec3 n) const {
-    const double w = strongest(dabs_, p, q, n, std::numeric_limits<double>::infinity());
-    if (w <= 0 || memory_.empty()) return w;
-    return w - strongest(memory_, p, q, n, w);
+  double at(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    if (dabs_.size() == 1 && memory_.empty()) {  // a brush: nothing to search
+      const double w = dabs_[0].roi.contains(p) ? window(dabs_[0], q, n, 0) : 0;
+      return w > 0 ? w : 0;
+    }
+    return search(p, q, n, c);
   }
 
  private:
-  // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
-  // A dab stops being multiplied out once it falls to the best so far: its factors are in
-  // [0, 1] and rounding is monotone, so the rest cannot lift it above.
-  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, Vec3 n, double enough) const {
+  [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    if (p.y != c.y || p.z != c.z) {
+      c.y = p.y;
+      c.z = p.z;
+      rowDabs(dabs_, p, c.dabs);
+      rowDabs(memory_, p, c.memory);
+      c.dab = c.remembered = 0;
+    }
+    const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
+    if (w <= 0 || c.memory.empty()) return w;
+    return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
+  }
+
+  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out) {
+    out.clear();
+    for (std::size_t i = 0; i < dabs.size(); ++i) {
+      const Box& b = dabs[i].roi;
+      if (p.y >= b.lo.y && p.y < b.hi.y && p.z >= b.lo.z && p.z < b.hi.z) out.push_back(std::uint32_t(i));
+    }
+  }
+
+  // Dab d's window weight * W at foot point q (normal n), or a value <= best as soon as it
+  // falls to best. Its factors are in [0, 1] (up to the rounding of a dot product of unit
+  // vectors, taken before the test) and rounding is monotone, so the rest cannot lift it above.
+  double window(const PreparedDab& d, Vec3 q, Vec3 n, double best) const {
+    double w = d.weight;
+    Vec3 x = q;
+    if (anchor_ != 0) {
+      const Vec3 axis = d.normal == Vec3{} ? n : d.normal;
+      // Moving the surface along the axis by s is moving it along its normal by s (axis . n).
+      w *= std::max(0.0, dot(axis, n));
+      if (!(w > best)) return w;
+      const double along = dot(q - d.center, axis);
+      x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
+    }
+    for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
+    return w;
+  }
+
+  // The largest window over the dabs of the row (`row`, indices into dabs) whose ROI holds x,
+  // or a value >= enough as soon as one reaches it, searched from row[first] on (first becomes
+  // the strongest one found).
+  double strongest(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, int x0, Vec3 q, Vec3 n,
+                   double enough, std::size_t& first) const {
     double best = 0;
-    for (const PreparedDab& d : dabs) {
-      if (!d.roi.contains(p)) continue;
-      Vec3 x = q;
-      double w = d.weight;
-      if (anchor_ != 0) {
-        const Vec3 axis = d.normal == Vec3{} ? n : d.normal;
-        const double along = dot(q - d.center, axis);
-        x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
-        // Moving the surface along the axis by s is moving it along its normal by s (axis . n).
-        w *= std::max(0.0, dot(axis, n));
+    std::size_t strongestDab = first;
+    for (std::size_t k = 0; k < row.size(); ++k) {
+      const std::size_t i = k == 0 ? first : (k <= first ? k - 1 : k);
+      const PreparedDab& d = dabs[row[i]];
+      if (x0 < d.roi.lo.x || x0 >= d.roi.hi.x) continue;
+      const double w = window(d, q, n, best);
+      if (w > best) {
+        best = w;
+        strongestDab = i;
       }
-      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
-      best = std::max(best, w);
       if (best >= enough) break;
     }
+    first = strongestDab;
     return best;
   }
 
@@ -420,6 +471,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   s.factor.clear();
   s.step.clear();
   const std::size_t stride[3] = {1, g.sx, g.sxy};
+  SweptWindow::Cursor cursor;
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
@@ -430,7 +482,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     double w = 1;
     if (window) {
       const FootPoint f = footPoint(g, i, p);
-      w = window->at(p, f.point, f.normal);
+      w = window->at(p, f.point, f.normal, cursor);
       if (w <= 0) continue;
     }
     const double speed = float(m.speed * w);
@@ -497,12 +549,13 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
 double largestWindow(const DenseGrid& g, const Box& region, float band, const SweptWindow& window,
                      const BandVoxels& voxels, const ProgressShare& progress) {
   double largest = 0;
+  SweptWindow::Cursor cursor;
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
     if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k])) continue;
     const FootPoint f = footPoint(g, i, voxels.point[k]);
-    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal));
+    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal, cursor));
   }
   return largest;
 }
