@@ -512,7 +512,11 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   // which holds the same values off the list, instead of writing a list and copying it back
   // every sub-step. An even count ends in g.v.
   if (m.substeps > 2 && m.substeps % 2 == 0) {
-    s.other.assign(g.v.begin(), g.v.end());
+    // The steps read the runs' slices and the slices next to them (a run's last lanes up to 4
+    // voxels past it): only that part of the grid is copied.
+    s.other.resize(g.v.size());
+    const std::size_t from = runs.front().index - g.sxy, to = runs.back().index + runs.back().count + 4 + g.sxy;
+    std::copy(g.v.begin() + std::ptrdiff_t(from), g.v.begin() + std::ptrdiff_t(to), s.other.begin() + std::ptrdiff_t(from));
     curvatureSteps(g, s, m, pool, progress);
     return;
   }
