@@ -228,16 +228,43 @@ struct Run {
   std::uint32_t count;
 };
 
+// The voxels evolve moves, with their speeds.
+struct MovedVoxels {
+  std::vector<Run> runs;
+  std::vector<double> factor;  // curvature: dt * F per voxel, in list order
+  std::vector<float> step;     // advection: float(dt * F) per voxel
+  std::uint32_t count = 0;
+
+  void clear() {
+    runs.clear();
+    factor.clear();
+    step.clear();
+    count = 0;
+  }
+  // Appends the voxels of a later part of the grid (a run that goes on across the seam is one).
+  void append(const MovedVoxels& o) {
+    for (const Run& r : o.runs) {
+      if (!runs.empty() && runs.back().index + runs.back().count == r.index) {
+        runs.back().count += r.count;
+      } else {
+        runs.push_back({r.index, r.first + count, r.count});
+      }
+    }
+    factor.insert(factor.end(), o.factor.begin(), o.factor.end());
+    step.insert(step.end(), o.step.begin(), o.step.end());
+    count += o.count;
+  }
+};
+
 // Scratch reused by the tools on each thread: fresh grids and lists each application cost
 // page faults (the kernel clearing pages) as large as the work itself.
 struct ToolScratch {
   DenseGrid grid;
   BandVoxels band;
-  std::vector<std::uint32_t> list;
-  std::vector<Run> runs;
-  std::vector<std::size_t> blocks;  // evolve's blocks of runs: the first run of each, then runs.size()
-  std::vector<double> factor;       // curvature: dt * F per listed voxel
-  std::vector<float> step, next;    // advection: float(dt * F) per listed voxel; a sub-step's values
+  MovedVoxels moved;
+  std::vector<MovedVoxels> movedPieces;  // evolve's list, built in pieces on the pool
+  std::vector<std::size_t> blocks;       // evolve's blocks of runs: the first run of each, then runs.size()
+  std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
 };
@@ -371,7 +398,7 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
 // each voxel's value is computed as in a plain loop over the steps, so the result is the
 // same for any thread count and any order.
 void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& pool, const ProgressShare& progress) {
-  const std::vector<Run>& runs = s.runs;
+  const std::vector<Run>& runs = s.moved.runs;
   const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
   float* const grids[2] = {g.v.data(), s.other.data()};
   constexpr std::size_t kPieceVoxels = 2048;
@@ -388,7 +415,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   const int count = int(pieces.size()) - 1, steps = m.substeps;
   auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
     curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
-                  runs.data() + pieces[std::size_t(p) + 1], s.factor.data(), sy, sz, m.curvatureLimit);
+                  runs.data() + pieces[std::size_t(p) + 1], s.moved.factor.data(), sy, sz, m.curvatureLimit);
   };
   const int participants = std::min(pool.threads(), count);
   if (participants <= 1) {
@@ -460,19 +487,14 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
 // foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
 // kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
 // thread-count independent. progress: checked per block, advanced per sub-step.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
-  ToolScratch& s = toolScratch();
-  std::vector<std::uint32_t>& list = s.list;
-  std::vector<Run>& runs = s.runs;
+// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
+// speeds (the window at each one's foot point; none: W = 1).
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
+                  const ProgressShare& progress) {
   const bool curvature = m.kind == Motion::Kind::Curvature;
-  list.clear();
-  runs.clear();
-  s.factor.clear();
-  s.step.clear();
-  const std::size_t stride[3] = {1, g.sx, g.sxy};
   SweptWindow::Cursor cursor;
-  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+  for (std::size_t k = begin; k < end; ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
     const float d = g.v[i];
@@ -487,25 +509,56 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     }
     const double speed = float(m.speed * w);
     if (curvature) {
-      s.factor.push_back(m.dt * speed);
+      out.factor.push_back(m.dt * speed);
     } else {
-      s.step.push_back(float(m.dt * speed));
+      out.step.push_back(float(m.dt * speed));
     }
     // Consecutive indices share a row: region lies inside the grid, off its last column.
-    if (!runs.empty() && list.back() + 1 == i) {
-      ++runs.back().count;
+    if (!out.runs.empty() && out.runs.back().index + out.runs.back().count == i) {
+      ++out.runs.back().count;
     } else {
-      runs.push_back({std::uint32_t(i), std::uint32_t(list.size()), 1});
+      out.runs.push_back({std::uint32_t(i), out.count, 1});
     }
-    list.push_back(std::uint32_t(i));
+    ++out.count;
   }
-  if (list.empty()) {
+}
+
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
+// kStencilReach inside the grid. Work is split in fixed pieces, each voxel computed alone:
+// thread-count independent. progress: checked per piece, advanced per sub-step.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+  ToolScratch& s = toolScratch();
+  MovedVoxels& moved = s.moved;
+  moved.clear();
+  // The list in pieces on the pool when there are threads and enough voxels to pay for waking
+  // them (the foot point and the window cost more per voxel than a sub-step); joined in order,
+  // the pieces are the list a single pass builds.
+  constexpr std::size_t kListPiece = 8192;
+  const std::size_t listPieces = (voxels.index.size() + kListPiece - 1) / kListPiece;
+  if (pool.threads() > 1 && listPieces >= 2) {
+    if (s.movedPieces.size() < listPieces) s.movedPieces.resize(listPieces);
+    pool.parallelFor(listPieces, [&](std::size_t c) {
+      MovedVoxels& piece = s.movedPieces[c];
+      piece.clear();
+      collectMoved(g, region, band, m, window, voxels, c * kListPiece,
+                   std::min(voxels.index.size(), (c + 1) * kListPiece), piece, progress);
+    });
+    for (std::size_t c = 0; c < listPieces; ++c) moved.append(s.movedPieces[c]);
+  } else {
+    collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
+  }
+  const std::vector<Run>& runs = moved.runs;
+  const bool curvature = m.kind == Motion::Kind::Curvature;
+  const std::size_t stride[3] = {1, g.sx, g.sxy};
+  if (runs.empty()) {
     progress.advance(1);
     return;
   }
   // The kernels read up to 3 entries past the last run.
-  s.factor.resize(s.factor.size() + 3, 0.0);
-  s.step.resize(s.step.size() + 3, 0.0f);
+  moved.factor.resize(moved.factor.size() + 3, 0.0);
+  moved.step.resize(moved.step.size() + 3, 0.0f);
   std::vector<float>& next = s.next;
   const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
   // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
@@ -532,16 +585,16 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
     inBlock += runs[r].count;
   }
   blocks.push_back(runs.size());
-  next.resize(list.size());
+  next.resize(moved.count);
   for (int step = 0; step < m.substeps; ++step) {
     pool.parallelFor(blocks.size() - 1, [&](std::size_t b) {
       progress.check();
       const Run* first = runs.data() + blocks[b];
       const Run* last = runs.data() + blocks[b + 1];
       if (curvature) {
-        curvatureRuns(g.v.data(), next.data(), false, first, last, s.factor.data(), sy, sz, m.curvatureLimit);
+        curvatureRuns(g.v.data(), next.data(), false, first, last, moved.factor.data(), sy, sz, m.curvatureLimit);
       } else {
-        advectionRuns(g.v.data(), next.data(), first, last, s.step.data(), stride);
+        advectionRuns(g.v.data(), next.data(), first, last, moved.step.data(), stride);
       }
     });
     for (const Run& r : runs) std::copy_n(next.data() + r.first, r.count, g.v.data() + r.index);
