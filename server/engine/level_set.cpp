@@ -133,6 +133,12 @@ class SweptWindow {
     std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
   };
 
+  // A brush (one dab, no memory, no height): its dab, whose window alone is the scale, else null.
+  const PreparedDab* brush() const {
+    return dabs_.size() == 1 && memory_.empty() && anchor_ == 0 ? &dabs_[0] : nullptr;
+  }
+  double inverseRadius() const { return inverseRadius_; }
+
   // The scale, or a value <= 0 where the memory reaches this message's window (how far it
   // exceeds it does not matter: the voxel does not move).
   double at(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
@@ -487,26 +493,49 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
 // foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
 // kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
 // thread-count independent. progress: checked per block, advanced per sub-step.
+#if defined(__SSE2__)
+// A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
+// SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
+// factors multiplied out even after one is 0, which leaves 0), so the same bits.
+void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], const PreparedDab& d,
+                  double inverseRadius, double w[2]) {
+  const float* a = g.v.data() + i[0];
+  const float* b = g.v.data() + i[1];
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  const __m128d half = _mm_set1_pd(0.5), one = _mm_set1_pd(1.0), zero = _mm_setzero_pd();
+  // GradStencil::inArray(...).gradient(): float differences, then 0.5 * in double.
+  const __m128d gx = _mm_mul_pd(half, _mm_setr_pd(double(a[1] - a[-1]), double(b[1] - b[-1])));
+  const __m128d gy = _mm_mul_pd(half, _mm_setr_pd(double(a[sy] - a[-sy]), double(b[sy] - b[-sy])));
+  const __m128d gz = _mm_mul_pd(half, _mm_setr_pd(double(a[sz] - a[-sz]), double(b[sz] - b[-sz])));
+  // normalized(): l = sqrt(x x + y y + z z), l > 0 ? g / l : 0.
+  const __m128d l = _mm_sqrt_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(gx, gx), _mm_mul_pd(gy, gy)), _mm_mul_pd(gz, gz)));
+  const __m128d positive = _mm_cmpgt_pd(l, zero);
+  const __m128d dist = _mm_setr_pd(double(a[0]), double(b[0]));
+  const __m128d q[3] = {
+      _mm_sub_pd(_mm_setr_pd(p[0].x, p[1].x), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gx, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].y, p[1].y), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gy, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].z, p[1].z), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gz, l)), dist))};
+  const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff)), invR = _mm_set1_pd(inverseRadius);
+  __m128d weight = _mm_set1_pd(d.weight);
+  for (int axis = 0; axis < 3; ++axis) {
+    // window1(t): t >= 1 ? 0 : (1 - t t)^2.
+    const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(q[axis], _mm_set1_pd(d.center[axis])), abs), invR);
+    const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+    weight = _mm_mul_pd(weight, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+  }
+  _mm_storeu_pd(w, weight);
+  for (int k = 0; k < 2; ++k) w[k] = d.roi.contains(p[k]) && w[k] > 0 ? w[k] : 0;
+}
+#endif
+
 // The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
 // speeds (the window at each one's foot point; none: W = 1).
 void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
                   const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
                   const ProgressShare& progress) {
   const bool curvature = m.kind == Motion::Kind::Curvature;
-  SweptWindow::Cursor cursor;
-  for (std::size_t k = begin; k < end; ++k) {
-    if (k % kVoxelsPerCheck == 0) progress.check();
-    const std::size_t i = voxels.index[k];
-    const float d = g.v[i];
-    if (!(std::fabs(d) < band)) continue;
-    const Int3 p = voxels.point[k];
-    if (!region.contains(p)) continue;
-    double w = 1;
-    if (window) {
-      const FootPoint f = footPoint(g, i, p);
-      w = window->at(p, f.point, f.normal, cursor);
-      if (w <= 0) continue;
-    }
+  auto add = [&](std::size_t i, double w) {
+    if (w <= 0) return;
     const double speed = float(m.speed * w);
     if (curvature) {
       out.factor.push_back(m.dt * speed);
@@ -520,7 +549,49 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       out.runs.push_back({std::uint32_t(i), out.count, 1});
     }
     ++out.count;
+  };
+  SweptWindow::Cursor cursor;
+#if defined(__SSE2__)
+  // A brush's windows two voxels at a time (the square root and divisions of the foot point
+  // are most of a voxel's cost); the voxels are added in the same order.
+  const PreparedDab* const brush = window ? window->brush() : nullptr;
+  std::size_t pending[2];
+  Int3 pendingPoint[2];
+  int pendingCount = 0;
+#endif
+  for (std::size_t k = begin; k < end; ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p)) continue;
+#if defined(__SSE2__)
+    if (brush) {
+      pending[pendingCount] = i;
+      pendingPoint[pendingCount] = p;
+      if (++pendingCount == 2) {
+        double w[2];
+        brushWindows(g, pending, pendingPoint, *brush, window->inverseRadius(), w);
+        add(pending[0], w[0]);
+        add(pending[1], w[1]);
+        pendingCount = 0;
+      }
+      continue;
+    }
+#endif
+    double w = 1;
+    if (window) {
+      const FootPoint f = footPoint(g, i, p);
+      w = window->at(p, f.point, f.normal, cursor);
+    }
+    add(i, w);
   }
+#if defined(__SSE2__)
+  if (pendingCount == 1) {
+    const FootPoint f = footPoint(g, pending[0], pendingPoint[0]);
+    add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
+  }
+#endif
 }
 
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
