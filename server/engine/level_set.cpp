@@ -534,7 +534,15 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
                   const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
                   const ProgressShare& progress) {
   const bool curvature = m.kind == Motion::Kind::Curvature;
-  auto add = [&](std::size_t i, double w) {
+  // The run being extended and the count, kept out of `out` while the loop runs.
+  Run run{0, 0, 0};
+  std::uint32_t count = out.count;
+  if (!out.runs.empty()) {
+    run = out.runs.back();
+    out.runs.pop_back();
+  }
+  // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
+  auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
     if (w <= 0) return;
     const double speed = float(m.speed * w);
     if (curvature) {
@@ -543,12 +551,13 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       out.step.push_back(float(m.dt * speed));
     }
     // Consecutive indices share a row: region lies inside the grid, off its last column.
-    if (!out.runs.empty() && out.runs.back().index + out.runs.back().count == i) {
-      ++out.runs.back().count;
+    if (run.count != 0 && run.index + run.count == i) {
+      ++run.count;
     } else {
-      out.runs.push_back({std::uint32_t(i), out.count, 1});
+      if (run.count != 0) out.runs.push_back(run);
+      run = {std::uint32_t(i), count, 1};
     }
-    ++out.count;
+    ++count;
   };
   SweptWindow::Cursor cursor;
 #if defined(__SSE2__)
@@ -592,6 +601,8 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
   }
 #endif
+  if (run.count != 0) out.runs.push_back(run);
+  out.count = count;
 }
 
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
