@@ -460,21 +460,25 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
       if (best >= 0 && claimed[std::size_t(best)].compare_exchange_strong(mine, true, std::memory_order_acq_rel)) {
         // Another thread may have run a step of it between the scan and the claim.
         const int d = done[std::size_t(best)].load(std::memory_order_acquire);
-        if (d < steps && ready(best, d)) {
-          try {
+        // Whatever throws (a cancel, the progress report), the claim is let go and the other
+        // threads stop instead of waiting for this piece.
+        try {
+          if (d < steps && ready(best, d)) {
             progress.check();
             runStep(best, d);
-          } catch (...) {
-            failed.store(true, std::memory_order_relaxed);
+            done[std::size_t(best)].store(d + 1, std::memory_order_release);
+            if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
             claimed[std::size_t(best)].store(false, std::memory_order_release);
-            throw;
+            progress.advance(1.0 / (double(steps) * count));
+            idle = 0;
+          } else {
+            claimed[std::size_t(best)].store(false, std::memory_order_release);
           }
-          done[std::size_t(best)].store(d + 1, std::memory_order_release);
-          if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
-          progress.advance(1.0 / (double(steps) * count));
-          idle = 0;
+        } catch (...) {
+          failed.store(true, std::memory_order_relaxed);
+          claimed[std::size_t(best)].store(false, std::memory_order_release);
+          throw;
         }
-        claimed[std::size_t(best)].store(false, std::memory_order_release);
         continue;
       }
       // Nothing ready: the pieces next to the ones left are being worked on by another thread.

@@ -5,6 +5,7 @@
 
 #include <future>
 #include <thread>
+#include <utility>
 
 #include "engine/csg.hpp"
 #include "engine/level_set.hpp"
@@ -78,6 +79,19 @@ TEST_CASE("smoothing on two threads, cancelled in its sub-steps, stops and chang
     CHECK(progress.fraction() < 0.3);
     CHECK(digest(v) == before);
   }
+  // A report that throws once (progress.hpp: it propagates out of the call) does the same,
+  // from whichever thread counted the step; the other thread must not wait for that piece.
+  bool thrown = false;
+  Progress failing(
+      [&](double fraction) {
+        if (fraction > 0.2 && !std::exchange(thrown, true)) throw std::runtime_error("report failed");
+      },
+      std::chrono::milliseconds(0));
+  {
+    const Progress::Scope scope(failing);
+    REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), std::runtime_error);
+  }
+  CHECK(digest(v) == before);
 }
 
 TEST_CASE("a CSG tool cancelled from another thread stops part way and changes nothing, also an intersect",
