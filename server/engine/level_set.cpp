@@ -423,7 +423,10 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
     curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
                   runs.data() + pieces[std::size_t(p) + 1], s.moved.factor.data(), sy, sz, m.curvatureLimit);
   };
-  const int participants = std::min(pool.threads(), count);
+  // Below 8192 voxels (a brush of radius ~10) a step is a few microseconds: the threads would
+  // mostly wait for each other, and a woken thread that loses its core holds up the rest.
+  constexpr std::uint32_t kParallelVoxels = 8192;
+  const int participants = s.moved.count < kParallelVoxels ? 1 : std::min(pool.threads(), count);
   if (participants <= 1) {
     for (int step = 0; step < steps; ++step) {
       progress.check();
