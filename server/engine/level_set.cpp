@@ -394,8 +394,10 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
 #endif
 }
 
-// The m.substeps curvature steps of evolve between g.v and s.other (both holding g's values), on
-// the pool without waking it for each step. The runs are cut into pieces of whole z-slices; a
+// The m.substeps curvature steps of evolve between g.v and s.other, on the pool without waking
+// it for each step. The steps read the runs' slices and the slices next to them (a run's last
+// lanes up to 4 voxels past it): each piece copies its part of that into s.other before its
+// first step, the pieces next to it only read there once they have done theirs. The runs are cut into pieces of whole z-slices; a
 // voxel's neighbours then lie in its own piece or the two next to it. Step j of piece p reads
 // the grid that holds step j - 1 and writes the other, over step j - 2: it may run once its
 // neighbours have done step j - 1 (what it reads is there, and they are done reading step
@@ -419,7 +421,17 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   }
   pieces.push_back(runs.size());
   const int count = int(pieces.size()) - 1, steps = m.substeps;
+  // Piece p copies [copyFrom(p), copyFrom(p + 1)): from the slice before the runs (the first)
+  // or its first run's slice, to the next piece's, or past the last run's slice (the last).
+  auto copyFrom = [&](int p) {
+    if (p == 0) return std::size_t(runs.front().index) - g.sxy;
+    if (p == count) return std::size_t(runs.back().index) + runs.back().count + 4 + g.sxy;
+    return runs[pieces[std::size_t(p)]].index / g.sxy * g.sxy;
+  };
   auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
+    if (step == 0)
+      std::copy(g.v.begin() + std::ptrdiff_t(copyFrom(p)), g.v.begin() + std::ptrdiff_t(copyFrom(p + 1)),
+                s.other.begin() + std::ptrdiff_t(copyFrom(p)));
     curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
                   runs.data() + pieces[std::size_t(p) + 1], s.moved.factor.data(), sy, sz, m.curvatureLimit);
   };
@@ -654,11 +666,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   // which holds the same values off the list, instead of writing a list and copying it back
   // every sub-step. An even count ends in g.v.
   if (m.substeps > 2 && m.substeps % 2 == 0) {
-    // The steps read the runs' slices and the slices next to them (a run's last lanes up to 4
-    // voxels past it): only that part of the grid is copied.
     s.other.resize(g.v.size());
-    const std::size_t from = runs.front().index - g.sxy, to = runs.back().index + runs.back().count + 4 + g.sxy;
-    std::copy(g.v.begin() + std::ptrdiff_t(from), g.v.begin() + std::ptrdiff_t(to), s.other.begin() + std::ptrdiff_t(from));
     curvatureSteps(g, s, m, pool, progress);
     return;
   }
