@@ -1,8 +1,11 @@
 #include "level_set.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <limits>
+#include <memory>
+#include <thread>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -65,41 +68,15 @@ double window1(double t) {
 }
 
 // Godunov |grad phi| with second-order ENO one-sided differences, upwind for speed sign.
-// Single precision: the field is stored in floats and the differences are of order 1.
+// Single precision: the field is stored in floats and the differences are of order 1. The
+// scalar form below is the definition; with SSE2, advectionRuns does its float operations in
+// its order in four lanes at once (four voxels along x), so the same bits.
 #if defined(__SSE2__)
-// The three axes in the lanes of one vector (the fourth is unused): per axis the same float
-// operations in the same order as the scalar version below, and the axes summed in order, so
-// the same bits.
 __m128 minmod4(__m128 a, __m128 b) {
   const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
   const __m128 aSmaller = _mm_cmplt_ps(_mm_and_ps(a, abs), _mm_and_ps(b, abs));
   const __m128 smaller = _mm_or_ps(_mm_and_ps(aSmaller, a), _mm_andnot_ps(aSmaller, b));
   return _mm_andnot_ps(_mm_cmple_ps(_mm_mul_ps(a, b), _mm_setzero_ps()), smaller);
-}
-
-float upwindGradient(const float* v, std::size_t i, const std::size_t stride[3], bool outward) {
-  const std::size_t sy = stride[1], sz = stride[2];
-  const __m128 vm2 = _mm_setr_ps(v[i - 2], v[i - 2 * sy], v[i - 2 * sz], 0.0f);
-  const __m128 vm1 = _mm_setr_ps(v[i - 1], v[i - sy], v[i - sz], 0.0f);
-  const __m128 vp1 = _mm_setr_ps(v[i + 1], v[i + sy], v[i + sz], 0.0f);
-  const __m128 vp2 = _mm_setr_ps(v[i + 2], v[i + 2 * sy], v[i + 2 * sz], 0.0f);
-  const __m128 v0 = _mm_set1_ps(v[i]), two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
-  const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);  // vp1 - 2 v0 + vm1
-  const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
-                               _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
-  const __m128 dp = _mm_sub_ps(_mm_sub_ps(vp1, v0),
-                               _mm_mul_ps(half, minmod4(centre, _mm_add_ps(_mm_sub_ps(vp2, _mm_mul_ps(two, vp1)), v0))));
-  // std::max(x, 0) is (x < 0 ? 0 : x), which is _mm_max_ps(0, x) bit for bit (also -0 and NaN);
-  // std::min(x, 0) likewise _mm_min_ps(0, x).
-  const __m128 a1 = outward ? _mm_max_ps(zero, dm) : _mm_min_ps(zero, dm);
-  const __m128 a2 = outward ? _mm_min_ps(zero, dp) : _mm_max_ps(zero, dp);
-  alignas(16) float t[4];
-  _mm_store_ps(t, _mm_add_ps(_mm_mul_ps(a1, a1), _mm_mul_ps(a2, a2)));
-  float g2 = 0;
-  g2 += t[0];
-  g2 += t[1];
-  g2 += t[2];
-  return std::sqrt(g2);
 }
 #else
 float minmod(float a, float b) {
@@ -145,35 +122,92 @@ class SweptWindow {
     std::reverse(memory_.begin(), memory_.end());
   }
 
+  // A caller's walk over the voxels of a grid in index order (rows along x): the dabs whose ROI
+  // holds the current row, listed once per row, and where the search starts, the dabs that
+  // were the strongest at the voxel before. Once the strongest is known, the others stop at
+  // their first factors. Neither changes the result: the same dabs are searched, and the
+  // largest window does not depend on the order.
+  struct Cursor {
+    int y = std::numeric_limits<int>::min(), z = 0;
+    std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
+    std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
+  };
+
+  // A brush (one dab, no memory, no height): its dab, whose window alone is the scale, else null.
+  const PreparedDab* brush() const {
+    return dabs_.size() == 1 && memory_.empty() && anchor_ == 0 ? &dabs_[0] : nullptr;
+  }
+  double inverseRadius() const { return inverseRadius_; }
+
   // The scale, or a value <= 0 where the memory reaches this message's window (how far it
   // exceeds it does not matter: the voxel does not move).
-  double at(Int3 p, Vec3 q, Vec3 n) const {
-    const double w = strongest(dabs_, p, q, n, std::numeric_limits<double>::infinity());
-    if (w <= 0 || memory_.empty()) return w;
-    return w - strongest(memory_, p, q, n, w);
+  double at(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    if (dabs_.size() == 1 && memory_.empty()) {  // a brush: nothing to search
+      const double w = dabs_[0].roi.contains(p) ? window(dabs_[0], q, n, 0) : 0;
+      return w > 0 ? w : 0;
+    }
+    return search(p, q, n, c);
   }
 
  private:
-  // The largest window over the dabs holding p, or a value >= enough as soon as one reaches it.
-  // A dab stops being multiplied out once it falls to the best so far: its factors are in
-  // [0, 1] and rounding is monotone, so the rest cannot lift it above.
-  double strongest(const std::vector<PreparedDab>& dabs, Int3 p, Vec3 q, Vec3 n, double enough) const {
+  [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    if (p.y != c.y || p.z != c.z) {
+      c.y = p.y;
+      c.z = p.z;
+      rowDabs(dabs_, p, c.dabs);
+      rowDabs(memory_, p, c.memory);
+      c.dab = c.remembered = 0;
+    }
+    const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
+    if (w <= 0 || c.memory.empty()) return w;
+    return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
+  }
+
+  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out) {
+    out.clear();
+    for (std::size_t i = 0; i < dabs.size(); ++i) {
+      const Box& b = dabs[i].roi;
+      if (p.y >= b.lo.y && p.y < b.hi.y && p.z >= b.lo.z && p.z < b.hi.z) out.push_back(std::uint32_t(i));
+    }
+  }
+
+  // Dab d's window weight * W at foot point q (normal n), or a value <= best as soon as it
+  // falls to best. Its factors are in [0, 1] (up to the rounding of a dot product of unit
+  // vectors, taken before the test) and rounding is monotone, so the rest cannot lift it above.
+  double window(const PreparedDab& d, Vec3 q, Vec3 n, double best) const {
+    double w = d.weight;
+    Vec3 x = q;
+    if (anchor_ != 0) {
+      const Vec3 axis = d.normal == Vec3{} ? n : d.normal;
+      // Moving the surface along the axis by s is moving it along its normal by s (axis . n).
+      w *= std::max(0.0, dot(axis, n));
+      if (!(w > best)) return w;
+      const double along = dot(q - d.center, axis);
+      x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
+    }
+    for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
+    return w;
+  }
+
+  // The largest window over the dabs of the row (`row`, indices into dabs) whose ROI holds x,
+  // or a value >= enough as soon as one reaches it, searched from row[first] on (first becomes
+  // the strongest one found).
+  double strongest(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, int x0, Vec3 q, Vec3 n,
+                   double enough, std::size_t& first) const {
     double best = 0;
-    for (const PreparedDab& d : dabs) {
-      if (!d.roi.contains(p)) continue;
-      Vec3 x = q;
-      double w = d.weight;
-      if (anchor_ != 0) {
-        const Vec3 axis = d.normal == Vec3{} ? n : d.normal;
-        const double along = dot(q - d.center, axis);
-        x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
-        // Moving the surface along the axis by s is moving it along its normal by s (axis . n).
-        w *= std::max(0.0, dot(axis, n));
+    std::size_t strongestDab = first;
+    for (std::size_t k = 0; k < row.size(); ++k) {
+      const std::size_t i = k == 0 ? first : (k <= first ? k - 1 : k);
+      const PreparedDab& d = dabs[row[i]];
+      if (x0 < d.roi.lo.x || x0 >= d.roi.hi.x) continue;
+      const double w = window(d, q, n, best);
+      if (w > best) {
+        best = w;
+        strongestDab = i;
       }
-      for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
-      best = std::max(best, w);
       if (best >= enough) break;
     }
+    first = strongestDab;
     return best;
   }
 
@@ -192,13 +226,51 @@ FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
   return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
 }
 
+// The voxels evolve moves, in grid index order, cut into runs that follow each other along x
+// (a band is mostly such runs): a run's voxels are read and written four at a time.
+struct Run {
+  std::uint32_t index;  // grid index of its first voxel
+  std::uint32_t first;  // position of that voxel in the list
+  std::uint32_t count;
+};
+
+// The voxels evolve moves, with their speeds.
+struct MovedVoxels {
+  std::vector<Run> runs;
+  std::vector<double> factor;  // curvature: dt * F per voxel, in list order
+  std::vector<float> step;     // advection: float(dt * F) per voxel
+  std::uint32_t count = 0;
+
+  void clear() {
+    runs.clear();
+    factor.clear();
+    step.clear();
+    count = 0;
+  }
+  // Appends the voxels of a later part of the grid (a run that goes on across the seam is one).
+  void append(const MovedVoxels& o) {
+    for (const Run& r : o.runs) {
+      if (!runs.empty() && runs.back().index + runs.back().count == r.index) {
+        runs.back().count += r.count;
+      } else {
+        runs.push_back({r.index, r.first + count, r.count});
+      }
+    }
+    factor.insert(factor.end(), o.factor.begin(), o.factor.end());
+    step.insert(step.end(), o.step.begin(), o.step.end());
+    count += o.count;
+  }
+};
+
 // Scratch reused by the tools on each thread: fresh grids and lists each application cost
 // page faults (the kernel clearing pages) as large as the work itself.
 struct ToolScratch {
   DenseGrid grid;
   BandVoxels band;
-  std::vector<std::uint32_t> list;
-  std::vector<float> speed, next;
+  MovedVoxels moved;
+  std::vector<MovedVoxels> movedPieces;  // evolve's list, built in pieces on the pool
+  std::vector<std::size_t> blocks;       // evolve's blocks of runs: the first run of each, then runs.size()
+  std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
 };
@@ -207,82 +279,422 @@ ToolScratch& toolScratch() {
   return s;
 }
 
+#if defined(__SSE2__)
+// Writes the first n (1..3) lanes of x: a run's last voxels, whose neighbours past the run may
+// be another block's.
+void storePartial(float* out, __m128 x, std::uint32_t n) {
+  if (n == 1) {
+    _mm_store_ss(out, x);
+    return;
+  }
+  _mm_storel_pi(reinterpret_cast<__m64*>(out), x);
+  if (n == 3) _mm_store_ss(out + 2, _mm_movehl_ps(x, x));
+}
+#endif
+
+// One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
+// array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
+// The neighbours are summed in float in this order and the rest is done in double, as
+//   double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
+//   return float(p[0] + factor * std::clamp(lap, -limit, limit));
+// would, voxel by voxel (the lanes do the same operations, so the same bits). A run's last
+// lanes read up to 3 voxels past it (evolve's region lies kStencilReach inside the grid, so they
+// are in it) and factor up to 3 entries past the list (evolve pads it).
+void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, const Run* end, const double* factor,
+                   std::ptrdiff_t sy, std::ptrdiff_t sz, double limit) {
+  const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
+#if defined(__SSE2__)
+  const __m128d six = _mm_set1_pd(6.0), lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
+  auto four = [&](const float* q, const double* f) {
+    __m128 sum = _mm_add_ps(_mm_loadu_ps(q + 1), _mm_loadu_ps(q - 1));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q + sy));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q - sy));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q + sz));
+    sum = _mm_add_ps(sum, _mm_loadu_ps(q - sz));
+    const __m128 c = _mm_loadu_ps(q);
+    const __m128d c0 = _mm_cvtps_pd(c), c1 = _mm_cvtps_pd(_mm_movehl_ps(c, c));
+    __m128d lap0 = _mm_sub_pd(_mm_cvtps_pd(sum), _mm_mul_pd(six, c0));
+    __m128d lap1 = _mm_sub_pd(_mm_cvtps_pd(_mm_movehl_ps(sum, sum)), _mm_mul_pd(six, c1));
+    if (limited) {
+      // std::clamp(x, lo, hi) is (x < lo ? lo : hi < x ? hi : x): max(lo, x), then min(hi, .).
+      lap0 = _mm_min_pd(hi, _mm_max_pd(lo, lap0));
+      lap1 = _mm_min_pd(hi, _mm_max_pd(lo, lap1));
+    }
+    const __m128d out0 = _mm_add_pd(c0, _mm_mul_pd(_mm_loadu_pd(f), lap0));
+    const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
+    return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
+  };
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = dst + (dstIsGrid ? r->index : r->first);
+    const double* f = factor + r->first;
+    std::uint32_t j = 0;
+    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, f + j));
+    if (j < r->count) storePartial(out + j, four(p + j, f + j), r->count - j);
+  }
+#else
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = dst + (dstIsGrid ? r->index : r->first);
+    const double* f = factor + r->first;
+    for (std::uint32_t j = 0; j < r->count; ++j) {
+      const float* q = p + j;
+      double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
+      if (limited) lap = std::clamp(lap, -limit, limit);
+      out[j] = float(q[0] + f[j] * lap);
+    }
+  }
+#endif
+}
+
+// One upwind advection step over runs [r, end): next[run.first + j] = phi - step |grad phi|,
+// step = float(dt F), |grad phi| by upwindGradient (outward where step > 0; where step is
+// +-0 the direction does not change the result). Reads past a run's end as curvatureRuns.
+void advectionRuns(const float* v, float* next, const Run* r, const Run* end, const float* step,
+                   const std::size_t stride[3]) {
+#if defined(__SSE2__)
+  // Four voxels along x in the lanes, each lane doing upwindGradient's float operations in
+  // its order (the axes summed x, y, z onto 0). std::max(x, 0) is (x < 0 ? 0 : x), which is
+  // _mm_max_ps(0, x) bit for bit (also -0 and NaN); std::min(x, 0) likewise _mm_min_ps(0, x).
+  const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
+  auto four = [&](const float* q, const float* st) {
+    const __m128 dtF = _mm_loadu_ps(st);
+    const __m128 outward = _mm_cmpgt_ps(dtF, zero);
+    const __m128 v0 = _mm_loadu_ps(q);
+    __m128 g2 = zero;
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t s = stride[a];
+      const __m128 vm2 = _mm_loadu_ps(q - 2 * s), vm1 = _mm_loadu_ps(q - s);
+      const __m128 vp1 = _mm_loadu_ps(q + s), vp2 = _mm_loadu_ps(q + 2 * s);
+      const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);
+      const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
+                                   _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
+      const __m128 dp = _mm_sub_ps(_mm_sub_ps(vp1, v0),
+                                   _mm_mul_ps(half, minmod4(centre, _mm_add_ps(_mm_sub_ps(vp2, _mm_mul_ps(two, vp1)), v0))));
+      const __m128 a1 = _mm_or_ps(_mm_and_ps(outward, _mm_max_ps(zero, dm)), _mm_andnot_ps(outward, _mm_min_ps(zero, dm)));
+      const __m128 a2 = _mm_or_ps(_mm_and_ps(outward, _mm_min_ps(zero, dp)), _mm_andnot_ps(outward, _mm_max_ps(zero, dp)));
+      g2 = _mm_add_ps(g2, _mm_add_ps(_mm_mul_ps(a1, a1), _mm_mul_ps(a2, a2)));
+    }
+    return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
+  };
+  for (; r != end; ++r) {
+    const float* p = v + r->index;
+    float* out = next + r->first;
+    const float* st = step + r->first;
+    std::uint32_t j = 0;
+    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, st + j));
+    if (j < r->count) storePartial(out + j, four(p + j, st + j), r->count - j);
+  }
+#else
+  for (; r != end; ++r) {
+    const float* st = step + r->first;
+    for (std::uint32_t j = 0; j < r->count; ++j)
+      next[r->first + j] = v[r->index + j] - st[j] * upwindGradient(v, r->index + j, stride, st[j] > 0);
+  }
+#endif
+}
+
+// The m.substeps curvature steps of evolve between g.v and s.other, on the pool without waking
+// it for each step. The steps read the runs' slices and the slices next to them (a run's last
+// lanes up to 4 voxels past it): each piece copies its part of that into s.other before its
+// first step, the pieces next to it only read there once they have done theirs. The runs are cut into pieces of whole z-slices; a
+// voxel's neighbours then lie in its own piece or the two next to it. Step j of piece p reads
+// the grid that holds step j - 1 and writes the other, over step j - 2: it may run once its
+// neighbours have done step j - 1 (what it reads is there, and they are done reading step
+// j - 2), so neighbours only ever run the same step at once, reading one grid and writing
+// the other at their own voxels. Threads take whichever piece is ready, lowest step first;
+// each voxel's value is computed as in a plain loop over the steps, so the result is the
+// same for any thread count and any order.
+void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& pool, const ProgressShare& progress) {
+  const std::vector<Run>& runs = s.moved.runs;
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  float* const grids[2] = {g.v.data(), s.other.data()};
+  constexpr std::size_t kPieceVoxels = 2048;
+  std::vector<std::size_t>& pieces = s.blocks;  // the first run of each piece, then runs.size()
+  pieces.clear();
+  for (std::size_t r = 0, inPiece = kPieceVoxels; r < runs.size(); ++r) {
+    if (inPiece >= kPieceVoxels && (r == 0 || runs[r].index / g.sxy != runs[r - 1].index / g.sxy)) {
+      pieces.push_back(r);
+      inPiece = 0;
+    }
+    inPiece += runs[r].count;
+  }
+  pieces.push_back(runs.size());
+  const int count = int(pieces.size()) - 1, steps = m.substeps;
+  // Piece p copies [copyFrom(p), copyFrom(p + 1)): from the slice before the runs (the first)
+  // or its first run's slice, to the next piece's, or past the last run's slice (the last).
+  auto copyFrom = [&](int p) {
+    if (p == 0) return std::size_t(runs.front().index) - g.sxy;
+    if (p == count) return std::size_t(runs.back().index) + runs.back().count + 4 + g.sxy;
+    return runs[pieces[std::size_t(p)]].index / g.sxy * g.sxy;
+  };
+  auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
+    if (step == 0)
+      std::copy(g.v.begin() + std::ptrdiff_t(copyFrom(p)), g.v.begin() + std::ptrdiff_t(copyFrom(p + 1)),
+                s.other.begin() + std::ptrdiff_t(copyFrom(p)));
+    curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
+                  runs.data() + pieces[std::size_t(p) + 1], s.moved.factor.data(), sy, sz, m.curvatureLimit);
+  };
+  // Below 8192 voxels (a brush of radius ~10) a step is a few microseconds: the threads would
+  // mostly wait for each other, and a woken thread that loses its core holds up the rest.
+  constexpr std::uint32_t kParallelVoxels = 8192;
+  const int participants = s.moved.count < kParallelVoxels ? 1 : std::min(pool.threads(), count);
+  if (participants <= 1) {
+    for (int step = 0; step < steps; ++step) {
+      progress.check();
+      for (int p = 0; p < count; ++p) runStep(p, step);
+      progress.advance(1.0 / steps);
+    }
+    return;
+  }
+  // done[p]: steps piece p has finished; claimed[p]: a thread is running its next step.
+  std::unique_ptr<std::atomic<int>[]> done(new std::atomic<int>[std::size_t(count)]);
+  std::unique_ptr<std::atomic<bool>[]> claimed(new std::atomic<bool>[std::size_t(count)]);
+  for (int p = 0; p < count; ++p) {
+    done[std::size_t(p)].store(0, std::memory_order_relaxed);
+    claimed[std::size_t(p)].store(false, std::memory_order_relaxed);
+  }
+  std::atomic<int> finished{0};
+  std::atomic<bool> failed{false};
+  auto ready = [&](int p, int d) {
+    return (p == 0 || done[std::size_t(p - 1)].load(std::memory_order_acquire) >= d) &&
+           (p + 1 == count || done[std::size_t(p + 1)].load(std::memory_order_acquire) >= d);
+  };
+  pool.parallelFor(std::size_t(participants), [&](std::size_t) {
+    int idle = 0;
+    while (finished.load(std::memory_order_acquire) < count && !failed.load(std::memory_order_relaxed)) {
+      int best = -1, bestStep = steps;
+      for (int p = 0; p < count; ++p) {
+        const int d = done[std::size_t(p)].load(std::memory_order_acquire);
+        if (d < bestStep && !claimed[std::size_t(p)].load(std::memory_order_relaxed) && ready(p, d)) {
+          best = p;
+          bestStep = d;
+        }
+      }
+      bool mine = false;
+      if (best >= 0 && claimed[std::size_t(best)].compare_exchange_strong(mine, true, std::memory_order_acq_rel)) {
+        // Another thread may have run a step of it between the scan and the claim.
+        const int d = done[std::size_t(best)].load(std::memory_order_acquire);
+        // Whatever throws (a cancel, the progress report), the claim is let go and the other
+        // threads stop instead of waiting for this piece.
+        try {
+          if (d < steps && ready(best, d)) {
+            progress.check();
+            runStep(best, d);
+            done[std::size_t(best)].store(d + 1, std::memory_order_release);
+            if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
+            claimed[std::size_t(best)].store(false, std::memory_order_release);
+            progress.advance(1.0 / (double(steps) * count));
+            idle = 0;
+          } else {
+            claimed[std::size_t(best)].store(false, std::memory_order_release);
+          }
+        } catch (...) {
+          failed.store(true, std::memory_order_relaxed);
+          claimed[std::size_t(best)].store(false, std::memory_order_release);
+          throw;
+        }
+        continue;
+      }
+      // Nothing ready: the pieces next to the ones left are being worked on by another thread.
+      if (++idle < 64) {
+#if defined(__SSE2__)
+        _mm_pause();
+#endif
+      } else {
+        std::this_thread::yield();
+      }
+    }
+  });
+}
+
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
 // foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
 // kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
 // thread-count independent. progress: checked per block, advanced per sub-step.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
-  ToolScratch& s = toolScratch();
-  std::vector<std::uint32_t>& list = s.list;
-  std::vector<float>& speed = s.speed;
-  list.clear();
-  speed.clear();
-  const std::size_t stride[3] = {1, g.sx, g.sxy};
-  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
+#if defined(__SSE2__)
+// A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
+// SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
+// factors multiplied out even after one is 0, which leaves 0), so the same bits.
+void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], const PreparedDab& d,
+                  double inverseRadius, double w[2]) {
+  const float* a = g.v.data() + i[0];
+  const float* b = g.v.data() + i[1];
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  const __m128d half = _mm_set1_pd(0.5), one = _mm_set1_pd(1.0), zero = _mm_setzero_pd();
+  // GradStencil::inArray(...).gradient(): float differences, then 0.5 * in double.
+  const __m128d gx = _mm_mul_pd(half, _mm_setr_pd(double(a[1] - a[-1]), double(b[1] - b[-1])));
+  const __m128d gy = _mm_mul_pd(half, _mm_setr_pd(double(a[sy] - a[-sy]), double(b[sy] - b[-sy])));
+  const __m128d gz = _mm_mul_pd(half, _mm_setr_pd(double(a[sz] - a[-sz]), double(b[sz] - b[-sz])));
+  // normalized(): l = sqrt(x x + y y + z z), l > 0 ? g / l : 0.
+  const __m128d l = _mm_sqrt_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(gx, gx), _mm_mul_pd(gy, gy)), _mm_mul_pd(gz, gz)));
+  const __m128d positive = _mm_cmpgt_pd(l, zero);
+  const __m128d dist = _mm_setr_pd(double(a[0]), double(b[0]));
+  const __m128d q[3] = {
+      _mm_sub_pd(_mm_setr_pd(p[0].x, p[1].x), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gx, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].y, p[1].y), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gy, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].z, p[1].z), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gz, l)), dist))};
+  const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff)), invR = _mm_set1_pd(inverseRadius);
+  __m128d weight = _mm_set1_pd(d.weight);
+  for (int axis = 0; axis < 3; ++axis) {
+    // window1(t): t >= 1 ? 0 : (1 - t t)^2.
+    const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(q[axis], _mm_set1_pd(d.center[axis])), abs), invR);
+    const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+    weight = _mm_mul_pd(weight, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+  }
+  _mm_storeu_pd(w, weight);
+  for (int k = 0; k < 2; ++k) w[k] = d.roi.contains(p[k]) && w[k] > 0 ? w[k] : 0;
+}
+#endif
+
+// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
+// speeds (the window at each one's foot point; none: W = 1).
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
+                  const ProgressShare& progress) {
+  const bool curvature = m.kind == Motion::Kind::Curvature;
+  // The run being extended and the count, kept out of `out` while the loop runs.
+  Run run{0, 0, 0};
+  std::uint32_t count = out.count;
+  if (!out.runs.empty()) {
+    run = out.runs.back();
+    out.runs.pop_back();
+  }
+  // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
+  auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
+    if (w <= 0) return;
+    const double speed = float(m.speed * w);
+    if (curvature) {
+      out.factor.push_back(m.dt * speed);
+    } else {
+      out.step.push_back(float(m.dt * speed));
+    }
+    // Consecutive indices share a row: region lies inside the grid, off its last column.
+    if (run.count != 0 && run.index + run.count == i) {
+      ++run.count;
+    } else {
+      if (run.count != 0) out.runs.push_back(run);
+      run = {std::uint32_t(i), count, 1};
+    }
+    ++count;
+  };
+  SweptWindow::Cursor cursor;
+#if defined(__SSE2__)
+  // A brush's windows two voxels at a time (the square root and divisions of the foot point
+  // are most of a voxel's cost); the voxels are added in the same order.
+  const PreparedDab* const brush = window ? window->brush() : nullptr;
+  std::size_t pending[2];
+  Int3 pendingPoint[2];
+  int pendingCount = 0;
+#endif
+  for (std::size_t k = begin; k < end; ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
-    const float d = g.v[i];
-    if (!(std::fabs(d) < band)) continue;
+    if (!(std::fabs(g.v[i]) < band)) continue;
     const Int3 p = voxels.point[k];
     if (!region.contains(p)) continue;
+#if defined(__SSE2__)
+    if (brush) {
+      pending[pendingCount] = i;
+      pendingPoint[pendingCount] = p;
+      if (++pendingCount == 2) {
+        double w[2];
+        brushWindows(g, pending, pendingPoint, *brush, window->inverseRadius(), w);
+        add(pending[0], w[0]);
+        add(pending[1], w[1]);
+        pendingCount = 0;
+      }
+      continue;
+    }
+#endif
     double w = 1;
     if (window) {
       const FootPoint f = footPoint(g, i, p);
-      w = window->at(p, f.point, f.normal);
-      if (w <= 0) continue;
+      w = window->at(p, f.point, f.normal, cursor);
     }
-    list.push_back(std::uint32_t(i));
-    speed.push_back(float(m.speed * w));
+    add(i, w);
   }
-  if (list.empty()) {
+#if defined(__SSE2__)
+  if (pendingCount == 1) {
+    const FootPoint f = footPoint(g, pending[0], pendingPoint[0]);
+    add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
+  }
+#endif
+  if (run.count != 0) out.runs.push_back(run);
+  out.count = count;
+}
+
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
+// kStencilReach inside the grid. Work is split in fixed pieces, each voxel computed alone:
+// thread-count independent. progress: checked per piece, advanced per sub-step.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+  ToolScratch& s = toolScratch();
+  MovedVoxels& moved = s.moved;
+  moved.clear();
+  // The list in pieces on the pool when there are threads and enough voxels to pay for waking
+  // them (the foot point and the window cost more per voxel than a sub-step); joined in order,
+  // the pieces are the list a single pass builds.
+  constexpr std::size_t kListPiece = 8192;
+  const std::size_t listPieces = (voxels.index.size() + kListPiece - 1) / kListPiece;
+  if (pool.threads() > 1 && listPieces >= 2) {
+    if (s.movedPieces.size() < listPieces) s.movedPieces.resize(listPieces);
+    pool.parallelFor(listPieces, [&](std::size_t c) {
+      MovedVoxels& piece = s.movedPieces[c];
+      piece.clear();
+      collectMoved(g, region, band, m, window, voxels, c * kListPiece,
+                   std::min(voxels.index.size(), (c + 1) * kListPiece), piece, progress);
+    });
+    for (std::size_t c = 0; c < listPieces; ++c) moved.append(s.movedPieces[c]);
+  } else {
+    collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
+  }
+  const std::vector<Run>& runs = moved.runs;
+  const bool curvature = m.kind == Motion::Kind::Curvature;
+  const std::size_t stride[3] = {1, g.sx, g.sxy};
+  if (runs.empty()) {
     progress.advance(1);
     return;
   }
+  // The kernels read up to 3 entries past the last run.
+  moved.factor.resize(moved.factor.size() + 3, 0.0);
+  moved.step.resize(moved.step.size() + 3, 0.0f);
   std::vector<float>& next = s.next;
-  constexpr std::size_t kBlock = 4096;
-  const std::size_t blocks = (list.size() + kBlock - 1) / kBlock;
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
   // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
   // which holds the same values off the list, instead of writing a list and copying it back
   // every sub-step. An even count ends in g.v.
-  const bool twoGrids = m.substeps > 2 && m.substeps % 2 == 0;
-  if (twoGrids) {
-    s.other.assign(g.v.begin(), g.v.end());
-  } else {
-    next.resize(list.size());
+  if (m.substeps > 2 && m.substeps % 2 == 0) {
+    s.other.resize(g.v.size());
+    curvatureSteps(g, s, m, pool, progress);
+    return;
   }
+  // Fixed blocks of whole runs, each of at least kBlock voxels but the last.
+  constexpr std::size_t kBlock = 4096;
+  std::vector<std::size_t>& blocks = s.blocks;
+  blocks.clear();
+  for (std::size_t r = 0, inBlock = kBlock; r < runs.size(); ++r) {
+    if (inBlock >= kBlock) {
+      blocks.push_back(r);
+      inBlock = 0;
+    }
+    inBlock += runs[r].count;
+  }
+  blocks.push_back(runs.size());
+  next.resize(moved.count);
   for (int step = 0; step < m.substeps; ++step) {
-    const bool fromOther = twoGrids && step % 2 == 1;
-    const float* v = fromOther ? s.other.data() : g.v.data();
-    float* out = twoGrids ? (fromOther ? g.v.data() : s.other.data()) : nullptr;
-    pool.parallelFor(blocks, [&](std::size_t b) {
+    pool.parallelFor(blocks.size() - 1, [&](std::size_t b) {
       progress.check();
-      const std::size_t begin = b * kBlock, end = std::min(list.size(), (b + 1) * kBlock);
-      // One loop per kind of motion and destination, decided once per block, not per voxel.
-      if (m.kind == Motion::Kind::Advect) {
-        for (std::size_t k = begin; k < end; ++k) {
-          const std::size_t i = list[k];
-          const double f = speed[k];
-          next[k] = v[i] - float(m.dt * f) * upwindGradient(v, i, stride, f > 0);
-        }
-        return;
-      }
-      const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
-      const bool limited = std::isfinite(m.curvatureLimit);  // clamping to +-infinity changes nothing
-      auto curvature = [&](std::size_t k) {
-        const float* p = v + list[k];
-        double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
-        if (limited) lap = std::clamp(lap, -m.curvatureLimit, m.curvatureLimit);
-        return float(p[0] + m.dt * double(speed[k]) * lap);
-      };
-      if (out) {
-        for (std::size_t k = begin; k < end; ++k) out[list[k]] = curvature(k);
+      const Run* first = runs.data() + blocks[b];
+      const Run* last = runs.data() + blocks[b + 1];
+      if (curvature) {
+        curvatureRuns(g.v.data(), next.data(), false, first, last, moved.factor.data(), sy, sz, m.curvatureLimit);
       } else {
-        for (std::size_t k = begin; k < end; ++k) next[k] = curvature(k);
+        advectionRuns(g.v.data(), next.data(), first, last, moved.step.data(), stride);
       }
     });
-    if (!out)
-      for (std::size_t k = 0; k < list.size(); ++k) g.v[list[k]] = next[k];
+    for (const Run& r : runs) std::copy_n(next.data() + r.first, r.count, g.v.data() + r.index);
     progress.advance(1.0 / m.substeps);
   }
 }
@@ -291,12 +703,13 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
 double largestWindow(const DenseGrid& g, const Box& region, float band, const SweptWindow& window,
                      const BandVoxels& voxels, const ProgressShare& progress) {
   double largest = 0;
+  SweptWindow::Cursor cursor;
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
     if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k])) continue;
     const FootPoint f = footPoint(g, i, voxels.point[k]);
-    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal));
+    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal, cursor));
   }
   return largest;
 }

@@ -5,6 +5,7 @@
 
 #include <future>
 #include <thread>
+#include <utility>
 
 #include "engine/csg.hpp"
 #include "engine/level_set.hpp"
@@ -53,6 +54,43 @@ TEST_CASE("a brush over most of a 192^3 volume, cancelled from another thread, s
   INFO("fraction done when cancelled: " << fraction);
   CHECK(fraction > 0);
   CHECK(fraction < 0.5);  // the first report comes after the gather; the march is far off
+  CHECK(digest(v) == before);
+}
+
+TEST_CASE("smoothing on two threads, cancelled in its sub-steps, stops and changes nothing", "[progress]") {
+  // The 32 sub-steps run as pieces that two threads take in turn; one thread's Cancelled must
+  // stop the other too (it would otherwise wait for the piece next to it for ever).
+  Volume v = makeSphere({128, 128, 128}, {64, 64, 64}, 45);
+  const std::uint64_t before = digest(v);
+  ThreadPool pool(2);
+  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set.cpp).
+  for (const double at : {0.16, 0.22, 0.28}) {
+    Progress progress(
+        [&](double fraction) {
+          if (fraction > at) progress.cancel();
+        },
+        std::chrono::milliseconds(0));
+    {
+      const Progress::Scope scope(progress);
+      REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), Cancelled);
+    }
+    INFO("cancelled past " << at << ", stopped at " << progress.fraction());
+    CHECK(progress.fraction() > at);
+    CHECK(progress.fraction() < 0.3);
+    CHECK(digest(v) == before);
+  }
+  // A report that throws once (progress.hpp: it propagates out of the call) does the same,
+  // from whichever thread counted the step; the other thread must not wait for that piece.
+  bool thrown = false;
+  Progress failing(
+      [&](double fraction) {
+        if (fraction > 0.2 && !std::exchange(thrown, true)) throw std::runtime_error("report failed");
+      },
+      std::chrono::milliseconds(0));
+  {
+    const Progress::Scope scope(failing);
+    REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), std::runtime_error);
+  }
   CHECK(digest(v) == before);
 }
 
