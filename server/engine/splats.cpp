@@ -345,16 +345,42 @@ std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
   return all;
 }
 
+namespace {
+
+// Whether the layer of a changed brick that its neighbour on side s of axis a reads differs, bit
+// for bit, between before and after: read in place (rows of 8 where the layer has them), stopping
+// at the first difference.
+bool layerDiffers(const BrickChange& c, int a, int s, float band) {
+  const float* x = c.before.data ? c.before.data->v : nullptr;
+  const float* y = c.after.data ? c.after.data->v : nullptr;
+  const float ux = c.before.inside ? -band : band, uy = c.after.inside ? -band : band;
+  if (!x && !y) return std::bit_cast<std::uint32_t>(ux) != std::bit_cast<std::uint32_t>(uy);
+  const int layer = s < 0 ? 0 : kBrickSide - 1;
+  // The layer as kBrickSide rows of kBrickSide floats: row j starts at first + j * rowStep, its
+  // floats step by `step`.
+  const int first = a == 0 ? layer : a == 1 ? kBrickSide * layer : kBrickSide * kBrickSide * layer;
+  const int step = a == 0 ? kBrickSide : 1;
+  const int rowStep = a == 2 ? kBrickSide : kBrickSide * kBrickSide;
+  float rx[kBrickSide], ry[kBrickSide];
+  for (int j = 0; j < kBrickSide; ++j) {
+    const int r = first + j * rowStep;
+    if (step == 1 && x && y) {
+      if (std::memcmp(x + r, y + r, sizeof rx) != 0) return true;
+      continue;
+    }
+    for (int i = 0; i < kBrickSide; ++i) {
+      rx[i] = x ? x[r + i * step] : ux;
+      ry[i] = y ? y[r + i * step] : uy;
+    }
+    if (std::memcmp(rx, ry, sizeof rx) != 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes) {
   const float band = vol.band();
-  // The layer of a changed brick that its neighbour on side s of axis a reads, before and after.
-  auto layer = [&](const BrickRef& ref, int a, int s, float* out) {
-    if (ref.data) {
-      forFace(ref.data->v, a, s < 0 ? 0 : kBrickSide - 1, [&](int k, float v) { out[k] = v; });
-    } else {
-      std::fill(out, out + kBrickSide * kBrickSide, ref.inside ? -band : band);
-    }
-  };
   std::vector<Int3> out;
   out.reserve(changes.size() * 7);
   for (const auto& c : changes) {
@@ -363,13 +389,9 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
       for (int s = -1; s <= 1; s += 2) {
         Int3 nb = c.brick;
         nb[a] += s;
-        if (!inGrid(vol, nb)) continue;
         // The neighbour's splats read only that layer of this brick: when it is the same bit
         // for bit, they are too (unless the neighbour changed itself, and is listed for that).
-        float before[kBrickSide * kBrickSide], after[kBrickSide * kBrickSide];
-        layer(c.before, a, s, before);
-        layer(c.after, a, s, after);
-        if (std::memcmp(before, after, sizeof before) != 0) out.push_back(nb);
+        if (inGrid(vol, nb) && layerDiffers(c, a, s, band)) out.push_back(nb);
       }
   }
   auto order = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };

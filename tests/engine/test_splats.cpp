@@ -307,6 +307,47 @@ TEST_CASE("the bricks around a change leave out neighbours whose adjacent layer 
   CHECK(bricksAroundChanges(v, {{inside, v.brick(inside), BrickRef{nullptr, false}}}).size() == 7);
 }
 
+TEST_CASE("the bricks around a one-voxel change are those whose face holds the voxel, for every voxel", "[splats]") {
+  const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+  auto zyx = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };
+  auto expected = [&](Int3 b, Int3 l) {
+    std::vector<Int3> want{b};
+    for (int a = 0; a < 3; ++a) {
+      Int3 e{0, 0, 0};
+      e[a] = 1;
+      if (l[a] == 0) want.push_back(b - e);
+      if (l[a] == kBrickSide - 1) want.push_back(b + e);
+    }
+    std::sort(want.begin(), want.end(), zyx);
+    return want;
+  };
+  // A stored brick becoming another stored brick, and a uniform outside brick becoming stored
+  // (the layers compared against the uniform value).
+  const Int3 stored = Bricks::brickOf(Int3{51, 32, 30});
+  const Int3 air{1, 1, 1};
+  REQUIRE(v.brick(stored).data);
+  REQUIRE(!v.brick(air).data);
+  REQUIRE(!v.brick(air).inside);
+  int checked = 0;
+  for (const Int3 b : {stored, air}) {
+    const BrickRef before = v.brick(b);
+    Brick base;
+    if (before.data) {
+      base = *before.data;
+    } else {
+      std::fill(std::begin(base.v), std::end(base.v), v.band());
+    }
+    for (int i = 0; i < kBrickVoxels; ++i, ++checked) {
+      auto data = std::make_shared<Brick>(base);
+      data->v[i] = data->v[i] > 0 ? data->v[i] - 0.5f : data->v[i] + 0.5f;
+      const Int3 l = Bricks::local(i);
+      INFO("brick " << b.x << "," << b.y << "," << b.z << " voxel " << l.x << "," << l.y << "," << l.z);
+      REQUIRE(bricksAroundChanges(v, {{b, before, BrickRef{data, false}}}) == expected(b, l));
+    }
+  }
+  CHECK(checked == 2 * kBrickVoxels);
+}
+
 TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
   const Volume v = makeSolid(SolidKind::Dumbbell, {64, 48, 48});
   auto bricks = extractAllSplats(v);
