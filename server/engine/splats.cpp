@@ -15,6 +15,9 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "brick_table.hpp"
 #include "errors.hpp"
@@ -37,9 +40,6 @@ static_assert(kBrickSide == kSplatBrickSide, "splat buffers address bricks of 8^
 // Index in the padded array of local voxel (x, y, z), each in [-1, kBrickSide].
 constexpr int padIndex(int x, int y, int z) { return (x + 1) + kPad * ((y + 1) + kPad * (z + 1)); }
 
-// The two coordinates of index k = i + kBrickSide j over a brick face (forFace).
-constexpr int faceI(int k) { return k & Bricks::kMask; }
-constexpr int faceJ(int k) { return k >> Bricks::kLog2; }
 
 bool inGrid(const Volume& vol, Int3 b) {
   const Int3 n = vol.brickDims();
@@ -75,8 +75,8 @@ class BrickLookup {
 };
 
 // Calls fn(k, value) for the kBrickSide^2 voxels of a brick's face (axis a, local coordinate c
-// along it), with k = i + S j (S = kBrickSide) over the two other axes in increasing order
-// (faceI, faceJ). Loops follow memory.
+// along it), with k = i + S j (S = kBrickSide) over the two other axes in increasing order.
+// Loops follow memory.
 template <class F>
 void forFace(const float* v, int a, int c, F&& fn) {
   if (a == 0) {
@@ -131,21 +131,12 @@ bool provablyEmpty(const BrickLookup& look, Int3 b, const float* own, float ownV
 }
 
 // Fills g with the brick's voxels and its six face rings; edges and corners of the ring are
-// never read as neighbours of a brick voxel and only get a value so that the byte tests below
-// can run over the whole array.
+// never read as neighbours of a brick voxel and only get a value (air) so that the byte tests
+// below can run over the whole array.
 void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownValue, float* g) {
   const Volume& vol = look.volume();
   const float band = vol.band();
-  for (int z = -1; z <= kBrickSide; ++z)
-    for (int y = -1; y <= kBrickSide; ++y) {
-      const bool ringY = y < 0 || y == kBrickSide, ringZ = z < 0 || z == kBrickSide;
-      if (ringY && ringZ) {
-        std::fill(g + padIndex(-1, y, z), g + padIndex(-1, y, z) + kPad, band);
-      } else if (ringY || ringZ) {
-        g[padIndex(-1, y, z)] = band;
-        g[padIndex(kBrickSide, y, z)] = band;
-      }
-    }
+  std::fill(g, g + kPadVoxels, band);
   for (int z = 0; z < kBrickSide; ++z)
     for (int y = 0; y < kBrickSide; ++y) {
       float* row = g + padIndex(0, y, z);
@@ -155,22 +146,30 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
         std::fill(row, row + kBrickSide, ownValue);
       }
     }
-  for (int a = 0; a < 3; ++a) {
-    const int a1 = (a + 1) % 3, a2 = (a + 2) % 3;
-    const int s1 = kStride[a1], s2 = kStride[a2];  // forFace's k = i + S j runs over (a1, a2)
-    for (int s = -1; s <= 1; s += 2) {
-      Int3 nb = b;
-      nb[a] += s;
-      float u;
-      const float* nd = look(nb, &u);
-      // The ring voxel at padded coordinate -1 (or kBrickSide) is the neighbour's last (or first) voxel.
-      float* dst = g + (s < 0 ? 0 : kBrickSide + 1) * kStride[a] + kStride[a1] + kStride[a2];
-      auto at = [&](int k) -> float& { return dst[faceI(k) * s1 + faceJ(k) * s2]; };
-      if (!nd) {
-        for (int k = 0; k < kBrickSide * kBrickSide; ++k) at(k) = u;
-      } else {
-        forFace(nd, a, s < 0 ? kBrickSide - 1 : 0, [&](int k, float v) { at(k) = v; });
-      }
+  // The ring voxel at padded coordinate -1 (or kBrickSide) along an axis is the neighbour's
+  // last (or first) voxel along it. Written out per axis: constant strides, whole rows where
+  // the face has them.
+  for (int s = -1; s <= 1; s += 2) {
+    const int ring = s < 0 ? -1 : kBrickSide, layer = s < 0 ? kBrickSide - 1 : 0;
+    float u;
+    if (const float* nd = look({b.x + s, b.y, b.z}, &u)) {
+      for (int z = 0; z < kBrickSide; ++z)
+        for (int y = 0; y < kBrickSide; ++y) g[padIndex(ring, y, z)] = nd[Bricks::index(layer, y, z)];
+    } else {
+      for (int z = 0; z < kBrickSide; ++z)
+        for (int y = 0; y < kBrickSide; ++y) g[padIndex(ring, y, z)] = u;
+    }
+    if (const float* nd = look({b.x, b.y + s, b.z}, &u)) {
+      for (int z = 0; z < kBrickSide; ++z)
+        std::memcpy(g + padIndex(0, ring, z), nd + Bricks::index(0, layer, z), sizeof(float) * kBrickSide);
+    } else {
+      for (int z = 0; z < kBrickSide; ++z) std::fill(g + padIndex(0, ring, z), g + padIndex(kBrickSide, ring, z), u);
+    }
+    if (const float* nd = look({b.x, b.y, b.z + s}, &u)) {
+      for (int y = 0; y < kBrickSide; ++y)
+        std::memcpy(g + padIndex(0, y, ring), nd + Bricks::index(0, y, layer), sizeof(float) * kBrickSide);
+    } else {
+      for (int y = 0; y < kBrickSide; ++y) std::fill(g + padIndex(0, y, ring), g + padIndex(kBrickSide, y, ring), u);
     }
   }
   // Voxels past the domain's far edge read as air, whatever the brick stores there.
@@ -186,11 +185,44 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
 
 // The 8 bytes of 0/1 of a brick row (the first at the lowest address) packed into 8 bits, bit i
 // from byte i. Rows of another length need another packing: the static_assert above holds the
-// side at the wire's 8.
+// side at the wire's 8. p may be read up to 16 bytes on (the padded array has them).
 std::uint32_t packBytes(const std::uint8_t* p) {
+#if defined(__SSE2__)
+  const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
+  return std::uint32_t(_mm_movemask_epi8(_mm_slli_epi16(v, 7))) & 0xffu;
+#else
   std::uint64_t w = 0;
   for (int i = 0; i < 8; ++i) w |= std::uint64_t(p[i]) << (8 * i);
   return std::uint32_t((w * 0x0102040810204080ull) >> 56);
+#endif
+}
+
+// The bytes over the padded array: inside[i] = g[i] < 0, near[i] = |g[i]| < kSurfaceNear, 0 or 1.
+void classify(const float* g, std::uint8_t* inside, std::uint8_t* near) {
+  int i = 0;
+#if defined(__SSE2__)
+  // Sixteen at a time: the comparisons' all-ones lanes narrowed by saturating packs (-1 stays
+  // -1), then masked to 1.
+  const __m128 zero = _mm_setzero_ps(), nearBound = _mm_set1_ps(kSurfaceNear);
+  const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  const __m128i one = _mm_set1_epi8(1);
+  for (; i + 16 <= kPadVoxels; i += 16) {
+    __m128i in[4], nr[4];
+    for (int k = 0; k < 4; ++k) {
+      const __m128 v = _mm_loadu_ps(g + i + 4 * k);
+      in[k] = _mm_castps_si128(_mm_cmplt_ps(v, zero));
+      nr[k] = _mm_castps_si128(_mm_cmplt_ps(_mm_and_ps(v, magnitude), nearBound));
+    }
+    const __m128i inBytes = _mm_packs_epi16(_mm_packs_epi32(in[0], in[1]), _mm_packs_epi32(in[2], in[3]));
+    const __m128i nearBytes = _mm_packs_epi16(_mm_packs_epi32(nr[0], nr[1]), _mm_packs_epi32(nr[2], nr[3]));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(inside + i), _mm_and_si128(inBytes, one));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(near + i), _mm_and_si128(nearBytes, one));
+  }
+#endif
+  for (; i < kPadVoxels; ++i) {
+    inside[i] = g[i] < 0;
+    near[i] = std::fabs(g[i]) < kSurfaceNear;
+  }
 }
 
 float clampPosition(float q, float origin) {
@@ -220,12 +252,13 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   // The test as bytes over the whole padded array (plain loops the compiler vectorizes):
   // inside[i] = d < 0, then surface[i] = near | any of the six neighbours on the other side.
   // Entries on the ring come out meaningless and are never used.
-  std::uint8_t inside[kPadVoxels], surface[kPadVoxels];
-  for (int i = 0; i < kPadVoxels; ++i) inside[i] = g[i] < 0;
+  // packBytes reads 16 bytes from a brick row's start: they lie in [kLo, kHi), all set.
+  std::uint8_t inside[kPadVoxels], near[kPadVoxels], surface[kPadVoxels];
+  classify(g, inside, near);
   constexpr int kLo = kPad * kPad, kHi = kPadVoxels - kPad * kPad;
   for (int i = kLo; i < kHi; ++i) {
     const std::uint8_t s = inside[i];
-    surface[i] = std::uint8_t(std::fabs(g[i]) < kSurfaceNear) | (s ^ inside[i - 1]) | (s ^ inside[i + 1]) |
+    surface[i] = near[i] | (s ^ inside[i - 1]) | (s ^ inside[i + 1]) |
                  (s ^ inside[i - kPad]) | (s ^ inside[i + kPad]) | (s ^ inside[i - kPad * kPad]) |
                  (s ^ inside[i + kPad * kPad]);
   }
@@ -312,16 +345,42 @@ std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
   return all;
 }
 
+namespace {
+
+// Whether the layer of a changed brick that its neighbour on side s of axis a reads differs, bit
+// for bit, between before and after: read in place (rows of 8 where the layer has them), stopping
+// at the first difference.
+bool layerDiffers(const BrickChange& c, int a, int s, float band) {
+  const float* x = c.before.data ? c.before.data->v : nullptr;
+  const float* y = c.after.data ? c.after.data->v : nullptr;
+  const float ux = c.before.inside ? -band : band, uy = c.after.inside ? -band : band;
+  if (!x && !y) return std::bit_cast<std::uint32_t>(ux) != std::bit_cast<std::uint32_t>(uy);
+  const int layer = s < 0 ? 0 : kBrickSide - 1;
+  // The layer as kBrickSide rows of kBrickSide floats: row j starts at first + j * rowStep, its
+  // floats step by `step`.
+  const int first = a == 0 ? layer : a == 1 ? kBrickSide * layer : kBrickSide * kBrickSide * layer;
+  const int step = a == 0 ? kBrickSide : 1;
+  const int rowStep = a == 2 ? kBrickSide : kBrickSide * kBrickSide;
+  float rx[kBrickSide], ry[kBrickSide];
+  for (int j = 0; j < kBrickSide; ++j) {
+    const int r = first + j * rowStep;
+    if (step == 1 && x && y) {
+      if (std::memcmp(x + r, y + r, sizeof rx) != 0) return true;
+      continue;
+    }
+    for (int i = 0; i < kBrickSide; ++i) {
+      rx[i] = x ? x[r + i * step] : ux;
+      ry[i] = y ? y[r + i * step] : uy;
+    }
+    if (std::memcmp(rx, ry, sizeof rx) != 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes) {
   const float band = vol.band();
-  // The layer of a changed brick that its neighbour on side s of axis a reads, before and after.
-  auto layer = [&](const BrickRef& ref, int a, int s, float* out) {
-    if (ref.data) {
-      forFace(ref.data->v, a, s < 0 ? 0 : kBrickSide - 1, [&](int k, float v) { out[k] = v; });
-    } else {
-      std::fill(out, out + kBrickSide * kBrickSide, ref.inside ? -band : band);
-    }
-  };
   std::vector<Int3> out;
   out.reserve(changes.size() * 7);
   for (const auto& c : changes) {
@@ -330,13 +389,9 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
       for (int s = -1; s <= 1; s += 2) {
         Int3 nb = c.brick;
         nb[a] += s;
-        if (!inGrid(vol, nb)) continue;
         // The neighbour's splats read only that layer of this brick: when it is the same bit
         // for bit, they are too (unless the neighbour changed itself, and is listed for that).
-        float before[kBrickSide * kBrickSide], after[kBrickSide * kBrickSide];
-        layer(c.before, a, s, before);
-        layer(c.after, a, s, after);
-        if (std::memcmp(before, after, sizeof before) != 0) out.push_back(nb);
+        if (inGrid(vol, nb) && layerDiffers(c, a, s, band)) out.push_back(nb);
       }
   }
   auto order = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };

@@ -18,6 +18,59 @@ namespace {
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
 
+// One row of n voxels: does some source value differ from the stored one (old, or `uniform`
+// where old is null) once clamped to +-band? Throws on NaN, which passes std::clamp and would
+// reach every reader.
+bool rowDiffers(const float* s, const float* old, float uniform, int n, float band) {
+  int nan = 0, differs = 0;
+  int x = 0;
+#if defined(__SSE2__)
+  // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
+  const __m128 lo = _mm_set1_ps(-band), hi = _mm_set1_ps(band), u = _mm_set1_ps(uniform);
+  __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
+  for (; x + 4 <= n; x += 4) {
+    const __m128 sv = _mm_loadu_ps(s + x);
+    bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
+    ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), old ? _mm_loadu_ps(old + x) : u));
+  }
+  nan = _mm_movemask_ps(bad), differs = _mm_movemask_ps(ne);
+#endif
+  for (; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band, band) != (old ? old[x] : uniform);
+  if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+  return differs != 0;
+}
+
+// Rows of n voxels, `rows` of them, the source's r-th at s + r * sStride, the stored one's at
+// old + r * kBrickSide: is some source value not exactly equal (==) to the stored one? When
+// all are, none is NaN and each clamps to itself (stored values lie in [-band, band]), so the
+// rows do not change: the cheap test that almost every row of a tool's region passes.
+bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float uniform, int n, int rows) {
+#if defined(__SSE2__)
+  if (n == kBrickSide) {  // whole brick rows, the rule: two vectors a row, one test for all rows
+    __m128 ne = _mm_setzero_ps();
+    if (old) {
+      for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), _mm_loadu_ps(old)));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + 4), _mm_loadu_ps(old + 4)));
+      }
+    } else {
+      const __m128 u = _mm_set1_ps(uniform);
+      for (int r = 0; r < rows; ++r, s += sStride) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), u));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + 4), u));
+      }
+    }
+    return _mm_movemask_ps(ne) != 0;
+  }
+#endif
+  int differs = 0;
+  for (int r = 0; r < rows; ++r, s += sStride) {
+    const float* d = old ? old + r * kBrickSide : nullptr;
+    for (int x = 0; x < n; ++x) differs |= s[x] != (d ? d[x] : uniform);
+  }
+  return differs != 0;
+}
+
 }  // namespace
 
 Volume::Volume(Int3 dims, float band) : dims_(dims), band_(band) {
@@ -215,6 +268,27 @@ std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, co
   return changes;
 }
 
+bool Volume::brickChanges(Int3 b, const Box& here, const float* old, float uniform, const float* src,
+                          const Box& srcBox) const {
+  const Int3 ss = srcBox.size();
+  const Int3 o = Bricks::origin(b);
+  const std::size_t sx = std::size_t(ss.x), sxy = sx * std::size_t(ss.y);
+  const int n = here.hi.x - here.lo.x, ny = here.hi.y - here.lo.y;
+  // Slice by slice: the exact-equality test first, the clamping, NaN-refusing one only for a
+  // slice that fails it, and stop at the first row that really differs. The rows read before
+  // that row are the ones a row-by-row test would read, so a NaN among them throws alike (a
+  // NaN further on throws while the brick is rebuilt).
+  for (int z = here.lo.z; z < here.hi.z; ++z) {
+    const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) + sx * std::size_t(here.lo.y - srcBox.lo.y) +
+                            sxy * std::size_t(z - srcBox.lo.z));
+    const float* d = old ? old + Bricks::index(here.lo.x - o.x, here.lo.y - o.y, z - o.z) : nullptr;
+    if (!rowsMayDiffer(s, sx, d, uniform, n, ny)) continue;
+    for (int y = 0; y < ny; ++y)
+      if (rowDiffers(s + sx * std::size_t(y), d ? d + y * kBrickSide : nullptr, uniform, n, band_)) return true;
+  }
+  return false;
+}
+
 std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox) const {
   const Box r = region.intersect(domain());
   std::vector<BrickChange> changes;
@@ -227,47 +301,14 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
     for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
       for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
         const Int3 b{bx, by, bz};
-        const BrickRef old = brick(b);
         const Int3 o = Bricks::origin(b);
         const Box here = Bricks::box(b).intersect(r);
-        // Most bricks of a tool's region do not change: find out before allocating one.
-        bool changed = false;
-        const float uniform = old.inside ? -band_ : band_;
-        for (int z = here.lo.z; z < here.hi.z && !changed; ++z)
-          for (int y = here.lo.y; y < here.hi.y && !changed; ++y) {
-            const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
-                                    std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
-                                                         std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
-            const float* d = old.data ? old.data->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z) : nullptr;
-            // A whole row without a branch per voxel (almost every row is unchanged).
-            int nan = 0, differs = 0;
-            const int n = here.hi.x - here.lo.x;
-            int x = 0;
-#if defined(__SSE2__)
-            // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
-            const __m128 lo = _mm_set1_ps(-band_), hi = _mm_set1_ps(band_), u = _mm_set1_ps(uniform);
-            __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
-            auto four = [&](int at, __m128 prev) {
-              const __m128 sv = _mm_loadu_ps(s + at);
-              bad = _mm_or_ps(bad, _mm_cmpunord_ps(sv, sv));
-              ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_max_ps(_mm_min_ps(sv, hi), lo), prev));
-            };
-            if (n == 8 && d) {  // a whole brick row, the rule
-              four(0, _mm_loadu_ps(d)), four(4, _mm_loadu_ps(d + 4));
-              x = 8;
-            } else if (n == 8) {
-              four(0, u), four(4, u);
-              x = 8;
-            }
-            for (; x + 4 <= n; x += 4) four(x, d ? _mm_loadu_ps(d + x) : u);
-            nan = _mm_movemask_ps(bad), differs = _mm_movemask_ps(ne);
-#endif
-            for (; x < n; ++x) nan |= s[x] != s[x], differs |= std::clamp(s[x], -band_, band_) != (d ? d[x] : uniform);
-            // NaN passes std::clamp and would reach every reader; refuse it before publishing.
-            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-            changed = differs != 0;
-          }
-        if (!changed) continue;
+        // Most bricks of a tool's region do not change: find out before allocating one (or
+        // taking a reference, whose count is shared with other threads).
+        float uniform;
+        const float* stored = brickData(b, &uniform);
+        if (!brickChanges(b, here, stored, uniform, src, srcBox)) continue;
+        const BrickRef old = brick(b);
         // Every voxel is set below: no zero-fill first.
         auto nb = std::make_shared_for_overwrite<Brick>();
         // Voxels of the brick outside the region keep their old values (the rule is the whole brick).
@@ -278,24 +319,38 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
             std::fill(std::begin(nb->v), std::end(nb->v), old.inside ? -band_ : band_);
           }
         }
-        for (int z = here.lo.z; z < here.hi.z; ++z)
-          for (int y = here.lo.y; y < here.hi.y; ++y) {
-            const float* s = src + (std::size_t(here.lo.x - srcBox.lo.x) +
-                                    std::size_t(ss.x) * (std::size_t(y - srcBox.lo.y) +
-                                                         std::size_t(ss.y) * std::size_t(z - srcBox.lo.z)));
-            float* d = nb->v + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z);
-            // The bounds in locals (stores through d may alias band_) and the NaN test after
-            // the row: the loop has no branch and is vectorized. nb is dropped when it throws.
-            const float lo = -band_, hi = band_;
-            const int n = here.hi.x - here.lo.x;
-            int nan = 0;
-            for (int x = 0; x < n; ++x) {
+        // Row pointers stepped, not recomputed: the loop runs for every voxel of a changed brick.
+        const std::size_t sx = std::size_t(ss.x), sxy = sx * std::size_t(ss.y);
+        const float* const s0 = src + (std::size_t(here.lo.x - srcBox.lo.x) + sx * std::size_t(here.lo.y - srcBox.lo.y) +
+                                       sxy * std::size_t(here.lo.z - srcBox.lo.z));
+        float* const d0 = nb->v + Bricks::index(here.lo.x - o.x, here.lo.y - o.y, here.lo.z - o.z);
+        const int n = here.hi.x - here.lo.x, ny = here.hi.y - here.lo.y, nz = here.hi.z - here.lo.z;
+        // The bounds in locals (stores through d may alias band_) and the NaN test after the
+        // brick: the loops have no branch per voxel. nb is dropped when it throws.
+        const float lo = -band_, hi = band_;
+        int nan = 0;
+        for (int z = 0; z < nz; ++z)
+          for (int y = 0; y < ny; ++y) {
+            const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
+            float* const d = d0 + Bricks::index(0, y, z);
+            int x = 0;
+#if defined(__SSE2__)
+            if (n == kBrickSide) {  // a whole brick row, the rule: min/max is std::clamp but for NaN
+              const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+              const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + 4);
+              nan |= _mm_movemask_ps(_mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
+              _mm_storeu_ps(d, _mm_max_ps(_mm_min_ps(a, vhi), vlo));
+              _mm_storeu_ps(d + 4, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
+              x = kBrickSide;
+            }
+#endif
+            for (; x < n; ++x) {
               const float value = s[x];
               nan |= value != value;
               d[x] = std::clamp(value, lo, hi);
             }
-            if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
           }
+        if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
         const BrickRef next = canonicalBrick(b, std::move(nb));
         const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
                                     : (!old.data && old.inside == next.inside);
@@ -313,9 +368,14 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
     // Every brick of a domain whose sides are multiples of the brick side: no voxel to blank, and most
     // bricks an edit writes are mixed, which the first few voxels tell (2% of a loaded server's
     // CPU went to the general loop below).
-    for (int i = 0; i < kBrickVoxels && (allOut || allIn); ++i) {
-      allOut = allOut && data->v[i] == band_;
-      allIn = allIn && data->v[i] == -band_;
+    // Sixteen voxels a step: the bricks at the band's outer edge hold +-band nearly throughout.
+    const float* v = data->v;
+    const float band = band_;
+    for (int i = 0; i < kBrickVoxels && (allOut || allIn); i += 16) {
+      int out = 0, in = 0;
+      for (int k = i; k < i + 16; ++k) out += v[k] == band, in += v[k] == -band;
+      allOut = allOut && out == 16;
+      allIn = allIn && in == 16;
     }
     if (allOut || allIn) return {nullptr, allIn};
     return {std::move(data), false};

@@ -123,6 +123,10 @@ class Volume {
   };
 
   void setSlots(const std::vector<std::pair<Int3, BrickRef>>& slots);
+  // Whether writing src (over srcBox) into `here`, a part of brick b, changes it; old is the
+  // brick's voxels, or null when it is uniformly `uniform`. Throws on NaN among the voxels read.
+  bool brickChanges(Int3 b, const Box& here, const float* old, float uniform, const float* src,
+                    const Box& srcBox) const;
   std::size_t tileIndex(Int3 b) const;
   static int slotInTile(Int3 b);
 

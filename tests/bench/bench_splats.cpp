@@ -1,12 +1,17 @@
 // Splat benchmarks: full extraction plus encoding of a sphere (radius 100 in 256^3; radius 30
 // in 80^3 with --quick), on one thread and on the requested thread count. Extraction alone is
-// reported as extract_ms (median over the same repetitions).
+// reported as extract_ms (median over the same repetitions). splats_delta: what the hub sends
+// after each dab (radius 8, add blob, at random points of the same sphere): the bricks around
+// the changes, their splats and their encoding, on one thread (the hub's broadcast extracts
+// on its own thread).
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
+#include <random>
 #include <vector>
 
 #include "bench.hpp"
+#include "engine/level_set.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "protocol/cpp/splats.hpp"
@@ -48,6 +53,34 @@ MARZIPAN_BENCH("splats_full") {
           {"bytes", bytes},
           {"bytes_per_point", points ? double(bytes) / double(points) : 0.0}});
   }
+}
+
+MARZIPAN_BENCH("splats_delta") {
+  const double radius = opt.quick ? 30 : 100;
+  const int side = opt.quick ? 80 : 256;
+  const int reps = opt.quick ? 5 : 201;
+  const double c = side / 2.0;
+  Volume vol = makeSphere({side, side, side}, {c, c, c}, radius);
+  std::mt19937 rng{11};
+  std::normal_distribution<double> gauss;
+  Edit edit;
+  std::size_t bricks = 0, points = 0, bytes = 0;
+  const Timing t = measure(
+      reps,
+      [&] {
+        const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+        edit = addBlob(vol, BrushParams{Vec3{c, c, c} + dir * radius, 8, 1});
+      },
+      [&] {
+        const auto around = bricksAroundChanges(vol, edit.changes);
+        const auto delta = extractSplats(vol, around);
+        bytes = encodeSplats(delta).size();
+        bricks = around.size();
+        points = 0;
+        for (const auto& b : delta) points += b.points.size();
+      });
+  emit("splats_delta", 1, t,
+       {{"radius", radius}, {"side", side}, {"dab_radius", 8}, {"bricks", bricks}, {"points", points}, {"bytes", bytes}});
 }
 
 }  // namespace

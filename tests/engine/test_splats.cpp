@@ -17,6 +17,7 @@
 #include "engine/level_set.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
+#include "engine/stencil.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -172,6 +173,76 @@ TEST_CASE("every voxel next to the surface yields exactly one splat", "[splats]"
   }
 }
 
+// The definition of splats.hpp evaluated in float through Volume::at, with the operations of
+// the extraction in their order (a float central difference, 1/sqrt of the squared length, the
+// foot point clamped to the brick's encodable range): what the extraction must give bit for bit.
+SplatMap exactSplats(const Volume& v) {
+  SplatMap m;
+  const Int3 n = v.dims();
+  const Int3 six[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        const Int3 p{x, y, z};
+        const float d = v.at(p);
+        bool surface = std::fabs(d) < kSurfaceNear;
+        for (const Int3& s : six) surface = surface || ((v.at(p + s) < 0) != (d < 0));
+        if (!surface) continue;
+        const Int3 b{x / 8, y / 8, z / 8};
+        const GradStencil st = GradStencil::around(p, [&](Int3 q) { return v.at(q); });
+        const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
+        const float len2 = gx * gx + gy * gy + gz * gz;
+        Splat s{float(x), float(y), float(z), 0, 0, 1};
+        if (len2 > 0) {
+          const float inv = 1 / std::sqrt(len2);
+          s.nx = gx * inv, s.ny = gy * inv, s.nz = gz * inv;
+          auto foot = [&](float c, float nc, int brick) {
+            const float o = float(8 * brick);
+            return std::clamp(c - d * nc, o + kSplatPositionLow, o + kSplatPositionLow + kSplatPositionStep * float(kSplatPositionMax));
+          };
+          s.x = foot(float(x), s.nx, b.x), s.y = foot(float(y), s.ny, b.y), s.z = foot(float(z), s.nz, b.z);
+        }
+        m[key(b)].push_back(s);
+      }
+  return m;
+}
+
+TEST_CASE("splats are bit for bit the definition evaluated in float", "[splats]") {
+  // Partial bricks at the far faces, uniform bricks against the domain's edge and against
+  // each other, stored bricks next to uniform ones on both sides, and an edited surface whose
+  // bricks are re-extracted one by one (the delta path).
+  SECTION("pig in a domain whose sides are not multiples of 8") {
+    const Volume v = makeSolid(SolidKind::Pig, {70, 61, 53});
+    CHECK(toMap(extractAllSplats(v)) == exactSplats(v));
+  }
+  SECTION("a box cut by the domain's edges") {
+    const Volume v = makeBox({44, 40, 37}, {30, 20, 18}, {25, 30, 10});
+    CHECK(toMap(extractAllSplats(v)) == exactSplats(v));
+  }
+  SECTION("bricks of -band next to bricks of +band") {
+    Volume v({48, 48, 48});
+    const Box cube{{8, 16, 8}, {32, 32, 24}};
+    std::vector<float> inside(std::size_t(cube.voxels()), -v.band());
+    v.scatter(cube, inside.data(), cube);
+    CHECK(toMap(extractAllSplats(v)) == exactSplats(v));
+  }
+  SECTION("a sphere after blobs, brick by brick") {
+    Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+    addBlob(v, BrushParams{{51.5, 32.2, 30.8}, 7.0, 1.0});
+    removeBlob(v, BrushParams{{31.5, 12.2, 30.8}, 6.0, 1.0});
+    const SplatMap want = exactSplats(v);
+    SplatMap got;
+    for (int z = 0; z < v.brickDims().z; ++z)
+      for (int y = 0; y < v.brickDims().y; ++y)
+        for (int x = 0; x < v.brickDims().x; ++x) {
+          const BrickSplats b = extractBrickSplats(v, {x, y, z});
+          if (!b.points.empty()) got[key(b.brick)] = b.points;
+        }
+    CHECK(got.size() > 100);
+    CHECK(got == want);
+  }
+}
+
 TEST_CASE("splats do not depend on the thread count", "[splats]") {
   const Volume v = makeSolid(SolidKind::Pig, {96, 96, 96});
   ThreadPool pool(3);
@@ -234,6 +305,47 @@ TEST_CASE("the bricks around a change leave out neighbours whose adjacent layer 
   REQUIRE(!v.brick(inside).data);
   REQUIRE(v.brick(inside).inside);
   CHECK(bricksAroundChanges(v, {{inside, v.brick(inside), BrickRef{nullptr, false}}}).size() == 7);
+}
+
+TEST_CASE("the bricks around a one-voxel change are those whose face holds the voxel, for every voxel", "[splats]") {
+  const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+  auto zyx = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };
+  auto expected = [&](Int3 b, Int3 l) {
+    std::vector<Int3> want{b};
+    for (int a = 0; a < 3; ++a) {
+      Int3 e{0, 0, 0};
+      e[a] = 1;
+      if (l[a] == 0) want.push_back(b - e);
+      if (l[a] == kBrickSide - 1) want.push_back(b + e);
+    }
+    std::sort(want.begin(), want.end(), zyx);
+    return want;
+  };
+  // A stored brick becoming another stored brick, and a uniform outside brick becoming stored
+  // (the layers compared against the uniform value).
+  const Int3 stored = Bricks::brickOf(Int3{51, 32, 30});
+  const Int3 air{1, 1, 1};
+  REQUIRE(v.brick(stored).data);
+  REQUIRE(!v.brick(air).data);
+  REQUIRE(!v.brick(air).inside);
+  int checked = 0;
+  for (const Int3 b : {stored, air}) {
+    const BrickRef before = v.brick(b);
+    Brick base;
+    if (before.data) {
+      base = *before.data;
+    } else {
+      std::fill(std::begin(base.v), std::end(base.v), v.band());
+    }
+    for (int i = 0; i < kBrickVoxels; ++i, ++checked) {
+      auto data = std::make_shared<Brick>(base);
+      data->v[i] = data->v[i] > 0 ? data->v[i] - 0.5f : data->v[i] + 0.5f;
+      const Int3 l = Bricks::local(i);
+      INFO("brick " << b.x << "," << b.y << "," << b.z << " voxel " << l.x << "," << l.y << "," << l.z);
+      REQUIRE(bricksAroundChanges(v, {{b, before, BrickRef{data, false}}}) == expected(b, l));
+    }
+  }
+  CHECK(checked == 2 * kBrickVoxels);
 }
 
 TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {

@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -181,5 +182,105 @@ TEST_CASE("scatter refuses NaN and changes nothing", "[volume][errors]") {
   src.back() = -1.0f;
   src.front() = std::nanf("");
   CHECK_THROWS_AS(v.scatter(b, src.data(), b), EngineError);
+  CHECK(digest(v) == d0);
+}
+
+// The rule scatter and diff follow, written voxel by voxel: a brick changes when some voxel of
+// the region in it reads differently once clamped (==, so -0 equals +0), and then it holds the
+// clamped source in the region and its old values elsewhere.
+TEST_CASE("diff lists exactly the bricks whose clamped voxels differ, read voxel by voxel", "[volume][diff]") {
+  // Sides not multiples of 8, a region cut off by the domain's far faces and not aligned to
+  // bricks, a source box larger than the region, stored and uniform bricks of both sides.
+  const Int3 dims{45, 38, 27};
+  const Volume base = makeSphere(dims, {20.3, 17.6, 12.2}, 11);
+  const Box srcBox{{1, -2, 0}, {49, 38, 30}};
+  const Box region{{3, 0, 1}, {48, 37, 30}};
+  const Box clipped = region.intersect(base.domain());
+  std::vector<float> src(std::size_t(srcBox.voxels()));
+  auto srcAt = [&](Int3 p) -> float& {
+    const Int3 s = srcBox.size(), l = p - srcBox.lo;
+    return src[std::size_t(l.x) + std::size_t(s.x) * (std::size_t(l.y) + std::size_t(s.y) * std::size_t(l.z))];
+  };
+  const float band = base.band();
+  for (unsigned seed = 0; seed < 6; ++seed) {
+    // Start from the volume's own values (unchanged), then change a few voxels in ways that
+    // do and do not count: a value beyond the band that clamps back to what is stored, -0 for
+    // +0, a real change.
+    for (int z = srcBox.lo.z; z < srcBox.hi.z; ++z)
+      for (int y = srcBox.lo.y; y < srcBox.hi.y; ++y)
+        for (int x = srcBox.lo.x; x < srcBox.hi.x; ++x) srcAt({x, y, z}) = base.at(x, y, z);
+    std::uint32_t h = seed * 2654435761u + 12345u;
+    auto next = [&] { return h = h * 1664525u + 1013904223u; };
+    for (int i = 0; i < 40; ++i) {
+      const Int3 p{clipped.lo.x + int(next() >> 8) % (clipped.hi.x - clipped.lo.x),
+                   clipped.lo.y + int(next() >> 8) % (clipped.hi.y - clipped.lo.y),
+                   clipped.lo.z + int(next() >> 8) % (clipped.hi.z - clipped.lo.z)};
+      float& s = srcAt(p);
+      switch (next() >> 30) {
+        case 0: s = s >= band ? band * 4 : s <= -band ? -band * 4 : s; break;  // clamps back: no change
+        case 1: s = s == 0 ? -0.0f : s; break;
+        case 2: s = s + 0.25f; break;
+        default: s = -s; break;
+      }
+    }
+    // Outside the region the source may hold anything: it is never read.
+    srcAt(srcBox.lo) = std::nanf("");
+
+    Volume v = base;
+    const auto listed = v.diff(region, src.data(), srcBox);
+    std::vector<Int3> expected;
+    const Box bricks = Bricks::bricksOf(clipped);
+    for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+      for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+        for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+          const Box here = Bricks::box({bx, by, bz}).intersect(clipped);
+          bool differs = false;
+          for (int z = here.lo.z; z < here.hi.z; ++z)
+            for (int y = here.lo.y; y < here.hi.y; ++y)
+              for (int x = here.lo.x; x < here.hi.x; ++x)
+                differs |= std::clamp(srcAt({x, y, z}), -band, band) != base.at(x, y, z);
+          if (differs) expected.push_back({bx, by, bz});
+        }
+    INFO("seed " << seed);
+    CHECK_FALSE(expected.empty());
+    REQUIRE(listed.size() == expected.size());
+    for (std::size_t i = 0; i < listed.size(); ++i) {
+      CHECK(listed[i].brick == expected[i]);
+      CHECK(listed[i].before == base.brick(expected[i]));
+    }
+    const auto changes = v.scatter(region, src.data(), srcBox);
+    REQUIRE(changes.size() == listed.size());
+    std::size_t wrong = 0;
+    for (int z = 0; z < dims.z; ++z)
+      for (int y = 0; y < dims.y; ++y)
+        for (int x = 0; x < dims.x; ++x) {
+          const Int3 p{x, y, z};
+          const float want = clipped.contains(p) ? std::clamp(srcAt(p), -band, band) : base.at(p);
+          wrong += !(v.at(p) == want);
+        }
+    CHECK(wrong == 0);
+    // Bricks not listed are the very same bricks as before.
+    for (int bz = 0; bz < v.brickDims().z; ++bz)
+      for (int by = 0; by < v.brickDims().y; ++by)
+        for (int bx = 0; bx < v.brickDims().x; ++bx) {
+          const Int3 b{bx, by, bz};
+          if (std::find(expected.begin(), expected.end(), b) == expected.end()) CHECK(v.brick(b) == base.brick(b));
+        }
+  }
+}
+
+TEST_CASE("diff refuses a NaN in a brick that otherwise would not change", "[volume][diff][errors]") {
+  Volume v = makeSphere({32, 32, 32}, {16, 16, 16}, 10);
+  const std::uint64_t d0 = digest(v);
+  const Box b{{0, 0, 0}, {32, 32, 32}};
+  std::vector<float> src(std::size_t(b.voxels()));
+  v.gather(b, src.data());
+  for (const std::size_t at : {std::size_t(0), src.size() / 2 + 5, src.size() - 1}) {
+    std::vector<float> bad = src;
+    bad[at] = std::nanf("");
+    CHECK_THROWS_AS(v.diff(b, bad.data(), b), EngineError);
+    CHECK_THROWS_AS(v.scatter(b, bad.data(), b), EngineError);
+  }
+  CHECK(v.scatter(b, src.data(), b).empty());
   CHECK(digest(v) == d0);
 }
