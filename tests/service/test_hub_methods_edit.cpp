@@ -68,12 +68,14 @@ json responseTo(TestClient& c, int id) {
   return std::get<json>(c.link->at(c.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
 }
 
-// A volume.morph, then each of `messages` as stroke.dabs of `stroke`, sent at once: the dabs
-// wait behind the morph on the connection. Returns the morph's response, then the dabs'.
-std::vector<json> queueBehindMorph(TestClient& c, const json& stroke, const std::vector<json>& messages) {
+// A volume.morph (or another request that takes a while), then each of `messages` as
+// stroke.dabs of `stroke`, sent at once: the dabs wait behind it on the connection. Returns its
+// response, then the dabs'.
+std::vector<json> queueBehindMorph(TestClient& c, const json& stroke, const std::vector<json>& messages,
+                                   const std::string& method = "volume.morph", const json& params = kMorph) {
   const int first = c.nextId;
   c.nextId += int(messages.size()) + 1;
-  send(c, first, "volume.morph", kMorph);
+  send(c, first, method, params);
   for (std::size_t i = 0; i < messages.size(); ++i)
     send(c, first + 1 + int(i), "stroke.dabs", {{"stroke", stroke}, {"dabs", messages[i]}});
   std::vector<json> out;
@@ -261,4 +263,38 @@ TEST_CASE("two clients' strokes are never one application", "[hub][stroke]") {
   const std::uint64_t revision = a.result("session.stats")["revision"];
   const std::uint64_t bChanges = b1["result"]["revision"] == b2["result"]["revision"] ? 1 : 2;
   CHECK(revision == 2 + bChanges);
+}
+
+TEST_CASE("a stroke's messages merge only while together they stay within max_op_voxels", "[hub][stroke]") {
+  const json begin = {{"tool", "add_blob"}, {"radius", 6}, {"height", 2}};
+  // What one dab of this stroke counts against the budget, as the refusal of one reports it.
+  double perDab = 0;
+  {
+    HubOptions o = mergeOptions();
+    o.limits.maxOpVoxels = 1;
+    Hub hub(o);
+    TestClient a(hub);
+    a.result("session.create", kCreate);
+    const json stroke = a.result("stroke.begin", begin)["stroke"];
+    const json e = a.call("stroke.dabs", {{"stroke", stroke}, {"dabs", rays({60})}})["error"];
+    REQUIRE(e["data"]["limit"] == "max_op_voxels");
+    perDab = e["data"]["value"];
+  }
+  REQUIRE(perDab > 0);
+  HubOptions o = mergeOptions();
+  o.limits.maxOpVoxels = 5.5 * perDab;  // room for 5 dabs
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  const json stroke = a.result("stroke.begin", begin)["stroke"];
+  // 3 + 2 dabs fit, 3 more would not: they start the next application, with the last 2. A
+  // morph would be over this budget: the dabs wait behind a mesh export instead.
+  const std::vector<json> r = queueBehindMorph(a, stroke, {kMessages[0], kMessages[1], kMessages[2], kMessages[1]},
+                                               "mesh.export", {{"format", "obj"}});
+  for (const json& x : r) REQUIRE(x.contains("result"));
+  const std::uint64_t morphed = r[0]["result"]["revision"];
+  CHECK(r[1]["result"]["revision"] == morphed + 1);
+  CHECK(r[2]["result"]["revision"] == morphed + 1);
+  CHECK(r[3]["result"]["revision"] == morphed + 2);
+  CHECK(r[4]["result"]["revision"] == morphed + 2);
 }
