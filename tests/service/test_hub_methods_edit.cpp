@@ -83,7 +83,8 @@ std::vector<json> queueBehindMorph(TestClient& c, const json& stroke, const std:
   return out;
 }
 
-std::size_t countOf(CaptureLink& link, std::size_t from, const std::function<bool(const std::variant<json, Bytes>&)>& pred) {
+std::size_t countOf(CaptureLink& link, std::size_t from,
+                    const std::function<bool(const std::variant<json, Bytes>&)>& pred) {
   std::size_t n = 0;
   for (std::size_t i = from; i < link.size(); ++i) n += pred(link.at(i)) ? 1 : 0;
   return n;

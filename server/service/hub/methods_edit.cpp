@@ -124,8 +124,8 @@ std::vector<DabsMessage> takeFollowers(HubCore& hub, HubClient& c, const protoco
       try {
         protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(parsed.request->params, hub.limits().maxDabs);
         const std::size_t total = dabs + p.dabs.size();
-        if (p.stroke == first.stroke && total <= hub.limits().maxDabs && double(total) * voxelsPerDab <= hub.limits().maxOpVoxels)
-          m = DabsMessage{parsed.request->id, std::move(p), {}};
+        const bool fits = total <= hub.limits().maxDabs && double(total) * voxelsPerDab <= hub.limits().maxOpVoxels;
+        if (p.stroke == first.stroke && fits) m = DabsMessage{parsed.request->id, std::move(p), {}};
       } catch (const RpcException&) {
         // Answered with its error in its turn.
       }
@@ -298,15 +298,15 @@ void strokeDabs(HubCore& hub, const Call& call) {
     const json roi = protocol::boxJson(a.changed ? a.roi : Box{});
     auto appliedIn = [&a](std::size_t from, std::size_t count) -> std::size_t {
       if (!a.changed) return 0;
-      return std::size_t(std::count_if(a.hits.begin() + std::ptrdiff_t(from), a.hits.begin() + std::ptrdiff_t(from + count),
-                                       [](const std::optional<Vec3>& h) { return h.has_value(); }));
+      const auto begin = a.hits.begin() + std::ptrdiff_t(from);
+      return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
     };
     r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
     std::size_t from = p.dabs.size();
     for (const DabsMessage& m : merged) {
       if (self->options.events.request) self->options.events.request("stroke.dabs");
-      r.merged.push_back({m.id, {{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}},
-                          m.raw.arrived});
+      const json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
+      r.merged.push_back({m.id, result, m.raw.arrived});
       from += m.params.dabs.size();
     }
     if (a.changed) {
