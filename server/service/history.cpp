@@ -257,11 +257,11 @@ void History::enforceBudget() {
   }
 }
 
-History::StepId History::push(Edit step, StepInfo info) {
+History::StepId History::push(Edit step, StepInfo info, const std::function<bool(StepId)>& growing) {
   if (step.empty()) return 0;
   for (const auto& s : redo_) remove(s);
   redo_.clear();
-  if (!undo_.empty()) pack(undo_.back());
+  if (!undo_.empty() && !(growing && growing(undo_.back().id))) pack(undo_.back());
   const StepId id = nextId_++;
   const Box region = step.region;
   info.region = region;
@@ -379,6 +379,10 @@ bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t
   add(s);
   enforceBudget();
   return true;
+}
+
+std::size_t History::unpackedSteps() const {
+  return std::size_t(std::count_if(undo_.begin(), undo_.end(), [](const Step& s) { return s.edit.has_value(); }));
 }
 
 void History::seal(StepId id) {

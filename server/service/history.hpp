@@ -18,7 +18,8 @@
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
 //   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
 //   bits; about 4.5x smaller than the floats on the pig's strokes. A step is packed when a newer one is
-//   pushed, and repacked with its other side when it moves between the lists.
+//   pushed (an open stroke's step when its stroke ends: seal()), and repacked with its other
+//   side when it moves between the lists.
 // - Memory: bytes() is what the stored steps hold: for the unpacked step kBytesPerBrick per
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
@@ -112,7 +113,10 @@ class History {
   // Records a step that has already been applied to the volume and clears the redo list.
   // An edit without changes records nothing and returns 0.
   // info.region and info.bricks are taken from the edit.
-  StepId push(Edit step, StepInfo info = {});
+  // The step that was the newest is packed, unless `growing` says it is still growing (an open
+  // stroke's step, which fold() will grow under the new one): it then stays unpacked, as a
+  // folded step does, until seal() (packing it now would only have fold() unpack it again).
+  StepId push(Edit step, StepInfo info = {}, const std::function<bool(StepId)>& growing = {});
   // Folds more changes (applied after the step) into step `id` if it is still the newest step,
   // unpacked (pushed or amended last) and nothing is undone; returns false (and records
   // nothing) otherwise, so the caller can push() a new step instead. The budget is enforced
@@ -173,6 +177,8 @@ class History {
   std::size_t undoSteps() const { return undo_.size(); }
   std::size_t redoSteps() const { return redo_.size(); }
   std::size_t steps() const { return undo_.size() + redo_.size(); }
+  // Undo steps held unpacked: the newest, and open strokes' steps (push's `growing`, fold()).
+  std::size_t unpackedSteps() const;
   // Steps dropped so far because of the budget.
   std::size_t droppedSteps() const { return dropped_; }
   std::size_t bytes() const { return bytes_; }

@@ -214,7 +214,7 @@ ApplyResult Session::apply(const protocol::Op& op, ThreadPool& pool, const StepA
   }
   // An op that changed nothing is not a change of the session: an open stroke keeps folding.
   if (!edit.empty()) lastStroke_ = 0;
-  history_.push(edit, stepInfo(by, protocol::opName(op)));
+  history_.push(edit, stepInfo(by, protocol::opName(op)), [this](History::StepId st) { return growingStep(st); });
   return finish(edit);
 }
 
@@ -311,7 +311,12 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
     Stroke& s = strokes_.at(id);
     const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
                                         : history_.fold(s.step, message, volume_, revision_ + 1);
-    if (!folded) s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)));
+    if (!folded) {
+      // The stroke's earlier step grows no more: packed like any step under a newer one.
+      history_.seal(s.step);
+      s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)),
+                             [this, id](History::StepId st) { return growingStep(st, id); });
+    }
     lastStroke_ = id;
   }
   const ApplyResult done = finish(message);
@@ -335,6 +340,11 @@ void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
   if (s.accumulate) return;
   if (applied.size() > kMaxStrokeMemory) applied.erase(applied.begin(), applied.end() - std::ptrdiff_t(kMaxStrokeMemory));
   s.memory = std::move(applied);
+}
+
+bool Session::growingStep(History::StepId step, StrokeId except) const {
+  return std::any_of(strokes_.begin(), strokes_.end(),
+                     [&](const auto& s) { return s.first != except && s.second.step == step; });
 }
 
 void Session::endStroke(StrokeId id) {
@@ -450,7 +460,7 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
       }
   volume_.publish(edit.changes, true);
   for (auto& [id, stroke] : strokes_) stroke.start = volume_;
-  history_.push(edit, stepInfo(by, "volume.load"));
+  history_.push(edit, stepInfo(by, "volume.load"), [this](History::StepId st) { return growingStep(st); });
   ApplyResult r = finish(edit);
   if (!r.changed) {
     bump();

@@ -282,6 +282,9 @@ class Session {
   // The record of a step made now, by `by` with `tool`, at the next revision.
   StepInfo stepInfo(const StepAuthor& by, std::string_view tool) const;
   const Stroke& openStroke(StrokeId id) const;
+  // For History::push: whether `step` is the step of an open stroke other than `except`, which
+  // its next dabs will fold into (it stays unpacked until the stroke ends).
+  bool growingStep(History::StepId step, StrokeId except = 0) const;
 
   Volume volume_;
   History history_;

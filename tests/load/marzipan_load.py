@@ -182,6 +182,9 @@ class SessionState:
         self.token = None
         self.created = asyncio.get_running_loop().create_future()
         self.last_revision = 0  # newest revision any of its clients' dabs made
+        # The revisions its clients' dabs messages answered: one per application (the server
+        # applies a stroke's queued messages as one, and they answer the same revision).
+        self.dab_revisions = set()
 
 
 class LoadClient:
@@ -269,6 +272,7 @@ class LoadClient:
             if applied > 0:
                 revision = result["revision"]
                 self.session.last_revision = max(self.session.last_revision, revision)
+                self.session.dab_revisions.add(revision)
                 if self.last_delta_revision >= revision:
                     self.stats.anomalies["delta before its response"] += 1
                 else:
@@ -631,6 +635,7 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
         "dabs_applied": stats.dabs_applied, "deltas": stats.deltas, "delta_bytes": stats.delta_bytes,
         "full_buffers": stats.full_buffers, "slow_client": slow.report if slow else None,
         "session_stats": session_stats,
+        "dab_applications": sum(len(s.dab_revisions) for s in sessions.values()),
     }
 
 
@@ -922,6 +927,7 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
     dab_delta = percentiles(merged(results, "dab_delta_latency"))
     dabs_per_message = merged(results, "dabs_per_message")
     dabs_sent = sum(dabs_per_message)
+    applications = sum(r["dab_applications"] for r in results)
     other = {}
     for r in results:
         for method, values in r["other_latency"].items():
@@ -949,6 +955,8 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "dabs_applied_per_s": round(dabs_applied / wall, 1),
         "dabs_per_message": None if not dabs_per_message else
         {"mean": round(dabs_sent / len(dabs_per_message), 2), "max": max(dabs_per_message)},
+        "dab_applications": applications,
+        "dabs_per_application": None if not applications else round(dabs_applied / applications, 2),
         "latency_ms": {"response": response, "delta": delta, "dab_delta": dab_delta,
                        "response_p99_by_second": [s["p99"] for s in seconds],
                        "response_max_by_second": [s["max"] for s in seconds],
@@ -972,6 +980,8 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
             "cpu_ms_per_dabs_message": per_message(server_cpu_s),
             "cpu_ms_per_dab_applied": None if server_cpu_s is None or not dabs_applied else
             round(server_cpu_s / dabs_applied * 1e3, 3),
+            "cpu_ms_per_application": None if server_cpu_s is None or not applications else
+            round(server_cpu_s / applications * 1e3, 2),
             "runqueue_wait_s_per_s": server_wait,
             "exit_status": server_status,
         },
@@ -1012,12 +1022,12 @@ def summary(out: dict) -> str:
         f"stroke.dabs response p50 {r['p50']} / p99 {r['p99']} / max {r['max']} ms; "
         f"its splat delta p50 {d['p50']} / p99 {d['p99']} / max {d['max']} ms ({out['deltas_received']} deltas)",
         *([f"dab->delta p50 {dd['p50']} / p99 {dd['p99']} / max {dd['max']} ms over {dd['n']} dabs, "
-           f"{out['dabs_per_message']['mean']} dabs per message"]
+           f"{out['dabs_per_message']['mean']} dabs per message, {out['dabs_per_application']} per application"]
           if (dd := out["latency_ms"]["dab_delta"])["n"] and out["dabs_per_message"] else []),
         f"server RSS idle {s['rss_mb_idle']} MiB, max {s['rss_mb_max']}, final {s['rss_mb_final']} "
         f"(undo history {s['sessions_history_mb']})",
         f"CPU: server {s['cpu_cores']} cores ({s['cpu_ms_per_dabs_message']} ms per dabs message, "
-        f"{s['cpu_ms_per_dab_applied']} per dab applied), clients "
+        f"{s['cpu_ms_per_dab_applied']} per dab applied, {s['cpu_ms_per_application']} per application), clients "
         f"{c['cpu_cores']} cores ({c['cpu_ms_per_dabs_message']} ms; per process {c['cpu_cores_per_process']}), "
         f"client loop lag p99 {c['loop_lag_ms']['p99']} ms",
         f"waiting for a core (s per s): server {s['runqueue_wait_s_per_s']}, clients {c['runqueue_wait_s_per_s']}",

@@ -301,6 +301,30 @@ TEST_CASE("history: fold grows an earlier step when no later step touched the ne
   }
 }
 
+TEST_CASE("history: a step pushed over a growing one leaves that one unpacked until sealed", "[history][authors]") {
+  ThreadPool pool(2);
+  // The same steps twice: once with A's step said to be growing (an open stroke's) at B's push.
+  Volume v = sphere(), w = sphere();
+  History grown, packed;
+  const History::StepId a = grown.push(blobAt(v, PlusX, pool), by("A", 1));
+  const History::StepId a2 = packed.push(blobAt(w, PlusX, pool), by("A", 1));
+  grown.push(blobAt(v, MinusX, pool), by("B", 2), [a](History::StepId s) { return s == a; });
+  packed.push(blobAt(w, MinusX, pool), by("B", 2));
+  // Unpacked: its shared brick buffers, several times what its packed frame holds.
+  CHECK(grown.bytes() > packed.bytes() + packed.bytes() / 2);
+  // A's stroke goes on: both fold the same (the packed one unpacks for it), and both stay
+  // unpacked until the stroke ends.
+  REQUIRE(grown.fold(a, blobAt(v, PlusX, pool, 2), v, 3));
+  REQUIRE(packed.fold(a2, blobAt(w, PlusX, pool, 2), w, 3));
+  CHECK(digest(v) == digest(w));
+  CHECK(grown.bytes() == packed.bytes());
+  grown.seal(a);
+  packed.seal(a2);
+  CHECK(grown.bytes() == packed.bytes());
+  while (grown.canUndo()) grown.undo(v);
+  CHECK(digest(v) == digest(sphere()));
+}
+
 // The load tool found this: a stroke's step packed under another sculptor's new step that
 // overlaps some of its bricks, then folded elsewhere, was unpacked against the volume's bricks
 // (the later step's) instead of its own `after`, and every dab failed with an internal error.

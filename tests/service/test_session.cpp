@@ -199,6 +199,26 @@ TEST_CASE("session: a stroke interrupted by another change continues as a new st
   CHECK(s.openStrokes() == 0);
 }
 
+TEST_CASE("session: when every stroke has ended only the newest step is held unpacked", "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  const std::uint64_t start = digest(s.volume());
+  const StrokeId a = s.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, StepAuthor{"1", "A"});
+  const StrokeId b = s.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, StepAuthor{"2", "B"});
+  s.strokeDabs(a, {at({kSurface, kC, kC})}, pool);
+  s.strokeDabs(b, {at({kSurface, kC + 1, kC})}, pool);  // B's step, on A's bricks
+  s.strokeDabs(a, {at({kC - kR, kC, kC})}, pool);       // far away: folds into A's step under B's
+  CHECK(s.history().undoSteps() == 2);
+  s.strokeDabs(a, {at({kSurface, kC, kC})}, pool);  // on B's bricks: A's stroke goes on as a new step
+  CHECK(s.history().undoSteps() == 3);
+  s.endStroke(a);
+  s.endStroke(b);
+  // A's first step grows no more and B's stroke ended: both packed.
+  CHECK(s.history().unpackedSteps() == 1);
+  while (s.canUndo()) s.undo();
+  CHECK(digest(s.volume()) == start);
+}
+
 TEST_CASE("session: x symmetry changes the field symmetrically", "[session]") {
   ThreadPool pool(2);
   Session s(sphere());

@@ -14,7 +14,7 @@ import json
 import re
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 4}
+PROTOCOL_VERSION = {"major": 1, "minor": 5}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (

@@ -43,6 +43,22 @@ ConnectionQueue::Next ConnectionQueue::take(Incoming& out) {
   return Next::Message;
 }
 
+bool ConnectionQueue::takeText(Incoming& out) {
+  const std::lock_guard lock(mutex_);
+  if (closed_ || queue_.empty() || !std::holds_alternative<std::string>(queue_.front().message)) return false;
+  out = std::move(queue_.front());
+  queue_.pop_front();
+  bytes_ -= out.size();
+  return true;
+}
+
+void ConnectionQueue::putBack(Incoming in) {
+  const std::lock_guard lock(mutex_);
+  if (closed_) return;
+  bytes_ += in.size();
+  queue_.push_front(std::move(in));
+}
+
 ConnectionQueue::Next ConnectionQueue::finished() {
   const std::lock_guard lock(mutex_);
   if (closed_) return Next::Closed;

@@ -67,6 +67,14 @@ class ConnectionQueue {
   // For the owner, after one message: Idle (let go), Message (one waits: take it next) or Closed
   // (clean up).
   Next finished();
+  // For the owner, while it handles a message: the next message waiting, taken out, when it is a
+  // text (false: none, a binary frame, or the connection is closed). It counts as handled unless
+  // given back with putBack. How the handler of a stroke.dabs takes the same stroke's messages
+  // queued right behind it (service/hub/methods_edit.cpp).
+  bool takeText(Incoming& out);
+  // For the owner: puts a message taken with takeText back in front of the queue (the last
+  // taken first), to be handled in its turn. Dropped when the connection closed meanwhile.
+  void putBack(Incoming in);
   // The connection is gone: drops what waits. True when no one owned it: the caller does now,
   // and cleans up.
   bool close();

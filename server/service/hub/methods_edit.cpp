@@ -4,6 +4,8 @@
 // and its clients hear of it after (Broadcaster::changed). The table gives the changes
 // Access::Editor: a view client's request is refused (-32007) on the strand, after its params
 // were checked.
+#include <algorithm>
+
 #include "engine/thread_pool.hpp"
 #include "service/apply_op.hpp"
 #include "service/hub/core.hpp"
@@ -78,6 +80,65 @@ void historyStep(HubCore& hub, const Call& call, bool undo) {
     };
     r.after = [self, &s, c, h, undo] { self->broadcast.changed(s, *c, undo ? "undo" : "redo", h.roi, h.bricks, false); };
   });
+}
+
+// One stroke.dabs message taken from the connection's queue behind the one being handled.
+struct DabsMessage {
+  std::optional<json> id;
+  protocol::StrokeDabsParams params;
+  Incoming raw;  // as it was queued, to give back
+};
+
+std::vector<Dab> toDabs(const std::vector<protocol::DabParam>& params) {
+  std::vector<Dab> dabs;
+  dabs.reserve(params.size());
+  for (const protocol::DabParam& d : params) {
+    Dab dab;
+    if (const auto* center = std::get_if<Vec3>(&d.at)) dab.at = *center;
+    else {
+      const auto& ray = std::get<protocol::RayParam>(d.at);
+      dab.at = Ray{ray.origin, ray.direction};
+    }
+    dab.pressure = d.pressure;
+    dabs.push_back(dab);
+  }
+  return dabs;
+}
+
+// The stroke.dabs messages of stroke first.stroke queued right behind `first` on c's connection,
+// in order, taken out of its queue while all of them together stay within what one message may
+// be (max_dabs dabs, max_op_voxels): the first other message, or one of another stroke, a
+// malformed one or one over the bounds, stays queued and ends the run. Their order among the
+// connection's messages is kept; other connections' messages waiting on the session's strand
+// were not answered yet either, so they may follow, as if these had arrived before them.
+std::vector<DabsMessage> takeFollowers(HubCore& hub, HubClient& c, const protocol::StrokeDabsParams& first,
+                                       double voxelsPerDab) {
+  std::vector<DabsMessage> out;
+  if (hub.stopping()) return out;
+  std::size_t dabs = first.dabs.size();
+  Incoming in;
+  while (c.queue.takeText(in)) {
+    std::optional<DabsMessage> m;
+    const protocol::ParsedRequest parsed = protocol::parseRequest(std::get<std::string>(in.message));
+    if (parsed.request && parsed.request->method == protocol::Method::StrokeDabs) {
+      try {
+        protocol::StrokeDabsParams p = protocol::parseStrokeDabsParams(parsed.request->params, hub.limits().maxDabs);
+        const std::size_t total = dabs + p.dabs.size();
+        const bool fits = total <= hub.limits().maxDabs && double(total) * voxelsPerDab <= hub.limits().maxOpVoxels;
+        if (p.stroke == first.stroke && fits) m = DabsMessage{parsed.request->id, std::move(p), {}};
+      } catch (const RpcException&) {
+        // Answered with its error in its turn.
+      }
+    }
+    if (!m) {
+      c.queue.putBack(std::move(in));
+      break;
+    }
+    dabs += m->params.dabs.size();
+    m->raw = std::move(in);
+    out.push_back(std::move(*m));
+  }
+  return out;
 }
 
 }  // namespace
@@ -197,45 +258,68 @@ void strokeDabs(HubCore& hub, const Call& call) {
   const auto running = hub.track(call.client, call.req.id);
   hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, p, running](LiveSession& s, Reply& r) {
     if (p.stroke != c->stroke) throw notOpenStroke(p.stroke);
-    double voxels = 0;
+    double voxelsPerDab = 0;
+    bool accumulate = false;
     for (const auto& [id, st] : s.session->openStrokeList())
       if (id == p.stroke) {
         const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
         // A height takes a sub-step per vu (engine applyStroke).
         const double substeps = st.height ? std::ceil(*st.height) : 1;
-        voxels = double(p.dabs.size()) * brushVoxels(s.session->volume(), st.radius, images) * substeps;
+        voxelsPerDab = brushVoxels(s.session->volume(), st.radius, images) * substeps;
+        accumulate = st.accumulate;
       }
-    self->checkBudget(voxels, "this message's dabs");
+    self->checkBudget(double(p.dabs.size()) * voxelsPerDab, "this message's dabs");
+    // A stroke that remembers what it applied moves the surface the same however its dabs are
+    // grouped into messages, so the messages of this stroke waiting behind this one on the
+    // connection are applied with it as one application (an accumulating stroke's result
+    // depends on the grouping: never).
+    std::vector<DabsMessage> merged;
+    if (!accumulate) merged = takeFollowers(*self, *c, p, voxelsPerDab);
+    std::vector<protocol::DabParam> params = p.dabs;
+    for (const DabsMessage& m : merged) params.insert(params.end(), m.params.dabs.begin(), m.params.dabs.end());
     std::optional<Workers::LongTask> longTask;
-    if (voxels > kLongOpVoxels) longTask.emplace(self->workers);
-    std::vector<Dab> dabs;
-    dabs.reserve(p.dabs.size());
-    for (const protocol::DabParam& d : p.dabs) {
-      Dab dab;
-      if (const auto* center = std::get_if<Vec3>(&d.at)) dab.at = *center;
-      else {
-        const auto& ray = std::get<protocol::RayParam>(d.at);
-        dab.at = Ray{ray.origin, ray.direction};
-      }
-      dab.pressure = d.pressure;
-      dabs.push_back(dab);
-    }
+    if (double(params.size()) * voxelsPerDab > kLongOpVoxels) longTask.emplace(self->workers);
     const Progress::Scope scope(*running->progress);
-    const ApplyResult a = s.session->strokeDabs(p.stroke, dabs, ThreadPool::serial());
+    ApplyResult a;
+    try {
+      a = s.session->strokeDabs(p.stroke, toDabs(params), ThreadPool::serial());
+    } catch (...) {
+      if (merged.empty()) throw;
+      // Refused or cancelled, the application changed nothing: the messages are handled one by
+      // one instead, this one now (which fails with its own error, or applies) and the others
+      // in their turn, so that each gets the answer it would have had alone.
+      for (auto m = merged.rbegin(); m != merged.rend(); ++m) c->queue.putBack(std::move(m->raw));
+      merged.clear();
+      params = p.dabs;
+      a = s.session->strokeDabs(p.stroke, toDabs(params), ThreadPool::serial());
+    }
     running->done();
-    r.result = {{"revision", a.revision},
-                {"applied", a.changed ? dabs.size() - a.missed : 0},
-                {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+    // Every message of the application answers its revision and box; `applied` counts its own dabs.
+    const json roi = protocol::boxJson(a.changed ? a.roi : Box{});
+    auto appliedIn = [&a](std::size_t from, std::size_t count) -> std::size_t {
+      if (!a.changed) return 0;
+      const auto begin = a.hits.begin() + std::ptrdiff_t(from);
+      return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
+    };
+    r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
+    std::size_t from = p.dabs.size();
+    for (const DabsMessage& m : merged) {
+      if (self->options.events.request) self->options.events.request("stroke.dabs");
+      const json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
+      r.merged.push_back({m.id, result, m.raw.arrived});
+      from += m.params.dabs.size();
+    }
     if (a.changed) {
       json applied = json::array();
       for (std::size_t i = 0; i < a.hits.size(); ++i)
         if (a.hits[i]) {
-          json dab{a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, p.dabs[i].pressure};
+          json dab{a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, params[i].pressure};
           if (const Vec3 n = a.normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
           applied.push_back(std::move(dab));
         }
       // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
-      // started (a step they folded into keeps its own).
+      // started (a step they folded into keeps its own). One record per application: replay
+      // applies its dabs as one, as here.
       r.record = [stroke = p.stroke, applied, rev = a.revision, t = stepTime(*s.session)] {
         return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}, {"t", t}};
       };

@@ -4,6 +4,8 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -37,6 +39,15 @@ struct Reply {
   // The journal record(s) of a change (an object or an array of them), written before the
   // response; may write files of its own (an upload).
   std::function<nlohmann::json()> record;
+  // Later messages of the same connection that this work carried out too (a stroke's queued
+  // stroke.dabs, applied with this one as one application): each is answered after this one,
+  // in order, and counts as an edit of its own for the latency figures.
+  struct Merged {
+    std::optional<nlohmann::json> id;  // absent: a notification, not answered
+    nlohmann::json result;
+    Clock::time_point arrived;
+  };
+  std::vector<Merged> merged;
 };
 
 }  // namespace marzipan::service

@@ -52,11 +52,20 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       if (r.record) self->durability.persist(*s, r.record);
       if (r.frame) c->link->sendBinary(r.frame, false);
       self->sendResult(*c, id, r.result);
-      if (editLatency && self->options.events.editLatency)
-        self->options.events.editLatency(std::chrono::duration<double>(Clock::now() - arrived).count());
+      for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result);
+      if (editLatency && self->options.events.editLatency) {
+        const Clock::time_point now = Clock::now();
+        self->options.events.editLatency(std::chrono::duration<double>(now - arrived).count());
+        for (const Reply::Merged& m : r.merged)
+          self->options.events.editLatency(std::chrono::duration<double>(now - m.arrived).count());
+      }
       if (r.after) r.after();
     } catch (...) {
-      self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+      // A merged message shares the fate of the work that carried it (a journal that failed
+      // rolled the one application back).
+      const Failure f = failureOf(std::current_exception(), self->options.events.log);
+      self->sendError(*c, id, f);
+      for (const Reply::Merged& m : r.merged) self->sendError(*c, m.id, f);
     }
     self->finish(c);
   });
