@@ -133,6 +133,8 @@ class SweptWindow {
     std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
     std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
     int xLo = 0, xHi = 0;                     // the hull along x of the row's dab ROIs
+    bool listed = false;                      // whether the lists above are a row's
+    std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
     // Without a height, the row's dabs and memory as arrays of pairs (the last padded with a
     // dab of empty ROI), searched two at a time in full (search).
@@ -179,8 +181,13 @@ class SweptWindow {
     if (p.y == c.y && p.z == c.z) return;
     c.y = p.y;
     c.z = p.z;
-    rowDabs(dabs_, p, c.dabs);
-    rowDabs(memory_, p, c.memory);
+    // Most rows hold the dabs of the row before: the lists stay.
+    rowDabs(dabs_, p, c.rowDabs);
+    rowDabs(memory_, p, c.rowMemory);
+    if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
+    c.listed = true;
+    std::swap(c.rowDabs, c.dabs);
+    std::swap(c.rowMemory, c.memory);
     c.dab = c.remembered = 0;
     c.xLo = std::numeric_limits<int>::max();
     c.xHi = std::numeric_limits<int>::min();
