@@ -126,12 +126,39 @@ class SweptWindow {
   // holds the current row, listed once per row, and where the search starts, the dabs that
   // were the strongest at the voxel before. Once the strongest is known, the others stop at
   // their first factors. Neither changes the result: the same dabs are searched, and the
-  // largest window does not depend on the order.
+  // largest window does not depend on the order. (Without a height, SSE2 searches all of the
+  // row's dabs two at a time instead: the early stops' branches cost more than they save.)
   struct Cursor {
     int y = std::numeric_limits<int>::min(), z = 0;
     std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
     std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
+    int xLo = 0, xHi = 0;                     // the hull along x of the row's dab ROIs
+    bool listed = false;                      // whether the lists above are a row's
+    std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
+#if defined(__SSE2__)
+    // Without a height, the row's dabs and memory as arrays of pairs (the last padded with a
+    // dab of empty ROI), searched two at a time in full (search).
+    struct Lanes {
+      std::vector<double> center[3], weight, lo, hi;  // hi: one past the ROI's last x
+      void clear() {
+        for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->clear();
+      }
+      void push(const PreparedDab& d) {
+        for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
+        weight.push_back(d.weight);
+        lo.push_back(d.roi.lo.x);
+        hi.push_back(d.roi.hi.x);
+      }
+    } dabLanes, memoryLanes;
+#endif
   };
+
+  // False only where no dab's ROI holds p (the scale is 0 there whatever the foot point, so a
+  // caller need not compute it).
+  bool reaches(Int3 p, Cursor& c) const {
+    row(p, c);
+    return p.x >= c.xLo && p.x < c.xHi;
+  }
 
   // A brush (one dab, no memory, no height): its dab, whose window alone is the scale, else null.
   const PreparedDab* brush() const {
@@ -150,14 +177,73 @@ class SweptWindow {
   }
 
  private:
-  [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
-    if (p.y != c.y || p.z != c.z) {
-      c.y = p.y;
-      c.z = p.z;
-      rowDabs(dabs_, p, c.dabs);
-      rowDabs(memory_, p, c.memory);
-      c.dab = c.remembered = 0;
+  void row(Int3 p, Cursor& c) const {
+    if (p.y == c.y && p.z == c.z) return;
+    c.y = p.y;
+    c.z = p.z;
+    // Most rows hold the dabs of the row before: the lists stay.
+    rowDabs(dabs_, p, c.rowDabs);
+    rowDabs(memory_, p, c.rowMemory);
+    if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
+    c.listed = true;
+    std::swap(c.rowDabs, c.dabs);
+    std::swap(c.rowMemory, c.memory);
+    c.dab = c.remembered = 0;
+    c.xLo = std::numeric_limits<int>::max();
+    c.xHi = std::numeric_limits<int>::min();
+    for (const std::uint32_t i : c.dabs) {
+      c.xLo = std::min(c.xLo, dabs_[i].roi.lo.x);
+      c.xHi = std::max(c.xHi, dabs_[i].roi.hi.x);
     }
+#if defined(__SSE2__)
+    if (anchor_ == 0) {
+      auto lanes = [](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, Cursor::Lanes& out) {
+        out.clear();
+        for (const std::uint32_t i : row) out.push(dabs[i]);
+        if (row.size() % 2 != 0) out.push(PreparedDab{{}, 0, Box{}, {}});
+      };
+      lanes(dabs_, c.dabs, c.dabLanes);
+      lanes(memory_, c.memory, c.memoryLanes);
+    }
+#endif
+  }
+
+#if defined(__SSE2__)
+  // The largest window over the lanes' dabs whose ROI holds x, or 0: window's operations in
+  // its order in each lane (the three factors multiplied out even after one is 0, which leaves
+  // 0, and past the point where window would stop, which only lowers a value that is not the
+  // largest), so the largest is the same bits.
+  double lanesLargest(const Cursor::Lanes& l, int x, Vec3 q) const {
+    const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(x));
+    const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
+    const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
+    __m128d best = _mm_setzero_pd();
+    for (std::size_t j = 0; j < l.weight.size(); j += 2) {
+      __m128d w = _mm_loadu_pd(l.weight.data() + j);
+      for (int a = 0; a < 3; ++a) {
+        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
+        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+        w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+      }
+      const __m128d inside =
+          _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
+      best = _mm_max_pd(best, _mm_and_pd(inside, w));
+    }
+    return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
+  }
+#endif
+
+  [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    row(p, c);
+#if defined(__SSE2__)
+    if (anchor_ == 0) {
+      // Where the memory reaches w, w less its largest is <= 0 like w less the first that
+      // reaches it (the value the scalar search gives).
+      const double w = lanesLargest(c.dabLanes, p.x, q);
+      if (w <= 0 || c.memory.empty()) return w;
+      return w - lanesLargest(c.memoryLanes, p.x, q);
+    }
+#endif
     const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
     if (w <= 0 || c.memory.empty()) return w;
     return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
@@ -609,6 +695,7 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
 #endif
     double w = 1;
     if (window) {
+      if (!window->reaches(p, cursor)) continue;
       const FootPoint f = footPoint(g, i, p);
       w = window->at(p, f.point, f.normal, cursor);
     }
@@ -707,7 +794,8 @@ double largestWindow(const DenseGrid& g, const Box& region, float band, const Sw
   for (std::size_t k = 0; k < voxels.index.size(); ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
-    if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k])) continue;
+    if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k]) || !window.reaches(voxels.point[k], cursor))
+      continue;
     const FootPoint f = footPoint(g, i, voxels.point[k]);
     largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal, cursor));
   }
