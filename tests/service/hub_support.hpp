@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <filesystem>
 #include <mutex>
 #include <thread>
 #include <variant>
@@ -23,6 +24,15 @@ using nlohmann::json;
 using Bytes = std::vector<std::uint8_t>;
 
 constexpr auto kWait = std::chrono::seconds(20);
+
+// A hub of two workers that takes grids up to 128^3, journaling under dir when one is given.
+inline HubOptions twoWorkerOptions(const std::filesystem::path& dir = {}) {
+  HubOptions o;
+  o.workers = 2;
+  o.limits.maxGridSide = 128;
+  if (!dir.empty()) o.dataDir = dir;
+  return o;
+}
 
 // What one connection received, in order.
 struct CaptureLink : ClientLink {

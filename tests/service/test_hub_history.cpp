@@ -25,14 +25,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-HubOptions historyOptions(const fs::path& dir = {}) {
-  HubOptions o;
-  o.workers = 2;
-  o.limits.maxGridSide = 128;
-  if (!dir.empty()) o.dataDir = dir;
-  return o;
-}
-
 fs::path freshDir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / ("marzipan-hub-history-" + name);
   fs::remove_all(d);
@@ -93,7 +85,7 @@ std::pair<Bytes, json> framePng(TestClient& c, json params) {
 
 TEST_CASE("each step is recorded with its client as author, and recovery keeps the authors", "[hub][history]") {
   const fs::path dir = freshDir("authors");
-  Hub hub(historyOptions(dir));
+  Hub hub(twoWorkerOptions(dir));
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
@@ -130,7 +122,7 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
 
 TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for bit", "[hub][history]") {
   const fs::path dir = freshDir("mine");
-  Hub hub(historyOptions(dir));
+  Hub hub(twoWorkerOptions(dir));
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
@@ -151,7 +143,7 @@ TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for
   const std::string digest = a.result("session.stats")["digest"];
 
   // The same session where only B stroked.
-  Hub other(historyOptions());
+  Hub other(twoWorkerOptions());
   TestClient c(other);
   c.result("session.create", kCreate);
   const json sc = c.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}});
@@ -191,7 +183,7 @@ TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for
 }
 
 TEST_CASE("undo mine refuses a step another client changed after it, naming who and which revision", "[hub][history]") {
-  Hub hub(historyOptions());
+  Hub hub(twoWorkerOptions());
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
@@ -228,7 +220,7 @@ TEST_CASE("undo mine refuses a step another client changed after it, naming who 
 
 TEST_CASE("history.list gives every step with its author, tool, time and region, view clients may read it",
           "[hub][history]") {
-  Hub hub(historyOptions());
+  Hub hub(twoWorkerOptions());
   TestClient a(hub), b(hub), v(hub);
   json create = kCreate;
   create["name"] = "Ada";
@@ -275,7 +267,7 @@ TEST_CASE("history.list gives every step with its author, tool, time and region,
 
 TEST_CASE("session.fork starts a new session from the current volume or an earlier revision", "[hub][history]") {
   const fs::path dir = freshDir("fork");
-  Hub hub(historyOptions(dir));
+  Hub hub(twoWorkerOptions(dir));
   TestClient a(hub), b(hub), v(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
@@ -335,7 +327,7 @@ TEST_CASE("session.fork starts a new session from the current volume or an earli
 }
 
 TEST_CASE("session.fork counts against the create limits", "[hub][history]") {
-  HubOptions o = historyOptions();
+  HubOptions o = twoWorkerOptions();
   o.limits.maxCreatesPerMinute = 2;
   Hub hub(o);
   TestClient a(hub);
@@ -349,7 +341,7 @@ TEST_CASE("session.fork counts against the create limits", "[hub][history]") {
 }
 
 TEST_CASE("render.frame of an earlier revision draws the volume of that step, the session unchanged", "[hub][history]") {
-  Hub hub(historyOptions());
+  Hub hub(twoWorkerOptions());
   TestClient a(hub), v(hub), one(hub);
   const json created = a.result("session.create", kCreate);
   joinWith(v, created, "view_token");
@@ -374,7 +366,7 @@ TEST_CASE("render.frame of an earlier revision draws the volume of that step, th
 
 TEST_CASE("redo mine refuses a step under another client's undone step that holds its bricks", "[hub][history]") {
   const fs::path dir = freshDir("redo");
-  Hub hub(historyOptions(dir));
+  Hub hub(twoWorkerOptions(dir));
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];

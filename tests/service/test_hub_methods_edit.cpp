@@ -33,14 +33,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-HubOptions mergeOptions(const fs::path& dir = {}) {
-  HubOptions o;
-  o.workers = 2;
-  o.limits.maxGridSide = 128;
-  if (!dir.empty()) o.dataDir = dir;
-  return o;
-}
-
 // A sphere of radius ~44.8 about 63.5: the morph below keeps the connection busy for a while.
 const json kCreate = {{"size", {128, 128, 128}}, {"solid", "sphere"}};
 const json kMorph = {{"kind", "dilate"}, {"radius", 2}};
@@ -118,7 +110,7 @@ std::string recoveredDigest(const fs::path& dir, const std::string& id) {
 TEST_CASE("queued stroke.dabs of one stroke are one application, each answered, journaled and undone exactly",
           "[hub][stroke]") {
   const fs::path dir = freshDir("one");
-  Hub hub(mergeOptions(dir));
+  Hub hub(twoWorkerOptions(dir));
   TestClient a(hub);
   const json created = a.result("session.create", kCreate);
   const json stroke = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 6}, {"height", 2}})["stroke"];
@@ -146,7 +138,7 @@ TEST_CASE("queued stroke.dabs of one stroke are one application, each answered, 
   CHECK(countOf(*a.link, mark, isDelta) == 2);
 
   // Bit for bit what one message with all the dabs makes.
-  Hub other(mergeOptions());
+  Hub other(twoWorkerOptions());
   TestClient b(other);
   b.result("session.create", kCreate);
   const json s1 = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 6}, {"height", 2}})["stroke"];
@@ -182,7 +174,7 @@ TEST_CASE("queued stroke.dabs of one stroke are one application, each answered, 
 }
 
 TEST_CASE("an accumulating stroke's queued messages are applied one by one", "[hub][stroke]") {
-  Hub hub(mergeOptions());
+  Hub hub(twoWorkerOptions());
   TestClient a(hub);
   a.result("session.create", kCreate);
   const json stroke = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 6}, {"accumulate", true}})["stroke"];
@@ -193,7 +185,7 @@ TEST_CASE("an accumulating stroke's queued messages are applied one by one", "[h
 
 TEST_CASE("a stroke's messages merge only up to max_dabs, and never across another request or stroke",
           "[hub][stroke]") {
-  HubOptions o = mergeOptions();
+  HubOptions o = twoWorkerOptions();
   o.limits.maxDabs = 5;
   Hub hub(o);
   TestClient a(hub);
@@ -240,7 +232,7 @@ TEST_CASE("a stroke's messages merge only up to max_dabs, and never across anoth
 }
 
 TEST_CASE("two clients' strokes are never one application", "[hub][stroke]") {
-  Hub hub(mergeOptions());
+  Hub hub(twoWorkerOptions());
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
@@ -271,7 +263,7 @@ TEST_CASE("a stroke's messages merge only while together they stay within max_op
   // What one dab of this stroke counts against the budget, as the refusal of one reports it.
   double perDab = 0;
   {
-    HubOptions o = mergeOptions();
+    HubOptions o = twoWorkerOptions();
     o.limits.maxOpVoxels = 1;
     Hub hub(o);
     TestClient a(hub);
@@ -282,7 +274,7 @@ TEST_CASE("a stroke's messages merge only while together they stay within max_op
     perDab = e["data"]["value"];
   }
   REQUIRE(perDab > 0);
-  HubOptions o = mergeOptions();
+  HubOptions o = twoWorkerOptions();
   o.limits.maxOpVoxels = 5.5 * perDab;  // room for 5 dabs
   Hub hub(o);
   TestClient a(hub);
