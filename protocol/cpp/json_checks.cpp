@@ -10,10 +10,9 @@ namespace marzipan::protocol::checks {
 
 // Text from the request, cut to a readable length at a UTF-8 character boundary: messages
 // must not grow with the input, and must stay valid UTF-8 for a JSON-RPC reply.
-std::string excerpt(std::string_view s) {
-  constexpr std::size_t kMaxChars = 40;
-  if (s.size() <= kMaxChars) return std::string(s);
-  std::size_t cut = kMaxChars;
+std::string excerpt(std::string_view s, std::size_t maxChars) {
+  if (s.size() <= maxChars) return std::string(s);
+  std::size_t cut = maxChars;
   while (cut > 0 && (static_cast<unsigned char>(s[cut]) & 0xC0) == 0x80) --cut;
   std::string out(s.substr(0, cut));
   out.append("...");
@@ -21,8 +20,14 @@ std::string excerpt(std::string_view s) {
 }
 
 // Quoted and escaped as a JSON string, so that control characters cannot garble a log line.
+// Bounded as quoted, not as given: a control character quotes as six bytes (\u0001), so forty
+// of them once made a message longer than a message may be (found by fuzz_rpc).
 std::string inQuotes(std::string_view s) {
-  return json(excerpt(s)).dump(-1, ' ', false, json::error_handler_t::replace);
+  constexpr std::size_t kMaxQuotedBytes = 48;
+  for (std::size_t chars = 40;; chars /= 2) {
+    std::string q = json(excerpt(s, chars)).dump(-1, ' ', false, json::error_handler_t::replace);
+    if (q.size() <= kMaxQuotedBytes || chars <= 4) return q;
+  }
 }
 
 std::string formatNumber(double v) {

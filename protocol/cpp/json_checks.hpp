@@ -21,7 +21,7 @@ namespace marzipan::protocol::checks {
 
 using nlohmann::json;
 
-std::string excerpt(std::string_view s);
+std::string excerpt(std::string_view s, std::size_t maxChars = 40);
 std::string inQuotes(std::string_view s);
 std::string formatNumber(double v);
 // What a value is, for "got ..." in messages.

@@ -318,3 +318,13 @@ TEST_CASE("JSON nested deeper than 64 arrays and objects is refused while it is 
   REQUIRE(r.error);
   CHECK(r.error->code == RpcCode::ParseError);
 }
+
+TEST_CASE("an unknown key of control characters is quoted short in its error (found by fuzz_rpc)", "[rpc]") {
+  // Forty tabs quote as eighty bytes and forty \u0001 as 240: the excerpt is bounded as quoted.
+  for (const char c : {'\t', '\x01'}) {
+    const std::string key(60, c);
+    const ParsedRequest r = parseRequest(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "session.stats"}, {key, 1}}.dump());
+    REQUIRE(r.error);
+    CHECK(r.error->message.size() < 160);
+  }
+}
