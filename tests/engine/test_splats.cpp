@@ -50,20 +50,28 @@ SplatMap toMap(const std::vector<BrickSplats>& all) {
   return m;
 }
 
-// The definition of splats.hpp evaluated voxel by voxel through Volume::at, in double.
-SplatMap referenceSplats(const Volume& v) {
-  SplatMap m;
+// fn(p, d, brick) for every surface voxel p of v (splats.hpp: |d| < kSurfaceNear, or a face
+// neighbour of the other sign), in index order, d its value.
+template <class F>
+void forEachSurfaceVoxel(const Volume& v, F&& fn) {
   const Int3 n = v.dims();
   const Int3 six[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
   for (int z = 0; z < n.z; ++z)
     for (int y = 0; y < n.y; ++y)
       for (int x = 0; x < n.x; ++x) {
         const Int3 p{x, y, z};
-        const double d = v.at(p);
+        const float d = v.at(p);
         bool surface = std::fabs(d) < kSurfaceNear;
         for (const Int3& s : six) surface = surface || ((v.at(p + s) < 0) != (d < 0));
-        if (!surface) continue;
-        const Int3 b{x / 8, y / 8, z / 8};
+        if (surface) fn(p, d, Int3{x / 8, y / 8, z / 8});
+      }
+}
+
+// The definition of splats.hpp evaluated voxel by voxel through Volume::at, in double.
+SplatMap referenceSplats(const Volume& v) {
+  SplatMap m;
+  forEachSurfaceVoxel(v, [&](Int3 p, double d, Int3 b) {
+        const int x = p.x, y = p.y, z = p.z;
         const Vec3 g = v.voxelGradient(p);
         Splat s{float(x), float(y), float(z), 0, 0, 1};
         if (length(g) > 0) {
@@ -73,7 +81,7 @@ SplatMap referenceSplats(const Volume& v) {
           s = {float(q.x), float(q.y), float(q.z), float(nn.x), float(nn.y), float(nn.z)};
         }
         m[key(b)].push_back(s);
-      }
+      });
   return m;
 }
 
@@ -178,17 +186,8 @@ TEST_CASE("every voxel next to the surface yields exactly one splat", "[splats]"
 // foot point clamped to the brick's encodable range): what the extraction must give bit for bit.
 SplatMap exactSplats(const Volume& v) {
   SplatMap m;
-  const Int3 n = v.dims();
-  const Int3 six[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-  for (int z = 0; z < n.z; ++z)
-    for (int y = 0; y < n.y; ++y)
-      for (int x = 0; x < n.x; ++x) {
-        const Int3 p{x, y, z};
-        const float d = v.at(p);
-        bool surface = std::fabs(d) < kSurfaceNear;
-        for (const Int3& s : six) surface = surface || ((v.at(p + s) < 0) != (d < 0));
-        if (!surface) continue;
-        const Int3 b{x / 8, y / 8, z / 8};
+  forEachSurfaceVoxel(v, [&](Int3 p, float d, Int3 b) {
+        const int x = p.x, y = p.y, z = p.z;
         const GradStencil st = GradStencil::around(p, [&](Int3 q) { return v.at(q); });
         const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
         const float len2 = gx * gx + gy * gy + gz * gz;
@@ -203,7 +202,7 @@ SplatMap exactSplats(const Volume& v) {
           s.x = foot(float(x), s.nx, b.x), s.y = foot(float(y), s.ny, b.y), s.z = foot(float(z), s.nz, b.z);
         }
         m[key(b)].push_back(s);
-      }
+      });
   return m;
 }
 
