@@ -326,8 +326,11 @@ test("presence: rings move while a sculptor drags, the people list, following a 
   writeFileSync(join(artifacts, "people-list.png"), await c.locator("#people").screenshot());
 
   // B orbits: following stops, and says so; A's next orbit leaves B's camera where B put it.
+  // The note shows for 6 s: wait for it from before the orbit, so that a loaded machine's slow
+  // mouse moves cannot use up its time before the wait begins.
+  const stoppedNote = b.waitForSelector("#follow-note >> text=Stopped following: you moved the camera.");
   await orbit(b, 80);
-  await b.waitForSelector("#follow-note >> text=Stopped following: you moved the camera.");
+  await stoppedNote;
   assert.equal((await peopleOn(b)).find((p) => p.client === idA).followed, false);
   const mine = await cameraOf(b);
   await orbit(a, 100);
