@@ -11,20 +11,7 @@
 # ctest's 600 s limit when two run at once; run them alone then, e.g. `-R "curvature"`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-. tests/debian-packages.sh
-install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
-build="${BUILD_DIR:-build-tsan}"
-CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMARZIPAN_SANITIZE=thread
+. tests/sanitized-build.sh
 # halt_on_error: a race fails its test instead of only printing a report.
 export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
-if [ -n "${SUITES:-}" ]; then
-  read -r -a suites <<<"$SUITES"
-  cmake --build "$build" -j "$(nproc)" --target "${suites[@]/%/_tests}"
-  for suite in "${suites[@]}"; do
-    echo "== ${suite}_tests under TSan"
-    "$build/tests/${suite}_tests"
-  done
-  exit 0
-fi
-cmake --build "$build" -j "$(nproc)"
-ctest --test-dir "$build" --output-on-failure -j "$(nproc)" "$@"
+run_sanitized "TSan" build-tsan "thread" "$@"
