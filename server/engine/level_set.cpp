@@ -325,12 +325,14 @@ struct MovedVoxels {
   std::vector<Run> runs;
   std::vector<double> factor;  // curvature: dt * F per voxel, in list order
   std::vector<float> step;     // advection: float(dt * F) per voxel
+  std::vector<double> window;  // listed without a motion: the window per voxel (withSpeeds)
   std::uint32_t count = 0;
 
   void clear() {
     runs.clear();
     factor.clear();
     step.clear();
+    window.clear();
     count = 0;
   }
   // Appends the voxels of a later part of the grid (a run that goes on across the seam is one).
@@ -344,6 +346,7 @@ struct MovedVoxels {
     }
     factor.insert(factor.end(), o.factor.begin(), o.factor.end());
     step.insert(step.end(), o.step.begin(), o.step.end());
+    window.insert(window.end(), o.window.begin(), o.window.end());
     count += o.count;
   }
 };
@@ -378,6 +381,25 @@ void storePartial(float* out, __m128 x, std::uint32_t n) {
 }
 #endif
 
+// The walk of a sub-step over runs [r, end): voxel j of a run goes to dst[run.first + j] (dst:
+// a list-ordered array) or dst[run.index + j] (dst: a grid). lanes(run, j) computes voxels j..
+// of the run: with SSE2 four at once (an __m128; past the run's end it may read up to 3 voxels
+// and 3 list entries more, which the callers provide, and only the run's own are stored),
+// without one (a float).
+template <class Lanes>
+void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes lanes) {
+  for (; r != end; ++r) {
+    float* out = dst + (dstIsGrid ? r->index : r->first);
+    std::uint32_t j = 0;
+#if defined(__SSE2__)
+    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, lanes(*r, j));
+    if (j < r->count) storePartial(out + j, lanes(*r, j), r->count - j);
+#else
+    for (; j < r->count; ++j) out[j] = lanes(*r, j);
+#endif
+  }
+}
+
 // One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
 // array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
 // The neighbours are summed in float in this order and the rest is done in double, as
@@ -410,26 +432,16 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
     const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
     return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
   };
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = dst + (dstIsGrid ? r->index : r->first);
-    const double* f = factor + r->first;
-    std::uint32_t j = 0;
-    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, f + j));
-    if (j < r->count) storePartial(out + j, four(p + j, f + j), r->count - j);
-  }
+  overRuns(r, end, dst, dstIsGrid, [&](const Run& run, std::uint32_t j) {
+    return four(v + run.index + j, factor + run.first + j);
+  });
 #else
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = dst + (dstIsGrid ? r->index : r->first);
-    const double* f = factor + r->first;
-    for (std::uint32_t j = 0; j < r->count; ++j) {
-      const float* q = p + j;
-      double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
-      if (limited) lap = std::clamp(lap, -limit, limit);
-      out[j] = float(q[0] + f[j] * lap);
-    }
-  }
+  overRuns(r, end, dst, dstIsGrid, [&](const Run& run, std::uint32_t j) {
+    const float* q = v + run.index + j;
+    double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
+    if (limited) lap = std::clamp(lap, -limit, limit);
+    return float(q[0] + factor[run.first + j] * lap);
+  });
 #endif
 }
 
@@ -463,20 +475,14 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
     }
     return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
   };
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = next + r->first;
-    const float* st = step + r->first;
-    std::uint32_t j = 0;
-    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, st + j));
-    if (j < r->count) storePartial(out + j, four(p + j, st + j), r->count - j);
-  }
+  overRuns(r, end, next, false, [&](const Run& run, std::uint32_t j) {
+    return four(v + run.index + j, step + run.first + j);
+  });
 #else
-  for (; r != end; ++r) {
-    const float* st = step + r->first;
-    for (std::uint32_t j = 0; j < r->count; ++j)
-      next[r->first + j] = v[r->index + j] - st[j] * upwindGradient(v, r->index + j, stride, st[j] > 0);
-  }
+  overRuns(r, end, next, false, [&](const Run& run, std::uint32_t j) {
+    const float st = step[run.first + j];
+    return v[run.index + j] - st * upwindGradient(v, run.index + j, stride, st > 0);
+  });
 #endif
 }
 
@@ -594,10 +600,6 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   });
 }
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
-// kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
-// thread-count independent. progress: checked per block, advanced per sub-step.
 #if defined(__SSE2__)
 // A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
 // SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
@@ -633,12 +635,21 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
 }
 #endif
 
+// The speed entries of a voxel whose window is w > 0 under motion m.
+void pushSpeed(MovedVoxels& out, const Motion& m, double w) {
+  const double speed = float(m.speed * w);
+  if (m.kind == Motion::Kind::Curvature) {
+    out.factor.push_back(m.dt * speed);
+  } else {
+    out.step.push_back(float(m.dt * speed));
+  }
+}
+
 // The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
-// speeds (the window at each one's foot point; none: W = 1).
-void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                   const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
                   const ProgressShare& progress) {
-  const bool curvature = m.kind == Motion::Kind::Curvature;
   // The run being extended and the count, kept out of `out` while the loop runs.
   Run run{0, 0, 0};
   std::uint32_t count = out.count;
@@ -649,11 +660,10 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
   // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
   auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
     if (w <= 0) return;
-    const double speed = float(m.speed * w);
-    if (curvature) {
-      out.factor.push_back(m.dt * speed);
+    if (m) {
+      pushSpeed(out, *m, w);
     } else {
-      out.step.push_back(float(m.dt * speed));
+      out.window.push_back(w);
     }
     // Consecutive indices share a row: region lies inside the grid, off its last column.
     if (run.count != 0 && run.index + run.count == i) {
@@ -711,12 +721,13 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
   out.count = count;
 }
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
-// kStencilReach inside the grid. Work is split in fixed pieces, each voxel computed alone:
-// thread-count independent. progress: checked per piece, advanced per sub-step.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+// Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
+// their speeds: m scaled by the window at each voxel's foot point (none: W = 1); m null: with
+// their windows instead (withSpeeds adds the speeds). `voxels` lists the band of a box holding
+// region; region must lie kStencilReach inside the grid. Built in fixed pieces on the pool,
+// joined in order: thread-count independent. progress: checked per piece.
+void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+               const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress) {
   ToolScratch& s = toolScratch();
   MovedVoxels& moved = s.moved;
   moved.clear();
@@ -737,6 +748,19 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   } else {
     collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
   }
+}
+
+// Gives a list made without a motion the speeds listMoved would have given it under m.
+void withSpeeds(MovedVoxels& moved, const Motion& m) {
+  for (const double w : moved.window) pushSpeed(moved, m, w);
+}
+
+// Moves the voxels of toolScratch().moved by their speeds under m. Work is split in fixed
+// pieces, each voxel computed alone: thread-count independent. progress: checked per piece,
+// advanced per sub-step.
+void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressShare& progress) {
+  ToolScratch& s = toolScratch();
+  MovedVoxels& moved = s.moved;
   const std::vector<Run>& runs = moved.runs;
   const bool curvature = m.kind == Motion::Kind::Curvature;
   const std::size_t stride[3] = {1, g.sx, g.sxy};
@@ -786,20 +810,12 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   }
 }
 
-// The largest window over the band voxels of region (|phi| < band) that evolve would move.
-double largestWindow(const DenseGrid& g, const Box& region, float band, const SweptWindow& window,
-                     const BandVoxels& voxels, const ProgressShare& progress) {
-  double largest = 0;
-  SweptWindow::Cursor cursor;
-  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
-    if (k % kVoxelsPerCheck == 0) progress.check();
-    const std::size_t i = voxels.index[k];
-    if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k]) || !window.reaches(voxels.point[k], cursor))
-      continue;
-    const FootPoint f = footPoint(g, i, voxels.point[k]);
-    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal, cursor));
-  }
-  return largest;
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1): listMoved, then moveListed.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+  listMoved(g, region, band, &m, window, voxels, pool, progress);
+  moveListed(g, m, pool, progress);
 }
 
 void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
@@ -917,7 +933,11 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     int steps = 1;
     Motion m = strokeMotion(st);
     if (height != 0) {
-      const double most = std::fabs(height) * largestWindow(g, group.box, band, window, scratch.band, share.part(0));
+      // The first sub-step's list, made once: its largest window sets the sub-steps.
+      listMoved(g, group.box, band, nullptr, &window, scratch.band, pool, share.part(0));
+      double largest = 0;
+      for (const double w : scratch.moved.window) largest = std::max(largest, w);
+      const double most = std::fabs(height) * largest;
       if (!(most > 0)) {
         // Nothing to add here: the stroke already stands at its height (no redistance either).
         share.advance(1 - kGatherShare - kCollectShare);
@@ -925,11 +945,16 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       }
       steps = std::max(1, int(std::ceil(most - 1e-9)));
       m = advection(height / steps);
+      withSpeeds(scratch.moved, m);
     }
     for (int step = 0; step < steps; ++step) {
-      // The previous sub-step's march changed the band: list it again (counted in the first).
-      if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
-      evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
+      if (step == 0 && height != 0) {
+        moveListed(g, m, pool, share.part(kEvolveShare / steps));
+      } else {
+        // The previous sub-step's march changed the band: list it again (counted in the first).
+        if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
+        evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
+      }
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
