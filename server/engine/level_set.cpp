@@ -120,6 +120,15 @@ class SweptWindow {
     // The memory newest first: the voxels this message moves lie under its dabs, next to the
     // last ones the stroke applied, so the search below mostly ends after a few.
     std::reverse(memory_.begin(), memory_.end());
+#if defined(__SSE2__)
+    // Without a height, SSE2 searches the dabs whose ROI holds the voxel in full: ordered by
+    // their centres' x, their ROIs' x ranges come in order too (Cursor::Lanes).
+    if (anchor_ == 0) {
+      for (auto* v : {&dabs_, &memory_})
+        std::stable_sort(v->begin(), v->end(),
+                         [](const PreparedDab& a, const PreparedDab& b) { return a.center.x < b.center.x; });
+    }
+#endif
   }
 
   // A caller's walk over the voxels of a grid in index order (rows along x): the dabs whose ROI
@@ -136,18 +145,31 @@ class SweptWindow {
     bool listed = false;                      // whether the lists above are a row's
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
-    // Without a height, the row's dabs and memory as arrays of pairs (the last padded with a
-    // dab of empty ROI), searched two at a time in full (search).
+    // Without a height, the row's dabs and memory as arrays, in the order of their centres' x
+    // (boxAround's bounds and the domain's clipping only grow with the centre, so their ROIs' x
+    // ranges [lo, hi) are in order too, and the dabs whose ROI holds a voxel of the row are one
+    // range of the arrays, [first, last), which moves along the row), followed by a dab of
+    // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
+    // two at a time in full (search).
     struct Lanes {
       std::vector<double> center[3], weight, lo, hi;  // hi: one past the ROI's last x
+      std::size_t count = 0, first = 0, last = 0;     // count: the row's dabs, without the pad
       void clear() {
         for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->clear();
+        count = first = last = 0;
       }
       void push(const PreparedDab& d) {
         for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
         weight.push_back(d.weight);
         lo.push_back(d.roi.lo.x);
         hi.push_back(d.roi.hi.x);
+      }
+      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
+      void at(int x) {
+        const double xd = x;
+        while (first < count && hi[first] <= xd) ++first;
+        if (last < first) last = first;
+        while (last < count && lo[last] <= xd) ++last;
       }
     } dabLanes, memoryLanes;
 #endif
@@ -181,6 +203,9 @@ class SweptWindow {
     if (p.y == c.y && p.z == c.z) return;
     c.y = p.y;
     c.z = p.z;
+#if defined(__SSE2__)
+    c.dabLanes.first = c.dabLanes.last = c.memoryLanes.first = c.memoryLanes.last = 0;
+#endif
     // Most rows hold the dabs of the row before: the lists stay.
     rowDabs(dabs_, p, c.rowDabs);
     rowDabs(memory_, p, c.rowMemory);
@@ -200,7 +225,8 @@ class SweptWindow {
       auto lanes = [](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, Cursor::Lanes& out) {
         out.clear();
         for (const std::uint32_t i : row) out.push(dabs[i]);
-        if (row.size() % 2 != 0) out.push(PreparedDab{{}, 0, Box{}, {}});
+        out.count = row.size();
+        out.push(PreparedDab{{}, 0, Box{}, {}});
       };
       lanes(dabs_, c.dabs, c.dabLanes);
       lanes(memory_, c.memory, c.memoryLanes);
@@ -212,13 +238,15 @@ class SweptWindow {
   // The largest window over the lanes' dabs whose ROI holds x, or 0: window's operations in
   // its order in each lane (the three factors multiplied out even after one is 0, which leaves
   // 0, and past the point where window would stop, which only lowers a value that is not the
-  // largest), so the largest is the same bits.
-  double lanesLargest(const Cursor::Lanes& l, int x, Vec3 q) const {
+  // largest), so the largest is the same bits. Only the range of dabs whose ROI holds x is
+  // read (a pair's second lane past it is a dab whose ROI does not hold x, or the pad: masked).
+  double lanesLargest(Cursor::Lanes& l, int x, Vec3 q) const {
+    l.at(x);
     const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(x));
     const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
     const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
     __m128d best = _mm_setzero_pd();
-    for (std::size_t j = 0; j < l.weight.size(); j += 2) {
+    for (std::size_t j = l.first; j < l.last; j += 2) {
       __m128d w = _mm_loadu_pd(l.weight.data() + j);
       for (int a = 0; a < 3; ++a) {
         const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
@@ -321,11 +349,15 @@ struct Run {
 };
 
 // The voxels evolve moves, with their speeds.
+// The per-voxel arrays are sized before they are filled (collectMoved writes them by index, a
+// push_back per voxel cost as much again when the compiler did not inline it).
 struct MovedVoxels {
+  template <class T>
+  using Array = std::vector<T, UninitializedAllocator<T>>;
   std::vector<Run> runs;
-  std::vector<double> factor;  // curvature: dt * F per voxel, in list order
-  std::vector<float> step;     // advection: float(dt * F) per voxel
-  std::vector<double> window;  // listed without a motion: the window per voxel (withSpeeds)
+  Array<double> factor;  // curvature: dt * F per voxel, in list order
+  Array<float> step;     // advection: float(dt * F) per voxel
+  Array<double> window;  // listed without a motion: the window per voxel (withSpeeds)
   std::uint32_t count = 0;
 
   void clear() {
@@ -635,14 +667,25 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
 }
 #endif
 
-// The speed entries of a voxel whose window is w > 0 under motion m (inlined: it runs once per
-// band voxel, as collectMoved's add).
-[[gnu::always_inline]] inline void pushSpeed(MovedVoxels& out, const Motion& m, double w) {
+// The speed entry `at` of a voxel whose window is w > 0 under motion m (inlined: it runs once
+// per band voxel, as collectMoved's add).
+[[gnu::always_inline]] inline void setSpeed(MovedVoxels& out, std::size_t at, const Motion& m, double w) {
   const double speed = float(m.speed * w);
   if (m.kind == Motion::Kind::Curvature) {
-    out.factor.push_back(m.dt * speed);
+    out.factor[at] = m.dt * speed;
   } else {
-    out.step.push_back(float(m.dt * speed));
+    out.step[at] = float(m.dt * speed);
+  }
+}
+
+// Sizes the array a list of `count` voxels under m (null: their windows) fills.
+void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
+  if (!m) {
+    out.window.resize(count);
+  } else if (m->kind == Motion::Kind::Curvature) {
+    out.factor.resize(count);
+  } else {
+    out.step.resize(count);
   }
 }
 
@@ -658,13 +701,14 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     run = out.runs.back();
     out.runs.pop_back();
   }
+  sizeSpeeds(out, m, count + (end - begin));
   // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
   auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
     if (w <= 0) return;
     if (m) {
-      pushSpeed(out, *m, w);
+      setSpeed(out, count, *m, w);
     } else {
-      out.window.push_back(w);
+      out.window[count] = w;
     }
     // Consecutive indices share a row: region lies inside the grid, off its last column.
     if (run.count != 0 && run.index + run.count == i) {
@@ -720,6 +764,7 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
 #endif
   if (run.count != 0) out.runs.push_back(run);
   out.count = count;
+  sizeSpeeds(out, m, count);
 }
 
 // Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
@@ -753,7 +798,8 @@ void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* 
 
 // Gives a list made without a motion the speeds listMoved would have given it under m.
 void withSpeeds(MovedVoxels& moved, const Motion& m) {
-  for (const double w : moved.window) pushSpeed(moved, m, w);
+  sizeSpeeds(moved, &m, moved.count);
+  for (std::size_t k = 0; k < moved.count; ++k) setSpeed(moved, k, m, moved.window[k]);
 }
 
 // Moves the voxels of toolScratch().moved by their speeds under m. Work is split in fixed
