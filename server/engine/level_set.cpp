@@ -414,20 +414,23 @@ void storePartial(float* out, __m128 x, std::uint32_t n) {
 #endif
 
 // The walk of a sub-step over runs [r, end): voxel j of a run goes to dst[run.first + j] (dst:
-// a list-ordered array) or dst[run.index + j] (dst: a grid). lanes(run, j) computes voxels j..
-// of the run: with SSE2 four at once (an __m128; past the run's end it may read up to 3 voxels
-// and 3 list entries more, which the callers provide, and only the run's own are stored),
-// without one (a float).
+// a list-ordered array) or dst[run.index + j] (dst: a grid). lanes(i, k) computes the voxels
+// from grid index i = run.index + j, list position k = run.first + j on: with SSE2 four at once
+// (an __m128; past the run's end it may read up to 3 voxels and 3 list entries more, which the
+// callers provide, and only the run's own are stored), without one (a float). Kernels hold what
+// they read by value: a store of a vector may alias anything, so the compiler would reload
+// whatever they reach by reference after each one.
 template <class Lanes>
 void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes lanes) {
   for (; r != end; ++r) {
-    float* out = dst + (dstIsGrid ? r->index : r->first);
-    std::uint32_t j = 0;
+    const std::size_t index = r->index, first = r->first, count = r->count;
+    float* const out = dst + (dstIsGrid ? index : first);
+    std::size_t j = 0;
 #if defined(__SSE2__)
-    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, lanes(*r, j));
-    if (j < r->count) storePartial(out + j, lanes(*r, j), r->count - j);
+    for (; j + 4 <= count; j += 4) _mm_storeu_ps(out + j, lanes(index + j, first + j));
+    if (j < count) storePartial(out + j, lanes(index + j, first + j), std::uint32_t(count - j));
 #else
-    for (; j < r->count; ++j) out[j] = lanes(*r, j);
+    for (; j < count; ++j) out[j] = lanes(index + j, first + j);
 #endif
   }
 }
@@ -445,7 +448,7 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
   const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
 #if defined(__SSE2__)
   const __m128d six = _mm_set1_pd(6.0), lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
-  auto four = [&](const float* q, const double* f) {
+  const auto four = [=](const float* q, const double* f) {
     __m128 sum = _mm_add_ps(_mm_loadu_ps(q + 1), _mm_loadu_ps(q - 1));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q + sy));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q - sy));
@@ -464,15 +467,13 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
     const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
     return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
   };
-  overRuns(r, end, dst, dstIsGrid, [&](const Run& run, std::uint32_t j) {
-    return four(v + run.index + j, factor + run.first + j);
-  });
+  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) { return four(v + i, factor + k); });
 #else
-  overRuns(r, end, dst, dstIsGrid, [&](const Run& run, std::uint32_t j) {
-    const float* q = v + run.index + j;
+  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) {
+    const float* q = v + i;
     double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
     if (limited) lap = std::clamp(lap, -limit, limit);
-    return float(q[0] + factor[run.first + j] * lap);
+    return float(q[0] + factor[k] * lap);
   });
 #endif
 }
@@ -487,15 +488,15 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
   // its order (the axes summed x, y, z onto 0). std::max(x, 0) is (x < 0 ? 0 : x), which is
   // _mm_max_ps(0, x) bit for bit (also -0 and NaN); std::min(x, 0) likewise _mm_min_ps(0, x).
   const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
-  auto four = [&](const float* q, const float* st) {
+  const std::size_t s[3] = {stride[0], stride[1], stride[2]};
+  const auto four = [=](const float* q, const float* st) {
     const __m128 dtF = _mm_loadu_ps(st);
     const __m128 outward = _mm_cmpgt_ps(dtF, zero);
     const __m128 v0 = _mm_loadu_ps(q);
     __m128 g2 = zero;
     for (int a = 0; a < 3; ++a) {
-      const std::size_t s = stride[a];
-      const __m128 vm2 = _mm_loadu_ps(q - 2 * s), vm1 = _mm_loadu_ps(q - s);
-      const __m128 vp1 = _mm_loadu_ps(q + s), vp2 = _mm_loadu_ps(q + 2 * s);
+      const __m128 vm2 = _mm_loadu_ps(q - 2 * s[a]), vm1 = _mm_loadu_ps(q - s[a]);
+      const __m128 vp1 = _mm_loadu_ps(q + s[a]), vp2 = _mm_loadu_ps(q + 2 * s[a]);
       const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);
       const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
                                    _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
@@ -507,13 +508,10 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
     }
     return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
   };
-  overRuns(r, end, next, false, [&](const Run& run, std::uint32_t j) {
-    return four(v + run.index + j, step + run.first + j);
-  });
+  overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) { return four(v + i, step + k); });
 #else
-  overRuns(r, end, next, false, [&](const Run& run, std::uint32_t j) {
-    const float st = step[run.first + j];
-    return v[run.index + j] - st * upwindGradient(v, run.index + j, stride, st > 0);
+  overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) {
+    return v[i] - step[k] * upwindGradient(v, i, stride, step[k] > 0);
   });
 #endif
 }
@@ -552,8 +550,8 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
     if (p == count) return std::size_t(runs.back().index) + runs.back().count + 4 + g.sxy;
     return runs[pieces[std::size_t(p)]].index / g.sxy * g.sxy;
   };
-  auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
-    if (step == 0)
+  auto runStep = [&](int p, int step, bool copy) {  // step 0-based: reads grids[step % 2]
+    if (step == 0 && copy)
       std::copy(g.v.begin() + std::ptrdiff_t(copyFrom(p)), g.v.begin() + std::ptrdiff_t(copyFrom(p + 1)),
                 s.other.begin() + std::ptrdiff_t(copyFrom(p)));
     curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
@@ -564,9 +562,29 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   constexpr std::uint32_t kParallelVoxels = 8192;
   const int participants = s.moved.count < kParallelVoxels ? 1 : std::min(pool.threads(), count);
   if (participants <= 1) {
+    // On one thread s.other needs, before the first step, only what the steps read there and
+    // do not write: the listed voxels' neighbours and the lanes past a run's end (x - 1 to
+    // x + count + 3 along the run's row, x to x + count + 2 along the four rows next to it),
+    // not the whole slices (a 70^3 brush's grid is 1.9 MB, its band's neighbourhood a fraction).
+    // Pieces of four, which may copy up to 3 more voxels past those (in the grid: the region
+    // lies kStencilReach inside it).
+    auto copyRow = [&](std::size_t from, std::size_t n) {
+      const float* src = g.v.data() + from;
+      float* dst = s.other.data() + from;
+#if defined(__SSE2__)
+      for (std::size_t k = 0; k < n; k += 4) _mm_storeu_ps(dst + k, _mm_loadu_ps(src + k));
+#else
+      std::copy_n(src, n, dst);
+#endif
+    };
+    for (const Run& r : runs) {
+      copyRow(r.index - 1, r.count + 5);
+      for (const std::size_t o : {r.index - g.sx, r.index + g.sx, r.index - g.sxy, r.index + g.sxy})
+        copyRow(o, r.count + 3);
+    }
     for (int step = 0; step < steps; ++step) {
       progress.check();
-      for (int p = 0; p < count; ++p) runStep(p, step);
+      for (int p = 0; p < count; ++p) runStep(p, step, false);
       progress.advance(1.0 / steps);
     }
     return;
@@ -604,7 +622,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
         try {
           if (d < steps && ready(best, d)) {
             progress.check();
-            runStep(best, d);
+            runStep(best, d, true);
             done[std::size_t(best)].store(d + 1, std::memory_order_release);
             if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
             claimed[std::size_t(best)].store(false, std::memory_order_release);
