@@ -143,6 +143,7 @@ class SweptWindow {
     std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
     int xLo = 0, xHi = 0;                     // the hull along x of the row's dab ROIs
     bool listed = false;                      // whether the lists above are a row's
+    int until = 0;                            // the lists hold for rows of slice z up to this y
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
     // Without a height, the row's dabs and memory as arrays, in the order of their centres' x
@@ -201,14 +202,17 @@ class SweptWindow {
  private:
   void row(Int3 p, Cursor& c) const {
     if (p.y == c.y && p.z == c.z) return;
+    const bool stays = c.listed && p.z == c.z && p.y > c.y && p.y < c.until;
     c.y = p.y;
     c.z = p.z;
 #if defined(__SSE2__)
     c.dabLanes.first = c.dabLanes.last = c.memoryLanes.first = c.memoryLanes.last = 0;
 #endif
+    if (stays) return;  // no ROI begins or ends between the listed row and this one
     // Most rows hold the dabs of the row before: the lists stay.
-    rowDabs(dabs_, p, c.rowDabs);
-    rowDabs(memory_, p, c.rowMemory);
+    c.until = std::numeric_limits<int>::max();
+    rowDabs(dabs_, p, c.rowDabs, c.until);
+    rowDabs(memory_, p, c.rowMemory, c.until);
     if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
     c.listed = true;
     std::swap(c.rowDabs, c.dabs);
@@ -277,11 +281,19 @@ class SweptWindow {
     return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
   }
 
-  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out) {
+  // The dabs whose ROI holds p's row, and `until` lowered to the first y past p.y where a ROI
+  // begins or ends in p's slice (rows of the slice before it hold the same dabs).
+  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out, int& until) {
     out.clear();
     for (std::size_t i = 0; i < dabs.size(); ++i) {
       const Box& b = dabs[i].roi;
-      if (p.y >= b.lo.y && p.y < b.hi.y && p.z >= b.lo.z && p.z < b.hi.z) out.push_back(std::uint32_t(i));
+      if (p.z < b.lo.z || p.z >= b.hi.z) continue;
+      if (p.y < b.lo.y) {
+        until = std::min(until, b.lo.y);
+      } else if (p.y < b.hi.y) {
+        out.push_back(std::uint32_t(i));
+        until = std::min(until, b.hi.y);
+      }
     }
   }
 
