@@ -120,6 +120,15 @@ class SweptWindow {
     // The memory newest first: the voxels this message moves lie under its dabs, next to the
     // last ones the stroke applied, so the search below mostly ends after a few.
     std::reverse(memory_.begin(), memory_.end());
+#if defined(__SSE2__)
+    // Without a height, SSE2 searches the dabs whose ROI holds the voxel in full: ordered by
+    // their centres' x, their ROIs' x ranges come in order too (Cursor::Lanes).
+    if (anchor_ == 0) {
+      for (auto* v : {&dabs_, &memory_})
+        std::stable_sort(v->begin(), v->end(),
+                         [](const PreparedDab& a, const PreparedDab& b) { return a.center.x < b.center.x; });
+    }
+#endif
   }
 
   // A caller's walk over the voxels of a grid in index order (rows along x): the dabs whose ROI
@@ -134,20 +143,34 @@ class SweptWindow {
     std::size_t dab = 0, remembered = 0;      // positions in those of the last strongest
     int xLo = 0, xHi = 0;                     // the hull along x of the row's dab ROIs
     bool listed = false;                      // whether the lists above are a row's
+    int until = 0;                            // the lists hold for rows of slice z up to this y
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
-    // Without a height, the row's dabs and memory as arrays of pairs (the last padded with a
-    // dab of empty ROI), searched two at a time in full (search).
+    // Without a height, the row's dabs and memory as arrays, in the order of their centres' x
+    // (boxAround's bounds and the domain's clipping only grow with the centre, so their ROIs' x
+    // ranges [lo, hi) are in order too, and the dabs whose ROI holds a voxel of the row are one
+    // range of the arrays, [first, last), which moves along the row), followed by a dab of
+    // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
+    // two at a time in full (search).
     struct Lanes {
       std::vector<double> center[3], weight, lo, hi;  // hi: one past the ROI's last x
+      std::size_t count = 0, first = 0, last = 0;     // count: the row's dabs, without the pad
       void clear() {
         for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->clear();
+        count = first = last = 0;
       }
       void push(const PreparedDab& d) {
         for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
         weight.push_back(d.weight);
         lo.push_back(d.roi.lo.x);
         hi.push_back(d.roi.hi.x);
+      }
+      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
+      void at(int x) {
+        const double xd = x;
+        while (first < count && hi[first] <= xd) ++first;
+        if (last < first) last = first;
+        while (last < count && lo[last] <= xd) ++last;
       }
     } dabLanes, memoryLanes;
 #endif
@@ -179,11 +202,17 @@ class SweptWindow {
  private:
   void row(Int3 p, Cursor& c) const {
     if (p.y == c.y && p.z == c.z) return;
+    const bool stays = c.listed && p.z == c.z && p.y > c.y && p.y < c.until;
     c.y = p.y;
     c.z = p.z;
+#if defined(__SSE2__)
+    c.dabLanes.first = c.dabLanes.last = c.memoryLanes.first = c.memoryLanes.last = 0;
+#endif
+    if (stays) return;  // no ROI begins or ends between the listed row and this one
     // Most rows hold the dabs of the row before: the lists stay.
-    rowDabs(dabs_, p, c.rowDabs);
-    rowDabs(memory_, p, c.rowMemory);
+    c.until = std::numeric_limits<int>::max();
+    rowDabs(dabs_, p, c.rowDabs, c.until);
+    rowDabs(memory_, p, c.rowMemory, c.until);
     if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
     c.listed = true;
     std::swap(c.rowDabs, c.dabs);
@@ -200,7 +229,8 @@ class SweptWindow {
       auto lanes = [](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, Cursor::Lanes& out) {
         out.clear();
         for (const std::uint32_t i : row) out.push(dabs[i]);
-        if (row.size() % 2 != 0) out.push(PreparedDab{{}, 0, Box{}, {}});
+        out.count = row.size();
+        out.push(PreparedDab{{}, 0, Box{}, {}});
       };
       lanes(dabs_, c.dabs, c.dabLanes);
       lanes(memory_, c.memory, c.memoryLanes);
@@ -212,13 +242,15 @@ class SweptWindow {
   // The largest window over the lanes' dabs whose ROI holds x, or 0: window's operations in
   // its order in each lane (the three factors multiplied out even after one is 0, which leaves
   // 0, and past the point where window would stop, which only lowers a value that is not the
-  // largest), so the largest is the same bits.
-  double lanesLargest(const Cursor::Lanes& l, int x, Vec3 q) const {
+  // largest), so the largest is the same bits. Only the range of dabs whose ROI holds x is
+  // read (a pair's second lane past it is a dab whose ROI does not hold x, or the pad: masked).
+  double lanesLargest(Cursor::Lanes& l, int x, Vec3 q) const {
+    l.at(x);
     const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(x));
     const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
     const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
     __m128d best = _mm_setzero_pd();
-    for (std::size_t j = 0; j < l.weight.size(); j += 2) {
+    for (std::size_t j = l.first; j < l.last; j += 2) {
       __m128d w = _mm_loadu_pd(l.weight.data() + j);
       for (int a = 0; a < 3; ++a) {
         const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
@@ -249,11 +281,19 @@ class SweptWindow {
     return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
   }
 
-  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out) {
+  // The dabs whose ROI holds p's row, and `until` lowered to the first y past p.y where a ROI
+  // begins or ends in p's slice (rows of the slice before it hold the same dabs).
+  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out, int& until) {
     out.clear();
     for (std::size_t i = 0; i < dabs.size(); ++i) {
       const Box& b = dabs[i].roi;
-      if (p.y >= b.lo.y && p.y < b.hi.y && p.z >= b.lo.z && p.z < b.hi.z) out.push_back(std::uint32_t(i));
+      if (p.z < b.lo.z || p.z >= b.hi.z) continue;
+      if (p.y < b.lo.y) {
+        until = std::min(until, b.lo.y);
+      } else if (p.y < b.hi.y) {
+        out.push_back(std::uint32_t(i));
+        until = std::min(until, b.hi.y);
+      }
     }
   }
 
@@ -321,16 +361,22 @@ struct Run {
 };
 
 // The voxels evolve moves, with their speeds.
+// The per-voxel arrays are sized before they are filled (collectMoved writes them by index, a
+// push_back per voxel cost as much again when the compiler did not inline it).
 struct MovedVoxels {
+  template <class T>
+  using Array = std::vector<T, UninitializedAllocator<T>>;
   std::vector<Run> runs;
-  std::vector<double> factor;  // curvature: dt * F per voxel, in list order
-  std::vector<float> step;     // advection: float(dt * F) per voxel
+  Array<double> factor;  // curvature: dt * F per voxel, in list order
+  Array<float> step;     // advection: float(dt * F) per voxel
+  Array<double> window;  // listed without a motion: the window per voxel (withSpeeds)
   std::uint32_t count = 0;
 
   void clear() {
     runs.clear();
     factor.clear();
     step.clear();
+    window.clear();
     count = 0;
   }
   // Appends the voxels of a later part of the grid (a run that goes on across the seam is one).
@@ -344,6 +390,7 @@ struct MovedVoxels {
     }
     factor.insert(factor.end(), o.factor.begin(), o.factor.end());
     step.insert(step.end(), o.step.begin(), o.step.end());
+    window.insert(window.end(), o.window.begin(), o.window.end());
     count += o.count;
   }
 };
@@ -378,6 +425,28 @@ void storePartial(float* out, __m128 x, std::uint32_t n) {
 }
 #endif
 
+// The walk of a sub-step over runs [r, end): voxel j of a run goes to dst[run.first + j] (dst:
+// a list-ordered array) or dst[run.index + j] (dst: a grid). lanes(i, k) computes the voxels
+// from grid index i = run.index + j, list position k = run.first + j on: with SSE2 four at once
+// (an __m128; past the run's end it may read up to 3 voxels and 3 list entries more, which the
+// callers provide, and only the run's own are stored), without one (a float). Kernels hold what
+// they read by value: a store of a vector may alias anything, so the compiler would reload
+// whatever they reach by reference after each one.
+template <class Lanes>
+void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes lanes) {
+  for (; r != end; ++r) {
+    const std::size_t index = r->index, first = r->first, count = r->count;
+    float* const out = dst + (dstIsGrid ? index : first);
+    std::size_t j = 0;
+#if defined(__SSE2__)
+    for (; j + 4 <= count; j += 4) _mm_storeu_ps(out + j, lanes(index + j, first + j));
+    if (j < count) storePartial(out + j, lanes(index + j, first + j), std::uint32_t(count - j));
+#else
+    for (; j < count; ++j) out[j] = lanes(index + j, first + j);
+#endif
+  }
+}
+
 // One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
 // array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
 // The neighbours are summed in float in this order and the rest is done in double, as
@@ -391,7 +460,7 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
   const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
 #if defined(__SSE2__)
   const __m128d six = _mm_set1_pd(6.0), lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
-  auto four = [&](const float* q, const double* f) {
+  const auto four = [=](const float* q, const double* f) {
     __m128 sum = _mm_add_ps(_mm_loadu_ps(q + 1), _mm_loadu_ps(q - 1));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q + sy));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q - sy));
@@ -410,26 +479,14 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
     const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
     return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
   };
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = dst + (dstIsGrid ? r->index : r->first);
-    const double* f = factor + r->first;
-    std::uint32_t j = 0;
-    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, f + j));
-    if (j < r->count) storePartial(out + j, four(p + j, f + j), r->count - j);
-  }
+  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) { return four(v + i, factor + k); });
 #else
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = dst + (dstIsGrid ? r->index : r->first);
-    const double* f = factor + r->first;
-    for (std::uint32_t j = 0; j < r->count; ++j) {
-      const float* q = p + j;
-      double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
-      if (limited) lap = std::clamp(lap, -limit, limit);
-      out[j] = float(q[0] + f[j] * lap);
-    }
-  }
+  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) {
+    const float* q = v + i;
+    double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
+    if (limited) lap = std::clamp(lap, -limit, limit);
+    return float(q[0] + factor[k] * lap);
+  });
 #endif
 }
 
@@ -443,15 +500,15 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
   // its order (the axes summed x, y, z onto 0). std::max(x, 0) is (x < 0 ? 0 : x), which is
   // _mm_max_ps(0, x) bit for bit (also -0 and NaN); std::min(x, 0) likewise _mm_min_ps(0, x).
   const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
-  auto four = [&](const float* q, const float* st) {
+  const std::size_t s[3] = {stride[0], stride[1], stride[2]};
+  const auto four = [=](const float* q, const float* st) {
     const __m128 dtF = _mm_loadu_ps(st);
     const __m128 outward = _mm_cmpgt_ps(dtF, zero);
     const __m128 v0 = _mm_loadu_ps(q);
     __m128 g2 = zero;
     for (int a = 0; a < 3; ++a) {
-      const std::size_t s = stride[a];
-      const __m128 vm2 = _mm_loadu_ps(q - 2 * s), vm1 = _mm_loadu_ps(q - s);
-      const __m128 vp1 = _mm_loadu_ps(q + s), vp2 = _mm_loadu_ps(q + 2 * s);
+      const __m128 vm2 = _mm_loadu_ps(q - 2 * s[a]), vm1 = _mm_loadu_ps(q - s[a]);
+      const __m128 vp1 = _mm_loadu_ps(q + s[a]), vp2 = _mm_loadu_ps(q + 2 * s[a]);
       const __m128 centre = _mm_add_ps(_mm_sub_ps(vp1, _mm_mul_ps(two, v0)), vm1);
       const __m128 dm = _mm_add_ps(_mm_sub_ps(v0, vm1),
                                    _mm_mul_ps(half, minmod4(_mm_add_ps(_mm_sub_ps(v0, _mm_mul_ps(two, vm1)), vm2), centre)));
@@ -463,20 +520,11 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
     }
     return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
   };
-  for (; r != end; ++r) {
-    const float* p = v + r->index;
-    float* out = next + r->first;
-    const float* st = step + r->first;
-    std::uint32_t j = 0;
-    for (; j + 4 <= r->count; j += 4) _mm_storeu_ps(out + j, four(p + j, st + j));
-    if (j < r->count) storePartial(out + j, four(p + j, st + j), r->count - j);
-  }
+  overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) { return four(v + i, step + k); });
 #else
-  for (; r != end; ++r) {
-    const float* st = step + r->first;
-    for (std::uint32_t j = 0; j < r->count; ++j)
-      next[r->first + j] = v[r->index + j] - st[j] * upwindGradient(v, r->index + j, stride, st[j] > 0);
-  }
+  overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) {
+    return v[i] - step[k] * upwindGradient(v, i, stride, step[k] > 0);
+  });
 #endif
 }
 
@@ -514,8 +562,8 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
     if (p == count) return std::size_t(runs.back().index) + runs.back().count + 4 + g.sxy;
     return runs[pieces[std::size_t(p)]].index / g.sxy * g.sxy;
   };
-  auto runStep = [&](int p, int step) {  // step 0-based: reads grids[step % 2]
-    if (step == 0)
+  auto runStep = [&](int p, int step, bool copy) {  // step 0-based: reads grids[step % 2]
+    if (step == 0 && copy)
       std::copy(g.v.begin() + std::ptrdiff_t(copyFrom(p)), g.v.begin() + std::ptrdiff_t(copyFrom(p + 1)),
                 s.other.begin() + std::ptrdiff_t(copyFrom(p)));
     curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + pieces[std::size_t(p)],
@@ -526,9 +574,29 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   constexpr std::uint32_t kParallelVoxels = 8192;
   const int participants = s.moved.count < kParallelVoxels ? 1 : std::min(pool.threads(), count);
   if (participants <= 1) {
+    // On one thread s.other needs, before the first step, only what the steps read there and
+    // do not write: the listed voxels' neighbours and the lanes past a run's end (x - 1 to
+    // x + count + 3 along the run's row, x to x + count + 2 along the four rows next to it),
+    // not the whole slices (a 70^3 brush's grid is 1.9 MB, its band's neighbourhood a fraction).
+    // Pieces of four, which may copy up to 3 more voxels past those (in the grid: the region
+    // lies kStencilReach inside it).
+    auto copyRow = [&](std::size_t from, std::size_t n) {
+      const float* src = g.v.data() + from;
+      float* dst = s.other.data() + from;
+#if defined(__SSE2__)
+      for (std::size_t k = 0; k < n; k += 4) _mm_storeu_ps(dst + k, _mm_loadu_ps(src + k));
+#else
+      std::copy_n(src, n, dst);
+#endif
+    };
+    for (const Run& r : runs) {
+      copyRow(r.index - 1, r.count + 5);
+      for (const std::size_t o : {r.index - g.sx, r.index + g.sx, r.index - g.sxy, r.index + g.sxy})
+        copyRow(o, r.count + 3);
+    }
     for (int step = 0; step < steps; ++step) {
       progress.check();
-      for (int p = 0; p < count; ++p) runStep(p, step);
+      for (int p = 0; p < count; ++p) runStep(p, step, false);
       progress.advance(1.0 / steps);
     }
     return;
@@ -566,7 +634,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
         try {
           if (d < steps && ready(best, d)) {
             progress.check();
-            runStep(best, d);
+            runStep(best, d, true);
             done[std::size_t(best)].store(d + 1, std::memory_order_release);
             if (d + 1 == steps) finished.fetch_add(1, std::memory_order_acq_rel);
             claimed[std::size_t(best)].store(false, std::memory_order_release);
@@ -594,10 +662,6 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   });
 }
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
-// kStencilReach inside the grid. Work is split in fixed blocks, each voxel computed alone:
-// thread-count independent. progress: checked per block, advanced per sub-step.
 #if defined(__SSE2__)
 // A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
 // SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
@@ -633,12 +697,33 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
 }
 #endif
 
+// The speed entry `at` of a voxel whose window is w > 0 under motion m (inlined: it runs once
+// per band voxel, as collectMoved's add).
+[[gnu::always_inline]] inline void setSpeed(MovedVoxels& out, std::size_t at, const Motion& m, double w) {
+  const double speed = float(m.speed * w);
+  if (m.kind == Motion::Kind::Curvature) {
+    out.factor[at] = m.dt * speed;
+  } else {
+    out.step[at] = float(m.dt * speed);
+  }
+}
+
+// Sizes the array a list of `count` voxels under m (null: their windows) fills.
+void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
+  if (!m) {
+    out.window.resize(count);
+  } else if (m->kind == Motion::Kind::Curvature) {
+    out.factor.resize(count);
+  } else {
+    out.step.resize(count);
+  }
+}
+
 // The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
-// speeds (the window at each one's foot point; none: W = 1).
-void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                   const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
                   const ProgressShare& progress) {
-  const bool curvature = m.kind == Motion::Kind::Curvature;
   // The run being extended and the count, kept out of `out` while the loop runs.
   Run run{0, 0, 0};
   std::uint32_t count = out.count;
@@ -646,14 +731,14 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     run = out.runs.back();
     out.runs.pop_back();
   }
+  sizeSpeeds(out, m, count + (end - begin));
   // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
   auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
     if (w <= 0) return;
-    const double speed = float(m.speed * w);
-    if (curvature) {
-      out.factor.push_back(m.dt * speed);
+    if (m) {
+      setSpeed(out, count, *m, w);
     } else {
-      out.step.push_back(float(m.dt * speed));
+      out.window[count] = w;
     }
     // Consecutive indices share a row: region lies inside the grid, off its last column.
     if (run.count != 0 && run.index + run.count == i) {
@@ -709,14 +794,16 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
 #endif
   if (run.count != 0) out.runs.push_back(run);
   out.count = count;
+  sizeSpeeds(out, m, count);
 }
 
-// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
-// foot point (none: W = 1). `voxels` lists the band of a box holding region; region must lie
-// kStencilReach inside the grid. Work is split in fixed pieces, each voxel computed alone:
-// thread-count independent. progress: checked per piece, advanced per sub-step.
-void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
-            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+// Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
+// their speeds: m scaled by the window at each voxel's foot point (none: W = 1); m null: with
+// their windows instead (withSpeeds adds the speeds). `voxels` lists the band of a box holding
+// region; region must lie kStencilReach inside the grid. Built in fixed pieces on the pool,
+// joined in order: thread-count independent. progress: checked per piece.
+void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+               const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress) {
   ToolScratch& s = toolScratch();
   MovedVoxels& moved = s.moved;
   moved.clear();
@@ -737,6 +824,20 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   } else {
     collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
   }
+}
+
+// Gives a list made without a motion the speeds listMoved would have given it under m.
+void withSpeeds(MovedVoxels& moved, const Motion& m) {
+  sizeSpeeds(moved, &m, moved.count);
+  for (std::size_t k = 0; k < moved.count; ++k) setSpeed(moved, k, m, moved.window[k]);
+}
+
+// Moves the voxels of toolScratch().moved by their speeds under m. Work is split in fixed
+// pieces, each voxel computed alone: thread-count independent. progress: checked per piece,
+// advanced per sub-step.
+void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressShare& progress) {
+  ToolScratch& s = toolScratch();
+  MovedVoxels& moved = s.moved;
   const std::vector<Run>& runs = moved.runs;
   const bool curvature = m.kind == Motion::Kind::Curvature;
   const std::size_t stride[3] = {1, g.sx, g.sxy};
@@ -786,20 +887,12 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
   }
 }
 
-// The largest window over the band voxels of region (|phi| < band) that evolve would move.
-double largestWindow(const DenseGrid& g, const Box& region, float band, const SweptWindow& window,
-                     const BandVoxels& voxels, const ProgressShare& progress) {
-  double largest = 0;
-  SweptWindow::Cursor cursor;
-  for (std::size_t k = 0; k < voxels.index.size(); ++k) {
-    if (k % kVoxelsPerCheck == 0) progress.check();
-    const std::size_t i = voxels.index[k];
-    if (!(std::fabs(g.v[i]) < band) || !region.contains(voxels.point[k]) || !window.reaches(voxels.point[k], cursor))
-      continue;
-    const FootPoint f = footPoint(g, i, voxels.point[k]);
-    largest = std::max(largest, window.at(voxels.point[k], f.point, f.normal, cursor));
-  }
-  return largest;
+// Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
+// foot point (none: W = 1): listMoved, then moveListed.
+void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
+            const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress = {}) {
+  listMoved(g, region, band, &m, window, voxels, pool, progress);
+  moveListed(g, m, pool, progress);
 }
 
 void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
@@ -917,7 +1010,11 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     int steps = 1;
     Motion m = strokeMotion(st);
     if (height != 0) {
-      const double most = std::fabs(height) * largestWindow(g, group.box, band, window, scratch.band, share.part(0));
+      // The first sub-step's list, made once: its largest window sets the sub-steps.
+      listMoved(g, group.box, band, nullptr, &window, scratch.band, pool, share.part(0));
+      double largest = 0;
+      for (const double w : scratch.moved.window) largest = std::max(largest, w);
+      const double most = std::fabs(height) * largest;
       if (!(most > 0)) {
         // Nothing to add here: the stroke already stands at its height (no redistance either).
         share.advance(1 - kGatherShare - kCollectShare);
@@ -925,11 +1022,16 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       }
       steps = std::max(1, int(std::ceil(most - 1e-9)));
       m = advection(height / steps);
+      withSpeeds(scratch.moved, m);
     }
     for (int step = 0; step < steps; ++step) {
-      // The previous sub-step's march changed the band: list it again (counted in the first).
-      if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
-      evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
+      if (step == 0 && height != 0) {
+        moveListed(g, m, pool, share.part(kEvolveShare / steps));
+      } else {
+        // The previous sub-step's march changed the band: list it again (counted in the first).
+        if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
+        evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
+      }
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
