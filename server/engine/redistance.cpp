@@ -30,12 +30,17 @@ constexpr double kFootMargin = 0.5;
 // or a stale value, the foot point says nothing).
 constexpr double kFootGradientTolerance = 0.25;
 
-// A moved box near one row of the band list (RedistanceOptions::movedBoxes), as the shell's
-// tests read it: its cells' x-range [xLo, xHi], their squared distance from the row in y and z,
-// and the range per axis a foot point must lie in to be near them.
+// A moved box (RedistanceOptions::movedBoxes) as the shell's tests read it: the range per axis
+// a foot point must lie in to be near its cells (the points within 1 vu of its voxels).
+struct MovedBox {
+  double footLo[3], footHi[3];
+  int zLo, zHi, yLo, yHi;  // its cells' range on y and z
+};
+// A moved box near one row of the band list: its cells' x-range [xLo, xHi] and their squared
+// distance from the row in y and z.
 struct NearBox {
   int xLo, xHi, yz2;
-  double footLo[3], footHi[3];
+  const MovedBox* box;
 };
 
 enum class Shell { Kept, UpperBound, Reset };
@@ -67,7 +72,7 @@ template <class HasLo, class HasHi>
   for (int a = 0; a < 3; ++a) foot[a] = p[a] - value * grad[a] / len;
   const bool nearMoved = std::any_of(near.begin(), near.end(), [&](const NearBox& b) {
     for (int a = 0; a < 3; ++a)
-      if (foot[a] < b.footLo[a] || foot[a] > b.footHi[a]) return false;
+      if (foot[a] < b.box->footLo[a] || foot[a] > b.box->footHi[a]) return false;
     return true;
   });
   return nearMoved ? Shell::Reset : Shell::UpperBound;
@@ -130,7 +135,7 @@ struct ListPiece {
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
-  std::vector<const Box*> nearZ;  // scratch of the pass
+  std::vector<std::uint32_t> nearZ;  // scratch of the pass
   std::vector<NearBox> near;
 };
 
@@ -141,6 +146,7 @@ struct FlagPiece {
   std::vector<std::uint8_t> pos, flip;
   std::vector<int> bands;  // the first row of each band, then the number of rows
   std::vector<int> ys;
+  std::vector<std::pair<int, int>> runs, lastRuns;  // a band's: whether inner, reset runs, marker, marked runs
   std::vector<std::uint32_t> slice, last;  // whether a slice is inner, the reset and marked boxes holding it
 };
 
@@ -150,6 +156,7 @@ struct Scratch {
   std::vector<ListPiece> pieces;
   std::vector<FlagPiece> flagPieces;
   std::vector<Box> resetBoxes, normalizeBoxes;
+  std::vector<MovedBox> moved;
 };
 Scratch& scratch() {
   thread_local Scratch s;
@@ -230,32 +237,42 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
       std::sort(fp.ys.begin(), fp.ys.end());
       fp.ys.erase(std::unique(fp.ys.begin(), fp.ys.end()), fp.ys.end());
       fp.bands.clear();
-      fp.pos.clear();
-      fp.flip.clear();
       const std::uint32_t* resetBegin = fp.slice.data() + 1;
       const std::uint32_t* resetEnd = fp.slice.data() + separator;
       const std::uint32_t* markedBegin = resetEnd + 1;
       const std::uint32_t* markedEnd = fp.slice.data() + fp.slice.size();
+      // Rows whose runs are those of the row before (a box that starts or ends inside the
+      // union of the others changes nothing) stay in its band.
       for (std::size_t j = 0; j + 1 < fp.ys.size(); ++j) {
         const int y0 = fp.ys[j];
+        const bool inner = innerZ && y0 >= yLo && y0 < yHi;
+        const int vy = g.box.lo.y + y0;
+        fp.runs.clear();
+        fp.runs.push_back({inner ? 1 : 0, 0});
+        runs(layout.reset, resetBegin, resetEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        fp.runs.push_back({-1, -1});
+        runs(layout.marked, markedBegin, markedEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        if (!fp.bands.empty() && fp.runs == fp.lastRuns) continue;
+        std::swap(fp.runs, fp.lastRuns);
+        const std::size_t o = fp.bands.size() * std::size_t(sx);
         fp.bands.push_back(y0);
-        const std::size_t o = fp.pos.size();
-        fp.pos.resize(o + std::size_t(sx), layout.base);
-        fp.flip.resize(o + std::size_t(sx), kNeg);
+        if (fp.pos.size() < o + std::size_t(sx)) fp.pos.resize(o + std::size_t(sx)), fp.flip.resize(o + std::size_t(sx));
         std::uint8_t* const pos = fp.pos.data() + o;
         std::uint8_t* const flip = fp.flip.data() + o;
-        if (innerZ && y0 >= yLo && y0 < yHi)
-          for (int x = xLo; x < xHi; ++x) pos[x] |= kInterior;
-        const int vy = g.box.lo.y + y0;
-        runs(layout.reset, resetBegin, resetEnd, vy, [&](int lo, int hi) {
-          for (int x = lo; x < hi; ++x) {
-            pos[x] = std::uint8_t(resetPos | (pos[x] & kInterior));
-            flip[x] = resetFlip;
-          }
-        });
-        runs(layout.marked, markedBegin, markedEnd, vy, [&](int lo, int hi) {
-          for (int x = lo; x < hi; ++x) pos[x] |= kMarked;
-        });
+        const std::uint8_t interior = inner ? kInterior : 0;
+        // The bytes of [lo, hi) in the reset boxes (or not), by the interior columns.
+        auto fill = [&](int lo, int hi, std::uint8_t p, std::uint8_t fl) {
+          const int a = std::clamp(xLo, lo, hi), b = std::clamp(xHi, lo, hi);
+          for (int x = lo; x < hi; ++x) flip[x] = fl;
+          for (int x = lo; x < a; ++x) pos[x] = p;
+          for (int x = a; x < b; ++x) pos[x] = std::uint8_t(p | interior);
+          for (int x = b; x < hi; ++x) pos[x] = p;
+        };
+        fill(0, sx, layout.base, kNeg);
+        std::size_t k = 1;
+        for (; fp.lastRuns[k].first >= 0; ++k) fill(fp.lastRuns[k].first, fp.lastRuns[k].second, resetPos, resetFlip);
+        for (++k; k < fp.lastRuns.size(); ++k)
+          for (int x = fp.lastRuns[k].first; x < fp.lastRuns[k].second; ++x) pos[x] |= kMarked;
       }
       fp.bands.push_back(sy);
     }
@@ -408,6 +425,12 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const std::size_t pieces = (list->index.size() + kListPiece - 1) / kListPiece;
   if (s.pieces.size() < pieces) s.pieces.resize(pieces);
   const std::size_t stride[3] = {1, g.sx, g.sxy};
+  s.moved.clear();
+  for (const Box& b : moved) {
+    MovedBox m{{}, {}, b.lo.z - 1, b.hi.z, b.lo.y - 1, b.hi.y};
+    for (int a = 0; a < 3; ++a) m.footLo[a] = b.lo[a] - 1 - kFootMargin, m.footHi[a] = b.hi[a] + kFootMargin;
+    s.moved.push_back(m);
+  }
   const double reach = double(band) + kFootMargin;
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     progress.check();
@@ -420,24 +443,21 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     // than its value, inside them, or have its foot point near them). The list is in index
     // order, so its rows come one after the other.
     int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
-    auto cellDistance = [](int x, int lo, int hi) { return x < lo - 1 ? lo - 1 - x : std::max(0, x - hi); };
+    auto cellDistance = [](int x, int lo, int hi) { return x < lo ? lo - x : std::max(0, x - hi); };
     auto nearRow = [&](Int3 p) -> std::span<const NearBox> {
       if (p.z != rowZ) {
         rowZ = p.z, rowY = std::numeric_limits<int>::min();
         out.nearZ.clear();
-        for (const Box& b : moved)
-          if (cellDistance(p.z, b.lo.z, b.hi.z) < reach) out.nearZ.push_back(&b);
+        for (std::size_t b = 0; b < s.moved.size(); ++b)
+          if (cellDistance(p.z, s.moved[b].zLo, s.moved[b].zHi) < reach) out.nearZ.push_back(std::uint32_t(b));
       }
       if (p.y != rowY) {
         rowY = p.y;
         out.near.clear();
-        for (const Box* b : out.nearZ) {
-          const int dy = cellDistance(p.y, b->lo.y, b->hi.y), dz = cellDistance(p.z, b->lo.z, b->hi.z);
-          if (double(dy * dy + dz * dz) < reach * reach) {
-            NearBox n{b->lo.x - 1, b->hi.x, dy * dy + dz * dz, {}, {}};
-            for (int a = 0; a < 3; ++a) n.footLo[a] = b->lo[a] - 1 - kFootMargin, n.footHi[a] = b->hi[a] + kFootMargin;
-            out.near.push_back(n);
-          }
+        for (const std::uint32_t b : out.nearZ) {
+          const MovedBox& m = s.moved[b];
+          const int dy = cellDistance(p.y, m.yLo, m.yHi), dz = cellDistance(p.z, m.zLo, m.zHi);
+          if (double(dy * dy + dz * dz) < reach * reach) out.near.push_back({moved[b].lo.x - 1, moved[b].hi.x, dy * dy + dz * dz, &m});
         }
       }
       return out.near;
