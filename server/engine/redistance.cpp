@@ -132,9 +132,12 @@ constexpr std::size_t kListPiece = std::size_t(1) << 13;
 // One run of the band list: its kept voxels to normalize (with their new values) and its
 // unknown voxels to reset.
 struct ListPiece {
+  // Sized for a whole piece once, then written through counts (a push_back per voxel cost as
+  // much as deciding what the voxel is).
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
+  std::size_t keptCount = 0, farCount = 0;
   std::vector<std::uint32_t> nearZ;  // scratch of the pass
   std::vector<NearBox> near;
 };
@@ -435,9 +438,16 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     progress.check();
     ListPiece& out = s.pieces[piece];
-    out.kept.clear();
-    out.scaled.clear();
-    out.farUnknown.clear();
+    const std::size_t begin = piece * kListPiece, end = std::min(list->index.size(), begin + kListPiece);
+    if (out.kept.size() < end - begin) {
+      out.kept.resize(end - begin);
+      out.scaled.resize(end - begin);
+      out.farUnknown.resize(end - begin);
+    }
+    std::uint32_t* const kept = out.kept.data();
+    float* const scaled = out.scaled.data();
+    std::uint32_t* const farUnknown = out.farUnknown.data();
+    std::size_t keptCount = 0, farCount = 0;
     // The moved boxes that may matter to the list's current row (y, z): those whose cells lie
     // within band + kFootMargin of it on both axes (no voxel further from them can be nearer
     // than its value, inside them, or have its foot point near them). The list is in index
@@ -494,7 +504,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
             return;
           }
         }
-        out.farUnknown.push_back(i);
+        farUnknown[farCount++] = i;
         return;
       }
       flags[i] = std::uint8_t(f | kKnown | kFrozen);
@@ -521,11 +531,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       }
       const double len = std::sqrt(g2);
       const double mag = len > 1e-6 ? std::min(std::fabs(val) / len, bound) : bound;
-      out.kept.push_back(i);
-      out.scaled.push_back(float(std::copysign(mag, val)));
+      kept[keptCount] = i;
+      scaled[keptCount++] = float(std::copysign(mag, val));
     };
-    const std::size_t end = std::min(list->index.size(), (piece + 1) * kListPiece);
-    for (std::size_t k = piece * kListPiece; k < end; ++k) {
+    for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t i = index[k];
       const std::uint8_t f = flags[i];
       if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
@@ -535,12 +544,17 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
         classify(std::false_type{}, k, i, f);
       }
     }
+    out.keptCount = keptCount;
+    out.farCount = farCount;
   });
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     const ListPiece& in = s.pieces[piece];
-    for (std::size_t j = 0; j < in.kept.size(); ++j) v[in.kept[j]] = in.scaled[j];
-    for (const std::uint32_t i : in.farUnknown) v[i] = v[i] < 0 ? -band : band;
+    for (std::size_t j = 0; j < in.keptCount; ++j) v[in.kept[j]] = in.scaled[j];
+    for (std::size_t j = 0; j < in.farCount; ++j) {
+      const std::uint32_t i = in.farUnknown[j];
+      v[i] = v[i] < 0 ? -band : band;
+    }
   });
   progress.advance(kSetupShare);
   return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));
