@@ -138,7 +138,13 @@ struct ListPiece {
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
   std::size_t keptCount = 0, farCount = 0;
-  std::vector<std::uint32_t> nearZ;  // scratch of the pass
+  // Scratch of the pass: the moved boxes near the current z-slice (with the rows [yFrom, yTo]
+  // within reach of them) and row.
+  struct NearZ {
+    std::uint32_t box;
+    int dz2, yFrom, yTo;
+  };
+  std::vector<NearZ> nearZ;
   std::vector<NearBox> near;
 };
 
@@ -458,16 +464,24 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       if (p.z != rowZ) {
         rowZ = p.z, rowY = std::numeric_limits<int>::min();
         out.nearZ.clear();
-        for (std::size_t b = 0; b < s.moved.size(); ++b)
-          if (cellDistance(p.z, s.moved[b].zLo, s.moved[b].zHi) < reach) out.nearZ.push_back(std::uint32_t(b));
+        for (std::size_t b = 0; b < s.moved.size(); ++b) {
+          const MovedBox& m = s.moved[b];
+          const int dz = cellDistance(p.z, m.zLo, m.zHi);
+          if (!(dz < reach)) continue;
+          // The rows within reach: cell distance dy up to w on y.
+          int w = 0;
+          while (double((w + 1) * (w + 1) + dz * dz) < reach * reach) ++w;
+          out.nearZ.push_back({std::uint32_t(b), dz * dz, m.yLo - w, m.yHi + w});
+        }
       }
       if (p.y != rowY) {
         rowY = p.y;
         out.near.clear();
-        for (const std::uint32_t b : out.nearZ) {
-          const MovedBox& m = s.moved[b];
-          const int dy = cellDistance(p.y, m.yLo, m.yHi), dz = cellDistance(p.z, m.zLo, m.zHi);
-          if (double(dy * dy + dz * dz) < reach * reach) out.near.push_back({moved[b].lo.x - 1, moved[b].hi.x, dy * dy + dz * dz, &m});
+        for (const ListPiece::NearZ& n : out.nearZ) {
+          if (p.y < n.yFrom || p.y > n.yTo) continue;
+          const MovedBox& m = s.moved[n.box];
+          const int dy = cellDistance(p.y, m.yLo, m.yHi);
+          out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
         }
       }
       return out.near;
