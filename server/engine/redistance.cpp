@@ -30,41 +30,49 @@ constexpr double kFootMargin = 0.5;
 // or a stale value, the foot point says nothing).
 constexpr double kFootGradientTolerance = 0.25;
 
-// Squared distance from p to the cells touching box b's voxels, the points within 1 vu of them.
-double squaredDistanceToCells(Int3 p, const Box& b) {
-  double d2 = 0;
-  for (int a = 0; a < 3; ++a) {
-    const double lo = b.lo[a] - 1, hi = b.hi[a], x = p[a];
-    const double d = x < lo ? lo - x : (x > hi ? x - hi : 0.0);
-    d2 += d * d;
-  }
-  return d2;
-}
+// A moved box (RedistanceOptions::movedBoxes) as the shell's tests read it: the range per axis
+// a foot point must lie in to be near its cells (the points within 1 vu of its voxels).
+struct MovedBox {
+  double footLo[3], footHi[3];
+  int zLo, zHi, yLo, yHi;  // its cells' range on y and z
+};
+// A moved box near one row of the band list: its cells' x-range [xLo, xHi] and their squared
+// distance from the row in y and z.
+struct NearBox {
+  int xLo, xHi, yz2;
+  const MovedBox* box;
+};
 
 enum class Shell { Kept, UpperBound, Reset };
 
-// What becomes of far voxel i at p, outside every box of `moved`, of a region whose surface
-// moved only through the cells of those boxes (RedistanceOptions::movedBoxes). hasLo(a) /
-// hasHi(a): whether it has a neighbour below / above on axis a.
+// What becomes of far voxel i at p, outside every box of RedistanceOptions::movedBoxes, of a
+// region whose surface moved only through the cells touching those boxes (the points within
+// 1 vu of their voxels). near: the moved boxes near p's row (the others are too far to matter).
+// hasLo(a) / hasHi(a): whether it has a neighbour below / above on axis a.
 template <class HasLo, class HasHi>
-Shell shellClass(const DenseGrid& g, const float* v, std::size_t i, Int3 p, HasLo&& hasLo, HasHi&& hasHi,
-                 std::span<const Box> moved) {
+[[gnu::always_inline]] inline Shell shellClass(const float* v, std::size_t i, Int3 p, const std::size_t* stride,
+                                               HasLo&& hasLo, HasHi&& hasHi, std::span<const NearBox> near) {
   const double value = v[i];
-  const bool nearer = std::any_of(moved.begin(), moved.end(),
-                                  [&](const Box& b) { return squaredDistanceToCells(p, b) < value * value; });
+  // Squared distances to the cells are whole numbers: compared exactly with value^2 (a float
+  // squared is exact in double).
+  const double value2 = value * value;
+  const bool nearer = std::any_of(near.begin(), near.end(), [&](const NearBox& b) {
+    const int dx = p.x < b.xLo ? b.xLo - p.x : std::max(0, p.x - b.xHi);
+    return double(dx * dx + b.yz2) < value2;
+  });
   if (!nearer) return Shell::Kept;  // no moved cell is nearer than its value
   double grad[3];
   for (int a = 0; a < 3; ++a) {
-    const std::size_t st = g.stride(a);
+    const std::size_t st = stride[a];
     grad[a] = hasLo(a) && hasHi(a) ? 0.5 * (double(v[i + st]) - double(v[i - st])) : 0.0;
   }
   const double len = std::sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]);
   if (!(std::fabs(len - 1) <= kFootGradientTolerance)) return Shell::Reset;
   double foot[3];
   for (int a = 0; a < 3; ++a) foot[a] = p[a] - value * grad[a] / len;
-  const bool nearMoved = std::any_of(moved.begin(), moved.end(), [&](const Box& b) {
+  const bool nearMoved = std::any_of(near.begin(), near.end(), [&](const NearBox& b) {
     for (int a = 0; a < 3; ++a)
-      if (foot[a] < b.lo[a] - 1 - kFootMargin || foot[a] > b.hi[a] + kFootMargin) return false;
+      if (foot[a] < b.box->footLo[a] || foot[a] > b.box->footHi[a]) return false;
     return true;
   });
   return nearMoved ? Shell::Reset : Shell::UpperBound;
@@ -88,22 +96,30 @@ std::uint32_t nearMask16(const float* v, float band) {
 #endif
 }
 
-// f[x] = base | (v[x] < 0 ? kNeg : 0) for x < n.
-[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, int n, std::uint8_t base) {
-  int x = 0;
+// f[x] = v[x] < 0 ? pos[x] ^ flip[x] : pos[x] for x < n. A row of 16 voxels or more ends with
+// a block that overlaps the one before it (and writes the same bytes again).
+[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, int n, const std::uint8_t* pos,
+                                             const std::uint8_t* flip) {
 #if defined(__SSE2__)
-  const __m128 zero = _mm_setzero_ps();
-  const __m128i neg = _mm_set1_epi8(char(kNeg)), b = _mm_set1_epi8(char(base));
-  for (; x + 16 <= n; x += 16) {
-    const __m128i m0 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x), zero));
-    const __m128i m1 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 4), zero));
-    const __m128i m2 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 8), zero));
-    const __m128i m3 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 12), zero));
-    const __m128i bytes = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));  // 0 or -1 each
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(f + x), _mm_or_si128(b, _mm_and_si128(bytes, neg)));
+  if (n >= 16) {
+    const __m128 zero = _mm_setzero_ps();
+    auto block = [&](int x) __attribute__((always_inline)) {
+      const __m128i m0 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x), zero));
+      const __m128i m1 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 4), zero));
+      const __m128i m2 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 8), zero));
+      const __m128i m3 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 12), zero));
+      const __m128i neg = _mm_packs_epi16(_mm_packs_epi32(m0, m1), _mm_packs_epi32(m2, m3));  // 0 or -1 each
+      const __m128i p = _mm_loadu_si128(reinterpret_cast<const __m128i*>(pos + x));
+      const __m128i fl = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flip + x));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(f + x), _mm_xor_si128(p, _mm_and_si128(neg, fl)));
+    };
+    int x = 0;
+    for (; x + 16 <= n; x += 16) block(x);
+    if (x < n) block(n - 16);
+    return;
   }
 #endif
-  for (; x < n; ++x) f[x] = std::uint8_t(base | (v[x] < 0 ? kNeg : 0));
+  for (int x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
 }
 
 // A tool's grid is split into fixed pieces (z-slabs of the grid, runs of the band list), each
@@ -116,17 +132,40 @@ constexpr std::size_t kListPiece = std::size_t(1) << 13;
 // One run of the band list: its kept voxels to normalize (with their new values) and its
 // unknown voxels to reset.
 struct ListPiece {
+  // Sized for a whole piece once, then written through counts (a push_back per voxel cost as
+  // much as deciding what the voxel is).
   std::vector<std::uint32_t> kept;
   std::vector<float> scaled;
   std::vector<std::uint32_t> farUnknown;
-  std::vector<Box> nearMovedZ, nearMoved;  // scratch of the pass
+  std::size_t keptCount = 0, farCount = 0;
+  // Scratch of the pass: the moved boxes near the current z-slice (with the rows [yFrom, yTo]
+  // within reach of them) and row.
+  struct NearZ {
+    std::uint32_t box;
+    int dz2, yFrom, yTo;
+  };
+  std::vector<NearZ> nearZ;
+  std::vector<NearBox> near;
+};
+
+// One piece (z-slab) of the flags pass: for the current z-slice, the two bytes of every
+// voxel position (flags = pos, or pos ^ flip where the value is negative), one row of them per
+// band of rows that the same boxes hold; rebuilt only when the boxes holding a slice change.
+struct FlagPiece {
+  std::vector<std::uint8_t> pos, flip;
+  std::vector<int> bands;  // the first row of each band, then the number of rows
+  std::vector<int> ys;
+  std::vector<std::pair<int, int>> runs, lastRuns;  // a band's: whether inner, reset runs, marker, marked runs
+  std::vector<std::uint32_t> slice, last;  // whether a slice is inner, the reset and marked boxes holding it
 };
 
 struct Scratch {
   std::vector<std::uint8_t> flags;
   BandVoxels band;
   std::vector<ListPiece> pieces;
+  std::vector<FlagPiece> flagPieces;
   std::vector<Box> resetBoxes, normalizeBoxes;
+  std::vector<MovedBox> moved;
 };
 Scratch& scratch() {
   thread_local Scratch s;
@@ -143,6 +182,119 @@ void forPieces(ThreadPool& pool, bool parallel, std::size_t n, F&& fn) {
   }
 }
 
+// What the flags pass writes before the band list is classified, by position: outside the
+// reset boxes a source (or ignored); inside them reset, or a source on the side that is already
+// exact; kMarked inside the marked boxes; kInterior 2 voxels from every face; kNeg by sign.
+struct FlagLayout {
+  std::span<const Box> reset, marked;  // clipped to the region (so inside the grid), sorted by lo.x
+  std::uint8_t base;                   // outside the reset boxes
+  int exactSide;
+};
+
+// The flags of z-slices [z0, z1) of g. Each voxel's byte depends only on its position and the
+// sign of its value, so any split into slabs gives the same bytes.
+void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layout, int z0, int z1, FlagPiece& fp,
+                const ProgressShare& progress) {
+  const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
+  const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
+  const int yLo = std::min(2, sy), yHi = std::max(yLo, sy - 2);
+  const std::uint8_t resetPos = std::uint8_t(kReset | (layout.exactSide > 0 ? kKnown | kFrozen : 0));
+  const std::uint8_t resetFlip = std::uint8_t(kNeg | (layout.exactSide != 0 ? kKnown | kFrozen : 0));
+  constexpr std::uint32_t kSeparator = ~std::uint32_t(0);
+  const float* v = g.v.data();
+  bool built = false;
+  // The x-runs (box-local, merged) of the boxes of `which` (indices into `boxes`) holding row vy.
+  auto runs = [&](std::span<const Box> boxes, const std::uint32_t* which, const std::uint32_t* end, int vy, auto&& fn) {
+    bool open = false;
+    int lo = 0, hi = 0;
+    for (; which != end; ++which) {
+      const Box& b = boxes[*which];
+      if (vy < b.lo.y || vy >= b.hi.y) continue;
+      const int bl = b.lo.x - g.box.lo.x, bh = b.hi.x - g.box.lo.x;
+      if (open && bl <= hi) {
+        hi = std::max(hi, bh);
+        continue;
+      }
+      if (open) fn(lo, hi);
+      open = true, lo = bl, hi = bh;
+    }
+    if (open) fn(lo, hi);
+  };
+  for (int z = z0; z < z1; ++z) {
+    progress.check();
+    const int vz = g.box.lo.z + z;
+    const bool innerZ = z >= 2 && z + 2 < sz;
+    auto holds = [&](const Box& b) { return vz >= b.lo.z && vz < b.hi.z && b.lo.x < b.hi.x && b.lo.y < b.hi.y; };
+    fp.slice.clear();
+    fp.slice.push_back(innerZ ? 1 : 0);
+    for (std::size_t k = 0; k < layout.reset.size(); ++k)
+      if (holds(layout.reset[k])) fp.slice.push_back(std::uint32_t(k));
+    const std::size_t separator = fp.slice.size();
+    fp.slice.push_back(kSeparator);
+    for (std::size_t k = 0; k < layout.marked.size(); ++k)
+      if (holds(layout.marked[k])) fp.slice.push_back(std::uint32_t(k));
+    if (!built || fp.slice != fp.last) {
+      built = true;
+      fp.last = fp.slice;
+      fp.ys.assign({0, yLo, yHi, sy});
+      for (std::size_t j = 1; j < fp.slice.size(); ++j) {
+        if (j == separator) continue;
+        const Box& b = j < separator ? layout.reset[fp.slice[j]] : layout.marked[fp.slice[j]];
+        fp.ys.push_back(std::clamp(b.lo.y - g.box.lo.y, 0, sy));
+        fp.ys.push_back(std::clamp(b.hi.y - g.box.lo.y, 0, sy));
+      }
+      std::sort(fp.ys.begin(), fp.ys.end());
+      fp.ys.erase(std::unique(fp.ys.begin(), fp.ys.end()), fp.ys.end());
+      fp.bands.clear();
+      const std::uint32_t* resetBegin = fp.slice.data() + 1;
+      const std::uint32_t* resetEnd = fp.slice.data() + separator;
+      const std::uint32_t* markedBegin = resetEnd + 1;
+      const std::uint32_t* markedEnd = fp.slice.data() + fp.slice.size();
+      // Rows whose runs are those of the row before (a box that starts or ends inside the
+      // union of the others changes nothing) stay in its band.
+      for (std::size_t j = 0; j + 1 < fp.ys.size(); ++j) {
+        const int y0 = fp.ys[j];
+        const bool inner = innerZ && y0 >= yLo && y0 < yHi;
+        const int vy = g.box.lo.y + y0;
+        fp.runs.clear();
+        fp.runs.push_back({inner ? 1 : 0, 0});
+        runs(layout.reset, resetBegin, resetEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        fp.runs.push_back({-1, -1});
+        runs(layout.marked, markedBegin, markedEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        if (!fp.bands.empty() && fp.runs == fp.lastRuns) continue;
+        std::swap(fp.runs, fp.lastRuns);
+        const std::size_t o = fp.bands.size() * std::size_t(sx);
+        fp.bands.push_back(y0);
+        if (fp.pos.size() < o + std::size_t(sx)) fp.pos.resize(o + std::size_t(sx)), fp.flip.resize(o + std::size_t(sx));
+        std::uint8_t* const pos = fp.pos.data() + o;
+        std::uint8_t* const flip = fp.flip.data() + o;
+        const std::uint8_t interior = inner ? kInterior : 0;
+        // The bytes of [lo, hi) in the reset boxes (or not), by the interior columns.
+        auto fill = [&](int lo, int hi, std::uint8_t p, std::uint8_t fl) {
+          const int a = std::clamp(xLo, lo, hi), b = std::clamp(xHi, lo, hi);
+          for (int x = lo; x < hi; ++x) flip[x] = fl;
+          for (int x = lo; x < a; ++x) pos[x] = p;
+          for (int x = a; x < b; ++x) pos[x] = std::uint8_t(p | interior);
+          for (int x = b; x < hi; ++x) pos[x] = p;
+        };
+        fill(0, sx, layout.base, kNeg);
+        std::size_t k = 1;
+        for (; fp.lastRuns[k].first >= 0; ++k) fill(fp.lastRuns[k].first, fp.lastRuns[k].second, resetPos, resetFlip);
+        for (++k; k < fp.lastRuns.size(); ++k)
+          for (int x = fp.lastRuns[k].first; x < fp.lastRuns[k].second; ++x) pos[x] |= kMarked;
+      }
+      fp.bands.push_back(sy);
+    }
+    const std::size_t slice = std::size_t(z) * g.sxy;
+    std::size_t band = 0;
+    for (int y = 0; y < sy; ++y) {
+      while (y >= fp.bands[band + 1]) ++band;
+      const std::size_t row = slice + std::size_t(y) * g.sx, t = band * std::size_t(sx);
+      signFlags(v + row, flags + row, sx, fp.pos.data() + t, fp.flip.data() + t);
+    }
+  }
+}
+
 }  // namespace
 
 namespace {
@@ -152,22 +304,29 @@ namespace {
   const std::size_t row = g.index({lo, y, z});
   const float* v = g.v.data() + row;
   const int n = hi - lo;
-  // Far voxels are the rule: test 16 at a time without a branch, then visit the others.
-  int x = 0;
-  for (; x + 16 <= n; x += 16) {
-    std::uint32_t near = nearMask16(v + x, band);
+  auto add = [&](std::uint32_t near, int x) __attribute__((always_inline)) {
     while (near) {
       const int k = __builtin_ctz(near);
       near &= near - 1;
       out.index.push_back(std::uint32_t(row + std::size_t(x + k)));
       out.point.push_back({lo + x + k, y, z});
     }
+  };
+  // Far voxels are the rule: test 16 at a time without a branch, then visit the others. The
+  // last few voxels are tested in a block that ends at the row's end (the bits of voxels
+  // already tested shifted out), or, in a row shorter than 16, in one that reads past it (the
+  // bits past it dropped) where the grid goes on that far.
+  int x = 0;
+  for (; x + 16 <= n; x += 16) add(nearMask16(v + x, band), x);
+  if (x >= n) return;  // also an empty row
+  if (n >= 16) {
+    add(nearMask16(v + n - 16, band) >> (16 - (n - x)), x);
+  } else if (row + 16 <= g.v.size()) {
+    add(nearMask16(v, band) & ((std::uint32_t(1) << n) - 1), 0);
+  } else {
+    for (; x < n; ++x)
+      if (std::fabs(v[x]) != band) add(1, x);
   }
-  for (; x < n; ++x)
-    if (std::fabs(v[x]) != band) {
-      out.index.push_back(std::uint32_t(row + std::size_t(x)));
-      out.point.push_back({lo + x, y, z});
-    }
 }
 
 }  // namespace
@@ -247,108 +406,20 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           ? clipped(options.normalizeBoxes.empty() ? std::span<const Box>{&r, 1} : options.normalizeBoxes,
                     s.normalizeBoxes)
           : std::span<const Box>{};
-  const int exactSide = options.exactSide;
-  const std::uint8_t exactNeg = exactSide < 0 ? kNeg : 0;
 
-  // Every voxel: a source (or ignored) with its sign; interior = 2 voxels from every face.
-  // Then, in the reset boxes, reset (unless on the side that is already exact), and in the
-  // marked boxes marked, run by run of their union. Slab by slab of whole
-  // z-slices: the grid of a small tool has short rows, and a slice is one run of the sign pass.
-  const std::uint8_t base = outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen);
+  // Every voxel: a source (or ignored) with its sign, or reset in the reset boxes (unless on
+  // the side that is already exact), marked in the marked boxes; interior = 2 voxels from
+  // every face. One write per voxel, slab by slab of whole z-slices on the pool.
   {
-    const int sx = g.size.x, sy = g.size.y, sz = g.size.z;
-    const int xLo = std::min(2, sx), xHi = std::max(xLo, sx - 2);
-    const std::size_t slabs = std::size_t((sz + kSlabSlices - 1) / kSlabSlices);
-    // A chunk of a whole-volume pass resets and normalizes its whole region, which spans each
-    // row but the 2 voxels at either end (those without kInterior).
-    const bool wholeRows = exactSide == 0 && reset.size() == 1 && reset[0] == r && marked.size() == 1 &&
-                           marked[0] == r && r.lo.x == g.box.lo.x + xLo && r.hi.x == g.box.lo.x + xHi;
+    const FlagLayout layout{reset, marked,
+                            std::uint8_t(outside == Outside::Source ? (kKnown | kFrozen) : (kIgnored | kFrozen)),
+                            options.exactSide};
+    const int sz = g.size.z;
+    const std::size_t slabs = parallel ? std::size_t((sz + kSlabSlices - 1) / kSlabSlices) : 1;
+    if (s.flagPieces.size() < slabs) s.flagPieces.resize(slabs);
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
-      const int z0 = int(slab) * kSlabSlices, z1 = std::min(sz, z0 + kSlabSlices);
-      if (wholeRows) {
-        // The bytes the passes below would give, in one pass per row: the 2 voxels at either
-        // end as they are, the others reset, marked for normalizing, with kInterior on inner rows.
-        for (int z = z0; z < z1; ++z) {
-          progress.check();
-          const int vz = g.box.lo.z + z;
-          for (int y = 0; y < sy; ++y) {
-            const std::size_t row = std::size_t(z) * g.sxy + std::size_t(y) * g.sx;
-            const bool inner = z >= 2 && z + 2 < sz && y >= 2 && y + 2 < sy;
-            const int vy = g.box.lo.y + y;
-            if (vz >= r.lo.z && vz < r.hi.z && vy >= r.lo.y && vy < r.hi.y) {
-              signFlags(v + row, flags + row, xLo, base);
-              signFlags(v + row + xLo, flags + row + xLo, xHi - xLo,
-                        std::uint8_t(kReset | kMarked | (inner ? kInterior : 0)));
-              signFlags(v + row + xHi, flags + row + xHi, sx - xHi, base);
-            } else {
-              signFlags(v + row, flags + row, sx, base);
-              if (inner)
-                for (int x = xLo; x < xHi; ++x) flags[row + std::size_t(x)] |= kInterior;
-            }
-          }
-        }
-        return;
-      }
-      for (int z = z0; z < z1; ++z) {
-        progress.check();
-        const std::size_t slice = std::size_t(z) * g.sxy;
-        const bool innerZ = z >= 2 && z + 2 < sz;
-        signFlags(v + slice, flags + slice, int(g.sxy), innerZ ? std::uint8_t(base | kInterior) : base);
-        if (!innerZ) continue;
-        // The byte stores may alias anything a reference points at: the loops go through
-        // pointers of their own so that they can be vectorized.
-        constexpr std::uint8_t notInterior = std::uint8_t(~kInterior);
-        for (int y = 0; y < sy; ++y) {
-          std::uint8_t* const f = flags + slice + std::size_t(y) * g.sx;
-          if (y < 2 || y + 2 >= sy) {
-            for (int x = 0; x < sx; ++x) f[x] &= notInterior;
-            continue;
-          }
-          for (int x = 0; x < xLo; ++x) f[x] &= notInterior;
-          for (int x = xHi; x < sx; ++x) f[x] &= notInterior;
-        }
-      }
-      // The x-runs of the union of `boxes` (sorted by lo.x) in each row of this slab, each once.
-      std::vector<Box> slice;  // the boxes holding the current z, in the same order
-      auto rows = [&](std::span<const Box> boxes, auto&& fn) {
-        for (int z = g.box.lo.z + z0; z < g.box.lo.z + z1; ++z) {
-          slice.clear();
-          for (const Box& b : boxes)
-            if (z >= b.lo.z && z < b.hi.z && b.lo.x < b.hi.x) slice.push_back(b);
-          if (slice.empty()) continue;
-          for (int y = g.box.lo.y; y < g.box.hi.y; ++y) {
-            bool open = false;  // a run [lo, hi) is being merged
-            int lo = 0, hi = 0;
-            for (const Box& b : slice) {
-              if (y < b.lo.y || y >= b.hi.y) continue;
-              if (open && b.lo.x <= hi) {
-                hi = std::max(hi, b.hi.x);
-                continue;
-              }
-              if (open) fn(flags + g.index({lo, y, z}), hi - lo);
-              open = true, lo = b.lo.x, hi = b.hi.x;
-            }
-            if (open) fn(flags + g.index({lo, y, z}), hi - lo);
-          }
-        }
-      };
-      if (exactSide == 0) {
-        rows(reset, [](std::uint8_t* run, int n) {
-          for (int x = 0; x < n; ++x) run[x] = std::uint8_t((run[x] & (kNeg | kInterior)) | kReset);
-        });
-      } else {
-        rows(reset, [exactNeg](std::uint8_t* run, int n) {
-          for (int x = 0; x < n; ++x) {
-            const std::uint8_t keep = run[x] & (kNeg | kInterior);
-            // On the side that is already exact a voxel stays; elsewhere it is reset unless kept.
-            const bool exact = (keep & kNeg) == exactNeg;
-            run[x] = std::uint8_t(keep | kReset | (exact ? (kKnown | kFrozen) : 0));
-          }
-        });
-      }
-      rows(marked, [](std::uint8_t* run, int n) {
-        for (int x = 0; x < n; ++x) run[x] |= kMarked;
-      });
+      const int z0 = parallel ? int(slab) * kSlabSlices : 0, z1 = parallel ? std::min(sz, z0 + kSlabSlices) : sz;
+      flagSlices(g, flags, layout, z0, z1, s.flagPieces[slab], progress);
     });
   }
 
@@ -362,76 +433,99 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   // and writes only its own voxels' flags; the values are written once every piece is done.
   const std::size_t pieces = (list->index.size() + kListPiece - 1) / kListPiece;
   if (s.pieces.size() < pieces) s.pieces.resize(pieces);
+  const std::size_t stride[3] = {1, g.sx, g.sxy};
+  s.moved.clear();
+  for (const Box& b : moved) {
+    MovedBox m{{}, {}, b.lo.z - 1, b.hi.z, b.lo.y - 1, b.hi.y};
+    for (int a = 0; a < 3; ++a) m.footLo[a] = b.lo[a] - 1 - kFootMargin, m.footHi[a] = b.hi[a] + kFootMargin;
+    s.moved.push_back(m);
+  }
+  const double reach = double(band) + kFootMargin;
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     progress.check();
     ListPiece& out = s.pieces[piece];
-    out.kept.clear();
-    out.scaled.clear();
-    out.farUnknown.clear();
+    const std::size_t begin = piece * kListPiece, end = std::min(list->index.size(), begin + kListPiece);
+    if (out.kept.size() < end - begin) {
+      out.kept.resize(end - begin);
+      out.scaled.resize(end - begin);
+      out.farUnknown.resize(end - begin);
+    }
+    std::uint32_t* const kept = out.kept.data();
+    float* const scaled = out.scaled.data();
+    std::uint32_t* const farUnknown = out.farUnknown.data();
+    std::size_t keptCount = 0, farCount = 0;
     // The moved boxes that may matter to the list's current row (y, z): those whose cells lie
     // within band + kFootMargin of it on both axes (no voxel further from them can be nearer
     // than its value, inside them, or have its foot point near them). The list is in index
     // order, so its rows come one after the other.
-    std::vector<Box>& nearZ = out.nearMovedZ;
-    std::vector<Box>& near = out.nearMoved;
-    const double reach = double(band) + kFootMargin;
     int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
-    auto cellDistance = [](int x, int lo, int hi) { return double(x < lo - 1 ? lo - 1 - x : std::max(0, x - hi)); };
-    auto nearRow = [&](Int3 p) -> std::span<const Box> {
+    auto cellDistance = [](int x, int lo, int hi) { return x < lo ? lo - x : std::max(0, x - hi); };
+    auto nearRow = [&](Int3 p) -> std::span<const NearBox> {
       if (p.z != rowZ) {
         rowZ = p.z, rowY = std::numeric_limits<int>::min();
-        nearZ.clear();
-        for (const Box& b : moved)
-          if (cellDistance(p.z, b.lo.z, b.hi.z) < reach) nearZ.push_back(b);
+        out.nearZ.clear();
+        for (std::size_t b = 0; b < s.moved.size(); ++b) {
+          const MovedBox& m = s.moved[b];
+          const int dz = cellDistance(p.z, m.zLo, m.zHi);
+          if (!(dz < reach)) continue;
+          // The rows within reach: cell distance dy up to w on y.
+          int w = 0;
+          while (double((w + 1) * (w + 1) + dz * dz) < reach * reach) ++w;
+          out.nearZ.push_back({std::uint32_t(b), dz * dz, m.yLo - w, m.yHi + w});
+        }
       }
       if (p.y != rowY) {
         rowY = p.y;
-        near.clear();
-        for (const Box& b : nearZ) {
-          const double dy = cellDistance(p.y, b.lo.y, b.hi.y), dz = cellDistance(p.z, b.lo.z, b.hi.z);
-          if (dy * dy + dz * dz < reach * reach) near.push_back(b);
+        out.near.clear();
+        for (const ListPiece::NearZ& n : out.nearZ) {
+          if (p.y < n.yFrom || p.y > n.yTo) continue;
+          const MovedBox& m = s.moved[n.box];
+          const int dy = cellDistance(p.y, m.yLo, m.yHi);
+          out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
         }
       }
-      return near;
+      return out.near;
     };
-    const std::size_t end = std::min(list->index.size(), (piece + 1) * kListPiece);
-    for (std::size_t k = piece * kListPiece; k < end; ++k) {
-      const std::uint32_t i = list->index[k];
-      const std::uint8_t f = flags[i];
-      if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+    const std::uint32_t* const index = list->index.data();
+    const Int3* const point = list->point.data();
+    // Voxel k of the list, i in the grid, with flags f: reset and not yet frozen. Inner: it has
+    // neighbours on every side (2 voxels from every face), so no position is read for that.
+    auto classify = [&](auto innerTag, std::size_t k, std::uint32_t i, std::uint8_t f) __attribute__((always_inline)) {
+      constexpr bool inner = decltype(innerTag)::value;
+      auto hasLo = [&](int a) { return inner || point[k][a] > g.box.lo[a]; };
+      auto hasHi = [&](int a) { return inner || point[k][a] + 1 < g.box.hi[a]; };
       const float value = v[i];
-      // Whether the voxel has a neighbour on each side of axis a: always, 2 voxels from every
-      // face (the position is read only near the faces).
-      const bool inner = f & kInterior;
-      auto hasLo = [&](int a) { return inner || list->point[k][a] > g.box.lo[a]; };
-      auto hasHi = [&](int a) { return inner || list->point[k][a] + 1 < g.box.hi[a]; };
+      const bool neg = value < 0;
       // Further than sqrt(3) from the surface: neither on it nor adjacent to it.
       bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
       if (!adjacent && std::fabs(value) < 1.75f) {
-        const bool neg = value < 0;
-        for (int a = 0; a < 3 && !adjacent; ++a) {
-          const std::size_t st = g.stride(a);
-          if (hasLo(a)) adjacent = (v[i - st] < 0) != neg;
-          if (!adjacent && hasHi(a)) adjacent = (v[i + st] < 0) != neg;
+        if constexpr (inner) {
+          adjacent = ((v[i - 1] < 0) != neg) | ((v[i + 1] < 0) != neg) | ((v[i - stride[1]] < 0) != neg) |
+                     ((v[i + stride[1]] < 0) != neg) | ((v[i - stride[2]] < 0) != neg) | ((v[i + stride[2]] < 0) != neg);
+        } else {
+          for (int a = 0; a < 3 && !adjacent; ++a) {
+            if (hasLo(a)) adjacent = (v[i - stride[a]] < 0) != neg;
+            if (!adjacent && hasHi(a)) adjacent = (v[i + stride[a]] < 0) != neg;
+          }
         }
       }
       if (!adjacent) {
-        if (!moved.empty()) {
-          const Shell c = (f & kMarked) ? Shell::Reset
-                                        : shellClass(g, v, i, list->point[k], hasLo, hasHi, nearRow(list->point[k]));
+        if (!moved.empty() && !(f & kMarked)) {
+          const Int3 p = point[k];
+          const Shell c = shellClass(v, i, p, stride, hasLo, hasHi, nearRow(p));
           if (c != Shell::Reset) {
             flags[i] = std::uint8_t(f | (c == Shell::Kept ? (kKnown | kFrozen) : kUpperBound));
-            continue;
+            return;
           }
         }
-        out.farUnknown.push_back(i);
-        continue;
+        farUnknown[farCount++] = i;
+        return;
       }
       flags[i] = std::uint8_t(f | kKnown | kFrozen);
-      if (!normalizeKept || !(f & kMarked)) continue;
+      if (!normalizeKept || !(f & kMarked)) return;
       double g2 = 0;
       for (int a = 0; a < 3; ++a) {
-        const std::size_t st = g.stride(a);
+        const std::size_t st = stride[a];
         const bool l = hasLo(a), h = hasHi(a);
         const double lo = l ? v[i - st] : v[i];
         const double hi = h ? v[i + st] : v[i];
@@ -445,21 +539,36 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       const double val = value;
       double bound = 1.0;
       for (int a = 0; a < 3; ++a) {
-        const std::size_t st = g.stride(a);
-        if (hasLo(a) && (v[i - st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i - st]));
-        if (hasHi(a) && (v[i + st] < 0) != (val < 0)) bound = std::min(bound, val / (val - v[i + st]));
+        const std::size_t st = stride[a];
+        if (hasLo(a) && (v[i - st] < 0) != neg) bound = std::min(bound, val / (val - v[i - st]));
+        if (hasHi(a) && (v[i + st] < 0) != neg) bound = std::min(bound, val / (val - v[i + st]));
       }
       const double len = std::sqrt(g2);
       const double mag = len > 1e-6 ? std::min(std::fabs(val) / len, bound) : bound;
-      out.kept.push_back(i);
-      out.scaled.push_back(float(std::copysign(mag, val)));
+      kept[keptCount] = i;
+      scaled[keptCount++] = float(std::copysign(mag, val));
+    };
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::uint32_t i = index[k];
+      const std::uint8_t f = flags[i];
+      if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+      if (f & kInterior) {
+        classify(std::true_type{}, k, i, f);
+      } else {
+        classify(std::false_type{}, k, i, f);
+      }
     }
+    out.keptCount = keptCount;
+    out.farCount = farCount;
   });
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     const ListPiece& in = s.pieces[piece];
-    for (std::size_t j = 0; j < in.kept.size(); ++j) v[in.kept[j]] = in.scaled[j];
-    for (const std::uint32_t i : in.farUnknown) v[i] = v[i] < 0 ? -band : band;
+    for (std::size_t j = 0; j < in.keptCount; ++j) v[in.kept[j]] = in.scaled[j];
+    for (std::size_t j = 0; j < in.farCount; ++j) {
+      const std::uint32_t i = in.farUnknown[j];
+      v[i] = v[i] < 0 ? -band : band;
+    }
   });
   progress.advance(kSetupShare);
   return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));

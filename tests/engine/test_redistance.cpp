@@ -1,6 +1,9 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <vector>
 
 #include "engine/dense_grid.hpp"
 #include "engine/redistance.hpp"
@@ -177,5 +180,219 @@ TEST_CASE("a local tool's shell: far voxels are kept, lowered or reset, as exact
     CHECK(keptChanged == 0);
     CHECK(worstB <= worstA + 0.01);
     CHECK(sb.accepted < sa.accepted);
+  }
+}
+
+namespace {
+
+// redistance.cpp's constants for the shell (RedistanceOptions::movedBoxes).
+constexpr double kFootMargin = 0.5, kFootGradientTolerance = 0.25;
+
+// The classification redistance.hpp describes, written voxel by voxel the plain way (every
+// voxel of the grid looked at alone, every box tested), then the same march: what
+// redistanceRegion's passes over rows, bands of rows and the band list must reproduce bit for bit.
+void referenceRedistance(DenseGrid& g, const Box& region, float band, Outside outside, const RedistanceOptions& o) {
+  using namespace march_flag;
+  const Box r = region.intersect(g.box);
+  auto clip = [&](std::span<const Box> boxes) {
+    std::vector<Box> out;
+    for (const Box& b : boxes) out.push_back(b.intersect(r));
+    return out;
+  };
+  auto inAny = [](const std::vector<Box>& boxes, Int3 p) {
+    return std::any_of(boxes.begin(), boxes.end(), [&](const Box& b) { return b.contains(p); });
+  };
+  const std::vector<Box> reset = o.resetBoxes.empty() ? std::vector<Box>{r} : clip(o.resetBoxes);
+  const bool moved = !o.movedBoxes.empty();
+  const std::vector<Box> marked = moved              ? clip(o.movedBoxes)
+                                  : !o.normalizeKept ? std::vector<Box>{}
+                                  : o.normalizeBoxes.empty() ? std::vector<Box>{r}
+                                                             : clip(o.normalizeBoxes);
+  std::vector<std::uint8_t> flags(g.v.size());
+  std::vector<float> out(g.v.begin(), g.v.end());
+  std::vector<std::uint32_t> candidates;
+  const float* v = g.v.data();
+  for (std::size_t i = 0; i < g.v.size(); ++i) {
+    const Int3 p = g.point(i), q = p - g.box.lo;
+    const float value = v[i];
+    const bool neg = value < 0;
+    if (r.grown(1).contains(p) && std::fabs(value) != band) candidates.push_back(std::uint32_t(i));
+    bool interior = true;
+    for (int a = 0; a < 3; ++a) interior = interior && q[a] >= 2 && q[a] + 2 < g.size[a];
+    std::uint8_t f = std::uint8_t((neg ? kNeg : 0) | (interior ? kInterior : 0));
+    auto has = [&](int a, int d) { return q[a] + d >= 0 && q[a] + d < g.size[a]; };
+    auto at = [&](int a, int d) { return v[i + std::ptrdiff_t(d) * std::ptrdiff_t(g.stride(a))]; };
+    if (!inAny(reset, p)) {
+      flags[i] = std::uint8_t(f | kFrozen | (outside == Outside::Source ? kKnown : kIgnored));
+      continue;
+    }
+    if (o.exactSide != 0 && neg == (o.exactSide < 0)) {
+      flags[i] = std::uint8_t(f | kKnown | kFrozen);
+      continue;
+    }
+    flags[i] = f;
+    if (std::fabs(value) == band) continue;  // unknown, at +-band already
+    bool adjacent = value == 0;
+    for (int a = 0; a < 3; ++a)
+      for (const int d : {-1, 1}) adjacent = adjacent || (std::fabs(value) < 1.75f && has(a, d) && (at(a, d) < 0) != neg);
+    if (adjacent) {
+      flags[i] = std::uint8_t(f | kKnown | kFrozen);
+      if (!o.normalizeKept || !inAny(marked, p)) continue;
+      double g2 = 0, bound = 1.0;
+      const double val = value;
+      for (int a = 0; a < 3; ++a) {
+        const double lo = has(a, -1) ? at(a, -1) : val, hi = has(a, 1) ? at(a, 1) : val;
+        const double span = (has(a, -1) ? 1 : 0) + (has(a, 1) ? 1 : 0);
+        const double d = span > 0 ? (hi - lo) / span : 0;
+        g2 += d * d;
+      }
+      for (int a = 0; a < 3; ++a)
+        for (const int d : {-1, 1})
+          if (has(a, d) && (at(a, d) < 0) != neg) bound = std::min(bound, val / (val - at(a, d)));
+      const double len = std::sqrt(g2);
+      out[i] = float(std::copysign(len > 1e-6 ? std::min(std::fabs(val) / len, bound) : bound, val));
+      continue;
+    }
+    if (moved && !inAny(marked, p)) {
+      // The moved boxes whose cells lie within band + kFootMargin of p's row on both y and z.
+      const double reach = band + kFootMargin;
+      auto cell = [](int x, int lo, int hi) { return double(x < lo - 1 ? lo - 1 - x : std::max(0, x - hi)); };
+      std::vector<Box> near;
+      for (const Box& b : o.movedBoxes) {
+        const double dy = cell(p.y, b.lo.y, b.hi.y), dz = cell(p.z, b.lo.z, b.hi.z);
+        if (dz < reach && dy * dy + dz * dz < reach * reach) near.push_back(b);
+      }
+      const double val = value;
+      bool nearer = false;
+      for (const Box& b : near) {
+        const double dx = cell(p.x, b.lo.x, b.hi.x), dy = cell(p.y, b.lo.y, b.hi.y), dz = cell(p.z, b.lo.z, b.hi.z);
+        nearer = nearer || dx * dx + dy * dy + dz * dz < val * val;
+      }
+      if (!nearer) {
+        flags[i] = std::uint8_t(f | kKnown | kFrozen);
+        continue;
+      }
+      double grad[3];
+      for (int a = 0; a < 3; ++a) grad[a] = has(a, -1) && has(a, 1) ? 0.5 * (double(at(a, 1)) - double(at(a, -1))) : 0.0;
+      const double len = std::sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]);
+      if (std::fabs(len - 1) <= kFootGradientTolerance) {
+        bool nearMoved = false;
+        for (const Box& b : near) {
+          bool inside = true;
+          for (int a = 0; a < 3; ++a) {
+            const double foot = p[a] - val * grad[a] / len;
+            inside = inside && foot >= b.lo[a] - 1 - kFootMargin && foot <= b.hi[a] + kFootMargin;
+          }
+          nearMoved = nearMoved || inside;
+        }
+        if (!nearMoved) {
+          flags[i] = std::uint8_t(f | kUpperBound);
+          continue;
+        }
+      }
+    }
+    out[i] = neg ? -band : band;
+  }
+  std::copy(out.begin(), out.end(), g.v.begin());
+  fastMarchClassified(g, flags, candidates, band, o.order, ThreadPool::serial());
+}
+
+}  // namespace
+
+TEST_CASE("the setup before the march classifies every voxel as described, for any boxes, sides and grid widths",
+          "[redistance]") {
+  // Grids of 5 to 40 voxels per row (rows shorter than, equal to and just longer than the 16
+  // voxels the passes test at a time), a wrong-slope sphere's cap through each, and boxes that
+  // overlap, stick out of the region or miss it: reset, normalize and moved boxes, each
+  // exact side, sources or ignored outside. The pieces of the pool are exercised by the
+  // largest grid on 2 threads.
+  std::mt19937 rng(11);
+  auto uniform = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  ThreadPool two(2);
+  int cases = 0, changed = 0, shellChanged = 0;
+  for (const Int3 size : {Int3{5, 20, 9}, Int3{16, 18, 17}, Int3{17, 30, 25}, Int3{31, 22, 40}, Int3{40, 58, 57}}) {
+    for (int round = 0; round < 6; ++round) {
+      const Box gridBox{{-3, 2, 1}, Int3{-3, 2, 1} + size};
+      DenseGrid before(gridBox);
+      // A wide cap through the middle slices, its curvature and the slope varying across it.
+      const double radius = 2.0 * std::max({size.x, size.y, size.z});
+      const Vec3 c{-3 + size.x * 0.5, 2 + size.y * 0.3, 1 + size.z * 0.5 + radius};
+      for (std::size_t i = 0; i < before.v.size(); ++i) {
+        const Int3 p = before.point(i);
+        const double d = length(Vec3{double(p.x), double(p.y), double(p.z)} - c) - radius;
+        const double slope = 1.0 + 0.3 * std::sin(0.4 * p.x + round) * std::cos(0.3 * p.y);
+        before.v[i] = float(std::clamp(d * slope, -double(kBand), double(kBand)));
+      }
+      auto randomBox = [&] {
+        Box b;
+        for (int a = 0; a < 3; ++a) {
+          const int lo = gridBox.lo[a] + uniform(-3, size[a] * 2 / 3), hi = lo + uniform(2, size[a] / 2 + 4);
+          b.lo[a] = lo, b.hi[a] = hi;
+        }
+        return b;
+      };
+      const Box region = round % 3 == 0 ? gridBox.grown(-1) : randomBox().intersect(gridBox).grown(2);
+      std::vector<Box> resetBoxes, normalizeBoxes, movedBoxes;
+      for (int k = uniform(0, 4); k > 0; --k) resetBoxes.push_back(randomBox());
+      for (int k = uniform(0, 2); k > 0; --k) normalizeBoxes.push_back(randomBox());
+      if (round % 2 == 1) {
+        for (int k = uniform(1, 5); k > 0; --k) movedBoxes.push_back(randomBox());
+        resetBoxes.clear();
+        for (const Box& b : movedBoxes) resetBoxes.push_back(b.grown(4));
+      }
+      RedistanceOptions options;
+      options.resetBoxes = resetBoxes;
+      options.normalizeBoxes = normalizeBoxes;
+      options.movedBoxes = movedBoxes;
+      options.normalizeKept = round != 4;
+      options.exactSide = round == 2 ? 1 : round == 4 ? -1 : 0;
+      options.order = round == 5 ? MarchOrder::First : MarchOrder::Second;
+      const Outside outside = round == 3 ? Outside::Ignored : Outside::Source;
+      DenseGrid expected = before, got = before, withList = before;
+      referenceRedistance(expected, region, kBand, outside, options);
+      redistanceRegion(got, region, kBand, outside, options, two);
+      BandVoxels list;
+      list.collect(withList, region.intersect(gridBox).grown(1), kBand);
+      options.band = &list;
+      redistanceRegion(withList, region, kBand, outside, options);
+      INFO("grid " << size.x << "x" << size.y << "x" << size.z << ", round " << round);
+      CHECK(got.v == expected.v);
+      CHECK(withList.v == expected.v);
+      ++cases;
+      changed += got.v != before.v;
+      shellChanged += !movedBoxes.empty() && got.v != before.v;
+    }
+  }
+  INFO(changed << " of " << cases << " changed the grid, " << shellChanged << " with moved boxes");
+  CHECK(cases == 30);
+  CHECK(changed >= 20);  // the cases reach the surface
+  CHECK(shellChanged >= 6);
+}
+
+TEST_CASE("the band list of rows of any length is every voxel not at +-band, in index order", "[redistance]") {
+  // Rows of 1 to 40 voxels starting anywhere in the grid, an empty box, and one reaching the
+  // grid's last voxel (a short row there cannot be read past its end).
+  std::mt19937 rng(3);
+  for (const Int3 size : {Int3{1, 7, 5}, Int3{7, 3, 2}, Int3{16, 4, 3}, Int3{17, 5, 4}, Int3{40, 6, 5}}) {
+    DenseGrid g({{2, -1, 4}, Int3{2, -1, 4} + size}, kBand);
+    for (float& x : g.v)
+      if (rng() % 3 == 0) x = (rng() % 2 ? -1.0f : 1.0f) * float(rng() % 300) / 100.0f;
+    for (const Box& scan : {g.box, g.box.grown(-1), Box{g.box.lo + Int3{1, 0, 0}, g.box.hi}, Box{{5, 0, 5}, {3, 2, 7}},
+                            Box{g.box.hi - Int3{std::min(size.x, 3), 1, 1}, g.box.hi}}) {
+      BandVoxels list;
+      list.collect(g, scan, kBand);
+      std::vector<std::uint32_t> index;
+      std::vector<Int3> point;
+      const Box b = scan.intersect(g.box);
+      for (int z = b.lo.z; z < b.hi.z; ++z)
+        for (int y = b.lo.y; y < b.hi.y; ++y)
+          for (int x = b.lo.x; x < b.hi.x; ++x)
+            if (std::fabs(g.v[g.index({x, y, z})]) != kBand) {
+              index.push_back(std::uint32_t(g.index({x, y, z})));
+              point.push_back({x, y, z});
+            }
+      CHECK(list.index == index);
+      CHECK(list.point == point);
+    }
   }
 }
