@@ -93,7 +93,7 @@ inline float solveEikonal(float m[3], float c[3]) {
     const float disc = b2 * b2 - a2 * (cc2 - 1.0f);
     if (!(disc >= 0.0f)) break;  // only by rounding: the root lies beyond m[k]
     a = a2, b = b2, cc = cc2;
-    u = m0 + (b + std::sqrt(disc)) * kInverse[std::size_t(a * 4.0f)];
+    u = m0 + (b + std::sqrt(disc)) * kInverse[std::uint32_t(a * 4.0f)];  // 32 bits: no range test
   }
   return u;
 }
