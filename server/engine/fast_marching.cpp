@@ -45,6 +45,10 @@ constexpr std::uint8_t kTaken = 8;   // taken from the queue at least once (for 
 constexpr std::uint8_t kInside = kInterior;  // copied from the flags: no bounds checks needed
 constexpr std::uint8_t kPending = 32;  // a deferred first solve of this voxel is in the queue
 constexpr std::uint8_t kSeen = 64;     // a solve of this voxel was deferred at least once
+// The state byte's own type: not a character type, so a store to it cannot alias the marcher's
+// pointers, strides and values, which the compiler would otherwise load again after every store
+// (and the march stores a state byte at almost every step).
+enum class State : std::uint8_t {};
 // How far a root lies at least above its smallest usable neighbour a, less a bucket for the
 // order within one. First order: 1 / sqrt(3) (three axes at a). Second order: a term of 9/4 has
 // m >= a + 0.2 / 3 (the monotone run), and of the mixes of terms at a three such are lowest,
@@ -89,7 +93,7 @@ inline float solveEikonal(float m[3], float c[3]) {
     const float disc = b2 * b2 - a2 * (cc2 - 1.0f);
     if (!(disc >= 0.0f)) break;  // only by rounding: the root lies beyond m[k]
     a = a2, b = b2, cc = cc2;
-    u = m0 + (b + std::sqrt(disc)) * kInverse[std::size_t(a * 4.0f)];
+    u = m0 + (b + std::sqrt(disc)) * kInverse[std::uint32_t(a * 4.0f)];  // 32 bits: no range test
   }
   return u;
 }
@@ -99,11 +103,12 @@ inline float solveEikonal(float m[3], float c[3]) {
 // the two sides may run at the same time on one grid.
 class SideMarcher {
  public:
-  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::vector<std::uint8_t>& state, float band, bool second,
+  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::vector<State>& state, float band, bool second,
               std::uint8_t negBit, Buckets& buckets)
       : g_(g), v_(g.v.data()), band_(band), second_(second), negBit_(negBit), buckets_(buckets) {
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
+    last_ = buckets_.size() - 1;
     for (auto& b : buckets_) b.clear();
     // 16 bytes per step: the grid is the gathered box, the band only a few percent of it.
     state.resize(g.v.size());
@@ -127,15 +132,15 @@ class SideMarcher {
       st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, _mm_or_si128(usable, bound)), use));
       st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, unfrozen), open));
       st = _mm_or_si128(st, _mm_and_si128(_mm_andnot_si128(own, usable), other));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(st_ + i), st);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(st_ + i), st);  // a may_alias store
     }
 #endif
     for (; i < n; ++i) {
       const std::uint8_t f = flags[i];
       const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
       const bool bound = f & kUpperBound;
-      st_[i] = std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) |
-                            (own && !(f & kFrozen) ? kOpen : 0) | (!own && usable ? kOther : 0));
+      setSt(i, std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) |
+                            (own && !(f & kFrozen) ? kOpen : 0) | (!own && usable ? kOther : 0)));
     }
   }
 
@@ -149,22 +154,24 @@ class SideMarcher {
         if (b > 0) progress.advance(kBucketsPerCheck * perBucket);
       }
       current_ = b;
-      auto& bucket = buckets_[b];
+      // Entries pushed to this bucket while it is taken are appended: read its size each time.
+      std::vector<Entry>& bucket = buckets_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
         const Entry e = bucket[k];
         if (e.dist < 0) {  // a deferred first solve
-          st_[e.index] &= std::uint8_t(~kPending);
-          const float u = update(e.index);
+          const std::uint8_t s = st(e.index);
+          setSt(e.index, std::uint8_t(s & ~kPending));
+          const float u = update(e.index, s);
           if (u == kInf) continue;
-          if (std::size_t(u * kBucketsPerVu) > b) {
+          if (bucketOf(u) > b) {
             push(e.index, u, b);
           } else {
-            accept({e.index, u});  // due already, as usual (see kDeferBuckets): taken now
+            accept(e.index, u);  // due already, as usual (see kDeferBuckets): taken now
           }
           continue;
         }
         if (e.dist != mag(e.index)) continue;  // superseded by a lower entry
-        accept(e);
+        accept(e.index, e.dist);
       }
       bucket.clear();
     }
@@ -194,6 +201,11 @@ class SideMarcher {
 
  private:
   float mag(std::size_t i) const { return std::fabs(v_[i]); }
+  std::uint8_t st(std::size_t i) const { return std::uint8_t(st_[i]); }
+  void setSt(std::size_t i, std::uint8_t s) { st_[i] = State(s); }
+  // d * kBucketsPerVu rounded down; d lies in [0, band], so the product fits in 32 bits (whose
+  // conversion needs no range test, unlike 64 bits unsigned).
+  static std::size_t bucketOf(float d) { return std::uint32_t(d * kBucketsPerVu); }
 
   // Box-local coordinates of voxel i, by 32-bit divisions (indices fit: see Entry).
   Int3 local(std::size_t i) const {
@@ -203,59 +215,65 @@ class SideMarcher {
   }
 
   void push(std::size_t i, float d, std::size_t minBucket) {
-    const std::size_t b = std::max(minBucket, std::size_t(d * kBucketsPerVu));
-    buckets_[std::min(b, buckets_.size() - 1)].push_back({std::uint32_t(i), d});
+    const std::size_t b = std::max(minBucket, bucketOf(d));
+    buckets_[std::min(b, last_)].push_back({std::uint32_t(i), d});
   }
 
-  // Voxel e is taken: its value becomes usable, and its open neighbours above it are solved
-  // again (a neighbour at or below e would drop e from its stencil: the upwind rule). One that
-  // has no value yet is not solved now: its first solve is deferred by kDeferBuckets, and every
-  // neighbour taken meanwhile joins it. One that has a value is solved at once, as it is due
-  // before the deferral would end. One whose neighbours taken so far all lie within the least
-  // rise of a root (kMinRiseSecond) of the band's end is not solved at all: its root would lie
-  // beyond it.
-  void accept(const Entry& e) {
+  // Voxel i is taken at distance d: its value becomes usable, and its open neighbours above it
+  // are solved again (a neighbour at or below it would drop it from its stencil: the upwind
+  // rule). One that has no value yet is not solved now: its first solve is deferred by
+  // kDeferBuckets, and every neighbour taken meanwhile joins it. One that has a value is solved
+  // at once, as it is due before the deferral would end. One whose neighbours taken so far all
+  // lie within the least rise of a root (kMinRiseSecond) of the band's end is not solved at
+  // all: its root would lie beyond it.
+  [[gnu::always_inline]] inline void accept(std::size_t i, float d) {
     ++stats_.accepted;
-    if (st_[e.index] & kTaken) ++stats_.retaken;
-    st_[e.index] |= kUse | kTaken;
+    const std::uint8_t si = st(i);
+    stats_.retaken += (si & kTaken) ? 1 : 0;
+    setSt(i, std::uint8_t(si | kUse | kTaken));
     // The neighbours to solve now are listed first and solved after, in the same order (a
     // solve writes only its own voxel, which no other visit reads).
     std::size_t todo[6];
+    std::uint8_t todoState[6];
     int count = 0;
-    const std::size_t deferTo = std::max(current_, std::size_t(e.dist * kBucketsPerVu) + kDeferBuckets);
+    const float band = band_;
+    const bool early = d < beyond_;
+    std::vector<Entry>& deferred = buckets_[std::min(std::max(current_, bucketOf(d) + kDeferBuckets), last_)];
     auto visit = [&](std::size_t n) __attribute__((always_inline)) {
       // The state first: the other side may be writing a voxel that is not open on this one.
-      const std::uint8_t s = st_[n];
+      const std::uint8_t s = st(n);
       if ((s & (kOpen | kPending)) != kOpen) return;
       const float m = mag(n);
-      if (!(m > e.dist)) return;
-      if (m < band_) {
+      if (!(m > d)) return;
+      if (m < band) {
+        todoState[count] = s;
         todo[count++] = n;
-      } else if ((s & kSeen) || e.dist < beyond_) {
-        st_[n] = std::uint8_t(s | kPending | kSeen);
-        buckets_[std::min(deferTo, buckets_.size() - 1)].push_back({std::uint32_t(n), -1.0f});
+      } else if ((s & kSeen) || early) {
+        setSt(n, std::uint8_t(s | kPending | kSeen));
+        deferred.push_back({std::uint32_t(n), -1.0f});
       }
     };
-    if (st_[e.index] & kInside) {
-      for (int a = 0; a < 3; ++a) visit(e.index - stride_[a]), visit(e.index + stride_[a]);
+    if (si & kInside) {
+      const std::size_t sy = stride_[1], sz = stride_[2];
+      visit(i - 1), visit(i + 1), visit(i - sy), visit(i + sy), visit(i - sz), visit(i + sz);
     } else {
-      const Int3 p = local(e.index);
+      const Int3 p = local(i);
       for (int a = 0; a < 3; ++a) {
-        if (p[a] > 0) visit(e.index - stride_[a]);
-        if (p[a] + 1 < g_.size[a]) visit(e.index + stride_[a]);
+        if (p[a] > 0) visit(i - stride_[a]);
+        if (p[a] + 1 < g_.size[a]) visit(i + stride_[a]);
       }
     }
     for (int t = 0; t < count; ++t) {
-      const float u = update(todo[t]);
+      const float u = update(todo[t], todoState[t]);
       if (u != kInf) push(todo[t], u, current_);
     }
   }
 
-  // Solves voxel n (unknown, this side) from its usable neighbours and lowers it to the root:
-  // returns the root, to be queued, or infinity when n is not lowered.
-  float update(std::size_t n) {
+  // Solves voxel n (unknown, this side, state s) from its usable neighbours and lowers it to the
+  // root: returns the root, to be queued, or infinity when n is not lowered.
+  [[gnu::always_inline]] inline float update(std::size_t n, std::uint8_t s) {
     ++stats_.solved;
-    const float u = (st_[n] & kInside) ? solveInside(n) : solveBorder(n);
+    const float u = (s & kInside) ? solveInside(n) : solveBorder(n);
     // Compared as stored, or a root rounded up would be pushed again forever.
     if (!(u < mag(n) && u < band_)) return kInf;
     v_[n] = negBit_ ? -u : u;
@@ -271,12 +289,12 @@ class SideMarcher {
   // Inside: n is at least 2 voxels from every face of the grid, so every load is in the grid
   // and the selection needs no branch.
   [[gnu::always_inline]] inline void axisInside(std::size_t n, std::size_t s, float& m, float& c) const {
-    const float lo = (st_[n - s] & kUse) ? mag(n - s) : kInf;
-    const float hi = (st_[n + s] & kUse) ? mag(n + s) : kInf;
+    const float lo = (st(n - s) & kUse) ? mag(n - s) : kInf;
+    const float hi = (st(n + s) & kUse) ? mag(n + s) : kInf;
     const bool up = hi < lo;
     const float a = up ? hi : lo;
     const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
-    const std::uint8_t s2 = st_[n2];
+    const std::uint8_t s2 = st(n2);
     // Read only where the state allows: elsewhere the other side may be writing.
     const float x = (s2 & (kUse | kOther)) ? mag(n2) : kInf;
     const float b = (s2 & kOther) ? -x : x;
@@ -288,9 +306,9 @@ class SideMarcher {
     c = two ? 9.0f / 4.0f : 1.0f;
   }
 
-  float solveInside(std::size_t n) const {
+  [[gnu::always_inline]] inline float solveInside(std::size_t n) const {
     float m[3], c[3];
-    for (int a = 0; a < 3; ++a) axisInside(n, stride_[a], m[a], c[a]);
+    axisInside(n, 1, m[0], c[0]), axisInside(n, stride_[1], m[1], c[1]), axisInside(n, stride_[2], m[2], c[2]);
     return solveEikonal(m, c);
   }
 
@@ -299,16 +317,16 @@ class SideMarcher {
     float m[3], c[3];
     for (int a = 0; a < 3; ++a) {
       const std::size_t s = stride_[a];
-      const float lo = q[a] > 0 && (st_[n - s] & kUse) ? mag(n - s) : kInf;
-      const float hi = q[a] + 1 < g_.size[a] && (st_[n + s] & kUse) ? mag(n + s) : kInf;
+      const float lo = q[a] > 0 && (st(n - s) & kUse) ? mag(n - s) : kInf;
+      const float hi = q[a] + 1 < g_.size[a] && (st(n + s) & kUse) ? mag(n + s) : kInf;
       const bool up = hi < lo;
       const int at2 = q[a] + (up ? 2 : -2);
       float b = kInf;
       if (at2 >= 0 && at2 < g_.size[a]) {
         const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
-        if (st_[n2] & kUse) {
+        if (st(n2) & kUse) {
           b = mag(n2);
-        } else if (st_[n2] & kOther) {
+        } else if (st(n2) & kOther) {
           b = -mag(n2);
         }
       }
@@ -319,11 +337,12 @@ class SideMarcher {
 
   DenseGrid& g_;
   float* v_;
-  std::uint8_t* st_ = nullptr;
+  State* st_ = nullptr;
   float band_;
   bool second_;
   std::uint8_t negBit_;
   Buckets& buckets_;
+  std::size_t last_;  // the last bucket, which takes everything beyond it
   std::size_t stride_[3];
   std::size_t current_ = 0;
   float beyond_ = band_ - (second_ ? kMinRiseSecond : kMinRiseFirst);  // see accept()
@@ -334,7 +353,7 @@ class SideMarcher {
 // multi-megabyte arrays each time cost as much in page faults as the marching itself.
 struct Scratch {
   std::vector<std::uint8_t> flags;    // fastMarch's classification
-  std::vector<std::uint8_t> state[2];  // each side's own (SideMarcher)
+  std::vector<State> state[2];  // each side's own (SideMarcher)
   std::vector<std::uint32_t> candidates;
   std::vector<std::uint32_t> seeds[2];
   Buckets buckets[2];
