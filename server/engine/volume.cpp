@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <sstream>
 #if defined(__SSE2__)
 #include <xmmintrin.h>
@@ -10,6 +11,7 @@
 
 #include "errors.hpp"
 #include "stencil.hpp"
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
@@ -263,7 +265,11 @@ std::size_t Volume::memoryBytes() const {
 }
 
 std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox) {
-  auto changes = diff(region, src, srcBox);
+  return scatter(region, src, srcBox, ThreadPool::serial());
+}
+
+std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool) {
+  auto changes = diff(region, src, srcBox, pool);
   publish(changes, true);
   return changes;
 }
@@ -290,14 +296,40 @@ bool Volume::brickChanges(Int3 b, const Box& here, const float* old, float unifo
 }
 
 std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox) const {
+  return diff(region, src, srcBox, ThreadPool::serial());
+}
+
+std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox,
+                                      ThreadPool& pool) const {
   const Box r = region.intersect(domain());
   std::vector<BrickChange> changes;
   if (r.empty()) return changes;
   if (!srcBox.contains(r.lo) || !srcBox.contains(r.hi - Int3{1, 1, 1}))
     throw EngineError(ErrorKind::InvalidArgument, "srcBox", "must contain the region to write");
-  const Int3 ss = srcBox.size();
   const Box bricks = Bricks::bricksOf(r);
-  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+  const int layers = bricks.hi.z - bricks.lo.z;
+  if (pool.threads() == 1 || layers == 1 || r.voxels() < kParallelDiffVoxels) {
+    diffLayers(r, bricks, bricks.lo.z, bricks.hi.z, src, srcBox, changes);
+    return changes;
+  }
+  // One piece per brick layer, whatever the thread count; joined in order, the changes are
+  // those of the loop above.
+  std::vector<std::vector<BrickChange>> pieces(std::size_t(layers), std::vector<BrickChange>{});
+  pool.parallelFor(pieces.size(), [&](std::size_t k) {
+    const int bz = bricks.lo.z + int(k);
+    diffLayers(r, bricks, bz, bz + 1, src, srcBox, pieces[k]);
+  });
+  std::size_t total = 0;
+  for (const auto& p : pieces) total += p.size();
+  changes.reserve(total);
+  for (auto& p : pieces) std::move(p.begin(), p.end(), std::back_inserter(changes));
+  return changes;
+}
+
+void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const float* src, const Box& srcBox,
+                        std::vector<BrickChange>& changes) const {
+  const Int3 ss = srcBox.size();
+  for (int bz = bz0; bz < bz1; ++bz)
     for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
       for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
         const Int3 b{bx, by, bz};
@@ -357,7 +389,6 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
         if (same) continue;
         changes.push_back({b, old, next});
       }
-  return changes;
 }
 
 BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
