@@ -67,7 +67,9 @@ void ThreadPool::runItems() {
 
 void ThreadPool::workerLoop() {
   std::unique_lock lock(mutex_);
-  std::size_t seen = generation_;
+  // The generation the pool was made with: a call made before this thread first got here is
+  // still new to it (reading generation_ here missed it, and the caller did all its items).
+  std::size_t seen = 0;
   for (;;) {
     if (!stop_ && generation_ == seen) {
       lock.unlock();
