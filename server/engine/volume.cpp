@@ -426,37 +426,17 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
   return {std::move(data), false};
 }
 
-std::vector<BrickChange> Volume::fill(bool inside) {
-  std::vector<BrickChange> changes;
-  std::vector<std::pair<Int3, BrickRef>> slots;
-  for (int bz = 0; bz < brickDims_.z; ++bz)
-    for (int by = 0; by < brickDims_.y; ++by)
-      for (int bx = 0; bx < brickDims_.x; ++bx) {
-        const Int3 b{bx, by, bz};
-        BrickRef old = brick(b);
-        if (!old.data && old.inside == inside) continue;
-        changes.push_back({b, old, BrickRef{nullptr, inside}});
-        slots.emplace_back(b, BrickRef{nullptr, inside});
-      }
-  setSlots(slots);
-  return changes;
-}
-
-void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
-  std::vector<std::pair<Int3, BrickRef>> slots;
-  slots.reserve(changes.size());
-  for (const auto& c : changes) slots.emplace_back(c.brick, forward ? c.after : c.before);
-  setSlots(slots);
-}
-
-void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
-  if (slotsIn.empty()) return;
-  std::vector<std::pair<Int3, BrickRef>> slots = slotsIn;
-  std::stable_sort(slots.begin(), slots.end(),
-                   [&](const auto& a, const auto& b) { return tileIndex(a.first) < tileIndex(b.first); });
+template <class SlotAt>
+void Volume::setSlots(std::size_t n, SlotAt slotAt) {
+  if (n == 0) return;
+  // The slots by tile, in their given order within a tile; sorted as (tile, position) pairs, so
+  // that no BrickRef is copied (each copy of a stored brick is an atomic count).
+  std::vector<std::pair<std::size_t, std::size_t>> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = {tileIndex(slotAt(i).first), i};
+  std::sort(order.begin(), order.end());
   std::size_t i = 0;
-  while (i < slots.size()) {
-    const std::size_t ti = tileIndex(slots[i].first);
+  while (i < n) {
+    const std::size_t ti = order[i].first;
     // Every tile touched by this edit is copied once: readers of older versions keep theirs.
     auto t = std::make_shared<Tile>();
     if (const Tile* old = tiles_[ti].get()) {
@@ -464,9 +444,10 @@ void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
     } else if (tileInside_[ti]) {
       t->inside.set();
     }
-    for (; i < slots.size() && tileIndex(slots[i].first) == ti; ++i) {
-      const int s = slotInTile(slots[i].first);
-      const BrickRef& ref = slots[i].second;
+    for (; i < n && order[i].first == ti; ++i) {
+      const auto [b, refPtr] = slotAt(order[i].second);
+      const int s = slotInTile(b);
+      const BrickRef& ref = *refPtr;
       t->present += (ref.data ? 1 : 0) - (t->bricks[s] ? 1 : 0);
       presentBricks_ += (ref.data ? 1 : 0);
       presentBricks_ -= (t->bricks[s] ? 1 : 0);
@@ -492,6 +473,27 @@ void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
       tiles_[ti] = std::move(t);
     }
   }
+}
+
+std::vector<BrickChange> Volume::fill(bool inside) {
+  std::vector<BrickChange> changes;
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        BrickRef old = brick(b);
+        if (!old.data && old.inside == inside) continue;
+        changes.push_back({b, std::move(old), BrickRef{nullptr, inside}});
+      }
+  publish(changes, true);
+  return changes;
+}
+
+void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
+  setSlots(changes.size(), [&](std::size_t i) {
+    const BrickChange& c = changes[i];
+    return std::pair<Int3, const BrickRef*>{c.brick, forward ? &c.after : &c.before};
+  });
 }
 
 }  // namespace marzipan

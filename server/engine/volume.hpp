@@ -132,7 +132,10 @@ class Volume {
     int present = 0;
   };
 
-  void setSlots(const std::vector<std::pair<Int3, BrickRef>>& slots);
+  // Sets n slots: slotAt(i) gives the i-th one's brick and a pointer to its new BrickRef. Each
+  // reference is copied once, into its tile (volume.cpp).
+  template <class SlotAt>
+  void setSlots(std::size_t n, SlotAt slotAt);
   // Whether writing src (over srcBox) into `here`, a part of brick b, changes it; old is the
   // brick's voxels, or null when it is uniformly `uniform`. Throws on NaN among the voxels read.
   bool brickChanges(Int3 b, const Box& here, const float* old, float uniform, const float* src,
