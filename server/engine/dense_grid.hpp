@@ -14,6 +14,7 @@
 namespace marzipan {
 
 struct ProgressShare;
+class ThreadPool;
 class Volume;
 
 // An allocator whose resize() leaves new floats unset: a scratch grid that grows is then
@@ -52,9 +53,13 @@ struct DenseGrid {
   // The box's voxels copied out of a volume.
   static DenseGrid gather(const Volume& vol, const Box& b);
   // The same into this grid, reusing its storage (no fresh pages for a scratch grid). With a
-  // progress, it is checked and advanced between slabs of a few z-slices (progress.hpp).
+  // progress, it is checked and advanced between slabs of whole brick layers along z
+  // (progress.hpp). With a pool, a box of kParallelGatherVoxels or more is copied slab by slab on
+  // its threads (a copy: the same values for any thread count).
   void gatherFrom(const Volume& vol, const Box& b);
   void gatherFrom(const Volume& vol, const Box& b, const ProgressShare& progress);
+  void gatherFrom(const Volume& vol, const Box& b, const ProgressShare& progress, ThreadPool& pool);
+  static constexpr std::int64_t kParallelGatherVoxels = std::int64_t(1) << 16;
 
   std::size_t index(Int3 p) const {  // p in volume coordinates, must lie in box
     return std::size_t(p.x - box.lo.x) + sx * std::size_t(p.y - box.lo.y) + sxy * std::size_t(p.z - box.lo.z);

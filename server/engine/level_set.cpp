@@ -997,7 +997,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     const Box region = group.box.grown(reach).intersect(vol.domain());
     ToolScratch& scratch = toolScratch();
     DenseGrid& g = scratch.grid;
-    g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare));
+    g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare), pool);
     scratch.resetBoxes.clear();
     scratch.normalizeBoxes.clear();
     for (const PreparedDab& d : mine) {
@@ -1046,7 +1046,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       redistanceRegion(g, region, band, Outside::Source, options, pool);
     }
     share.check();  // the last check: nothing below stops part way
-    total.append(vol.scatter(region, g.v.data(), g.box), region);
+    total.append(vol.scatter(region, g.v.data(), g.box, pool), region);
     share.advance(1 - kGatherShare - kCollectShare - kEvolveShare - kRedistanceShare);
   };
   // A huge ROI's scratch is not worth keeping for the next dab (also when this one throws).

@@ -1,8 +1,32 @@
 #include "thread_pool.hpp"
 
 #include <utility>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace marzipan {
+
+namespace {
+
+// Waits while waiting() holds, for at most ThreadPool::kSpin, yielding the core to any other
+// runnable thread now and then. True when waiting() stopped holding.
+template <class Waiting>
+bool spinWhile(Waiting waiting) {
+  const auto until = std::chrono::steady_clock::now() + ThreadPool::kSpin;
+  for (unsigned i = 1; waiting(); ++i) {
+#if defined(__SSE2__)
+    _mm_pause();
+#endif
+    if (i % 64 == 0) {
+      if (std::chrono::steady_clock::now() >= until) return false;
+      std::this_thread::yield();
+    }
+  }
+  return true;
+}
+
+}  // namespace
 
 ThreadPool::ThreadPool(int threads) {
   if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
@@ -43,15 +67,28 @@ void ThreadPool::runItems() {
 
 void ThreadPool::workerLoop() {
   std::unique_lock lock(mutex_);
-  std::size_t seen = generation_;
+  // The generation the pool was made with: a call made before this thread first got here is
+  // still new to it (reading generation_ here missed it, and the caller did all its items).
+  std::size_t seen = 0;
   for (;;) {
-    wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+    if (!stop_ && generation_ == seen) {
+      lock.unlock();
+      spinWhile([&] { return generation_.load(std::memory_order_acquire) == seen && !stop_.load(std::memory_order_relaxed); });
+      lock.lock();
+      // A call that came after the look is seen here, under the lock it was made under.
+      ++sleepers_;
+      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      --sleepers_;
+    }
     if (stop_) return;
     seen = generation_;
     ++busy_;
     runItems();
     --busy_;
-    if (finished_ == jobSize_ && busy_ == 0) done_.notify_all();
+    if (finished_ == jobSize_ && busy_ == 0) {
+      jobDone_ = true;
+      done_.notify_all();
+    }
   }
 }
 
@@ -71,11 +108,17 @@ void ThreadPool::parallelFor(std::size_t n, const std::function<void(std::size_t
   next_ = 0;
   finished_ = 0;
   error_ = nullptr;
+  jobDone_ = false;
   ++generation_;
-  wake_.notify_all();
+  if (sleepers_ > 0) wake_.notify_all();
   runItems();
   // Workers that woke late may still be between claiming and finishing; wait for all of them
   // so that fn is not referenced after we return.
+  if (!(finished_ == jobSize_ && busy_ == 0)) {
+    lock.unlock();
+    spinWhile([&] { return !jobDone_.load(std::memory_order_acquire); });
+    lock.lock();
+  }
   done_.wait(lock, [&] { return finished_ == jobSize_ && busy_ == 0; });
   job_ = nullptr;
   jobSize_ = 0;

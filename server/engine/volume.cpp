@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <sstream>
 #if defined(__SSE2__)
 #include <xmmintrin.h>
@@ -10,6 +11,7 @@
 
 #include "errors.hpp"
 #include "stencil.hpp"
+#include "thread_pool.hpp"
 
 namespace marzipan {
 
@@ -263,7 +265,11 @@ std::size_t Volume::memoryBytes() const {
 }
 
 std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox) {
-  auto changes = diff(region, src, srcBox);
+  return scatter(region, src, srcBox, ThreadPool::serial());
+}
+
+std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool) {
+  auto changes = diff(region, src, srcBox, pool);
   publish(changes, true);
   return changes;
 }
@@ -290,14 +296,40 @@ bool Volume::brickChanges(Int3 b, const Box& here, const float* old, float unifo
 }
 
 std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox) const {
+  return diff(region, src, srcBox, ThreadPool::serial());
+}
+
+std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const Box& srcBox,
+                                      ThreadPool& pool) const {
   const Box r = region.intersect(domain());
   std::vector<BrickChange> changes;
   if (r.empty()) return changes;
   if (!srcBox.contains(r.lo) || !srcBox.contains(r.hi - Int3{1, 1, 1}))
     throw EngineError(ErrorKind::InvalidArgument, "srcBox", "must contain the region to write");
-  const Int3 ss = srcBox.size();
   const Box bricks = Bricks::bricksOf(r);
-  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+  const int layers = bricks.hi.z - bricks.lo.z;
+  if (pool.threads() == 1 || layers == 1 || r.voxels() < kParallelDiffVoxels) {
+    diffLayers(r, bricks, bricks.lo.z, bricks.hi.z, src, srcBox, changes);
+    return changes;
+  }
+  // One piece per brick layer, whatever the thread count; joined in order, the changes are
+  // those of the loop above.
+  std::vector<std::vector<BrickChange>> pieces(std::size_t(layers), std::vector<BrickChange>{});
+  pool.parallelFor(pieces.size(), [&](std::size_t k) {
+    const int bz = bricks.lo.z + int(k);
+    diffLayers(r, bricks, bz, bz + 1, src, srcBox, pieces[k]);
+  });
+  std::size_t total = 0;
+  for (const auto& p : pieces) total += p.size();
+  changes.reserve(total);
+  for (auto& p : pieces) std::move(p.begin(), p.end(), std::back_inserter(changes));
+  return changes;
+}
+
+void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const float* src, const Box& srcBox,
+                        std::vector<BrickChange>& changes) const {
+  const Int3 ss = srcBox.size();
+  for (int bz = bz0; bz < bz1; ++bz)
     for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
       for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
         const Int3 b{bx, by, bz};
@@ -357,7 +389,6 @@ std::vector<BrickChange> Volume::diff(const Box& region, const float* src, const
         if (same) continue;
         changes.push_back({b, old, next});
       }
-  return changes;
 }
 
 BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
@@ -395,37 +426,17 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
   return {std::move(data), false};
 }
 
-std::vector<BrickChange> Volume::fill(bool inside) {
-  std::vector<BrickChange> changes;
-  std::vector<std::pair<Int3, BrickRef>> slots;
-  for (int bz = 0; bz < brickDims_.z; ++bz)
-    for (int by = 0; by < brickDims_.y; ++by)
-      for (int bx = 0; bx < brickDims_.x; ++bx) {
-        const Int3 b{bx, by, bz};
-        BrickRef old = brick(b);
-        if (!old.data && old.inside == inside) continue;
-        changes.push_back({b, old, BrickRef{nullptr, inside}});
-        slots.emplace_back(b, BrickRef{nullptr, inside});
-      }
-  setSlots(slots);
-  return changes;
-}
-
-void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
-  std::vector<std::pair<Int3, BrickRef>> slots;
-  slots.reserve(changes.size());
-  for (const auto& c : changes) slots.emplace_back(c.brick, forward ? c.after : c.before);
-  setSlots(slots);
-}
-
-void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
-  if (slotsIn.empty()) return;
-  std::vector<std::pair<Int3, BrickRef>> slots = slotsIn;
-  std::stable_sort(slots.begin(), slots.end(),
-                   [&](const auto& a, const auto& b) { return tileIndex(a.first) < tileIndex(b.first); });
+template <class SlotAt>
+void Volume::setSlots(std::size_t n, SlotAt slotAt) {
+  if (n == 0) return;
+  // The slots by tile, in their given order within a tile; sorted as (tile, position) pairs, so
+  // that no BrickRef is copied (each copy of a stored brick is an atomic count).
+  std::vector<std::pair<std::size_t, std::size_t>> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = {tileIndex(slotAt(i).first), i};
+  std::sort(order.begin(), order.end());
   std::size_t i = 0;
-  while (i < slots.size()) {
-    const std::size_t ti = tileIndex(slots[i].first);
+  while (i < n) {
+    const std::size_t ti = order[i].first;
     // Every tile touched by this edit is copied once: readers of older versions keep theirs.
     auto t = std::make_shared<Tile>();
     if (const Tile* old = tiles_[ti].get()) {
@@ -433,9 +444,10 @@ void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
     } else if (tileInside_[ti]) {
       t->inside.set();
     }
-    for (; i < slots.size() && tileIndex(slots[i].first) == ti; ++i) {
-      const int s = slotInTile(slots[i].first);
-      const BrickRef& ref = slots[i].second;
+    for (; i < n && order[i].first == ti; ++i) {
+      const auto [b, refPtr] = slotAt(order[i].second);
+      const int s = slotInTile(b);
+      const BrickRef& ref = *refPtr;
       t->present += (ref.data ? 1 : 0) - (t->bricks[s] ? 1 : 0);
       presentBricks_ += (ref.data ? 1 : 0);
       presentBricks_ -= (t->bricks[s] ? 1 : 0);
@@ -461,6 +473,27 @@ void Volume::setSlots(const std::vector<std::pair<Int3, BrickRef>>& slotsIn) {
       tiles_[ti] = std::move(t);
     }
   }
+}
+
+std::vector<BrickChange> Volume::fill(bool inside) {
+  std::vector<BrickChange> changes;
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        BrickRef old = brick(b);
+        if (!old.data && old.inside == inside) continue;
+        changes.push_back({b, std::move(old), BrickRef{nullptr, inside}});
+      }
+  publish(changes, true);
+  return changes;
+}
+
+void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
+  setSlots(changes.size(), [&](std::size_t i) {
+    const BrickChange& c = changes[i];
+    return std::pair<Int3, const BrickRef*>{c.brick, forward ? &c.after : &c.before};
+  });
 }
 
 }  // namespace marzipan

@@ -26,6 +26,8 @@
 
 namespace marzipan {
 
+class ThreadPool;
+
 struct Brick {
   float v[kBrickVoxels];  // index Bricks::index(local voxel)
 };
@@ -97,9 +99,17 @@ class Volume {
   // Publishes one new brick per brick whose values really changed (a brick that becomes
   // uniform is stored as such) and returns the changes, old bricks included.
   std::vector<BrickChange> scatter(const Box& region, const float* src, const Box& srcBox);
-  // The changes scatter() would publish, without publishing them. Safe to call from several
-  // threads at once on one volume that nobody edits meanwhile.
+  // The same with the comparison (diff) spread over the pool: the same changes in the same order.
+  std::vector<BrickChange> scatter(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool);
+  // The changes scatter() would publish, without publishing them, in z,y,x order of the bricks.
+  // Safe to call from several threads at once on one volume that nobody edits meanwhile. With
+  // a pool, a region of kParallelDiffVoxels or more is compared in fixed pieces (brick layers
+  // along z) on its threads and their changes joined in order: the result does not depend on
+  // the thread count (with NaN in the source it throws as well, whichever piece finds it).
   std::vector<BrickChange> diff(const Box& region, const float* src, const Box& srcBox) const;
+  std::vector<BrickChange> diff(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool) const;
+  // Smaller regions are compared on the calling thread: waking the pool costs more than it saves.
+  static constexpr std::int64_t kParallelDiffVoxels = std::int64_t(1) << 16;
 
   // The slot a newly computed brick becomes, for anything that builds bricks itself: voxels
   // past the domain's edge are set to +band (never read; equal fields get equal bricks), and a
@@ -122,11 +132,18 @@ class Volume {
     int present = 0;
   };
 
-  void setSlots(const std::vector<std::pair<Int3, BrickRef>>& slots);
+  // Sets n slots: slotAt(i) gives the i-th one's brick and a pointer to its new BrickRef. Each
+  // reference is copied once, into its tile (volume.cpp).
+  template <class SlotAt>
+  void setSlots(std::size_t n, SlotAt slotAt);
   // Whether writing src (over srcBox) into `here`, a part of brick b, changes it; old is the
   // brick's voxels, or null when it is uniformly `uniform`. Throws on NaN among the voxels read.
   bool brickChanges(Int3 b, const Box& here, const float* old, float uniform, const float* src,
                     const Box& srcBox) const;
+  // diff() over the bricks of layers [bz0, bz1) of `bricks` (the bricks of r, the clipped region),
+  // appending to out.
+  void diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const float* src, const Box& srcBox,
+                  std::vector<BrickChange>& out) const;
   std::size_t tileIndex(Int3 b) const;
   static int slotInTile(Int3 b);
 

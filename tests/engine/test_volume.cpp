@@ -8,6 +8,7 @@
 #include "engine/errors.hpp"
 #include "engine/measures.hpp"
 #include "engine/solids.hpp"
+#include "engine/thread_pool.hpp"
 #include "support.hpp"
 #include "engine/volume.hpp"
 
@@ -283,4 +284,99 @@ TEST_CASE("diff refuses a NaN in a brick that otherwise would not change", "[vol
   }
   CHECK(v.scatter(b, src.data(), b).empty());
   CHECK(digest(v) == d0);
+}
+
+// A tool's region of 70^3 and more is compared on the pool in brick layers (volume.hpp,
+// kParallelDiffVoxels): the same bricks, in the same order, as the rule says, for any thread count.
+TEST_CASE("diff and scatter on 1, 2 and 3 threads give the bricks of the voxel-by-voxel rule",
+          "[volume][diff][threads]") {
+  // Sides not multiples of 8, a source box sticking out of the domain, a region cut by it and
+  // not aligned to bricks, large enough to be split.
+  const Int3 dims{90, 83, 77};
+  const Volume base = makeSphere(dims, {44.3, 41.1, 37.6}, 30);
+  const Box srcBox{{-3, -2, 1}, {92, 84, 80}};
+  const Box region{{2, -1, 3}, {90, 83, 75}};
+  const Box clipped = region.intersect(base.domain());
+  REQUIRE(clipped.voxels() >= Volume::kParallelDiffVoxels);
+  const float band = base.band();
+  const Int3 ss = srcBox.size();
+  std::vector<float> src(std::size_t(srcBox.voxels()));
+  auto srcAt = [&](Int3 p) -> float& {
+    const Int3 l = p - srcBox.lo;
+    return src[std::size_t(l.x) + std::size_t(ss.x) * (std::size_t(l.y) + std::size_t(ss.y) * std::size_t(l.z))];
+  };
+  // The volume's own values, a blob pushed out on one side (whole bricks change, some become
+  // uniformly inside), and values that clamp back or are -0 for +0 (no change) elsewhere.
+  for (int z = srcBox.lo.z; z < srcBox.hi.z; ++z)
+    for (int y = srcBox.lo.y; y < srcBox.hi.y; ++y)
+      for (int x = srcBox.lo.x; x < srcBox.hi.x; ++x) {
+        float& s = srcAt({x, y, z});
+        s = base.at(x, y, z);
+        const double bump = 14 - std::hypot(x - 70.0, y - 45.0, z - 30.0);
+        if (bump > 0) s -= float(std::min(bump, 4.0));
+        if ((x * 7 + y * 3 + z) % 11 == 0) s = s >= band ? band * 3 : s <= -band ? -band * 3 : s == 0 ? -0.0f : s;
+      }
+  std::vector<Int3> expected;
+  const Box bricks = Bricks::bricksOf(clipped);
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        const Box here = Bricks::box({bx, by, bz}).intersect(clipped);
+        bool differs = false;
+        for (int z = here.lo.z; z < here.hi.z; ++z)
+          for (int y = here.lo.y; y < here.hi.y; ++y)
+            for (int x = here.lo.x; x < here.hi.x; ++x)
+              differs |= std::clamp(srcAt({x, y, z}), -band, band) != base.at(x, y, z);
+        if (differs) expected.push_back({bx, by, bz});
+      }
+  REQUIRE(expected.size() > 20);
+  REQUIRE(expected.front().z != expected.back().z);  // the changes span several pieces
+
+  std::vector<BrickChange> first;
+  std::uint64_t firstDigest = 0;
+  for (const int threads : {1, 2, 3}) {
+    INFO(threads << " threads");
+    ThreadPool pool(threads);
+    const auto listed = base.diff(region, src.data(), srcBox, pool);
+    REQUIRE(listed.size() == expected.size());
+    for (std::size_t i = 0; i < listed.size(); ++i) {
+      CHECK(listed[i].brick == expected[i]);
+      CHECK(listed[i].before == base.brick(expected[i]));
+      if (threads == 1) continue;
+      // The same new bricks as on one thread (equal values; uniform on the same side).
+      const BrickRef& a = first[i].after;
+      const BrickRef& b = listed[i].after;
+      CHECK(a.uniform() == b.uniform());
+      if (a.data && b.data) CHECK(std::memcmp(a.data->v, b.data->v, sizeof(Brick)) == 0);
+      if (!a.data && !b.data) CHECK(a.inside == b.inside);
+    }
+    Volume v = base;
+    const auto changes = v.scatter(region, src.data(), srcBox, pool);
+    CHECK(changes.size() == expected.size());
+    std::size_t wrong = 0;
+    for (int z = 0; z < dims.z; ++z)
+      for (int y = 0; y < dims.y; ++y)
+        for (int x = 0; x < dims.x; ++x) {
+          const Int3 p{x, y, z};
+          const float want = clipped.contains(p) ? std::clamp(srcAt(p), -band, band) : base.at(p);
+          wrong += !(v.at(p) == want);
+        }
+    CHECK(wrong == 0);
+    if (threads == 1) {
+      first = listed;
+      firstDigest = digest(v);
+    } else {
+      CHECK(digest(v) == firstDigest);
+    }
+  }
+
+  // A NaN in a brick that would not change, in the last piece: refused on any thread count,
+  // and nothing is written.
+  srcAt({40, 40, 73}) = std::nanf("");
+  for (const int threads : {1, 2, 3}) {
+    ThreadPool pool(threads);
+    Volume v = base;
+    CHECK_THROWS_AS(v.scatter(region, src.data(), srcBox, pool), EngineError);
+    CHECK(digest(v) == digest(base));
+  }
 }
