@@ -130,14 +130,21 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   bool stopping_ = false;
   std::set<Progress*> runningOps_;
 
-  // A text this short that names "presence" is pumped on the network thread that received it
-  // when its connection is idle (enqueue); a presence is a few hundred bytes.
-  static constexpr std::size_t kMaxInlineBytes = 2048;
-  static bool isPresenceSized(const Incoming& in);
-  // Handles the connection's next message. onCaller: on the thread that enqueued it, where only
-  // a presence is handled; anything else is parsed there and handed to the workers.
-  void pump(const std::shared_ptr<HubClient>& c, bool onCaller = false);
-  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, bool onCaller);
+  // Where a connection's next message is taken and parsed. A small text is handled on the
+  // thread that has the connection in hand: the network thread it arrived on (an idle
+  // connection), or the worker that just finished the message before it (AfterWork). Parsing it
+  // and posting its work to the strand takes microseconds, where a hop through the
+  // workers' queue waited behind every busy session's turn (under load, a round of all the
+  // sessions' applications, for every message). Slow methods (MethodEntry), bigger texts and uploads go to
+  // the workers, as does the next message when this thread is pumping already (a message
+  // answered without work calls finish from inside the pump: no recursion however many wait).
+  enum class PumpOn { Worker, Network, AfterWork };
+  static constexpr std::size_t kMaxInlineBytes = 16 * 1024;
+  static bool isInlineSized(const Incoming& in);
+  // Handles the connection's next message.
+  void pump(const std::shared_ptr<HubClient>& c, PumpOn on);
+  void handle(const std::shared_ptr<HubClient>& c, Incoming in, PumpOn on);
+  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, PumpOn on);
   // A parsed request to its method's handler, through the table.
   void dispatch(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived);
   void handleBinary(const std::shared_ptr<HubClient>& c, Bytes bytes);
