@@ -896,17 +896,7 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
 }
 
 void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
-  requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
-  requireFinite(st.strength, "strength");
-  if (!(st.strength > 0 && st.strength <= 1))
-    throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
-  if (st.height) {
-    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob)
-      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob and remove_blob");
-    const double most = std::min(st.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
-    if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
-      throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
-  }
+  checkStrokeSettings(st);
   for (const StrokeDab& d : dabs) {
     if (!isFinite(d.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
     if (!(d.weight > 0 && d.weight <= 1)) throw EngineError(ErrorKind::InvalidArgument, "weight", "must be in (0, 1]");
@@ -928,6 +918,20 @@ Motion strokeMotion(const StrokeSettings& st) {
 }
 
 }  // namespace
+
+void checkStrokeSettings(const StrokeSettings& st) {
+  requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
+  requireFinite(st.strength, "strength");
+  if (!(st.strength > 0 && st.strength <= 1))
+    throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
+  if (st.height) {
+    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob)
+      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob and remove_blob");
+    const double most = std::min(st.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
+    if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
+      throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
+  }
+}
 
 void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab) {
   checkStroke(vol, st, {&dab, 1});

@@ -95,6 +95,9 @@ struct StrokeDab {
   Vec3 normal;
 };
 
+// Throws EngineError (field "radius", "strength" or "height") for settings applyStroke would
+// refuse whatever its dabs.
+void checkStrokeSettings(const StrokeSettings& st);
 // Throws EngineError (field "center", "weight", "radius", "strength" or "height") for a dab that
 // applyStroke would refuse; the volume is not read beyond its domain.
 void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab);

@@ -6,9 +6,10 @@
 // (service/hub/connection.hpp); one pump task at a time takes the next message, parses it
 // (protocol/cpp/rpc.hpp), finds its method's row and hands the request to its handler, which
 // posts the work to the session's strand. Only when that work has sent its answer does the pump
-// take the next message, so a connection's answers come in request order. The pump runs on the
-// workers, except for a presence arriving on an idle connection: that is handled at once on the
-// network thread that received it (see enqueue).
+// take the next message, so a connection's answers come in request order. A small text is
+// pumped by whoever has the connection in hand (the network thread it arrived on, or the worker
+// that finished the message before it) and a method's work handed to the strand from there
+// (unless it is a slow one); the rest goes through the workers (HubCore::PumpOn).
 #include "service/hub.hpp"
 
 #include <future>
@@ -52,16 +53,29 @@ HubCore::HubCore(HubOptions o)
 
 // --- the connection's queue and pump -------------------------------------------------------------
 
+namespace {
+
+// Pumps running on this thread (HubCore::pump, handle): finish then hands the next message to
+// the workers instead of pumping it inside the one before.
+thread_local int tPumping = 0;
+
+struct Pumping {
+  Pumping() { ++tPumping; }
+  ~Pumping() { --tPumping; }
+  Pumping(const Pumping&) = delete;
+  Pumping& operator=(const Pumping&) = delete;
+};
+
+}  // namespace
+
 void HubCore::enqueue(const std::shared_ptr<HubClient>& c, Incoming in) {
-  const bool mayBePresence = isPresenceSized(in);
+  const bool inlineSized = isInlineSized(in);
   const ConnectionQueue::Admission a = c->queue.push(in, limits(), Clock::now());
-  // A presence on an idle connection is handled here, on the caller's (network) thread: it is
-  // microseconds of parsing and a hand-over to the relay, and at pointer rate from every client
-  // the hop to a worker (a wake-up each) cost more than the handling. Whatever else the message
-  // turns out to be goes to the workers once parsed (handleText).
+  // On an idle connection a small text is parsed here, on the caller's (network) thread, and a
+  // method that is not slow (a presence, a stroke's messages) handed over from here: see PumpOn.
   if (a.start) {
-    if (mayBePresence) pump(c, true);
-    else workers.post([self = shared_from_this(), c] { self->pump(c); });
+    if (inlineSized) pump(c, PumpOn::Network);
+    else workers.post([self = shared_from_this(), c] { self->pump(c, PumpOn::Worker); });
   }
   if (a.queued || a.refusal.empty()) return;
   // Answered at once without queueing, outside the queue's lock: the link may send inline and,
@@ -79,7 +93,9 @@ void HubCore::finish(const std::shared_ptr<HubClient>& c) {
   switch (c->queue.finished()) {
     case ConnectionQueue::Next::Idle: return;
     case ConnectionQueue::Next::Closed: return cleanup(c);
-    case ConnectionQueue::Next::Message: workers.post([self = shared_from_this(), c] { self->pump(c); });
+    case ConnectionQueue::Next::Message:
+      if (tPumping > 0) workers.post([self = shared_from_this(), c] { self->pump(c, PumpOn::Worker); });
+      else pump(c, PumpOn::AfterWork);
   }
 }
 
@@ -93,18 +109,30 @@ void HubCore::cleanup(const std::shared_ptr<HubClient>& c) {
   });
 }
 
-bool HubCore::isPresenceSized(const Incoming& in) {
+bool HubCore::isInlineSized(const Incoming& in) {
   const auto* text = std::get_if<std::string>(&in.message);
-  return text && text->size() <= kMaxInlineBytes && text->find("\"presence\"") != std::string::npos;
+  return text && text->size() <= kMaxInlineBytes;
 }
 
-void HubCore::pump(const std::shared_ptr<HubClient>& c, bool onCaller) {
+void HubCore::pump(const std::shared_ptr<HubClient>& c, PumpOn on) {
+  const Pumping pumping;
   Incoming in;
   switch (c->queue.take(in)) {
     case ConnectionQueue::Next::Idle: return;
     case ConnectionQueue::Next::Closed: return cleanup(c);
     case ConnectionQueue::Next::Message: break;
   }
+  if (on != PumpOn::Worker && !isInlineSized(in)) {
+    workers.post([self = shared_from_this(), c, in = std::move(in)]() mutable {
+      self->handle(c, std::move(in), PumpOn::Worker);
+    });
+    return;
+  }
+  handle(c, std::move(in), on);
+}
+
+void HubCore::handle(const std::shared_ptr<HubClient>& c, Incoming in, PumpOn on) {
+  const Pumping pumping;
   try {
     if (auto* bytes = std::get_if<Bytes>(&in.message)) return volumeUpload(*this, c, std::move(*bytes));
     if (c->load) {
@@ -114,7 +142,7 @@ void HubCore::pump(const std::shared_ptr<HubClient>& c, bool onCaller) {
                 {RpcCode::UploadMissing, "volume.load was not followed by its upload (a kind-9 binary frame with request id " +
                                              std::to_string(load.frameId) + ")", nullptr});
     }
-    handleText(c, std::get<std::string>(in.message), in.arrived, onCaller);
+    handleText(c, std::get<std::string>(in.message), in.arrived, on);
   } catch (...) {
     sendError(*c, json(nullptr), false, failureOf(std::current_exception(), options.events.log));
     finish(c);
@@ -124,15 +152,17 @@ void HubCore::pump(const std::shared_ptr<HubClient>& c, bool onCaller) {
 // --- dispatch --------------------------------------------------------------------------------------
 
 void HubCore::handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived,
-                         bool onCaller) {
+                         PumpOn on) {
   protocol::ParsedRequest parsed = protocol::parseRequest(text);
   if (!parsed.request) {
     const protocol::RpcError& e = *parsed.error;
     sendError(*c, e.id, e.notification, {e.code, e.message, e.data});
     return finish(c);
   }
-  if (onCaller && parsed.request->method != protocol::Method::Presence) {
+  const MethodEntry* method = findMethod(parsed.request->method);
+  if (on != PumpOn::Worker && (!method || method->slow)) {
     workers.post([self = shared_from_this(), c, req = std::move(*parsed.request), arrived] {
+      const Pumping pumping;
       try {
         self->dispatch(c, req, arrived);
       } catch (...) {

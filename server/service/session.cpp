@@ -230,13 +230,12 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
   if (!known) invalid("tool", "is not a brush tool");
   if (!std::isfinite(radius) || radius < protocol::kMinToolRadius || radius > protocol::kMaxToolRadius)
     invalid("radius", "must be a number of vu in [0.5, 1024]");
-  if (!std::isfinite(strength) || strength <= 0 || strength > 1) invalid("strength", "must be in (0, 1]");
-  if (height) {
-    if (tool != protocol::BrushTool::AddBlob && tool != protocol::BrushTool::RemoveBlob)
-      invalid("height", "is only for add_blob and remove_blob");
-    if (accumulate) invalid("height", "is for strokes that remember what they applied, not for accumulating ones");
-    if (!std::isfinite(*height) || *height <= 0 || *height > std::min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight))
-      invalid("height", "must be in (0, min(radius / 2, 64)] vu");
+  if (height && accumulate) invalid("height", "is for strokes that remember what they applied, not for accumulating ones");
+  // The strength and the height as the engine will check every message's dabs (one check).
+  try {
+    checkStrokeSettings(StrokeSettings{engineBrush(tool), radius, strength, height});
+  } catch (const EngineError& e) {
+    rethrow(e, "");
   }
   if (strokes_.size() >= kMaxOpenStrokes)
     throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",

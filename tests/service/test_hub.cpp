@@ -471,6 +471,114 @@ TEST_CASE("the requester gets its response, then the notification, then the delt
   CHECK(note < delta);
 }
 
+TEST_CASE("an edit reaches its session's strand from the thread that takes it, never through the workers' queue",
+          "[hub]") {
+  // Under load every task in the workers' queue waits behind each busy session's turn: a hop
+  // there before the strand doubled a message's wait. HubEvents::request runs in the dispatch,
+  // on the thread that hands the request to its handler.
+  std::mutex mutex;
+  std::vector<std::pair<std::string, std::thread::id>> dispatched;
+  HubOptions o = smallOptions();
+  o.events.request = [&](std::string_view method) {
+    const std::lock_guard lock(mutex);
+    dispatched.emplace_back(std::string(method), std::this_thread::get_id());
+  };
+  const auto dispatcherOf = [&](std::size_t k) {
+    const std::lock_guard lock(mutex);
+    REQUIRE(k < dispatched.size());
+    CHECK(dispatched[k].first == "tool.apply");
+    return dispatched[k].second;
+  };
+  const auto count = [&] {
+    const std::lock_guard lock(mutex);
+    return dispatched.size();
+  };
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate64);
+  // On an idle connection: by the thread that hands the message over (the network's). The
+  // worker lets the connection go a moment after its answer, so the test waits before sending,
+  // and a loaded machine may still be slower than that now and then: one round in five must.
+  int onCaller = 0;
+  for (int round = 0; round < 5; ++round) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const std::size_t k = count();
+    a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 3}});
+    onCaller += dispatcherOf(k) == std::this_thread::get_id();
+  }
+  CHECK(onCaller >= 1);
+  // Queued behind an edit: by the worker that answered that edit, right after answering.
+  int afterAnswer = 0;
+  for (int round = 0; round < 5; ++round) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const std::size_t k = count(), mark = a.link->size();
+    const int first = 100 + 2 * round, second = first + 1;
+    const auto send = [&](int id, double x) {
+      hub.text(a.client, json{{"jsonrpc", "2.0"},
+                              {"id", id},
+                              {"method", "tool.apply"},
+                              {"params", {{"tool", "smooth"}, {"center", {x, 54, 32}}, {"radius", 10}}}}
+                             .dump());
+    };
+    send(first, 28);
+    send(second, 36);
+    const std::size_t answered = a.link->waitFor([&](const auto& m) { return isResponse(m, first); }, mark);
+    a.link->waitFor([&](const auto& m) { return isResponse(m, second); }, mark);
+    std::thread::id answerer;
+    {
+      const std::lock_guard lock(a.link->mutex);
+      answerer = a.link->senders[answered];
+    }
+    // Or by the test's thread, when the first was done before the second arrived (a loaded
+    // machine); never by another worker.
+    const std::thread::id d = dispatcherOf(k + 1);
+    CHECK((d == answerer || d == std::this_thread::get_id()));
+    afterAnswer += d == answerer;
+  }
+  CHECK(afterAnswer >= 1);
+}
+
+TEST_CASE("stroke.begin and stroke.end go ahead of the other connections' edits waiting on the strand", "[hub]") {
+  // A client holds its stroke's dabs until stroke.begin answers: under load a begin or end that
+  // waited behind every other connection's edit delayed the stroke's first dabs by as much.
+  Hub hub(smallOptions());
+  TestClient a(hub), b(hub), c(hub), d(hub);
+  const json created = a.result("session.create", kCreate64);
+  for (TestClient* t : {&b, &c, &d})
+    t->result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  const auto apply = [&](TestClient& t, int id, double x) {
+    hub.text(t.client, json{{"jsonrpc", "2.0"},
+                            {"id", id},
+                            {"method", "tool.apply"},
+                            {"params", {{"tool", "add_blob"}, {"center", {x, 54, 32}}, {"radius", 6}}}}
+                           .dump());
+  };
+  const auto revisionOf = [](TestClient& t, int id) {
+    const json r = std::get<json>(t.link->at(t.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+    REQUIRE(r.contains("result"));
+    return r["result"]["revision"].get<std::uint64_t>();
+  };
+  // Each round: three edits of three connections are handed to the strand, in this order, by
+  // these calls (the thread that takes a message hands it over); then a's stroke.end. It goes
+  // ahead of c's and d's edits at least (b's may be running), unless this thread was held up
+  // long enough for c's to be done (a loaded machine): one round in five must show it.
+  int ahead = 0;
+  for (int round = 0; round < 5; ++round) {
+    const std::uint64_t stroke =
+        a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}, {"strength", 0.5}})["stroke"];
+    const int id = 900 + 3 * round;
+    apply(b, id, 24);
+    apply(c, id + 1, 32);
+    apply(d, id + 2, 40);
+    const json ended = a.result("stroke.end", {{"stroke", stroke}});
+    const std::uint64_t rb = revisionOf(b, id), rc = revisionOf(c, id + 1), rd = revisionOf(d, id + 2);
+    CHECK(rb < rc);
+    CHECK(rc < rd);
+    ahead += ended["revision"].get<std::uint64_t>() < rc;
+  }
+  CHECK(ahead >= 1);
+}
+
 TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh full buffer", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);

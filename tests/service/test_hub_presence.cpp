@@ -243,10 +243,10 @@ TEST_CASE("a presence on an idle connection is handled at once by the thread tha
   CHECK(std::get<json>(a.link->at(a.link->waitFor([](const auto& m) { return isResponse(m, 51); })))["error"]["code"] == -32602);
   // The valid one reached b.
   b.link->waitFor([](const auto& m) { return isNotification(m, "presence"); });
-  // Another method whose text says "presence" is handled by a worker, even its refusal of bad
-  // params (which session.stats checks before any work).
+  // A slow method (one that may load a session) whose text says "presence" is handled by a
+  // worker, even its refusal of bad params (which session.join checks before any work).
   const std::size_t mark = a.link->size();
-  hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", "presence"}, {"method", "session.stats"}, {"params", {{"x", 1}}}}.dump());
+  hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", "presence"}, {"method", "session.join"}, {"params", {{"x", 1}}}}.dump());
   const std::size_t at = a.link->waitFor([](const auto& m) { return isResponse(m, "presence"); }, mark);
   const std::lock_guard lock(a.link->mutex);
   CHECK(std::get<json>(a.link->messages[at])["error"]["code"] == -32602);

@@ -7,13 +7,16 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "engine/level_set.hpp"
 #include "engine/measures.hpp"
 #include "engine/progress.hpp"
 #include "engine/solids.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "service/apply_op.hpp"
 #include "service/session.hpp"
 
 using namespace marzipan;
@@ -172,6 +175,49 @@ TEST_CASE("session: the history budget drops the oldest steps", "[session]") {
   while (s.canUndo()) s.undo();
   CHECK(digest(s.volume()) != digest(sphere()));  // the oldest steps are gone for good
   CHECK(s.stats().historyBytes == s.history().bytes());
+}
+
+TEST_CASE("session: beginStroke refuses exactly the strokes the engine would, -32602 naming the field", "[session]") {
+  // The strength and height bounds are the engine's own check (one place): whatever it refuses
+  // is refused here when the stroke begins, before any dab; what it takes, a stroke may use.
+  Session s(sphere());
+  ThreadPool pool(1);
+  const std::optional<double> heights[] = {std::nullopt, 0.0, -1.0, 0.5, 2.0, 2.0001, 4.0, 5.0, 64.0, 64.5,
+                                           std::numeric_limits<double>::quiet_NaN()};
+  int refused = 0, taken = 0;
+  for (const BrushTool tool : {BrushTool::AddBlob, BrushTool::RemoveBlob, BrushTool::Smooth})
+    for (const double radius : {4.0, 8.0, 200.0})
+      for (const double strength : {0.0, 0.5, 1.0, 1.5})
+        for (const std::optional<double>& height : heights) {
+          std::string engineField;
+          try {
+            checkStrokeDab(s.volume(), StrokeSettings{engineBrush(tool), radius, strength, height},
+                           StrokeDab{{kC, kC, kC}, 1, {}});
+          } catch (const EngineError& e) {
+            engineField = e.field();
+          }
+          INFO(int(tool) << " r " << radius << " strength " << strength << " height " << height.value_or(-99));
+          try {
+            const StrokeId id = s.beginStroke(tool, radius, strength, {}, false, {}, height);
+            CHECK(engineField.empty());
+            s.endStroke(id);
+            ++taken;
+          } catch (const ServiceError& e) {
+            CHECK(e.code() == protocol::RpcCode::InvalidParams);
+            CHECK(e.field() == engineField);
+            ++refused;
+          }
+        }
+  CHECK(refused > 0);
+  CHECK(taken > 0);
+  // What the engine does not know: an accumulating stroke has no height.
+  try {
+    s.beginStroke(BrushTool::AddBlob, 8, 0.5, {}, true, {}, 2.0);
+    FAIL("an accumulating stroke with a height was begun");
+  } catch (const ServiceError& e) {
+    CHECK(e.code() == protocol::RpcCode::InvalidParams);
+    CHECK(e.field() == "height");
+  }
 }
 
 TEST_CASE("session: a stroke interrupted by another change continues as a new step", "[session]") {

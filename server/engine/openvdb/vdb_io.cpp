@@ -12,6 +12,7 @@
 #include <ostream>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <openvdb/openvdb.h>
@@ -105,9 +106,9 @@ Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, cons
 // one. Only the layouts of file versions 222 (OpenVDB 3) to this OpenVDB's own are accepted.
 class FirstFloatGrid {
  public:
-  explicit FirstFloatGrid(std::string file) : file_(std::move(file)) {}
+  explicit FirstFloatGrid(std::string_view file) : file_(file) {}
 
-  // The bytes to hand OpenVDB's stream reader.
+  // The bytes to hand OpenVDB's stream reader (the one copy of the file's bytes).
   std::string cut() {
     if (u64() != std::uint64_t(openvdb::OPENVDB_MAGIC)) fail("not a .vdb file (no OpenVDB magic number)");
     const std::uint32_t version = u32();
@@ -125,7 +126,7 @@ class FirstFloatGrid {
     for (std::int32_t i = 0; i < grids; ++i) {
       const std::size_t descriptorAt = at_;
       string();  // unique name
-      const std::string type = string();
+      const std::string_view type = string();
       string();  // instance parent
       skip(8 + 8);  // grid and block offsets
       const std::uint64_t end = u64();
@@ -134,13 +135,17 @@ class FirstFloatGrid {
       const bool isFloat = type == openvdb::FloatGrid::gridType() || type == openvdb::FloatGrid::gridType() + "_HalfFloat";
       if (isFloat || !offsets) {
         if (!isFloat)
-          fail("its first grid holds " + type + ", not floats, and without grid offsets no later grid can be found");
+          fail("its first grid holds " + std::string(type) + ", not floats, and without grid offsets no later grid can be found");
         skip(4);  // the grid's compression flags
         metaMap();
         string();  // the transform's map type
-        std::string out = file_.substr(0, countAt);
+        const std::string_view grid =
+            file_.substr(descriptorAt, offsets ? std::size_t(end) - descriptorAt : std::string_view::npos);
+        std::string out;
+        out.reserve(countAt + 4 + grid.size());
+        out.append(file_.substr(0, countAt));
         for (int b = 0; b < 4; ++b) out.push_back(char(b == 0 ? 1 : 0));
-        out.append(file_, descriptorAt, offsets ? std::size_t(end) - descriptorAt : std::string::npos);
+        out.append(grid);
         return out;
       }
       at_ = std::size_t(end);
@@ -167,10 +172,10 @@ class FirstFloatGrid {
   std::uint8_t byte() { return std::uint8_t(read(1)); }
   std::uint32_t u32() { return std::uint32_t(read(4)); }
   std::uint64_t u64() { return read(8); }
-  std::string string() {
+  std::string_view string() {
     const std::uint32_t n = u32();
     if (n > left()) fail("a name declares " + std::to_string(n) + " bytes, more than the file holds");
-    std::string s = file_.substr(at_, n);
+    const std::string_view s = file_.substr(at_, n);
     at_ += n;
     return s;
   }
@@ -186,8 +191,31 @@ class FirstFloatGrid {
     }
   }
 
-  std::string file_;
+  std::string_view file_;
   std::size_t at_ = 0;
+};
+
+// A read-only stream buffer over bytes held elsewhere, seekable like an istringstream's (which
+// would copy them).
+class ViewBuf : public std::streambuf {
+ public:
+  explicit ViewBuf(std::string_view s) {
+    char* p = const_cast<char*>(s.data());
+    setg(p, p, p + s.size());
+  }
+
+ protected:
+  pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode which) override {
+    if (!(which & std::ios_base::in)) return pos_type(off_type(-1));
+    const off_type size = egptr() - eback();
+    const off_type base = dir == std::ios_base::beg ? 0 : dir == std::ios_base::cur ? gptr() - eback() : size;
+    if (off < -base || off > size - base) return pos_type(off_type(-1));
+    setg(eback(), eback() + (base + off), egptr());
+    return pos_type(base + off);
+  }
+  pos_type seekpos(pos_type pos, std::ios_base::openmode which) override {
+    return seekoff(off_type(pos), std::ios_base::beg, which);
+  }
 };
 
 }  // namespace
@@ -226,9 +254,15 @@ Volume loadVdb(const std::string& path, Int3 dims, float band) {
 }
 
 Volume loadVdb(std::istream& in, Int3 dims, float band) {
+  const std::string file{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  return loadVdb(std::span(reinterpret_cast<const std::uint8_t*>(file.data()), file.size()), dims, band);
+}
+
+Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band) {
   initialize();
-  std::string file{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  std::istringstream grid(FirstFloatGrid(std::move(file)).cut());
+  const std::string cut = FirstFloatGrid(std::string_view(reinterpret_cast<const char*>(file.data()), file.size())).cut();
+  ViewBuf buffer(cut);
+  std::istream grid(&buffer);
   // A read past the end throws at once: OpenVDB's loops over declared counts (tiles, children)
   // would otherwise go on over a failed stream, allocating a node for each.
   grid.exceptions(std::ios::failbit | std::ios::badbit);

@@ -11,7 +11,9 @@
 // stream is OpenVDB's stream layout (io::Stream), which io::Stream reads back.
 #pragma once
 
+#include <cstdint>
 #include <iosfwd>
+#include <span>
 #include <string>
 
 #include "engine/volume.hpp"
@@ -39,5 +41,8 @@ Volume loadVdb(const std::string& path, Int3 dims, float band = Volume::kDefault
 // times the bytes that describe it (an internal node of 32 KiB per 1 KiB of masks), so the
 // memory of a read is bounded by that multiple of the upload.
 Volume loadVdb(std::istream& in, Int3 dims, float band = Volume::kDefaultBand);
+// The same from a whole .vdb file in memory (a client's upload): the bytes OpenVDB is shown (the
+// header and the one grid) are the only copy made of it.
+Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band = Volume::kDefaultBand);
 
 }  // namespace marzipan

@@ -95,11 +95,14 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // Runs fn on the strand of c's session: checks the session is open and (for Access::Editor)
   // that c may edit, journals r.record, sends r.frame and the result, runs r.after, then lets
   // the connection's next message start. editLatency: report it to HubEvents::editLatency.
-  void onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn);
+  // lane Quick: a short task that goes ahead of the strand's waiting ones (Strand::Lane).
+  void onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn,
+                Strand::Lane lane = Strand::Lane::Normal);
   // The same on the strand of s, which c need not be a client of (yet): session.create/join,
   // and the upload of a volume.load.
   void onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<nlohmann::json>& id,
-                Clock::time_point arrived, bool editLatency, Access access, std::function<void(LiveSession&, Reply&)> fn);
+                Clock::time_point arrived, bool editLatency, Access access, std::function<void(LiveSession&, Reply&)> fn,
+                Strand::Lane lane = Strand::Lane::Normal);
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports, measures), answers and lets the connection go on. atStrand, when given, starts
   // the reply on the strand with what needs the live session. at: the snapshot is the volume
@@ -130,14 +133,21 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   bool stopping_ = false;
   std::set<Progress*> runningOps_;
 
-  // A text this short that names "presence" is pumped on the network thread that received it
-  // when its connection is idle (enqueue); a presence is a few hundred bytes.
-  static constexpr std::size_t kMaxInlineBytes = 2048;
-  static bool isPresenceSized(const Incoming& in);
-  // Handles the connection's next message. onCaller: on the thread that enqueued it, where only
-  // a presence is handled; anything else is parsed there and handed to the workers.
-  void pump(const std::shared_ptr<HubClient>& c, bool onCaller = false);
-  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, bool onCaller);
+  // Where a connection's next message is taken and parsed. A small text is handled on the
+  // thread that has the connection in hand: the network thread it arrived on (an idle
+  // connection), or the worker that just finished the message before it (AfterWork). Parsing it
+  // and posting its work to the strand takes microseconds, where a hop through the
+  // workers' queue waited behind every busy session's turn (under load, a round of all the
+  // sessions' applications, for every message). Slow methods (MethodEntry), bigger texts and uploads go to
+  // the workers, as does the next message when this thread is pumping already (a message
+  // answered without work calls finish from inside the pump: no recursion however many wait).
+  enum class PumpOn { Worker, Network, AfterWork };
+  static constexpr std::size_t kMaxInlineBytes = 16 * 1024;
+  static bool isInlineSized(const Incoming& in);
+  // Handles the connection's next message.
+  void pump(const std::shared_ptr<HubClient>& c, PumpOn on);
+  void handle(const std::shared_ptr<HubClient>& c, Incoming in, PumpOn on);
+  void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, PumpOn on);
   // A parsed request to its method's handler, through the table.
   void dispatch(const std::shared_ptr<HubClient>& c, const protocol::Request& req, Clock::time_point arrived);
   void handleBinary(const std::shared_ptr<HubClient>& c, Bytes bytes);

@@ -10,8 +10,8 @@ using protocol::Method;
 namespace {
 
 constexpr std::array<MethodEntry, 22> kMethods{{
-    {Method::SessionCreate, Access::Anyone, sessionCreate},
-    {Method::SessionJoin, Access::Anyone, sessionJoin},
+    {Method::SessionCreate, Access::Anyone, sessionCreate, true},
+    {Method::SessionJoin, Access::Anyone, sessionJoin, true},
     {Method::SessionLeave, Access::Member, sessionLeave},
     {Method::SessionStats, Access::Member, sessionStats},
     {Method::ToolApply, Access::Editor, toolApply},
@@ -26,7 +26,7 @@ constexpr std::array<MethodEntry, 22> kMethods{{
     {Method::SplatsGet, Access::Member, splatsGet},
     {Method::MeshExport, Access::Member, meshExport},
     {Method::VolumeSave, Access::Member, volumeSave},
-    {Method::VolumeLoad, Access::Editor, volumeLoad},
+    {Method::VolumeLoad, Access::Editor, volumeLoad, true},
     {Method::AnalysisThickness, Access::Member, analysisThickness},
     // Spelled so that Hub::text did not see it (escapes); see opCancel.
     {Method::OpCancel, Access::Anyone, opCancel},

@@ -91,30 +91,22 @@ Bytes volumeFileBytes(const Volume& vol, protocol::VolumeFormat f) {
   return saveVolume(vol);
 }
 
-#ifdef MARZIPAN_HAS_OPENVDB
-// A read-only stream over bytes held elsewhere (loadVdb takes a stream; it keeps the one copy
-// it cuts the grid from).
-class BytesBuf : public std::streambuf {
- public:
-  explicit BytesBuf(const Bytes& b) {
-    char* p = const_cast<char*>(reinterpret_cast<const char*>(b.data()));
-    setg(p, p, p + b.size());
-  }
-};
-#endif
-
 // A .vdb upload holds distances by index: it takes the session's grid size and band.
-Volume volumeFromFile(const Bytes& file, protocol::VolumeFormat f, Int3 dims, float band) {
+Volume volumeFromFile(std::span<const std::uint8_t> file, protocol::VolumeFormat f, Int3 dims, float band) {
 #ifdef MARZIPAN_HAS_OPENVDB
-  if (f == protocol::VolumeFormat::Vdb) {
-    BytesBuf buf(file);
-    std::istream in(&buf);
-    return loadVdb(in, dims, band);
-  }
+  if (f == protocol::VolumeFormat::Vdb) return loadVdb(file, dims, band);
 #endif
   (void)f, (void)dims, (void)band;
   return ::marzipan::loadVolume(file);
 }
+
+// An upload's file, read where it lies in the frame that brought it (after the frame's header);
+// a .vdb's is replaced by the .mzv the journal keeps.
+struct UploadFile {
+  Bytes bytes;
+  std::size_t from = 0;
+  std::span<const std::uint8_t> file() const { return std::span(bytes).subspan(from); }
+};
 
 }  // namespace
 
@@ -229,14 +221,13 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                    nullptr});
     return hub.finish(c);
   }
-  auto payload = std::make_shared<Bytes>(bytes.begin() + protocol::kFrameHeaderBytes, bytes.end());
-  bytes.clear();
+  auto upload = std::make_shared<UploadFile>(UploadFile{std::move(bytes), protocol::kFrameHeaderBytes});
   // The edit right was checked when the volume.load was accepted.
-  hub.onStrand(c, c->session, load.id, load.arrived, true, Access::Member, [self = hub.shared_from_this(), c, payload,
+  hub.onStrand(c, c->session, load.id, load.arrived, true, Access::Member, [self = hub.shared_from_this(), c, upload,
                                                                                format = load.format](LiveSession& s,
                                                                                                      Reply& r) {
     const std::size_t maxVolume = self->limits().maxVolumeBytes;
-    Volume vol = volumeFromFile(*payload, format, s.session->volume().dims(), s.session->volume().band());
+    Volume vol = volumeFromFile(upload->file(), format, s.session->volume().dims(), s.session->volume().band());
     if (vol.memoryBytes() > maxVolume)
       throw RpcException(RpcCode::LimitExceeded,
                          "the file's volume holds " + std::to_string(vol.memoryBytes()) +
@@ -256,13 +247,13 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                              std::to_string(s.session->volume().band()) + " vu; save it with the session's band",
                          {{"field", "file"}});
     // The journal keeps every load as a .mzv (a server without OpenVDB replays it too).
-    if (format == protocol::VolumeFormat::Vdb) *payload = saveVolume(vol);
+    if (format == protocol::VolumeFormat::Vdb) *upload = UploadFile{saveVolume(vol), 0};
     const StepAuthor by = authorOf(*c);
     ApplyResult a = s.session->load(std::move(vol), by);
     a.fullRefresh = true;
     const std::optional<StepInfo> step = s.session->newestStep();
-    r.record = [self, &s, payload, rev = a.revision, by, t = step ? step->timeMs : 0] {
-      json rec{{"r", rev}, {"load", self->store->persistent() ? self->store->saveUpload(s.id, rev, *payload) : std::string()}};
+    r.record = [self, &s, upload, rev = a.revision, by, t = step ? step->timeMs : 0] {
+      json rec{{"r", rev}, {"load", self->store->persistent() ? self->store->saveUpload(s.id, rev, upload->file()) : std::string()}};
       stampRecord(rec, by, t);
       return rec;
     };
