@@ -209,6 +209,60 @@ MARZIPAN_BENCH("stroke16_height4") {
         {"ratio_to_no_height", four.median_ms / one.median_ms}});
 }
 
+// A stroke dragged as the web client sends it (tests/load/marzipan_load.py's web-client mode): a
+// dab per 60 Hz pointer event, 0.63 vu apart along a great circle of the sphere, merged into
+// messages of 12, radius 7; each message carries the stroke's memory of the dabs it applied
+// before (up to 60 here, as the server keeps them). Without a height, and with the height the
+// web client asks for at strength 0.5 (radius / 4). Every message of every stroke is timed.
+MARZIPAN_BENCH("stroke_drag") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  constexpr double r = 7, spacing = 0.63;
+  constexpr int perMessage = 12, messages = 6;
+  const int strokes = opt.quick ? 1 : 12;
+  std::mt19937 rng{8};
+  std::normal_distribution<double> gauss;
+  for (const double height : {0.0, r / 4}) {
+    Volume v = makeSphere(s.dims, s.centre, s.radius);
+    const StrokeSettings st = height == 0 ? StrokeSettings{Brush::AddBlob, r, 1}
+                                          : StrokeSettings{Brush::AddBlob, r, 1, height};
+    std::vector<Timing> perStroke;
+    std::vector<double> ms, cpu;
+    for (int k = 0; k < strokes; ++k) {
+      const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+      const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
+      std::vector<StrokeDab> memory, dabs;
+      int placed = 0;
+      const Timing t = measure(
+          messages,
+          [&] {
+            memory.insert(memory.end(), dabs.begin(), dabs.end());
+            dabs.clear();
+            for (int i = 0; i < perMessage; ++i, ++placed) {
+              const double angle = spacing * placed / s.radius;
+              const Vec3 n = normalized(dir * std::cos(angle) + along * std::sin(angle));
+              dabs.push_back({s.centre + n * s.radius, 1.0, n});
+            }
+          },
+          [&] { applyStroke(v, st, dabs, memory, pool); });
+      perStroke.push_back(t);
+      ms.push_back(t.median_ms);
+      cpu.push_back(t.cpu_median_ms);
+    }
+    std::sort(ms.begin(), ms.end());
+    std::sort(cpu.begin(), cpu.end());
+    Timing t;
+    t.median_ms = ms[ms.size() / 2];
+    t.min_ms = ms.front();
+    t.max_ms = ms.back();
+    t.reps = strokes * messages;
+    t.cpu_median_ms = cpu[cpu.size() / 2];
+    emit("stroke_drag", opt.threads, t,
+         {{"radius", r}, {"height", height}, {"dabs_per_message", perMessage}, {"messages_per_stroke", messages},
+          {"spacing", spacing}, {"ms_per_dab", t.median_ms / perMessage}, {"cpu_ms_per_dab", t.cpu_median_ms / perMessage}});
+  }
+}
+
 MARZIPAN_BENCH("mcf_global") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);
