@@ -173,6 +173,10 @@ class SweptWindow {
         while (last < count && lo[last] <= xd) ++last;
       }
     } dabLanes, memoryLanes;
+    // Without a height, the memory dab (index into memory_) last found to reach the message's
+    // window at a voxel: tried first at the next (behind a stroke's new dabs, the memory
+    // mostly reaches them, and one dab near the voxel shows it).
+    std::size_t reached = std::numeric_limits<std::size_t>::max();
 #endif
   };
 
@@ -263,6 +267,44 @@ class SweptWindow {
     }
     return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
   }
+
+  // The memory's part of search: the largest window over the row's memory dabs whose ROI holds
+  // x, or, as soon as one reaches w, that one's window (w less it is <= 0 like w less the
+  // largest, and the voxel does not move). The dab that reached w last is tried first, alone:
+  // its window is window's operations in window's order, the lanes' bits.
+  double memoryLargest(Cursor& c, Int3 p, Vec3 q, double w) const {
+    if (c.reached < memory_.size()) {
+      const PreparedDab& d = memory_[c.reached];
+      if (d.roi.contains(p)) {
+        const double m = window(d, q, {}, 0);
+        if (m >= w) return m;
+      }
+    }
+    Cursor::Lanes& l = c.memoryLanes;
+    l.at(p.x);
+    const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(p.x));
+    const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff)), enough = _mm_set1_pd(w);
+    const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
+    __m128d best = _mm_setzero_pd();
+    for (std::size_t j = l.first; j < l.last; j += 2) {
+      __m128d m = _mm_loadu_pd(l.weight.data() + j);
+      for (int a = 0; a < 3; ++a) {
+        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
+        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+        m = _mm_mul_pd(m, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+      }
+      const __m128d inside =
+          _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
+      m = _mm_and_pd(inside, m);
+      if (const int hit = _mm_movemask_pd(_mm_cmpge_pd(m, enough))) {
+        const std::size_t lane = hit & 1 ? 0 : 1;
+        c.reached = c.memory[j + lane];
+        return lane == 0 ? _mm_cvtsd_f64(m) : _mm_cvtsd_f64(_mm_unpackhi_pd(m, m));
+      }
+      best = _mm_max_pd(best, m);
+    }
+    return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
+  }
 #endif
 
   [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
@@ -273,7 +315,7 @@ class SweptWindow {
       // reaches it (the value the scalar search gives).
       const double w = lanesLargest(c.dabLanes, p.x, q);
       if (w <= 0 || c.memory.empty()) return w;
-      return w - lanesLargest(c.memoryLanes, p.x, q);
+      return w - memoryLargest(c, p, q, w);
     }
 #endif
     const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
