@@ -121,9 +121,14 @@ class SweptWindow {
     // last ones the stroke applied, so the search below mostly ends after a few.
     std::reverse(memory_.begin(), memory_.end());
 #if defined(__SSE2__)
-    // Without a height, SSE2 searches the dabs whose ROI holds the voxel in full: ordered by
-    // their centres' x, their ROIs' x ranges come in order too (Cursor::Lanes).
-    if (anchor_ == 0) {
+    // SSE2 searches the dabs whose ROI holds the voxel in full: ordered by their centres' x,
+    // their ROIs' x ranges come in order too (Cursor::Lanes). With a height, only when every
+    // dab has its own normal (a dab without one reads the voxel's: the scalar search).
+    lanes_ = true;
+    if (anchor_ != 0)
+      for (const auto* v : {&dabs_, &memory_})
+        for (const PreparedDab& d : *v) lanes_ = lanes_ && d.normal != Vec3{};
+    if (lanes_) {
       for (auto* v : {&dabs_, &memory_})
         std::stable_sort(v->begin(), v->end(),
                          [](const PreparedDab& a, const PreparedDab& b) { return a.center.x < b.center.x; });
@@ -153,14 +158,18 @@ class SweptWindow {
     // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
     // two at a time in full (search).
     struct Lanes {
-      std::vector<double> center[3], weight, lo, hi;  // hi: one past the ROI's last x
-      std::size_t count = 0, first = 0, last = 0;     // count: the row's dabs, without the pad
+      std::vector<double> center[3], normal[3], weight, lo, hi;  // hi: one past the ROI's last x
+      std::size_t count = 0, first = 0, last = 0;  // count: the row's dabs, without the pad
       void clear() {
-        for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->clear();
+        for (auto* v : {&center[0], &center[1], &center[2], &normal[0], &normal[1], &normal[2], &weight, &lo, &hi})
+          v->clear();
         count = first = last = 0;
       }
       void push(const PreparedDab& d) {
-        for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
+        for (int a = 0; a < 3; ++a) {
+          center[a].push_back(d.center[a]);
+          normal[a].push_back(d.normal[a]);
+        }
         weight.push_back(d.weight);
         lo.push_back(d.roi.lo.x);
         hi.push_back(d.roi.hi.x);
@@ -173,7 +182,7 @@ class SweptWindow {
         while (last < count && lo[last] <= xd) ++last;
       }
     } dabLanes, memoryLanes;
-    // Without a height, the memory dab (index into memory_) last found to reach the message's
+    // The memory dab (index into memory_) last found to reach the message's
     // window at a voxel: tried first at the next (behind a stroke's new dabs, the memory
     // mostly reaches them, and one dab near the voxel shows it).
     std::size_t reached = std::numeric_limits<std::size_t>::max();
@@ -229,7 +238,7 @@ class SweptWindow {
       c.xHi = std::max(c.xHi, dabs_[i].roi.hi.x);
     }
 #if defined(__SSE2__)
-    if (anchor_ == 0) {
+    if (lanes_) {
       auto lanes = [](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, Cursor::Lanes& out) {
         out.clear();
         for (const std::uint32_t i : row) out.push(dabs[i]);
@@ -243,59 +252,78 @@ class SweptWindow {
   }
 
 #if defined(__SSE2__)
-  // The largest window over the lanes' dabs whose ROI holds x, or 0: window's operations in
-  // its order in each lane (the three factors multiplied out even after one is 0, which leaves
-  // 0, and past the point where window would stop, which only lowers a value that is not the
-  // largest), so the largest is the same bits. Only the range of dabs whose ROI holds x is
-  // read (a pair's second lane past it is a dab whose ROI does not hold x, or the pad: masked).
-  double lanesLargest(Cursor::Lanes& l, int x, Vec3 q) const {
-    l.at(x);
-    const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(x));
+  // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na) for a voxel at
+  // x (xd), 0 for a dab whose ROI does not hold x: window's operations in its order in each lane
+  // (the three factors multiplied out even after one is 0, which leaves 0, and past the point
+  // where window would stop, which only lowers a value that is not the largest; the clamp's
+  // zero may differ in sign, which moves no factor), so the largest is the same bits.
+  template <bool kAnchored>
+  [[gnu::always_inline]] __m128d pairWindows(const Cursor::Lanes& l, std::size_t j, const __m128d qa[3],
+                                             const __m128d na[3], __m128d xd) const {
+    const __m128d one = _mm_set1_pd(1.0), zero = _mm_setzero_pd(), invR = _mm_set1_pd(inverseRadius_);
     const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
-    const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
-    __m128d best = _mm_setzero_pd();
-    for (std::size_t j = l.first; j < l.last; j += 2) {
-      __m128d w = _mm_loadu_pd(l.weight.data() + j);
-      for (int a = 0; a < 3; ++a) {
-        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
-        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
-        w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
-      }
-      const __m128d inside =
-          _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
-      best = _mm_max_pd(best, _mm_and_pd(inside, w));
+    const __m128d c[3] = {_mm_loadu_pd(l.center[0].data() + j), _mm_loadu_pd(l.center[1].data() + j),
+                          _mm_loadu_pd(l.center[2].data() + j)};
+    __m128d w = _mm_loadu_pd(l.weight.data() + j);
+    __m128d x[3] = {qa[0], qa[1], qa[2]};
+    if constexpr (kAnchored) {
+      const __m128d axis[3] = {_mm_loadu_pd(l.normal[0].data() + j), _mm_loadu_pd(l.normal[1].data() + j),
+                               _mm_loadu_pd(l.normal[2].data() + j)};
+      const __m128d facing =
+          _mm_add_pd(_mm_add_pd(_mm_mul_pd(axis[0], na[0]), _mm_mul_pd(axis[1], na[1])), _mm_mul_pd(axis[2], na[2]));
+      w = _mm_mul_pd(w, _mm_max_pd(facing, zero));
+      const __m128d along =
+          _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_sub_pd(qa[0], c[0]), axis[0]), _mm_mul_pd(_mm_sub_pd(qa[1], c[1]), axis[1])),
+                     _mm_mul_pd(_mm_sub_pd(qa[2], c[2]), axis[2]));
+      const __m128d h = _mm_set1_pd(anchor_);
+      const __m128d back = anchor_ > 0 ? _mm_min_pd(_mm_max_pd(along, zero), h) : _mm_min_pd(_mm_max_pd(along, h), zero);
+      for (int a = 0; a < 3; ++a) x[a] = _mm_sub_pd(qa[a], _mm_mul_pd(axis[a], back));
     }
+    for (int a = 0; a < 3; ++a) {
+      const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(x[a], c[a]), abs), invR);
+      const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+      w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+    }
+    const __m128d inside =
+        _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
+    return _mm_and_pd(inside, w);
+  }
+
+  // The largest window over the message's dabs whose ROI holds p, or 0. Only the range of dabs
+  // whose ROI holds p.x is read (a pair's second lane past it is a dab whose ROI does not hold
+  // x, or the pad: masked).
+  template <bool kAnchored>
+  double lanesLargest(Cursor::Lanes& l, int x, Vec3 q, Vec3 n) const {
+    l.at(x);
+    const __m128d xd = _mm_set1_pd(double(x));
+    const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
+    const __m128d na[3] = {_mm_set1_pd(n.x), _mm_set1_pd(n.y), _mm_set1_pd(n.z)};
+    __m128d best = _mm_setzero_pd();
+    for (std::size_t j = l.first; j < l.last; j += 2) best = _mm_max_pd(best, pairWindows<kAnchored>(l, j, qa, na, xd));
     return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
   }
 
   // The memory's part of search: the largest window over the row's memory dabs whose ROI holds
-  // x, or, as soon as one reaches w, that one's window (w less it is <= 0 like w less the
+  // p, or, as soon as one reaches w, that one's window (w less it is <= 0 like w less the
   // largest, and the voxel does not move). The dab that reached w last is tried first, alone:
-  // its window is window's operations in window's order, the lanes' bits.
-  double memoryLargest(Cursor& c, Int3 p, Vec3 q, double w) const {
+  // window gives it the lanes' bits (or a value <= 0 where it stops early).
+  template <bool kAnchored>
+  double memoryLargest(Cursor& c, Int3 p, Vec3 q, Vec3 n, double w) const {
     if (c.reached < memory_.size()) {
       const PreparedDab& d = memory_[c.reached];
       if (d.roi.contains(p)) {
-        const double m = window(d, q, {}, 0);
+        const double m = window(d, q, n, 0);
         if (m >= w) return m;
       }
     }
     Cursor::Lanes& l = c.memoryLanes;
     l.at(p.x);
-    const __m128d one = _mm_set1_pd(1.0), invR = _mm_set1_pd(inverseRadius_), xd = _mm_set1_pd(double(p.x));
-    const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff)), enough = _mm_set1_pd(w);
+    const __m128d xd = _mm_set1_pd(double(p.x)), enough = _mm_set1_pd(w);
     const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
+    const __m128d na[3] = {_mm_set1_pd(n.x), _mm_set1_pd(n.y), _mm_set1_pd(n.z)};
     __m128d best = _mm_setzero_pd();
     for (std::size_t j = l.first; j < l.last; j += 2) {
-      __m128d m = _mm_loadu_pd(l.weight.data() + j);
-      for (int a = 0; a < 3; ++a) {
-        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
-        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
-        m = _mm_mul_pd(m, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
-      }
-      const __m128d inside =
-          _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
-      m = _mm_and_pd(inside, m);
+      const __m128d m = pairWindows<kAnchored>(l, j, qa, na, xd);
       if (const int hit = _mm_movemask_pd(_mm_cmpge_pd(m, enough))) {
         const std::size_t lane = hit & 1 ? 0 : 1;
         c.reached = c.memory[j + lane];
@@ -310,12 +338,15 @@ class SweptWindow {
   [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
     row(p, c);
 #if defined(__SSE2__)
-    if (anchor_ == 0) {
-      // Where the memory reaches w, w less its largest is <= 0 like w less the first that
-      // reaches it (the value the scalar search gives).
-      const double w = lanesLargest(c.dabLanes, p.x, q);
+    if (lanes_ && anchor_ == 0) {
+      const double w = lanesLargest<false>(c.dabLanes, p.x, q, n);
       if (w <= 0 || c.memory.empty()) return w;
-      return w - memoryLargest(c, p, q, w);
+      return w - memoryLargest<false>(c, p, q, n, w);
+    }
+    if (lanes_) {
+      const double w = lanesLargest<true>(c.dabLanes, p.x, q, n);
+      if (w <= 0 || c.memory.empty()) return w;
+      return w - memoryLargest<true>(c, p, q, n, w);
     }
 #endif
     const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
@@ -381,6 +412,7 @@ class SweptWindow {
 
   double inverseRadius_, anchor_;
   std::vector<PreparedDab> dabs_, memory_;
+  bool lanes_ = false;  // SSE2 searches the lanes (Cursor::Lanes)
 };
 
 // The unit normal (central differences) and foot point p - d n of grid voxel i at p: the window
