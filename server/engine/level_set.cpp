@@ -166,10 +166,7 @@ class SweptWindow {
         count = first = last = 0;
       }
       void push(const PreparedDab& d) {
-        for (int a = 0; a < 3; ++a) {
-          center[a].push_back(d.center[a]);
-          normal[a].push_back(d.normal[a]);
-        }
+        for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
         weight.push_back(d.weight);
         lo.push_back(d.roi.lo.x);
         hi.push_back(d.roi.hi.x);
@@ -239,11 +236,18 @@ class SweptWindow {
     }
 #if defined(__SSE2__)
     if (lanes_) {
-      auto lanes = [](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, Cursor::Lanes& out) {
+      auto lanes = [this](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row,
+                          Cursor::Lanes& out) {
         out.clear();
         for (const std::uint32_t i : row) out.push(dabs[i]);
         out.count = row.size();
         out.push(PreparedDab{{}, 0, Box{}, {}});
+        if (anchor_ != 0) {
+          for (int a = 0; a < 3; ++a) {
+            for (const std::uint32_t i : row) out.normal[a].push_back(dabs[i].normal[a]);
+            out.normal[a].push_back(0);
+          }
+        }
       };
       lanes(dabs_, c.dabs, c.dabLanes);
       lanes(memory_, c.memory, c.memoryLanes);
@@ -262,11 +266,16 @@ class SweptWindow {
                                              const __m128d na[3], __m128d xd) const {
     const __m128d one = _mm_set1_pd(1.0), zero = _mm_setzero_pd(), invR = _mm_set1_pd(inverseRadius_);
     const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
-    const __m128d c[3] = {_mm_loadu_pd(l.center[0].data() + j), _mm_loadu_pd(l.center[1].data() + j),
-                          _mm_loadu_pd(l.center[2].data() + j)};
     __m128d w = _mm_loadu_pd(l.weight.data() + j);
-    __m128d x[3] = {qa[0], qa[1], qa[2]};
-    if constexpr (kAnchored) {
+    if constexpr (!kAnchored) {
+      for (int a = 0; a < 3; ++a) {
+        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
+        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+        w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+      }
+    } else {
+      const __m128d c[3] = {_mm_loadu_pd(l.center[0].data() + j), _mm_loadu_pd(l.center[1].data() + j),
+                            _mm_loadu_pd(l.center[2].data() + j)};
       const __m128d axis[3] = {_mm_loadu_pd(l.normal[0].data() + j), _mm_loadu_pd(l.normal[1].data() + j),
                                _mm_loadu_pd(l.normal[2].data() + j)};
       const __m128d facing =
@@ -277,12 +286,12 @@ class SweptWindow {
                      _mm_mul_pd(_mm_sub_pd(qa[2], c[2]), axis[2]));
       const __m128d h = _mm_set1_pd(anchor_);
       const __m128d back = anchor_ > 0 ? _mm_min_pd(_mm_max_pd(along, zero), h) : _mm_min_pd(_mm_max_pd(along, h), zero);
-      for (int a = 0; a < 3; ++a) x[a] = _mm_sub_pd(qa[a], _mm_mul_pd(axis[a], back));
-    }
-    for (int a = 0; a < 3; ++a) {
-      const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(x[a], c[a]), abs), invR);
-      const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
-      w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+      for (int a = 0; a < 3; ++a) {
+        const __m128d x = _mm_sub_pd(qa[a], _mm_mul_pd(axis[a], back));
+        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(x, c[a]), abs), invR);
+        const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+        w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+      }
     }
     const __m128d inside =
         _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
@@ -335,19 +344,24 @@ class SweptWindow {
   }
 #endif
 
+#if defined(__SSE2__)
+  // search's lanes with a height (a call of its own keeps search's frame as light as before).
+  [[gnu::noinline]] double searchAnchored(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    const double w = lanesLargest<true>(c.dabLanes, p.x, q, n);
+    if (w <= 0 || c.memory.empty()) return w;
+    return w - memoryLargest<true>(c, p, q, n, w);
+  }
+#endif
+
   [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
     row(p, c);
 #if defined(__SSE2__)
-    if (lanes_ && anchor_ == 0) {
+    if (anchor_ == 0) {  // lanes_ holds
       const double w = lanesLargest<false>(c.dabLanes, p.x, q, n);
       if (w <= 0 || c.memory.empty()) return w;
       return w - memoryLargest<false>(c, p, q, n, w);
     }
-    if (lanes_) {
-      const double w = lanesLargest<true>(c.dabLanes, p.x, q, n);
-      if (w <= 0 || c.memory.empty()) return w;
-      return w - memoryLargest<true>(c, p, q, n, w);
-    }
+    if (lanes_) return searchAnchored(p, q, n, c);
 #endif
     const double w = strongest(dabs_, c.dabs, p.x, q, n, std::numeric_limits<double>::infinity(), c.dab);
     if (w <= 0 || c.memory.empty()) return w;
