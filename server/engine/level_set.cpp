@@ -160,16 +160,22 @@ class SweptWindow {
     struct Lanes {
       std::vector<double> center[3], normal[3], weight, lo, hi;  // hi: one past the ROI's last x
       std::size_t count = 0, first = 0, last = 0;  // count: the row's dabs, without the pad
-      void clear() {
-        for (auto* v : {&center[0], &center[1], &center[2], &normal[0], &normal[1], &normal[2], &weight, &lo, &hi})
-          v->clear();
-        count = first = last = 0;
-      }
-      void push(const PreparedDab& d) {
-        for (int a = 0; a < 3; ++a) center[a].push_back(d.center[a]);
-        weight.push_back(d.weight);
-        lo.push_back(d.roi.lo.x);
-        hi.push_back(d.roi.hi.x);
+      // Lists dabs[row[k]] in lanes k, then the pad; the normals only with a height.
+      void fill(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, bool normals) {
+        count = row.size();
+        first = last = 0;
+        for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->resize(count + 1);
+        if (normals)
+          for (auto& v : normal) v.resize(count + 1);
+        for (std::size_t k = 0; k <= count; ++k) {
+          const PreparedDab& d = k < count ? dabs[row[k]] : PreparedDab{{}, 0, Box{}, {}};
+          for (int a = 0; a < 3; ++a) center[a][k] = d.center[a];
+          weight[k] = d.weight;
+          lo[k] = d.roi.lo.x;
+          hi[k] = d.roi.hi.x;
+          if (normals)
+            for (int a = 0; a < 3; ++a) normal[a][k] = d.normal[a];
+        }
       }
       // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
       void at(int x) {
@@ -236,21 +242,8 @@ class SweptWindow {
     }
 #if defined(__SSE2__)
     if (lanes_) {
-      auto lanes = [this](const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row,
-                          Cursor::Lanes& out) {
-        out.clear();
-        for (const std::uint32_t i : row) out.push(dabs[i]);
-        out.count = row.size();
-        out.push(PreparedDab{{}, 0, Box{}, {}});
-        if (anchor_ != 0) {
-          for (int a = 0; a < 3; ++a) {
-            for (const std::uint32_t i : row) out.normal[a].push_back(dabs[i].normal[a]);
-            out.normal[a].push_back(0);
-          }
-        }
-      };
-      lanes(dabs_, c.dabs, c.dabLanes);
-      lanes(memory_, c.memory, c.memoryLanes);
+      c.dabLanes.fill(dabs_, c.dabs, anchor_ != 0);
+      c.memoryLanes.fill(memory_, c.memory, anchor_ != 0);
     }
 #endif
   }
