@@ -140,8 +140,10 @@ class SweptWindow {
   // holds the current row, listed once per row, and where the search starts, the dabs that
   // were the strongest at the voxel before. Once the strongest is known, the others stop at
   // their first factors. Neither changes the result: the same dabs are searched, and the
-  // largest window does not depend on the order. (Without a height, SSE2 searches all of the
-  // row's dabs two at a time instead: the early stops' branches cost more than they save.)
+  // largest window does not depend on the order. (With SSE2, and with a height only when every
+  // dab has its own normal, the message's dabs are searched two at a time in full instead: the
+  // early stops' branches cost more than they save; the memory's stop at the first dab that
+  // reaches the message's window.)
   struct Cursor {
     int y = std::numeric_limits<int>::min(), z = 0;
     std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
@@ -151,12 +153,12 @@ class SweptWindow {
     int until = 0;                            // the lists hold for rows of slice z up to this y
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
-    // Without a height, the row's dabs and memory as arrays, in the order of their centres' x
+    // The row's dabs and memory as arrays (lanes_), in the order of their centres' x
     // (boxAround's bounds and the domain's clipping only grow with the centre, so their ROIs' x
     // ranges [lo, hi) are in order too, and the dabs whose ROI holds a voxel of the row are one
     // range of the arrays, [first, last), which moves along the row), followed by a dab of
     // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
-    // two at a time in full (search).
+    // two at a time (search).
     struct Lanes {
       std::vector<double> center[3], normal[3], weight, lo, hi;  // hi: one past the ROI's last x
       std::size_t count = 0, first = 0, last = 0;  // count: the row's dabs, without the pad
