@@ -9,10 +9,19 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+// AVX2 kernels beside the SSE2 ones, compiled for AVX2 function by function
+// (__attribute__((target))) and chosen at run time, so that the binary still runs on CPUs
+// without it. Only "avx2" is enabled, never "fma": a fused multiply-add would round once where
+// the definition rounds twice.
+#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+#define MARZIPAN_AVX2_KERNELS 1
+#include <immintrin.h>
+#endif
 
 #include "chunked_pass.hpp"
 #include "dense_grid.hpp"
 #include "errors.hpp"
+#include "evolve_width.hpp"
 #include "progress.hpp"
 #include "redistance.hpp"
 #include "stencil.hpp"
@@ -486,6 +495,7 @@ struct ToolScratch {
   MovedVoxels moved;
   std::vector<MovedVoxels> movedPieces;  // evolve's list, built in pieces on the pool
   std::vector<std::size_t> blocks;       // evolve's blocks of runs: the first run of each, then runs.size()
+  std::vector<std::size_t> slices;       // on one thread, smoothing's runs by z-slice: the first of each, then runs.size()
   std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
@@ -506,6 +516,14 @@ void storePartial(float* out, __m128 x, std::uint32_t n) {
   _mm_storel_pi(reinterpret_cast<__m64*>(out), x);
   if (n == 3) _mm_store_ss(out + 2, _mm_movehl_ps(x, x));
 }
+#endif
+
+#if defined(MARZIPAN_AVX2_KERNELS)
+bool cpuHasAvx2() {
+  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
+  return __builtin_cpu_supports("avx2");
+}
+std::atomic<bool> useAvx2{cpuHasAvx2()};
 #endif
 
 // The walk of a sub-step over runs [r, end): voxel j of a run goes to dst[run.first + j] (dst:
@@ -530,20 +548,45 @@ void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes la
   }
 }
 
-// One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
-// array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
-// The neighbours are summed in float in this order and the rest is done in double, as
-//   double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
-//   return float(p[0] + factor * std::clamp(lap, -limit, limit));
-// would, voxel by voxel (the lanes do the same operations, so the same bits). A run's last
-// lanes read up to 3 voxels past it (evolve's region lies kStencilReach inside the grid, so they
-// are in it) and factor up to 3 entries past the list (evolve pads it).
-void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, const Run* end, const double* factor,
-                   std::ptrdiff_t sy, std::ptrdiff_t sz, double limit) {
-  const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
+#if defined(MARZIPAN_AVX2_KERNELS)
+// overRuns eight at once (lanes.eight, an __m256) while 5 or more voxels of a run are left,
+// then four (lanes(i, k)): past a run's end it reads no further than overRuns.
+template <class Lanes>
+__attribute__((target("avx2"))) void overRunsAvx2(const Run* r, const Run* end, float* dst, bool dstIsGrid,
+                                                  Lanes lanes) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  for (; r != end; ++r) {
+    const std::size_t index = r->index, first = r->first, count = r->count;
+    float* const out = dst + (dstIsGrid ? index : first);
+    std::size_t j = 0;
+    for (; j + 8 <= count; j += 8) _mm256_storeu_ps(out + j, lanes.eight(index + j, first + j));
+    const std::size_t left = count - j;
+    if (left > 4) {
+      const __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(int(left)), lane);
+      _mm256_maskstore_ps(out + j, mask, lanes.eight(index + j, first + j));
+    } else if (left == 4) {
+      _mm_storeu_ps(out + j, lanes(index + j, first + j));
+    } else if (left > 0) {
+      storePartial(out + j, lanes(index + j, first + j), std::uint32_t(left));
+    }
+  }
+}
+#endif
+
 #if defined(__SSE2__)
-  const __m128d six = _mm_set1_pd(6.0), lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
-  const auto four = [=](const float* q, const double* f) {
+// curvatureRuns' lanes: operator() four voxels (SSE2), eight() eight (AVX2), each lane the
+// definition's operations in its order.
+struct CurvatureLanes {
+  const float* v;
+  const double* factor;
+  std::ptrdiff_t sy, sz;
+  double limit;
+  bool limited;
+
+  __m128 operator()(std::size_t i, std::size_t k) const {
+    const float* q = v + i;
+    const double* f = factor + k;
+    const __m128d six = _mm_set1_pd(6.0);
     __m128 sum = _mm_add_ps(_mm_loadu_ps(q + 1), _mm_loadu_ps(q - 1));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q + sy));
     sum = _mm_add_ps(sum, _mm_loadu_ps(q - sy));
@@ -555,37 +598,63 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
     __m128d lap1 = _mm_sub_pd(_mm_cvtps_pd(_mm_movehl_ps(sum, sum)), _mm_mul_pd(six, c1));
     if (limited) {
       // std::clamp(x, lo, hi) is (x < lo ? lo : hi < x ? hi : x): max(lo, x), then min(hi, .).
+      const __m128d lo = _mm_set1_pd(-limit), hi = _mm_set1_pd(limit);
       lap0 = _mm_min_pd(hi, _mm_max_pd(lo, lap0));
       lap1 = _mm_min_pd(hi, _mm_max_pd(lo, lap1));
     }
     const __m128d out0 = _mm_add_pd(c0, _mm_mul_pd(_mm_loadu_pd(f), lap0));
     const __m128d out1 = _mm_add_pd(c1, _mm_mul_pd(_mm_loadu_pd(f + 2), lap1));
     return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
-  };
-  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) { return four(v + i, factor + k); });
-#else
-  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) {
-    const float* q = v + i;
-    double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
-    if (limited) lap = std::clamp(lap, -limit, limit);
-    return float(q[0] + factor[k] * lap);
-  });
-#endif
-}
+  }
 
-// One upwind advection step over runs [r, end): next[run.first + j] = phi - step |grad phi|,
-// step = float(dt F), |grad phi| by upwindGradient (outward where step > 0; where step is
-// +-0 the direction does not change the result). Reads past a run's end as curvatureRuns.
-void advectionRuns(const float* v, float* next, const Run* r, const Run* end, const float* step,
-                   const std::size_t stride[3]) {
-#if defined(__SSE2__)
-  // Four voxels along x in the lanes, each lane doing upwindGradient's float operations in
-  // its order (the axes summed x, y, z onto 0). std::max(x, 0) is (x < 0 ? 0 : x), which is
-  // _mm_max_ps(0, x) bit for bit (also -0 and NaN); std::min(x, 0) likewise _mm_min_ps(0, x).
-  const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
-  const std::size_t s[3] = {stride[0], stride[1], stride[2]};
-  const auto four = [=](const float* q, const float* st) {
-    const __m128 dtF = _mm_loadu_ps(st);
+#if defined(MARZIPAN_AVX2_KERNELS)
+  __attribute__((target("avx2"))) __m256 eight(std::size_t i, std::size_t k) const {
+    const float* q = v + i;
+    const double* f = factor + k;
+    const __m256d six = _mm256_set1_pd(6.0);
+    __m256 sum = _mm256_add_ps(_mm256_loadu_ps(q + 1), _mm256_loadu_ps(q - 1));
+    sum = _mm256_add_ps(sum, _mm256_loadu_ps(q + sy));
+    sum = _mm256_add_ps(sum, _mm256_loadu_ps(q - sy));
+    sum = _mm256_add_ps(sum, _mm256_loadu_ps(q + sz));
+    sum = _mm256_add_ps(sum, _mm256_loadu_ps(q - sz));
+    const __m256 c = _mm256_loadu_ps(q);
+    const __m256d c0 = _mm256_cvtps_pd(_mm256_castps256_ps128(c)), c1 = _mm256_cvtps_pd(_mm256_extractf128_ps(c, 1));
+    __m256d lap0 = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(sum)), _mm256_mul_pd(six, c0));
+    __m256d lap1 = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(sum, 1)), _mm256_mul_pd(six, c1));
+    if (limited) {
+      const __m256d lo = _mm256_set1_pd(-limit), hi = _mm256_set1_pd(limit);
+      lap0 = _mm256_min_pd(hi, _mm256_max_pd(lo, lap0));
+      lap1 = _mm256_min_pd(hi, _mm256_max_pd(lo, lap1));
+    }
+    const __m256d out0 = _mm256_add_pd(c0, _mm256_mul_pd(_mm256_loadu_pd(f), lap0));
+    const __m256d out1 = _mm256_add_pd(c1, _mm256_mul_pd(_mm256_loadu_pd(f + 4), lap1));
+    return _mm256_set_m128(_mm256_cvtpd_ps(out1), _mm256_cvtpd_ps(out0));
+  }
+#endif
+};
+
+#if defined(MARZIPAN_AVX2_KERNELS)
+__attribute__((target("avx2"))) __m256 minmod8(__m256 a, __m256 b) {
+  const __m256 abs = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 aSmaller = _mm256_cmp_ps(_mm256_and_ps(a, abs), _mm256_and_ps(b, abs), _CMP_LT_OS);
+  const __m256 smaller = _mm256_or_ps(_mm256_and_ps(aSmaller, a), _mm256_andnot_ps(aSmaller, b));
+  return _mm256_andnot_ps(_mm256_cmp_ps(_mm256_mul_ps(a, b), _mm256_setzero_ps(), _CMP_LE_OS), smaller);
+}
+#endif
+
+// advectionRuns' lanes: four voxels along x (SSE2) or eight (AVX2), each lane doing
+// upwindGradient's float operations in its order (the axes summed x, y, z onto 0).
+// std::max(x, 0) is (x < 0 ? 0 : x), which is _mm_max_ps(0, x) bit for bit (also -0 and NaN);
+// std::min(x, 0) likewise _mm_min_ps(0, x).
+struct AdvectionLanes {
+  const float* v;
+  const float* step;
+  std::size_t s[3];
+
+  __m128 operator()(std::size_t i, std::size_t k) const {
+    const float* q = v + i;
+    const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), zero = _mm_setzero_ps();
+    const __m128 dtF = _mm_loadu_ps(step + k);
     const __m128 outward = _mm_cmpgt_ps(dtF, zero);
     const __m128 v0 = _mm_loadu_ps(q);
     __m128 g2 = zero;
@@ -602,8 +671,76 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
       g2 = _mm_add_ps(g2, _mm_add_ps(_mm_mul_ps(a1, a1), _mm_mul_ps(a2, a2)));
     }
     return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
-  };
-  overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) { return four(v + i, step + k); });
+  }
+
+#if defined(MARZIPAN_AVX2_KERNELS)
+  __attribute__((target("avx2"))) __m256 eight(std::size_t i, std::size_t k) const {
+    const float* q = v + i;
+    const __m256 two = _mm256_set1_ps(2.0f), half = _mm256_set1_ps(0.5f), zero = _mm256_setzero_ps();
+    const __m256 dtF = _mm256_loadu_ps(step + k);
+    const __m256 outward = _mm256_cmp_ps(dtF, zero, _CMP_GT_OS);
+    const __m256 v0 = _mm256_loadu_ps(q);
+    __m256 g2 = zero;
+    for (int a = 0; a < 3; ++a) {
+      const __m256 vm2 = _mm256_loadu_ps(q - 2 * s[a]), vm1 = _mm256_loadu_ps(q - s[a]);
+      const __m256 vp1 = _mm256_loadu_ps(q + s[a]), vp2 = _mm256_loadu_ps(q + 2 * s[a]);
+      const __m256 centre = _mm256_add_ps(_mm256_sub_ps(vp1, _mm256_mul_ps(two, v0)), vm1);
+      const __m256 dm = _mm256_add_ps(
+          _mm256_sub_ps(v0, vm1),
+          _mm256_mul_ps(half, minmod8(_mm256_add_ps(_mm256_sub_ps(v0, _mm256_mul_ps(two, vm1)), vm2), centre)));
+      const __m256 dp = _mm256_sub_ps(
+          _mm256_sub_ps(vp1, v0),
+          _mm256_mul_ps(half, minmod8(centre, _mm256_add_ps(_mm256_sub_ps(vp2, _mm256_mul_ps(two, vp1)), v0))));
+      const __m256 a1 = _mm256_or_ps(_mm256_and_ps(outward, _mm256_max_ps(zero, dm)),
+                                     _mm256_andnot_ps(outward, _mm256_min_ps(zero, dm)));
+      const __m256 a2 = _mm256_or_ps(_mm256_and_ps(outward, _mm256_min_ps(zero, dp)),
+                                     _mm256_andnot_ps(outward, _mm256_max_ps(zero, dp)));
+      g2 = _mm256_add_ps(g2, _mm256_add_ps(_mm256_mul_ps(a1, a1), _mm256_mul_ps(a2, a2)));
+    }
+    return _mm256_sub_ps(v0, _mm256_mul_ps(dtF, _mm256_sqrt_ps(g2)));
+  }
+#endif
+};
+#endif
+
+// One explicit curvature step over runs [r, end): dst[run.first + j] (dst: a list-ordered
+// array) or dst[run.index + j] (dst: a grid) = phi + dt F L, L = the 7-point Laplacian, from v.
+// The neighbours are summed in float in this order and the rest is done in double, as
+//   double lap = p[1] + p[-1] + p[sy] + p[-sy] + p[sz] + p[-sz] - 6.0 * p[0];
+//   return float(p[0] + factor * std::clamp(lap, -limit, limit));
+// would, voxel by voxel (the lanes do the same operations, so the same bits). A run's last
+// lanes read up to 3 voxels past it (evolve's region lies kStencilReach inside the grid, so they
+// are in it) and factor up to 3 entries past the list (evolve pads it).
+void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, const Run* end, const double* factor,
+                   std::ptrdiff_t sy, std::ptrdiff_t sz, double limit) {
+  const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
+#if defined(__SSE2__)
+  const CurvatureLanes lanes{v, factor, sy, sz, limit, limited};
+#if defined(MARZIPAN_AVX2_KERNELS)
+  if (useAvx2.load(std::memory_order_relaxed)) return overRunsAvx2(r, end, dst, dstIsGrid, lanes);
+#endif
+  overRuns(r, end, dst, dstIsGrid, lanes);
+#else
+  overRuns(r, end, dst, dstIsGrid, [=](std::size_t i, std::size_t k) {
+    const float* q = v + i;
+    double lap = q[1] + q[-1] + q[sy] + q[-sy] + q[sz] + q[-sz] - 6.0 * q[0];
+    if (limited) lap = std::clamp(lap, -limit, limit);
+    return float(q[0] + factor[k] * lap);
+  });
+#endif
+}
+
+// One upwind advection step over runs [r, end): next[run.first + j] = phi - step |grad phi|,
+// step = float(dt F), |grad phi| by upwindGradient (outward where step > 0; where step is
+// +-0 the direction does not change the result). Reads past a run's end as curvatureRuns.
+void advectionRuns(const float* v, float* next, const Run* r, const Run* end, const float* step,
+                   const std::size_t stride[3]) {
+#if defined(__SSE2__)
+  const AdvectionLanes lanes{v, step, {stride[0], stride[1], stride[2]}};
+#if defined(MARZIPAN_AVX2_KERNELS)
+  if (useAvx2.load(std::memory_order_relaxed)) return overRunsAvx2(r, end, next, false, lanes);
+#endif
+  overRuns(r, end, next, false, lanes);
 #else
   overRuns(r, end, next, false, [=](std::size_t i, std::size_t k) {
     return v[i] - step[k] * upwindGradient(v, i, stride, step[k] > 0);
@@ -677,10 +814,29 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
       for (const std::size_t o : {r.index - g.sx, r.index + g.sx, r.index - g.sxy, r.index + g.sxy})
         copyRow(o, r.count + 3);
     }
-    for (int step = 0; step < steps; ++step) {
+    // The steps in bands of kWave, each band one sweep over the z-slices: step b + j of slice
+    // piece q runs at time q + 2j, after its neighbours' step b + j - 1 (time q + 2j - 1) and
+    // before their step b + j + 1 (time q + 2j + 1 or later), which is the rule above. A sweep
+    // then keeps about 2 kWave slices of both copies in the cache, where step by step each
+    // step read the whole band's neighbourhood (megabytes at 70^3) from memory again.
+    constexpr int kWave = 4;
+    std::vector<std::size_t>& slices = s.slices;
+    slices.clear();
+    for (std::size_t r = 0; r < runs.size(); ++r)
+      if (r == 0 || runs[r].index / g.sxy != runs[r - 1].index / g.sxy) slices.push_back(r);
+    slices.push_back(runs.size());
+    const int n = int(slices.size()) - 1;
+    for (int b = 0; b < steps; b += kWave) {
       progress.check();
-      for (int p = 0; p < count; ++p) runStep(p, step, false);
-      progress.advance(1.0 / steps);
+      const int k = std::min(kWave, steps - b);
+      for (int t = 0; t < n + 2 * (k - 1); ++t)
+        for (int j = 0; j < k; ++j)
+          if (const int q = t - 2 * j; q >= 0 && q < n) {
+            const int step = b + j;
+            curvatureRuns(grids[step % 2], grids[(step + 1) % 2], true, runs.data() + slices[std::size_t(q)],
+                          runs.data() + slices[std::size_t(q) + 1], s.moved.factor.data(), sy, sz, m.curvatureLimit);
+          }
+      progress.advance(double(k) / steps);
     }
     return;
   }
@@ -1261,5 +1417,26 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool) {
   e.append(d.changes, d.region);
   return e;
 }
+
+namespace evolve_width {
+
+bool avx2Available() {
+#if defined(MARZIPAN_AVX2_KERNELS)
+  static const bool has = cpuHasAvx2();
+  return has;
+#else
+  return false;
+#endif
+}
+
+void limitWidth(Width w) {
+#if defined(MARZIPAN_AVX2_KERNELS)
+  useAvx2.store(w == Width::Widest && avx2Available(), std::memory_order_relaxed);
+#else
+  (void)w;
+#endif
+}
+
+}  // namespace evolve_width
 
 }  // namespace marzipan

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "engine/errors.hpp"
+#include "engine/evolve_width.hpp"
 #include "engine/image_io.hpp"
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
@@ -649,6 +650,53 @@ TEST_CASE("smoothing's sub-steps over a large region give the same field on 1 to
   CHECK(run(two) == serial);
   CHECK(run(three) == serial);
   CHECK(run(two) == serial);
+}
+
+TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[level_set][determinism][avx2]") {
+  // Every kind of sub-step through both widths: smoothing's 32 curvature steps over a large
+  // region in pieces (1 and 2 threads) and a small one, sharpening's clamped Laplacian,
+  // advection of add / remove blob, strokes of each tool with memory and a height, and
+  // brushes at the domain's faces. A sphere's band has runs of every length, so every tail
+  // (full eights, a masked eight, four, one to three) is taken. The digest after each
+  // application is compared, so a difference is caught where it first appears.
+  if (!evolve_width::avx2Available()) {
+    WARN("this CPU has no AVX2: both runs would take the SSE2 kernels");
+    return;
+  }
+  struct Restore {
+    ~Restore() { evolve_width::limitWidth(evolve_width::Width::Widest); }
+  } restore;
+  auto run = [](evolve_width::Width w, ThreadPool& pool) {
+    evolve_width::limitWidth(w);
+    Volume v = makeSphere({96, 96, 96}, {48, 48, 48}, 33);
+    std::vector<std::uint64_t> digests;
+    auto record = [&] { digests.push_back(digest(v)); };
+    smooth(v, {{48, 48, 84}, 30, 1}, pool), record();
+    smooth(v, {{80, 48, 48}, 5, 0.7}, pool), record();
+    sharpen(v, {{48, 16, 48}, 20, 0.8}, pool), record();
+    addBlob(v, {{48, 81, 48}, 12, 1}, pool), record();
+    removeBlob(v, {{22, 30, 70}, 9, 0.6}, pool), record();
+    addBlob(v, {{48, 48, 94}, 7, 1}, pool), record();  // its ROI meets the domain's face
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> unit(-1, 1), weight(0.3, 1.0);
+    const Brush tools[] = {Brush::AddBlob, Brush::RemoveBlob, Brush::Smooth, Brush::Sharpen};
+    for (int i = 0; i < 8; ++i) {
+      const Vec3 dir = normalized(Vec3{unit(rng), unit(rng), unit(rng)});
+      const Vec3 start = Vec3{48, 48, 48} + normalized(Vec3{unit(rng), unit(rng), unit(rng)}) * 33.0;
+      std::vector<StrokeDab> dabs;
+      for (int k = 0; k < 10; ++k) dabs.push_back({start + dir * (1.5 * k), weight(rng)});
+      StrokeSettings st{tools[i % 4], 6, 0.8};
+      if (i == 4) st.height = 2.0;
+      applyStroke(v, st, std::span<const StrokeDab>(dabs).subspan(3), std::span<const StrokeDab>(dabs).first(3), pool);
+      record();
+    }
+    return digests;
+  };
+  ThreadPool one(1), two(2);
+  const std::vector<std::uint64_t> sse2 = run(evolve_width::Width::Sse2, one);
+  CHECK(run(evolve_width::Width::Widest, one) == sse2);
+  CHECK(run(evolve_width::Width::Widest, two) == sse2);
+  CHECK(run(evolve_width::Width::Sse2, two) == sse2);
 }
 
 TEST_CASE("deformative tools refuse bad parameters and leave the volume untouched", "[level_set][errors]") {
