@@ -121,10 +121,10 @@ void Workers::loop() {
   }
 }
 
-void Strand::post(Workers::Task task, Lane lane) {
+void Strand::post(Workers::Task task) {
   {
     const std::lock_guard lock(mutex_);
-    (lane == Lane::Quick ? quick_ : tasks_).push_back(std::move(task));
+    tasks_.push_back(std::move(task));
     if (scheduled_) return;
     scheduled_ = true;
   }
@@ -133,16 +133,15 @@ void Strand::post(Workers::Task task, Lane lane) {
 
 std::size_t Strand::pending() const {
   const std::lock_guard lock(mutex_);
-  return quick_.size() + tasks_.size() + (scheduled_ ? 1 : 0);
+  return tasks_.size() + (scheduled_ ? 1 : 0);
 }
 
 void Strand::runOne() {
   Workers::Task task;
   {
     const std::lock_guard lock(mutex_);
-    std::deque<Workers::Task>& from = quick_.empty() ? tasks_ : quick_;
-    task = std::move(from.front());
-    from.pop_front();
+    task = std::move(tasks_.front());
+    tasks_.pop_front();
   }
   struct Next {
     Strand& s;
@@ -150,7 +149,7 @@ void Strand::runOne() {
       bool again;
       {
         const std::lock_guard lock(s.mutex_);
-        again = !s.quick_.empty() || !s.tasks_.empty();
+        again = !s.tasks_.empty();
         s.scheduled_ = again;
       }
       if (again) s.workers_.post([self = s.shared_from_this()] { self->runOne(); });

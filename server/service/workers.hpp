@@ -3,8 +3,7 @@
 //
 // Conventions: tasks are std::function<void()> that must not throw (an exception escaping a
 // task is caught, logged through the error hook and dropped). A Strand runs its tasks one at a
-// time, in the order posted within each lane (quick ones first), on any worker; tasks of
-// different strands run in parallel.
+// time, in the order posted, on any worker; tasks of different strands run in parallel.
 // Ownership: a Strand is held by shared_ptr; a posted task keeps its strand alive.
 #pragma once
 
@@ -71,11 +70,8 @@ class Workers {
 
 class Strand : public std::enable_shared_from_this<Strand> {
  public:
-  // Quick: a short task whose poster waits for it before anything else (a stroke.begin that
-  // holds back its stroke's dabs): it runs before the Normal tasks waiting, in its own order.
-  enum class Lane { Normal, Quick };
   explicit Strand(Workers& workers) : workers_(workers) {}
-  void post(Workers::Task task, Lane lane = Lane::Normal);
+  void post(Workers::Task task);
   // Tasks posted and not yet finished (for "finish running edits" at shutdown).
   std::size_t pending() const;
 
@@ -84,7 +80,7 @@ class Strand : public std::enable_shared_from_this<Strand> {
 
   Workers& workers_;
   mutable std::mutex mutex_;
-  std::deque<Workers::Task> quick_, tasks_;
+  std::deque<Workers::Task> tasks_;
   bool scheduled_ = false;  // a runOne is posted or running
 };
 

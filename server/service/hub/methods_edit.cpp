@@ -230,10 +230,6 @@ void volumeMorph(HubCore& hub, const Call& call) {
   });
 }
 
-// stroke.begin and stroke.end change no voxel and take microseconds, and a client holds its
-// stroke's dabs until stroke.begin has answered (and begins the next stroke after stroke.end):
-// both go ahead of the edits waiting on the strand (Strand::Lane::Quick). Under load a new
-// stroke's first dabs otherwise waited two turns of every connection of the session more.
 void strokeBegin(HubCore& hub, const Call& call) {
   const protocol::StrokeBeginParams p = protocol::parseStrokeBeginParams(call.req.params);
   hub.onStrand(call, false, [c = call.client, p](LiveSession& s, Reply& r) {
@@ -254,7 +250,7 @@ void strokeBegin(HubCore& hub, const Call& call) {
     records.push_back(strokeBeginRecord(c->stroke, params));
     r.record = [records] { return records; };
     r.result = {{"stroke", c->stroke}};
-  }, Strand::Lane::Quick);
+  });
 }
 
 void strokeDabs(HubCore& hub, const Call& call) {
@@ -344,7 +340,7 @@ void strokeEnd(HubCore& hub, const Call& call) {
     c->stroke = 0;
     r.record = [stroke] { return json{{"stroke_end", stroke}}; };
     r.result = {{"revision", s.session->revision()}, {"can_undo", s.session->canUndo()}, {"can_redo", s.session->canRedo()}};
-  }, Strand::Lane::Quick);
+  });
 }
 
 void historyUndo(HubCore& hub, const Call& call) { historyStep(hub, call, true); }

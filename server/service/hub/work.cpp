@@ -32,13 +32,13 @@ void HubCore::checkAccess(const HubClient& c, Access access) {
     throw RpcException(RpcCode::ReadOnly, "this client joined with the view token: edits are refused");
 }
 
-void HubCore::onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn, Strand::Lane lane) {
-  onStrand(call.client, call.client->session, call.req.id, call.arrived, editLatency, call.access, std::move(fn), lane);
+void HubCore::onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn) {
+  onStrand(call.client, call.client->session, call.req.id, call.arrived, editLatency, call.access, std::move(fn));
 }
 
 void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<json>& id,
                        Clock::time_point arrived, bool editLatency, Access access,
-                       std::function<void(LiveSession&, Reply&)> fn, Strand::Lane lane) {
+                       std::function<void(LiveSession&, Reply&)> fn) {
   s->strand->post([self = shared_from_this(), c, s, id, arrived, editLatency, access, fn = std::move(fn)] {
     Reply r;
     try {
@@ -68,7 +68,7 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       for (const Reply::Merged& m : r.merged) self->sendError(*c, m.id, f);
     }
     self->finish(c);
-  }, lane);
+  });
 }
 
 void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
