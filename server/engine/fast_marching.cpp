@@ -8,6 +8,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "errors.hpp"
 #include "thread_pool.hpp"
 
 namespace marzipan {
@@ -368,6 +369,7 @@ Scratch& scratch() {
 MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
                                ThreadPool& pool, ProgressShare progress) {
+  requireRange(band, kMinMarchBand, kMaxMarchBand, "band");
   Scratch& s = scratch();
   const std::uint8_t* f = flags.data();
   const bool second = order == MarchOrder::Second;
@@ -400,6 +402,7 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
 }
 
 MarchStats fastMarch(DenseGrid& g, const std::vector<MarchState>& state, float band, MarchOrder order) {
+  requireRange(band, kMinMarchBand, kMaxMarchBand, "band");
   Scratch& s = scratch();
   s.flags.resize(g.v.size());
   s.candidates.clear();

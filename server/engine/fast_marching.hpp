@@ -43,6 +43,11 @@ struct MarchStats {
   std::size_t solved = 0;     // eikonal solves (each voxel is solved about once per side it is marched on)
 };
 
+// The band a march accepts (vu); anything else, NaN included, throws EngineError
+// (InvalidArgument, field "band"). It sizes the bucket queue, and a distance's bucket and
+// solve-table index are converted through 32 bits, which holds for distances below it.
+constexpr double kMinMarchBand = 0.5, kMaxMarchBand = 1024;
+
 // grid: signed values; state: one MarchState per voxel of grid (same index).
 // On return every Unknown voxel holds sign * min(distance to its side's sources, band).
 MarchStats fastMarch(DenseGrid& grid, const std::vector<MarchState>& state, float band,

@@ -127,7 +127,8 @@ class SweptWindow {
   SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory, double anchor = 0)
       : inverseRadius_(1.0 / radius), anchor_(anchor), dabs_(std::move(dabs)), memory_(std::move(memory)) {
     // The memory newest first: the voxels this message moves lie under its dabs, next to the
-    // last ones the stroke applied, so the search below mostly ends after a few.
+    // last ones the stroke applied, so the scalar search below mostly ends after a few (the
+    // lanes re-sort it by x and start from the dab that reached the window at the voxel before).
     std::reverse(memory_.begin(), memory_.end());
 #if defined(__SSE2__)
     // SSE2 searches the dabs whose ROI holds the voxel in full: ordered by their centres' x,
@@ -163,8 +164,9 @@ class SweptWindow {
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
 #if defined(__SSE2__)
     // The row's dabs and memory as arrays (lanes_), in the order of their centres' x
-    // (boxAround's bounds and the domain's clipping only grow with the centre, so their ROIs' x
-    // ranges [lo, hi) are in order too, and the dabs whose ROI holds a voxel of the row are one
+    // (boxAround's bounds and the domain's clipping only grow with the centre, and the dabs of a
+    // stroke share its radius, so their ROIs' x ranges [lo, hi) are in order too; dabs with radii
+    // of their own would break this. The dabs whose ROI holds a voxel of the row are then one
     // range of the arrays, [first, last), which moves along the row), followed by a dab of
     // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
     // two at a time (search).

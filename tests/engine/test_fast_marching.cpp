@@ -1,8 +1,11 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "engine/dense_grid.hpp"
+#include "engine/errors.hpp"
 #include "engine/fast_marching.hpp"
 #include "engine/thread_pool.hpp"
 
@@ -148,4 +151,27 @@ TEST_CASE("upper bounds are read from the start and lowered only where a nearer 
   CHECK(marched == 24 * 24 * 4);  // x = 7, 8, 11, 12
   CHECK(wrong == 0);
   CHECK(boundsChanged == 0);
+}
+
+TEST_CASE("a march refuses a band it cannot size its queue for, before touching the grid", "[fmm]") {
+  // An infinite band made the bucket count's conversion undefined; a huge one overflowed the
+  // 32-bit bucket index.
+  DenseGrid g({{0, 0, 0}, {8, 8, 8}}, 3.0f);
+  g.v[g.index({4, 4, 4})] = 0.25f;
+  const std::vector<float> before(g.v.begin(), g.v.end());
+  std::vector<MarchState> state(g.v.size(), MarchState::Unknown);
+  state[g.index({4, 4, 4})] = MarchState::Source;
+  for (const float band : {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(), 0.0f,
+                           -3.0f, 1e9f}) {
+    INFO(band);
+    try {
+      fastMarch(g, state, band, MarchOrder::Second);
+      FAIL("accepted");
+    } catch (const EngineError& e) {
+      CHECK(e.field() == "band");
+    }
+    CHECK(std::equal(g.v.begin(), g.v.end(), before.begin()));
+  }
+  CHECK_NOTHROW(fastMarch(g, state, 3.0f, MarchOrder::Second));
+  CHECK(g.v[g.index({5, 4, 4})] == Approx(1.25f));
 }
