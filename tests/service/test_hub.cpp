@@ -538,6 +538,37 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
   CHECK(afterAnswer >= 1);
 }
 
+TEST_CASE("a client's stream of stroke.begin does not hold back another client's edit", "[hub]") {
+  // Every message takes its turn on the session's strand behind those already waiting there,
+  // whatever its method: a client sending stroke.begin after stroke.begin without waiting for the
+  // answers (each ends the stroke before it, a journal record each) gets a turn or two before
+  // another client's edit, not all of them. Thirty begins take ~1 ms after the edit is answered;
+  // one round in five must see the edit answered first (a loaded machine may stall this thread).
+  Hub hub(smallOptions());
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate64);
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  constexpr int kBegins = 30;
+  int editFirst = 0;
+  for (int round = 0; round < 5; ++round) {
+    const int first = 1000 + 100 * round;
+    const std::size_t mark = a.link->size();
+    for (int i = 0; i < kBegins; ++i)
+      hub.text(a.client, json{{"jsonrpc", "2.0"},
+                              {"id", first + i},
+                              {"method", "stroke.begin"},
+                              {"params", {{"tool", "add_blob"}, {"radius", 4}, {"strength", 0.5}}}}
+                             .dump());
+    const json edit = b.call("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    REQUIRE(edit.contains("result"));
+    bool lastAnswered = false;
+    for (std::size_t i = mark; i < a.link->size(); ++i) lastAnswered = lastAnswered || isResponse(a.link->at(i), first + kBegins - 1);
+    editFirst += lastAnswered ? 0 : 1;
+    a.link->waitFor([&](const auto& m) { return isResponse(m, first + kBegins - 1); }, mark);
+  }
+  CHECK(editFirst >= 1);
+}
+
 TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh full buffer", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);
