@@ -4,8 +4,10 @@
 // a ClientLink, so everything here runs and is tested without sockets.
 //
 // Conventions:
-// - Threads: text()/binary()/disconnect() may be called from any thread and only enqueue. A
-//   connection's messages are handled one after the other, in arrival order, on the workers;
+// - Threads: text()/binary()/disconnect() may be called from any thread holding no lock of the
+//   caller's. On an idle connection text() parses a small message and hands its work to the
+//   session's strand right there (microseconds, HubCore::PumpOn); otherwise they only enqueue. A
+//   connection's messages are handled one after the other, in arrival order;
 //   everything that touches a session (its volume, its clients, their view state) runs on that
 //   session's strand; renders run on the workers off the strand, from a snapshot.
 // - Durability (through a SessionStorage, service/session_storage.hpp: files in a data
@@ -86,7 +88,7 @@ struct HubLimits {
 };
 
 // What the hub reports, for /metrics and the log. Any member may be empty; called from worker
-// threads.
+// threads and from a network thread inside text().
 struct HubEvents {
   std::function<void(const std::string&)> log;          // one line, no newline
   std::function<void(std::int64_t)> sessions, clients;  // gauge deltas
@@ -119,7 +121,8 @@ struct HubOptions {
 };
 
 // One connection as the hub sees it. Implemented by the network layer; the hub calls it from
-// worker threads, never while holding a session's strand for long.
+// worker threads and from the network thread inside text() (a refusal, a presence, an answer
+// given without work), never while holding a session's strand for long.
 class ClientLink {
  public:
   virtual ~ClientLink() = default;

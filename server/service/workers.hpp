@@ -1,5 +1,6 @@
 // The service's worker threads and the strands that serialize each session's work on them.
-// Sessions post their work here; the network threads only enqueue (they never run geometry).
+// Sessions post their work here; the network threads at most parse a message and post its work
+// (they never run geometry).
 //
 // Conventions: tasks are std::function<void()> that must not throw (an exception escaping a
 // task is caught, logged through the error hook and dropped). A Strand runs its tasks one at a

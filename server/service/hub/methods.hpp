@@ -28,8 +28,8 @@ struct MethodEntry {
   protocol::Method method;
   Access access;
   Handler handle;
-  // The handler may take long before it hands its work over (it creates or loads a session, or
-  // waits for an upload): it runs on the workers. The others only parse their params and hand
+  // The handler may take long before it hands its work over (it creates or loads a session;
+  // volume.load's upload follows on the workers anyway): it runs on the workers. The others only parse their params and hand
   // over (or answer at once), on whichever thread took the message, the network's included
   // (HubCore::PumpOn).
   bool slow = false;

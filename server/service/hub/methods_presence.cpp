@@ -1,6 +1,7 @@
 // Handler of presence (service/hub/methods.hpp): a client's brush and camera, forwarded to the
 // session's other clients by the PresenceRelay (service/hub/presence_relay.hpp). Handled on the
-// pump, off the strand: a presence never waits for an edit, nor an edit for it.
+// pump, never posted to the strand: a presence never waits behind edits (after an edit, the pump
+// that takes it runs inside that edit's strand task, for the microseconds of its hand-over).
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
 
