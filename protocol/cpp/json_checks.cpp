@@ -125,8 +125,6 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound) {
 }
 
 namespace {
-// Far more levels than any message has (a request's dab ray is 6 deep).
-constexpr int kMaxJsonDepth = 64;
 
 // What nlohmann may append after the token it quotes: "; expected " and a token type name.
 constexpr std::string_view kExpected = "; expected ";

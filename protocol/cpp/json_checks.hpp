@@ -51,6 +51,10 @@ std::int64_t integerInRange(const json& v, std::string_view key, std::int64_t lo
 // An array of three finite numbers, each within +-bound.
 Vec3 vec3Value(const json& v, std::string_view key, double bound);
 
+// Arrays and objects parseJsonText reads nested (the outermost counts): far more levels than
+// any message has (a request's dab ray is 6 deep).
+inline constexpr int kMaxJsonDepth = 64;
+
 // One JSON value from text. Throws OpError with an empty field when the text is not exactly
 // one JSON value or an object repeats a key (a reader would silently keep only one of them),
 // and when arrays and objects nest deeper than 64 levels (values are copied recursively).

@@ -3,6 +3,7 @@
 #include "rpc.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -203,6 +204,156 @@ ParsedRequest parseRequest(std::string_view text) {
   }
   ParsedRequest out;
   out.request = std::move(request);
+  return out;
+}
+
+namespace {
+
+// One pass over JSON text (RFC 8259) that builds nothing: each skip moves `at` past one value
+// and says whether it was well formed. Recursion is one level per array or object, at most
+// kMaxJsonDepth.
+class Skimmer {
+ public:
+  explicit Skimmer(std::string_view text) : t_(text) {}
+  std::size_t at = 0;
+
+  void space() {
+    while (at < t_.size() && (t_[at] == ' ' || t_[at] == '\t' || t_[at] == '\n' || t_[at] == '\r')) ++at;
+  }
+  bool eat(char c) {
+    space();
+    if (at >= t_.size() || t_[at] != c) return false;
+    ++at;
+    return true;
+  }
+  bool next(char c) {
+    space();
+    return at < t_.size() && t_[at] == c;
+  }
+  // `raw`: the bytes between the quotes, escapes as written.
+  bool string(std::string_view* raw = nullptr) {
+    if (!next('"')) return false;
+    const std::size_t start = ++at;
+    while (at < t_.size()) {
+      const auto c = static_cast<unsigned char>(t_[at]);
+      if (c == '"') {
+        if (raw) *raw = t_.substr(start, at - start);
+        ++at;
+        return true;
+      }
+      if (c < 0x20) return false;
+      if (c == '\\') {
+        if (++at >= t_.size()) return false;
+        if (t_[at] == 'u') {
+          for (int k = 0; k < 4; ++k)
+            if (++at >= t_.size() || !std::isxdigit(static_cast<unsigned char>(t_[at]))) return false;
+        } else if (std::string_view("\"\\/bfnrt").find(t_[at]) == std::string_view::npos) {
+          return false;
+        }
+      }
+      ++at;
+    }
+    return false;
+  }
+  // The value starting at `at`, inside `depth` arrays and objects.
+  bool value(int depth) {
+    if (next('"')) return string();
+    if (at >= t_.size()) return false;
+    switch (t_[at]) {
+      case '{': return object(depth + 1);
+      case '[': return array(depth + 1);
+      case 't': return literal("true");
+      case 'f': return literal("false");
+      case 'n': return literal("null");
+      default: return number();
+    }
+  }
+
+ private:
+  std::string_view t_;
+
+  bool digits() {
+    const std::size_t start = at;
+    while (at < t_.size() && t_[at] >= '0' && t_[at] <= '9') ++at;
+    return at > start;
+  }
+  bool number() {
+    if (at < t_.size() && t_[at] == '-') ++at;
+    if (at < t_.size() && t_[at] == '0') ++at;
+    else if (!digits()) return false;
+    if (at < t_.size() && t_[at] == '.' && (++at, !digits())) return false;
+    if (at < t_.size() && (t_[at] == 'e' || t_[at] == 'E')) {
+      ++at;
+      if (at < t_.size() && (t_[at] == '+' || t_[at] == '-')) ++at;
+      if (!digits()) return false;
+    }
+    return true;
+  }
+  bool literal(std::string_view word) {
+    if (t_.substr(at, word.size()) != word) return false;
+    at += word.size();
+    return true;
+  }
+  bool array(int depth) {
+    if (depth > kMaxJsonDepth) return false;
+    ++at;
+    if (eat(']')) return true;
+    do {
+      if (!value(depth)) return false;
+    } while (eat(','));
+    return eat(']');
+  }
+  bool object(int depth) {
+    if (depth > kMaxJsonDepth) return false;
+    ++at;
+    if (eat('}')) return true;
+    do {
+      if (!string() || !eat(':') || !value(depth)) return false;
+    } while (eat(','));
+    return eat('}');
+  }
+};
+
+// Whether a key, as written between its quotes, reads "id": escaped, "id" is at most 12 bytes.
+bool isIdKey(std::string_view raw) {
+  if (raw.find('\\') == std::string_view::npos) return raw == "id";
+  if (raw.size() > 12) return false;
+  const std::string quoted = "\"" + std::string(raw) + "\"";
+  const json key = json::parse(quoted, nullptr, false);
+  return key.is_string() && key.get_ref<const std::string&>() == "id";
+}
+
+}  // namespace
+
+std::optional<PeekedId> peekRequestId(std::string_view text) {
+  Skimmer s(text);
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") s.at = 3;  // nlohmann skips a byte order mark
+  if (!s.next('{')) return std::nullopt;
+  ++s.at;
+  std::optional<std::string_view> idText;
+  if (!s.eat('}')) {
+    do {
+      std::string_view key;
+      if (!s.string(&key) || !s.eat(':')) return std::nullopt;
+      s.space();
+      const std::size_t start = s.at;
+      if (!s.value(1)) return std::nullopt;
+      if (isIdKey(key)) {
+        if (idText) return std::nullopt;
+        idText = text.substr(start, s.at - start);
+      }
+    } while (s.eat(','));
+    if (!s.eat('}')) return std::nullopt;
+  }
+  s.space();
+  if (s.at != text.size()) return std::nullopt;
+  if (!idText) return PeekedId{nullptr, true};
+  PeekedId out;
+  if (idText->size() <= kMaxPeekedIdBytes) {
+    json id = json::parse(*idText, nullptr, false);
+    if (id.is_discarded()) return std::nullopt;  // e.g. invalid UTF-8 in a string: no valid request
+    if (validId(id)) out.id = std::move(id);
+  }
   return out;
 }
 

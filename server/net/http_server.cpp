@@ -64,6 +64,10 @@ using tcp = asio::ip::tcp;
 
 namespace {
 
+// The largest text read for the upload it announces: a volume.load
+// ({"jsonrpc","id","method","params":{"bytes","format"}}) is under 200 bytes as clients write it.
+constexpr std::size_t kMaxVolumeLoadBytes = 4 * 1024;
+
 class HttpSession;
 class WsSession;
 
@@ -320,8 +324,12 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   // The size of the upload frame a volume.load in `text` announces when this client may upload
   // (Hub::mayUpload), else 0. The hub checks the request again; this only sizes the next read.
+  // Parsed here on the I/O thread before any rate limit, so only a text the size of a real
+  // volume.load (a few hundred bytes) is looked at: a bigger one reads no upload.
   std::uint64_t announcedUpload(const std::string& text, const service::HubLimits& limits) const {
-    if (text.find("volume.load") == std::string::npos || !state_->options.hub->mayUpload(client_)) return 0;
+    if (text.size() > kMaxVolumeLoadBytes || text.find("volume.load") == std::string::npos ||
+        !state_->options.hub->mayUpload(client_))
+      return 0;
     const protocol::ParsedRequest p = protocol::parseRequest(text);
     if (!p.request || p.request->method != protocol::Method::VolumeLoad) return 0;
     try {

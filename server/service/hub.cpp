@@ -80,12 +80,12 @@ void HubCore::enqueue(const std::shared_ptr<HubClient>& c, Incoming in) {
   if (a.queued || a.refusal.empty()) return;
   // Answered at once without queueing, outside the queue's lock: the link may send inline and,
   // past its queue bound, disconnect this client. An upload cannot be answered alone: its
-  // volume.load then fails with -32013.
+  // volume.load then fails with -32013. The id is peeked, not parsed: a flood of 1 MiB texts
+  // past the rate limit would otherwise cost this network thread a full parse each.
   if (const auto* text = std::get_if<std::string>(&in.message)) {
-    const protocol::ParsedRequest p = protocol::parseRequest(*text);
-    const json id = p.request ? p.request->id.value_or(json(nullptr)) : p.error->id;
-    const bool notification = p.request ? !p.request->id : p.error->notification;
-    sendError(*c, id, notification, {RpcCode::Busy, a.refusal, {{"retry_after_ms", 100}}});
+    const std::optional<protocol::PeekedId> peeked = protocol::peekRequestId(*text);
+    sendError(*c, peeked ? peeked->id : json(nullptr), peeked && peeked->notification,
+              {RpcCode::Busy, a.refusal, {{"retry_after_ms", 100}}});
   }
 }
 

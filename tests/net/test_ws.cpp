@@ -456,6 +456,39 @@ TEST_CASE("ws: nothing over max_text_bytes is read unless an editor announced it
   CHECK((code == 1009 || code == -1));
 }
 
+TEST_CASE("ws: only a volume.load text of a few KiB is parsed for the upload it announces", "[net][ws]") {
+  HubOptions o;
+  o.limits.maxTextBytes = 8192;
+  Server s("ws-announce-size", o);
+  Client editor(s.server->port());
+  editor.call(1, "session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
+  editor.sendText(json{{"jsonrpc", "2.0"}, {"id", 2}, {"method", "volume.save"}, {"params", json::object()}}.dump());
+  std::optional<Client::Message> m;
+  while ((m = editor.read()) && m->text) {
+  }
+  REQUIRE(m);
+  const std::string file = m->data.substr(marzipan::protocol::kFrameHeaderBytes);
+  REQUIRE(file.size() > o.limits.maxTextBytes);
+  REQUIRE(editor.response(2).contains("result"));
+  const auto upload = [&](std::uint32_t id) {
+    return marzipan::protocol::encodeFrame(marzipan::protocol::FrameKind::VolumeUpload, id, 0,
+                                           {reinterpret_cast<const std::uint8_t*>(file.data()), file.size()});
+  };
+  // The same request padded with spaces (valid JSON) to 4 KiB is read, to 5000 bytes it is not.
+  const auto padded = [&](int id, std::size_t size) {
+    std::string text = json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump();
+    text.insert(1, size - text.size(), ' ');
+    return text;
+  };
+  editor.sendText(padded(3, 4096));
+  editor.sendBinary(upload(3));
+  CHECK(editor.response(3)["result"]["revision"] == 1);
+  editor.sendText(padded(4, 5000));
+  editor.sendBinaryMayFail(upload(4));
+  const int code = editor.refusedCode();
+  CHECK((code == 1009 || code == -1));
+}
+
 TEST_CASE("ws: connections are bounded per client address, and one outside a session is closed", "[net][ws]") {
   HubOptions o;
   o.limits.maxConnectionsPerAddress = 3;

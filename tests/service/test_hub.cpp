@@ -886,6 +886,50 @@ TEST_CASE("a connection that floods requests is throttled, another one is not", 
   CHECK(b.result("session.stats")["revision"] == 0);
 }
 
+TEST_CASE("a text of max_text_bytes refused over the rate limit is answered Busy with the id it names", "[hub]") {
+  HubOptions o = smallOptions();
+  o.limits.maxRequestsPerSecond = 1;
+  Hub hub(o);
+  TestClient a(hub);
+  // 1 MiB of params holding "id" keys (and one in a string); the request's id comes after them.
+  std::string params = R"({"pad":[)";
+  while (params.size() < (std::size_t(1) << 20)) params += R"([{"id":-1,"s":"\"id\":-2"},[1.5,null]],)";
+  params += "0]}";
+  const auto big = [&](const std::string& id) {
+    return R"({"jsonrpc":"2.0","method":"session.stats","params":)" + params + (id.empty() ? "" : R"(,"id":)" + id) + "}";
+  };
+  const std::size_t mark = a.link->size();
+  for (int i = 0; i < 6; ++i) a.hub.text(a.client, big(std::to_string(900 + i)));
+  a.hub.text(a.client, big("\"over\""));
+  a.hub.text(a.client, big(""));         // a notification: never answered
+  a.hub.text(a.client, big("7") + "}");  // not JSON: its id cannot be known
+  a.hub.text(a.client, big("1.5"));      // an id that is not one: cannot be echoed
+  a.hub.text(a.client, big("\"end\""));
+  const auto responseTo = [&](const json& id) {
+    return std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
+  };
+  // The burst (two seconds' worth) is parsed and refused (no session); the rest is Busy.
+  int busy = 0;
+  for (int i = 0; i < 6; ++i) {
+    const json r = responseTo(900 + i);
+    REQUIRE(r.contains("error"));
+    busy += r["error"]["code"] == -32005;
+  }
+  CHECK(busy >= 4);
+  for (const json id : {json("over"), json("end")}) {
+    const json r = responseTo(id);
+    CHECK(r["error"]["code"] == -32005);
+    CHECK(r["error"]["data"]["retry_after_ms"] == 100);
+  }
+  std::vector<json> nulls;
+  for (std::size_t i = mark; i < a.link->size(); ++i) {
+    const std::variant<json, Bytes> m = a.link->at(i);
+    if (const json* j = std::get_if<json>(&m); j && j->contains("id") && (*j)["id"].is_null()) nulls.push_back(*j);
+  }
+  REQUIRE(nulls.size() == 2);
+  for (const json& r : nulls) CHECK(r["error"]["code"] == -32005);
+}
+
 TEST_CASE("an idle session is saved to the data directory, unloaded, and loaded on join", "[hub]") {
   const auto dir = std::filesystem::temp_directory_path() / "marzipan-hub-idle";
   std::filesystem::remove_all(dir);

@@ -139,7 +139,10 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // the workers, as does the next message when this thread is pumping already (a message
   // answered without work calls finish from inside the pump: no recursion however many wait).
   enum class PumpOn { Worker, Network, AfterWork };
-  static constexpr std::size_t kMaxInlineBytes = 16 * 1024;
+  // Small: the parse stays in microseconds for every connection sharing the network thread. A
+  // web client's stroke.dabs of one display frame (a few dabs of about 150 bytes) or a presence
+  // is far below; a backlog of dabs merged into one message may not be, and takes the workers.
+  static constexpr std::size_t kMaxInlineBytes = 4 * 1024;
   static bool isInlineSized(const Incoming& in);
   // Handles the connection's next message.
   void pump(const std::shared_ptr<HubClient>& c, PumpOn on);
