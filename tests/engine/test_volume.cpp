@@ -189,6 +189,31 @@ TEST_CASE("scatter refuses NaN and changes nothing", "[volume][errors]") {
 // The rule scatter and diff follow, written voxel by voxel: a brick changes when some voxel of
 // the region in it reads differently once clamped (==, so -0 equals +0), and then it holds the
 // clamped source in the region and its old values elsewhere.
+namespace {
+
+// The bricks of `clipped` (a region inside the domain) holding a voxel whose source value
+// srcAt(p), clamped to the band, differs from base's, in index order of the bricks.
+template <class SrcAt>
+std::vector<Int3> bricksThatDiffer(const Volume& base, const Box& clipped, SrcAt&& srcAt) {
+  const float band = base.band();
+  std::vector<Int3> out;
+  const Box bricks = Bricks::bricksOf(clipped);
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        const Box here = Bricks::box({bx, by, bz}).intersect(clipped);
+        bool differs = false;
+        for (int z = here.lo.z; z < here.hi.z; ++z)
+          for (int y = here.lo.y; y < here.hi.y; ++y)
+            for (int x = here.lo.x; x < here.hi.x; ++x)
+              differs |= std::clamp(srcAt({x, y, z}), -band, band) != base.at(x, y, z);
+        if (differs) out.push_back({bx, by, bz});
+      }
+  return out;
+}
+
+}  // namespace
+
 TEST_CASE("diff lists exactly the bricks whose clamped voxels differ, read voxel by voxel", "[volume][diff]") {
   // Sides not multiples of 8, a region cut off by the domain's far faces and not aligned to
   // bricks, a source box larger than the region, stored and uniform bricks of both sides.
@@ -229,19 +254,7 @@ TEST_CASE("diff lists exactly the bricks whose clamped voxels differ, read voxel
 
     Volume v = base;
     const auto listed = v.diff(region, src.data(), srcBox);
-    std::vector<Int3> expected;
-    const Box bricks = Bricks::bricksOf(clipped);
-    for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
-      for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
-        for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
-          const Box here = Bricks::box({bx, by, bz}).intersect(clipped);
-          bool differs = false;
-          for (int z = here.lo.z; z < here.hi.z; ++z)
-            for (int y = here.lo.y; y < here.hi.y; ++y)
-              for (int x = here.lo.x; x < here.hi.x; ++x)
-                differs |= std::clamp(srcAt({x, y, z}), -band, band) != base.at(x, y, z);
-          if (differs) expected.push_back({bx, by, bz});
-        }
+    const std::vector<Int3> expected = bricksThatDiffer(base, clipped, srcAt);
     INFO("seed " << seed);
     CHECK_FALSE(expected.empty());
     REQUIRE(listed.size() == expected.size());
@@ -316,19 +329,7 @@ TEST_CASE("diff and scatter on 1, 2 and 3 threads give the bricks of the voxel-b
         if (bump > 0) s -= float(std::min(bump, 4.0));
         if ((x * 7 + y * 3 + z) % 11 == 0) s = s >= band ? band * 3 : s <= -band ? -band * 3 : s == 0 ? -0.0f : s;
       }
-  std::vector<Int3> expected;
-  const Box bricks = Bricks::bricksOf(clipped);
-  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
-    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
-      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
-        const Box here = Bricks::box({bx, by, bz}).intersect(clipped);
-        bool differs = false;
-        for (int z = here.lo.z; z < here.hi.z; ++z)
-          for (int y = here.lo.y; y < here.hi.y; ++y)
-            for (int x = here.lo.x; x < here.hi.x; ++x)
-              differs |= std::clamp(srcAt({x, y, z}), -band, band) != base.at(x, y, z);
-        if (differs) expected.push_back({bx, by, bz});
-      }
+  const std::vector<Int3> expected = bricksThatDiffer(base, clipped, srcAt);
   REQUIRE(expected.size() > 20);
   REQUIRE(expected.front().z != expected.back().z);  // the changes span several pieces
 

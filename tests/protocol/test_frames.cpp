@@ -7,12 +7,11 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "golden_vectors.hpp"
 #include "protocol/cpp/little_endian.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "protocol/cpp/frames.hpp"
@@ -24,16 +23,7 @@ using nlohmann::json;
 
 namespace {
 
-const json& vectors() {
-  static const json v = [] {
-    std::ifstream in(MARZIPAN_PROTOCOL_VECTORS, std::ios::binary);
-    REQUIRE(in.good());
-    std::stringstream text;
-    text << in.rdbuf();
-    return json::parse(text.str());
-  }();
-  return v;
-}
+const json& vectors() { return marzipan::testing::goldenVectors(); }
 
 std::vector<std::uint8_t> fromHex(const std::string& hex) {
   REQUIRE(hex.size() % 2 == 0);

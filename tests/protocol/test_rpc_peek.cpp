@@ -3,11 +3,10 @@
 // null) on malformed text, in one pass over texts of max_text_bytes.
 #include <catch2/catch.hpp>
 
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "golden_vectors.hpp"
 #include "protocol/cpp/rpc.hpp"
 
 using namespace marzipan::protocol;
@@ -15,16 +14,7 @@ using nlohmann::json;
 
 namespace {
 
-const json& vectors() {
-  static const json v = [] {
-    std::ifstream in(MARZIPAN_PROTOCOL_VECTORS, std::ios::binary);
-    REQUIRE(in.good());
-    std::stringstream text;
-    text << in.rdbuf();
-    return json::parse(text.str());
-  }();
-  return v;
-}
+const json& vectors() { return marzipan::testing::goldenVectors(); }
 
 // The id and notification flag of parseRequest's answer (its request, or its refusal).
 PeekedId parsedId(const std::string& text) {
