@@ -346,7 +346,9 @@ std::optional<PeekedId> peekRequestId(std::string_view text) {
     if (!s.eat('}')) return std::nullopt;
   }
   s.space();
-  if (s.at != text.size()) return std::nullopt;
+  // nlohmann's reader ends the text at a NUL byte, so parseRequest reads whatever follows one as
+  // nothing: so does the peek.
+  if (s.at != text.size() && text[s.at] != '\0') return std::nullopt;
   if (!idText) return PeekedId{nullptr, true};
   PeekedId out;
   if (idText->size() <= kMaxPeekedIdBytes) {

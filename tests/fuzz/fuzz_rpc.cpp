@@ -4,6 +4,7 @@
 // params either decode or throw OpError / RpcException; every error must make a valid reply.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "fuzz.hpp"
@@ -73,7 +74,11 @@ void expectReply(const json& id, RpcCode code, const std::string& message, const
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const ParsedRequest parsed = parseRequest(marzipan::fuzz::textOf(data, size));
+  const std::string_view text = marzipan::fuzz::textOf(data, size);
+  const ParsedRequest parsed = parseRequest(text);
+  // The bounded peek the server uses to answer a refused text must agree with the full reader
+  // on every request it reads: a named id is the request's, a notification is one.
+  const std::optional<PeekedId> peeked = peekRequestId(text);
   expect(parsed.request.has_value() != parsed.error.has_value(), "a frame gives a request or an error, not both");
   if (parsed.error) {
     const RpcError& e = *parsed.error;
@@ -84,6 +89,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   const Request& r = *parsed.request;
   expect(r.params.is_object(), "params are an object");
+  expect(peeked.has_value(), "the peek reads every request the full reader reads");
+  expect(peeked->notification == !r.id, "the peek tells a notification as the full reader does");
+  expect(peeked->id.is_null() || (r.id && peeked->id == *r.id), "an id the peek names is the request's");
   expect(!needsFrameId(r.method) || !r.id || r.frameId != 0, "a binary-answered request has a frame id");
   const json id = r.id.value_or(json(nullptr));
   try {

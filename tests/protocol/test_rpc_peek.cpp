@@ -107,6 +107,11 @@ TEST_CASE("peekRequestId reads the top-level id only", "[rpc]") {
   checkAgrees(R"({"id":4})");
   checkAgrees("{}");
   CHECK(peekRequestId("{}")->notification);
+  // The JSON reader ends the text at a NUL byte (found by fuzz_rpc): what follows is not read.
+  const std::string nulTail = std::string(R"({"jsonrpc":"2.0","id":13,"method":"history.redo","params":{}})") +
+                              std::string(4, '\0') + "junk";
+  checkAgrees(nulTail);
+  CHECK(peekRequestId(nulTail)->id == 13);
 }
 
 TEST_CASE("peekRequestId gives up on malformed text and on a repeated top-level id", "[rpc]") {
