@@ -212,6 +212,23 @@ std::vector<Int3> bricksThatDiffer(const Volume& base, const Box& clipped, SrcAt
   return out;
 }
 
+// The voxels of v that do not hold what the rule says after a scatter of `clipped`: the clamped
+// source inside it, base's value elsewhere.
+template <class SrcAt>
+std::size_t voxelsAgainstRule(const Volume& v, const Volume& base, const Box& clipped, SrcAt&& srcAt) {
+  const float band = base.band();
+  const Int3 dims = base.dims();
+  std::size_t wrong = 0;
+  for (int z = 0; z < dims.z; ++z)
+    for (int y = 0; y < dims.y; ++y)
+      for (int x = 0; x < dims.x; ++x) {
+        const Int3 p{x, y, z};
+        const float want = clipped.contains(p) ? std::clamp(srcAt(p), -band, band) : base.at(p);
+        wrong += !(v.at(p) == want);
+      }
+  return wrong;
+}
+
 }  // namespace
 
 TEST_CASE("diff lists exactly the bricks whose clamped voxels differ, read voxel by voxel", "[volume][diff]") {
@@ -264,15 +281,7 @@ TEST_CASE("diff lists exactly the bricks whose clamped voxels differ, read voxel
     }
     const auto changes = v.scatter(region, src.data(), srcBox);
     REQUIRE(changes.size() == listed.size());
-    std::size_t wrong = 0;
-    for (int z = 0; z < dims.z; ++z)
-      for (int y = 0; y < dims.y; ++y)
-        for (int x = 0; x < dims.x; ++x) {
-          const Int3 p{x, y, z};
-          const float want = clipped.contains(p) ? std::clamp(srcAt(p), -band, band) : base.at(p);
-          wrong += !(v.at(p) == want);
-        }
-    CHECK(wrong == 0);
+    CHECK(voxelsAgainstRule(v, base, clipped, srcAt) == 0);
     // Bricks not listed are the very same bricks as before.
     for (int bz = 0; bz < v.brickDims().z; ++bz)
       for (int by = 0; by < v.brickDims().y; ++by)
@@ -354,15 +363,7 @@ TEST_CASE("diff and scatter on 1, 2 and 3 threads give the bricks of the voxel-b
     Volume v = base;
     const auto changes = v.scatter(region, src.data(), srcBox, pool);
     CHECK(changes.size() == expected.size());
-    std::size_t wrong = 0;
-    for (int z = 0; z < dims.z; ++z)
-      for (int y = 0; y < dims.y; ++y)
-        for (int x = 0; x < dims.x; ++x) {
-          const Int3 p{x, y, z};
-          const float want = clipped.contains(p) ? std::clamp(srcAt(p), -band, band) : base.at(p);
-          wrong += !(v.at(p) == want);
-        }
-    CHECK(wrong == 0);
+    CHECK(voxelsAgainstRule(v, base, clipped, srcAt) == 0);
     if (threads == 1) {
       first = listed;
       firstDigest = digest(v);
