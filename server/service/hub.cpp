@@ -75,7 +75,7 @@ void HubCore::enqueue(const std::shared_ptr<HubClient>& c, Incoming in) {
   // method that is not slow (a presence, a stroke's messages) handed over from here: see PumpOn.
   if (a.start) {
     if (inlineSized) pump(c, PumpOn::Network);
-    else workers.post([self = shared_from_this(), c] { self->pump(c, PumpOn::Worker); });
+    else pumpOnWorkers(c);
   }
   if (a.queued || a.refusal.empty()) return;
   // Answered at once without queueing, outside the queue's lock: the link may send inline and,
@@ -94,7 +94,7 @@ void HubCore::finish(const std::shared_ptr<HubClient>& c) {
     case ConnectionQueue::Next::Idle: return;
     case ConnectionQueue::Next::Closed: return cleanup(c);
     case ConnectionQueue::Next::Message:
-      if (tPumping > 0) workers.post([self = shared_from_this(), c] { self->pump(c, PumpOn::Worker); });
+      if (tPumping > 0) pumpOnWorkers(c);
       else pump(c, PumpOn::AfterWork);
   }
 }
@@ -112,6 +112,10 @@ void HubCore::cleanup(const std::shared_ptr<HubClient>& c) {
 bool HubCore::isInlineSized(const Incoming& in) {
   const auto* text = std::get_if<std::string>(&in.message);
   return text && text->size() <= kMaxInlineBytes;
+}
+
+void HubCore::pumpOnWorkers(const std::shared_ptr<HubClient>& c) {
+  workers.post([self = shared_from_this(), c] { self->pump(c, PumpOn::Worker); });
 }
 
 void HubCore::pump(const std::shared_ptr<HubClient>& c, PumpOn on) {

@@ -146,6 +146,8 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   static bool isInlineSized(const Incoming& in);
   // Handles the connection's next message.
   void pump(const std::shared_ptr<HubClient>& c, PumpOn on);
+  // The same, on a worker.
+  void pumpOnWorkers(const std::shared_ptr<HubClient>& c);
   void handle(const std::shared_ptr<HubClient>& c, Incoming in, PumpOn on);
   void handleText(const std::shared_ptr<HubClient>& c, const std::string& text, Clock::time_point arrived, PumpOn on);
   // A parsed request to its method's handler, through the table.
