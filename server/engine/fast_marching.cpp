@@ -7,6 +7,12 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+// The state build's AVX2 loop is compiled for AVX2 alone (__attribute__((target))) and chosen
+// at run time; it gives the SSE2 loop's bytes.
+#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+#define MARZIPAN_MARCH_AVX2 1
+#include <immintrin.h>
+#endif
 
 #include "errors.hpp"
 #include "thread_pool.hpp"
@@ -99,6 +105,82 @@ inline float solveEikonal(float m[3], float c[3]) {
   return u;
 }
 
+// A side's state byte of flags byte f (SideMarcher): what the side may read there.
+[[gnu::always_inline]] inline std::uint8_t stateOf(std::uint8_t f, std::uint8_t negBit) {
+  const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
+  const bool bound = f & kUpperBound;
+  return std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) | (own && !(f & kFrozen) ? kOpen : 0) |
+                      (!own && usable ? kOther : 0));
+}
+
+#if defined(MARZIPAN_MARCH_AVX2)
+// stateOf 32 bytes at a time: the grid is the gathered box, the band only a few percent of it.
+// Each nibble of a flags byte looks up its part of the state byte (vpshufb): the low nibble
+// kUse, kOpen and kOther of a usable or unfrozen voxel, and bit 7 for "own side"; the high
+// nibble kInterior, and bit 7 for kUpperBound. An upper bound of its own side is usable:
+// bit 7 of both, turned into kUse by an unsigned minimum with 1.
+__attribute__((target("avx2"))) std::size_t buildStateAvx2(const std::uint8_t* flags, std::uint8_t negBit,
+                                                           std::uint8_t* st, std::size_t n) {
+  alignas(16) std::uint8_t lo[16], hi[16];
+  for (int k = 0; k < 16; ++k) {
+    const bool own = (k & kNeg) == negBit;
+    lo[k] = std::uint8_t(stateOf(std::uint8_t(k), negBit) | (own ? 0x80 : 0));
+    hi[k] = std::uint8_t(((k << 4) & kInterior) | ((k << 4) & kUpperBound));
+  }
+  const __m256i loTable = _mm256_broadcastsi128_si256(_mm_load_si128(reinterpret_cast<const __m128i*>(lo)));
+  const __m256i hiTable = _mm256_broadcastsi128_si256(_mm_load_si128(reinterpret_cast<const __m128i*>(hi)));
+  const __m256i nibble = _mm256_set1_epi8(0x0f), keep = _mm256_set1_epi8(char(kUse | kOpen | kOther | kInterior));
+  const __m256i one = _mm256_set1_epi8(1);
+  std::size_t i = 0;
+  for (; i + 32 <= n; i += 32) {
+    const __m256i f = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flags + i));
+    const __m256i l = _mm256_shuffle_epi8(loTable, _mm256_and_si256(f, nibble));
+    const __m256i h = _mm256_shuffle_epi8(hiTable, _mm256_and_si256(_mm256_srli_epi16(f, 4), nibble));
+    const __m256i s = _mm256_or_si256(_mm256_and_si256(_mm256_or_si256(l, h), keep),
+                                      _mm256_min_epu8(_mm256_and_si256(l, h), one));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(st + i), s);
+  }
+  return i;
+}
+bool marchAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has;
+}
+#endif
+
+// st[i] = stateOf(flags[i], negBit) for i < n.
+void buildState(const std::uint8_t* flags, std::uint8_t negBit, State* state, std::size_t n) {
+  auto* st = reinterpret_cast<std::uint8_t*>(state);  // State's underlying type
+  std::size_t i = 0;
+#if defined(MARZIPAN_MARCH_AVX2)
+  if (marchAvx2()) i = buildStateAvx2(flags, negBit, st, n);
+#endif
+#if defined(__SSE2__)
+  const __m128i negMask = _mm_set1_epi8(char(kNeg)), sideNeg = _mm_set1_epi8(char(negBit));
+  const __m128i usableMask = _mm_set1_epi8(char(kKnown | kIgnored)), known = _mm_set1_epi8(char(kKnown));
+  const __m128i frozen = _mm_set1_epi8(char(kFrozen)), zero = _mm_setzero_si128();
+  const __m128i interior = _mm_set1_epi8(char(kInterior)), use = _mm_set1_epi8(char(kUse));
+  const __m128i open = _mm_set1_epi8(char(kOpen)), other = _mm_set1_epi8(char(kOther));
+  const __m128i upper = _mm_set1_epi8(char(kUpperBound));
+  for (; i + 16 <= n; i += 16) {
+    const __m128i f = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flags + i));
+    const __m128i own = _mm_cmpeq_epi8(_mm_and_si128(f, negMask), sideNeg);
+    const __m128i usable = _mm_cmpeq_epi8(_mm_and_si128(f, usableMask), known);
+    const __m128i unfrozen = _mm_cmpeq_epi8(_mm_and_si128(f, frozen), zero);
+    const __m128i bound = _mm_cmpeq_epi8(_mm_and_si128(f, upper), upper);
+    __m128i s = _mm_and_si128(f, interior);
+    s = _mm_or_si128(s, _mm_and_si128(_mm_and_si128(own, _mm_or_si128(usable, bound)), use));
+    s = _mm_or_si128(s, _mm_and_si128(_mm_and_si128(own, unfrozen), open));
+    s = _mm_or_si128(s, _mm_and_si128(_mm_andnot_si128(own, usable), other));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(st + i), s);
+  }
+#endif
+  for (; i < n; ++i) st[i] = stateOf(flags[i], negBit);
+}
+
 // One side of the surface. It reads its own state array, the values of its own side and of
 // the other side's sources, and writes only its own side's unknown voxels and its state array:
 // the two sides may run at the same time on one grid.
@@ -111,38 +193,9 @@ class SideMarcher {
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
     last_ = buckets_.size() - 1;
     for (auto& b : buckets_) b.clear();
-    // 16 bytes per step: the grid is the gathered box, the band only a few percent of it.
     state.resize(g.v.size());
     st_ = state.data();
-    std::size_t i = 0;
-    const std::size_t n = state.size();
-#if defined(__SSE2__)
-    const __m128i negMask = _mm_set1_epi8(char(kNeg)), sideNeg = _mm_set1_epi8(char(negBit));
-    const __m128i usableMask = _mm_set1_epi8(char(kKnown | kIgnored)), known = _mm_set1_epi8(char(kKnown));
-    const __m128i frozen = _mm_set1_epi8(char(kFrozen)), zero = _mm_setzero_si128();
-    const __m128i interior = _mm_set1_epi8(char(kInterior)), use = _mm_set1_epi8(char(kUse));
-    const __m128i open = _mm_set1_epi8(char(kOpen)), other = _mm_set1_epi8(char(kOther));
-    const __m128i upper = _mm_set1_epi8(char(kUpperBound));
-    for (; i + 16 <= n; i += 16) {
-      const __m128i f = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flags + i));
-      const __m128i own = _mm_cmpeq_epi8(_mm_and_si128(f, negMask), sideNeg);
-      const __m128i usable = _mm_cmpeq_epi8(_mm_and_si128(f, usableMask), known);
-      const __m128i unfrozen = _mm_cmpeq_epi8(_mm_and_si128(f, frozen), zero);
-      const __m128i bound = _mm_cmpeq_epi8(_mm_and_si128(f, upper), upper);
-      __m128i st = _mm_and_si128(f, interior);
-      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, _mm_or_si128(usable, bound)), use));
-      st = _mm_or_si128(st, _mm_and_si128(_mm_and_si128(own, unfrozen), open));
-      st = _mm_or_si128(st, _mm_and_si128(_mm_andnot_si128(own, usable), other));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(st_ + i), st);  // a may_alias store
-    }
-#endif
-    for (; i < n; ++i) {
-      const std::uint8_t f = flags[i];
-      const bool own = (f & kNeg) == negBit, usable = (f & (kKnown | kIgnored)) == kKnown;
-      const bool bound = f & kUpperBound;
-      setSt(i, std::uint8_t((f & kInterior) | (own && (usable || bound) ? kUse : 0) |
-                            (own && !(f & kFrozen) ? kOpen : 0) | (!own && usable ? kOther : 0)));
-    }
+    buildState(flags, negBit, st_, state.size());
   }
 
   // progress: this side's share, advanced as its buckets are taken.
