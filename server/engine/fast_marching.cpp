@@ -183,12 +183,14 @@ void buildState(const std::uint8_t* flags, std::uint8_t negBit, State* state, st
 
 // One side of the surface. It reads its own state array, the values of its own side and of
 // the other side's sources, and writes only its own side's unknown voxels and its state array:
-// the two sides may run at the same time on one grid.
+// the two sides may run at the same time on one grid. Second: MarchOrder::Second (a constant,
+// so that the solves test it not at all).
+template <bool Second>
 class SideMarcher {
  public:
-  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::vector<State>& state, float band, bool second,
-              std::uint8_t negBit, Buckets& buckets)
-      : g_(g), v_(g.v.data()), band_(band), second_(second), negBit_(negBit), buckets_(buckets) {
+  SideMarcher(DenseGrid& g, const std::uint8_t* flags, std::vector<State>& state, float band, std::uint8_t negBit,
+              Buckets& buckets)
+      : g_(g), v_(g.v.data()), band_(band), negBit_(negBit), buckets_(buckets) {
     stride_[0] = 1, stride_[1] = g.sx, stride_[2] = g.sxy;
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
     last_ = buckets_.size() - 1;
@@ -231,26 +233,6 @@ class SideMarcher {
     }
     progress.advance(double(buckets_.size() - (buckets_.size() - 1) / kBucketsPerCheck * kBucketsPerCheck) * perBucket);
     return stats_;
-  }
-
-  // Sources (and upper bounds) of this side that border one of its unknown voxels other than
-  // upper bounds: only these can lower anything. An upper bound is lowered only by the part of
-  // the surface that moved, which reaches it through the other unknown voxels.
-  static bool feeds(const DenseGrid& g, const std::uint8_t* flags, std::size_t i) {
-    const std::uint8_t side = flags[i] & kNeg;
-    const std::size_t stride[3] = {1, g.sx, g.sxy};
-    auto open = [&](std::size_t n) { return (flags[n] & (kFrozen | kNeg | kUpperBound)) == side; };
-    if (flags[i] & kInterior) {
-      for (int a = 0; a < 3; ++a)
-        if (open(i - stride[a]) || open(i + stride[a])) return true;
-      return false;
-    }
-    const Int3 p = g.point(i) - g.box.lo;
-    for (int a = 0; a < 3; ++a) {
-      if (p[a] > 0 && open(i - stride[a])) return true;
-      if (p[a] + 1 < g.size[a] && open(i + stride[a])) return true;
-    }
-    return false;
   }
 
  private:
@@ -355,7 +337,7 @@ class SideMarcher {
     second(a, b, m, c);
   }
   [[gnu::always_inline]] inline void second(float a, float b, float& m, float& c) const {
-    const bool two = second_ && a - b >= kMonotoneRun;  // false for b = infinity
+    const bool two = Second && a - b >= kMonotoneRun;  // false for b = infinity
     m = two ? a + (a - b) * (1.0f / 3.0f) : a;
     c = two ? 9.0f / 4.0f : 1.0f;
   }
@@ -393,15 +375,37 @@ class SideMarcher {
   float* v_;
   State* st_ = nullptr;
   float band_;
-  bool second_;
   std::uint8_t negBit_;
   Buckets& buckets_;
   std::size_t last_;  // the last bucket, which takes everything beyond it
   std::size_t stride_[3];
   std::size_t current_ = 0;
-  float beyond_ = band_ - (second_ ? kMinRiseSecond : kMinRiseFirst);  // see accept()
+  float beyond_ = band_ - (Second ? kMinRiseSecond : kMinRiseFirst);  // see accept()
   MarchStats stats_;
 };
+
+// Sources (and upper bounds) of a side that border one of its unknown voxels other than upper
+// bounds: only these can lower anything. An upper bound is lowered only by the part of the
+// surface that moved, which reaches it through the other unknown voxels.
+[[gnu::always_inline]] inline bool feeds(const DenseGrid& g, const std::uint8_t* flags, std::size_t i) {
+  const std::uint8_t side = flags[i] & kNeg;
+  const std::size_t stride[3] = {1, g.sx, g.sxy};
+  auto open = [&](std::size_t n) { return (flags[n] & (kFrozen | kNeg | kUpperBound)) == side; };
+  if (flags[i] & kInterior) {
+    for (int a = 0; a < 3; ++a)
+      if (open(i - stride[a]) || open(i + stride[a])) return true;
+    return false;
+  }
+  // Box-local coordinates by 32-bit divisions (indices fit: see Entry).
+  const auto k = std::uint32_t(i), sx = std::uint32_t(g.sx), sxy = std::uint32_t(g.sxy);
+  const std::uint32_t z = k / sxy, r = k - z * sxy, y = r / sx;
+  const int p[3] = {int(r - y * sx), int(y), int(z)};
+  for (int a = 0; a < 3; ++a) {
+    if (p[a] > 0 && open(i - stride[a])) return true;
+    if (p[a] + 1 < g.size[a] && open(i + stride[a])) return true;
+  }
+  return false;
+}
 
 // Per-thread scratch, reused across calls: tools march thousands of times, and fresh
 // multi-megabyte arrays each time cost as much in page faults as the marching itself.
@@ -429,11 +433,17 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
   MarchStats side[2];
   auto seed = [&](std::uint32_t i) {
     return ((f[i] & (kKnown | kIgnored)) == kKnown || (f[i] & kUpperBound)) && std::fabs(g.v[i]) < band &&
-           SideMarcher::feeds(g, f, i);
+           feeds(g, f, i);
   };
   auto march = [&](std::size_t k) {
-    SideMarcher m(g, f, s.state[k], band, second, k ? kNeg : 0, s.buckets[k]);
-    side[k] = m.run(s.seeds[k], progress.part(0.5));
+    const std::uint8_t negBit = k ? kNeg : 0;
+    if (second) {
+      SideMarcher<true> m(g, f, s.state[k], band, negBit, s.buckets[k]);
+      side[k] = m.run(s.seeds[k], progress.part(0.5));
+    } else {
+      SideMarcher<false> m(g, f, s.state[k], band, negBit, s.buckets[k]);
+      side[k] = m.run(s.seeds[k], progress.part(0.5));
+    }
   };
   if (pool.threads() > 1 && candidates.size() >= kParallelCandidates) {
     // Each side picks its own seeds, so that neither waits for the other.
