@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #if defined(__SSE2__)
@@ -142,13 +143,8 @@ __attribute__((target("avx2"))) std::size_t buildStateAvx2(const std::uint8_t* f
   }
   return i;
 }
-bool marchAvx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-}
+std::atomic<bool> avx2Allowed{true};
+bool marchAvx2() { return avx2Allowed.load(std::memory_order_relaxed) && march_width::avx2Available(); }
 #endif
 
 // st[i] = stateOf(flags[i], negBit) for i < n.
@@ -491,5 +487,29 @@ MarchStats fastMarch(DenseGrid& g, const std::vector<MarchState>& state, float b
     }
   return fastMarchClassified(g, s.flags, s.candidates, band, order, ThreadPool::serial());
 }
+
+namespace march_width {
+
+bool avx2Available() {
+#if defined(MARZIPAN_MARCH_AVX2)
+  static const bool has = [] {
+    __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has;
+#else
+  return false;
+#endif
+}
+
+void allowAvx2(bool allow) {
+#if defined(MARZIPAN_MARCH_AVX2)
+  avx2Allowed.store(allow, std::memory_order_relaxed);
+#else
+  (void)allow;
+#endif
+}
+
+}  // namespace march_width
 
 }  // namespace marzipan

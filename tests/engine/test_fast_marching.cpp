@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "engine/dense_grid.hpp"
@@ -174,4 +175,61 @@ TEST_CASE("a march refuses a band it cannot size its queue for, before touching 
   }
   CHECK_NOTHROW(fastMarch(g, state, 3.0f, MarchOrder::Second));
   CHECK(g.v[g.index({5, 4, 4})] == Approx(1.25f));
+}
+
+TEST_CASE("the AVX2 state build gives the SSE2 one's march bit for bit", "[fmm][avx2]") {
+  // Every kind of flags byte on both sides: sources, upper bounds (some too high), ignored
+  // voxels, unknowns, the caller's own bits, interior and border voxels, on a grid whose voxel
+  // count is no multiple of 32 or 16 (so that both loops end in a scalar tail).
+  if (!march_width::avx2Available()) {
+    WARN("this CPU has no AVX2: both marches would build their state with SSE2");
+    return;
+  }
+  struct Restore {
+    ~Restore() { march_width::allowAvx2(true); }
+  } restore;
+  using namespace march_flag;
+  constexpr float band = 3;
+  DenseGrid start({{0, 0, 0}, {37, 29, 23}});
+  std::vector<std::uint8_t> flags(start.v.size());
+  std::vector<std::uint32_t> candidates;
+  for (std::size_t i = 0; i < start.v.size(); ++i) {
+    const Int3 p = start.point(i);
+    const double e = std::hypot(p.x - 18.3, p.y - 14.1, p.z - 11.6) - 8;
+    const bool inner = p.x >= 2 && p.x < 35 && p.y >= 2 && p.y < 27 && p.z >= 2 && p.z < 21;
+    std::uint8_t f = std::uint8_t((e < 0 ? kNeg : 0) | (inner ? kInterior : 0) | (i % 5 == 0 ? kCallerA : 0) |
+                                  (i % 3 == 0 ? kCallerB : 0));
+    float v = e < 0 ? -band : band;
+    if (i % 11 == 0) {
+      f |= kIgnored | kFrozen;
+      v = float(e);
+    } else if (std::fabs(e) < 1) {
+      f |= i % 7 == 0 ? kUpperBound : kKnown | kFrozen;
+      v = float(e);
+    } else if (i % 13 == 0 && std::fabs(e) + 0.5 < band) {
+      f |= kUpperBound;
+      v = float(e < 0 ? e - 0.5 : e + 0.5);
+    }
+    start.v[i] = v;
+    flags[i] = f;
+    if (std::fabs(v) < band) candidates.push_back(std::uint32_t(i));
+  }
+  REQUIRE(start.v.size() % 16 != 0);
+  auto march = [&](bool avx2) {
+    march_width::allowAvx2(avx2);
+    DenseGrid g = start;
+    const MarchStats s = fastMarchClassified(g, flags, candidates, band, MarchOrder::Second, ThreadPool::serial());
+    return std::make_pair(g, s);
+  };
+  const auto [sse2, sse2Stats] = march(false);
+  const auto [avx2, avx2Stats] = march(true);
+  std::size_t lowered = 0, differ = 0;
+  for (std::size_t i = 0; i < start.v.size(); ++i) {
+    lowered += sse2.v[i] != start.v[i];
+    differ += std::memcmp(&sse2.v[i], &avx2.v[i], sizeof(float)) != 0;
+  }
+  CHECK(lowered > 2500);  // the march reached the band (2944 voxels)
+  CHECK(differ == 0);
+  CHECK(avx2Stats.accepted == sse2Stats.accepted);
+  CHECK(avx2Stats.solved == sse2Stats.solved);
 }
