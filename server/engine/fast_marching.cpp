@@ -70,40 +70,72 @@ struct Entry {
 };
 using Buckets = std::vector<std::vector<Entry>>;
 
-// 1 / a for the sums a of two or three weights c, each 1 or 9/4, by 4a: the solves multiply by
-// it instead of dividing.
+// A stencil term's weight c (1, or Sethian's 9/4) is carried as the integer q = 4c (4 or 9), and
+// the solves look up what they need by it, or by the sum of two or three: exact (quarters), and
+// no conversion on the way. kWeight[q] = q / 4, kInverse[q] = 1 / (q / 4) = 4 / q (a q of
+// 4 or 9 alone: 1 / sqrt(c) in kRootInverse).
+constexpr auto kWeight = [] {
+  std::array<float, 28> t{};
+  for (int k = 1; k < 28; ++k) t[std::size_t(k)] = float(k) / 4.0f;
+  return t;
+}();
 constexpr auto kInverse = [] {
   std::array<float, 28> t{};
   for (int k = 1; k < 28; ++k) t[std::size_t(k)] = 4.0f / float(k);
   return t;
 }();
+constexpr auto kRootInverse = [] {
+  std::array<float, 10> t{};
+  t[4] = 1.0f, t[9] = 2.0f / 3.0f;
+  return t;
+}();
+
+// The square root of d >= 0, correctly rounded (as std::sqrt's), without the errno branch the
+// library call keeps for a negative d.
+[[gnu::always_inline]] inline float rootOf(float d) {
+#if defined(__SSE2__) && defined(__GNUC__)
+  float r;
+  asm("sqrtss %1, %0" : "=x"(r) : "x"(d));
+  return r;
+#else
+  return std::sqrt(d);
+#endif
+}
 
 // Solves sum_k c_k (u - m_k)^2 = 1 for the largest root, using the axes in increasing m and
 // dropping those whose m is not below the root (Sethian's upwind rule); an axis with m =
-// infinity is never used, and with none the root is infinity. In float, as the result is
-// stored: with every m measured from the smallest, no term cancels another.
-inline float solveEikonal(float m[3], float c[3]) {
-  // A sorting network of three compare-exchanges (ties keep their order).
+// infinity is never used, and with none the root is infinity. q: 4 c. In float, as the result
+// is stored: with every m measured from the smallest, no term cancels another.
+inline float solveEikonal(float m[3], int q[3]) {
+  // A sorting network of three compare-exchanges (ties keep their order; where two m are equal
+  // their order does not matter anyway: both are taken, d = 0 lying below any root, and the
+  // sums of their terms are exact).
   auto order = [&](int i, int j) __attribute__((always_inline)) {
     const bool swap = m[j] < m[i];
     const float mi = swap ? m[j] : m[i], mj = swap ? m[i] : m[j];
-    const float ci = swap ? c[j] : c[i], cj = swap ? c[i] : c[j];
-    m[i] = mi, m[j] = mj, c[i] = ci, c[j] = cj;
+    const int qi = swap ? q[j] : q[i], qj = swap ? q[i] : q[j];
+    m[i] = mi, m[j] = mj, q[i] = qi, q[j] = qj;
   };
   order(0, 1), order(1, 2), order(0, 1);
   const float m0 = m[0];
-  float u = m0 + (c[0] == 1.0f ? 1.0f : 2.0f / 3.0f);  // 1 / sqrt(c)
-  float a = c[0], b = 0, cc = 0;
-  for (int k = 1; k < 3; ++k) {
-    if (!(m[k] < u)) break;
-    const float d = m[k] - m0;
-    const float a2 = a + c[k], b2 = b + c[k] * d, cc2 = cc + c[k] * d * d;
-    const float disc = b2 * b2 - a2 * (cc2 - 1.0f);
-    if (!(disc >= 0.0f)) break;  // only by rounding: the root lies beyond m[k]
-    a = a2, b = b2, cc = cc2;
-    u = m0 + (b + std::sqrt(disc)) * kInverse[std::uint32_t(a * 4.0f)];  // 32 bits: no range test
-  }
-  return u;
+  float u = m0 + kRootInverse[std::uint32_t(q[0])];  // 32 bits: no range test
+  if (!(m[1] < u)) return u;
+  // The second axis: the sums start at (c0, 0, 0), and 0 + x is x for the x >= 0 here.
+  float d = m[1] - m0;
+  int qa = q[0] + q[1];
+  float a = kWeight[std::uint32_t(qa)], cd = kWeight[std::uint32_t(q[1])] * d;
+  float b = cd, cc = cd * d;
+  float disc = b * b - a * (cc - 1.0f);
+  if (!(disc >= 0.0f)) return u;  // only by rounding: the root lies beyond m[1]
+  u = m0 + (b + rootOf(disc)) * kInverse[std::uint32_t(qa)];
+  if (!(m[2] < u)) return u;
+  d = m[2] - m0;
+  qa += q[2];
+  a = kWeight[std::uint32_t(qa)], cd = kWeight[std::uint32_t(q[2])] * d;
+  b = b + cd, cc = cc + cd * d;
+  disc = b * b - a * (cc - 1.0f);
+  if (!(disc >= 0.0f)) return u;
+  return m0 + (b + rootOf(disc)) * kInverse[std::uint32_t(qa)];
 }
 
 // A side's state byte of flags byte f (SideMarcher): what the side may read there.
@@ -313,14 +345,14 @@ class SideMarcher {
   }
 
   // One axis of n's stencil: the smaller usable neighbour on it (ties: the lower one), as the
-  // term c (u - m)^2 with c = 1, or Sethian's second-order term c = 9/4 with
+  // term c (u - m)^2 (given as q = 4 c) with c = 1, or Sethian's second-order term c = 9/4 with
   // m = a + (a - b) / 3 where the voxel b beyond it is known and the run is monotone.
   // m = infinity when the axis has no usable neighbour. A source of the other sign serves as
   // b with its sign: the signed field is smooth across the surface, and without it the first
   // layer off the surface would be only first order, its bias showing in every curvature.
   // Inside: n is at least 2 voxels from every face of the grid, so every load is in the grid
   // and the selection needs no branch.
-  [[gnu::always_inline]] inline void axisInside(std::size_t n, std::size_t s, float& m, float& c) const {
+  [[gnu::always_inline]] inline void axisInside(std::size_t n, std::size_t s, float& m, int& q) const {
     const float lo = (st(n - s) & kUse) ? mag(n - s) : kInf;
     const float hi = (st(n + s) & kUse) ? mag(n + s) : kInf;
     const bool up = hi < lo;
@@ -330,29 +362,31 @@ class SideMarcher {
     // Read only where the state allows: elsewhere the other side may be writing.
     const float x = (s2 & (kUse | kOther)) ? mag(n2) : kInf;
     const float b = (s2 & kOther) ? -x : x;
-    second(a, b, m, c);
+    second(a, b, m, q);
   }
-  [[gnu::always_inline]] inline void second(float a, float b, float& m, float& c) const {
+  [[gnu::always_inline]] inline void second(float a, float b, float& m, int& q) const {
     const bool two = Second && a - b >= kMonotoneRun;  // false for b = infinity
     m = two ? a + (a - b) * (1.0f / 3.0f) : a;
-    c = two ? 9.0f / 4.0f : 1.0f;
+    q = two ? 9 : 4;  // 4 c
   }
 
   [[gnu::always_inline]] inline float solveInside(std::size_t n) const {
-    float m[3], c[3];
-    axisInside(n, 1, m[0], c[0]), axisInside(n, stride_[1], m[1], c[1]), axisInside(n, stride_[2], m[2], c[2]);
-    return solveEikonal(m, c);
+    float m[3];
+    int q[3];
+    axisInside(n, 1, m[0], q[0]), axisInside(n, stride_[1], m[1], q[1]), axisInside(n, stride_[2], m[2], q[2]);
+    return solveEikonal(m, q);
   }
 
   [[gnu::noinline]] float solveBorder(std::size_t n) const {
-    const Int3 q = local(n);
-    float m[3], c[3];
+    const Int3 p = local(n);
+    float m[3];
+    int q[3];
     for (int a = 0; a < 3; ++a) {
       const std::size_t s = stride_[a];
-      const float lo = q[a] > 0 && (st(n - s) & kUse) ? mag(n - s) : kInf;
-      const float hi = q[a] + 1 < g_.size[a] && (st(n + s) & kUse) ? mag(n + s) : kInf;
+      const float lo = p[a] > 0 && (st(n - s) & kUse) ? mag(n - s) : kInf;
+      const float hi = p[a] + 1 < g_.size[a] && (st(n + s) & kUse) ? mag(n + s) : kInf;
       const bool up = hi < lo;
-      const int at2 = q[a] + (up ? 2 : -2);
+      const int at2 = p[a] + (up ? 2 : -2);
       float b = kInf;
       if (at2 >= 0 && at2 < g_.size[a]) {
         const std::size_t n2 = up ? n + 2 * s : n - 2 * s;
@@ -362,9 +396,9 @@ class SideMarcher {
           b = -mag(n2);
         }
       }
-      second(up ? hi : lo, b, m[a], c[a]);
+      second(up ? hi : lo, b, m[a], q[a]);
     }
-    return solveEikonal(m, c);
+    return solveEikonal(m, q);
   }
 
   DenseGrid& g_;
