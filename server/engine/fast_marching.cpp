@@ -68,7 +68,39 @@ struct Entry {
   std::uint32_t index;
   float dist;  // the voxel's value when pushed; negative: a deferred first solve
 };
-using Buckets = std::vector<std::vector<Entry>>;
+// One bucket of the queue: an array whose push is a store and a compare, inlined; its growth
+// is not (rare: each thread keeps its buckets' storage from one march to the next), so that
+// the marcher's loop holds no call on its common path.
+class Bucket {
+ public:
+  Bucket() = default;
+  Bucket(const Bucket&) = delete;
+  Bucket& operator=(const Bucket&) = delete;
+  // A move keeps the storage's buffer, so the pointers into it stay valid.
+  Bucket(Bucket&&) noexcept = default;
+  Bucket& operator=(Bucket&&) noexcept = default;
+
+  void push(Entry e) {
+    if (end_ == cap_) grow();
+    *end_++ = e;
+  }
+  // Entries pushed while the bucket is read are appended (and may move it): read by index.
+  std::size_t size() const { return std::size_t(end_ - begin_); }
+  Entry operator[](std::size_t k) const { return begin_[k]; }
+  void clear() { end_ = begin_; }
+
+ private:
+  [[gnu::noinline]] void grow() {
+    const std::size_t n = size();
+    storage_.resize(std::max<std::size_t>(64, 2 * storage_.size()));
+    begin_ = storage_.data(), end_ = begin_ + n, cap_ = begin_ + storage_.size();
+  }
+  std::vector<Entry> storage_;
+  Entry* begin_ = nullptr;
+  Entry* end_ = nullptr;
+  Entry* cap_ = nullptr;
+};
+using Buckets = std::vector<Bucket>;
 
 // A stencil term's weight c (1, or Sethian's 9/4) is carried as the integer q = 4c (4 or 9), and
 // the solves look up what they need by it, or by the sum of two or three: exact (quarters), and
@@ -239,7 +271,7 @@ class SideMarcher {
       }
       current_ = b;
       // Entries pushed to this bucket while it is taken are appended: read its size each time.
-      std::vector<Entry>& bucket = buckets_[b];
+      Bucket& bucket = buckets_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
         const Entry e = bucket[k];
         if (e.dist < 0) {  // a deferred first solve
@@ -280,7 +312,7 @@ class SideMarcher {
 
   void push(std::size_t i, float d, std::size_t minBucket) {
     const std::size_t b = std::max(minBucket, bucketOf(d));
-    buckets_[std::min(b, last_)].push_back({std::uint32_t(i), d});
+    buckets_[std::min(b, last_)].push({std::uint32_t(i), d});
   }
 
   // Voxel i is taken at distance d: its value becomes usable, and its open neighbours above it
@@ -302,7 +334,7 @@ class SideMarcher {
     int count = 0;
     const float band = band_;
     const bool early = d < beyond_;
-    std::vector<Entry>& deferred = buckets_[std::min(std::max(current_, bucketOf(d) + kDeferBuckets), last_)];
+    Bucket& deferred = buckets_[std::min(std::max(current_, bucketOf(d) + kDeferBuckets), last_)];
     auto visit = [&](std::size_t n) __attribute__((always_inline)) {
       // The state first: the other side may be writing a voxel that is not open on this one.
       const std::uint8_t s = st(n);
@@ -314,7 +346,7 @@ class SideMarcher {
         todo[count++] = n;
       } else if ((s & kSeen) || early) {
         setSt(n, std::uint8_t(s | kPending | kSeen));
-        deferred.push_back({std::uint32_t(n), -1.0f});
+        deferred.push({std::uint32_t(n), -1.0f});
       }
     };
     if (si & kInside) {
