@@ -469,6 +469,30 @@ class SideMarcher {
   return false;
 }
 
+// Appends to seeds[side] (or to seeds[0] alone, for one side: only) the candidates that seed
+// their side (usable, within the band, and feeding), in their order. Reads a value only of a
+// voxel of the side asked for, as the other side may be marching. seeds: grown, never shrunk,
+// to hold every candidate, so that an append is a store; counts: each list's length.
+void pickSeeds(const DenseGrid& g, const std::uint8_t* flags, std::span<const std::uint32_t> candidates, float band,
+               int only, std::vector<std::uint32_t>* seeds, std::size_t* counts) {
+  const int lists = only < 0 ? 2 : 1;
+  for (int k = 0; k < lists; ++k)
+    if (seeds[k].size() < candidates.size()) seeds[k].resize(candidates.size());
+  std::uint32_t* out[2] = {seeds[0].data(), lists == 2 ? seeds[1].data() : seeds[0].data()};
+  std::size_t count[2] = {0, 0};
+  const float* v = g.v.data();
+  const std::uint8_t onlyNeg = only > 0 ? kNeg : 0;
+  for (const std::uint32_t i : candidates) {
+    const std::uint8_t fi = flags[i];
+    if (only >= 0 && (fi & kNeg) != onlyNeg) continue;
+    if (((fi & (kKnown | kIgnored)) == kKnown || (fi & kUpperBound)) && std::fabs(v[i]) < band && feeds(g, flags, i)) {
+      const int list = lists == 2 && (fi & kNeg) ? 1 : 0;
+      out[list][count[list]++] = i;
+    }
+  }
+  counts[0] = count[0], counts[1] = count[1];
+}
+
 // Per-thread scratch, reused across calls: tools march thousands of times, and fresh
 // multi-megabyte arrays each time cost as much in page faults as the marching itself.
 struct Scratch {
@@ -493,35 +517,28 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
   const std::uint8_t* f = flags.data();
   const bool second = order == MarchOrder::Second;
   MarchStats side[2];
-  auto seed = [&](std::uint32_t i) {
-    return ((f[i] & (kKnown | kIgnored)) == kKnown || (f[i] & kUpperBound)) && std::fabs(g.v[i]) < band &&
-           feeds(g, f, i);
-  };
-  auto march = [&](std::size_t k) {
+  auto march = [&](std::size_t k, std::span<const std::uint32_t> seeds) {
     const std::uint8_t negBit = k ? kNeg : 0;
     if (second) {
       SideMarcher<true> m(g, f, s.state[k], band, negBit, s.buckets[k]);
-      side[k] = m.run(s.seeds[k], progress.part(0.5));
+      side[k] = m.run(seeds, progress.part(0.5));
     } else {
       SideMarcher<false> m(g, f, s.state[k], band, negBit, s.buckets[k]);
-      side[k] = m.run(s.seeds[k], progress.part(0.5));
+      side[k] = m.run(seeds, progress.part(0.5));
     }
   };
   if (pool.threads() > 1 && candidates.size() >= kParallelCandidates) {
     // Each side picks its own seeds, so that neither waits for the other.
     pool.parallelFor(2, [&](std::size_t k) {
-      const std::uint8_t negBit = k ? kNeg : 0;
-      s.seeds[k].clear();
-      for (const std::uint32_t i : candidates)
-        if ((f[i] & kNeg) == negBit && seed(i)) s.seeds[k].push_back(i);
-      march(k);
+      std::size_t count[2];
+      pickSeeds(g, f, candidates, band, int(k), &s.seeds[k], count);
+      march(k, {s.seeds[k].data(), count[0]});
     });
   } else {
-    for (auto& seeds : s.seeds) seeds.clear();
-    for (const std::uint32_t i : candidates)
-      if (seed(i)) s.seeds[(f[i] & kNeg) ? 1 : 0].push_back(i);
-    march(0);
-    march(1);
+    std::size_t count[2];
+    pickSeeds(g, f, candidates, band, -1, s.seeds, count);
+    march(0, {s.seeds[0].data(), count[0]});
+    march(1, {s.seeds[1].data(), count[1]});
   }
   return {side[0].accepted + side[1].accepted, side[0].retaken + side[1].retaken, side[0].solved + side[1].solved};
 }
