@@ -70,35 +70,36 @@ struct Entry {
 };
 // One bucket of the queue: an array whose push is a store and a compare, inlined; its growth
 // is not (rare: each thread keeps its buckets' storage from one march to the next), so that
-// the marcher's loop holds no call on its common path.
+// the marcher's loop holds no call on its common path. Its length is a 32-bit count, not an
+// end pointer (a bucket holds fewer entries than the grid has voxels, see Entry): a store of a
+// pointer may alias any pointer for the compiler, which would then reload the marcher's own
+// after every push.
 class Bucket {
  public:
   Bucket() = default;
   Bucket(const Bucket&) = delete;
   Bucket& operator=(const Bucket&) = delete;
-  // A move keeps the storage's buffer, so the pointers into it stay valid.
+  // A move keeps the storage's buffer, so begin_ stays valid.
   Bucket(Bucket&&) noexcept = default;
   Bucket& operator=(Bucket&&) noexcept = default;
 
   void push(Entry e) {
-    if (end_ == cap_) grow();
-    *end_++ = e;
+    if (size_ == cap_) grow();
+    begin_[size_++] = e;
   }
   // Entries pushed while the bucket is read are appended (and may move it): read by index.
-  std::size_t size() const { return std::size_t(end_ - begin_); }
+  std::size_t size() const { return size_; }
   Entry operator[](std::size_t k) const { return begin_[k]; }
-  void clear() { end_ = begin_; }
+  void clear() { size_ = 0; }
 
  private:
   [[gnu::noinline]] void grow() {
-    const std::size_t n = size();
     storage_.resize(std::max<std::size_t>(64, 2 * storage_.size()));
-    begin_ = storage_.data(), end_ = begin_ + n, cap_ = begin_ + storage_.size();
+    begin_ = storage_.data(), cap_ = std::uint32_t(storage_.size());
   }
   std::vector<Entry> storage_;
   Entry* begin_ = nullptr;
-  Entry* end_ = nullptr;
-  Entry* cap_ = nullptr;
+  std::uint32_t size_ = 0, cap_ = 0;
 };
 using Buckets = std::vector<Bucket>;
 
@@ -469,24 +470,32 @@ class SideMarcher {
   return false;
 }
 
-// Appends to seeds[side] (or to seeds[0] alone, for one side: only) the candidates that seed
-// their side (usable, within the band, and feeding), in their order. Reads a value only of a
-// voxel of the side asked for, as the other side may be marching. seeds: grown, never shrunk,
-// to hold every candidate, so that an append is a store; counts: each list's length.
+// Whether a flags byte is that of a source or an upper bound (which seed their side when
+// within the band and feeding), by table: one load for a test of two bit fields.
+constexpr auto kMaySeed = [] {
+  std::array<bool, 256> t{};
+  for (int f = 0; f < 256; ++f) t[std::size_t(f)] = (f & (kKnown | kIgnored)) == kKnown || (f & kUpperBound);
+  return t;
+}();
+
+// Appends to seeds[side] the candidates that seed their side (usable, within the band, and
+// feeding), in their order; OneSide: only those of side onlyNeg, to seeds[0], reading a value
+// only of a voxel of that side, as the other side may be marching. seeds: grown, never
+// shrunk, to hold every candidate, so that an append is a store; counts: each list's length.
+template <bool OneSide>
 void pickSeeds(const DenseGrid& g, const std::uint8_t* flags, std::span<const std::uint32_t> candidates, float band,
-               int only, std::vector<std::uint32_t>* seeds, std::size_t* counts) {
-  const int lists = only < 0 ? 2 : 1;
+               std::uint8_t onlyNeg, std::vector<std::uint32_t>* seeds, std::size_t* counts) {
+  constexpr int lists = OneSide ? 1 : 2;
   for (int k = 0; k < lists; ++k)
     if (seeds[k].size() < candidates.size()) seeds[k].resize(candidates.size());
-  std::uint32_t* out[2] = {seeds[0].data(), lists == 2 ? seeds[1].data() : seeds[0].data()};
+  std::uint32_t* out[2] = {seeds[0].data(), seeds[lists - 1].data()};
   std::size_t count[2] = {0, 0};
   const float* v = g.v.data();
-  const std::uint8_t onlyNeg = only > 0 ? kNeg : 0;
   for (const std::uint32_t i : candidates) {
     const std::uint8_t fi = flags[i];
-    if (only >= 0 && (fi & kNeg) != onlyNeg) continue;
-    if (((fi & (kKnown | kIgnored)) == kKnown || (fi & kUpperBound)) && std::fabs(v[i]) < band && feeds(g, flags, i)) {
-      const int list = lists == 2 && (fi & kNeg) ? 1 : 0;
+    if (OneSide && (fi & kNeg) != onlyNeg) continue;
+    if (kMaySeed[fi] && std::fabs(v[i]) < band && feeds(g, flags, i)) {
+      const int list = !OneSide && (fi & kNeg) ? 1 : 0;
       out[list][count[list]++] = i;
     }
   }
@@ -531,12 +540,12 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
     // Each side picks its own seeds, so that neither waits for the other.
     pool.parallelFor(2, [&](std::size_t k) {
       std::size_t count[2];
-      pickSeeds(g, f, candidates, band, int(k), &s.seeds[k], count);
+      pickSeeds<true>(g, f, candidates, band, k ? kNeg : 0, &s.seeds[k], count);
       march(k, {s.seeds[k].data(), count[0]});
     });
   } else {
     std::size_t count[2];
-    pickSeeds(g, f, candidates, band, -1, s.seeds, count);
+    pickSeeds<false>(g, f, candidates, band, 0, s.seeds, count);
     march(0, {s.seeds[0].data(), count[0]});
     march(1, {s.seeds[1].data(), count[1]});
   }
