@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <thread>
+#include <utility>
 
 #include "engine/dense_grid.hpp"
 #include "engine/errors.hpp"
@@ -90,6 +92,37 @@ TEST_CASE("the march solves each voxel about once, and takes few voxels twice", 
     CHECK(s.march.solved <= s.march.accepted);
     CHECK(s.march.retaken <= s.march.accepted / 50);
   }
+}
+
+TEST_CASE("a march gives the same field with its queue and seed lists fresh or kept from a larger march", "[fmm]") {
+  // Each thread keeps its queue's buckets and its seed lists from one march to the next: a
+  // bucket grows while it is read, and the lists are only ever grown. A march on a new thread
+  // starts with them empty; one on this thread, after a larger march, finds them longer than it
+  // needs (a list read by its storage's size instead of its count would seed stale voxels).
+  auto sphereMarch = [](int n, double r) {
+    const Vec3 c{n / 2 + 0.3, n / 2 - 0.2, n / 2 + 0.1};
+    DenseGrid g({{0, 0, 0}, {n, n, n}});
+    std::vector<MarchState> state(g.v.size(), MarchState::Unknown);
+    for (std::size_t i = 0; i < g.v.size(); ++i) {
+      const Int3 p = g.point(i);
+      const double e = length(Vec3{double(p.x), double(p.y), double(p.z)} - c) - r;
+      g.v[i] = float(e);
+      if (std::fabs(e) < 1) state[i] = MarchState::Source;
+    }
+    const MarchStats stats = fastMarch(g, state, 3.0f, MarchOrder::Second);
+    return std::make_pair(g, stats);
+  };
+  sphereMarch(64, 25.2);
+  const auto [kept, keptStats] = sphereMarch(48, 15.2);
+  std::pair<DenseGrid, MarchStats> fresh;
+  std::thread([&] { fresh = sphereMarch(48, 15.2); }).join();
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < kept.v.size(); ++i) differ += std::memcmp(&kept.v[i], &fresh.first.v[i], sizeof(float)) != 0;
+  CHECK(differ == 0);
+  CHECK(fresh.second.accepted > 15000);  // the band of the sphere (16687 voxels taken)
+  CHECK(keptStats.accepted == fresh.second.accepted);
+  CHECK(keptStats.solved == fresh.second.solved);
+  CHECK(keptStats.retaken == fresh.second.retaken);
 }
 
 TEST_CASE("each side is marched only from sources of its own sign, clamped at the band", "[fmm]") {
