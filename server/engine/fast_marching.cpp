@@ -256,6 +256,7 @@ class SideMarcher {
     buckets_.resize(std::size_t(std::ceil(band * kBucketsPerVu)) + 1);
     last_ = buckets_.size() - 1;
     for (auto& b : buckets_) b.clear();
+    queue_ = buckets_.data();
     state.resize(g.v.size());
     st_ = state.data();
     buildState(flags, negBit, st_, state.size());
@@ -272,7 +273,7 @@ class SideMarcher {
       }
       current_ = b;
       // Entries pushed to this bucket while it is taken are appended: read its size each time.
-      Bucket& bucket = buckets_[b];
+      Bucket& bucket = queue_[b];
       for (std::size_t k = 0; k < bucket.size(); ++k) {
         const Entry e = bucket[k];
         if (e.dist < 0) {  // a deferred first solve
@@ -293,7 +294,7 @@ class SideMarcher {
       bucket.clear();
     }
     progress.advance(double(buckets_.size() - (buckets_.size() - 1) / kBucketsPerCheck * kBucketsPerCheck) * perBucket);
-    return stats_;
+    return {accepted_, retaken_, solved_};
   }
 
  private:
@@ -313,7 +314,7 @@ class SideMarcher {
 
   void push(std::size_t i, float d, std::size_t minBucket) {
     const std::size_t b = std::max(minBucket, bucketOf(d));
-    buckets_[std::min(b, last_)].push({std::uint32_t(i), d});
+    queue_[std::min(b, last_)].push({std::uint32_t(i), d});
   }
 
   // Voxel i is taken at distance d: its value becomes usable, and its open neighbours above it
@@ -324,9 +325,9 @@ class SideMarcher {
   // lie within the least rise of a root (kMinRiseSecond) of the band's end is not solved at
   // all: its root would lie beyond it.
   [[gnu::always_inline]] inline void accept(std::size_t i, float d) {
-    ++stats_.accepted;
+    ++accepted_;
     const std::uint8_t si = st(i);
-    stats_.retaken += (si & kTaken) ? 1 : 0;
+    retaken_ += (si & kTaken) ? 1 : 0;
     setSt(i, std::uint8_t(si | kUse | kTaken));
     // The neighbours to solve now are listed first and solved after, in the same order (a
     // solve writes only its own voxel, which no other visit reads).
@@ -335,7 +336,7 @@ class SideMarcher {
     int count = 0;
     const float band = band_;
     const bool early = d < beyond_;
-    Bucket& deferred = buckets_[std::min(std::max(current_, bucketOf(d) + kDeferBuckets), last_)];
+    Bucket& deferred = queue_[std::min(std::max(current_, bucketOf(d) + kDeferBuckets), last_)];
     auto visit = [&](std::size_t n) __attribute__((always_inline)) {
       // The state first: the other side may be writing a voxel that is not open on this one.
       const std::uint8_t s = st(n);
@@ -369,7 +370,7 @@ class SideMarcher {
   // Solves voxel n (unknown, this side, state s) from its usable neighbours and lowers it to the
   // root: returns the root, to be queued, or infinity when n is not lowered.
   [[gnu::always_inline]] inline float update(std::size_t n, std::uint8_t s) {
-    ++stats_.solved;
+    ++solved_;
     const float u = (s & kInside) ? solveInside(n) : solveBorder(n);
     // Compared as stored, or a root rounded up would be pushed again forever.
     if (!(u < mag(n) && u < band_)) return kInf;
@@ -440,11 +441,16 @@ class SideMarcher {
   float band_;
   std::uint8_t negBit_;
   Buckets& buckets_;
+  Bucket* queue_;  // buckets_' first: one load less per push than through the vector
   std::size_t last_;  // the last bucket, which takes everything beyond it
   std::size_t stride_[3];
   std::size_t current_ = 0;
   float beyond_ = band_ - (Second ? kMinRiseSecond : kMinRiseFirst);  // see accept()
-  MarchStats stats_;
+  // MarchStats' counts, apart: side by side, the compiler pairs the two counts accept()
+  // advances into one vector addition, which costs more than the two.
+  std::size_t accepted_ = 0;
+  std::size_t solved_ = 0;
+  std::size_t retaken_ = 0;
 };
 
 // Sources (and upper bounds) of a side that border one of its unknown voxels other than upper
