@@ -71,9 +71,9 @@ struct Entry {
 // One bucket of the queue: an array whose push is a store and a compare, inlined; its growth
 // is not (rare: each thread keeps its buckets' storage from one march to the next), so that
 // the marcher's loop holds no call on its common path. Its length is a 32-bit count, not an
-// end pointer (a bucket holds fewer entries than the grid has voxels, see Entry): a store of a
-// pointer may alias any pointer for the compiler, which would then reload the marcher's own
-// after every push.
+// end pointer: a store of a pointer may alias any pointer for the compiler, which would then
+// reload the marcher's own after every push. (A bucket holds a few entries per voxel at most,
+// and a grid's voxels are indexed in 32 bits, see Entry: 2^32 entries would be 32 GiB.)
 class Bucket {
  public:
   Bucket() = default;
