@@ -299,17 +299,22 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
 
 namespace {
 
-// Appends the voxels of row (y, z) of g in [lo, hi) (volume x) whose value is not +-band.
-[[gnu::always_inline]] inline void collectRow(const DenseGrid& g, int lo, int hi, int y, int z, float band, BandVoxels& out) {
+// Appends the voxels of row (y, z) of g in [lo, hi) (volume x) whose value is not +-band at
+// out's positions n, n + 1, ...: the caller has sized out's arrays for the whole row (a
+// push_back per voxel cost several times the test of the 16 voxels around it).
+[[gnu::always_inline]] inline void collectRow(const DenseGrid& g, int lo, int hi, int y, int z, float band,
+                                              BandVoxels& out, std::size_t& n) {
   const std::size_t row = g.index({lo, y, z});
   const float* v = g.v.data() + row;
-  const int n = hi - lo;
+  const int count = hi - lo;
+  std::uint32_t* const index = out.index.data();
+  Int3* const point = out.point.data();
   auto add = [&](std::uint32_t near, int x) __attribute__((always_inline)) {
     while (near) {
       const int k = __builtin_ctz(near);
       near &= near - 1;
-      out.index.push_back(std::uint32_t(row + std::size_t(x + k)));
-      out.point.push_back({lo + x + k, y, z});
+      index[n] = std::uint32_t(row + std::size_t(x + k));
+      point[n++] = {lo + x + k, y, z};
     }
   };
   // Far voxels are the rule: test 16 at a time without a branch, then visit the others. The
@@ -317,37 +322,54 @@ namespace {
   // already tested shifted out), or, in a row shorter than 16, in one that reads past it (the
   // bits past it dropped) where the grid goes on that far.
   int x = 0;
-  for (; x + 16 <= n; x += 16) add(nearMask16(v + x, band), x);
-  if (x >= n) return;  // also an empty row
-  if (n >= 16) {
-    add(nearMask16(v + n - 16, band) >> (16 - (n - x)), x);
+  for (; x + 16 <= count; x += 16) add(nearMask16(v + x, band), x);
+  if (x >= count) return;  // also an empty row
+  if (count >= 16) {
+    add(nearMask16(v + count - 16, band) >> (16 - (count - x)), x);
   } else if (row + 16 <= g.v.size()) {
-    add(nearMask16(v, band) & ((std::uint32_t(1) << n) - 1), 0);
+    add(nearMask16(v, band) & ((std::uint32_t(1) << count) - 1), 0);
   } else {
-    for (; x < n; ++x)
+    for (; x < count; ++x)
       if (std::fabs(v[x]) != band) add(1, x);
   }
+}
+
+// Makes room in out for n + count voxels: doubles the arrays when they are short (what they
+// hold past n is written before it is read), so that a list of any length costs a few resizes.
+inline void reserveRow(BandVoxels& out, std::size_t n, int count) {
+  const std::size_t want = n + std::size_t(std::max(count, 0));
+  if (out.index.size() >= want) return;
+  const std::size_t size = std::max(want, 2 * out.index.size());
+  out.index.resize(size);
+  out.point.resize(size);
 }
 
 }  // namespace
 
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
-  index.clear();
-  point.clear();
+  std::size_t n = 0;
   for (int z = box.lo.z; z < box.hi.z; ++z) {
     progress.check();
-    for (int y = box.lo.y; y < box.hi.y; ++y) collectRow(g, box.lo.x, box.hi.x, y, z, band, *this);
+    for (int y = box.lo.y; y < box.hi.y; ++y) {
+      reserveRow(*this, n, box.hi.x - box.lo.x);
+      collectRow(g, box.lo.x, box.hi.x, y, z, band, *this, n);
+    }
   }
+  index.resize(n);
+  point.resize(n);
   progress.advance(1);
 }
 
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Volume& vol) {
   box = b.intersect(g.box);
-  index.clear();
-  point.clear();
+  std::size_t n = 0;
   const Box stored = box.intersect(vol.domain());
-  if (stored.empty()) return;
+  if (stored.empty()) {
+    index.clear();
+    point.clear();
+    return;
+  }
   // Per row of bricks (by, bz): the x-runs of stored bricks, clipped to the box, in increasing x.
   // Then the rows in index order (z, y), each through its brick row's runs.
   const Box bricks = Bricks::bricksOf(stored);
@@ -371,8 +393,13 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Vol
     for (int y = stored.lo.y; y < stored.hi.y; ++y) {
       const auto& row = runs[std::size_t(Bricks::brickOf(y) - bricks.lo.y) +
                              std::size_t(nb.y) * std::size_t(Bricks::brickOf(z) - bricks.lo.z)];
-      for (const auto& [lo, hi] : row) collectRow(g, lo, hi, y, z, band, *this);
+      for (const auto& [lo, hi] : row) {
+        reserveRow(*this, n, hi - lo);
+        collectRow(g, lo, hi, y, z, band, *this, n);
+      }
     }
+  index.resize(n);
+  point.resize(n);
 }
 
 MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
