@@ -487,9 +487,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     // order, so its rows come one after the other.
     int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
     auto cellDistance = [](int x, int lo, int hi) { return x < lo ? lo - x : std::max(0, x - hi); };
-    auto nearRow = [&](Int3 p) -> std::span<const NearBox> {
+    // Rebuilt only when the row changes: a row holds a few shell voxels, looked at one by one.
+    auto newRow = [&](Int3 p) __attribute__((noinline)) {
       if (p.z != rowZ) {
-        rowZ = p.z, rowY = std::numeric_limits<int>::min();
+        rowZ = p.z;
         out.nearZ.clear();
         for (std::size_t b = 0; b < s.moved.size(); ++b) {
           const MovedBox& m = s.moved[b];
@@ -501,16 +502,17 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           out.nearZ.push_back({std::uint32_t(b), dz * dz, m.yLo - w, m.yHi + w});
         }
       }
-      if (p.y != rowY) {
-        rowY = p.y;
-        out.near.clear();
-        for (const ListPiece::NearZ& n : out.nearZ) {
-          if (p.y < n.yFrom || p.y > n.yTo) continue;
-          const MovedBox& m = s.moved[n.box];
-          const int dy = cellDistance(p.y, m.yLo, m.yHi);
-          out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
-        }
+      rowY = p.y;
+      out.near.clear();
+      for (const ListPiece::NearZ& n : out.nearZ) {
+        if (p.y < n.yFrom || p.y > n.yTo) continue;
+        const MovedBox& m = s.moved[n.box];
+        const int dy = cellDistance(p.y, m.yLo, m.yHi);
+        out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
       }
+    };
+    auto nearRow = [&](Int3 p) __attribute__((always_inline)) -> std::span<const NearBox> {
+      if (p.y != rowY || p.z != rowZ) newRow(p);
       return out.near;
     };
     const std::uint32_t* const index = list->index.data();
