@@ -409,8 +409,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   if (r.empty()) return {};
   Scratch& s = scratch();
   s.flags.resize(g.v.size());
-  std::uint8_t* flags = s.flags.data();
-  float* v = g.v.data();
+  std::uint8_t* const allFlags = s.flags.data();
+  float* const values = g.v.data();
   const bool parallel = pool.threads() > 1 && g.v.size() >= kParallelVoxels;
 
   // The region's voxels to reset, and where kept voxels are normalized.
@@ -446,7 +446,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     if (s.flagPieces.size() < slabs) s.flagPieces.resize(slabs);
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
       const int z0 = parallel ? int(slab) * kSlabSlices : 0, z1 = parallel ? std::min(sz, z0 + kSlabSlices) : sz;
-      flagSlices(g, flags, layout, z0, z1, s.flagPieces[slab], progress);
+      flagSlices(g, allFlags, layout, z0, z1, s.flagPieces[slab], progress);
     });
   }
 
@@ -470,6 +470,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const double reach = double(band) + kFootMargin;
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     progress.check();
+    // Copies the compiler sees are not stored to: a store to a flag byte may alias anything,
+    // and would have the pointers captured by reference loaded again for every voxel.
+    std::uint8_t* const flags = allFlags;
+    const float* const v = values;
     ListPiece& out = s.pieces[piece];
     const std::size_t begin = piece * kListPiece, end = std::min(list->index.size(), begin + kListPiece);
     if (out.kept.size() < end - begin) {
@@ -593,10 +597,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     const ListPiece& in = s.pieces[piece];
-    for (std::size_t j = 0; j < in.keptCount; ++j) v[in.kept[j]] = in.scaled[j];
+    for (std::size_t j = 0; j < in.keptCount; ++j) values[in.kept[j]] = in.scaled[j];
     for (std::size_t j = 0; j < in.farCount; ++j) {
       const std::uint32_t i = in.farUnknown[j];
-      v[i] = v[i] < 0 ? -band : band;
+      values[i] = values[i] < 0 ? -band : band;
     }
   });
   progress.advance(kSetupShare);
