@@ -96,14 +96,14 @@ std::uint32_t nearMask16(const float* v, float band) {
 #endif
 }
 
-// f[x] = v[x] < 0 ? pos[x] ^ flip[x] : pos[x] for x < n. A row of 16 voxels or more ends with
+// f[x] = v[x] < 0 ? pos[x] ^ flip[x] : pos[x] for x < n. A run of 16 voxels or more ends with
 // a block that overlaps the one before it (and writes the same bytes again).
-[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, int n, const std::uint8_t* pos,
+[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, std::size_t n, const std::uint8_t* pos,
                                              const std::uint8_t* flip) {
 #if defined(__SSE2__)
   if (n >= 16) {
     const __m128 zero = _mm_setzero_ps();
-    auto block = [&](int x) __attribute__((always_inline)) {
+    auto block = [&](std::size_t x) __attribute__((always_inline)) {
       const __m128i m0 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x), zero));
       const __m128i m1 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 4), zero));
       const __m128i m2 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 8), zero));
@@ -113,13 +113,13 @@ std::uint32_t nearMask16(const float* v, float band) {
       const __m128i fl = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flip + x));
       _mm_storeu_si128(reinterpret_cast<__m128i*>(f + x), _mm_xor_si128(p, _mm_and_si128(neg, fl)));
     };
-    int x = 0;
+    std::size_t x = 0;
     for (; x + 16 <= n; x += 16) block(x);
     if (x < n) block(n - 16);
     return;
   }
 #endif
-  for (int x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
+  for (std::size_t x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
 }
 
 // A tool's grid is split into fixed pieces (z-slabs of the grid, runs of the band list), each
@@ -150,13 +150,21 @@ struct ListPiece {
 
 // One piece (z-slab) of the flags pass: for the current z-slice, the two bytes of every
 // voxel position (flags = pos, or pos ^ flip where the value is negative), one row of them per
-// band of rows that the same boxes hold; rebuilt only when the boxes holding a slice change.
+// band of rows that the same boxes hold, then copied out to the whole slice (slicePos,
+// sliceFlip: a slice is then one run of 16-voxel blocks, where a tool's short rows spent more on
+// their ends than on their voxels); rebuilt only when the boxes holding a slice change.
 struct FlagPiece {
-  std::vector<std::uint8_t> pos, flip;
+  std::vector<std::uint8_t> pos, flip, slicePos, sliceFlip;
   std::vector<int> bands;  // the first row of each band, then the number of rows
   std::vector<int> ys;
   std::vector<std::pair<int, int>> runs, lastRuns;  // a band's: whether inner, reset runs, marker, marked runs
   std::vector<std::uint32_t> slice, last;  // whether a slice is inner, the reset and marked boxes holding it
+  // The reset and marked boxes holding the slice, grid-local, in increasing x0: a stroke's
+  // slanted line of boxes changes them at almost every slice, and each band of rows tests them all.
+  struct Span {
+    int y0, y1, x0, x1;
+  };
+  std::vector<Span> resetSpans, markedSpans;
 };
 
 struct Scratch {
@@ -203,22 +211,20 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
   constexpr std::uint32_t kSeparator = ~std::uint32_t(0);
   const float* v = g.v.data();
   bool built = false;
-  // The x-runs (box-local, merged) of the boxes of `which` (indices into `boxes`) holding row vy.
-  auto runs = [&](std::span<const Box> boxes, const std::uint32_t* which, const std::uint32_t* end, int vy, auto&& fn) {
+  // The x-runs (grid-local, merged) of the spans holding row y.
+  auto runs = [&](const std::vector<FlagPiece::Span>& spans, int y) {
     bool open = false;
     int lo = 0, hi = 0;
-    for (; which != end; ++which) {
-      const Box& b = boxes[*which];
-      if (vy < b.lo.y || vy >= b.hi.y) continue;
-      const int bl = b.lo.x - g.box.lo.x, bh = b.hi.x - g.box.lo.x;
-      if (open && bl <= hi) {
-        hi = std::max(hi, bh);
+    for (const FlagPiece::Span& b : spans) {
+      if (y < b.y0 || y >= b.y1) continue;
+      if (open && b.x0 <= hi) {
+        hi = std::max(hi, b.x1);
         continue;
       }
-      if (open) fn(lo, hi);
-      open = true, lo = bl, hi = bh;
+      if (open) fp.runs.push_back({lo, hi});
+      open = true, lo = b.x0, hi = b.x1;
     }
-    if (open) fn(lo, hi);
+    if (open) fp.runs.push_back({lo, hi});
   };
   for (int z = z0; z < z1; ++z) {
     progress.check();
@@ -237,30 +243,29 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
       built = true;
       fp.last = fp.slice;
       fp.ys.assign({0, yLo, yHi, sy});
+      fp.resetSpans.clear();
+      fp.markedSpans.clear();
       for (std::size_t j = 1; j < fp.slice.size(); ++j) {
         if (j == separator) continue;
         const Box& b = j < separator ? layout.reset[fp.slice[j]] : layout.marked[fp.slice[j]];
+        (j < separator ? fp.resetSpans : fp.markedSpans)
+            .push_back({b.lo.y - g.box.lo.y, b.hi.y - g.box.lo.y, b.lo.x - g.box.lo.x, b.hi.x - g.box.lo.x});
         fp.ys.push_back(std::clamp(b.lo.y - g.box.lo.y, 0, sy));
         fp.ys.push_back(std::clamp(b.hi.y - g.box.lo.y, 0, sy));
       }
       std::sort(fp.ys.begin(), fp.ys.end());
       fp.ys.erase(std::unique(fp.ys.begin(), fp.ys.end()), fp.ys.end());
       fp.bands.clear();
-      const std::uint32_t* resetBegin = fp.slice.data() + 1;
-      const std::uint32_t* resetEnd = fp.slice.data() + separator;
-      const std::uint32_t* markedBegin = resetEnd + 1;
-      const std::uint32_t* markedEnd = fp.slice.data() + fp.slice.size();
       // Rows whose runs are those of the row before (a box that starts or ends inside the
       // union of the others changes nothing) stay in its band.
       for (std::size_t j = 0; j + 1 < fp.ys.size(); ++j) {
         const int y0 = fp.ys[j];
         const bool inner = innerZ && y0 >= yLo && y0 < yHi;
-        const int vy = g.box.lo.y + y0;
         fp.runs.clear();
         fp.runs.push_back({inner ? 1 : 0, 0});
-        runs(layout.reset, resetBegin, resetEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        runs(fp.resetSpans, y0);
         fp.runs.push_back({-1, -1});
-        runs(layout.marked, markedBegin, markedEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        runs(fp.markedSpans, y0);
         if (!fp.bands.empty() && fp.runs == fp.lastRuns) continue;
         std::swap(fp.runs, fp.lastRuns);
         const std::size_t o = fp.bands.size() * std::size_t(sx);
@@ -280,18 +285,23 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
         fill(0, sx, layout.base, kNeg);
         std::size_t k = 1;
         for (; fp.lastRuns[k].first >= 0; ++k) fill(fp.lastRuns[k].first, fp.lastRuns[k].second, resetPos, resetFlip);
-        for (++k; k < fp.lastRuns.size(); ++k)
-          for (int x = fp.lastRuns[k].first; x < fp.lastRuns[k].second; ++x) pos[x] |= kMarked;
+        for (++k; k < fp.lastRuns.size(); ++k) {
+          const int lo = fp.lastRuns[k].first, hi = fp.lastRuns[k].second;
+          for (int x = lo; x < hi; ++x) pos[x] |= kMarked;
+        }
       }
       fp.bands.push_back(sy);
+      if (fp.slicePos.size() < g.sxy) fp.slicePos.resize(g.sxy), fp.sliceFlip.resize(g.sxy);
+      std::size_t band = 0;
+      for (int y = 0; y < sy; ++y) {
+        while (y >= fp.bands[band + 1]) ++band;
+        const std::size_t row = std::size_t(y) * g.sx, t = band * std::size_t(sx);
+        std::copy_n(fp.pos.data() + t, sx, fp.slicePos.data() + row);
+        std::copy_n(fp.flip.data() + t, sx, fp.sliceFlip.data() + row);
+      }
     }
     const std::size_t slice = std::size_t(z) * g.sxy;
-    std::size_t band = 0;
-    for (int y = 0; y < sy; ++y) {
-      while (y >= fp.bands[band + 1]) ++band;
-      const std::size_t row = slice + std::size_t(y) * g.sx, t = band * std::size_t(sx);
-      signFlags(v + row, flags + row, sx, fp.pos.data() + t, fp.flip.data() + t);
-    }
+    signFlags(v + slice, flags + slice, g.sxy, fp.slicePos.data(), fp.sliceFlip.data());
   }
 }
 
