@@ -309,31 +309,44 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
 
 namespace {
 
-// Appends the voxels of row (y, z) of g in [lo, hi) (volume x) whose value is not +-band at
-// out's positions n, n + 1, ...: the caller has sized out's arrays for the whole row (a
-// push_back per voxel cost several times the test of the 16 voxels around it).
-[[gnu::always_inline]] inline void collectRow(const DenseGrid& g, int lo, int hi, int y, int z, float band,
-                                              BandVoxels& out, std::size_t& n) {
-  const std::size_t row = g.index({lo, y, z});
+// Where a run of whole rows of a z-slice (RowRun) has got to: the grid index of the current
+// row's first voxel, of the next row's, and its y.
+struct RowCursor {
+  std::size_t rowStart, rowEnd;
+  int y;
+};
+
+// Appends the voxels of g whose value is not +-band among the count voxels from grid index row
+// on, at out's positions n, n + 1, ...: the caller has sized out's arrays for all of them (a
+// push_back per voxel cost several times the test of the 16 voxels around it). RowRun: they are
+// part of a run of whole rows of a z-slice, followed from one row to the next by cursor; else
+// they lie in row (y, z) from x = lo on.
+template <bool RowRun>
+[[gnu::always_inline]] inline void collectRun(const DenseGrid& g, std::size_t row, std::size_t count, int lo, int y, int z,
+                                              float band, BandVoxels& out, std::size_t& n, RowCursor& cursor) {
   const float* v = g.v.data() + row;
-  const int count = hi - lo;
   std::uint32_t* const index = out.index.data();
   Int3* const point = out.point.data();
-  auto add = [&](std::uint32_t near, int x) __attribute__((always_inline)) {
+  auto add = [&](std::uint32_t near, std::size_t x) __attribute__((always_inline)) {
     while (near) {
-      const int k = __builtin_ctz(near);
+      const std::size_t i = row + x + std::size_t(__builtin_ctz(near));
       near &= near - 1;
-      index[n] = std::uint32_t(row + std::size_t(x + k));
-      point[n++] = {lo + x + k, y, z};
+      index[n] = std::uint32_t(i);
+      if constexpr (RowRun) {
+        while (i >= cursor.rowEnd) cursor.rowStart = cursor.rowEnd, cursor.rowEnd += g.sx, ++cursor.y;
+        point[n++] = {g.box.lo.x + int(i - cursor.rowStart), cursor.y, z};
+      } else {
+        point[n++] = {lo + int(i - row), y, z};
+      }
     }
   };
   // Far voxels are the rule: test 16 at a time without a branch, then visit the others. The
-  // last few voxels are tested in a block that ends at the row's end (the bits of voxels
-  // already tested shifted out), or, in a row shorter than 16, in one that reads past it (the
+  // last few voxels are tested in a block that ends at the run's end (the bits of voxels
+  // already tested shifted out), or, in a run shorter than 16, in one that reads past it (the
   // bits past it dropped) where the grid goes on that far.
-  int x = 0;
+  std::size_t x = 0;
   for (; x + 16 <= count; x += 16) add(nearMask16(v + x, band), x);
-  if (x >= count) return;  // also an empty row
+  if (x >= count) return;  // also an empty run
   if (count >= 16) {
     add(nearMask16(v + count - 16, band) >> (16 - (count - x)), x);
   } else if (row + 16 <= g.v.size()) {
@@ -344,12 +357,13 @@ namespace {
   }
 }
 
-// Makes room in out for n + count voxels: doubles the arrays when they are short (what they
-// hold past n is written before it is read), so that a list of any length costs a few resizes.
-inline void reserveRow(BandVoxels& out, std::size_t n, int count) {
-  const std::size_t want = n + std::size_t(std::max(count, 0));
+// Makes room in out for n + count voxels. The arrays keep the last list's length between calls
+// and grow by an eighth when short: what they hold past n is written before it is read, but a
+// resize writes every element it adds (the vectors' own growth keeps reallocations few).
+inline void reserveRow(BandVoxels& out, std::size_t n, std::size_t count) {
+  const std::size_t want = n + count;
   if (out.index.size() >= want) return;
-  const std::size_t size = std::max(want, 2 * out.index.size());
+  const std::size_t size = std::max(want, out.index.size() + out.index.size() / 8);
   out.index.resize(size);
   out.point.resize(size);
 }
@@ -359,11 +373,29 @@ inline void reserveRow(BandVoxels& out, std::size_t n, int count) {
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
   std::size_t n = 0;
+  RowCursor unused{};
+  // A box as wide as the grid (a local tool's) is one run of whole rows per z-slice, taken in
+  // pieces of kRunPiece voxels (the arrays grow by no more than that past the list): a short
+  // row's ends cost more than its voxels.
+  constexpr std::size_t kRunPiece = 1024;
+  const bool wide = box.lo.x == g.box.lo.x && box.hi.x == g.box.hi.x;
+  const std::size_t width = std::size_t(std::max(0, box.hi.x - box.lo.x));
+  const std::size_t sliceRun = std::size_t(std::max(0, box.hi.y - box.lo.y)) * width;
   for (int z = box.lo.z; z < box.hi.z; ++z) {
     progress.check();
+    if (wide) {
+      const std::size_t first = g.index({box.lo.x, box.lo.y, z});
+      RowCursor cursor{first, first + g.sx, box.lo.y};
+      for (std::size_t o = 0; o < sliceRun; o += kRunPiece) {
+        const std::size_t count = std::min(kRunPiece, sliceRun - o);
+        reserveRow(*this, n, count);
+        collectRun<true>(g, first + o, count, 0, 0, z, band, *this, n, cursor);
+      }
+      continue;
+    }
     for (int y = box.lo.y; y < box.hi.y; ++y) {
-      reserveRow(*this, n, box.hi.x - box.lo.x);
-      collectRow(g, box.lo.x, box.hi.x, y, z, band, *this, n);
+      reserveRow(*this, n, width);
+      collectRun<false>(g, g.index({box.lo.x, y, z}), width, box.lo.x, y, z, band, *this, n, unused);
     }
   }
   index.resize(n);
@@ -374,6 +406,7 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Pro
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Volume& vol) {
   box = b.intersect(g.box);
   std::size_t n = 0;
+  RowCursor unused{};
   const Box stored = box.intersect(vol.domain());
   if (stored.empty()) {
     index.clear();
@@ -404,8 +437,8 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Vol
       const auto& row = runs[std::size_t(Bricks::brickOf(y) - bricks.lo.y) +
                              std::size_t(nb.y) * std::size_t(Bricks::brickOf(z) - bricks.lo.z)];
       for (const auto& [lo, hi] : row) {
-        reserveRow(*this, n, hi - lo);
-        collectRow(g, lo, hi, y, z, band, *this, n);
+        reserveRow(*this, n, std::size_t(hi - lo));
+        collectRun<false>(g, g.index({lo, y, z}), std::size_t(hi - lo), lo, y, z, band, *this, n, unused);
       }
     }
   index.resize(n);
