@@ -624,10 +624,18 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       kept[keptCount] = i;
       scaled[keptCount++] = float(std::copysign(mag, val));
     };
+    // Marked voxels, or all without moved boxes, are not looked at by the shell's tests.
+    const std::uint8_t noShell = moved.empty() ? 0xff : kMarked;
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t i = index[k];
       const std::uint8_t f = flags[i];
       if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+      // The most common kind in a large region, decided before the rest (as classify would):
+      // too far from the surface to be adjacent to it (NaN included), and reset.
+      if (!(std::fabs(v[i]) < 1.75f) && (f & noShell)) {
+        farUnknown[farCount++] = i;
+        continue;
+      }
       if (f & kInterior) {
         classify(std::true_type{}, k, i, f);
       } else {
