@@ -96,14 +96,14 @@ std::uint32_t nearMask16(const float* v, float band) {
 #endif
 }
 
-// f[x] = v[x] < 0 ? pos[x] ^ flip[x] : pos[x] for x < n. A row of 16 voxels or more ends with
+// f[x] = v[x] < 0 ? pos[x] ^ flip[x] : pos[x] for x < n. A run of 16 voxels or more ends with
 // a block that overlaps the one before it (and writes the same bytes again).
-[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, int n, const std::uint8_t* pos,
+[[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, std::size_t n, const std::uint8_t* pos,
                                              const std::uint8_t* flip) {
 #if defined(__SSE2__)
   if (n >= 16) {
     const __m128 zero = _mm_setzero_ps();
-    auto block = [&](int x) __attribute__((always_inline)) {
+    auto block = [&](std::size_t x) __attribute__((always_inline)) {
       const __m128i m0 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x), zero));
       const __m128i m1 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 4), zero));
       const __m128i m2 = _mm_castps_si128(_mm_cmplt_ps(_mm_loadu_ps(v + x + 8), zero));
@@ -113,13 +113,13 @@ std::uint32_t nearMask16(const float* v, float band) {
       const __m128i fl = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flip + x));
       _mm_storeu_si128(reinterpret_cast<__m128i*>(f + x), _mm_xor_si128(p, _mm_and_si128(neg, fl)));
     };
-    int x = 0;
+    std::size_t x = 0;
     for (; x + 16 <= n; x += 16) block(x);
     if (x < n) block(n - 16);
     return;
   }
 #endif
-  for (int x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
+  for (std::size_t x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
 }
 
 // A tool's grid is split into fixed pieces (z-slabs of the grid, runs of the band list), each
@@ -150,13 +150,21 @@ struct ListPiece {
 
 // One piece (z-slab) of the flags pass: for the current z-slice, the two bytes of every
 // voxel position (flags = pos, or pos ^ flip where the value is negative), one row of them per
-// band of rows that the same boxes hold; rebuilt only when the boxes holding a slice change.
+// band of rows that the same boxes hold, then copied out to the whole slice (slicePos,
+// sliceFlip: a slice is then one run of 16-voxel blocks, where a tool's short rows spent more on
+// their ends than on their voxels); rebuilt only when the boxes holding a slice change.
 struct FlagPiece {
-  std::vector<std::uint8_t> pos, flip;
+  std::vector<std::uint8_t> pos, flip, slicePos, sliceFlip;
   std::vector<int> bands;  // the first row of each band, then the number of rows
   std::vector<int> ys;
   std::vector<std::pair<int, int>> runs, lastRuns;  // a band's: whether inner, reset runs, marker, marked runs
   std::vector<std::uint32_t> slice, last;  // whether a slice is inner, the reset and marked boxes holding it
+  // The reset and marked boxes holding the slice, grid-local, in increasing x0: a stroke's
+  // slanted line of boxes changes them at almost every slice, and each band of rows tests them all.
+  struct Span {
+    int y0, y1, x0, x1;
+  };
+  std::vector<Span> resetSpans, markedSpans;
 };
 
 struct Scratch {
@@ -203,22 +211,20 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
   constexpr std::uint32_t kSeparator = ~std::uint32_t(0);
   const float* v = g.v.data();
   bool built = false;
-  // The x-runs (box-local, merged) of the boxes of `which` (indices into `boxes`) holding row vy.
-  auto runs = [&](std::span<const Box> boxes, const std::uint32_t* which, const std::uint32_t* end, int vy, auto&& fn) {
+  // The x-runs (grid-local, merged) of the spans holding row y.
+  auto runs = [&](const std::vector<FlagPiece::Span>& spans, int y) {
     bool open = false;
     int lo = 0, hi = 0;
-    for (; which != end; ++which) {
-      const Box& b = boxes[*which];
-      if (vy < b.lo.y || vy >= b.hi.y) continue;
-      const int bl = b.lo.x - g.box.lo.x, bh = b.hi.x - g.box.lo.x;
-      if (open && bl <= hi) {
-        hi = std::max(hi, bh);
+    for (const FlagPiece::Span& b : spans) {
+      if (y < b.y0 || y >= b.y1) continue;
+      if (open && b.x0 <= hi) {
+        hi = std::max(hi, b.x1);
         continue;
       }
-      if (open) fn(lo, hi);
-      open = true, lo = bl, hi = bh;
+      if (open) fp.runs.push_back({lo, hi});
+      open = true, lo = b.x0, hi = b.x1;
     }
-    if (open) fn(lo, hi);
+    if (open) fp.runs.push_back({lo, hi});
   };
   for (int z = z0; z < z1; ++z) {
     progress.check();
@@ -237,30 +243,29 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
       built = true;
       fp.last = fp.slice;
       fp.ys.assign({0, yLo, yHi, sy});
+      fp.resetSpans.clear();
+      fp.markedSpans.clear();
       for (std::size_t j = 1; j < fp.slice.size(); ++j) {
         if (j == separator) continue;
         const Box& b = j < separator ? layout.reset[fp.slice[j]] : layout.marked[fp.slice[j]];
+        (j < separator ? fp.resetSpans : fp.markedSpans)
+            .push_back({b.lo.y - g.box.lo.y, b.hi.y - g.box.lo.y, b.lo.x - g.box.lo.x, b.hi.x - g.box.lo.x});
         fp.ys.push_back(std::clamp(b.lo.y - g.box.lo.y, 0, sy));
         fp.ys.push_back(std::clamp(b.hi.y - g.box.lo.y, 0, sy));
       }
       std::sort(fp.ys.begin(), fp.ys.end());
       fp.ys.erase(std::unique(fp.ys.begin(), fp.ys.end()), fp.ys.end());
       fp.bands.clear();
-      const std::uint32_t* resetBegin = fp.slice.data() + 1;
-      const std::uint32_t* resetEnd = fp.slice.data() + separator;
-      const std::uint32_t* markedBegin = resetEnd + 1;
-      const std::uint32_t* markedEnd = fp.slice.data() + fp.slice.size();
       // Rows whose runs are those of the row before (a box that starts or ends inside the
       // union of the others changes nothing) stay in its band.
       for (std::size_t j = 0; j + 1 < fp.ys.size(); ++j) {
         const int y0 = fp.ys[j];
         const bool inner = innerZ && y0 >= yLo && y0 < yHi;
-        const int vy = g.box.lo.y + y0;
         fp.runs.clear();
         fp.runs.push_back({inner ? 1 : 0, 0});
-        runs(layout.reset, resetBegin, resetEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        runs(fp.resetSpans, y0);
         fp.runs.push_back({-1, -1});
-        runs(layout.marked, markedBegin, markedEnd, vy, [&](int lo, int hi) { fp.runs.push_back({lo, hi}); });
+        runs(fp.markedSpans, y0);
         if (!fp.bands.empty() && fp.runs == fp.lastRuns) continue;
         std::swap(fp.runs, fp.lastRuns);
         const std::size_t o = fp.bands.size() * std::size_t(sx);
@@ -280,18 +285,23 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
         fill(0, sx, layout.base, kNeg);
         std::size_t k = 1;
         for (; fp.lastRuns[k].first >= 0; ++k) fill(fp.lastRuns[k].first, fp.lastRuns[k].second, resetPos, resetFlip);
-        for (++k; k < fp.lastRuns.size(); ++k)
-          for (int x = fp.lastRuns[k].first; x < fp.lastRuns[k].second; ++x) pos[x] |= kMarked;
+        for (++k; k < fp.lastRuns.size(); ++k) {
+          const int lo = fp.lastRuns[k].first, hi = fp.lastRuns[k].second;
+          for (int x = lo; x < hi; ++x) pos[x] |= kMarked;
+        }
       }
       fp.bands.push_back(sy);
+      if (fp.slicePos.size() < g.sxy) fp.slicePos.resize(g.sxy), fp.sliceFlip.resize(g.sxy);
+      std::size_t band = 0;
+      for (int y = 0; y < sy; ++y) {
+        while (y >= fp.bands[band + 1]) ++band;
+        const std::size_t row = std::size_t(y) * g.sx, t = band * std::size_t(sx);
+        std::copy_n(fp.pos.data() + t, sx, fp.slicePos.data() + row);
+        std::copy_n(fp.flip.data() + t, sx, fp.sliceFlip.data() + row);
+      }
     }
     const std::size_t slice = std::size_t(z) * g.sxy;
-    std::size_t band = 0;
-    for (int y = 0; y < sy; ++y) {
-      while (y >= fp.bands[band + 1]) ++band;
-      const std::size_t row = slice + std::size_t(y) * g.sx, t = band * std::size_t(sx);
-      signFlags(v + row, flags + row, sx, fp.pos.data() + t, fp.flip.data() + t);
-    }
+    signFlags(v + slice, flags + slice, g.sxy, fp.slicePos.data(), fp.sliceFlip.data());
   }
 }
 
@@ -299,55 +309,110 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
 
 namespace {
 
-// Appends the voxels of row (y, z) of g in [lo, hi) (volume x) whose value is not +-band.
-[[gnu::always_inline]] inline void collectRow(const DenseGrid& g, int lo, int hi, int y, int z, float band, BandVoxels& out) {
-  const std::size_t row = g.index({lo, y, z});
+// Where a run of whole rows of a z-slice (RowRun) has got to: the grid index of the current
+// row's first voxel, of the next row's, and its y.
+struct RowCursor {
+  std::size_t rowStart, rowEnd;
+  int y;
+};
+
+// Appends the voxels of g whose value is not +-band among the count voxels from grid index row
+// on, at out's positions n, n + 1, ...: the caller has sized out's arrays for all of them (a
+// push_back per voxel cost several times the test of the 16 voxels around it). RowRun: they are
+// part of a run of whole rows of a z-slice, followed from one row to the next by cursor; else
+// they lie in row (y, z) from x = lo on.
+template <bool RowRun>
+[[gnu::always_inline]] inline void collectRun(const DenseGrid& g, std::size_t row, std::size_t count, int lo, int y, int z,
+                                              float band, BandVoxels& out, std::size_t& n, RowCursor& cursor) {
   const float* v = g.v.data() + row;
-  const int n = hi - lo;
-  auto add = [&](std::uint32_t near, int x) __attribute__((always_inline)) {
+  std::uint32_t* const index = out.index.data();
+  Int3* const point = out.point.data();
+  auto add = [&](std::uint32_t near, std::size_t x) __attribute__((always_inline)) {
     while (near) {
-      const int k = __builtin_ctz(near);
+      const std::size_t i = row + x + std::size_t(__builtin_ctz(near));
       near &= near - 1;
-      out.index.push_back(std::uint32_t(row + std::size_t(x + k)));
-      out.point.push_back({lo + x + k, y, z});
+      index[n] = std::uint32_t(i);
+      if constexpr (RowRun) {
+        while (i >= cursor.rowEnd) cursor.rowStart = cursor.rowEnd, cursor.rowEnd += g.sx, ++cursor.y;
+        point[n++] = {g.box.lo.x + int(i - cursor.rowStart), cursor.y, z};
+      } else {
+        point[n++] = {lo + int(i - row), y, z};
+      }
     }
   };
   // Far voxels are the rule: test 16 at a time without a branch, then visit the others. The
-  // last few voxels are tested in a block that ends at the row's end (the bits of voxels
-  // already tested shifted out), or, in a row shorter than 16, in one that reads past it (the
+  // last few voxels are tested in a block that ends at the run's end (the bits of voxels
+  // already tested shifted out), or, in a run shorter than 16, in one that reads past it (the
   // bits past it dropped) where the grid goes on that far.
-  int x = 0;
-  for (; x + 16 <= n; x += 16) add(nearMask16(v + x, band), x);
-  if (x >= n) return;  // also an empty row
-  if (n >= 16) {
-    add(nearMask16(v + n - 16, band) >> (16 - (n - x)), x);
+  std::size_t x = 0;
+  for (; x + 16 <= count; x += 16) add(nearMask16(v + x, band), x);
+  if (x >= count) return;  // also an empty run
+  if (count >= 16) {
+    add(nearMask16(v + count - 16, band) >> (16 - (count - x)), x);
   } else if (row + 16 <= g.v.size()) {
-    add(nearMask16(v, band) & ((std::uint32_t(1) << n) - 1), 0);
+    add(nearMask16(v, band) & ((std::uint32_t(1) << count) - 1), 0);
   } else {
-    for (; x < n; ++x)
+    for (; x < count; ++x)
       if (std::fabs(v[x]) != band) add(1, x);
   }
+}
+
+// Makes room in out for n + count voxels. The arrays keep the last list's length between calls
+// and grow by an eighth when short: what they hold past n is written before it is read, but a
+// resize writes every element it adds (the vectors' own growth keeps reallocations few).
+inline void reserveRow(BandVoxels& out, std::size_t n, std::size_t count) {
+  const std::size_t want = n + count;
+  if (out.index.size() >= want) return;
+  const std::size_t size = std::max(want, out.index.size() + out.index.size() / 8);
+  out.index.resize(size);
+  out.point.resize(size);
 }
 
 }  // namespace
 
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
-  index.clear();
-  point.clear();
+  std::size_t n = 0;
+  RowCursor unused{};
+  // A box as wide as the grid (a local tool's) is one run of whole rows per z-slice, taken in
+  // pieces of kRunPiece voxels (the arrays grow by no more than that past the list): a short
+  // row's ends cost more than its voxels.
+  constexpr std::size_t kRunPiece = 1024;
+  const bool wide = box.lo.x == g.box.lo.x && box.hi.x == g.box.hi.x;
+  const std::size_t width = std::size_t(std::max(0, box.hi.x - box.lo.x));
+  const std::size_t sliceRun = std::size_t(std::max(0, box.hi.y - box.lo.y)) * width;
   for (int z = box.lo.z; z < box.hi.z; ++z) {
     progress.check();
-    for (int y = box.lo.y; y < box.hi.y; ++y) collectRow(g, box.lo.x, box.hi.x, y, z, band, *this);
+    if (wide) {
+      const std::size_t first = g.index({box.lo.x, box.lo.y, z});
+      RowCursor cursor{first, first + g.sx, box.lo.y};
+      for (std::size_t o = 0; o < sliceRun; o += kRunPiece) {
+        const std::size_t count = std::min(kRunPiece, sliceRun - o);
+        reserveRow(*this, n, count);
+        collectRun<true>(g, first + o, count, 0, 0, z, band, *this, n, cursor);
+      }
+      continue;
+    }
+    for (int y = box.lo.y; y < box.hi.y; ++y) {
+      reserveRow(*this, n, width);
+      collectRun<false>(g, g.index({box.lo.x, y, z}), width, box.lo.x, y, z, band, *this, n, unused);
+    }
   }
+  index.resize(n);
+  point.resize(n);
   progress.advance(1);
 }
 
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Volume& vol) {
   box = b.intersect(g.box);
-  index.clear();
-  point.clear();
+  std::size_t n = 0;
+  RowCursor unused{};
   const Box stored = box.intersect(vol.domain());
-  if (stored.empty()) return;
+  if (stored.empty()) {
+    index.clear();
+    point.clear();
+    return;
+  }
   // Per row of bricks (by, bz): the x-runs of stored bricks, clipped to the box, in increasing x.
   // Then the rows in index order (z, y), each through its brick row's runs.
   const Box bricks = Bricks::bricksOf(stored);
@@ -371,8 +436,13 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Vol
     for (int y = stored.lo.y; y < stored.hi.y; ++y) {
       const auto& row = runs[std::size_t(Bricks::brickOf(y) - bricks.lo.y) +
                              std::size_t(nb.y) * std::size_t(Bricks::brickOf(z) - bricks.lo.z)];
-      for (const auto& [lo, hi] : row) collectRow(g, lo, hi, y, z, band, *this);
+      for (const auto& [lo, hi] : row) {
+        reserveRow(*this, n, std::size_t(hi - lo));
+        collectRun<false>(g, g.index({lo, y, z}), std::size_t(hi - lo), lo, y, z, band, *this, n, unused);
+      }
     }
+  index.resize(n);
+  point.resize(n);
 }
 
 MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,
@@ -382,8 +452,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   if (r.empty()) return {};
   Scratch& s = scratch();
   s.flags.resize(g.v.size());
-  std::uint8_t* flags = s.flags.data();
-  float* v = g.v.data();
+  std::uint8_t* const allFlags = s.flags.data();
+  float* const values = g.v.data();
   const bool parallel = pool.threads() > 1 && g.v.size() >= kParallelVoxels;
 
   // The region's voxels to reset, and where kept voxels are normalized.
@@ -419,7 +489,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     if (s.flagPieces.size() < slabs) s.flagPieces.resize(slabs);
     forPieces(pool, parallel, slabs, [&](std::size_t slab) {
       const int z0 = parallel ? int(slab) * kSlabSlices : 0, z1 = parallel ? std::min(sz, z0 + kSlabSlices) : sz;
-      flagSlices(g, flags, layout, z0, z1, s.flagPieces[slab], progress);
+      flagSlices(g, allFlags, layout, z0, z1, s.flagPieces[slab], progress);
     });
   }
 
@@ -443,6 +513,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   const double reach = double(band) + kFootMargin;
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     progress.check();
+    // Copies the compiler sees are not stored to: a store to a flag byte may alias anything,
+    // and would have the pointers captured by reference loaded again for every voxel.
+    std::uint8_t* const flags = allFlags;
+    const float* const v = values;
     ListPiece& out = s.pieces[piece];
     const std::size_t begin = piece * kListPiece, end = std::min(list->index.size(), begin + kListPiece);
     if (out.kept.size() < end - begin) {
@@ -460,9 +534,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     // order, so its rows come one after the other.
     int rowY = std::numeric_limits<int>::min(), rowZ = rowY;
     auto cellDistance = [](int x, int lo, int hi) { return x < lo ? lo - x : std::max(0, x - hi); };
-    auto nearRow = [&](Int3 p) -> std::span<const NearBox> {
+    // Rebuilt only when the row changes: a row holds a few shell voxels, looked at one by one.
+    auto newRow = [&](Int3 p) __attribute__((noinline)) {
       if (p.z != rowZ) {
-        rowZ = p.z, rowY = std::numeric_limits<int>::min();
+        rowZ = p.z;
         out.nearZ.clear();
         for (std::size_t b = 0; b < s.moved.size(); ++b) {
           const MovedBox& m = s.moved[b];
@@ -474,16 +549,17 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           out.nearZ.push_back({std::uint32_t(b), dz * dz, m.yLo - w, m.yHi + w});
         }
       }
-      if (p.y != rowY) {
-        rowY = p.y;
-        out.near.clear();
-        for (const ListPiece::NearZ& n : out.nearZ) {
-          if (p.y < n.yFrom || p.y > n.yTo) continue;
-          const MovedBox& m = s.moved[n.box];
-          const int dy = cellDistance(p.y, m.yLo, m.yHi);
-          out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
-        }
+      rowY = p.y;
+      out.near.clear();
+      for (const ListPiece::NearZ& n : out.nearZ) {
+        if (p.y < n.yFrom || p.y > n.yTo) continue;
+        const MovedBox& m = s.moved[n.box];
+        const int dy = cellDistance(p.y, m.yLo, m.yHi);
+        out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
       }
+    };
+    auto nearRow = [&](Int3 p) __attribute__((always_inline)) -> std::span<const NearBox> {
+      if (p.y != rowY || p.z != rowZ) newRow(p);
       return out.near;
     };
     const std::uint32_t* const index = list->index.data();
@@ -500,8 +576,18 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
       if (!adjacent && std::fabs(value) < 1.75f) {
         if constexpr (inner) {
+#if defined(__SSE2__)
+          // The six neighbours' signs (as `< 0` reads them) in two compares: bits 0 and 2 of
+          // the row around i (an inner voxel has two more on every side), bits 3 to 6 across.
+          const __m128 zero = _mm_setzero_ps();
+          const int row = _mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(v + i - 1), zero)) & 5;
+          const __m128 across = _mm_setr_ps(v[i - stride[1]], v[i + stride[1]], v[i - stride[2]], v[i + stride[2]]);
+          const int signs = row | _mm_movemask_ps(_mm_cmplt_ps(across, zero)) << 3;
+          adjacent = signs != (neg ? (5 | 15 << 3) : 0);
+#else
           adjacent = ((v[i - 1] < 0) != neg) | ((v[i + 1] < 0) != neg) | ((v[i - stride[1]] < 0) != neg) |
                      ((v[i + stride[1]] < 0) != neg) | ((v[i - stride[2]] < 0) != neg) | ((v[i + stride[2]] < 0) != neg);
+#endif
         } else {
           for (int a = 0; a < 3 && !adjacent; ++a) {
             if (hasLo(a)) adjacent = (v[i - stride[a]] < 0) != neg;
@@ -548,10 +634,18 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       kept[keptCount] = i;
       scaled[keptCount++] = float(std::copysign(mag, val));
     };
+    // Marked voxels, or all without moved boxes, are not looked at by the shell's tests.
+    const std::uint8_t noShell = moved.empty() ? 0xff : kMarked;
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t i = index[k];
       const std::uint8_t f = flags[i];
       if ((f & (kReset | kFrozen)) != kReset) continue;  // a source, or ignored
+      // The most common kind in a large region, decided before the rest (as classify would):
+      // too far from the surface to be adjacent to it (NaN included), and reset.
+      if (!(std::fabs(v[i]) < 1.75f) && (f & noShell)) {
+        farUnknown[farCount++] = i;
+        continue;
+      }
       if (f & kInterior) {
         classify(std::true_type{}, k, i, f);
       } else {
@@ -564,10 +658,10 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
   // The marcher starts every unknown voxel at +-band; those off the list are there already.
   forPieces(pool, parallel, pieces, [&](std::size_t piece) {
     const ListPiece& in = s.pieces[piece];
-    for (std::size_t j = 0; j < in.keptCount; ++j) v[in.kept[j]] = in.scaled[j];
+    for (std::size_t j = 0; j < in.keptCount; ++j) values[in.kept[j]] = in.scaled[j];
     for (std::size_t j = 0; j < in.farCount; ++j) {
       const std::uint32_t i = in.farUnknown[j];
-      v[i] = v[i] < 0 ? -band : band;
+      values[i] = values[i] < 0 ? -band : band;
     }
   });
   progress.advance(kSetupShare);

@@ -370,14 +370,19 @@ TEST_CASE("the setup before the march classifies every voxel as described, for a
 }
 
 TEST_CASE("the band list of rows of any length is every voxel not at +-band, in index order", "[redistance]") {
-  // Rows of 1 to 40 voxels starting anywhere in the grid, an empty box, and one reaching the
-  // grid's last voxel (a short row there cannot be read past its end).
+  // Rows of 1 to 40 voxels starting anywhere in the grid, runs of whole rows, an empty box, and
+  // one reaching the grid's last voxel (a short row there cannot be read past its end). One list
+  // is also reused for every scan, as a tool's scratch is: what a longer list left in it must
+  // not show.
   std::mt19937 rng(3);
+  BandVoxels reused;
   for (const Int3 size : {Int3{1, 7, 5}, Int3{7, 3, 2}, Int3{16, 4, 3}, Int3{17, 5, 4}, Int3{40, 6, 5}}) {
     DenseGrid g({{2, -1, 4}, Int3{2, -1, 4} + size}, kBand);
     for (float& x : g.v)
       if (rng() % 3 == 0) x = (rng() % 2 ? -1.0f : 1.0f) * float(rng() % 300) / 100.0f;
-    for (const Box& scan : {g.box, g.box.grown(-1), Box{g.box.lo + Int3{1, 0, 0}, g.box.hi}, Box{{5, 0, 5}, {3, 2, 7}},
+    // The first two are as wide as the grid (scanned as runs of whole rows), the others not.
+    for (const Box& scan : {g.box, Box{g.box.lo + Int3{0, 1, 1}, g.box.hi - Int3{0, 1, 0}}, g.box.grown(-1),
+                            Box{g.box.lo + Int3{1, 0, 0}, g.box.hi}, Box{{5, 0, 5}, {3, 2, 7}},
                             Box{g.box.hi - Int3{std::min(size.x, 3), 1, 1}, g.box.hi}}) {
       BandVoxels list;
       list.collect(g, scan, kBand);
@@ -393,6 +398,9 @@ TEST_CASE("the band list of rows of any length is every voxel not at +-band, in 
             }
       CHECK(list.index == index);
       CHECK(list.point == point);
+      reused.collect(g, scan, kBand);
+      CHECK(reused.index == index);
+      CHECK(reused.point == point);
     }
   }
 }
