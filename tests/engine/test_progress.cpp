@@ -63,21 +63,30 @@ TEST_CASE("smoothing on two threads, cancelled in its sub-steps, stops and chang
   Volume v = makeSphere({128, 128, 128}, {64, 64, 64}, 45);
   const std::uint64_t before = digest(v);
   ThreadPool pool(2);
-  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set.cpp).
+  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set.cpp). The thread that
+  // crosses `at` cancels from its report; while it reports, the other thread's advances skip
+  // theirs (progress.hpp), so a reporter descheduled before its cancel (a loaded machine) lets
+  // the other run the remaining sub-steps: the cancel then lands in the march, which must
+  // change nothing either. Such a run is tried again; one of a few must stop in the sub-steps.
   for (const double at : {0.16, 0.22, 0.28}) {
-    Progress progress(
-        [&](double fraction) {
-          if (fraction > at) progress.cancel();
-        },
-        std::chrono::milliseconds(0));
-    {
-      const Progress::Scope scope(progress);
-      REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), Cancelled);
+    double stoppedAt = 1;
+    for (int attempt = 0; attempt < 8 && !(stoppedAt < 0.3); ++attempt) {
+      Progress progress(
+          [&](double fraction) {
+            if (fraction > at) progress.cancel();
+          },
+          std::chrono::milliseconds(0));
+      {
+        const Progress::Scope scope(progress);
+        REQUIRE_THROWS_AS(smooth(v, {{64, 64, 109}, 40, 1}, pool), Cancelled);
+      }
+      stoppedAt = progress.fraction();
+      INFO("cancelled past " << at << ", stopped at " << stoppedAt << " (attempt " << attempt << ")");
+      CHECK(stoppedAt > at);
+      CHECK(digest(v) == before);
     }
-    INFO("cancelled past " << at << ", stopped at " << progress.fraction());
-    CHECK(progress.fraction() > at);
-    CHECK(progress.fraction() < 0.3);
-    CHECK(digest(v) == before);
+    INFO("cancelled past " << at << ", last stopped at " << stoppedAt);
+    CHECK(stoppedAt < 0.3);
   }
   // A report that throws once (progress.hpp: it propagates out of the call) does the same,
   // from whichever thread counted the step; the other thread must not wait for that piece.
