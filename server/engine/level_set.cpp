@@ -657,7 +657,6 @@ struct ToolScratch {
   std::vector<MovedVoxels> movedPieces;  // evolve's list, built in pieces on the pool
   std::vector<std::size_t> blocks;       // evolve's blocks of runs: the first run of each, then runs.size()
   std::vector<std::size_t> slices;       // on one thread, smoothing's runs by z-slice: the first of each, then runs.size()
-  std::vector<std::pair<std::size_t, std::size_t>> rowSpans;  // on one thread, the part of each grid row smoothing copies
   std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
@@ -952,23 +951,22 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
     // do not write: the listed voxels' neighbours and the lanes past a run's end (x - 1 to
     // x + count + 3 along the run's row, x to x + count + 2 along the four rows next to it),
     // not the whole slices (a 70^3 brush's grid is 1.9 MB, its band's neighbourhood a fraction).
-    // Each grid row's part of that is copied once, from its first such voxel to its last (a
-    // voxel is a neighbour of up to five runs' voxels; whatever lies between two runs of a row
-    // holds the same values in both copies anyway).
-    std::vector<std::pair<std::size_t, std::size_t>>& spans = s.rowSpans;  // [from, to) by grid row
-    spans.assign(g.v.size() / g.sx, {std::numeric_limits<std::size_t>::max(), 0});
-    auto need = [&](std::size_t from, std::size_t to) {
-      auto& [lo, hi] = spans[from / g.sx];
-      lo = std::min(lo, from);
-      hi = std::max(hi, to);
+    // Pieces of four, which may copy up to 3 more voxels past those (in the grid: the region
+    // lies kStencilReach inside it).
+    auto copyRow = [&](std::size_t from, std::size_t n) {
+      const float* src = g.v.data() + from;
+      float* dst = s.other.data() + from;
+#if defined(__SSE2__)
+      for (std::size_t k = 0; k < n; k += 4) _mm_storeu_ps(dst + k, _mm_loadu_ps(src + k));
+#else
+      std::copy_n(src, n, dst);
+#endif
     };
     for (const Run& r : runs) {
-      need(r.index - 1, r.index + r.count + 4);
+      copyRow(r.index - 1, r.count + 5);
       for (const std::size_t o : {r.index - g.sx, r.index + g.sx, r.index - g.sxy, r.index + g.sxy})
-        need(o, o + r.count + 3);
+        copyRow(o, r.count + 3);
     }
-    for (const auto& [lo, hi] : spans)
-      if (lo < hi) std::copy(g.v.data() + lo, g.v.data() + hi, s.other.data() + lo);
     // The steps in bands of kWave, each band one sweep over the z-slices: step b + j of slice
     // piece q runs at time q + 2j, after its neighbours' step b + j - 1 (time q + 2j - 1) and
     // before their step b + j + 1 (time q + 2j + 1 or later), which is the rule above. A sweep
