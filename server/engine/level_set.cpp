@@ -192,9 +192,9 @@ class SweptWindow {
   // were the strongest at the voxel before. Once the strongest is known, the others stop at
   // their first factors. Neither changes the result: the same dabs are searched, and the
   // largest window does not depend on the order. (With SSE2, and with a height only when every
-  // dab has its own normal, the message's dabs are searched two at a time in full instead: the
-  // early stops' branches cost more than they save; the memory's stop at the first dab that
-  // reaches the message's window.)
+  // dab has its own normal, the message's dabs are searched two at a time in full instead, four
+  // with AVX2: the early stops' branches cost more than they save; the memory's stop at the
+  // first dab that reaches the message's window.)
   struct Cursor {
     int y = std::numeric_limits<int>::min(), z = 0;
     std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
