@@ -277,8 +277,12 @@ class SweptWindow {
   }
 
  private:
-  void row(Int3 p, Cursor& c) const {
-    if (p.y == c.y && p.z == c.z) return;
+  // Positions c at p's row (called twice per voxel: the test inline, the change not).
+  [[gnu::always_inline]] void row(Int3 p, Cursor& c) const {
+    if (p.y != c.y || p.z != c.z) newRow(p, c);
+  }
+
+  [[gnu::noinline]] void newRow(Int3 p, Cursor& c) const {
     const bool stays = c.listed && p.z == c.z && p.y > c.y && p.y < c.until;
     c.y = p.y;
     c.z = p.z;
