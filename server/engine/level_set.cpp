@@ -410,11 +410,13 @@ class SweptWindow {
 
 #if defined(MARZIPAN_AVX2_KERNELS)
   // pairWindows for the lanes' dabs j to j + 3 (AVX2): each lane the same operations in the same
-  // order, so the same bits.
+  // order, so the same bits. The caller gives the lanes before l.last (inside) and the clamp's
+  // bounds (back: [0, H] adding, [-H, 0] removing).
   template <bool kAnchored>
   [[gnu::always_inline]] __attribute__((target("avx2"))) inline __m256d quadWindows(const Cursor::Lanes& l, std::size_t j,
-                                                                                  const __m256d qa[3],
-                                                                                  const __m256d na[3]) const {
+                                                                                  const __m256d qa[3], const __m256d na[3],
+                                                                                  const __m256d back[2],
+                                                                                  __m256d inside) const {
     const LaneArrays& arr = *l.arrays;
     const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
     const __m256d abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
@@ -437,18 +439,14 @@ class SweptWindow {
       const __m256d along = _mm256_add_pd(
           _mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(qa[0], c[0]), axis[0]), _mm256_mul_pd(_mm256_sub_pd(qa[1], c[1]), axis[1])),
           _mm256_mul_pd(_mm256_sub_pd(qa[2], c[2]), axis[2]));
-      const __m256d h = _mm256_set1_pd(anchor_);
-      const __m256d back = anchor_ > 0 ? _mm256_min_pd(_mm256_max_pd(along, zero), h)
-                                       : _mm256_min_pd(_mm256_max_pd(along, h), zero);
+      const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
       for (int a = 0; a < 3; ++a) {
-        const __m256d x = _mm256_sub_pd(qa[a], _mm256_mul_pd(axis[a], back));
+        const __m256d x = _mm256_sub_pd(qa[a], _mm256_mul_pd(axis[a], moved));
         const __m256d t = _mm256_mul_pd(_mm256_and_pd(_mm256_sub_pd(x, c[a]), abs), invR);
         const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
         w = _mm256_mul_pd(w, _mm256_andnot_pd(_mm256_cmp_pd(t, one, _CMP_GE_OS), _mm256_mul_pd(u, u)));
       }
     }
-    const __m256d inside = _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(double(j)), _mm256_setr_pd(0, 1, 2, 3)),
-                                         _mm256_set1_pd(double(l.last)), _CMP_LT_OS);
     return _mm256_and_pd(inside, w);
   }
 
@@ -466,10 +464,17 @@ class SweptWindow {
 
     const __m256d qa[3] = {_mm256_set1_pd(q.x), _mm256_set1_pd(q.y), _mm256_set1_pd(q.z)};
     const __m256d na[3] = {_mm256_set1_pd(n.x), _mm256_set1_pd(n.y), _mm256_set1_pd(n.z)};
+    // std::min(0.0, H) and std::max(0.0, H) are +0 where H has the other sign, the zero the
+    // clamps of pairWindows use, in the same operand order.
+    const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+    const __m256d four = _mm256_set1_pd(4.0), offsets = _mm256_setr_pd(0, 1, 2, 3);
     Cursor::Lanes& l = c.dabLanes;
     l.at(p.x);
     __m256d best = _mm256_setzero_pd();
-    for (std::size_t j = l.first; j < l.last; j += 4) best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na));
+    const __m256d last = _mm256_set1_pd(double(l.last));
+    __m256d at = _mm256_add_pd(_mm256_set1_pd(double(l.first)), offsets);  // each lane's position
+    for (std::size_t j = l.first; j < l.last; j += 4, at = _mm256_add_pd(at, four))
+      best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na, back, _mm256_cmp_pd(at, last, _CMP_LT_OS)));
     const double w = largestLane(best);
     if (w <= 0 || c.memory.empty()) return w;
     if (c.reached < memory_.size()) {
@@ -481,10 +486,11 @@ class SweptWindow {
     }
     Cursor::Lanes& ml = c.memoryLanes;
     ml.at(p.x);
-    const __m256d enough = _mm256_set1_pd(w);
+    const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
     best = _mm256_setzero_pd();
-    for (std::size_t j = ml.first; j < ml.last; j += 4) {
-      const __m256d m = quadWindows<kAnchored>(ml, j, qa, na);
+    at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
+    for (std::size_t j = ml.first; j < ml.last; j += 4, at = _mm256_add_pd(at, four)) {
+      const __m256d m = quadWindows<kAnchored>(ml, j, qa, na, back, _mm256_cmp_pd(at, memoryLast, _CMP_LT_OS));
       if (const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS))) {
         const int lane = __builtin_ctz(unsigned(hit));
         c.reached = ml.dab(c.memory, j + std::size_t(lane));
