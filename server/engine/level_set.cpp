@@ -320,11 +320,12 @@ class SweptWindow {
   }
 
 #if defined(__SSE2__)
-  // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na), 0 for a lane
-  // at or past l.last (a dab whose ROI does not hold the voxel, or the pad): window's operations in its order in each lane
-  // (the three factors multiplied out even after one is 0, which leaves 0, and past the point
-  // where window would stop, which only lowers a value that is not the largest; the clamp's
-  // zero may differ in sign, which moves no factor), so the largest is the same bits.
+  // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na), 0 for a lane at
+  // or past l.last (a dab whose ROI does not hold the voxel, or the pad): window's operations
+  // in its order in each lane (the three factors multiplied out even after one is 0, which
+  // leaves 0, and past the point where window would stop, which only lowers a value that is not
+  // the largest; the clamp's zero may differ in sign, which moves no factor), so the largest is
+  // the same bits.
   template <bool kAnchored>
   [[gnu::always_inline]] __m128d pairWindows(const Cursor::Lanes& l, std::size_t j, const __m128d qa[3],
                                              const __m128d na[3]) const {
@@ -450,7 +451,7 @@ class SweptWindow {
     return _mm256_and_pd(inside, w);
   }
 
-  // The larger lane of a pair (as the SSE2 searches end).
+  // The largest of the four lanes.
   [[gnu::always_inline]] __attribute__((target("avx2"))) static inline double largestLane(__m256d v) {
     const __m128d m = _mm_max_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
     return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m)));
@@ -461,7 +462,6 @@ class SweptWindow {
   // <= 0 moves nothing), and the memory stops at the same dab, the first that reaches w.
   template <bool kAnchored>
   [[gnu::noinline]] __attribute__((target("avx2"))) double searchAvx2(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
-
     const __m256d qa[3] = {_mm256_set1_pd(q.x), _mm256_set1_pd(q.y), _mm256_set1_pd(q.z)};
     const __m256d na[3] = {_mm256_set1_pd(n.x), _mm256_set1_pd(n.y), _mm256_set1_pd(n.z)};
     // std::min(0.0, H) and std::max(0.0, H) are +0 where H has the other sign, the zero the
