@@ -1,13 +1,14 @@
-// Which vector width the level-set tools' evolve sub-steps use (level_set.cpp). Every width
-// does each voxel's float and double operations in the scalar definition's order, so every
-// width gives the same field bit for bit; the switch lets tests compare them on one CPU.
+// Which vector width the level-set tools' evolve sub-steps and a stroke's window search use
+// (level_set.cpp). Every width does each voxel's (each dab's) float and double operations in
+// the scalar definition's order, so every width gives the same field bit for bit; the switch
+// lets tests compare them on one CPU.
 #pragma once
 
 namespace marzipan::evolve_width {
 
 enum class Width {
-  Widest,  // AVX2 (eight voxels at once) where the build and the CPU have it, else SSE2
-  Sse2,    // four voxels at once
+  Widest,  // AVX2 (eight voxels, four dabs at once) where the build and the CPU have it, else SSE2
+  Sse2,    // four voxels, two dabs at once
 };
 
 // Whether this build has the AVX2 kernels and this CPU (and its OS) runs them; checked once.

@@ -70,6 +70,15 @@ constexpr int kStencilReach = 2;
 constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
 constexpr double kGatherShare = 0.1, kCollectShare = 0.05, kEvolveShare = 0.15, kRedistanceShare = 0.6;
 
+#if defined(MARZIPAN_AVX2_KERNELS)
+// Whether evolve's kernels and the stroke's window search take their AVX2 forms (evolve_width.hpp).
+bool cpuHasAvx2() {
+  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
+  return __builtin_cpu_supports("avx2");
+}
+std::atomic<bool> useAvx2{cpuHasAvx2()};
+#endif
+
 double window1(double t) {
   if (t >= 1) return 0;
   const double u = 1 - t * t;
@@ -122,6 +131,36 @@ struct PreparedDab {
 // anchor: 0, or a stroke's signed height (+H add, -H remove): each dab's W is then read at q
 // moved back along the dab's normal (else n) by (q - c).normal clamped between 0 and the anchor,
 // and scaled by normal . n (level_set.hpp, strokes).
+#if defined(__SSE2__)
+// Dabs as lanes, one array per quantity, in a given order, followed by kPad dabs of empty ROI
+// (weight 0, lo = hi = 0), so that two or four lanes may start at any of them.
+struct LaneArrays {
+  static constexpr std::size_t kPad = 3;
+  std::vector<double> center[3], normal[3], weight, lo, hi;  // lo, hi: the ROI's x range [lo, hi)
+  // dabs[row[k]] (row null: dabs[k]) in lane k, k < count; the normals only with a height.
+  void fill(const std::vector<PreparedDab>& dabs, const std::uint32_t* row, std::size_t count, bool normals) {
+    for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->resize(count + kPad);
+    if (normals)
+      for (auto& v : normal) v.resize(count + kPad);
+    for (std::size_t k = 0; k < count; ++k) {
+      const PreparedDab& d = dabs[row ? row[k] : k];
+      for (int a = 0; a < 3; ++a) center[a][k] = d.center[a];
+      weight[k] = d.weight;
+      lo[k] = d.roi.lo.x;
+      hi[k] = d.roi.hi.x;
+      if (normals)
+        for (int a = 0; a < 3; ++a) normal[a][k] = d.normal[a];
+    }
+    for (std::size_t k = count; k < count + kPad; ++k) {
+      for (int a = 0; a < 3; ++a) center[a][k] = 0;
+      weight[k] = lo[k] = hi[k] = 0;
+      if (normals)
+        for (int a = 0; a < 3; ++a) normal[a][k] = 0;
+    }
+  }
+};
+#endif
+
 class SweptWindow {
  public:
   SweptWindow(double radius, std::vector<PreparedDab> dabs, std::vector<PreparedDab> memory, double anchor = 0)
@@ -142,6 +181,8 @@ class SweptWindow {
       for (auto* v : {&dabs_, &memory_})
         std::stable_sort(v->begin(), v->end(),
                          [](const PreparedDab& a, const PreparedDab& b) { return a.center.x < b.center.x; });
+      allDabs_.fill(dabs_, nullptr, dabs_.size(), anchor_ != 0);
+      allMemory_.fill(memory_, nullptr, memory_.size(), anchor_ != 0);
     }
 #endif
   }
@@ -151,9 +192,9 @@ class SweptWindow {
   // were the strongest at the voxel before. Once the strongest is known, the others stop at
   // their first factors. Neither changes the result: the same dabs are searched, and the
   // largest window does not depend on the order. (With SSE2, and with a height only when every
-  // dab has its own normal, the message's dabs are searched two at a time in full instead: the
-  // early stops' branches cost more than they save; the memory's stop at the first dab that
-  // reaches the message's window.)
+  // dab has its own normal, the message's dabs are searched two at a time in full instead, four
+  // with AVX2: the early stops' branches cost more than they save; the memory's stop at the
+  // first dab that reaches the message's window.)
   struct Cursor {
     int y = std::numeric_limits<int>::min(), z = 0;
     std::vector<std::uint32_t> dabs, memory;  // indices into dabs_ / memory_, in their order
@@ -162,41 +203,48 @@ class SweptWindow {
     bool listed = false;                      // whether the lists above are a row's
     int until = 0;                            // the lists hold for rows of slice z up to this y
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
+    int sliceZ = std::numeric_limits<int>::min();    // the slice whose dabs the next lists hold
+    std::vector<std::uint32_t> sliceDabs, sliceMemory;  // indices of the dabs whose ROI holds slice sliceZ
 #if defined(__SSE2__)
-    // The row's dabs and memory as arrays (lanes_), in the order of their centres' x
+    // The row's dabs and memory as lanes (lanes_), in the order of their centres' x
     // (boxAround's bounds and the domain's clipping only grow with the centre, and the dabs of a
     // stroke share its radius, so their ROIs' x ranges [lo, hi) are in order too; dabs with radii
     // of their own would break this. The dabs whose ROI holds a voxel of the row are then one
-    // range of the arrays, [first, last), which moves along the row), followed by a dab of
-    // empty ROI, so that a pair of lanes may start at any of them. A voxel's range is searched
-    // two at a time (search).
+    // range of them, [first, last), which moves along the row). A row's dabs that are
+    // consecutive in that order (the rule along a stroke) are read where all the dabs are
+    // (SweptWindow's arrays), others from arrays of the row's own. A voxel's range is searched two
+    // (SSE2) or four (AVX2) at a time (search); lanes past `last` are masked.
     struct Lanes {
-      std::vector<double> center[3], normal[3], weight, lo, hi;  // hi: one past the ROI's last x
-      std::size_t count = 0, first = 0, last = 0;  // count: the row's dabs, without the pad
-      // Lists dabs[row[k]] in lanes k, then the pad; the normals only with a height.
-      void fill(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, bool normals) {
-        count = row.size();
-        first = last = 0;
-        for (auto* v : {&center[0], &center[1], &center[2], &weight, &lo, &hi}) v->resize(count + 1);
-        if (normals)
-          for (auto& v : normal) v.resize(count + 1);
-        for (std::size_t k = 0; k <= count; ++k) {
-          const PreparedDab& d = k < count ? dabs[row[k]] : PreparedDab{{}, 0, Box{}, {}};
-          for (int a = 0; a < 3; ++a) center[a][k] = d.center[a];
-          weight[k] = d.weight;
-          lo[k] = d.roi.lo.x;
-          hi[k] = d.roi.hi.x;
-          if (normals)
-            for (int a = 0; a < 3; ++a) normal[a][k] = d.normal[a];
+      const LaneArrays* arrays = nullptr;
+      std::size_t begin = 0, end = 0;   // the row's dabs: lanes [begin, end) of arrays
+      std::size_t first = 0, last = 0;  // those whose ROI holds the voxel's x
+      LaneArrays own;                   // the row's dabs when they are not consecutive
+      // The lanes of the row's dabs `row` (indices into dabs, increasing), `all` holding all of them.
+      void list(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, const LaneArrays& all,
+                bool normals) {
+        if (row.empty() || row.back() - row.front() + 1 == row.size()) {
+          arrays = &all;
+          begin = row.empty() ? 0 : row.front();
+          end = begin + row.size();
+        } else {
+          own.fill(dabs, row.data(), row.size(), normals);
+          arrays = &own;
+          begin = 0;
+          end = row.size();
         }
+        first = last = begin;
       }
       // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
       void at(int x) {
         const double xd = x;
-        while (first < count && hi[first] <= xd) ++first;
+        const double* lo = arrays->lo.data();
+        const double* hi = arrays->hi.data();
+        while (first < end && hi[first] <= xd) ++first;
         if (last < first) last = first;
-        while (last < count && lo[last] <= xd) ++last;
+        while (last < end && lo[last] <= xd) ++last;
       }
+      // The dab (index into the list's dabs) in lane j, one of the row's `row`.
+      std::uint32_t dab(const std::vector<std::uint32_t>& row, std::size_t j) const { return row[j - begin]; }
     } dabLanes, memoryLanes;
     // The memory dab (index into memory_) last found to reach the message's
     // window at a voxel: tried first at the next (behind a stroke's new dabs, the memory
@@ -229,19 +277,29 @@ class SweptWindow {
   }
 
  private:
-  void row(Int3 p, Cursor& c) const {
-    if (p.y == c.y && p.z == c.z) return;
+  // Positions c at p's row (called twice per voxel: the test inline, the change not).
+  [[gnu::always_inline]] void row(Int3 p, Cursor& c) const {
+    if (p.y != c.y || p.z != c.z) newRow(p, c);
+  }
+
+  [[gnu::noinline]] void newRow(Int3 p, Cursor& c) const {
     const bool stays = c.listed && p.z == c.z && p.y > c.y && p.y < c.until;
     c.y = p.y;
     c.z = p.z;
 #if defined(__SSE2__)
-    c.dabLanes.first = c.dabLanes.last = c.memoryLanes.first = c.memoryLanes.last = 0;
+    c.dabLanes.first = c.dabLanes.last = c.dabLanes.begin;
+    c.memoryLanes.first = c.memoryLanes.last = c.memoryLanes.begin;
 #endif
     if (stays) return;  // no ROI begins or ends between the listed row and this one
     // Most rows hold the dabs of the row before: the lists stay.
+    if (p.z != c.sliceZ) {  // a row's dabs are searched among its slice's
+      c.sliceZ = p.z;
+      sliceDabs(dabs_, p.z, c.sliceDabs);
+      sliceDabs(memory_, p.z, c.sliceMemory);
+    }
     c.until = std::numeric_limits<int>::max();
-    rowDabs(dabs_, p, c.rowDabs, c.until);
-    rowDabs(memory_, p, c.rowMemory, c.until);
+    rowDabs(dabs_, c.sliceDabs, p, c.rowDabs, c.until);
+    rowDabs(memory_, c.sliceMemory, p, c.rowMemory, c.until);
     if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
     c.listed = true;
     std::swap(c.rowDabs, c.dabs);
@@ -255,35 +313,37 @@ class SweptWindow {
     }
 #if defined(__SSE2__)
     if (lanes_) {
-      c.dabLanes.fill(dabs_, c.dabs, anchor_ != 0);
-      c.memoryLanes.fill(memory_, c.memory, anchor_ != 0);
+      c.dabLanes.list(dabs_, c.dabs, allDabs_, anchor_ != 0);
+      c.memoryLanes.list(memory_, c.memory, allMemory_, anchor_ != 0);
     }
 #endif
   }
 
 #if defined(__SSE2__)
-  // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na) for a voxel at
-  // x (xd), 0 for a dab whose ROI does not hold x: window's operations in its order in each lane
-  // (the three factors multiplied out even after one is 0, which leaves 0, and past the point
-  // where window would stop, which only lowers a value that is not the largest; the clamp's
-  // zero may differ in sign, which moves no factor), so the largest is the same bits.
+  // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na), 0 for a lane at
+  // or past l.last (a dab whose ROI does not hold the voxel, or the pad): window's operations
+  // in its order in each lane (the three factors multiplied out even after one is 0, which
+  // leaves 0, and past the point where window would stop, which only lowers a value that is not
+  // the largest; the clamp's zero may differ in sign, which moves no factor), so the largest is
+  // the same bits.
   template <bool kAnchored>
   [[gnu::always_inline]] __m128d pairWindows(const Cursor::Lanes& l, std::size_t j, const __m128d qa[3],
-                                             const __m128d na[3], __m128d xd) const {
+                                             const __m128d na[3]) const {
+    const LaneArrays& arr = *l.arrays;
     const __m128d one = _mm_set1_pd(1.0), zero = _mm_setzero_pd(), invR = _mm_set1_pd(inverseRadius_);
     const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff));
-    __m128d w = _mm_loadu_pd(l.weight.data() + j);
+    __m128d w = _mm_loadu_pd(arr.weight.data() + j);
     if constexpr (!kAnchored) {
       for (int a = 0; a < 3; ++a) {
-        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(l.center[a].data() + j)), abs), invR);
+        const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(qa[a], _mm_loadu_pd(arr.center[a].data() + j)), abs), invR);
         const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
         w = _mm_mul_pd(w, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
       }
     } else {
-      const __m128d c[3] = {_mm_loadu_pd(l.center[0].data() + j), _mm_loadu_pd(l.center[1].data() + j),
-                            _mm_loadu_pd(l.center[2].data() + j)};
-      const __m128d axis[3] = {_mm_loadu_pd(l.normal[0].data() + j), _mm_loadu_pd(l.normal[1].data() + j),
-                               _mm_loadu_pd(l.normal[2].data() + j)};
+      const __m128d c[3] = {_mm_loadu_pd(arr.center[0].data() + j), _mm_loadu_pd(arr.center[1].data() + j),
+                            _mm_loadu_pd(arr.center[2].data() + j)};
+      const __m128d axis[3] = {_mm_loadu_pd(arr.normal[0].data() + j), _mm_loadu_pd(arr.normal[1].data() + j),
+                               _mm_loadu_pd(arr.normal[2].data() + j)};
       const __m128d facing =
           _mm_add_pd(_mm_add_pd(_mm_mul_pd(axis[0], na[0]), _mm_mul_pd(axis[1], na[1])), _mm_mul_pd(axis[2], na[2]));
       w = _mm_mul_pd(w, _mm_max_pd(facing, zero));
@@ -300,7 +360,7 @@ class SweptWindow {
       }
     }
     const __m128d inside =
-        _mm_and_pd(_mm_cmple_pd(_mm_loadu_pd(l.lo.data() + j), xd), _mm_cmplt_pd(xd, _mm_loadu_pd(l.hi.data() + j)));
+        _mm_cmplt_pd(_mm_add_pd(_mm_set1_pd(double(j)), _mm_setr_pd(0, 1)), _mm_set1_pd(double(l.last)));
     return _mm_and_pd(inside, w);
   }
 
@@ -310,11 +370,10 @@ class SweptWindow {
   template <bool kAnchored>
   double lanesLargest(Cursor::Lanes& l, int x, Vec3 q, Vec3 n) const {
     l.at(x);
-    const __m128d xd = _mm_set1_pd(double(x));
     const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
     const __m128d na[3] = {_mm_set1_pd(n.x), _mm_set1_pd(n.y), _mm_set1_pd(n.z)};
     __m128d best = _mm_setzero_pd();
-    for (std::size_t j = l.first; j < l.last; j += 2) best = _mm_max_pd(best, pairWindows<kAnchored>(l, j, qa, na, xd));
+    for (std::size_t j = l.first; j < l.last; j += 2) best = _mm_max_pd(best, pairWindows<kAnchored>(l, j, qa, na));
     return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
   }
 
@@ -333,20 +392,115 @@ class SweptWindow {
     }
     Cursor::Lanes& l = c.memoryLanes;
     l.at(p.x);
-    const __m128d xd = _mm_set1_pd(double(p.x)), enough = _mm_set1_pd(w);
+    const __m128d enough = _mm_set1_pd(w);
     const __m128d qa[3] = {_mm_set1_pd(q.x), _mm_set1_pd(q.y), _mm_set1_pd(q.z)};
     const __m128d na[3] = {_mm_set1_pd(n.x), _mm_set1_pd(n.y), _mm_set1_pd(n.z)};
     __m128d best = _mm_setzero_pd();
     for (std::size_t j = l.first; j < l.last; j += 2) {
-      const __m128d m = pairWindows<kAnchored>(l, j, qa, na, xd);
+      const __m128d m = pairWindows<kAnchored>(l, j, qa, na);
       if (const int hit = _mm_movemask_pd(_mm_cmpge_pd(m, enough))) {
         const std::size_t lane = hit & 1 ? 0 : 1;
-        c.reached = c.memory[j + lane];
+        c.reached = l.dab(c.memory, j + lane);
         return lane == 0 ? _mm_cvtsd_f64(m) : _mm_cvtsd_f64(_mm_unpackhi_pd(m, m));
       }
       best = _mm_max_pd(best, m);
     }
     return std::max(_mm_cvtsd_f64(best), _mm_cvtsd_f64(_mm_unpackhi_pd(best, best)));
+  }
+#endif
+
+#if defined(MARZIPAN_AVX2_KERNELS)
+  // pairWindows for the lanes' dabs j to j + 3 (AVX2): each lane the same operations in the same
+  // order, so the same bits. The caller gives the lanes before l.last (inside) and the clamp's
+  // bounds (back: [0, H] adding, [-H, 0] removing).
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline __m256d quadWindows(const Cursor::Lanes& l, std::size_t j,
+                                                                                  const __m256d qa[3], const __m256d na[3],
+                                                                                  const __m256d back[2],
+                                                                                  __m256d inside) const {
+    const LaneArrays& arr = *l.arrays;
+    const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
+    const __m256d abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
+    __m256d w = _mm256_loadu_pd(arr.weight.data() + j);
+    if constexpr (!kAnchored) {
+      for (int a = 0; a < 3; ++a) {
+        const __m256d t =
+            _mm256_mul_pd(_mm256_and_pd(_mm256_sub_pd(qa[a], _mm256_loadu_pd(arr.center[a].data() + j)), abs), invR);
+        const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
+        w = _mm256_mul_pd(w, _mm256_andnot_pd(_mm256_cmp_pd(t, one, _CMP_GE_OS), _mm256_mul_pd(u, u)));
+      }
+    } else {
+      const __m256d c[3] = {_mm256_loadu_pd(arr.center[0].data() + j), _mm256_loadu_pd(arr.center[1].data() + j),
+                            _mm256_loadu_pd(arr.center[2].data() + j)};
+      const __m256d axis[3] = {_mm256_loadu_pd(arr.normal[0].data() + j), _mm256_loadu_pd(arr.normal[1].data() + j),
+                               _mm256_loadu_pd(arr.normal[2].data() + j)};
+      const __m256d facing = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(axis[0], na[0]), _mm256_mul_pd(axis[1], na[1])),
+                                           _mm256_mul_pd(axis[2], na[2]));
+      w = _mm256_mul_pd(w, _mm256_max_pd(facing, zero));
+      const __m256d along = _mm256_add_pd(
+          _mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(qa[0], c[0]), axis[0]), _mm256_mul_pd(_mm256_sub_pd(qa[1], c[1]), axis[1])),
+          _mm256_mul_pd(_mm256_sub_pd(qa[2], c[2]), axis[2]));
+      const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
+      for (int a = 0; a < 3; ++a) {
+        const __m256d x = _mm256_sub_pd(qa[a], _mm256_mul_pd(axis[a], moved));
+        const __m256d t = _mm256_mul_pd(_mm256_and_pd(_mm256_sub_pd(x, c[a]), abs), invR);
+        const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
+        w = _mm256_mul_pd(w, _mm256_andnot_pd(_mm256_cmp_pd(t, one, _CMP_GE_OS), _mm256_mul_pd(u, u)));
+      }
+    }
+    return _mm256_and_pd(inside, w);
+  }
+
+  // The largest of the four lanes.
+  [[gnu::always_inline]] __attribute__((target("avx2"))) static inline double largestLane(__m256d v) {
+    const __m128d m = _mm_max_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+    return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m)));
+  }
+
+  // search with four lanes: lanesLargest and memoryLargest four dabs at a time. The largest
+  // window is the same whatever the grouping (only the sign of a zero may differ, and a window
+  // <= 0 moves nothing), and the memory stops at the same dab, the first that reaches w.
+  template <bool kAnchored>
+  [[gnu::noinline]] __attribute__((target("avx2"))) double searchAvx2(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    const __m256d qa[3] = {_mm256_set1_pd(q.x), _mm256_set1_pd(q.y), _mm256_set1_pd(q.z)};
+    const __m256d na[3] = {_mm256_set1_pd(n.x), _mm256_set1_pd(n.y), _mm256_set1_pd(n.z)};
+    // std::min(0.0, H) and std::max(0.0, H) are +0 where H has the other sign, the zero the
+    // clamps of pairWindows use, in the same operand order.
+    const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+    const __m256d four = _mm256_set1_pd(4.0), offsets = _mm256_setr_pd(0, 1, 2, 3);
+    Cursor::Lanes& l = c.dabLanes;
+    l.at(p.x);
+    __m256d best = _mm256_setzero_pd();
+    const __m256d last = _mm256_set1_pd(double(l.last));
+    __m256d at = _mm256_add_pd(_mm256_set1_pd(double(l.first)), offsets);  // each lane's position
+    for (std::size_t j = l.first; j < l.last; j += 4, at = _mm256_add_pd(at, four))
+      best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na, back, _mm256_cmp_pd(at, last, _CMP_LT_OS)));
+    const double w = largestLane(best);
+    if (w <= 0 || c.memory.empty()) return w;
+    if (c.reached < memory_.size()) {
+      const PreparedDab& d = memory_[c.reached];
+      if (d.roi.contains(p)) {
+        const double m = window(d, q, n, 0);
+        if (m >= w) return w - m;
+      }
+    }
+    Cursor::Lanes& ml = c.memoryLanes;
+    ml.at(p.x);
+    const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
+    best = _mm256_setzero_pd();
+    at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
+    for (std::size_t j = ml.first; j < ml.last; j += 4, at = _mm256_add_pd(at, four)) {
+      const __m256d m = quadWindows<kAnchored>(ml, j, qa, na, back, _mm256_cmp_pd(at, memoryLast, _CMP_LT_OS));
+      if (const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS))) {
+        const int lane = __builtin_ctz(unsigned(hit));
+        c.reached = ml.dab(c.memory, j + std::size_t(lane));
+        alignas(32) double lanes[4];
+        _mm256_store_pd(lanes, m);
+        return w - lanes[lane];
+      }
+      best = _mm256_max_pd(best, m);
+    }
+    return w - largestLane(best);
   }
 #endif
 
@@ -361,6 +515,10 @@ class SweptWindow {
 
   [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
     row(p, c);
+#if defined(MARZIPAN_AVX2_KERNELS)
+    if (lanes_ && useAvx2.load(std::memory_order_relaxed))
+      return anchor_ == 0 ? searchAvx2<false>(p, q, n, c) : searchAvx2<true>(p, q, n, c);
+#endif
 #if defined(__SSE2__)
     if (anchor_ == 0) {  // lanes_ holds
       const double w = lanesLargest<false>(c.dabLanes, p.x, q, n);
@@ -374,13 +532,21 @@ class SweptWindow {
     return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
   }
 
-  // The dabs whose ROI holds p's row, and `until` lowered to the first y past p.y where a ROI
-  // begins or ends in p's slice (rows of the slice before it hold the same dabs).
-  static void rowDabs(const std::vector<PreparedDab>& dabs, Int3 p, std::vector<std::uint32_t>& out, int& until) {
+  // The dabs whose ROI holds slice z, in their order.
+  static void sliceDabs(const std::vector<PreparedDab>& dabs, int z, std::vector<std::uint32_t>& out) {
     out.clear();
-    for (std::size_t i = 0; i < dabs.size(); ++i) {
+    for (std::size_t i = 0; i < dabs.size(); ++i)
+      if (z >= dabs[i].roi.lo.z && z < dabs[i].roi.hi.z) out.push_back(std::uint32_t(i));
+  }
+
+  // The dabs of p's slice (`slice`, from sliceDabs) whose ROI holds p's row, and `until` lowered
+  // to the first y past p.y where a ROI begins or ends in p's slice (rows of the slice before it
+  // hold the same dabs).
+  static void rowDabs(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& slice, Int3 p,
+                      std::vector<std::uint32_t>& out, int& until) {
+    out.clear();
+    for (const std::uint32_t i : slice) {
       const Box& b = dabs[i].roi;
-      if (p.z < b.lo.z || p.z >= b.hi.z) continue;
       if (p.y < b.lo.y) {
         until = std::min(until, b.lo.y);
       } else if (p.y < b.hi.y) {
@@ -433,6 +599,9 @@ class SweptWindow {
   double inverseRadius_, anchor_;
   std::vector<PreparedDab> dabs_, memory_;
   bool lanes_ = false;  // SSE2 searches the lanes (Cursor::Lanes)
+#if defined(__SSE2__)
+  LaneArrays allDabs_, allMemory_;  // lanes_: dabs_ and memory_ as lanes
+#endif
 };
 
 // The unit normal (central differences) and foot point p - d n of grid voxel i at p: the window
@@ -518,14 +687,6 @@ void storePartial(float* out, __m128 x, std::uint32_t n) {
   _mm_storel_pi(reinterpret_cast<__m64*>(out), x);
   if (n == 3) _mm_store_ss(out + 2, _mm_movehl_ps(x, x));
 }
-#endif
-
-#if defined(MARZIPAN_AVX2_KERNELS)
-bool cpuHasAvx2() {
-  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
-  return __builtin_cpu_supports("avx2");
-}
-std::atomic<bool> useAvx2{cpuHasAvx2()};
 #endif
 
 // The walk of a sub-step over runs [r, end): voxel j of a run goes to dst[run.first + j] (dst:
@@ -938,6 +1099,7 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
 }
 #endif
 
+
 // The speed entry `at` of a voxel whose window is w > 0 under motion m (inlined: it runs once
 // per band voxel, as collectMoved's add).
 [[gnu::always_inline]] inline void setSpeed(MovedVoxels& out, std::size_t at, const Motion& m, double w) {
@@ -993,7 +1155,8 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
   SweptWindow::Cursor cursor;
 #if defined(__SSE2__)
   // A brush's windows two voxels at a time (the square root and divisions of the foot point
-  // are most of a voxel's cost); the voxels are added in the same order.
+  // are most of a voxel's cost); the voxels are added in the same order. (Four at a time with
+  // AVX2 took as long: gathering the neighbours into lanes cost what the lanes saved.)
   const PreparedDab* const brush = window ? window->brush() : nullptr;
   std::size_t pending[2];
   Int3 pendingPoint[2];

@@ -825,3 +825,51 @@ TEST_CASE("strokes along slanted lines, with memory and with heights, are pinned
   CHECK(run(one) == pinned);
   CHECK(run(two) == pinned);
 }
+
+TEST_CASE("strokes whose rows hold their dabs out of order along x are pinned", "[level_set][determinism][pinned][stroke]") {
+  // Recorded 2026-11-25 before the window search began to read a row's dabs where all the
+  // stroke's dabs are when they are consecutive along x (and from arrays of the row's own when
+  // not), four at a time with AVX2: the same field bit for bit, on 1 and 2 threads and with both
+  // widths. Zigzag strokes (dabs alternately above and below a line, so the rows near its edges
+  // hold every other dab), with memory, plain and with heights, their dabs with and without
+  // normals (lanes and the scalar search), and a stroke whose memory crosses it.
+  if (!evolve_width::avx2Available()) WARN("this CPU has no AVX2: both widths run the SSE2 search");
+  struct Restore {
+    ~Restore() { evolve_width::limitWidth(evolve_width::Width::Widest); }
+  } restore;
+  auto run = [](evolve_width::Width width, ThreadPool& pool) {
+    evolve_width::limitWidth(width);
+    Volume v = makeSphere({80, 80, 80}, {40, 40, 40}, 28);
+    std::mt19937 rng(37);
+    std::uniform_real_distribution<double> unit(-1, 1), weight(0.3, 1.0), radius(4, 9);
+    std::vector<std::string> digests;
+    for (int i = 0; i < 12; ++i) {
+      const double r = radius(rng);
+      const Vec3 dir = normalized(Vec3{unit(rng), unit(rng), unit(rng)});
+      const Vec3 side = normalized(cross(dir, normalized(Vec3{unit(rng), unit(rng), unit(rng)})));
+      const Vec3 start = Vec3{40, 40, 40} + normalized(Vec3{unit(rng), unit(rng), unit(rng)}) * 28.0;
+      std::vector<StrokeDab> path;
+      for (int k = 0; k < 18; ++k) {
+        const Vec3 c = start + dir * (0.3 * r * (k - 9)) + side * (k % 2 ? 0.6 * r : -0.6 * r);
+        path.push_back({c, weight(rng), i % 3 == 2 ? Vec3{} : normalized(c - Vec3{40, 40, 40})});
+      }
+      const std::span<const StrokeDab> all(path);
+      const std::size_t split = 5 + std::size_t(i % 4);
+      StrokeSettings st{i % 2 ? Brush::RemoveBlob : Brush::AddBlob, r, weight(rng)};
+      if (i % 4 >= 2) st.height = std::min(r / 2, 3.5);
+      if (i % 6 == 5) st.tool = Brush::Smooth, st.height.reset();
+      applyStroke(v, st, all.first(split), {}, pool);
+      applyStroke(v, st, all.subspan(split), all.first(split), pool);
+      // The first dabs again, with the rest as memory: the memory lies on both sides.
+      applyStroke(v, st, all.first(split), all.subspan(split), pool);
+      if (i % 3 == 2) digests.push_back(digestHex(v));
+    }
+    return digests;
+  };
+  const std::vector<std::string> pinned = {"1137ff28e14558dc", "0cdb723e9d6d878c", "c0fe9ab55e9f8bc2",
+                                           "bbeea83976e1785d"};
+  ThreadPool one(1), two(2);
+  CHECK(run(evolve_width::Width::Sse2, one) == pinned);
+  CHECK(run(evolve_width::Width::Widest, one) == pinned);
+  CHECK(run(evolve_width::Width::Widest, two) == pinned);
+}
