@@ -411,7 +411,9 @@ class SideMarcher {
     return solveEikonal(m, q);
   }
 
-  [[gnu::noinline]] float solveBorder(std::size_t n) const {
+  // Out of line (a border voxel is the rare case), and pure: it only reads, so the compiler
+  // keeps what it holds in registers across the call.
+  [[gnu::noinline, gnu::pure]] float solveBorder(std::size_t n) const {
     const Int3 p = local(n);
     float m[3];
     int q[3];
