@@ -64,6 +64,23 @@ bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float 
     }
     return _mm_movemask_ps(ne) != 0;
   }
+  if (n >= 4) {  // a row cut by the region: its first and last four voxels (overlapping) cover it
+    const int t = n - 4;
+    __m128 ne = _mm_setzero_ps();
+    if (old) {
+      for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), _mm_loadu_ps(old)));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + t), _mm_loadu_ps(old + t)));
+      }
+    } else {
+      const __m128 u = _mm_set1_ps(uniform);
+      for (int r = 0; r < rows; ++r, s += sStride) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), u));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + t), u));
+      }
+    }
+    return _mm_movemask_ps(ne) != 0;
+  }
 #endif
   int differs = 0;
   for (int r = 0; r < rows; ++r, s += sStride) {
@@ -71,6 +88,58 @@ bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float 
     for (int x = 0; x < n; ++x) differs |= s[x] != (d ? d[x] : uniform);
   }
   return differs != 0;
+}
+
+// n voxels (1 to kBrickSide) copied from a brick row.
+void copyShortRow(float* to, const float* from, int n) {
+#if defined(__SSE2__)
+  if (n >= 4) {
+    _mm_storeu_ps(to, _mm_loadu_ps(from));
+    _mm_storeu_ps(to + n - 4, _mm_loadu_ps(from + n - 4));
+    return;
+  }
+#endif
+  for (int x = 0; x < n; ++x) to[x] = from[x];
+}
+
+// n voxels (1 to kBrickSide) set to one value.
+void fillShortRow(float* to, float value, int n) {
+#if defined(__SSE2__)
+  if (n >= 4) {
+    const __m128 v = _mm_set1_ps(value);
+    _mm_storeu_ps(to, v);
+    _mm_storeu_ps(to + n - 4, v);
+    return;
+  }
+#endif
+  for (int x = 0; x < n; ++x) to[x] = value;
+}
+
+// A whole brick's voxels copied into a grid of strides sx (y) and sxy (z), its first voxel at `to`.
+void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* from) {
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx, from += kBrickSide) std::memcpy(row, from, sizeof(float) * kBrickSide);
+  }
+}
+
+// A whole brick of the grid set to one value.
+void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
+#if defined(__SSE2__)
+  const __m128 v = _mm_set1_ps(value);
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) {
+      _mm_storeu_ps(row, v);
+      _mm_storeu_ps(row + 4, v);
+    }
+  }
+#else
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) std::fill(row, row + kBrickSide, value);
+  }
+#endif
 }
 
 }  // namespace
@@ -180,21 +249,25 @@ void Volume::gather(const Box& box, float* out) const {
                              sxy * std::size_t(here.lo.z - box.lo.z);
         const int ny = here.hi.y - here.lo.y, nz = here.hi.z - here.lo.z;
         const float* const src = d ? d + Bricks::index(here.lo.x - o.x, here.lo.y - o.y, here.lo.z - o.z) : nullptr;
+        // Whole bricks are the rule (most of a tool's box, most of them uniform): their rows
+        // copied or filled by fixed-size stores, the pointers stepped, no branch per row.
+        if (n == kBrickSide && ny == kBrickSide && nz == kBrickSide) {
+          if (src) {
+            copyWholeBrick(first, sx, sxy, src);
+          } else {
+            fillWholeBrick(first, sx, sxy, u);
+          }
+          continue;
+        }
+        // A brick cut by the box: rows of 1 to 8 voxels, the longer ones by two overlapping
+        // 4-wide stores instead of a call.
         for (int z = 0; z < nz; ++z)
           for (int y = 0; y < ny; ++y) {
             float* const row = first + sx * std::size_t(y) + sxy * std::size_t(z);
-            // Whole brick rows are the rule: a fixed-size copy is a few instructions, not a call.
             if (src) {
-              const float* const from = src + Bricks::index(0, y, z);
-              if (n == kBrickSide) {
-                std::memcpy(row, from, sizeof(float) * kBrickSide);
-              } else {
-                std::memcpy(row, from, sizeof(float) * std::size_t(n));
-              }
-            } else if (n == kBrickSide) {
-              std::fill(row, row + kBrickSide, u);
+              copyShortRow(row, src + Bricks::index(0, y, z), n);
             } else {
-              std::fill(row, row + n, u);
+              fillShortRow(row, u, n);
             }
           }
       }
@@ -367,13 +440,16 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
             float* const d = d0 + Bricks::index(0, y, z);
             int x = 0;
 #if defined(__SSE2__)
-            if (n == kBrickSide) {  // a whole brick row, the rule: min/max is std::clamp but for NaN
+            if (n >= 4) {
+              // The first and last four voxels (overlapping but for a whole brick row, the rule):
+              // min/max is std::clamp but for NaN, and a voxel written twice gets the same value.
+              const int t = n - 4;
               const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
-              const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + 4);
+              const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + t);
               nan |= _mm_movemask_ps(_mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
               _mm_storeu_ps(d, _mm_max_ps(_mm_min_ps(a, vhi), vlo));
-              _mm_storeu_ps(d + 4, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
-              x = kBrickSide;
+              _mm_storeu_ps(d + t, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
+              x = n;
             }
 #endif
             for (; x < n; ++x) {
@@ -383,11 +459,9 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
             }
           }
         if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-        const BrickRef next = canonicalBrick(b, std::move(nb));
-        const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
-                                    : (!old.data && old.inside == next.inside);
-        if (same) continue;
-        changes.push_back({b, old, next});
+        // brickChanges found a voxel whose clamped value differs (!=) from the stored one: the
+        // new brick cannot equal the old, byte for byte or as the same uniform side.
+        changes.push_back({b, old, canonicalBrick(b, std::move(nb))});
       }
 }
 
@@ -402,12 +476,27 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
     // Sixteen voxels a step: the bricks at the band's outer edge hold +-band nearly throughout.
     const float* v = data->v;
     const float band = band_;
+#if defined(__SSE2__)
+    const __m128 out = _mm_set1_ps(band), in = _mm_set1_ps(-band);
+    __m128 notOut = _mm_setzero_ps(), notIn = _mm_setzero_ps();
+    for (int i = 0; i < kBrickVoxels; i += 16) {
+      for (int k = i; k < i + 16; k += 4) {
+        const __m128 a = _mm_loadu_ps(v + k);
+        notOut = _mm_or_ps(notOut, _mm_cmpneq_ps(a, out));
+        notIn = _mm_or_ps(notIn, _mm_cmpneq_ps(a, in));
+      }
+      if (_mm_movemask_ps(notOut) != 0 && _mm_movemask_ps(notIn) != 0) break;
+    }
+    allOut = _mm_movemask_ps(notOut) == 0;
+    allIn = _mm_movemask_ps(notIn) == 0;
+#else
     for (int i = 0; i < kBrickVoxels && (allOut || allIn); i += 16) {
       int out = 0, in = 0;
       for (int k = i; k < i + 16; ++k) out += v[k] == band, in += v[k] == -band;
       allOut = allOut && out == 16;
       allIn = allIn && in == 16;
     }
+#endif
     if (allOut || allIn) return {nullptr, allIn};
     return {std::move(data), false};
   }
