@@ -8,6 +8,13 @@
 #if defined(__SSE2__)
 #include <xmmintrin.h>
 #endif
+// Whole brick rows (8 floats, one AVX vector) are also compared, copied and filled by functions
+// compiled for AVX2 (__attribute__((target))) and chosen at run time, so that the binary still
+// runs without it; they only compare and move values, so both give the same results.
+#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+#define MARZIPAN_AVX2_ROWS 1
+#include <immintrin.h>
+#endif
 
 #include "errors.hpp"
 #include "stencil.hpp"
@@ -19,6 +26,43 @@ namespace {
 
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
+
+#if defined(MARZIPAN_AVX2_ROWS)
+bool cpuHasAvx2() {
+  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
+  return __builtin_cpu_supports("avx2");
+}
+const bool useAvx2 = cpuHasAvx2();
+
+// rowsMayDiffer for whole brick rows: one vector a row.
+__attribute__((target("avx2"))) bool wholeRowsMayDifferAvx2(const float* s, std::size_t sStride, const float* old,
+                                                            float uniform, int rows) {
+  __m256 ne = _mm256_setzero_ps();
+  if (old) {
+    for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide)
+      ne = _mm256_or_ps(ne, _mm256_cmp_ps(_mm256_loadu_ps(s), _mm256_loadu_ps(old), _CMP_NEQ_UQ));
+  } else {
+    const __m256 u = _mm256_set1_ps(uniform);
+    for (int r = 0; r < rows; ++r, s += sStride) ne = _mm256_or_ps(ne, _mm256_cmp_ps(_mm256_loadu_ps(s), u, _CMP_NEQ_UQ));
+  }
+  return _mm256_movemask_ps(ne) != 0;
+}
+
+__attribute__((target("avx2"))) void copyWholeBrickAvx2(float* to, std::size_t sx, std::size_t sxy, const float* from) {
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx, from += kBrickSide) _mm256_storeu_ps(row, _mm256_loadu_ps(from));
+  }
+}
+
+__attribute__((target("avx2"))) void fillWholeBrickAvx2(float* to, std::size_t sx, std::size_t sxy, float value) {
+  const __m256 v = _mm256_set1_ps(value);
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) _mm256_storeu_ps(row, v);
+  }
+}
+#endif
 
 // One row of n voxels: does some source value differ from the stored one (old, or `uniform`
 // where old is null) once clamped to +-band? Throws on NaN, which passes std::clamp and would
@@ -49,6 +93,9 @@ bool rowDiffers(const float* s, const float* old, float uniform, int n, float ba
 bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float uniform, int n, int rows) {
 #if defined(__SSE2__)
   if (n == kBrickSide) {  // whole brick rows, the rule: two vectors a row, one test for all rows
+#if defined(MARZIPAN_AVX2_ROWS)
+    if (useAvx2) return wholeRowsMayDifferAvx2(s, sStride, old, uniform, rows);
+#endif
     __m128 ne = _mm_setzero_ps();
     if (old) {
       for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide) {
@@ -117,6 +164,9 @@ void fillShortRow(float* to, float value, int n) {
 
 // A whole brick's voxels copied into a grid of strides sx (y) and sxy (z), its first voxel at `to`.
 void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* from) {
+#if defined(MARZIPAN_AVX2_ROWS)
+  if (useAvx2) return copyWholeBrickAvx2(to, sx, sxy, from);
+#endif
   for (int z = 0; z < kBrickSide; ++z, to += sxy) {
     float* row = to;
     for (int y = 0; y < kBrickSide; ++y, row += sx, from += kBrickSide) std::memcpy(row, from, sizeof(float) * kBrickSide);
@@ -125,6 +175,9 @@ void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* fro
 
 // A whole brick of the grid set to one value.
 void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
+#if defined(MARZIPAN_AVX2_ROWS)
+  if (useAvx2) return fillWholeBrickAvx2(to, sx, sxy, value);
+#endif
 #if defined(__SSE2__)
   const __m128 v = _mm_set1_ps(value);
   for (int z = 0; z < kBrickSide; ++z, to += sxy) {
@@ -433,6 +486,30 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         // The bounds in locals (stores through d may alias band_) and the NaN test after the
         // brick: the loops have no branch per voxel. nb is dropped when it throws.
         const float lo = -band_, hi = band_;
+#if defined(__SSE2__)
+        if (here == Bricks::box(b)) {
+          // A whole brick (in the domain, as the region is): the written values also tell
+          // whether it is uniform, the test canonicalBrick would make reading them again.
+          const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+          __m128 bad = _mm_setzero_ps(), notOut = _mm_setzero_ps(), notIn = _mm_setzero_ps();
+          float* d = nb->v;
+          for (int z = 0; z < kBrickSide; ++z)
+            for (int y = 0; y < kBrickSide; ++y, d += kBrickSide) {
+              const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
+              const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + 4);
+              bad = _mm_or_ps(bad, _mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
+              const __m128 ca = _mm_max_ps(_mm_min_ps(a, vhi), vlo), cc = _mm_max_ps(_mm_min_ps(c, vhi), vlo);
+              _mm_storeu_ps(d, ca);
+              _mm_storeu_ps(d + 4, cc);
+              notOut = _mm_or_ps(notOut, _mm_or_ps(_mm_cmpneq_ps(ca, vhi), _mm_cmpneq_ps(cc, vhi)));
+              notIn = _mm_or_ps(notIn, _mm_or_ps(_mm_cmpneq_ps(ca, vlo), _mm_cmpneq_ps(cc, vlo)));
+            }
+          if (_mm_movemask_ps(bad)) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+          const bool allOut = _mm_movemask_ps(notOut) == 0, allIn = _mm_movemask_ps(notIn) == 0;
+          changes.push_back({b, old, allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false}});
+          continue;
+        }
+#endif
         int nan = 0;
         for (int z = 0; z < nz; ++z)
           for (int y = 0; y < ny; ++y) {
@@ -527,11 +604,13 @@ void Volume::setSlots(std::size_t n, SlotAt slotAt) {
   while (i < n) {
     const std::size_t ti = order[i].first;
     // Every tile touched by this edit is copied once: readers of older versions keep theirs.
-    auto t = std::make_shared<Tile>();
+    // Copy-constructed from the old tile when there is one (not zeroed first, then assigned).
+    std::shared_ptr<Tile> t;
     if (const Tile* old = tiles_[ti].get()) {
-      *t = *old;
-    } else if (tileInside_[ti]) {
-      t->inside.set();
+      t = std::make_shared<Tile>(*old);
+    } else {
+      t = std::make_shared<Tile>();
+      if (tileInside_[ti]) t->inside.set();
     }
     for (; i < n && order[i].first == ti; ++i) {
       const auto [b, refPtr] = slotAt(order[i].second);
