@@ -466,7 +466,7 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         float uniform;
         const float* stored = brickData(b, &uniform);
         if (!brickChanges(b, here, stored, uniform, src, srcBox)) continue;
-        const BrickRef old = brick(b);
+        BrickRef old = brick(b);
         // Every voxel is set below: no zero-fill first.
         auto nb = std::make_shared_for_overwrite<Brick>();
         // Voxels of the brick outside the region keep their old values (the rule is the whole brick).
@@ -506,39 +506,47 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
             }
           if (_mm_movemask_ps(bad)) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
           const bool allOut = _mm_movemask_ps(notOut) == 0, allIn = _mm_movemask_ps(notIn) == 0;
-          changes.push_back({b, old, allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false}});
+          changes.push_back({b, std::move(old), allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false}});
           continue;
         }
 #endif
         int nan = 0;
-        for (int z = 0; z < nz; ++z)
-          for (int y = 0; y < ny; ++y) {
-            const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
-            float* const d = d0 + Bricks::index(0, y, z);
-            int x = 0;
 #if defined(__SSE2__)
-            if (n >= 4) {
-              // The first and last four voxels (overlapping but for a whole brick row, the rule):
-              // min/max is std::clamp but for NaN, and a voxel written twice gets the same value.
-              const int t = n - 4;
-              const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+        if (n >= 4) {
+          // The first and last four voxels of each row (overlapping but for whole brick rows):
+          // min/max is std::clamp but for NaN, and a voxel written twice gets the same value.
+          const int t = n - 4;
+          const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+          __m128 bad = _mm_setzero_ps();
+          for (int z = 0; z < nz; ++z) {
+            const float* s = s0 + sxy * std::size_t(z);
+            float* d = d0 + Bricks::index(0, 0, z);
+            for (int y = 0; y < ny; ++y, s += sx, d += kBrickSide) {
               const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + t);
-              nan |= _mm_movemask_ps(_mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
+              bad = _mm_or_ps(bad, _mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
               _mm_storeu_ps(d, _mm_max_ps(_mm_min_ps(a, vhi), vlo));
               _mm_storeu_ps(d + t, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
-              x = n;
-            }
-#endif
-            for (; x < n; ++x) {
-              const float value = s[x];
-              nan |= value != value;
-              d[x] = std::clamp(value, lo, hi);
             }
           }
+          nan = _mm_movemask_ps(bad);
+        } else
+#endif
+        {
+          for (int z = 0; z < nz; ++z)
+            for (int y = 0; y < ny; ++y) {
+              const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
+              float* const d = d0 + Bricks::index(0, y, z);
+              for (int x = 0; x < n; ++x) {
+                const float value = s[x];
+                nan |= value != value;
+                d[x] = std::clamp(value, lo, hi);
+              }
+            }
+        }
         if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
         // brickChanges found a voxel whose clamped value differs (!=) from the stored one: the
         // new brick cannot equal the old, byte for byte or as the same uniform side.
-        changes.push_back({b, old, canonicalBrick(b, std::move(nb))});
+        changes.push_back({b, std::move(old), canonicalBrick(b, std::move(nb))});
       }
 }
 
