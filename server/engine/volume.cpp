@@ -314,15 +314,15 @@ void Volume::gather(const Box& box, float* out) const {
         }
         // A brick cut by the box: rows of 1 to 8 voxels, the longer ones by two overlapping
         // 4-wide stores instead of a call.
-        for (int z = 0; z < nz; ++z)
-          for (int y = 0; y < ny; ++y) {
-            float* const row = first + sx * std::size_t(y) + sxy * std::size_t(z);
-            if (src) {
-              copyShortRow(row, src + Bricks::index(0, y, z), n);
-            } else {
-              fillShortRow(row, u, n);
-            }
+        for (int z = 0; z < nz; ++z) {
+          float* row = first + sxy * std::size_t(z);
+          if (src) {
+            const float* from = src + Bricks::index(0, 0, z);
+            for (int y = 0; y < ny; ++y, row += sx, from += kBrickSide) copyShortRow(row, from, n);
+          } else {
+            for (int y = 0; y < ny; ++y, row += sx) fillShortRow(row, u, n);
           }
+        }
       }
 }
 
