@@ -471,10 +471,11 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         auto nb = std::make_shared_for_overwrite<Brick>();
         // Voxels of the brick outside the region keep their old values (the rule is the whole brick).
         if (here != Bricks::box(b)) {
+          // A brick is a grid of strides kBrickSide and kBrickSide^2: the gather's whole-brick copies.
           if (old.data) {
-            std::memcpy(nb->v, old.data->v, sizeof(Brick));
+            copyWholeBrick(nb->v, kBrickSide, kBrickSide * kBrickSide, old.data->v);
           } else {
-            std::fill(std::begin(nb->v), std::end(nb->v), old.inside ? -band_ : band_);
+            fillWholeBrick(nb->v, kBrickSide, kBrickSide * kBrickSide, old.inside ? -band_ : band_);
           }
         }
         // Row pointers stepped, not recomputed: the loop runs for every voxel of a changed brick.
