@@ -8,6 +8,13 @@
 #if defined(__SSE2__)
 #include <xmmintrin.h>
 #endif
+// Whole brick rows (8 floats, one AVX vector) are also compared, copied and filled by functions
+// compiled for AVX2 (__attribute__((target))) and chosen at run time, so that the binary still
+// runs without it; they only compare and move values, so both give the same results.
+#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+#define MARZIPAN_AVX2_ROWS 1
+#include <immintrin.h>
+#endif
 
 #include "errors.hpp"
 #include "stencil.hpp"
@@ -19,6 +26,43 @@ namespace {
 
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
+
+#if defined(MARZIPAN_AVX2_ROWS)
+bool cpuHasAvx2() {
+  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
+  return __builtin_cpu_supports("avx2");
+}
+const bool useAvx2 = cpuHasAvx2();
+
+// rowsMayDiffer for whole brick rows: one vector a row.
+__attribute__((target("avx2"))) bool wholeRowsMayDifferAvx2(const float* s, std::size_t sStride, const float* old,
+                                                            float uniform, int rows) {
+  __m256 ne = _mm256_setzero_ps();
+  if (old) {
+    for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide)
+      ne = _mm256_or_ps(ne, _mm256_cmp_ps(_mm256_loadu_ps(s), _mm256_loadu_ps(old), _CMP_NEQ_UQ));
+  } else {
+    const __m256 u = _mm256_set1_ps(uniform);
+    for (int r = 0; r < rows; ++r, s += sStride) ne = _mm256_or_ps(ne, _mm256_cmp_ps(_mm256_loadu_ps(s), u, _CMP_NEQ_UQ));
+  }
+  return _mm256_movemask_ps(ne) != 0;
+}
+
+__attribute__((target("avx2"))) void copyWholeBrickAvx2(float* to, std::size_t sx, std::size_t sxy, const float* from) {
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx, from += kBrickSide) _mm256_storeu_ps(row, _mm256_loadu_ps(from));
+  }
+}
+
+__attribute__((target("avx2"))) void fillWholeBrickAvx2(float* to, std::size_t sx, std::size_t sxy, float value) {
+  const __m256 v = _mm256_set1_ps(value);
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) _mm256_storeu_ps(row, v);
+  }
+}
+#endif
 
 // One row of n voxels: does some source value differ from the stored one (old, or `uniform`
 // where old is null) once clamped to +-band? Throws on NaN, which passes std::clamp and would
@@ -49,6 +93,9 @@ bool rowDiffers(const float* s, const float* old, float uniform, int n, float ba
 bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float uniform, int n, int rows) {
 #if defined(__SSE2__)
   if (n == kBrickSide) {  // whole brick rows, the rule: two vectors a row, one test for all rows
+#if defined(MARZIPAN_AVX2_ROWS)
+    if (useAvx2) return wholeRowsMayDifferAvx2(s, sStride, old, uniform, rows);
+#endif
     __m128 ne = _mm_setzero_ps();
     if (old) {
       for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide) {
@@ -64,6 +111,23 @@ bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float 
     }
     return _mm_movemask_ps(ne) != 0;
   }
+  if (n >= 4) {  // a row cut by the region: its first and last four voxels (overlapping) cover it
+    const int t = n - 4;
+    __m128 ne = _mm_setzero_ps();
+    if (old) {
+      for (int r = 0; r < rows; ++r, s += sStride, old += kBrickSide) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), _mm_loadu_ps(old)));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + t), _mm_loadu_ps(old + t)));
+      }
+    } else {
+      const __m128 u = _mm_set1_ps(uniform);
+      for (int r = 0; r < rows; ++r, s += sStride) {
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s), u));
+        ne = _mm_or_ps(ne, _mm_cmpneq_ps(_mm_loadu_ps(s + t), u));
+      }
+    }
+    return _mm_movemask_ps(ne) != 0;
+  }
 #endif
   int differs = 0;
   for (int r = 0; r < rows; ++r, s += sStride) {
@@ -71,6 +135,64 @@ bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float 
     for (int x = 0; x < n; ++x) differs |= s[x] != (d ? d[x] : uniform);
   }
   return differs != 0;
+}
+
+// n voxels (1 to kBrickSide) copied from a brick row.
+void copyShortRow(float* to, const float* from, int n) {
+#if defined(__SSE2__)
+  if (n >= 4) {
+    _mm_storeu_ps(to, _mm_loadu_ps(from));
+    _mm_storeu_ps(to + n - 4, _mm_loadu_ps(from + n - 4));
+    return;
+  }
+#endif
+  for (int x = 0; x < n; ++x) to[x] = from[x];
+}
+
+// n voxels (1 to kBrickSide) set to one value.
+void fillShortRow(float* to, float value, int n) {
+#if defined(__SSE2__)
+  if (n >= 4) {
+    const __m128 v = _mm_set1_ps(value);
+    _mm_storeu_ps(to, v);
+    _mm_storeu_ps(to + n - 4, v);
+    return;
+  }
+#endif
+  for (int x = 0; x < n; ++x) to[x] = value;
+}
+
+// A whole brick's voxels copied into a grid of strides sx (y) and sxy (z), its first voxel at `to`.
+void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* from) {
+#if defined(MARZIPAN_AVX2_ROWS)
+  if (useAvx2) return copyWholeBrickAvx2(to, sx, sxy, from);
+#endif
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx, from += kBrickSide) std::memcpy(row, from, sizeof(float) * kBrickSide);
+  }
+}
+
+// A whole brick of the grid set to one value.
+void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
+#if defined(MARZIPAN_AVX2_ROWS)
+  if (useAvx2) return fillWholeBrickAvx2(to, sx, sxy, value);
+#endif
+#if defined(__SSE2__)
+  const __m128 v = _mm_set1_ps(value);
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) {
+      _mm_storeu_ps(row, v);
+      _mm_storeu_ps(row + 4, v);
+    }
+  }
+#else
+  for (int z = 0; z < kBrickSide; ++z, to += sxy) {
+    float* row = to;
+    for (int y = 0; y < kBrickSide; ++y, row += sx) std::fill(row, row + kBrickSide, value);
+  }
+#endif
 }
 
 }  // namespace
@@ -180,23 +302,27 @@ void Volume::gather(const Box& box, float* out) const {
                              sxy * std::size_t(here.lo.z - box.lo.z);
         const int ny = here.hi.y - here.lo.y, nz = here.hi.z - here.lo.z;
         const float* const src = d ? d + Bricks::index(here.lo.x - o.x, here.lo.y - o.y, here.lo.z - o.z) : nullptr;
-        for (int z = 0; z < nz; ++z)
-          for (int y = 0; y < ny; ++y) {
-            float* const row = first + sx * std::size_t(y) + sxy * std::size_t(z);
-            // Whole brick rows are the rule: a fixed-size copy is a few instructions, not a call.
-            if (src) {
-              const float* const from = src + Bricks::index(0, y, z);
-              if (n == kBrickSide) {
-                std::memcpy(row, from, sizeof(float) * kBrickSide);
-              } else {
-                std::memcpy(row, from, sizeof(float) * std::size_t(n));
-              }
-            } else if (n == kBrickSide) {
-              std::fill(row, row + kBrickSide, u);
-            } else {
-              std::fill(row, row + n, u);
-            }
+        // Whole bricks are the rule (most of a tool's box, most of them uniform): their rows
+        // copied or filled by fixed-size stores, the pointers stepped, no branch per row.
+        if (n == kBrickSide && ny == kBrickSide && nz == kBrickSide) {
+          if (src) {
+            copyWholeBrick(first, sx, sxy, src);
+          } else {
+            fillWholeBrick(first, sx, sxy, u);
           }
+          continue;
+        }
+        // A brick cut by the box: rows of 1 to 8 voxels, the longer ones by two overlapping
+        // 4-wide stores instead of a call.
+        for (int z = 0; z < nz; ++z) {
+          float* row = first + sxy * std::size_t(z);
+          if (src) {
+            const float* from = src + Bricks::index(0, 0, z);
+            for (int y = 0; y < ny; ++y, row += sx, from += kBrickSide) copyShortRow(row, from, n);
+          } else {
+            for (int y = 0; y < ny; ++y, row += sx) fillShortRow(row, u, n);
+          }
+        }
       }
 }
 
@@ -340,15 +466,16 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         float uniform;
         const float* stored = brickData(b, &uniform);
         if (!brickChanges(b, here, stored, uniform, src, srcBox)) continue;
-        const BrickRef old = brick(b);
+        BrickRef old = brick(b);
         // Every voxel is set below: no zero-fill first.
         auto nb = std::make_shared_for_overwrite<Brick>();
         // Voxels of the brick outside the region keep their old values (the rule is the whole brick).
         if (here != Bricks::box(b)) {
+          // A brick is a grid of strides kBrickSide and kBrickSide^2: the gather's whole-brick copies.
           if (old.data) {
-            std::memcpy(nb->v, old.data->v, sizeof(Brick));
+            copyWholeBrick(nb->v, kBrickSide, kBrickSide * kBrickSide, old.data->v);
           } else {
-            std::fill(std::begin(nb->v), std::end(nb->v), old.inside ? -band_ : band_);
+            fillWholeBrick(nb->v, kBrickSide, kBrickSide * kBrickSide, old.inside ? -band_ : band_);
           }
         }
         // Row pointers stepped, not recomputed: the loop runs for every voxel of a changed brick.
@@ -360,34 +487,67 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         // The bounds in locals (stores through d may alias band_) and the NaN test after the
         // brick: the loops have no branch per voxel. nb is dropped when it throws.
         const float lo = -band_, hi = band_;
-        int nan = 0;
-        for (int z = 0; z < nz; ++z)
-          for (int y = 0; y < ny; ++y) {
-            const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
-            float* const d = d0 + Bricks::index(0, y, z);
-            int x = 0;
 #if defined(__SSE2__)
-            if (n == kBrickSide) {  // a whole brick row, the rule: min/max is std::clamp but for NaN
-              const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+        if (here == Bricks::box(b)) {
+          // A whole brick (in the domain, as the region is): the written values also tell
+          // whether it is uniform, the test canonicalBrick would make reading them again.
+          const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+          __m128 bad = _mm_setzero_ps(), notOut = _mm_setzero_ps(), notIn = _mm_setzero_ps();
+          float* d = nb->v;
+          for (int z = 0; z < kBrickSide; ++z)
+            for (int y = 0; y < kBrickSide; ++y, d += kBrickSide) {
+              const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
               const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + 4);
-              nan |= _mm_movemask_ps(_mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
-              _mm_storeu_ps(d, _mm_max_ps(_mm_min_ps(a, vhi), vlo));
-              _mm_storeu_ps(d + 4, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
-              x = kBrickSide;
+              bad = _mm_or_ps(bad, _mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
+              const __m128 ca = _mm_max_ps(_mm_min_ps(a, vhi), vlo), cc = _mm_max_ps(_mm_min_ps(c, vhi), vlo);
+              _mm_storeu_ps(d, ca);
+              _mm_storeu_ps(d + 4, cc);
+              notOut = _mm_or_ps(notOut, _mm_or_ps(_mm_cmpneq_ps(ca, vhi), _mm_cmpneq_ps(cc, vhi)));
+              notIn = _mm_or_ps(notIn, _mm_or_ps(_mm_cmpneq_ps(ca, vlo), _mm_cmpneq_ps(cc, vlo)));
             }
+          if (_mm_movemask_ps(bad)) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
+          const bool allOut = _mm_movemask_ps(notOut) == 0, allIn = _mm_movemask_ps(notIn) == 0;
+          changes.push_back({b, std::move(old), allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false}});
+          continue;
+        }
 #endif
-            for (; x < n; ++x) {
-              const float value = s[x];
-              nan |= value != value;
-              d[x] = std::clamp(value, lo, hi);
+        int nan = 0;
+#if defined(__SSE2__)
+        if (n >= 4) {
+          // The first and last four voxels of each row (overlapping but for whole brick rows):
+          // min/max is std::clamp but for NaN, and a voxel written twice gets the same value.
+          const int t = n - 4;
+          const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+          __m128 bad = _mm_setzero_ps();
+          for (int z = 0; z < nz; ++z) {
+            const float* s = s0 + sxy * std::size_t(z);
+            float* d = d0 + Bricks::index(0, 0, z);
+            for (int y = 0; y < ny; ++y, s += sx, d += kBrickSide) {
+              const __m128 a = _mm_loadu_ps(s), c = _mm_loadu_ps(s + t);
+              bad = _mm_or_ps(bad, _mm_or_ps(_mm_cmpunord_ps(a, a), _mm_cmpunord_ps(c, c)));
+              _mm_storeu_ps(d, _mm_max_ps(_mm_min_ps(a, vhi), vlo));
+              _mm_storeu_ps(d + t, _mm_max_ps(_mm_min_ps(c, vhi), vlo));
             }
           }
+          nan = _mm_movemask_ps(bad);
+        } else
+#endif
+        {
+          for (int z = 0; z < nz; ++z)
+            for (int y = 0; y < ny; ++y) {
+              const float* const s = s0 + sx * std::size_t(y) + sxy * std::size_t(z);
+              float* const d = d0 + Bricks::index(0, y, z);
+              for (int x = 0; x < n; ++x) {
+                const float value = s[x];
+                nan |= value != value;
+                d[x] = std::clamp(value, lo, hi);
+              }
+            }
+        }
         if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-        const BrickRef next = canonicalBrick(b, std::move(nb));
-        const bool same = next.data ? (old.data && std::memcmp(old.data->v, next.data->v, sizeof(Brick)) == 0)
-                                    : (!old.data && old.inside == next.inside);
-        if (same) continue;
-        changes.push_back({b, old, next});
+        // brickChanges found a voxel whose clamped value differs (!=) from the stored one: the
+        // new brick cannot equal the old, byte for byte or as the same uniform side.
+        changes.push_back({b, std::move(old), canonicalBrick(b, std::move(nb))});
       }
 }
 
@@ -402,12 +562,27 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
     // Sixteen voxels a step: the bricks at the band's outer edge hold +-band nearly throughout.
     const float* v = data->v;
     const float band = band_;
+#if defined(__SSE2__)
+    const __m128 out = _mm_set1_ps(band), in = _mm_set1_ps(-band);
+    __m128 notOut = _mm_setzero_ps(), notIn = _mm_setzero_ps();
+    for (int i = 0; i < kBrickVoxels; i += 16) {
+      for (int k = i; k < i + 16; k += 4) {
+        const __m128 a = _mm_loadu_ps(v + k);
+        notOut = _mm_or_ps(notOut, _mm_cmpneq_ps(a, out));
+        notIn = _mm_or_ps(notIn, _mm_cmpneq_ps(a, in));
+      }
+      if (_mm_movemask_ps(notOut) != 0 && _mm_movemask_ps(notIn) != 0) break;
+    }
+    allOut = _mm_movemask_ps(notOut) == 0;
+    allIn = _mm_movemask_ps(notIn) == 0;
+#else
     for (int i = 0; i < kBrickVoxels && (allOut || allIn); i += 16) {
       int out = 0, in = 0;
       for (int k = i; k < i + 16; ++k) out += v[k] == band, in += v[k] == -band;
       allOut = allOut && out == 16;
       allIn = allIn && in == 16;
     }
+#endif
     if (allOut || allIn) return {nullptr, allIn};
     return {std::move(data), false};
   }
@@ -438,11 +613,13 @@ void Volume::setSlots(std::size_t n, SlotAt slotAt) {
   while (i < n) {
     const std::size_t ti = order[i].first;
     // Every tile touched by this edit is copied once: readers of older versions keep theirs.
-    auto t = std::make_shared<Tile>();
+    // Copy-constructed from the old tile when there is one (not zeroed first, then assigned).
+    std::shared_ptr<Tile> t;
     if (const Tile* old = tiles_[ti].get()) {
-      *t = *old;
-    } else if (tileInside_[ti]) {
-      t->inside.set();
+      t = std::make_shared<Tile>(*old);
+    } else {
+      t = std::make_shared<Tile>();
+      if (tileInside_[ti]) t->inside.set();
     }
     for (; i < n && order[i].first == ti; ++i) {
       const auto [b, refPtr] = slotAt(order[i].second);

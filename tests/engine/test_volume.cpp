@@ -82,6 +82,80 @@ TEST_CASE("bricks that become uniform are not stored", "[volume]") {
   CHECK(digest(v) == digest(Volume({32, 32, 32})));
 }
 
+// Regions that cut a brick's rows to every width from 1 to 8 at every offset: gather, diff and
+// scatter read and write such rows by overlapping pieces (volume.cpp), which must neither miss
+// a voxel at either end nor touch one beside the row.
+TEST_CASE("rows cut to every width and offset in a brick: a uniform brick that stays uniform is no change, one voxel off it is",
+          "[volume][diff]") {
+  const Int3 dims{16, 16, 16};
+  const Volume air(dims);
+  const float band = air.band();
+  // Brick {0,0,0} stored (a ramp of values inside the band), the others uniformly outside.
+  Volume stored = air;
+  {
+    const Box b{{0, 0, 0}, {8, 8, 8}};
+    std::vector<float> ramp(std::size_t(b.voxels()));
+    for (std::size_t i = 0; i < ramp.size(); ++i) ramp[i] = float(int(i % 23) - 11) * 0.25f;
+    REQUIRE(stored.scatter(b, ramp.data(), b).size() == 1);
+  }
+  const Box all{{0, 0, 0}, dims};
+  std::size_t cases = 0;
+  const Volume* const bases[] = {&air, &stored};
+  for (const Volume* base : bases)
+    for (int lo = 0; lo < 8; ++lo)
+      for (int hi = lo + 1; hi <= 8; ++hi) {
+        // The region: x in [lo, hi) of bricks x = 0 and 1, every y and z of them (rows of hi - lo).
+        const Box region{{lo, 0, 0}, {hi + 8, 8, 16}};
+        std::vector<float> src(std::size_t(all.voxels()));
+        base->gather(all, src.data());
+        for (int x = lo; x < hi; ++x) {
+          INFO("rows [" << lo << ", " << hi << "), voxel x " << x << (base == &air ? ", uniform" : ", stored"));
+          // Beyond the band on the outside: clamps back to +band, what brick 1 holds.
+          std::vector<float> same = src;
+          for (int z = 0; z < 16; ++z)
+            for (int y = 0; y < 8; ++y) same[std::size_t(x + 8 + 16 * (y + 16 * z))] = band * 4;
+          Volume v = *base;
+          CHECK(v.diff(region, same.data(), all).empty());
+          CHECK(v.scatter(region, same.data(), all).empty());
+          // One voxel of the uniform brick 1 (x + 8) and one of brick 0 (x) take a value inside
+          // the band: both bricks change, and nothing else.
+          std::vector<float> one = src;
+          one[std::size_t(x + 8 + 16 * (3 + 16 * 5))] = 1.25f;
+          one[std::size_t(x + 16 * (6 + 16 * 1))] = -0.5f;
+          const auto changes = v.scatter(region, one.data(), all);
+          REQUIRE(changes.size() == 2);
+          CHECK(changes[0].brick == Int3{0, 0, 0});
+          CHECK(changes[1].brick == Int3{1, 0, 0});
+          CHECK(changes[1].before.uniform());
+          CHECK_FALSE(changes[1].after.uniform());
+          std::vector<float> back(src.size());
+          v.gather(all, back.data());
+          std::size_t wrong = 0;
+          for (std::size_t i = 0; i < back.size(); ++i) wrong += !(back[i] == one[i]);
+          CHECK(wrong == 0);
+          // The voxels' own ends read back through a gather of just the cut rows.
+          const Box rows{{lo, 6, 1}, {hi, 7, 2}};
+          std::vector<float> row(std::size_t(rows.voxels()));
+          v.gather(rows, row.data());
+          for (int i = 0; i < hi - lo; ++i) CHECK(row[std::size_t(i)] == one[std::size_t(lo + i + 16 * (6 + 16 * 1))]);
+          ++cases;
+        }
+        // The whole cut of the uniform brick 1 set to inside: it changes only when the cut is
+        // the whole brick, and then to uniformly inside.
+        std::vector<float> in = src;
+        for (int z = 0; z < 8; ++z)
+          for (int y = 0; y < 8; ++y)
+            for (int x = lo; x < hi; ++x) in[std::size_t(x + 8 + 16 * (y + 16 * z))] = -band;
+        Volume v = *base;
+        const auto changes = v.scatter(region, in.data(), all);
+        REQUIRE(changes.size() == 1);
+        CHECK(changes[0].brick == Int3{1, 0, 0});
+        CHECK(changes[0].after.uniform() == (lo == 0 && hi == 8));
+        if (changes[0].after.uniform()) CHECK(changes[0].after.inside);
+      }
+  CHECK(cases == 2 * 120);
+}
+
 TEST_CASE("copies share bricks and keep their own version after an edit", "[volume][cow]") {
   Volume v = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
   const Volume before = v;
