@@ -8,10 +8,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// The state build's AVX2 loop is compiled for AVX2 alone (__attribute__((target))) and chosen
-// at run time; it gives the SSE2 loop's bytes.
-#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
-#define MARZIPAN_MARCH_AVX2 1
+// The state build's AVX2 loop gives the SSE2 loop's bytes (simd_width.hpp).
+#include "simd_width.hpp"
+#if defined(MARZIPAN_AVX2)
 #include <immintrin.h>
 #endif
 
@@ -179,7 +178,7 @@ inline float solveEikonal(float m[3], int q[3]) {
                       (!own && usable ? kOther : 0));
 }
 
-#if defined(MARZIPAN_MARCH_AVX2)
+#if defined(MARZIPAN_AVX2)
 // stateOf 32 bytes at a time: the grid is the gathered box, the band only a few percent of it.
 // Each nibble of a flags byte looks up its part of the state byte (vpshufb): the low nibble
 // kUse, kOpen and kOther of a usable or unfrozen voxel, and bit 7 for "own side"; the high
@@ -208,16 +207,14 @@ __attribute__((target("avx2"))) std::size_t buildStateAvx2(const std::uint8_t* f
   }
   return i;
 }
-std::atomic<bool> avx2Allowed{true};
-bool marchAvx2() { return avx2Allowed.load(std::memory_order_relaxed) && march_width::avx2Available(); }
 #endif
 
 // st[i] = stateOf(flags[i], negBit) for i < n.
 void buildState(const std::uint8_t* flags, std::uint8_t negBit, State* state, std::size_t n) {
   auto* st = reinterpret_cast<std::uint8_t*>(state);  // State's underlying type
   std::size_t i = 0;
-#if defined(MARZIPAN_MARCH_AVX2)
-  if (marchAvx2()) i = buildStateAvx2(flags, negBit, st, n);
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) i = buildStateAvx2(flags, negBit, st, n);
 #endif
 #if defined(__SSE2__)
   const __m128i negMask = _mm_set1_epi8(char(kNeg)), sideNeg = _mm_set1_epi8(char(negBit));
@@ -588,28 +585,5 @@ MarchStats fastMarch(DenseGrid& g, const std::vector<MarchState>& state, float b
   return fastMarchClassified(g, s.flags, s.candidates, band, order, ThreadPool::serial());
 }
 
-namespace march_width {
-
-bool avx2Available() {
-#if defined(MARZIPAN_MARCH_AVX2)
-  static const bool has = [] {
-    __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-#else
-  return false;
-#endif
-}
-
-void allowAvx2(bool allow) {
-#if defined(MARZIPAN_MARCH_AVX2)
-  avx2Allowed.store(allow, std::memory_order_relaxed);
-#else
-  (void)allow;
-#endif
-}
-
-}  // namespace march_width
 
 }  // namespace marzipan

@@ -82,14 +82,4 @@ MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>&
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
                                ThreadPool& pool, ProgressShare progress = {});
 
-// Which vector width builds each side's state bytes from the flags (fast_marching.cpp). Both
-// give the same bytes, so the same field; the switch lets tests compare them on one CPU.
-namespace march_width {
-// Whether this build has the AVX2 loop and this CPU runs it; checked once.
-bool avx2Available();
-// Tests only: whether marches may use the AVX2 loop from now on (where available; the default)
-// or only SSE2. Not synchronised with marches running on other threads; set it between marches.
-void allowAvx2(bool allow);
-}  // namespace march_width
-
 }  // namespace marzipan

@@ -9,19 +9,15 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// AVX2 kernels beside the SSE2 ones, compiled for AVX2 function by function
-// (__attribute__((target))) and chosen at run time, so that the binary still runs on CPUs
-// without it. Only "avx2" is enabled, never "fma": a fused multiply-add would round once where
-// the definition rounds twice.
-#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
-#define MARZIPAN_AVX2_KERNELS 1
+// AVX2 kernels beside the SSE2 ones (simd_width.hpp).
+#include "simd_width.hpp"
+#if defined(MARZIPAN_AVX2)
 #include <immintrin.h>
 #endif
 
 #include "chunked_pass.hpp"
 #include "dense_grid.hpp"
 #include "errors.hpp"
-#include "evolve_width.hpp"
 #include "progress.hpp"
 #include "redistance.hpp"
 #include "stencil.hpp"
@@ -69,15 +65,6 @@ constexpr int kStencilReach = 2;
 // counts one unit per call: these shares of it per group of dabs, the march the rest.
 constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
 constexpr double kGatherShare = 0.1, kCollectShare = 0.05, kEvolveShare = 0.15, kRedistanceShare = 0.6;
-
-#if defined(MARZIPAN_AVX2_KERNELS)
-// Whether evolve's kernels and the stroke's window search take their AVX2 forms (evolve_width.hpp).
-bool cpuHasAvx2() {
-  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
-  return __builtin_cpu_supports("avx2");
-}
-std::atomic<bool> useAvx2{cpuHasAvx2()};
-#endif
 
 double window1(double t) {
   if (t >= 1) return 0;
@@ -409,7 +396,7 @@ class SweptWindow {
   }
 #endif
 
-#if defined(MARZIPAN_AVX2_KERNELS)
+#if defined(MARZIPAN_AVX2)
   // pairWindows for the lanes' dabs j to j + 3 (AVX2): each lane the same operations in the same
   // order, so the same bits. The caller gives the lanes before l.last (inside) and the clamp's
   // bounds (back: [0, H] adding, [-H, 0] removing).
@@ -515,8 +502,8 @@ class SweptWindow {
 
   [[gnu::noinline]] double search(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
     row(p, c);
-#if defined(MARZIPAN_AVX2_KERNELS)
-    if (lanes_ && useAvx2.load(std::memory_order_relaxed))
+#if defined(MARZIPAN_AVX2)
+    if (lanes_ && simd_width::useAvx2())
       return anchor_ == 0 ? searchAvx2<false>(p, q, n, c) : searchAvx2<true>(p, q, n, c);
 #endif
 #if defined(__SSE2__)
@@ -711,7 +698,7 @@ void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes la
   }
 }
 
-#if defined(MARZIPAN_AVX2_KERNELS)
+#if defined(MARZIPAN_AVX2)
 // overRuns eight at once (lanes.eight, an __m256) while 5 or more voxels of a run are left,
 // then four (lanes(i, k)): past a run's end it reads no further than overRuns.
 template <class Lanes>
@@ -770,7 +757,7 @@ struct CurvatureLanes {
     return _mm_movelh_ps(_mm_cvtpd_ps(out0), _mm_cvtpd_ps(out1));
   }
 
-#if defined(MARZIPAN_AVX2_KERNELS)
+#if defined(MARZIPAN_AVX2)
   __attribute__((target("avx2"))) __m256 eight(std::size_t i, std::size_t k) const {
     const float* q = v + i;
     const double* f = factor + k;
@@ -796,7 +783,7 @@ struct CurvatureLanes {
 #endif
 };
 
-#if defined(MARZIPAN_AVX2_KERNELS)
+#if defined(MARZIPAN_AVX2)
 __attribute__((target("avx2"))) __m256 minmod8(__m256 a, __m256 b) {
   const __m256 abs = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
   const __m256 aSmaller = _mm256_cmp_ps(_mm256_and_ps(a, abs), _mm256_and_ps(b, abs), _CMP_LT_OS);
@@ -836,7 +823,7 @@ struct AdvectionLanes {
     return _mm_sub_ps(v0, _mm_mul_ps(dtF, _mm_sqrt_ps(g2)));
   }
 
-#if defined(MARZIPAN_AVX2_KERNELS)
+#if defined(MARZIPAN_AVX2)
   __attribute__((target("avx2"))) __m256 eight(std::size_t i, std::size_t k) const {
     const float* q = v + i;
     const __m256 two = _mm256_set1_ps(2.0f), half = _mm256_set1_ps(0.5f), zero = _mm256_setzero_ps();
@@ -879,8 +866,8 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
   const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
 #if defined(__SSE2__)
   const CurvatureLanes lanes{v, factor, sy, sz, limit, limited};
-#if defined(MARZIPAN_AVX2_KERNELS)
-  if (useAvx2.load(std::memory_order_relaxed)) return overRunsAvx2(r, end, dst, dstIsGrid, lanes);
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return overRunsAvx2(r, end, dst, dstIsGrid, lanes);
 #endif
   overRuns(r, end, dst, dstIsGrid, lanes);
 #else
@@ -900,8 +887,8 @@ void advectionRuns(const float* v, float* next, const Run* r, const Run* end, co
                    const std::size_t stride[3]) {
 #if defined(__SSE2__)
   const AdvectionLanes lanes{v, step, {stride[0], stride[1], stride[2]}};
-#if defined(MARZIPAN_AVX2_KERNELS)
-  if (useAvx2.load(std::memory_order_relaxed)) return overRunsAvx2(r, end, next, false, lanes);
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return overRunsAvx2(r, end, next, false, lanes);
 #endif
   overRuns(r, end, next, false, lanes);
 #else
@@ -1583,25 +1570,5 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool) {
   return e;
 }
 
-namespace evolve_width {
-
-bool avx2Available() {
-#if defined(MARZIPAN_AVX2_KERNELS)
-  static const bool has = cpuHasAvx2();
-  return has;
-#else
-  return false;
-#endif
-}
-
-void limitWidth(Width w) {
-#if defined(MARZIPAN_AVX2_KERNELS)
-  useAvx2.store(w == Width::Widest && avx2Available(), std::memory_order_relaxed);
-#else
-  (void)w;
-#endif
-}
-
-}  // namespace evolve_width
 
 }  // namespace marzipan

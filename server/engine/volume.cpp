@@ -8,11 +8,10 @@
 #if defined(__SSE2__)
 #include <xmmintrin.h>
 #endif
-// Whole brick rows (8 floats, one AVX vector) are also compared, copied and filled by functions
-// compiled for AVX2 (__attribute__((target))) and chosen at run time, so that the binary still
-// runs without it; they only compare and move values, so both give the same results.
-#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
-#define MARZIPAN_AVX2_ROWS 1
+// Whole brick rows (8 floats, one AVX vector) are also compared, copied and filled by AVX2
+// functions (simd_width.hpp); they only compare and move values, so both give the same results.
+#include "simd_width.hpp"
+#if defined(MARZIPAN_AVX2)
 #include <immintrin.h>
 #endif
 
@@ -27,12 +26,7 @@ namespace {
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
 
-#if defined(MARZIPAN_AVX2_ROWS)
-bool cpuHasAvx2() {
-  __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
-  return __builtin_cpu_supports("avx2");
-}
-const bool useAvx2 = cpuHasAvx2();
+#if defined(MARZIPAN_AVX2)
 
 // rowsMayDiffer for whole brick rows: one vector a row.
 __attribute__((target("avx2"))) bool wholeRowsMayDifferAvx2(const float* s, std::size_t sStride, const float* old,
@@ -93,8 +87,8 @@ bool rowDiffers(const float* s, const float* old, float uniform, int n, float ba
 bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float uniform, int n, int rows) {
 #if defined(__SSE2__)
   if (n == kBrickSide) {  // whole brick rows, the rule: two vectors a row, one test for all rows
-#if defined(MARZIPAN_AVX2_ROWS)
-    if (useAvx2) return wholeRowsMayDifferAvx2(s, sStride, old, uniform, rows);
+#if defined(MARZIPAN_AVX2)
+    if (simd_width::useAvx2()) return wholeRowsMayDifferAvx2(s, sStride, old, uniform, rows);
 #endif
     __m128 ne = _mm_setzero_ps();
     if (old) {
@@ -164,8 +158,8 @@ void fillShortRow(float* to, float value, int n) {
 
 // A whole brick's voxels copied into a grid of strides sx (y) and sxy (z), its first voxel at `to`.
 void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* from) {
-#if defined(MARZIPAN_AVX2_ROWS)
-  if (useAvx2) return copyWholeBrickAvx2(to, sx, sxy, from);
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return copyWholeBrickAvx2(to, sx, sxy, from);
 #endif
   for (int z = 0; z < kBrickSide; ++z, to += sxy) {
     float* row = to;
@@ -175,8 +169,8 @@ void copyWholeBrick(float* to, std::size_t sx, std::size_t sxy, const float* fro
 
 // A whole brick of the grid set to one value.
 void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
-#if defined(MARZIPAN_AVX2_ROWS)
-  if (useAvx2) return fillWholeBrickAvx2(to, sx, sxy, value);
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return fillWholeBrickAvx2(to, sx, sxy, value);
 #endif
 #if defined(__SSE2__)
   const __m128 v = _mm_set1_ps(value);

@@ -10,6 +10,7 @@
 #include "engine/dense_grid.hpp"
 #include "engine/errors.hpp"
 #include "engine/fast_marching.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/thread_pool.hpp"
 
 using namespace marzipan;
@@ -214,12 +215,12 @@ TEST_CASE("the AVX2 state build gives the SSE2 one's march bit for bit", "[fmm][
   // Every kind of flags byte on both sides: sources, upper bounds (some too high), ignored
   // voxels, unknowns, the caller's own bits, interior and border voxels, on a grid whose voxel
   // count is no multiple of 32 or 16 (so that both loops end in a scalar tail).
-  if (!march_width::avx2Available()) {
+  if (!simd_width::avx2Available()) {
     WARN("this CPU has no AVX2: both marches would build their state with SSE2");
     return;
   }
   struct Restore {
-    ~Restore() { march_width::allowAvx2(true); }
+    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
   } restore;
   using namespace march_flag;
   constexpr float band = 3;
@@ -249,7 +250,7 @@ TEST_CASE("the AVX2 state build gives the SSE2 one's march bit for bit", "[fmm][
   }
   REQUIRE(start.v.size() % 16 != 0);
   auto march = [&](bool avx2) {
-    march_width::allowAvx2(avx2);
+    simd_width::limitWidth(avx2 ? simd_width::Width::Widest : simd_width::Width::Sse2);
     DenseGrid g = start;
     const MarchStats s = fastMarchClassified(g, flags, candidates, band, MarchOrder::Second, ThreadPool::serial());
     return std::make_pair(g, s);

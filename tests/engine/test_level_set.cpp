@@ -8,7 +8,7 @@
 #include <random>
 
 #include "engine/errors.hpp"
-#include "engine/evolve_width.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/image_io.hpp"
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
@@ -659,15 +659,15 @@ TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[le
   // brushes at the domain's faces. A sphere's band has runs of every length, so every tail
   // (full eights, a masked eight, four, one to three) is taken. The digest after each
   // application is compared, so a difference is caught where it first appears.
-  if (!evolve_width::avx2Available()) {
+  if (!simd_width::avx2Available()) {
     WARN("this CPU has no AVX2: both runs would take the SSE2 kernels");
     return;
   }
   struct Restore {
-    ~Restore() { evolve_width::limitWidth(evolve_width::Width::Widest); }
+    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
   } restore;
-  auto run = [](evolve_width::Width w, ThreadPool& pool) {
-    evolve_width::limitWidth(w);
+  auto run = [](simd_width::Width w, ThreadPool& pool) {
+    simd_width::limitWidth(w);
     Volume v = makeSphere({96, 96, 96}, {48, 48, 48}, 33);
     std::vector<std::uint64_t> digests;
     auto record = [&] { digests.push_back(digest(v)); };
@@ -693,10 +693,10 @@ TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[le
     return digests;
   };
   ThreadPool one(1), two(2);
-  const std::vector<std::uint64_t> sse2 = run(evolve_width::Width::Sse2, one);
-  CHECK(run(evolve_width::Width::Widest, one) == sse2);
-  CHECK(run(evolve_width::Width::Widest, two) == sse2);
-  CHECK(run(evolve_width::Width::Sse2, two) == sse2);
+  const std::vector<std::uint64_t> sse2 = run(simd_width::Width::Sse2, one);
+  CHECK(run(simd_width::Width::Widest, one) == sse2);
+  CHECK(run(simd_width::Width::Widest, two) == sse2);
+  CHECK(run(simd_width::Width::Sse2, two) == sse2);
 }
 
 TEST_CASE("deformative tools refuse bad parameters and leave the volume untouched", "[level_set][errors]") {
@@ -833,12 +833,12 @@ TEST_CASE("strokes whose rows hold their dabs out of order along x are pinned", 
   // widths. Zigzag strokes (dabs alternately above and below a line, so the rows near its edges
   // hold every other dab), with memory, plain and with heights, their dabs with and without
   // normals (lanes and the scalar search), and a stroke whose memory crosses it.
-  if (!evolve_width::avx2Available()) WARN("this CPU has no AVX2: both widths run the SSE2 search");
+  if (!simd_width::avx2Available()) WARN("this CPU has no AVX2: both widths run the SSE2 search");
   struct Restore {
-    ~Restore() { evolve_width::limitWidth(evolve_width::Width::Widest); }
+    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
   } restore;
-  auto run = [](evolve_width::Width width, ThreadPool& pool) {
-    evolve_width::limitWidth(width);
+  auto run = [](simd_width::Width width, ThreadPool& pool) {
+    simd_width::limitWidth(width);
     Volume v = makeSphere({80, 80, 80}, {40, 40, 40}, 28);
     std::mt19937 rng(37);
     std::uniform_real_distribution<double> unit(-1, 1), weight(0.3, 1.0), radius(4, 9);
@@ -869,7 +869,7 @@ TEST_CASE("strokes whose rows hold their dabs out of order along x are pinned", 
   const std::vector<std::string> pinned = {"1137ff28e14558dc", "0cdb723e9d6d878c", "c0fe9ab55e9f8bc2",
                                            "bbeea83976e1785d"};
   ThreadPool one(1), two(2);
-  CHECK(run(evolve_width::Width::Sse2, one) == pinned);
-  CHECK(run(evolve_width::Width::Widest, one) == pinned);
-  CHECK(run(evolve_width::Width::Widest, two) == pinned);
+  CHECK(run(simd_width::Width::Sse2, one) == pinned);
+  CHECK(run(simd_width::Width::Widest, one) == pinned);
+  CHECK(run(simd_width::Width::Widest, two) == pinned);
 }

@@ -1,0 +1,39 @@
+// Which vector width the engine's kernels use: the evolve sub-steps and a stroke's window
+// search (level_set.cpp), the march's per-side state bytes (fast_marching.cpp) and the
+// volume's whole brick rows (volume.cpp). Each has an SSE2 form and an AVX2 form compiled for
+// AVX2 function by function (__attribute__((target))) and chosen at run time, so that the
+// binary still runs on CPUs without it. Every width does each voxel's (each dab's) float and
+// double operations in the scalar definition's order, so every width gives the same results bit
+// for bit; the switch lets tests compare them on one CPU.
+#pragma once
+
+#include <atomic>
+
+// Where the AVX2 forms are compiled in (x86-64 with GCC or Clang). Only "avx2" is enabled,
+// never "fma": a fused multiply-add would round once where the definitions round twice.
+#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+#define MARZIPAN_AVX2 1
+#endif
+
+namespace marzipan::simd_width {
+
+enum class Width {
+  Widest,  // AVX2 (eight floats, four doubles at once) where the build and the CPU have it, else SSE2
+  Sse2,    // four floats, two doubles at once
+};
+
+// Whether this build has the AVX2 forms and this CPU (and its OS) runs them; checked once.
+bool avx2Available();
+
+namespace detail {
+extern std::atomic<bool> useAvx2;
+}
+
+// Whether the kernels take their AVX2 forms now: avx2Available(), unless a test limited the width.
+inline bool useAvx2() { return detail::useAvx2.load(std::memory_order_relaxed); }
+
+// Tests only: the widest width the kernels may use from now on. Not synchronised with tools
+// running on other threads; set it between applications.
+void limitWidth(Width w);
+
+}  // namespace marzipan::simd_width
