@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -77,9 +78,19 @@ class Bucket {
   Bucket() = default;
   Bucket(const Bucket&) = delete;
   Bucket& operator=(const Bucket&) = delete;
-  // A move keeps the storage's buffer, so begin_ stays valid.
-  Bucket(Bucket&&) noexcept = default;
-  Bucket& operator=(Bucket&&) noexcept = default;
+  // A move keeps the storage's buffer, so begin_ stays valid; the source is left empty.
+  Bucket(Bucket&& o) noexcept
+      : storage_(std::move(o.storage_)),
+        begin_(std::exchange(o.begin_, nullptr)),
+        size_(std::exchange(o.size_, 0)),
+        cap_(std::exchange(o.cap_, 0)) {}
+  Bucket& operator=(Bucket&& o) noexcept {
+    storage_ = std::move(o.storage_);
+    begin_ = std::exchange(o.begin_, nullptr);
+    size_ = std::exchange(o.size_, 0);
+    cap_ = std::exchange(o.cap_, 0);
+    return *this;
+  }
 
   void push(Entry e) {
     if (size_ == cap_) grow();
@@ -521,6 +532,21 @@ Scratch& scratch() {
 }
 
 }  // namespace
+
+std::size_t marchScratchBytes() {
+  const Scratch& s = scratch();
+  std::size_t bytes = s.flags.capacity() + s.state[0].capacity() + s.state[1].capacity() +
+                      4 * (s.candidates.capacity() + s.seeds[0].capacity() + s.seeds[1].capacity());
+  for (const Buckets& b : s.buckets) bytes += b.capacity() * sizeof(Bucket);
+  return bytes;
+}
+
+void trimMarchScratch(std::size_t voxels) {
+  Scratch& s = scratch();
+  if (s.flags.capacity() > voxels || s.state[0].capacity() > voxels || s.state[1].capacity() > voxels ||
+      s.candidates.capacity() > voxels)
+    s = Scratch();
+}
 
 MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,

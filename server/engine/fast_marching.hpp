@@ -78,6 +78,12 @@ inline constexpr std::uint8_t kUpperBound = 128;
 // only unknown voxels. progress: checked every few buckets
 // of each side (throws Cancelled, leaving the grid part-marched) and advanced in step with the
 // buckets taken.
+// Frees the calling thread's march scratch (kept from one march to the next) when it was sized
+// for a grid of more than `voxels` voxels: a huge tool's arrays are not worth keeping.
+void trimMarchScratch(std::size_t voxels);
+// The bytes of the calling thread's march scratch arrays that grow with the grid (for tests).
+std::size_t marchScratchBytes();
+
 MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
                                ThreadPool& pool, ProgressShare progress = {});

@@ -119,8 +119,9 @@ struct PreparedDab {
 // moved back along the dab's normal (else n) by (q - c).normal clamped between 0 and the anchor,
 // and scaled by normal . n (level_set.hpp, strokes).
 #if defined(__SSE2__)
-// Dabs as lanes, one array per quantity, in a given order, followed by kPad dabs of empty ROI
-// (weight 0, lo = hi = 0), so that two or four lanes may start at any of them.
+// Dabs as lanes, one array per quantity, in a given order, followed by kPad dabs that are never
+// counted (a lane at or past its list's end is masked by its position), so that two or four
+// lanes may start at any dab and load in bounds.
 struct LaneArrays {
   static constexpr std::size_t kPad = 3;
   std::vector<double> center[3], normal[3], weight, lo, hi;  // lo, hi: the ROI's x range [lo, hi)
@@ -308,7 +309,8 @@ class SweptWindow {
 
 #if defined(__SSE2__)
   // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na), 0 for a lane at
-  // or past l.last (a dab whose ROI does not hold the voxel, or the pad): window's operations
+  // or past l.last (masked by its position, whatever its ROI: a dab past the range whose ROI
+  // holds the voxel's x, one of another row's in the shared arrays, or the pad): window's operations
   // in its order in each lane (the three factors multiplied out even after one is 0, which
   // leaves 0, and past the point where window would stop, which only lowers a value that is not
   // the largest; the clamp's zero may differ in sign, which moves no factor), so the largest is
@@ -352,8 +354,7 @@ class SweptWindow {
   }
 
   // The largest window over the message's dabs whose ROI holds p, or 0. Only the range of dabs
-  // whose ROI holds p.x is read (a pair's second lane past it is a dab whose ROI does not hold
-  // x, or the pad: masked).
+  // whose ROI holds p.x is read (a pair's second lane past it is masked by its position).
   template <bool kAnchored>
   double lanesLargest(Cursor::Lanes& l, int x, Vec3 q, Vec3 n) const {
     l.at(x);
@@ -1086,7 +1087,6 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
 }
 #endif
 
-
 // The speed entry `at` of a voxel whose window is w > 0 under motion m (inlined: it runs once
 // per band voxel, as collectMoved's add).
 [[gnu::always_inline]] inline void setSpeed(MovedVoxels& out, std::size_t at, const Motion& m, double w) {
@@ -1347,6 +1347,9 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
   const int gatherMargin = std::max(reach + 1, kStencilReach);
   std::vector<PreparedDab> prepared;
   for (const StrokeDab& d : dabs)
+    // Every ROI (the memory's too) is the box of the stroke's one radius around its dab, clipped:
+    // ordered by centre x, their x ranges never go back, so the dabs whose ROI holds an x are one
+    // range of that order, which the window search's lanes rely on.
     prepared.push_back({d.center, d.weight, boxAround(d.center, {r, r, r}).intersect(vol.domain()), d.normal});
 
   // Dabs far apart (mirror images, a fast stroke) are worked on in separate grids: groups whose
@@ -1450,6 +1453,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       constexpr std::size_t kKeptScratchVoxels = std::size_t(1) << 22;
       if (toolScratch().grid.v.capacity() > kKeptScratchVoxels) toolScratch().grid = DenseGrid();
       if (toolScratch().other.capacity() > kKeptScratchVoxels) toolScratch().other = {};
+      trimRedistanceScratch(kKeptScratchVoxels);
     }
   } trim;
   if (groups.empty()) return total;

@@ -372,6 +372,12 @@ inline void reserveRow(BandVoxels& out, std::size_t n, std::size_t count) {
 
 void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const ProgressShare& progress) {
   box = b.intersect(g.box);
+  if (box.empty()) {
+    index.clear();
+    point.clear();
+    progress.advance(1);
+    return;
+  }
   std::size_t n = 0;
   RowCursor unused{};
   // A box as wide as the grid (a local tool's) is one run of whole rows per z-slice, taken in
@@ -443,6 +449,19 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Vol
     }
   index.resize(n);
   point.resize(n);
+}
+
+std::size_t redistanceScratchBytes() {
+  const Scratch& s = scratch();
+  std::size_t bytes = s.flags.capacity() + 16 * s.band.index.capacity();
+  for (const FlagPiece& p : s.flagPieces) bytes += p.slicePos.capacity() + p.sliceFlip.capacity();
+  return bytes + marchScratchBytes();
+}
+
+void trimRedistanceScratch(std::size_t voxels) {
+  Scratch& s = scratch();
+  if (s.flags.capacity() > voxels || s.band.index.capacity() > voxels) s = Scratch();
+  trimMarchScratch(voxels);
 }
 
 MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside outside,

@@ -79,6 +79,14 @@ struct RedistanceOptions {
 MarchStats redistanceRegion(DenseGrid& grid, const Box& region, float band, Outside outside,
                             const RedistanceOptions& options = {}, ThreadPool& pool = ThreadPool::serial());
 
+// Frees the calling thread's scratch of redistanceRegion and of the march (kept from one call
+// to the next: a dab's arrays are reused thousands of times) when it was sized for a grid of
+// more than `voxels` voxels. A huge tool's would otherwise stay for the thread's lifetime
+// (about 3 bytes per voxel of its grid: flags and each side's state).
+void trimRedistanceScratch(std::size_t voxels);
+// The bytes of those arrays that grow with the grid, the march's included (for tests).
+std::size_t redistanceScratchBytes();
+
 // Turns an approximate signed distance (right sign, right zero set, |grad| not 1) into a
 // true distance field over the whole volume: kept voxels are scaled by 1/|grad| first.
 // Used for solids built from CSG and smooth blends.

@@ -8,13 +8,13 @@
 #include <random>
 
 #include "engine/errors.hpp"
-#include "engine/simd_width.hpp"
 #include "engine/image_io.hpp"
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
 #include "engine/raycast.hpp"
 #include "engine/redistance.hpp"
 #include "engine/shapes.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/solids.hpp"
 #include "support.hpp"
 
@@ -624,6 +624,22 @@ TEST_CASE("results are bit-identical on 1 and 2 threads", "[level_set][determini
   };
   ThreadPool one(1), two(2);
   CHECK(run(one) == run(two));
+}
+
+TEST_CASE("a tool over a huge region leaves no scratch of its size on the thread", "[level_set][scratch]") {
+  // A dab's flags, march states and band list are kept for the next dab (thousands a minute);
+  // a brush of radius 90 gathers ~188^3 voxels, whose ~3 bytes each would otherwise stay for the
+  // worker thread's lifetime.
+  Volume v = makeSphere({192, 192, 192}, {96, 96, 96}, 60);
+  addBlob(v, {{96, 96, 156}, 8, 1});
+  const std::size_t dab = redistanceScratchBytes();
+  CHECK(dab > 20000);  // at least the flags of its ~25^3 grid
+  CHECK(dab < (std::size_t(1) << 22));
+  addBlob(v, {{96, 96, 156}, 90, 1});
+  CHECK(redistanceScratchBytes() == 0);
+  addBlob(v, {{96, 96, 156}, 8, 1});  // kept again, at a dab's size
+  CHECK(redistanceScratchBytes() > 20000);
+  CHECK(redistanceScratchBytes() < (std::size_t(1) << 22));
 }
 
 TEST_CASE("smoothing's sub-steps over a large region give the same field on 1 to 3 threads",
