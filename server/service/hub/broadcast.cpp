@@ -11,9 +11,25 @@ namespace marzipan::service {
 using nlohmann::json;
 using protocol::ViewMode;
 
+namespace {
+
+std::uint64_t brickKey(Int3 b) {
+  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
+         std::uint64_t(std::uint32_t(b.z)) << 42;
+}
+
+}  // namespace
+
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
+}
+
+void HeldSplats::clear() {
+  of = nullptr;
+  revision = 0;
+  blocks.clear();
+  bytes = 0;
 }
 
 void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view cause, const Box& roi,
@@ -28,22 +44,39 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
                                                                           {"can_redo", ss.canRedo()}});
   const auto members = s.members();
   for (const auto& c : members) c->link->sendText(text);
-  SharedBytes delta;
+  SharedBytes splats;
   for (const auto& c : members) {
     if (c->mode == ViewMode::Splats) {
-      if (full) {
-        sendFullSplats(s, *c, 0);
-        continue;
+      if (!splats) {
+        if (full) s.heldSplats.clear();
+        splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
       }
-      if (!delta) {
-        const Bytes payload = encodeSplats(extractSplats(ss.volume(), bricks));
-        delta = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
-      }
-      c->link->sendBinary(delta, false);
+      c->link->sendBinary(splats, false);
     } else if (c->mode == ViewMode::Frames) {
       requestFrame(s, c);
     }
   }
+}
+
+SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bricks) {
+  const Session& ss = *s.session;
+  HeldSplats& held = s.heldSplats;
+  if (held.of != &ss || held.revision + 1 != ss.revision()) held.clear();
+  held.of = &ss;
+  held.revision = ss.revision();
+  std::vector<std::span<const std::uint8_t>> changed;
+  changed.reserve(bricks.size());
+  for (const BrickSplats& b : extractSplats(ss.volume(), bricks)) {
+    std::vector<std::uint8_t> block = encodeSplatBlock(b);
+    auto [at, added] = held.blocks.try_emplace(brickKey(b.brick));
+    if (!added && at->second == block) continue;
+    held.bytes = held.bytes - at->second.size() + block.size() + (added ? HeldSplats::kEntryBytes : 0);
+    at->second = std::move(block);
+    changed.emplace_back(at->second);
+  }
+  SharedBytes frame = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), joinSplatBlocks(changed));
+  if (held.bytes > HeldSplats::kMaxBytes) held.clear();
+  return frame;
 }
 
 json Broadcaster::clientList(const LiveSession& s) {
