@@ -260,14 +260,13 @@ void strokeDabs(HubCore& hub, const Call& call) {
     if (p.stroke != c->stroke) throw notOpenStroke(p.stroke);
     double voxelsPerDab = 0;
     bool accumulate = false;
-    for (const auto& [id, st] : s.session->openStrokeList())
-      if (id == p.stroke) {
-        const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
-        // A height takes a sub-step per vu (engine applyStroke).
-        const double substeps = st.height ? std::ceil(*st.height) : 1;
-        voxelsPerDab = brushVoxels(s.session->volume(), st.radius, images) * substeps;
-        accumulate = st.accumulate;
-      }
+    if (const auto st = s.session->strokeSettings(p.stroke)) {
+      const int images = (st->symmetry.x ? 2 : 1) * (st->symmetry.y ? 2 : 1) * (st->symmetry.z ? 2 : 1);
+      // A height takes a sub-step per vu (engine applyStroke).
+      const double substeps = st->height ? std::ceil(*st->height) : 1;
+      voxelsPerDab = brushVoxels(s.session->volume(), st->radius, images) * substeps;
+      accumulate = st->accumulate;
+    }
     self->checkBudget(double(p.dabs.size()) * voxelsPerDab, "this message's dabs");
     // A stroke that remembers what it applied moves the surface the same however its dabs are
     // grouped into messages, so the messages of this stroke waiting behind this one on the
