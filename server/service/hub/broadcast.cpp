@@ -1,5 +1,7 @@
 #include "service/hub/broadcast.hpp"
 
+#include <algorithm>
+
 #include "engine/image_io.hpp"
 #include "engine/raycast.hpp"
 #include "engine/splats.hpp"
@@ -43,18 +45,19 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
                                                                           {"can_undo", ss.canUndo()},
                                                                           {"can_redo", ss.canRedo()}});
   const auto members = s.members();
-  for (const auto& c : members) c->link->sendText(text);
   SharedBytes splats;
+  if (std::any_of(members.begin(), members.end(), [](const auto& c) { return c->mode == ViewMode::Splats; })) {
+    if (full) s.heldSplats.clear();
+    splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
+  }
+  const auto shared = std::make_shared<const std::string>(text);
   for (const auto& c : members) {
     if (c->mode == ViewMode::Splats) {
-      if (!splats) {
-        if (full) s.heldSplats.clear();
-        splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
-      }
-      c->link->sendBinary(splats, false);
-    } else if (c->mode == ViewMode::Frames) {
-      requestFrame(s, c);
+      c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
+      continue;
     }
+    c->link->sendText(text);
+    if (c->mode == ViewMode::Frames) requestFrame(s, c);
   }
 }
 

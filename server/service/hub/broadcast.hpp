@@ -4,9 +4,10 @@
 //
 // Conventions:
 // - Everything here runs on the session's strand, except renders (on the workers, from a
-//   snapshot). One edit sends the notification to every client first, then each client's delta
-//   or frame; one delta buffer (or full buffer) is shared by every splats-mode client. A delta
-//   lists the bricks whose points changed (HeldSplats).
+//   snapshot). One edit builds its splat buffer first (a delta, or a full buffer, shared by
+//   every splats-mode client), then gives each client the notification and its buffer as one
+//   hand-over (ClientLink::sendTogether), or the notification and a frame. A delta lists the
+//   bricks whose points changed (HeldSplats).
 // - Pushed frames are latest-wins: a client has at most one render running; changes meanwhile
 //   ask for one more (renderAgain), and a still frame follows once nothing changed for
 //   HubOptions::stillDelay.
