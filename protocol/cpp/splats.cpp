@@ -156,11 +156,10 @@ std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks) {
   return out;
 }
 
-std::vector<std::uint8_t> encodeSplatBlock(const BrickSplats& brick) {
+void encodeSplatBlock(const BrickSplats& brick, std::vector<std::uint8_t>& out) {
   checkBrick(brick);
-  std::vector<std::uint8_t> out(kSplatBrickHeaderBytes + kSplatPointBytes * brick.points.size());
+  out.resize(kSplatBrickHeaderBytes + kSplatPointBytes * brick.points.size());
   writeBlock(brick, out.data());
-  return out;
 }
 
 std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std::uint8_t>>& blocks) {

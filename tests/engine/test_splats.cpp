@@ -385,7 +385,11 @@ TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the ord
   bricks.push_back({v.brickDims() - Int3{1, 1, 1}, {}});  // an empty block
   std::swap(bricks.front(), bricks[bricks.size() / 2]);  // not in z, y, x order
   std::vector<std::vector<std::uint8_t>> blocks;
-  for (const auto& b : bricks) blocks.push_back(encodeSplatBlock(b));
+  std::vector<std::uint8_t> reused(4096, 0xab);  // longer than any block here: resized, not appended to
+  for (const auto& b : bricks) {
+    encodeSplatBlock(b, reused);
+    blocks.push_back(reused);
+  }
   for (std::size_t i = 0; i < bricks.size(); ++i)
     CHECK(blocks[i].size() == kSplatBrickHeaderBytes + kSplatPointBytes * bricks[i].points.size());
   std::vector<std::span<const std::uint8_t>> spans(blocks.begin(), blocks.end());
@@ -400,10 +404,10 @@ TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the ord
     spans[0] = bad;
     CHECK_THROWS_AS(joinSplatBlocks(spans), EngineError);
   }
-  CHECK_THROWS_AS(encodeSplatBlock({{-1, 0, 0}, {}}), EngineError);
+  CHECK_THROWS_AS(encodeSplatBlock({{-1, 0, 0}, {}}, reused), EngineError);
   BrickSplats nan = bricks[0];
   nan.points[0].x = std::nanf("");
-  CHECK_THROWS_AS(encodeSplatBlock(nan), EngineError);
+  CHECK_THROWS_AS(encodeSplatBlock(nan, reused), EngineError);
 }
 
 TEST_CASE("truncated, padded and corrupted splat buffers are rejected cleanly", "[splats][errors]") {

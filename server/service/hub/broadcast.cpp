@@ -61,25 +61,33 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
   }
 }
 
+std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol) {
+  std::vector<std::span<const std::uint8_t>> changed;
+  changed.reserve(fresh.size());
+  std::vector<std::uint8_t> block;
+  for (const BrickSplats& b : fresh) {
+    encodeSplatBlock(b, block);
+    auto [at, added] = blocks.try_emplace(brickKey(b.brick));
+    if (!added && at->second == block) continue;
+    bytes = bytes - at->second.size() + block.size() + (added ? kEntryBytes : 0);
+    at->second = block;
+    changed.emplace_back(at->second);
+  }
+  std::vector<std::uint8_t> buffer = joinSplatBlocks(changed);
+  if (bytes > kMaxBytes || (bytes > kCheckBytes && bytes > vol.memoryBytes() / 2)) {
+    blocks.clear();
+    bytes = 0;
+  }
+  return buffer;
+}
+
 SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bricks) {
   const Session& ss = *s.session;
   HeldSplats& held = s.heldSplats;
   if (held.of != &ss || held.revision + 1 != ss.revision()) held.clear();
   held.of = &ss;
   held.revision = ss.revision();
-  std::vector<std::span<const std::uint8_t>> changed;
-  changed.reserve(bricks.size());
-  for (const BrickSplats& b : extractSplats(ss.volume(), bricks)) {
-    std::vector<std::uint8_t> block = encodeSplatBlock(b);
-    auto [at, added] = held.blocks.try_emplace(brickKey(b.brick));
-    if (!added && at->second == block) continue;
-    held.bytes = held.bytes - at->second.size() + block.size() + (added ? HeldSplats::kEntryBytes : 0);
-    at->second = std::move(block);
-    changed.emplace_back(at->second);
-  }
-  SharedBytes frame = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), joinSplatBlocks(changed));
-  if (held.bytes > HeldSplats::kMaxBytes) held.clear();
-  return frame;
+  return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), held.delta(extractSplats(ss.volume(), bricks), ss.volume()));
 }
 
 json Broadcaster::clientList(const LiveSession& s) {

@@ -48,12 +48,18 @@ struct HeldSplats {
   std::uint64_t revision = 0;
   std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: brickKey
   std::size_t bytes = 0;  // the blocks' sizes plus kEntryBytes each
-  // Past this the record starts afresh (its bricks are sent again, once): a bound on the
-  // memory, a fraction of the volume's own (a brick's block is at most 4 KiB of its 2 KiB of
-  // floats, and on a surface about 0.4 KiB).
+  // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
+  // sent again, once). A brick's block is about 0.4 KiB on a surface against its 2 KiB of
+  // floats, but up to 4 KiB where every voxel is near the surface (noise a client uploaded).
+  // The volume's memory is read only past kCheckBytes.
   static constexpr std::size_t kMaxBytes = std::size_t(32) << 20;
+  static constexpr std::size_t kCheckBytes = std::size_t(1) << 20;
   static constexpr std::size_t kEntryBytes = 64;
   void clear();
+  // The splat buffer (protocol/cpp/splats.hpp) of the bricks of `fresh` whose blocks differ from
+  // the recorded ones (or are not recorded), which it records; then the bound, for a record of
+  // vol's splats.
+  std::vector<std::uint8_t> delta(const std::vector<BrickSplats>& fresh, const Volume& vol);
 };
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
