@@ -644,6 +644,35 @@ TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh f
   CHECK(held == fresh);
 }
 
+TEST_CASE("after a splats-mode client's splats.get the next delta sends every brick it lists again", "[hub]") {
+  // splats.get's full buffer may reach its client after deltas sent meanwhile and replace what
+  // they brought: the session's record of what its clients hold starts afresh once the buffer
+  // is queued. Two twin sessions make the same two edits; in one, splats.get comes between.
+  Hub hub(smallOptions());
+  TestClient x(hub), y(hub);
+  std::vector<std::uint32_t> listed;
+  for (TestClient* t : {&x, &y}) {
+    t->result("session.create", kCreate64);
+    std::size_t mark = t->link->size();
+    t->result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    t->link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, mark);
+    if (t == &y) {
+      const int id = y.nextId;
+      y.result("splats.get");
+      y.link->waitFor([&](const auto& m) {
+        return std::holds_alternative<Bytes>(m) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+      });
+      y.result("session.stats");  // behind the strand task that starts the record afresh
+    }
+    mark = t->link->size();
+    t->result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    const std::size_t d = t->link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, mark);
+    listed.push_back(std::uint32_t(blocksOf(std::get<Bytes>(t->link->at(d))).size()));
+  }
+  INFO("bricks in the second delta: " << listed[0] << " without splats.get, " << listed[1] << " after it");
+  CHECK(listed[0] < listed[1]);
+}
+
 TEST_CASE("tool.apply with a ray reports the hit, or changes nothing when it misses", "[hub]") {
   Hub hub(smallOptions());
   TestClient a(hub);

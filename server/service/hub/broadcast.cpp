@@ -87,7 +87,8 @@ SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bri
   if (held.of != &ss || held.revision + 1 != ss.revision()) held.clear();
   held.of = &ss;
   held.revision = ss.revision();
-  return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), held.delta(extractSplats(ss.volume(), bricks), ss.volume()));
+  const std::vector<std::uint8_t> payload = held.delta(extractSplats(ss.volume(), bricks), ss.volume());
+  return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
 }
 
 json Broadcaster::clientList(const LiveSession& s) {

@@ -40,13 +40,15 @@ class Session;
 // Valid only while every change of the session passes through Broadcaster::changed with a
 // delta: it names the Session and the revision it describes, and one that does not follow on
 // from them (a change that sent no delta, a full refresh, a session replaced by its journal)
-// starts it afresh. Every splats-mode client holds this: it joined with a full buffer of the
-// session as it was then, and got every delta since (deltas are never dropped; a client too
-// far behind is closed). Strand only.
+// starts it afresh, and so does a splats-mode client's splats.get once its buffer is queued (the
+// buffer, from a snapshot, may arrive after deltas and replace what they brought). Every
+// splats-mode client holds this: it joined with a full buffer of the session as it was then,
+// and got every delta since (deltas are never dropped; a client too far behind is closed).
+// Strand only.
 struct HeldSplats {
   const Session* of = nullptr;
   std::uint64_t revision = 0;
-  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: brickKey
+  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: x | y << 21 | z << 42
   std::size_t bytes = 0;  // the blocks' sizes plus kEntryBytes each
   // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
   // sent again, once). A brick's block is about 0.4 KiB on a surface against its 2 KiB of
