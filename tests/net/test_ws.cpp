@@ -423,7 +423,11 @@ TEST_CASE("ws: a change's notification and splat delta leave in one TCP push", "
   }
   CHECK(notes == kChanges);
   CHECK(biggest < 60000);  // one segment holds a notification and its delta
-  CHECK(marzipan::test::dataSegmentsIn(fd) - before == kChanges);
+  // One per change (two before the hand-over); a keep-alive ping, or the kernel's 200 ms limit
+  // on a cork on a run as slow as ThreadSanitizer's (11 of 10 seen there), may add one or two.
+  const std::uint32_t segments = marzipan::test::dataSegmentsIn(fd) - before;
+  CHECK(segments >= std::uint32_t(kChanges));
+  CHECK(segments <= std::uint32_t(kChanges + 2));
 }
 
 TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {
