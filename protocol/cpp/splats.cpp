@@ -91,48 +91,95 @@ std::size_t encodedSplatsSize(const std::vector<BrickSplats>& bricks) {
   return n;
 }
 
+namespace {
+
+// The checks of one brick (see encodeSplats).
+void checkBrick(const BrickSplats& b) {
+  for (int a = 0; a < 3; ++a)
+    if (b.brick[a] < 0 || b.brick[a] > 0xffff)
+      throw EngineError(ErrorKind::InvalidArgument, "brick", "coordinates must be in [0, 65535]");
+  if (b.points.size() > std::size_t(kMaxPointsPerBrick))
+    throw EngineError(ErrorKind::InvalidArgument, "points", "a brick holds at most 512 points");
+  for (const Splat& s : b.points)
+    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z) || !std::isfinite(s.nx) ||
+        !std::isfinite(s.ny) || !std::isfinite(s.nz))
+      throw EngineError(ErrorKind::InvalidArgument, "points", "positions and normals must be finite");
+}
+
+// Writes a checked brick's block at p; returns the byte after it.
+std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p) {
+  put16(p, std::uint32_t(b.brick.x));
+  put16(p + 2, std::uint32_t(b.brick.y));
+  put16(p + 4, std::uint32_t(b.brick.z));
+  put16(p + 6, std::uint32_t(b.points.size()));
+  p += kSplatBrickHeaderBytes;
+  const Int3 o{b.brick.x * kSplatBrickSide, b.brick.y * kSplatBrickSide, b.brick.z * kSplatBrickSide};
+  for (const Splat& s : b.points) {
+    put64(p, encodePoint(s, o));
+    p += kSplatPointBytes;
+  }
+  return p;
+}
+
+// A buffer of `bytes` bytes with its header written for blocks of the given brick keys holding
+// `points` points in all; refuses a key listed twice.
+std::vector<std::uint8_t> startBuffer(std::vector<std::uint64_t>& keys, std::size_t points, std::size_t bytes) {
+  std::sort(keys.begin(), keys.end());
+  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end())
+    throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
+  if (keys.size() > 0xffffffffu || points > 0xffffffffu)
+    throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
+  std::vector<std::uint8_t> out(bytes);
+  std::uint8_t* p = out.data();
+  std::memcpy(p, kMagic, 4);
+  put16(p + 4, kSplatFormatVersion);
+  put16(p + 6, 0);
+  put32(p + 8, std::uint32_t(keys.size()));
+  put32(p + 12, std::uint32_t(points));
+  return out;
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks) {
   std::vector<std::uint64_t> keys;
   keys.reserve(bricks.size());
   std::size_t points = 0;
   for (const auto& b : bricks) {
-    for (int a = 0; a < 3; ++a)
-      if (b.brick[a] < 0 || b.brick[a] > 0xffff)
-        throw EngineError(ErrorKind::InvalidArgument, "brick", "coordinates must be in [0, 65535]");
-    if (b.points.size() > std::size_t(kMaxPointsPerBrick))
-      throw EngineError(ErrorKind::InvalidArgument, "points", "a brick holds at most 512 points");
-    for (const Splat& s : b.points)
-      if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z) || !std::isfinite(s.nx) ||
-          !std::isfinite(s.ny) || !std::isfinite(s.nz))
-        throw EngineError(ErrorKind::InvalidArgument, "points", "positions and normals must be finite");
+    checkBrick(b);
     keys.push_back(brickKey(b.brick));
     points += b.points.size();
   }
-  std::sort(keys.begin(), keys.end());
-  if (std::adjacent_find(keys.begin(), keys.end()) != keys.end())
-    throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
-  if (bricks.size() > 0xffffffffu || points > 0xffffffffu)
-    throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
+  std::vector<std::uint8_t> out = startBuffer(keys, points, encodedSplatsSize(bricks));
+  std::uint8_t* p = out.data() + kSplatHeaderBytes;
+  for (const auto& b : bricks) p = writeBlock(b, p);
+  return out;
+}
 
-  std::vector<std::uint8_t> out(encodedSplatsSize(bricks));
-  std::uint8_t* p = out.data();
-  std::memcpy(p, kMagic, 4);
-  put16(p + 4, kSplatFormatVersion);
-  put16(p + 6, 0);
-  put32(p + 8, std::uint32_t(bricks.size()));
-  put32(p + 12, std::uint32_t(points));
-  p += kSplatHeaderBytes;
-  for (const auto& b : bricks) {
-    put16(p, std::uint32_t(b.brick.x));
-    put16(p + 2, std::uint32_t(b.brick.y));
-    put16(p + 4, std::uint32_t(b.brick.z));
-    put16(p + 6, std::uint32_t(b.points.size()));
-    p += kSplatBrickHeaderBytes;
-    const Int3 o{b.brick.x * kSplatBrickSide, b.brick.y * kSplatBrickSide, b.brick.z * kSplatBrickSide};
-    for (const Splat& s : b.points) {
-      put64(p, encodePoint(s, o));
-      p += kSplatPointBytes;
-    }
+void encodeSplatBlock(const BrickSplats& brick, std::vector<std::uint8_t>& out) {
+  checkBrick(brick);
+  out.resize(kSplatBrickHeaderBytes + kSplatPointBytes * brick.points.size());
+  writeBlock(brick, out.data());
+}
+
+std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std::uint8_t>>& blocks) {
+  std::vector<std::uint64_t> keys;
+  keys.reserve(blocks.size());
+  std::size_t points = 0, bytes = kSplatHeaderBytes;
+  for (const auto& b : blocks) {
+    const std::size_t n = b.size() < kSplatBrickHeaderBytes ? 0 : get16(b.data() + 6);
+    if (b.size() < kSplatBrickHeaderBytes || n > std::size_t(kMaxPointsPerBrick) ||
+        b.size() != kSplatBrickHeaderBytes + kSplatPointBytes * n)
+      throw EngineError(ErrorKind::InvalidArgument, "blocks", "a block is not one brick's header and points");
+    keys.push_back(brickKey({int(get16(b.data())), int(get16(b.data() + 2)), int(get16(b.data() + 4))}));
+    points += n;
+    bytes += b.size();
+  }
+  std::vector<std::uint8_t> out = startBuffer(keys, points, bytes);
+  std::uint8_t* p = out.data() + kSplatHeaderBytes;
+  for (const auto& b : blocks) {
+    if (!b.empty()) std::memcpy(p, b.data(), b.size());
+    p += b.size();
   }
   return out;
 }

@@ -55,6 +55,18 @@ inline constexpr std::size_t kSplatPointBytes = 8;
 std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks);
 std::size_t encodedSplatsSize(const std::vector<BrickSplats>& bricks);
 
+// One brick's block as encodeSplats writes it, into `out` (resized to it; its buffer is reused):
+// its 8-byte header, then its points. Checks the brick as encodeSplats does (coordinates, at
+// most 512 points, finite values). Two bricks whose blocks are equal read back the same on a
+// client, whatever their floats were.
+void encodeSplatBlock(const BrickSplats& brick, std::vector<std::uint8_t>& out);
+// The buffer of blocks made by encodeSplatBlock, in the given order: the same bytes as
+// encodeSplats of their bricks (a server that keeps each brick's block, to send only those that
+// changed, joins them without encoding again). Throws as encodeSplats does for a brick listed
+// twice; a block that is not one brick's (its length disagrees with its N) is an
+// InvalidArgument.
+std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std::uint8_t>>& blocks);
+
 // Decodes any bytes without reading out of bounds: throws EngineError Format for a wrong magic,
 // an unknown version, truncation, trailing bytes, a count the bytes cannot hold or a brick
 // listed twice. Points come back at their quantized positions and normals.

@@ -237,6 +237,17 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
                                         latestWins] { self->enqueue(text, binary, latestWins); });
   }
+  // Messages handed over together (ClientLink::sendTogether): queued at once, in order, and
+  // written corked so that they leave in one TCP push.
+  void sendTogether(std::vector<service::ClientLink::Message> messages) {
+    asio::dispatch(ws_.get_executor(), [self = shared_from_this(), messages = std::move(messages)]() mutable {
+      for (std::size_t i = 0; i < messages.size(); ++i) {
+        const Run run = messages.size() == 1 ? Run::alone : i + 1 < messages.size() ? Run::more : Run::last;
+        self->enqueue(std::move(messages[i].text), std::move(messages[i].binary), false, run);
+        if (self->closing_) return;
+      }
+    });
+  }
   // Transient texts (ClientLink::sendTransient), handed over at once and written as one batch.
   void sendTransient(std::vector<service::ClientLink::Transient> texts) {
     asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
@@ -253,6 +264,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   }
 
  private:
+  // A message's place in a hand-over of several (sendTogether): the socket is corked from the
+  // first and uncorked once the last is written.
+  enum class Run : std::uint8_t { alone, more, last };
   struct Out {
     std::shared_ptr<const std::string> text;
     std::shared_ptr<const std::vector<std::uint8_t>> binary;
@@ -260,6 +274,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
     bool transient = false;  // presence: replaced by its key, overtaken by everything else
     std::uint64_t key = 0;
+    Run run = Run::alone;
     std::size_t size() const { return text ? text->size() : binary->size(); }
   };
 
@@ -275,6 +290,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
     void sendTransient(std::vector<Transient> texts) override {
       if (const auto ws = ws_.lock()) ws->sendTransient(std::move(texts));
+    }
+    void sendTogether(std::vector<Message> messages) override {
+      if (const auto ws = ws_.lock()) ws->sendTogether(std::move(messages));
     }
     void close(int code, std::string reason) override {
       if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));
@@ -341,9 +359,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   }
 
   void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
-               bool latestWins) {
+               bool latestWins, Run run = Run::alone) {
     if (closing_) return;
     Out out{std::move(text), std::move(binary), latestWins};
+    out.run = run;
     if (latestWins) {
       // Replace a pushed image still waiting (never the one being written).
       for (std::size_t i = writing_ ? 1 : 0; i < queue_.size(); ++i) {
@@ -361,11 +380,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       queuedBytes_ += out.charge;
       if (queuedBytes_ > bound) return startClose(websocket::close_code::policy_error, "too far behind");
     }
-    // Waiting transient texts stay at the back: everything else goes ahead of them.
+    // Waiting transient texts stay at the back: everything else goes ahead of them (a
+    // hand-over's messages stay next to each other).
     auto at = queue_.end();
     while (at != queue_.begin() + (writing_ ? 1 : 0) && std::prev(at)->transient) --at;
     queue_.insert(at, std::move(out));
-    if (!writing_) doWrite();
+    // A hand-over is written once all of it is queued.
+    if (!writing_ && run != Run::more) doWrite();
   }
 
   // Transient texts wait at the back of the queue, at most one per key (the newest) and at most
@@ -408,8 +429,14 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void doWrite() {
     writing_ = true;
     const Out& out = queue_.front();
-    if (!out.transient) cork(false);
-    else if (queue_.size() > 1) cork(true);
+    if (out.run == Run::more) cork(true);
+    else if (out.run == Run::last) {
+      // Corked by the hand-over's first message: onWrite uncorks once this one is written.
+    } else if (!out.transient) {
+      cork(false);
+    } else if (queue_.size() > 1) {
+      cork(true);
+    }
     ws_.text(out.text != nullptr);
     if (out.text) {
       ws_.async_write(asio::buffer(*out.text), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
@@ -423,8 +450,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     writing_ = false;
     if (ec) return fail(ec, "write");
     queuedBytes_ -= queue_.front().charge;
+    const bool endsRun = queue_.front().run == Run::last;
     queue_.pop_front();
-    if (queue_.empty()) cork(false);
+    if (queue_.empty() || endsRun) cork(false);
     if (closeAfterWrite_) return doClose();
     if (!queue_.empty() && !closing_) doWrite();
   }

@@ -142,6 +142,19 @@ class ClientLink {
   virtual void sendTransient(std::vector<Transient> texts) {
     for (Transient& t : texts) sendText(*t.text);
   }
+  // Messages handed over as one, in order, none dropped: a change's notification and its splat
+  // delta. A link with a socket writes them in one TCP push (one wake-up of the reader instead
+  // of one per message). Each is a text (`text` set) or a binary frame.
+  struct Message {
+    std::shared_ptr<const std::string> text;
+    std::shared_ptr<const std::vector<std::uint8_t>> binary;
+  };
+  virtual void sendTogether(std::vector<Message> messages) {
+    for (Message& m : messages) {
+      if (m.text) sendText(*m.text);
+      else sendBinary(std::move(m.binary), false);
+    }
+  }
   // Close the WebSocket with this code and reason (<= 123 bytes).
   virtual void close(int code, std::string reason) = 0;
 };

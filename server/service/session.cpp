@@ -333,6 +333,13 @@ std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList(
   return out;
 }
 
+std::optional<Session::StrokeParams> Session::strokeSettings(StrokeId id) const {
+  const auto it = strokes_.find(id);
+  if (it == strokes_.end()) return std::nullopt;
+  const Stroke& st = it->second;
+  return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height};
+}
+
 void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
   openStroke(id);
   Stroke& s = strokes_.at(id);

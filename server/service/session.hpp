@@ -250,6 +250,9 @@ class Session {
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
+  // One open stroke's parameters without copying its memory (left empty); nullopt when the
+  // stroke is not open. What a stroke.dabs message is checked against, on every message.
+  std::optional<StrokeParams> strokeSettings(StrokeId id) const;
 
   // Measures of the live volume (reads every brick: on a large session compute measure() on a
   // snapshot off the strand and add counters(), as the hub's session.stats does).

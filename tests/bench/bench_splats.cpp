@@ -2,8 +2,10 @@
 // in 80^3 with --quick), on one thread and on the requested thread count. Extraction alone is
 // reported as extract_ms (median over the same repetitions). splats_delta: what the hub sends
 // after each dab (radius 8, add blob, at random points of the same sphere): the bricks around
-// the changes, their splats and their encoding, on one thread (the hub's broadcast extracts
-// on its own thread).
+// the changes, their splats, and the buffer of those whose encoding differs from what the
+// session's clients were sent (HeldSplats, service/hub/broadcast.hpp), on one thread (the hub's
+// broadcast extracts on its own thread); `bricks`/`bytes` is what was listed, `sent_bricks`/
+// `sent_bytes` what was sent.
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
@@ -16,6 +18,7 @@
 #include "engine/splats.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "engine/thread_pool.hpp"
+#include "service/hub/broadcast.hpp"
 
 namespace {
 
@@ -64,7 +67,9 @@ MARZIPAN_BENCH("splats_delta") {
   std::mt19937 rng{11};
   std::normal_distribution<double> gauss;
   Edit edit;
-  std::size_t bricks = 0, points = 0, bytes = 0;
+  service::HeldSplats held;
+  held.delta(extractAllSplats(vol), vol);  // what a client that joined holds
+  std::size_t bricks = 0, points = 0, bytes = 0, sentBricks = 0, sentBytes = 0;
   const Timing t = measure(
       reps,
       [&] {
@@ -74,13 +79,23 @@ MARZIPAN_BENCH("splats_delta") {
       [&] {
         const auto around = bricksAroundChanges(vol, edit.changes);
         const auto delta = extractSplats(vol, around);
-        bytes = encodeSplats(delta).size();
+        const std::vector<std::uint8_t> sent = held.delta(delta, vol);
+        bytes = encodedSplatsSize(delta);
         bricks = around.size();
+        sentBytes = sent.size();
+        sentBricks = std::size_t(sent[8] | sent[9] << 8 | sent[10] << 16 | sent[11] << 24);
         points = 0;
         for (const auto& b : delta) points += b.points.size();
       });
   emit("splats_delta", 1, t,
-       {{"radius", radius}, {"side", side}, {"dab_radius", 8}, {"bricks", bricks}, {"points", points}, {"bytes", bytes}});
+       {{"radius", radius},
+        {"side", side},
+        {"dab_radius", 8},
+        {"bricks", bricks},
+        {"points", points},
+        {"bytes", bytes},
+        {"sent_bricks", sentBricks},
+        {"sent_bytes", sentBytes}});
 }
 
 }  // namespace

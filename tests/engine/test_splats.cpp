@@ -378,6 +378,38 @@ TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
   CHECK(decodeSplats(encodeSplats(back)) == back);
 }
 
+TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the order given", "[splats]") {
+  const Volume v = makeSolid(SolidKind::Dumbbell, {64, 48, 48});
+  auto bricks = extractAllSplats(v);
+  REQUIRE(bricks.size() > 10);
+  bricks.push_back({v.brickDims() - Int3{1, 1, 1}, {}});  // an empty block
+  std::swap(bricks.front(), bricks[bricks.size() / 2]);  // not in z, y, x order
+  std::vector<std::vector<std::uint8_t>> blocks;
+  std::vector<std::uint8_t> reused(4096, 0xab);  // longer than any block here: resized, not appended to
+  for (const auto& b : bricks) {
+    encodeSplatBlock(b, reused);
+    blocks.push_back(reused);
+  }
+  for (std::size_t i = 0; i < bricks.size(); ++i)
+    CHECK(blocks[i].size() == kSplatBrickHeaderBytes + kSplatPointBytes * bricks[i].points.size());
+  std::vector<std::span<const std::uint8_t>> spans(blocks.begin(), blocks.end());
+  CHECK(joinSplatBlocks(spans) == encodeSplats(bricks));
+  CHECK(joinSplatBlocks({}) == encodeSplats({}));
+  // The refusals of encodeSplats, and blocks that are not one brick's.
+  spans.push_back(blocks[3]);
+  CHECK_THROWS_AS(joinSplatBlocks(spans), EngineError);
+  spans.pop_back();
+  const std::vector<std::uint8_t> cut(blocks[0].begin(), blocks[0].end() - 8), shortHeader(blocks[0].begin(), blocks[0].begin() + 6);
+  for (const auto& bad : {cut, shortHeader}) {
+    spans[0] = bad;
+    CHECK_THROWS_AS(joinSplatBlocks(spans), EngineError);
+  }
+  CHECK_THROWS_AS(encodeSplatBlock({{-1, 0, 0}, {}}, reused), EngineError);
+  BrickSplats nan = bricks[0];
+  nan.points[0].x = std::nanf("");
+  CHECK_THROWS_AS(encodeSplatBlock(nan, reused), EngineError);
+}
+
 TEST_CASE("truncated, padded and corrupted splat buffers are rejected cleanly", "[splats][errors]") {
   const Volume v = makeSphere({24, 24, 24}, {11.7, 12.1, 12.4}, 5);
   auto bricks = extractAllSplats(v);

@@ -21,6 +21,9 @@ namespace marzipan::test {
 
 namespace fs = std::filesystem;
 
+// Data segments the socket fd received so far (Linux TCP_INFO; tcp_info.cpp).
+std::uint32_t dataSegmentsIn(int fd);
+
 // A fresh directory per test case under the build tree.
 inline fs::path scratch(const std::string& name) {
   const fs::path dir = fs::path(MARZIPAN_NET_WORKDIR) / name;

@@ -63,10 +63,10 @@ const json kCreate64 = {{"size", {64, 64, 64}}, {"solid", "sphere"}};
 // The splat points a client holds after applying full buffers and deltas, per brick.
 using Held = std::map<std::array<int, 3>, std::vector<std::uint64_t>>;
 
-void applySplats(Held& held, const Bytes& frame) {
-  const protocol::FrameHeader h = headerOf(frame);
+// The blocks of a splat buffer in order, a brick without points (N = 0) included.
+std::vector<std::pair<std::array<int, 3>, std::vector<std::uint64_t>>> blocksOf(const Bytes& frame) {
   const auto payload = payloadOf(frame);
-  if (h.kind == protocol::FrameKind::SplatsFull) held.clear();
+  std::vector<std::pair<std::array<int, 3>, std::vector<std::uint64_t>>> out;
   // Walk the MZSP blocks directly: 16-byte header, then per brick 8 bytes + 8 per point.
   std::size_t at = 16;
   while (at < payload.size()) {
@@ -76,9 +76,17 @@ void applySplats(Held& held, const Bytes& frame) {
     std::vector<std::uint64_t> points(std::size_t(n), 0);
     for (int i = 0; i < n; ++i)
       for (int b = 0; b < 8; ++b) points[std::size_t(i)] |= std::uint64_t(payload[at + 8 + 8 * std::size_t(i) + std::size_t(b)]) << (8 * b);
-    if (n == 0) held.erase(brick);
-    else held[brick] = std::move(points);
+    out.emplace_back(brick, std::move(points));
     at += 8 + 8 * std::size_t(n);
+  }
+  return out;
+}
+
+void applySplats(Held& held, const Bytes& frame) {
+  if (headerOf(frame).kind == protocol::FrameKind::SplatsFull) held.clear();
+  for (auto& [brick, points] : blocksOf(frame)) {
+    if (points.empty()) held.erase(brick);
+    else held[brick] = std::move(points);
   }
 }
 
@@ -603,11 +611,28 @@ TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh f
   CHECK(redone["can_redo"] == false);
   CHECK(a.result("session.stats")["digest"] == d3);
 
-  Held held;
+  // A delta leaves out a brick whose points its clients were sent already: no brick comes
+  // again with the points (or none) an earlier delta gave it (bricksAroundChanges lists many
+  // such, whose voxels changed away from the surface).
+  Held held, listed;
+  std::size_t deltas = 0, bricks = 0;
   for (std::size_t i = 0; i < a.link->size(); ++i) {
     const auto m = a.link->at(i);
-    if (const Bytes* b = std::get_if<Bytes>(&m)) applySplats(held, *b);
+    const Bytes* b = std::get_if<Bytes>(&m);
+    if (!b) continue;
+    applySplats(held, *b);
+    if (headerOf(*b).kind != protocol::FrameKind::SplatsDelta) continue;
+    ++deltas;
+    for (auto& [brick, points] : blocksOf(*b)) {
+      INFO("delta " << deltas << " brick " << brick[0] << " " << brick[1] << " " << brick[2]);
+      const auto before = listed.find(brick);
+      CHECK((before == listed.end() || before->second != points));
+      listed[brick] = std::move(points);
+      ++bricks;
+    }
   }
+  CHECK(deltas == 9);  // apply, dabs, morph, three undos, three redos
+  CHECK(bricks > 0);
   Held fresh;
   const int id = a.nextId;
   a.result("splats.get");
@@ -617,6 +642,35 @@ TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh f
   applySplats(fresh, std::get<Bytes>(a.link->at(f)));
   CHECK(held.size() == fresh.size());
   CHECK(held == fresh);
+}
+
+TEST_CASE("after a splats-mode client's splats.get the next delta sends every brick it lists again", "[hub]") {
+  // splats.get's full buffer may reach its client after deltas sent meanwhile and replace what
+  // they brought: the session's record of what its clients hold starts afresh once the buffer
+  // is queued. Two twin sessions make the same two edits; in one, splats.get comes between.
+  Hub hub(smallOptions());
+  TestClient x(hub), y(hub);
+  std::vector<std::uint32_t> listed;
+  for (TestClient* t : {&x, &y}) {
+    t->result("session.create", kCreate64);
+    std::size_t mark = t->link->size();
+    t->result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    t->link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, mark);
+    if (t == &y) {
+      const int id = y.nextId;
+      y.result("splats.get");
+      y.link->waitFor([&](const auto& m) {
+        return std::holds_alternative<Bytes>(m) && headerOf(std::get<Bytes>(m)).requestId == std::uint32_t(id);
+      });
+      y.result("session.stats");  // behind the strand task that starts the record afresh
+    }
+    mark = t->link->size();
+    t->result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    const std::size_t d = t->link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsDelta); }, mark);
+    listed.push_back(std::uint32_t(blocksOf(std::get<Bytes>(t->link->at(d))).size()));
+  }
+  INFO("bricks in the second delta: " << listed[0] << " without splats.get, " << listed[1] << " after it");
+  CHECK(listed[0] < listed[1]);
 }
 
 TEST_CASE("tool.apply with a ray reports the hit, or changes nothing when it misses", "[hub]") {

@@ -245,6 +245,33 @@ TEST_CASE("session: a stroke interrupted by another change continues as a new st
   CHECK(s.openStrokes() == 0);
 }
 
+TEST_CASE("session: strokeSettings gives an open stroke's parameters as openStrokeList does, without its memory",
+          "[session]") {
+  ThreadPool pool(1);
+  Session s(sphere());
+  const StrokeId a = s.beginStroke(BrushTool::AddBlob, 4, 0.5, Symmetry{true, false, false}, false, {"7", "ann"}, 1.5);
+  const StrokeId b = s.beginStroke(BrushTool::Smooth, 6, 0.25, {}, true);
+  s.strokeDabs(a, {at({kSurface, kC, kC}), at({kSurface, kC + 2, kC})}, pool);
+  for (const auto& [id, listed] : s.openStrokeList()) {
+    const std::optional<Session::StrokeParams> st = s.strokeSettings(id);
+    REQUIRE(st);
+    CHECK(st->tool == listed.tool);
+    CHECK(st->radius == listed.radius);
+    CHECK(st->strength == listed.strength);
+    CHECK(st->symmetry.x == listed.symmetry.x);
+    CHECK(st->accumulate == listed.accumulate);
+    CHECK(st->by == listed.by);
+    CHECK(st->height == listed.height);
+    CHECK(st->memory.empty());
+    CHECK(listed.memory.size() == (id == a ? 4u : 0u));  // two dabs and their mirror images
+  }
+  s.endStroke(b);
+  CHECK_FALSE(s.strokeSettings(b));
+  CHECK_FALSE(s.strokeSettings(999));
+  REQUIRE(s.strokeSettings(a));
+  CHECK(s.strokeSettings(a)->height == 1.5);
+}
+
 TEST_CASE("session: when every stroke has ended only the newest step is held unpacked", "[session]") {
   ThreadPool pool(1);
   Session s(sphere());

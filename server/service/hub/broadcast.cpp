@@ -1,5 +1,7 @@
 #include "service/hub/broadcast.hpp"
 
+#include <algorithm>
+
 #include "engine/image_io.hpp"
 #include "engine/raycast.hpp"
 #include "engine/splats.hpp"
@@ -11,9 +13,25 @@ namespace marzipan::service {
 using nlohmann::json;
 using protocol::ViewMode;
 
+namespace {
+
+std::uint64_t brickKey(Int3 b) {
+  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
+         std::uint64_t(std::uint32_t(b.z)) << 42;
+}
+
+}  // namespace
+
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
+}
+
+void HeldSplats::clear() {
+  of = nullptr;
+  revision = 0;
+  blocks.clear();
+  bytes = 0;
 }
 
 void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view cause, const Box& roi,
@@ -27,23 +45,50 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
                                                                           {"can_undo", ss.canUndo()},
                                                                           {"can_redo", ss.canRedo()}});
   const auto members = s.members();
-  for (const auto& c : members) c->link->sendText(text);
-  SharedBytes delta;
+  SharedBytes splats;
+  if (std::any_of(members.begin(), members.end(), [](const auto& c) { return c->mode == ViewMode::Splats; })) {
+    if (full) s.heldSplats.clear();
+    splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
+  }
+  const auto shared = std::make_shared<const std::string>(text);
   for (const auto& c : members) {
     if (c->mode == ViewMode::Splats) {
-      if (full) {
-        sendFullSplats(s, *c, 0);
-        continue;
-      }
-      if (!delta) {
-        const Bytes payload = encodeSplats(extractSplats(ss.volume(), bricks));
-        delta = makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
-      }
-      c->link->sendBinary(delta, false);
-    } else if (c->mode == ViewMode::Frames) {
-      requestFrame(s, c);
+      c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
+      continue;
     }
+    c->link->sendText(text);
+    if (c->mode == ViewMode::Frames) requestFrame(s, c);
   }
+}
+
+std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol) {
+  std::vector<std::span<const std::uint8_t>> changed;
+  changed.reserve(fresh.size());
+  std::vector<std::uint8_t> block;
+  for (const BrickSplats& b : fresh) {
+    encodeSplatBlock(b, block);
+    auto [at, added] = blocks.try_emplace(brickKey(b.brick));
+    if (!added && at->second == block) continue;
+    bytes = bytes - at->second.size() + block.size() + (added ? kEntryBytes : 0);
+    at->second = block;
+    changed.emplace_back(at->second);
+  }
+  std::vector<std::uint8_t> buffer = joinSplatBlocks(changed);
+  if (bytes > kMaxBytes || (bytes > kCheckBytes && bytes > vol.memoryBytes() / 2)) {
+    blocks.clear();
+    bytes = 0;
+  }
+  return buffer;
+}
+
+SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bricks) {
+  const Session& ss = *s.session;
+  HeldSplats& held = s.heldSplats;
+  if (held.of != &ss || held.revision + 1 != ss.revision()) held.clear();
+  held.of = &ss;
+  held.revision = ss.revision();
+  const std::vector<std::uint8_t> payload = held.delta(extractSplats(ss.volume(), bricks), ss.volume());
+  return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
 }
 
 json Broadcaster::clientList(const LiveSession& s) {

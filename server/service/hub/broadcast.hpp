@@ -4,8 +4,10 @@
 //
 // Conventions:
 // - Everything here runs on the session's strand, except renders (on the workers, from a
-//   snapshot). One edit sends the notification to every client first, then each client's delta
-//   or frame; one delta buffer is shared by every splats-mode client.
+//   snapshot). One edit builds its splat buffer first (a delta, or a full buffer, shared by
+//   every splats-mode client), then gives each client the notification and its buffer as one
+//   hand-over (ClientLink::sendTogether), or the notification and a frame. A delta lists the
+//   bricks whose points changed (HeldSplats).
 // - Pushed frames are latest-wins: a client has at most one render running; changes meanwhile
 //   ask for one more (renderAgain), and a still frame follows once nothing changed for
 //   HubOptions::stillDelay.
@@ -16,6 +18,7 @@
 #include <memory>
 #include <span>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -28,6 +31,38 @@ namespace marzipan::service {
 
 struct HubCore;
 struct LiveSession;
+class Session;
+
+// What every splats-mode client of a session holds of the bricks deltas listed: per brick, its
+// block as encoded (protocol/cpp/splats.hpp). A delta leaves out a brick whose block comes out
+// the same: an edit rewrites a brick's voxels far from the surface too (redistancing), and
+// about half of the bricks around a stroke's changes show the same points as before.
+// Valid only while every change of the session passes through Broadcaster::changed with a
+// delta: it names the Session and the revision it describes, and one that does not follow on
+// from them (a change that sent no delta, a full refresh, a session replaced by its journal)
+// starts it afresh, and so does a splats-mode client's splats.get once its buffer is queued (the
+// buffer, from a snapshot, may arrive after deltas and replace what they brought). Every
+// splats-mode client holds this: it joined with a full buffer of the session as it was then,
+// and got every delta since (deltas are never dropped; a client too far behind is closed).
+// Strand only.
+struct HeldSplats {
+  const Session* of = nullptr;
+  std::uint64_t revision = 0;
+  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: x | y << 21 | z << 42
+  std::size_t bytes = 0;  // the blocks' sizes plus kEntryBytes each
+  // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
+  // sent again, once). A brick's block is about 0.4 KiB on a surface against its 2 KiB of
+  // floats, but up to 4 KiB where every voxel is near the surface (noise a client uploaded).
+  // The volume's memory is read only past kCheckBytes.
+  static constexpr std::size_t kMaxBytes = std::size_t(32) << 20;
+  static constexpr std::size_t kCheckBytes = std::size_t(1) << 20;
+  static constexpr std::size_t kEntryBytes = 64;
+  void clear();
+  // The splat buffer (protocol/cpp/splats.hpp) of the bricks of `fresh` whose blocks differ from
+  // the recorded ones (or are not recorded), which it records; then the bound, for a record of
+  // vol's splats.
+  std::vector<std::uint8_t> delta(const std::vector<BrickSplats>& fresh, const Volume& vol);
+};
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload);
@@ -53,6 +88,9 @@ class Broadcaster {
   void requestFrame(LiveSession& s, const std::shared_ptr<HubClient>& c);
 
  private:
+  // The delta of a change of s that touched `bricks` (engine bricksAroundChanges): the bricks
+  // whose blocks differ from s's HeldSplats, which it then records.
+  SharedBytes deltaFrame(LiveSession& s, const std::vector<Int3>& bricks);
   void startRender(LiveSession& s, const std::shared_ptr<HubClient>& c, bool still);
   HubCore& hub_;
 };

@@ -41,6 +41,7 @@ void Durability::persist(LiveSession& s, const std::function<json()>& makeRecord
     try {
       Recovered rec = store->recover(s.id, hub_.limits().historyBytes, hub_.pool);
       s.session = std::move(rec.session);
+      s.heldSplats.clear();  // its clients hold what they were sent of the session rolled back
       s.journal = std::move(rec.journal);
     } catch (const std::exception& again) {
       hub_.log("session " + s.id + ": cannot reopen its journal (" + again.what() + "); closing it");

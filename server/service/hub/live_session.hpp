@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "service/hub/broadcast.hpp"
 #include "service/hub/connection.hpp"
 #include "service/hub/presence_relay.hpp"
 #include "service/session.hpp"
@@ -38,6 +39,7 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   std::vector<std::weak_ptr<HubClient>> clients;
   int nextClient = 1;
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
+  HeldSplats heldSplats;       // what its splats-mode clients hold (Broadcaster)
 
   // Presence of the clients (its own locks; see service/hub/presence_relay.hpp).
   SessionPresence presence;

@@ -260,14 +260,13 @@ void strokeDabs(HubCore& hub, const Call& call) {
     if (p.stroke != c->stroke) throw notOpenStroke(p.stroke);
     double voxelsPerDab = 0;
     bool accumulate = false;
-    for (const auto& [id, st] : s.session->openStrokeList())
-      if (id == p.stroke) {
-        const int images = (st.symmetry.x ? 2 : 1) * (st.symmetry.y ? 2 : 1) * (st.symmetry.z ? 2 : 1);
-        // A height takes a sub-step per vu (engine applyStroke).
-        const double substeps = st.height ? std::ceil(*st.height) : 1;
-        voxelsPerDab = brushVoxels(s.session->volume(), st.radius, images) * substeps;
-        accumulate = st.accumulate;
-      }
+    if (const auto st = s.session->strokeSettings(p.stroke)) {
+      const int images = (st->symmetry.x ? 2 : 1) * (st->symmetry.y ? 2 : 1) * (st->symmetry.z ? 2 : 1);
+      // A height takes a sub-step per vu (engine applyStroke).
+      const double substeps = st->height ? std::ceil(*st->height) : 1;
+      voxelsPerDab = brushVoxels(s.session->volume(), st->radius, images) * substeps;
+      accumulate = st->accumulate;
+    }
     self->checkBudget(double(p.dabs.size()) * voxelsPerDab, "this message's dabs");
     // A stroke that remembers what it applied moves the surface the same however its dabs are
     // grouped into messages, so the messages of this stroke waiting behind this one on the
@@ -310,18 +309,19 @@ void strokeDabs(HubCore& hub, const Call& call) {
       from += m.params.dabs.size();
     }
     if (a.changed) {
-      json applied = json::array();
-      for (std::size_t i = 0; i < a.hits.size(); ++i)
-        if (a.hits[i]) {
-          json dab{a.hits[i]->x, a.hits[i]->y, a.hits[i]->z, params[i].pressure};
-          if (const Vec3 n = a.normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
-          applied.push_back(std::move(dab));
-        }
       // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
       // started (a step they folded into keeps its own). One record per application: replay
-      // applies its dabs as one, as here.
-      r.record = [stroke = p.stroke, applied, rev = a.revision, t = stepTime(*s.session)] {
-        return json{{"r", rev}, {"stroke", stroke}, {"dabs", applied}, {"t", t}};
+      // applies its dabs as one, as here. Built only when there is a journal to take it.
+      r.record = [stroke = p.stroke, hits = a.hits, normals = a.normals, params = std::move(params), rev = a.revision,
+                  t = stepTime(*s.session)] {
+        json applied = json::array();
+        for (std::size_t i = 0; i < hits.size(); ++i)
+          if (hits[i]) {
+            json dab{hits[i]->x, hits[i]->y, hits[i]->z, params[i].pressure};
+            if (const Vec3 n = normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
+            applied.push_back(std::move(dab));
+          }
+        return json{{"r", rev}, {"stroke", stroke}, {"dabs", std::move(applied)}, {"t", t}};
       };
       r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
     }

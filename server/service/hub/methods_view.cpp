@@ -57,6 +57,17 @@ void splatsGet(HubCore& hub, const Call& call) {
     r.frame = self->broadcast.fullSplatsFrame(vol, frameId, revision, &bricks, &points);
     r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
                 {"bytes", r.frame->size() - protocol::kFrameHeaderBytes}};
+  }, [c = call.client](LiveSession& s, Reply& r) {
+    // A splats-mode client that applies this buffer replaces what the deltas sent meanwhile
+    // brought (they may reach it first): once the buffer is queued, the session's record of
+    // what its clients hold starts afresh, so that each brick is sent again when next listed.
+    if (c->mode != ViewMode::Splats) return;
+    r.after = [weak = s.weak_from_this(), c, clientId = c->clientId] {
+      if (const auto live = weak.lock())
+        live->strand->post([live, c, clientId] {
+          if (live->hasClient(*c, clientId)) live->heldSplats.clear();
+        });
+    };
   });
 }
 

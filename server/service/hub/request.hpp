@@ -35,7 +35,8 @@ struct Call {
 struct Reply {
   SharedBytes frame;  // a binary answer, sent before the result
   nlohmann::json result;
-  std::function<void()> after;  // on the strand, after the response went out
+  // After the response went out: on the strand (onStrand), or on the worker (offStrand).
+  std::function<void()> after;
   // The journal record(s) of a change (an object or an array of them), written before the
   // response; may write files of its own (an upload).
   std::function<nlohmann::json()> record;

@@ -1,0 +1,82 @@
+// HeldSplats (service/hub/broadcast.hpp): a delta lists the bricks whose encoded points differ
+// from what the session's clients were sent, and the record starts afresh past its bound.
+#include <catch2/catch.hpp>
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/solids.hpp"
+#include "engine/splats.hpp"
+#include "protocol/cpp/splats.hpp"
+#include "service/hub/broadcast.hpp"
+
+using namespace marzipan;
+using namespace marzipan::service;
+
+namespace {
+
+// A brick of n points spread over its voxels, all with normal +z.
+BrickSplats filled(Int3 brick, int n) {
+  BrickSplats b{brick, {}};
+  for (int i = 0; i < n; ++i)
+    b.points.push_back({float(8 * brick.x + i % 8), float(8 * brick.y + i / 8 % 8), float(8 * brick.z + i / 64), 0, 0, 1});
+  return b;
+}
+
+std::uint32_t brickCount(const std::vector<std::uint8_t>& buffer) {
+  REQUIRE(buffer.size() >= kSplatHeaderBytes);
+  return std::uint32_t(buffer[8] | buffer[9] << 8 | buffer[10] << 16 | buffer[11] << 24);
+}
+
+}  // namespace
+
+TEST_CASE("held splats: a delta lists the bricks whose blocks changed, in the order given", "[hub][splats]") {
+  const Volume v = makeSolid(SolidKind::Sphere, {64, 64, 64});
+  std::vector<BrickSplats> fresh = extractAllSplats(v);
+  REQUIRE(fresh.size() > 20);
+  fresh.push_back({{7, 7, 7}, {}});  // a brick without points
+  HeldSplats held;
+  // Nothing recorded: every brick, exactly as encodeSplats writes them.
+  CHECK(held.delta(fresh, v) == encodeSplats(fresh));
+  CHECK(held.blocks.size() == fresh.size());
+  // The same again: no brick.
+  CHECK(held.delta(fresh, v) == encodeSplats({}));
+  // Two bricks change (one loses a point, the empty one gains one), one changes back and forth.
+  std::vector<BrickSplats> next = fresh;
+  next[3].points.pop_back();
+  next.back() = filled({7, 7, 7}, 1);
+  CHECK(held.delta(next, v) == encodeSplats({next[3], next.back()}));
+  CHECK(held.delta(fresh, v) == encodeSplats({fresh[3], fresh.back()}));
+  // Floats that encode alike are the same block (a client could not tell them apart).
+  next = fresh;
+  const float code = decodeSplats(encodeSplats({fresh[5]}))[0].points[0].x;
+  next[5].points[0].x = code + 1e-4f;  // within half a position step (3/8192 vu) of its code
+  CHECK(next[5].points[0].x != fresh[5].points[0].x);
+  CHECK(held.delta(next, v) == encodeSplats({}));
+  next[5].points[0].x = code + 1e-3f;  // past it
+  CHECK(held.delta(next, v) == encodeSplats({next[5]}));
+}
+
+TEST_CASE("held splats: past half the volume's memory the record starts afresh", "[hub][splats]") {
+  const Volume small = makeSolid(SolidKind::Sphere, {16, 16, 16});
+  REQUIRE(small.memoryBytes() / 2 < HeldSplats::kCheckBytes);
+  // Blocks of 512 points (4104 bytes): past kCheckBytes with enough of them.
+  const auto bricks = [](int count) {
+    std::vector<BrickSplats> out;
+    for (int i = 0; i < count; ++i) out.push_back(filled({i % 64, i / 64, 0}, 512));
+    return out;
+  };
+  const std::size_t block = kSplatBrickHeaderBytes + 512 * kSplatPointBytes;
+  const int under = int(HeldSplats::kCheckBytes / (block + HeldSplats::kEntryBytes)) - 1;
+  HeldSplats held;
+  CHECK(brickCount(held.delta(bricks(under), small)) == std::uint32_t(under));
+  CHECK(held.bytes == std::size_t(under) * (block + HeldSplats::kEntryBytes));
+  CHECK(brickCount(held.delta(bricks(under), small)) == 0);
+  // Two more bricks cross the bound: they are sent, then the record is empty, so everything
+  // is sent again the next time (once).
+  CHECK(brickCount(held.delta(bricks(under + 2), small)) == 2);
+  CHECK(held.blocks.empty());
+  CHECK(held.bytes == 0);
+  CHECK(brickCount(held.delta(bricks(under), small)) == std::uint32_t(under));
+  CHECK(brickCount(held.delta(bricks(under), small)) == 0);
+}
