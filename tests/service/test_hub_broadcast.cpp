@@ -80,3 +80,23 @@ TEST_CASE("held splats: past half the volume's memory the record starts afresh",
   CHECK(brickCount(held.delta(bricks(under), small)) == std::uint32_t(under));
   CHECK(brickCount(held.delta(bricks(under), small)) == 0);
 }
+
+TEST_CASE("held splats: the record counts the memory its blocks keep, not only what they hold", "[hub][splats]") {
+  // Bricks the surface passed through and left: a full block (4104 bytes) replaced by an empty
+  // one must not keep its old storage uncounted (15 such rounds kept 12 MB under a 0.2 MB count).
+  const Volume small = makeSolid(SolidKind::Sphere, {16, 16, 16});
+  std::vector<BrickSplats> full, empty;
+  for (int i = 0; i < 100; ++i) {
+    full.push_back(filled({i % 64, i / 64, 0}, 512));
+    empty.push_back({{i % 64, i / 64, 0}, {}});
+  }
+  HeldSplats held;
+  for (int round = 0; round < 3; ++round) {
+    held.delta(full, small);
+    held.delta(empty, small);
+    std::size_t kept = 0;
+    for (const auto& [key, block] : held.blocks) kept += block.capacity() + HeldSplats::kEntryBytes;
+    CHECK(held.bytes == kept);
+    CHECK(kept < 100 * (kSplatBrickHeaderBytes + 16 + HeldSplats::kEntryBytes));
+  }
+}

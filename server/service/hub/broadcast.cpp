@@ -69,8 +69,10 @@ std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fres
     encodeSplatBlock(b, block);
     auto [at, added] = blocks.try_emplace(brickKey(b.brick));
     if (!added && at->second == block) continue;
-    bytes = bytes - at->second.size() + block.size() + (added ? kEntryBytes : 0);
-    at->second = block;
+    // A block of its own size: a brick the surface left keeps a few bytes, not its old 4 KiB.
+    std::vector<std::uint8_t> kept(block.begin(), block.end());
+    bytes = bytes - at->second.capacity() + kept.capacity() + (added ? kEntryBytes : 0);
+    at->second = std::move(kept);
     changed.emplace_back(at->second);
   }
   std::vector<std::uint8_t> buffer = joinSplatBlocks(changed);
@@ -84,11 +86,16 @@ std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fres
 SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bricks) {
   const Session& ss = *s.session;
   HeldSplats& held = s.heldSplats;
-  if (held.of != &ss || held.revision + 1 != ss.revision()) held.clear();
+  if (held.of != &ss || held.revision + 1 != ss.revision() || held.buffersInFlight > 0) held.clear();
   held.of = &ss;
   held.revision = ss.revision();
-  const std::vector<std::uint8_t> payload = held.delta(extractSplats(ss.volume(), bricks), ss.volume());
-  return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
+  try {
+    const std::vector<std::uint8_t> payload = held.delta(extractSplats(ss.volume(), bricks), ss.volume());
+    return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
+  } catch (...) {
+    held.clear();  // it may record blocks that were never sent
+    throw;
+  }
 }
 
 json Broadcaster::clientList(const LiveSession& s) {

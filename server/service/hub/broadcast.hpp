@@ -40,8 +40,9 @@ class Session;
 // Valid only while every change of the session passes through Broadcaster::changed with a
 // delta: it names the Session and the revision it describes, and one that does not follow on
 // from them (a change that sent no delta, a full refresh, a session replaced by its journal)
-// starts it afresh, and so does a splats-mode client's splats.get once its buffer is queued (the
-// buffer, from a snapshot, may arrive after deltas and replace what they brought). Every
+// starts it afresh. A splats-mode client's splats.get buffer, from a snapshot, may arrive after
+// deltas and replace what they brought: from the snapshot until the buffer is queued no delta
+// leaves a brick out, and then the record starts afresh (buffersInFlight). Every
 // splats-mode client holds this: it joined with a full buffer of the session as it was then,
 // and got every delta since (deltas are never dropped; a client too far behind is closed).
 // Strand only.
@@ -49,18 +50,19 @@ struct HeldSplats {
   const Session* of = nullptr;
   std::uint64_t revision = 0;
   std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: x | y << 21 | z << 42
-  std::size_t bytes = 0;  // the blocks' sizes plus kEntryBytes each
+  std::size_t bytes = 0;  // the blocks' capacities plus kEntryBytes each
+  int buffersInFlight = 0;  // splats.get buffers of splats-mode clients not yet queued (not cleared)
   // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
   // sent again, once). A brick's block is about 0.4 KiB on a surface against its 2 KiB of
   // floats, but up to 4 KiB where every voxel is near the surface (noise a client uploaded).
   // The volume's memory is read only past kCheckBytes.
   static constexpr std::size_t kMaxBytes = std::size_t(32) << 20;
   static constexpr std::size_t kCheckBytes = std::size_t(1) << 20;
-  static constexpr std::size_t kEntryBytes = 64;
+  static constexpr std::size_t kEntryBytes = 96;  // a map node and its vector (measured ~88)
   void clear();
   // The splat buffer (protocol/cpp/splats.hpp) of the bricks of `fresh` whose blocks differ from
   // the recorded ones (or are not recorded), which it records; then the bound, for a record of
-  // vol's splats.
+  // vol's splats. fresh: distinct bricks (bricksAroundChanges' list).
   std::vector<std::uint8_t> delta(const std::vector<BrickSplats>& fresh, const Volume& vol);
 };
 

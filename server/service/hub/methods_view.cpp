@@ -58,16 +58,31 @@ void splatsGet(HubCore& hub, const Call& call) {
     r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
                 {"bytes", r.frame->size() - protocol::kFrameHeaderBytes}};
   }, [c = call.client](LiveSession& s, Reply& r) {
-    // A splats-mode client that applies this buffer replaces what the deltas sent meanwhile
-    // brought (they may reach it first): once the buffer is queued, the session's record of
-    // what its clients hold starts afresh, so that each brick is sent again when next listed.
+    // A splats-mode client that applies this buffer (a snapshot of now) replaces what the
+    // deltas sent meanwhile brought, which may reach it first: until the buffer is queued (or
+    // the call failed), every delta sends all the bricks it lists, and then the session's record
+    // of what its clients hold starts afresh (HeldSplats::buffersInFlight).
     if (c->mode != ViewMode::Splats) return;
-    r.after = [weak = s.weak_from_this(), c, clientId = c->clientId] {
-      if (const auto live = weak.lock())
-        live->strand->post([live, c, clientId] {
-          if (live->hasClient(*c, clientId)) live->heldSplats.clear();
-        });
+    ++s.heldSplats.buffersInFlight;
+    struct Landed {
+      explicit Landed(std::weak_ptr<LiveSession> s) : session(std::move(s)) {}
+      Landed(const Landed&) = delete;
+      Landed& operator=(const Landed&) = delete;
+      std::weak_ptr<LiveSession> session;
+      ~Landed() {
+        const auto live = session.lock();
+        if (!live) return;
+        try {
+          live->strand->post([live] {
+            --live->heldSplats.buffersInFlight;
+            live->heldSplats.clear();
+          });
+        } catch (...) {
+          // Not posted (out of memory): the count stays up and every delta sends all it lists.
+        }
+      }
     };
+    r.hold = std::make_shared<Landed>(s.weak_from_this());
   });
 }
 

@@ -35,8 +35,10 @@ struct Call {
 struct Reply {
   SharedBytes frame;  // a binary answer, sent before the result
   nlohmann::json result;
-  // After the response went out: on the strand (onStrand), or on the worker (offStrand).
-  std::function<void()> after;
+  std::function<void()> after;  // on the strand, after the response went out
+  // Released once the work is over, answered or failed (offStrand: on the worker, after the
+  // response or the error went out).
+  std::shared_ptr<void> hold;
   // The journal record(s) of a change (an object or an array of them), written before the
   // response; may write files of its own (an upload).
   std::function<nlohmann::json()> record;

@@ -97,7 +97,6 @@ void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std:
         fn(*snapshot, revision, r);
         if (r.frame) c->link->sendBinary(r.frame, false);
         self->sendResult(*c, id, r.result);
-        if (r.after) r.after();
       } catch (...) {
         self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
       }
