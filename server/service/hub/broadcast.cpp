@@ -45,20 +45,25 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
                                                                           {"can_undo", ss.canUndo()},
                                                                           {"can_redo", ss.canRedo()}});
   const auto members = s.members();
-  SharedBytes splats;
-  if (std::any_of(members.begin(), members.end(), [](const auto& c) { return c->mode == ViewMode::Splats; })) {
-    if (full) s.heldSplats.clear();
-    splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
-  }
-  const auto shared = std::make_shared<const std::string>(text);
+  // The other clients first: they need not wait for the splats to be extracted.
+  bool splatsMode = false;
   for (const auto& c : members) {
     if (c->mode == ViewMode::Splats) {
-      c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
+      splatsMode = true;
       continue;
     }
     c->link->sendText(text);
     if (c->mode == ViewMode::Frames) requestFrame(s, c);
   }
+  if (!splatsMode) {
+    s.heldSplats.clear();  // nobody holds it now (a later delta would start afresh anyway)
+    return;
+  }
+  if (full) s.heldSplats.clear();
+  const SharedBytes splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
+  const auto shared = std::make_shared<const std::string>(text);
+  for (const auto& c : members)
+    if (c->mode == ViewMode::Splats) c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
 }
 
 std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol) {
