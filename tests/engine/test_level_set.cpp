@@ -631,6 +631,8 @@ TEST_CASE("a tool over a huge region leaves no scratch of its size on the thread
   // a brush of radius 90 gathers ~188^3 voxels, whose ~3 bytes each would otherwise stay for the
   // worker thread's lifetime.
   Volume v = makeSphere({192, 192, 192}, {96, 96, 96}, 60);
+  trimRedistanceScratch(0);  // whatever the tests before left on this thread (one process runs them all)
+  REQUIRE(redistanceScratchBytes() == 0);
   addBlob(v, {{96, 96, 156}, 8, 1});
   const std::size_t dab = redistanceScratchBytes();
   CHECK(dab > 20000);  // at least the flags of its ~25^3 grid
