@@ -4,6 +4,7 @@
 // every wait times out, so a hang fails the test instead of the run).
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
@@ -682,15 +683,17 @@ namespace {
 struct GateLink : CaptureLink {
   std::mutex gateMutex;
   std::condition_variable gateCv;
-  int gate = -1;
+  std::atomic<int> gate{-1};
   bool atFrame = false, atResult = false, frameOpen = false, resultOpen = false;
 
+  // Called on the hub's threads: no Catch assertions here (Catch is not thread-safe).
   void sendBinary(std::shared_ptr<const Bytes> frame, bool droppable) override {
-    if (int(headerOf(*frame).requestId) == gate) hold(atFrame, frameOpen);
+    if (const auto d = protocol::decodeFrameHeader(*frame); d && int(d.frame->header.requestId) == gate)
+      hold(atFrame, frameOpen);
     CaptureLink::sendBinary(frame, droppable);
   }
   void sendText(std::string text) override {
-    if (const json j = json::parse(text); j.contains("id") && j["id"] == gate) hold(atResult, resultOpen);
+    if (const json j = json::parse(text); j.contains("id") && j["id"] == gate.load()) hold(atResult, resultOpen);
     CaptureLink::sendText(std::move(text));
   }
   void hold(bool& at, bool& open) {
