@@ -21,11 +21,6 @@ constexpr int kOctBits = 11;
 constexpr int kOctMax = (1 << kOctBits) - 1;
 constexpr int kMaxPointsPerBrick = kSplatBrickSide * kSplatBrickSide * kSplatBrickSide;
 
-std::uint64_t brickKey(Int3 b) {
-  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
-         std::uint64_t(std::uint32_t(b.z)) << 42;
-}
-
 using namespace le;
 
 constexpr std::uint8_t kMagic[4] = {'M', 'Z', 'S', 'P'};
@@ -147,7 +142,7 @@ std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks) {
   std::size_t points = 0;
   for (const auto& b : bricks) {
     checkBrick(b);
-    keys.push_back(brickKey(b.brick));
+    keys.push_back(splatBrickKey(b.brick));
     points += b.points.size();
   }
   std::vector<std::uint8_t> out = startBuffer(keys, points, encodedSplatsSize(bricks));
@@ -171,7 +166,7 @@ std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std:
     if (b.size() < kSplatBrickHeaderBytes || n > std::size_t(kMaxPointsPerBrick) ||
         b.size() != kSplatBrickHeaderBytes + kSplatPointBytes * n)
       throw EngineError(ErrorKind::InvalidArgument, "blocks", "a block is not one brick's header and points");
-    keys.push_back(brickKey({int(get16(b.data())), int(get16(b.data() + 2)), int(get16(b.data() + 4))}));
+    keys.push_back(splatBrickKey({int(get16(b.data())), int(get16(b.data() + 2)), int(get16(b.data() + 4))}));
     points += n;
     bytes += b.size();
   }
@@ -217,7 +212,7 @@ std::vector<BrickSplats> decodeSplats(std::span<const std::uint8_t> bytes) {
     const Int3 o{b.x * kSplatBrickSide, b.y * kSplatBrickSide, b.z * kSplatBrickSide};
     for (std::uint32_t k = 0; k < n; ++k, at += kSplatPointBytes) bs.points.push_back(decodePoint(get64(p + at), o));
     points += n;
-    keys.push_back(brickKey(b));
+    keys.push_back(splatBrickKey(b));
     out.push_back(std::move(bs));
   }
   if (at != size) formatError(std::to_string(size - at) + " trailing bytes after the last brick block");

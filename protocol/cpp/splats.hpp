@@ -50,6 +50,13 @@ inline constexpr std::size_t kSplatHeaderBytes = 16;
 inline constexpr std::size_t kSplatBrickHeaderBytes = 8;
 inline constexpr std::size_t kSplatPointBytes = 8;
 
+// One number per brick coordinate triple in [0, 65535]^3 (x | y << 21 | z << 42): how the codec
+// finds a brick listed twice, and a key for keeping bricks by coordinates.
+inline std::uint64_t splatBrickKey(Int3 b) {
+  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
+         std::uint64_t(std::uint32_t(b.z)) << 42;
+}
+
 // The encoding documented above. Throws EngineError InvalidArgument for a brick listed twice,
 // a coordinate outside [0, 65535] or more than 512 points in a brick.
 std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks);

@@ -328,8 +328,10 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
 
 std::vector<std::pair<StrokeId, Session::StrokeParams>> Session::openStrokeList() const {
   std::vector<std::pair<StrokeId, StrokeParams>> out;
-  for (const auto& [id, st] : strokes_)
-    out.push_back({id, {st.tool, st.radius, st.strength, st.symmetry, st.accumulate, st.memory, st.by, st.height}});
+  for (const auto& [id, st] : strokes_) {
+    out.push_back({id, *strokeSettings(id)});
+    out.back().second.memory = st.memory;
+  }
   return out;
 }
 

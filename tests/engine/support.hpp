@@ -1,13 +1,24 @@
-// Helpers shared by the engine tests: analytic answers to compare against.
+// Helpers shared by the engine tests: analytic answers to compare against, and a guard for the
+// tests that limit the kernels' vector width.
 #pragma once
 
 #include <cmath>
 #include <numbers>
 
 #include "engine/measures.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/volume.hpp"
 
 namespace marzipan::test {
+
+// Puts the kernels back to their widest form when it goes out of scope: a test that limits the
+// width (simd_width::limitWidth) leaves the next one as it found it, also when it fails.
+struct WidestWidthAtExit {
+  WidestWidthAtExit() = default;
+  WidestWidthAtExit(const WidestWidthAtExit&) = delete;
+  WidestWidthAtExit& operator=(const WidestWidthAtExit&) = delete;
+  ~WidestWidthAtExit() { simd_width::limitWidth(simd_width::Width::Widest); }
+};
 
 // Radius of the sphere with the solid's inside volume.
 inline double equivalentRadius(const Volume& v) {

@@ -12,6 +12,7 @@
 #include "engine/fast_marching.hpp"
 #include "engine/simd_width.hpp"
 #include "engine/thread_pool.hpp"
+#include "support.hpp"
 
 using namespace marzipan;
 
@@ -219,9 +220,7 @@ TEST_CASE("the AVX2 state build gives the SSE2 one's march bit for bit", "[fmm][
     WARN("this CPU has no AVX2: both marches would build their state with SSE2");
     return;
   }
-  struct Restore {
-    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
-  } restore;
+  const test::WidestWidthAtExit restore;
   using namespace march_flag;
   constexpr float band = 3;
   DenseGrid start({{0, 0, 0}, {37, 29, 23}});

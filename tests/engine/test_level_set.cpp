@@ -681,9 +681,7 @@ TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[le
     WARN("this CPU has no AVX2: both runs would take the SSE2 kernels");
     return;
   }
-  struct Restore {
-    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
-  } restore;
+  const test::WidestWidthAtExit restore;
   auto run = [](simd_width::Width w, ThreadPool& pool) {
     simd_width::limitWidth(w);
     Volume v = makeSphere({96, 96, 96}, {48, 48, 48}, 33);
@@ -852,9 +850,7 @@ TEST_CASE("strokes whose rows hold their dabs out of order along x are pinned", 
   // hold every other dab), with memory, plain and with heights, their dabs with and without
   // normals (lanes and the scalar search), and a stroke whose memory crosses it.
   if (!simd_width::avx2Available()) WARN("this CPU has no AVX2: both widths run the SSE2 search");
-  struct Restore {
-    ~Restore() { simd_width::limitWidth(simd_width::Width::Widest); }
-  } restore;
+  const test::WidestWidthAtExit restore;
   auto run = [](simd_width::Width width, ThreadPool& pool) {
     simd_width::limitWidth(width);
     Volume v = makeSphere({80, 80, 80}, {40, 40, 40}, 28);

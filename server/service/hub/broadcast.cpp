@@ -13,15 +13,6 @@ namespace marzipan::service {
 using nlohmann::json;
 using protocol::ViewMode;
 
-namespace {
-
-std::uint64_t brickKey(Int3 b) {
-  return std::uint64_t(std::uint32_t(b.x)) | std::uint64_t(std::uint32_t(b.y)) << 21 |
-         std::uint64_t(std::uint32_t(b.z)) << 42;
-}
-
-}  // namespace
-
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
@@ -72,7 +63,7 @@ std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fres
   std::vector<std::uint8_t> block;
   for (const BrickSplats& b : fresh) {
     encodeSplatBlock(b, block);
-    auto [at, added] = blocks.try_emplace(brickKey(b.brick));
+    auto [at, added] = blocks.try_emplace(splatBrickKey(b.brick));
     if (!added && at->second == block) continue;
     // A block of its own size: a brick the surface left keeps a few bytes, not its old 4 KiB.
     std::vector<std::uint8_t> kept(block.begin(), block.end());

@@ -49,7 +49,7 @@ class Session;
 struct HeldSplats {
   const Session* of = nullptr;
   std::uint64_t revision = 0;
-  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: x | y << 21 | z << 42
+  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: splatBrickKey
   std::size_t bytes = 0;  // the blocks' capacities plus kEntryBytes each
   int buffersInFlight = 0;  // splats.get buffers of splats-mode clients not yet queued (not cleared)
   // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
