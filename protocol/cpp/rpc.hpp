@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 5;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 6;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {

@@ -9,7 +9,7 @@
 import { FrameKind } from "./frames.js";
 
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 5 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 6 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 

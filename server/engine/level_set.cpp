@@ -1278,6 +1278,18 @@ void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressS
   }
 }
 
+// The smallest box (volume coordinates) holding every voxel of the list; empty for none.
+Box listedBounds(const DenseGrid& g, const MovedVoxels& moved) {
+  Box b{{std::numeric_limits<int>::max(), std::numeric_limits<int>::max(), std::numeric_limits<int>::max()},
+        {std::numeric_limits<int>::min(), std::numeric_limits<int>::min(), std::numeric_limits<int>::min()}};
+  for (const Run& r : moved.runs) {
+    const Int3 first = g.point(r.index);  // a run lies in one row
+    b.lo = {std::min(b.lo.x, first.x), std::min(b.lo.y, first.y), std::min(b.lo.z, first.z)};
+    b.hi = {std::max(b.hi.x, first.x + int(r.count)), std::max(b.hi.y, first.y + 1), std::max(b.hi.z, first.z + 1)};
+  }
+  return b;
+}
+
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
 // foot point (none: W = 1): listMoved, then moveListed.
 void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,
@@ -1396,12 +1408,11 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     ToolScratch& scratch = toolScratch();
     DenseGrid& g = scratch.grid;
     g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare), pool);
-    scratch.resetBoxes.clear();
-    scratch.normalizeBoxes.clear();
-    for (const PreparedDab& d : mine) {
-      scratch.resetBoxes.push_back(d.roi.grown(reach).intersect(vol.domain()));
-      scratch.normalizeBoxes.push_back(d.roi);
-    }
+    const std::vector<Box> rois = [&] {
+      std::vector<Box> b;
+      for (const PreparedDab& d : mine) b.push_back(d.roi);
+      return b;
+    }();
     scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
     const SweptWindow window(r, std::move(mine), std::move(remembered), height);
     // A height moves the surface up to |height| * the largest window: sub-steps of <= 1 vu.
@@ -1430,10 +1441,24 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
         if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
         evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
       }
+      // Evolve changed only the voxels it listed: inside the ROIs, and with a memory only where
+      // this application's window exceeds the stroke's. Elsewhere the field is as it was, a
+      // distance to a surface that did not move there: the ROIs are cut to the box of the
+      // listed voxels (along a slanted stroke that box holds most of them; a stroke passing
+      // over what it already added lists nothing, and nothing is redistanced).
+      const Box listed = listedBounds(g, scratch.moved);
+      scratch.resetBoxes.clear();
+      scratch.normalizeBoxes.clear();
+      for (const Box& roi : rois)
+        if (const Box b = roi.intersect(listed); !b.empty()) {
+          scratch.normalizeBoxes.push_back(b);
+          scratch.resetBoxes.push_back(b.grown(reach).intersect(vol.domain()));
+        }
+      if (scratch.normalizeBoxes.empty()) continue;  // nothing moved: the field stands
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
-      options.movedBoxes = scratch.normalizeBoxes;  // evolve changes voxels of the ROIs only
+      options.movedBoxes = scratch.normalizeBoxes;
       // Normalizing the kept voxels moves a sharp crest outward by ~0.003 vu each time (measured
       // on a ridge of 4 vu at radius 8): harmless once per application, but a stroke with a
       // height passes over its crest again and again with little or nothing left to add. Its

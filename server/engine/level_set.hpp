@@ -51,7 +51,10 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // above). A stroke that remembers what it applied passes its earlier dabs as `memory`: each
 // voxel then moves only by the excess of this application's window over the largest earlier
 // one, so a stroke moves each point of the surface by its strongest dab, however its dabs were
-// grouped into applications. An empty memory lets every application add (build-up).
+// grouped into applications. An empty memory lets every application add (build-up). Only the
+// voxels where the excess is above 0 move, and only the band around them (within band + 1 vu
+// of the cells they touch) is redistanced: elsewhere every voxel keeps its bits, and a group of
+// dabs with nothing left to add changes nothing at all.
 //
 // A stroke with a height H (add and remove blob only) moves each point of the surface by H
 // times that excess window, so a stroke with memory raises (lowers) the surface under a dab's
@@ -65,9 +68,8 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // window is constant along n over the height (a flank of a ridge reads its own distance from
 // the ridge's line, not a shorter one). The surface moves as if carried along n (speed times
 // n . its own normal, 0 where it faces away): then the moves of several applications add up
-// exactly, in whatever pieces they come. A group of dabs with nothing left to add changes
-// nothing (no redistance), and the redistances of a stroke with a height do not normalize the
-// kept voxels (that crept a crest outward message by message). Without a height, add and
+// exactly, in whatever pieces they come. The redistances of a stroke with a height do not
+// normalize the kept voxels (that crept a crest outward message by message). Without a height, add and
 // remove move the surface strength vu per application as before (bit for bit).
 enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen };
 

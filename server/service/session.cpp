@@ -299,7 +299,9 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   } catch (const EngineError& e) {
     rethrow(e, "dabs");
   }
-  if (!stroke.accumulate) {
+  // An application that changed nothing is not journaled, so a recovered stroke never learns
+  // its dabs: remembered, they would hold back this stroke's later messages here but not there.
+  if (!stroke.accumulate && !message.empty()) {
     std::vector<StrokeDab>& memory = strokes_.at(id).memory;
     memory.insert(memory.end(), images.begin(), images.end());
     if (memory.size() > kMaxStrokeMemory)

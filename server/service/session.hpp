@@ -171,7 +171,8 @@ class Session {
   // each point moves by the strongest dab over it (pressure scales a dab's window; mirror
   // images included), evolved and redistanced once. Rays are picked on the volume as it was
   // when the stroke began. Unless the stroke accumulates it remembers the dabs it applied (its
-  // newest kMaxStrokeMemory images), and a later message moves a point only by what exceeds
+  // newest kMaxStrokeMemory images; not those of a message that changed nothing, which the
+  // journal does not record), and a later message moves a point only by what exceeds
   // them, so the result does not depend on how the stroke's dabs were grouped into messages.
   // All dabs of one stroke fold into one history step, which stays open while it is the
   // newest step: any other change of the session (apply, undo, redo, load, another stroke's

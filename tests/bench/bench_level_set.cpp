@@ -263,6 +263,57 @@ MARZIPAN_BENCH("stroke_drag") {
   }
 }
 
+// The same drag (no height), then the pointer drawn back over the same path within the stroke,
+// as a sculptor scrubs: the messages back add nothing the stroke's memory does not hold. Timed:
+// the messages back, per message.
+MARZIPAN_BENCH("stroke_scrub") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  constexpr double r = 7, spacing = 0.63;
+  constexpr int perMessage = 12, messages = 6;
+  const int strokes = opt.quick ? 1 : 12;
+  std::mt19937 rng{9};
+  std::normal_distribution<double> gauss;
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  const StrokeSettings st{Brush::AddBlob, r, 1};
+  std::vector<double> ms, cpu;
+  for (int k = 0; k < strokes; ++k) {
+    const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+    const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
+    std::vector<StrokeDab> path, memory;
+    for (int i = 0; i < perMessage * messages; ++i) {
+      const double angle = spacing * i / s.radius;
+      const Vec3 n = normalized(dir * std::cos(angle) + along * std::sin(angle));
+      path.push_back({s.centre + n * s.radius, 1.0, n});
+    }
+    for (int m = 0; m < messages; ++m) {
+      const std::span<const StrokeDab> forth(path.data() + m * perMessage, perMessage);
+      applyStroke(v, st, forth, memory, pool);
+      memory.insert(memory.end(), forth.begin(), forth.end());
+    }
+    std::vector<StrokeDab> back(path.rbegin(), path.rend());
+    int m = 0;
+    const Timing t = measure(
+        messages, [] {},
+        [&] {
+          applyStroke(v, st, std::span<const StrokeDab>(back.data() + m * perMessage, perMessage), memory, pool);
+          ++m;
+        });
+    ms.push_back(t.median_ms);
+    cpu.push_back(t.cpu_median_ms);
+  }
+  std::sort(ms.begin(), ms.end());
+  std::sort(cpu.begin(), cpu.end());
+  Timing t;
+  t.median_ms = ms[ms.size() / 2];
+  t.min_ms = ms.front();
+  t.max_ms = ms.back();
+  t.reps = strokes * messages;
+  t.cpu_median_ms = cpu[cpu.size() / 2];
+  emit("stroke_scrub", opt.threads, t,
+       {{"radius", r}, {"dabs_per_message", perMessage}, {"messages_back", messages}, {"spacing", spacing}});
+}
+
 MARZIPAN_BENCH("mcf_global") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);

@@ -189,3 +189,26 @@ TEST_CASE("journal: interleaved authored strokes replay into the same steps", "[
   checkRecovered(dir, w, true);
   fs::remove_all(dir);
 }
+
+TEST_CASE("journal: a stroke message that adds nothing leaves the stroke's memory as recovery rebuilds it",
+          "[journal][stroke]") {
+  // A message that changes nothing has no record, so the replay of the stroke's later
+  // messages never remembers its dabs: the live stroke must not either, or where their windows
+  // reach beyond the rest of the memory (a height's windows move with the surface) a later
+  // message would add less live than in the replay.
+  const fs::path dir = freshDir("noop");
+  SessionStore store(dir);
+  Writer w(store, "s");
+  const StrokeId s = w.begin(kA);
+  w.dab(s, {kC + kR, kC, kC}, kA);
+  const std::uint64_t revision = w.live.revision();
+  REQUIRE_FALSE(w.live.strokeDabs(s, {Dab{Vec3{kC + kR, kC, kC}, 0.5}}, ThreadPool::serial()).changed);
+  CHECK(w.live.revision() == revision);
+  w.dab(s, {kC + kR, kC + 3, kC}, kA);
+  checkRecovered(dir, w, true);
+  std::size_t remembered = 0;
+  for (const auto& [id, params] : w.live.openStrokeList())
+    if (id == s) remembered = params.memory.size();
+  CHECK(remembered == 2);  // the two dabs the journal holds
+  fs::remove_all(dir);
+}

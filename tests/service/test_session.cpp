@@ -282,7 +282,9 @@ TEST_CASE("session: when every stroke has ended only the newest step is held unp
   s.strokeDabs(b, {at({kSurface, kC + 1, kC})}, pool);  // B's step, on A's bricks
   s.strokeDabs(a, {at({kC - kR, kC, kC})}, pool);       // far away: folds into A's step under B's
   CHECK(s.history().undoSteps() == 2);
-  s.strokeDabs(a, {at({kSurface, kC, kC})}, pool);  // on B's bricks: A's stroke goes on as a new step
+  // On B's bricks, past what A's stroke applied (a dab it already applied would add nothing
+  // and change nothing): A's stroke goes on as a new step.
+  s.strokeDabs(a, {at({kSurface, kC + 1, kC})}, pool);
   CHECK(s.history().undoSteps() == 3);
   s.endStroke(a);
   s.endStroke(b);

@@ -242,8 +242,9 @@ TEST_CASE("session: an author's stroke stays one step while another sculpts else
     REQUIRE(h.changed);
     CHECK(h.step->firstRevision == 1);
     CHECK(s.digest() == digest(onlyB.volume()));
-    // A's next message starts a new step (something is undone): it clears the redo list.
-    s.strokeDabs(a, {Dab{Vec3{kC + kR, kC, kC}, std::nullopt}}, pool);
+    // A's next message starts a new step (something is undone): it clears the redo list. (Its
+    // dab lies between two the stroke remembers: where it exceeds them, it adds.)
+    REQUIRE(s.strokeDabs(a, {Dab{Vec3{kC + kR, kC + 1, kC}, std::nullopt}}, pool).changed);
     CHECK(s.steps().size() == 2);
     CHECK_FALSE(s.canRedo());
   }

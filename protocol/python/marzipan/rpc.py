@@ -14,7 +14,7 @@ import json
 import re
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 5}
+PROTOCOL_VERSION = {"major": 1, "minor": 6}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (
