@@ -92,9 +92,21 @@ std::optional<std::string> EtcdStorage::holder(const std::string& id) {
 }
 
 bool EtcdStorage::acquire(const std::string& id) {
+  std::shared_ptr<EtcdJournal> held;
   {
     const std::lock_guard lock(mutex_);
-    if (owned_.count(id)) return true;
+    if (const auto it = owned_.find(id); it != owned_.end()) held = it->second;
+  }
+  if (held && !held->fenced()) return true;
+  if (held) {
+    // Fenced while the lease was only late (a keep-alive held up past the TTL by an etcd
+    // election, the lease kept alive in etcd), its owner key stays on the live lease: a session
+    // loaded through it could never be edited, and no other server could claim it. The key
+    // goes first (if still this journal's); when etcd cannot be reached, the next acquire
+    // tries again.
+    held->release();
+    const std::lock_guard lock(mutex_);
+    if (const auto it = owned_.find(id); it != owned_.end() && it->second == held) owned_.erase(it);
   }
   EtcdOwner::Claim c = owner_.claim(id);
   if (!c.journal) return false;

@@ -380,6 +380,11 @@ std::uint64_t EtcdJournal::nextSeq() const {
   return next_;
 }
 
+bool EtcdJournal::fenced() const {
+  const std::lock_guard lock(mutex_);
+  return state_ == State::fenced;
+}
+
 void EtcdJournal::append(const std::vector<json>& records) {
   std::string value = json{{"token", token_}, {"records", records}}.dump();
   if (value.size() > owner_.options_.maxChangeBytes)

@@ -104,6 +104,8 @@ class EtcdJournal {
   // holds. A fenced journal stays fenced.
   void resume(const EtcdSessionState& state);
   std::uint64_t nextSeq() const;
+  // Whether it refuses every append for good (fenced by etcd, or while the lease was not live).
+  bool fenced() const;
   std::int64_t token() const { return token_; }
   const std::string& id() const { return id_; }
   // Deletes the owner key (if still this token's): another server may take the session at once.

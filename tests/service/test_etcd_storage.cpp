@@ -6,11 +6,14 @@
 
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
+#include "engine/thread_pool.hpp"
 #include "hub_support.hpp"
 #include "memory_kv.hpp"
 #include "storage_support.hpp"
@@ -148,6 +151,50 @@ TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the sessio
   CHECK(b.result("session.stats")["digest"] == before["digest"]);
   CHECK(b.result("tool.apply", blob(26))["revision"] == before["revision"].get<int>() + 1);
   hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+// MemoryKv whose keep-alives are held up while `stalled` (as by an etcd election: no member
+// answers for a while), then succeed: the lease itself never expires.
+class StallingKv : public MemoryKv {
+ public:
+  std::atomic<bool> stalled{false};
+  std::int64_t leaseKeepAlive(std::int64_t lease) override {
+    while (stalled) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return MemoryKv::leaseKeepAlive(lease);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("etcd storage: a session fenced while its lease was late is claimed again once the lease is renewed, not left unwritable",
+          "[etcd]") {
+  const auto dir = scratch("late");
+  StallingKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  EtcdStorage store(kv, dir, "server-a", opt);
+  REQUIRE(store.acquire("s"));
+  std::unique_ptr<SessionLog> log = store.create("s", {"t", "v"}, makeSphere({16, 16, 16}, {8, 8, 8}, 5));
+  log->append({{"stroke_end", 1}});
+  // No keep-alive answers for longer than the TTL: this server refuses the append, though
+  // etcd keeps the lease, and with it the owner key.
+  kv.stalled = true;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  CHECK_THROWS_AS(log->append({{"stroke_end", 2}}), OwnershipLost);
+  kv.stalled = false;
+  for (int k = 0; k < 300 && !store.owner().leaseHeld(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  REQUIRE(store.owner().leaseHeld());
+  // Loaded again, it takes appends. It used to get the fenced journal back, refusing every
+  // append while the lease lived (and no other server could claim the session).
+  REQUIRE(store.acquire("s"));
+  const Recovered r = store.recover("s", std::size_t(64) << 20, ThreadPool::serial());
+  CHECK(r.replayed == 1);
+  CHECK_NOTHROW(r.journal->append({{"stroke_end", 3}}));
+  CHECK(store.owner().read("s").journal.size() == 2);
+  store.release("s");
   std::filesystem::remove_all(dir);
 }
 
