@@ -9,7 +9,8 @@ Checks, in order:
   kill      SIGKILL the owner: through the proxy, another server acknowledges an edit within
             10 s (reported: takeover time); revision and digest equal the reference replay.
   restart   the killed server, started again under its name, does not load the session another
-            server owns: -32015 with data.owner naming that server.
+            server owns: -32015 with data.owner naming that server, also when HAProxy, with
+            the server back in its rotation, sends the session's clients there.
   pause     SIGSTOP an owner past its lease; another server takes the session and acknowledges
             edits; SIGCONT the old one and send it edits on its old connection: none is
             acknowledged; the journal's tokens never decrease along its sequence keys.
@@ -299,9 +300,34 @@ async def check_kill_and_restart(t, report):
         assert joined["revision"] == s.revision, f"joined at the owner at revision {joined['revision']}"
         assert py.url.startswith(f"ws://{expected}/"), py.url
         await py.leave()
+    # Back in HAProxy's rotation, the restarted server is where the ring sends this session
+    # again, and refuses it while new_owner holds it (README, "Another server's session": the
+    # moved sessions stay with their new owner until it unloads them). What `leader` must wait
+    # out before it relies on the proxy reaching an owner.
+    report["restarted_server_in_rotation_seconds"] = round(await wait_in_rotation(t, owner, TAKEOVER_LIMIT), 2)
+    async with Rpc(t.via_proxy(s.sid)) as again:
+        refused = await again.call("session.join", s.join())
+        assert again.server == owner and refused[0] == "error" and refused[1] == HELD_ELSEWHERE, \
+            f"through the proxy with {owner} back: {again.server} answered {refused}"
+        assert refused[2] and refused[2].get("owner") == expected, f"data.owner {refused[2]}, expected {expected}"
     assert (await s.apply(rpc))[0] == "ok"
     await rpc.__aexit__()
     return s
+
+
+async def wait_in_rotation(t, name, limit):
+    """Waits until HAProxy sends requests to `name` again (requests without ?session= go round
+    robin over the servers it deems up); returns the seconds it took."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < limit:
+        try:
+            with urllib.request.urlopen(f"http://127.0.0.1:{t.proxy_port}/healthz", timeout=1) as r:
+                if r.headers.get("X-Marzipan-Server") == name:
+                    return time.monotonic() - t0
+        except OSError:
+            pass
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"HAProxy sent no request to {name} within {limit} s")
 
 
 def journal_tokens(t, sid):
@@ -356,6 +382,16 @@ async def check_pause(t, report):
 
 
 async def check_etcd_leader_kill(t, report):
+    # The session is created and then joined again through the proxy, which reaches its owner
+    # only while HAProxy's ring stays as it is. A server stopped by `pause` (or restarted by
+    # `kill`) may still be out of the rotation: a session created meanwhile lands elsewhere, and
+    # once that server is back the ring sends every rejoin to it, refused with -32015 while the
+    # owner holds the session (see `restart`). That failed this check once in about a dozen
+    # runs (2026-11-24/25: 242 rejoins in 30 s, each refused by the returned server).
+    t0 = time.monotonic()
+    for name in SERVERS:
+        await wait_in_rotation(t, name, TAKEOVER_LIMIT)
+    report["all_servers_in_rotation_before_leader_seconds"] = round(time.monotonic() - t0, 2)
     s = Session(session_id())
     async with Rpc(t.via_proxy(s.sid)) as rpc:
         created = await rpc.call("session.create", dict(CREATE, session=s.sid))
@@ -380,10 +416,12 @@ async def check_etcd_leader_kill(t, report):
         report["first_edit_after_etcd_leader_kill_seconds"] = round(time.monotonic() - t0, 2)
         report["edits_refused_during_election"] = refused
     # Whether the session stayed or had to be joined again, every acknowledged edit is there.
-    # Not a takeover (the owner kept its session): the limit only bounds the wait, and the time
-    # is reported. Once in about a dozen runs no connection through HAProxy reached any server
-    # for 10 s here (2026-11-24, cause not found): the report shows whether it recurs.
-    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), 3 * TAKEOVER_LIMIT)
+    # Not a takeover (the owner kept its session): the time is reported. The owner may have
+    # refused an edit and closed the session while the election held its keep-alive up past
+    # the TTL (etcd kept the lease); every rejoin then got that refused journal back, each edit
+    # refused, while the lease lived (seen 2026-11-25 under load; EtcdStorage::acquire now
+    # claims such a session afresh, tests/service/test_etcd_storage.cpp).
+    took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
     report["rejoin_after_etcd_leader_kill_seconds"] = round(took, 2)
     for _ in range(5):
         assert (await s.apply(rpc))[0] == "ok"
