@@ -209,6 +209,31 @@ MARZIPAN_BENCH("stroke16_height4") {
         {"ratio_to_no_height", four.median_ms / one.median_ms}});
 }
 
+namespace {
+
+// Dab i of a drag along the great circle of the sphere from dir towards along, `spacing` vu apart.
+StrokeDab dragDab(const Sphere& s, Vec3 dir, Vec3 along, double spacing, int i) {
+  const double angle = spacing * i / s.radius;
+  const Vec3 n = normalized(dir * std::cos(angle) + along * std::sin(angle));
+  return {s.centre + n * s.radius, 1.0, n};
+}
+
+// The median over strokes of each stroke's median message (wall and CPU), with the range of
+// the wall ones.
+Timing acrossStrokes(std::vector<double> ms, std::vector<double> cpu, int reps) {
+  std::sort(ms.begin(), ms.end());
+  std::sort(cpu.begin(), cpu.end());
+  Timing t;
+  t.median_ms = ms[ms.size() / 2];
+  t.min_ms = ms.front();
+  t.max_ms = ms.back();
+  t.reps = reps;
+  t.cpu_median_ms = cpu[cpu.size() / 2];
+  return t;
+}
+
+}  // namespace
+
 // A stroke dragged as the web client sends it (tests/load/marzipan_load.py's web-client mode): a
 // dab per 60 Hz pointer event, 0.63 vu apart along a great circle of the sphere, merged into
 // messages of 12, radius 7; each message carries the stroke's memory of the dabs it applied
@@ -226,7 +251,6 @@ MARZIPAN_BENCH("stroke_drag") {
     Volume v = makeSphere(s.dims, s.centre, s.radius);
     const StrokeSettings st = height == 0 ? StrokeSettings{Brush::AddBlob, r, 1}
                                           : StrokeSettings{Brush::AddBlob, r, 1, height};
-    std::vector<Timing> perStroke;
     std::vector<double> ms, cpu;
     for (int k = 0; k < strokes; ++k) {
       const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
@@ -238,25 +262,13 @@ MARZIPAN_BENCH("stroke_drag") {
           [&] {
             memory.insert(memory.end(), dabs.begin(), dabs.end());
             dabs.clear();
-            for (int i = 0; i < perMessage; ++i, ++placed) {
-              const double angle = spacing * placed / s.radius;
-              const Vec3 n = normalized(dir * std::cos(angle) + along * std::sin(angle));
-              dabs.push_back({s.centre + n * s.radius, 1.0, n});
-            }
+            for (int i = 0; i < perMessage; ++i, ++placed) dabs.push_back(dragDab(s, dir, along, spacing, placed));
           },
           [&] { applyStroke(v, st, dabs, memory, pool); });
-      perStroke.push_back(t);
       ms.push_back(t.median_ms);
       cpu.push_back(t.cpu_median_ms);
     }
-    std::sort(ms.begin(), ms.end());
-    std::sort(cpu.begin(), cpu.end());
-    Timing t;
-    t.median_ms = ms[ms.size() / 2];
-    t.min_ms = ms.front();
-    t.max_ms = ms.back();
-    t.reps = strokes * messages;
-    t.cpu_median_ms = cpu[cpu.size() / 2];
+    const Timing t = acrossStrokes(ms, cpu, strokes * messages);
     emit("stroke_drag", opt.threads, t,
          {{"radius", r}, {"height", height}, {"dabs_per_message", perMessage}, {"messages_per_stroke", messages},
           {"spacing", spacing}, {"ms_per_dab", t.median_ms / perMessage}, {"cpu_ms_per_dab", t.cpu_median_ms / perMessage}});
@@ -281,11 +293,7 @@ MARZIPAN_BENCH("stroke_scrub") {
     const Vec3 dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
     const Vec3 along = normalized(cross(dir, normalized({gauss(rng), gauss(rng), gauss(rng)})));
     std::vector<StrokeDab> path, memory;
-    for (int i = 0; i < perMessage * messages; ++i) {
-      const double angle = spacing * i / s.radius;
-      const Vec3 n = normalized(dir * std::cos(angle) + along * std::sin(angle));
-      path.push_back({s.centre + n * s.radius, 1.0, n});
-    }
+    for (int i = 0; i < perMessage * messages; ++i) path.push_back(dragDab(s, dir, along, spacing, i));
     for (int m = 0; m < messages; ++m) {
       const std::span<const StrokeDab> forth(path.data() + m * perMessage, perMessage);
       applyStroke(v, st, forth, memory, pool);
@@ -302,15 +310,7 @@ MARZIPAN_BENCH("stroke_scrub") {
     ms.push_back(t.median_ms);
     cpu.push_back(t.cpu_median_ms);
   }
-  std::sort(ms.begin(), ms.end());
-  std::sort(cpu.begin(), cpu.end());
-  Timing t;
-  t.median_ms = ms[ms.size() / 2];
-  t.min_ms = ms.front();
-  t.max_ms = ms.back();
-  t.reps = strokes * messages;
-  t.cpu_median_ms = cpu[cpu.size() / 2];
-  emit("stroke_scrub", opt.threads, t,
+  emit("stroke_scrub", opt.threads, acrossStrokes(ms, cpu, strokes * messages),
        {{"radius", r}, {"dabs_per_message", perMessage}, {"messages_back", messages}, {"spacing", spacing}});
 }
 
