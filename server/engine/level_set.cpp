@@ -1454,7 +1454,10 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
           scratch.normalizeBoxes.push_back(b);
           scratch.resetBoxes.push_back(b.grown(reach).intersect(vol.domain()));
         }
-      if (scratch.normalizeBoxes.empty()) continue;  // nothing moved: the field stands
+      if (scratch.normalizeBoxes.empty()) {  // nothing moved: the field stands
+        share.advance(kRedistanceShare / steps);
+        continue;
+      }
       RedistanceOptions options;
       options.resetBoxes = scratch.resetBoxes;
       options.normalizeBoxes = scratch.normalizeBoxes;
@@ -1598,6 +1601,5 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool) {
   e.append(d.changes, d.region);
   return e;
 }
-
 
 }  // namespace marzipan

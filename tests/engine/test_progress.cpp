@@ -151,6 +151,17 @@ TEST_CASE("a stroke cancelled in its second group puts back the first group it a
   }
   CHECK(counted.fraction() == Approx(1.0).epsilon(1e-9));
   CHECK(digest(v) != before);
+
+  // The same dabs again with themselves as the stroke's memory add nothing: no redistance, and
+  // still exactly the call's one unit.
+  const std::uint64_t applied = digest(v);
+  Progress again;
+  {
+    const Progress::Scope scope(again);
+    applyStroke(v, {Brush::AddBlob, 12, 1}, dabs, dabs);
+  }
+  CHECK(again.fraction() == Approx(1.0).epsilon(1e-9));
+  CHECK(digest(v) == applied);
 }
 
 TEST_CASE("a progress reports nothing before its first interval has passed", "[progress]") {
