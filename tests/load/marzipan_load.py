@@ -8,7 +8,8 @@ client receives every splat delta of its session. Each client sculpts strokes as
 drag would: stroke.begin (add_blob, remove_blob, smooth in turn, radius 4-10), stroke.dabs
 messages of 1-4 `ray` dabs sweeping across the model at a steady rate (open loop: a message
 is sent when it is due, whether or not the previous ones were answered), stroke.end after
-1-2 s, then the next stroke.
+1-2 s, then the next stroke. --mode web-client sculpts as the browser does instead (closed
+loop, dabs spaced and picked on the client's splats: sculpt_like_web_client).
 
 Latency of one stroke.dabs: from sending it until its response ("response"), and until the
 first splat delta that shows its revision arrives ("delta", what a user sees). The server's
@@ -33,8 +34,8 @@ targets were met.
 
 Conventions: times are time.monotonic() (system-wide on Linux, so comparable between the
 processes); latencies in milliseconds, memory in MiB (2^20 bytes) and called _mb like the
-server's --max-queue-mb; coordinates in vu of the session's grid, y up. Standard library and
-Debian's python3-websockets only: run it with /usr/bin/python3.
+server's --max-queue-mb; coordinates in vu of the session's grid, y up. Standard library,
+Debian's python3-websockets and python3-numpy only: run it with /usr/bin/python3.
 """
 
 from __future__ import annotations
@@ -62,8 +63,10 @@ import websockets
 
 # The project's Python client package, for the frame decoder and session URLs.
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "protocol" / "python"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from marzipan.client import new_session_id, session_url  # noqa: E402
 from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
+from web_client_model import DAB_SPACING, MIN_DAB_SPACING, DabSpacer, SplatSurface, StrokePicker  # noqa: E402
 
 TOOLS = ("add_blob", "remove_blob", "smooth")
 GOAL_P99_MS = 50.0  # the target p99 of an edit's round trip
@@ -143,11 +146,13 @@ class Drag:
         self._line = (u0, v0, u1, v1)
         self.direction = [round(-c, 4) for c in towards_eye]
 
-    def ray(self, t: float) -> dict:
+    def origin(self, t: float) -> list:
         u0, v0, u1, v1 = self._line
         u, v = u0 + (u1 - u0) * t, v0 + (v1 - v0) * t
-        origin = [round(self._eye[i] + u * self._right[i] + v * self._up[i], 2) for i in range(3)]
-        return {"origin": origin, "direction": self.direction}
+        return [self._eye[i] + u * self._right[i] + v * self._up[i] for i in range(3)]
+
+    def ray(self, t: float) -> dict:
+        return {"origin": [round(c, 2) for c in self.origin(t)], "direction": self.direction}
 
 
 # ------------------------------------------------------------------------------------ clients
@@ -185,6 +190,9 @@ class SessionState:
         # The revisions its clients' dabs messages answered: one per application (the server
         # applies a stroke's queued messages as one, and they answer the same revision).
         self.dab_revisions = set()
+        # Its splats as its creating client receives them (web-client mode with dab spacing):
+        # the surface each stroke picks its dabs on, as a browser does.
+        self.surface = SplatSurface()
 
 
 class LoadClient:
@@ -288,6 +296,9 @@ class LoadClient:
         except FrameError as e:
             self.stats.anomalies[f"bad frame: {e.code.value}"] += 1
             return
+        if self.creator and self.args["mode"] == "web-client" and self.args["dab_spacing"] > 0 \
+                and frame.kind in (FrameKind.SPLATS_FULL, FrameKind.SPLATS_DELTA):
+            self.session.surface.apply(frame.payload, full=frame.kind == FrameKind.SPLATS_FULL)
         if frame.kind == FrameKind.SPLATS_FULL:
             self.stats.full_buffers += 1
             self.last_delta_revision = max(self.last_delta_revision, frame.revision)
@@ -347,12 +358,17 @@ class LoadClient:
             await self.sculpt_open_loop(end)
 
     async def sculpt_like_web_client(self, end: float):
-        """Strokes as web-client/net/stroke-sender.js sends them: a pointer event every display
-        frame (60 Hz) for ~1.5 s makes one dab each; dabs queue until stroke.begin has answered,
-        then every frame and every answer sends all that wait as one stroke.dabs, unless
-        WEB_CLIENT_MAX_IN_FLIGHT messages are unanswered, in which case they wait and merge
-        into a later message. stroke.end follows once the queue is empty and nothing is in
-        flight; the next stroke starts after a short pause (pointer up, move, down)."""
+        """Strokes as the browser makes them (web-client/ui/sculpt.js) and
+        web-client/net/stroke-sender.js sends them: a pointer event every display frame (60 Hz)
+        for ~1.5 s, each picked on the session's splats as they were when the stroke began; the
+        hits become dabs `dab_spacing` of the radius apart along their path (at least 0.25 vu),
+        each put on the surface by a pick under its own interpolated ray and sent as a centre
+        (web_client_model.py). With dab_spacing 0 every pointer event is one `ray` dab instead,
+        picked by the server. Dabs queue until stroke.begin has answered, then every frame and
+        every answer sends all that wait as one stroke.dabs, unless WEB_CLIENT_MAX_IN_FLIGHT
+        messages are unanswered, in which case they wait and merge into a later message.
+        stroke.end follows once the queue is empty and nothing is in flight; the next stroke
+        starts after a short pause (pointer up, move, down)."""
         loop = asyncio.get_running_loop()
         stroke_number = 0
         while time.monotonic() < end:
@@ -361,6 +377,11 @@ class LoadClient:
             params = web_client_stroke_params(tool, round(self.rng.uniform(4, 10), 2),
                                               round(self.rng.uniform(0.3, 0.8), 2))
             drag = Drag(self.rng, self.args["size"])
+            spacer = picker = None
+            if self.args["dab_spacing"] > 0:
+                # The browser picks a stroke's dabs on its splats as they were at the press.
+                picker = StrokePicker(self.session.surface.snapshot(), drag.origin(0), drag.origin(1), drag.direction)
+                spacer = DabSpacer(max(MIN_DAB_SPACING, self.args["dab_spacing"] * params["radius"]))
             frames = max(1, round(self.rng.uniform(0.8, 1.2) * WEB_CLIENT_STROKE_S * WEB_CLIENT_FRAME_HZ))
             queue = []  # (dab, pointer time)
             in_flight = 0
@@ -411,9 +432,18 @@ class LoadClient:
             begun.add_done_callback(begun_done)
             pacer = Pacer(1.0 / WEB_CLIENT_FRAME_HZ, end, self.stats.send_lag)
             async for k in pacer.ticks(frames):
-                if not failed:
-                    queue.append(({"ray": drag.ray((k + 1) / frames),
-                                   "pressure": round(self.rng.uniform(0.5, 1.0), 2)}, time.monotonic()))
+                pressure = round(self.rng.uniform(0.5, 1.0), 2)
+                self.stats.pointer_events += 1
+                if failed:
+                    pass
+                elif spacer is None:
+                    queue.append(({"ray": drag.ray((k + 1) / frames), "pressure": pressure}, time.monotonic()))
+                else:
+                    now = time.monotonic()
+                    for point, dab_pressure, f in spacer.add(picker.pick(drag.origin((k + 1) / frames)), pressure):
+                        if f < 1:  # between two samples: on the surface under its own ray
+                            point = picker.pick(drag.origin((k + f) / frames)) or point
+                        queue.append(({"center": [round(c, 4) for c in point], "pressure": round(dab_pressure, 4)}, now))
                 flush()
             try:
                 await begun
@@ -539,6 +569,7 @@ class WorkerStats:
         self.delta_latency = []
         self.dab_delta_latency = []  # web-client mode: pointer event until the delta showing its dab
         self.dabs_per_message = []  # web-client mode
+        self.pointer_events = 0  # web-client mode
         self.session_dabs_latency = {s: [] for s in sessions}
         self.session_delta_latency = {s: [] for s in sessions}
         self.other_latency = collections.defaultdict(list)
@@ -630,6 +661,7 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
         "unexpected_closes": dict(stats.unexpected_closes), "failures": failures,
         "dabs_latency": stats.dabs_latency, "dabs_sent": stats.dabs_sent, "delta_latency": stats.delta_latency,
         "dab_delta_latency": stats.dab_delta_latency, "dabs_per_message": stats.dabs_per_message,
+        "pointer_events": stats.pointer_events,
         "session_dabs_latency": stats.session_dabs_latency, "session_delta_latency": stats.session_delta_latency,
         "other_latency": dict(stats.other_latency), "send_lag": stats.send_lag, "loop_lag": stats.loop_lag,
         "dabs_applied": stats.dabs_applied, "deltas": stats.deltas, "delta_bytes": stats.delta_bytes,
@@ -812,7 +844,7 @@ def run(args) -> tuple[dict, int]:
     sampler = ProcessSampler(server.pid if server else args.server_pid)
     specs = plan(args)
     shared = {"url": url, "size": args.size, "solid": args.solid, "rate": args.rate, "duration": args.duration,
-              "seed": args.seed, "mode": args.mode}
+              "seed": args.seed, "mode": args.mode, "dab_spacing": args.dab_spacing}
     if args.slow_client:
         specs[0]["slow_session"] = 0
     context = multiprocessing.get_context("spawn")
@@ -927,6 +959,7 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
     dab_delta = percentiles(merged(results, "dab_delta_latency"))
     dabs_per_message = merged(results, "dabs_per_message")
     dabs_sent = sum(dabs_per_message)
+    pointer_events = sum(r["pointer_events"] for r in results)
     applications = sum(r["dab_applications"] for r in results)
     other = {}
     for r in results:
@@ -940,6 +973,7 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "solid": args.solid,
         "mode": args.mode,
         "rate_per_client": args.rate if args.mode == "open-loop" else None,
+        "dab_spacing": args.dab_spacing if args.mode == "web-client" else None,
         "processes": len(specs),
         "duration_s": args.duration,
         "elapsed_s": round(wall, 2),
@@ -955,6 +989,8 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "dabs_applied_per_s": round(dabs_applied / wall, 1),
         "dabs_per_message": None if not dabs_per_message else
         {"mean": round(dabs_sent / len(dabs_per_message), 2), "max": max(dabs_per_message)},
+        "pointer_events": pointer_events if args.mode == "web-client" else None,
+        "dabs_per_pointer_event": round(dabs_sent / pointer_events, 3) if args.mode == "web-client" and pointer_events else None,
         "dab_applications": applications,
         "dabs_per_application": None if not applications else round(dabs_applied / applications, 2),
         "latency_ms": {"response": response, "delta": delta, "dab_delta": dab_delta,
@@ -1012,7 +1048,9 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
 def summary(out: dict) -> str:
     r, d, s, c = out["latency_ms"]["response"], out["latency_ms"]["delta"], out["server"], out["client_side"]
     pace = (f"at {out['rate_per_client']} dab messages/s each" if out["mode"] == "open-loop" else
-            "like the web client (60 Hz pointer, <= 3 messages in flight)")
+            "like the web client (60 Hz pointer, "
+            + (f"dabs {out['dab_spacing']} of the radius apart" if out["dab_spacing"] else "a ray dab per pointer event")
+            + f" ({out['dabs_per_pointer_event']} per event), <= 3 messages in flight)")
     lines = [
         f"{out['clients']} clients on {out['sessions']} sessions of {out['size']}^3 {out['solid']}, "
         f"{out['duration_s']} s {pace}, {out['processes']} client processes",
@@ -1053,8 +1091,13 @@ def main(argv=None) -> int:
     p.add_argument("--sessions", type=int, default=16, help="sessions (default %(default)s)")
     p.add_argument("--duration", type=float, default=60.0, help="seconds of sculpting (default %(default)s)")
     p.add_argument("--mode", choices=("open-loop", "web-client"), default="open-loop",
-                   help="open-loop: stroke.dabs at --rate whatever happens; web-client: 60 Hz pointer "
-                        "dabs merged into messages, at most 3 in flight (default %(default)s)")
+                   help="open-loop: stroke.dabs at --rate whatever happens; web-client: a 60 Hz pointer whose "
+                        "picks are spaced into dabs as the browser does, merged into messages, at most 3 in "
+                        "flight (default %(default)s)")
+    p.add_argument("--dab-spacing", type=float, default=DAB_SPACING,
+                   help="web-client: dabs this fraction of the brush radius apart along the picked path, as the "
+                        "browser spaces them (web-client/ui/sculpt.js); 0: one `ray` dab per pointer event "
+                        "(default %(default)s)")
     p.add_argument("--rate", type=float, default=20.0,
                    help="open-loop: stroke.dabs messages per second per client (default %(default)s)")
     p.add_argument("--size", type=int, default=128, help="grid side of each session (default %(default)s)")
@@ -1072,6 +1115,8 @@ def main(argv=None) -> int:
         p.error("need at least one session and one client per session")
     if args.rate <= 0 or args.duration <= 0:
         p.error("--rate and --duration must be positive")
+    if not 0 <= args.dab_spacing <= 4:
+        p.error("--dab-spacing must be in [0, 4]")
     if args.marzipan is None and (args.max_queue_mb is not None or args.server_arg):
         p.error("--max-queue-mb and --server-arg need --marzipan")
     try:
