@@ -222,8 +222,10 @@ class SweptWindow {
         }
         first = last = begin;
       }
-      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
-      void at(int x) {
+      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row. Inlined:
+      // called from AVX2 code with the upper halves of its registers in use, a call of its own
+      // (legacy SSE code) took 10% of a stroke's time on a Zen 3 (the SSE-AVX mix).
+      [[gnu::always_inline]] void at(int x) {
         const double xd = x;
         const double* lo = arrays->lo.data();
         const double* hi = arrays->hi.data();
@@ -445,11 +447,26 @@ class SweptWindow {
     return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m)));
   }
 
-  // search with four lanes: lanesLargest and memoryLargest four dabs at a time. The largest
-  // window is the same whatever the grouping (only the sign of a zero may differ, and a window
-  // <= 0 moves nothing), and the memory stops at the same dab, the first that reaches w.
   template <bool kAnchored>
   [[gnu::noinline]] __attribute__((target("avx2"))) double searchAvx2(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    return lanesAvx2<kAnchored>(p, q, n, c);
+  }
+
+ public:
+  // Whether search takes searchAvx2 now (then a caller compiled for AVX2 may call lanesAvx2
+  // itself, with the foot point in registers rather than passed through two calls).
+  bool searchesAvx2() const {
+    return lanes_ && simd_width::useAvx2() && !(dabs_.size() == 1 && memory_.empty());
+  }
+  bool anchored() const { return anchor_ != 0; }
+
+  // search with four lanes, c already at p's row (reaches): lanesLargest and memoryLargest four
+  // dabs at a time. The largest window is the same whatever the grouping (only the sign of a
+  // zero may differ, and a window <= 0 moves nothing), and the memory stops at the same dab,
+  // the first that reaches w.
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline double lanesAvx2(Int3 p, Vec3 q, Vec3 n,
+                                                                               Cursor& c) const {
     const __m256d qa[3] = {_mm256_set1_pd(q.x), _mm256_set1_pd(q.y), _mm256_set1_pd(q.z)};
     const __m256d na[3] = {_mm256_set1_pd(n.x), _mm256_set1_pd(n.y), _mm256_set1_pd(n.z)};
     // std::min(0.0, H) and std::max(0.0, H) are +0 where H has the other sign, the zero the
@@ -490,6 +507,8 @@ class SweptWindow {
     }
     return w - largestLane(best);
   }
+
+ private:
 #endif
 
 #if defined(__SSE2__)
@@ -597,11 +616,14 @@ class SweptWindow {
 struct FootPoint {
   Vec3 normal, point;
 };
-FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
+[[gnu::always_inline]] inline FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
   const Vec3 n =
       normalized(GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
   return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
 }
+// footPoint in a call of its own: inlined into collectMoved's loop, it slowed the brush's
+// windows there (a dab: +5% instructions).
+[[gnu::noinline]] FootPoint footPointCall(const DenseGrid& g, std::size_t i, Int3 p) { return footPoint(g, i, p); }
 
 // The voxels evolve moves, in grid index order, cut into runs that follow each other along x
 // (a band is mostly such runs): a run's voxels are read and written four at a time.
@@ -1109,21 +1131,25 @@ void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
   }
 }
 
-// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
-// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
-void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
-                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
-                  const ProgressShare& progress) {
-  // The run being extended and the count, kept out of `out` while the loop runs.
+// Appends listed voxels to a MovedVoxels: the run being extended and the count, kept out of
+// `out` (in registers) while a loop adds.
+struct MovedAppender {
+  MovedVoxels& out;
+  const Motion* m;
   Run run{0, 0, 0};
-  std::uint32_t count = out.count;
-  if (!out.runs.empty()) {
-    run = out.runs.back();
-    out.runs.pop_back();
+  std::uint32_t count;
+
+  // Room for `more` voxels.
+  MovedAppender(MovedVoxels& o, const Motion* motion, std::size_t more) : out(o), m(motion), count(o.count) {
+    if (!out.runs.empty()) {
+      run = out.runs.back();
+      out.runs.pop_back();
+    }
+    sizeSpeeds(out, m, count + more);
   }
-  sizeSpeeds(out, m, count + (end - begin));
-  // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
-  auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
+  // Grid voxel i with window w (nothing when w <= 0). Inlined: once per band voxel of a
+  // whole-volume pass, a call cost as much as its body.
+  [[gnu::always_inline]] void add(std::size_t i, double w) {
     if (w <= 0) return;
     if (m) {
       setSpeed(out, count, *m, w);
@@ -1138,7 +1164,49 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       run = {std::uint32_t(i), count, 1};
     }
     ++count;
-  };
+  }
+  void finish() {
+    if (run.count != 0) out.runs.push_back(run);
+    out.count = count;
+    sizeSpeeds(out, m, count);
+  }
+};
+
+#if defined(MARZIPAN_AVX2)
+// collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):
+// the same voxels, foot points and search (footPoint and lanesAvx2 inlined), so the same list.
+template <bool kAnchored>
+__attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const Box& region, float band,
+                                                      const SweptWindow& window, const BandVoxels& voxels,
+                                                      std::size_t begin, std::size_t end, MovedVoxels& out,
+                                                      const Motion* m, const ProgressShare& progress) {
+  MovedAppender add(out, m, end - begin);
+  SweptWindow::Cursor cursor;
+  for (std::size_t k = begin; k < end; ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p) || !window.reaches(p, cursor)) continue;
+    const FootPoint f = footPoint(g, i, p);
+    add.add(i, window.lanesAvx2<kAnchored>(p, f.point, f.normal, cursor));
+  }
+  add.finish();
+}
+#endif
+
+// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
+// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
+                  const ProgressShare& progress) {
+#if defined(MARZIPAN_AVX2)
+  if (window && window->searchesAvx2()) {
+    if (window->anchored()) return collectLanesAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);
+    return collectLanesAvx2<false>(g, region, band, *window, voxels, begin, end, out, m, progress);
+  }
+#endif
+  MovedAppender add(out, m, end - begin);
   SweptWindow::Cursor cursor;
 #if defined(__SSE2__)
   // A brush's windows two voxels at a time (the square root and divisions of the foot point
@@ -1162,8 +1230,8 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       if (++pendingCount == 2) {
         double w[2];
         brushWindows(g, pending, pendingPoint, *brush, window->inverseRadius(), w);
-        add(pending[0], w[0]);
-        add(pending[1], w[1]);
+        add.add(pending[0], w[0]);
+        add.add(pending[1], w[1]);
         pendingCount = 0;
       }
       continue;
@@ -1172,20 +1240,18 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     double w = 1;
     if (window) {
       if (!window->reaches(p, cursor)) continue;
-      const FootPoint f = footPoint(g, i, p);
+      const FootPoint f = footPointCall(g, i, p);
       w = window->at(p, f.point, f.normal, cursor);
     }
-    add(i, w);
+    add.add(i, w);
   }
 #if defined(__SSE2__)
   if (pendingCount == 1) {
-    const FootPoint f = footPoint(g, pending[0], pendingPoint[0]);
-    add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
+    const FootPoint f = footPointCall(g, pending[0], pendingPoint[0]);
+    add.add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
   }
 #endif
-  if (run.count != 0) out.runs.push_back(run);
-  out.count = count;
-  sizeSpeeds(out, m, count);
+  add.finish();
 }
 
 // Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
