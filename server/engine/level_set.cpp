@@ -235,11 +235,18 @@ class SweptWindow {
       }
       // The dab (index into the list's dabs) in lane j, one of the row's `row`.
       std::uint32_t dab(const std::vector<std::uint32_t>& row, std::size_t j) const { return row[j - begin]; }
+      // The lane of dab d (an index into the list's dabs) if it is one of the row's `row`, else kNoLane.
+      std::size_t lane(const std::vector<std::uint32_t>& row, std::size_t d) const {
+        const auto it = std::lower_bound(row.begin(), row.end(), d);
+        return it != row.end() && *it == d ? begin + std::size_t(it - row.begin()) : kNoLane;
+      }
     } dabLanes, memoryLanes;
+    static constexpr std::size_t kNoLane = std::numeric_limits<std::size_t>::max();
     // The memory dab (index into memory_) last found to reach the message's
     // window at a voxel: tried first at the next (behind a stroke's new dabs, the memory
     // mostly reaches them, and one dab near the voxel shows it).
     std::size_t reached = std::numeric_limits<std::size_t>::max();
+    std::size_t reachedLane = kNoLane;  // its lane in memoryLanes, if it is one of the row's
 #endif
   };
 
@@ -305,6 +312,7 @@ class SweptWindow {
     if (lanes_) {
       c.dabLanes.list(dabs_, c.dabs, allDabs_, anchor_ != 0);
       c.memoryLanes.list(memory_, c.memory, allMemory_, anchor_ != 0);
+      c.reachedLane = c.memoryLanes.lane(c.memory, c.reached);
     }
 #endif
   }
@@ -391,6 +399,7 @@ class SweptWindow {
       if (const int hit = _mm_movemask_pd(_mm_cmpge_pd(m, enough))) {
         const std::size_t lane = hit & 1 ? 0 : 1;
         c.reached = l.dab(c.memory, j + lane);
+        c.reachedLane = j + lane;
         return lane == 0 ? _mm_cvtsd_f64(m) : _mm_cvtsd_f64(_mm_unpackhi_pd(m, m));
       }
       best = _mm_max_pd(best, m);
@@ -441,6 +450,22 @@ class SweptWindow {
     return _mm256_and_pd(inside, w);
   }
 
+  // Whether one of the memory's windows m in lanes j to j + 3 reaches w: then excess is w less
+  // the first such, and c remembers its dab.
+  [[gnu::always_inline]] __attribute__((target("avx2"))) static inline bool reaching(Cursor& c, std::size_t j, __m256d m,
+                                                                                 __m256d enough, double w,
+                                                                                 double& excess) {
+    const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS));
+    if (!hit) return false;
+    const std::size_t lane = j + std::size_t(__builtin_ctz(unsigned(hit)));
+    c.reached = c.memoryLanes.dab(c.memory, lane);
+    c.reachedLane = lane;
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, m);
+    excess = w - lanes[lane - j];
+    return true;
+  }
+
   // The largest of the four lanes.
   [[gnu::always_inline]] __attribute__((target("avx2"))) static inline double largestLane(__m256d v) {
     const __m128d m = _mm_max_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
@@ -462,8 +487,8 @@ class SweptWindow {
 
   // search with four lanes, c already at p's row (reaches): lanesLargest and memoryLargest four
   // dabs at a time. The largest window is the same whatever the grouping (only the sign of a
-  // zero may differ, and a window <= 0 moves nothing), and the memory stops at the same dab,
-  // the first that reaches w.
+  // zero may differ, and a window <= 0 moves nothing). The memory stops at a dab that reaches w,
+  // not always memoryLargest's: the result is then <= 0 all the same, and the voxel does not move.
   template <bool kAnchored>
   [[gnu::always_inline]] __attribute__((target("avx2"))) inline double lanesAvx2(Int3 p, Vec3 q, Vec3 n,
                                                                                Cursor& c) const {
@@ -482,27 +507,22 @@ class SweptWindow {
       best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na, back, _mm256_cmp_pd(at, last, _CMP_LT_OS)));
     const double w = largestLane(best);
     if (w <= 0 || c.memory.empty()) return w;
-    if (c.reached < memory_.size()) {
-      const PreparedDab& d = memory_[c.reached];
-      if (d.roi.contains(p)) {
-        const double m = window(d, q, n, 0);
-        if (m >= w) return w - m;
-      }
-    }
     Cursor::Lanes& ml = c.memoryLanes;
     ml.at(p.x);
     const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
+    double excess;
+    // The lanes from the one that reached w at a voxel before, in lanes rather than by window(): a
+    // call of legacy-SSE code from here cost as much as the search (the SSE-AVX mix). Its lanes
+    // past ml.last are masked: any lane that reaches w is one whose ROI holds p.
+    if (const std::size_t j = c.reachedLane; j >= ml.first && j < ml.last) {
+      const __m256d inside = _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(double(j)), offsets), memoryLast, _CMP_LT_OS);
+      if (reaching(c, j, quadWindows<kAnchored>(ml, j, qa, na, back, inside), enough, w, excess)) return excess;
+    }
     best = _mm256_setzero_pd();
     at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
     for (std::size_t j = ml.first; j < ml.last; j += 4, at = _mm256_add_pd(at, four)) {
       const __m256d m = quadWindows<kAnchored>(ml, j, qa, na, back, _mm256_cmp_pd(at, memoryLast, _CMP_LT_OS));
-      if (const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS))) {
-        const int lane = __builtin_ctz(unsigned(hit));
-        c.reached = ml.dab(c.memory, j + std::size_t(lane));
-        alignas(32) double lanes[4];
-        _mm256_store_pd(lanes, m);
-        return w - lanes[lane];
-      }
+      if (reaching(c, j, m, enough, w, excess)) return excess;
       best = _mm256_max_pd(best, m);
     }
     return w - largestLane(best);
