@@ -249,7 +249,7 @@ class SweptWindow {
       }
       // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row. Inlined:
       // called from AVX2 code with the upper halves of its registers in use, a call of its own
-      // (legacy SSE code) took 10% of a stroke's time on a Zen 3 (the SSE-AVX mix).
+      // (legacy SSE code) took 10% of stroke_drag's CPU on a Zen 3 (the SSE-AVX mix).
       [[gnu::always_inline]] void at(int x) {
         const double xd = x;
         const double* lo = arrays->lo.data();
@@ -536,9 +536,9 @@ class SweptWindow {
     ml.at(p.x);
     const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
     double excess;
-    // The lanes from the one that reached w at a voxel before, in lanes rather than by window(): a
-    // call of legacy-SSE code from here cost as much as the search (the SSE-AVX mix). Its lanes
-    // past ml.last are masked: any lane that reaches w is one whose ROI holds p.
+    // The lanes from the one that reached w at a voxel before, in lanes rather than by window():
+    // that call of legacy-SSE code from here took 7% of stroke_drag's CPU on a Zen 3 (the SSE-AVX
+    // mix). Its lanes past ml.last are masked: any lane that reaches w is one whose ROI holds p.
     if (const std::size_t j = c.reachedLane; j >= ml.first && j < ml.last) {
       const __m256d inside = _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(double(j)), offsets), memoryLast, _CMP_LT_OS);
       if (reaching(c, j, quadWindows<kAnchored>(ml, j, qa, na, back, inside), enough, w, excess)) return excess;
