@@ -173,6 +173,17 @@ class SweptWindow {
       allMemory_.fill(memory_, nullptr, memory_.size(), anchor_ != 0);
     }
 #endif
+    for (int k = 0; k < 2; ++k) {
+      const std::vector<PreparedDab>& v = k == 0 ? dabs_ : memory_;
+      for (auto* order : {&byLoY_[k], &byHiY_[k]}) {
+        order->resize(v.size());
+        for (std::size_t i = 0; i < v.size(); ++i) (*order)[i] = std::uint32_t(i);
+      }
+      std::sort(byLoY_[k].begin(), byLoY_[k].end(),
+                [&](std::uint32_t a, std::uint32_t b) { return v[a].roi.lo.y < v[b].roi.lo.y; });
+      std::sort(byHiY_[k].begin(), byHiY_[k].end(),
+                [&](std::uint32_t a, std::uint32_t b) { return v[a].roi.hi.y < v[b].roi.hi.y; });
+    }
   }
 
   // A caller's walk over the voxels of a grid in index order (rows along x): the dabs whose ROI
@@ -192,7 +203,21 @@ class SweptWindow {
     int until = 0;                            // the lists hold for rows of slice z up to this y
     std::vector<std::uint32_t> rowDabs, rowMemory;  // scratch: the next row's lists
     int sliceZ = std::numeric_limits<int>::min();    // the slice whose dabs the next lists hold
-    std::vector<std::uint32_t> sliceDabs, sliceMemory;  // indices of the dabs whose ROI holds slice sliceZ
+    // The dabs (the memory) whose ROI holds slice sliceZ, and of those the ones whose ROI holds
+    // the row last listed, kept as the rows go up: a row's list is read off a set that changes
+    // only where a ROI begins or ends, rather than testing every dab of the slice (along a
+    // stroke a ROI begins or ends at nearly every row, and those tests took a third of newRow's
+    // time, newRow an eighth of the listing's).
+    struct RowSet {
+      struct Event {
+        int y;  // where the dab's ROI begins (enter) or ends (leave) along y
+        std::uint32_t dab;
+      };
+      std::vector<Event> enter, leave;          // the slice's dabs by their ROI's lo.y, by its hi.y
+      std::size_t entered = 0, left = 0;        // how many of each lie at or below the row
+      std::vector<std::uint64_t> holds;         // bit d: dab d's ROI holds the row
+      int y = std::numeric_limits<int>::min();  // the row
+    } sliceDabs, sliceMemory;
 #if defined(__SSE2__)
     // The row's dabs and memory as lanes (lanes_), in the order of their centres' x
     // (boxAround's bounds and the domain's clipping only grow with the centre, and the dabs of a
@@ -222,8 +247,10 @@ class SweptWindow {
         }
         first = last = begin;
       }
-      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row.
-      void at(int x) {
+      // Moves [first, last) to the dabs whose ROI holds x; x only grows along a row. Inlined:
+      // called from AVX2 code with the upper halves of its registers in use, a call of its own
+      // (legacy SSE code) took 10% of stroke_drag's CPU on a Zen 3 (the SSE-AVX mix).
+      [[gnu::always_inline]] void at(int x) {
         const double xd = x;
         const double* lo = arrays->lo.data();
         const double* hi = arrays->hi.data();
@@ -233,11 +260,18 @@ class SweptWindow {
       }
       // The dab (index into the list's dabs) in lane j, one of the row's `row`.
       std::uint32_t dab(const std::vector<std::uint32_t>& row, std::size_t j) const { return row[j - begin]; }
+      // The lane of dab d (an index into the list's dabs) if it is one of the row's `row`, else kNoLane.
+      std::size_t lane(const std::vector<std::uint32_t>& row, std::size_t d) const {
+        const auto it = std::lower_bound(row.begin(), row.end(), d);
+        return it != row.end() && *it == d ? begin + std::size_t(it - row.begin()) : kNoLane;
+      }
     } dabLanes, memoryLanes;
+    static constexpr std::size_t kNoLane = std::numeric_limits<std::size_t>::max();
     // The memory dab (index into memory_) last found to reach the message's
     // window at a voxel: tried first at the next (behind a stroke's new dabs, the memory
     // mostly reaches them, and one dab near the voxel shows it).
     std::size_t reached = std::numeric_limits<std::size_t>::max();
+    std::size_t reachedLane = kNoLane;  // its lane in memoryLanes, if it is one of the row's
 #endif
   };
 
@@ -282,12 +316,12 @@ class SweptWindow {
     // Most rows hold the dabs of the row before: the lists stay.
     if (p.z != c.sliceZ) {  // a row's dabs are searched among its slice's
       c.sliceZ = p.z;
-      sliceDabs(dabs_, p.z, c.sliceDabs);
-      sliceDabs(memory_, p.z, c.sliceMemory);
+      sliceDabs(dabs_, byLoY_[0], byHiY_[0], p.z, c.sliceDabs);
+      sliceDabs(memory_, byLoY_[1], byHiY_[1], p.z, c.sliceMemory);
     }
     c.until = std::numeric_limits<int>::max();
-    rowDabs(dabs_, c.sliceDabs, p, c.rowDabs, c.until);
-    rowDabs(memory_, c.sliceMemory, p, c.rowMemory, c.until);
+    rowDabs(c.sliceDabs, p.y, c.rowDabs, c.until);
+    rowDabs(c.sliceMemory, p.y, c.rowMemory, c.until);
     if (c.rowDabs == c.dabs && c.rowMemory == c.memory && c.listed) return;
     c.listed = true;
     std::swap(c.rowDabs, c.dabs);
@@ -303,6 +337,7 @@ class SweptWindow {
     if (lanes_) {
       c.dabLanes.list(dabs_, c.dabs, allDabs_, anchor_ != 0);
       c.memoryLanes.list(memory_, c.memory, allMemory_, anchor_ != 0);
+      c.reachedLane = c.memoryLanes.lane(c.memory, c.reached);
     }
 #endif
   }
@@ -389,6 +424,7 @@ class SweptWindow {
       if (const int hit = _mm_movemask_pd(_mm_cmpge_pd(m, enough))) {
         const std::size_t lane = hit & 1 ? 0 : 1;
         c.reached = l.dab(c.memory, j + lane);
+        c.reachedLane = j + lane;
         return lane == 0 ? _mm_cvtsd_f64(m) : _mm_cvtsd_f64(_mm_unpackhi_pd(m, m));
       }
       best = _mm_max_pd(best, m);
@@ -439,17 +475,48 @@ class SweptWindow {
     return _mm256_and_pd(inside, w);
   }
 
+  // Whether one of the memory's windows m in lanes j to j + 3 reaches w: then excess is w less
+  // the first such, and c remembers its dab.
+  [[gnu::always_inline]] __attribute__((target("avx2"))) static inline bool reaching(Cursor& c, std::size_t j, __m256d m,
+                                                                                 __m256d enough, double w,
+                                                                                 double& excess) {
+    const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS));
+    if (!hit) return false;
+    const std::size_t lane = j + std::size_t(__builtin_ctz(unsigned(hit)));
+    c.reached = c.memoryLanes.dab(c.memory, lane);
+    c.reachedLane = lane;
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, m);
+    excess = w - lanes[lane - j];
+    return true;
+  }
+
   // The largest of the four lanes.
   [[gnu::always_inline]] __attribute__((target("avx2"))) static inline double largestLane(__m256d v) {
     const __m128d m = _mm_max_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
     return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m)));
   }
 
-  // search with four lanes: lanesLargest and memoryLargest four dabs at a time. The largest
-  // window is the same whatever the grouping (only the sign of a zero may differ, and a window
-  // <= 0 moves nothing), and the memory stops at the same dab, the first that reaches w.
   template <bool kAnchored>
   [[gnu::noinline]] __attribute__((target("avx2"))) double searchAvx2(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
+    return lanesAvx2<kAnchored>(p, q, n, c);
+  }
+
+ public:
+  // Whether search takes searchAvx2 now (then a caller compiled for AVX2 may call lanesAvx2
+  // itself, with the foot point in registers rather than passed through two calls).
+  bool searchesAvx2() const {
+    return lanes_ && simd_width::useAvx2() && !(dabs_.size() == 1 && memory_.empty());
+  }
+  bool anchored() const { return anchor_ != 0; }
+
+  // search with four lanes, c already at p's row (reaches): lanesLargest and memoryLargest four
+  // dabs at a time. The largest window is the same whatever the grouping (only the sign of a
+  // zero may differ, and a window <= 0 moves nothing). The memory stops at a dab that reaches w,
+  // not always memoryLargest's: the result is then <= 0 all the same, and the voxel does not move.
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline double lanesAvx2(Int3 p, Vec3 q, Vec3 n,
+                                                                               Cursor& c) const {
     const __m256d qa[3] = {_mm256_set1_pd(q.x), _mm256_set1_pd(q.y), _mm256_set1_pd(q.z)};
     const __m256d na[3] = {_mm256_set1_pd(n.x), _mm256_set1_pd(n.y), _mm256_set1_pd(n.z)};
     // std::min(0.0, H) and std::max(0.0, H) are +0 where H has the other sign, the zero the
@@ -465,31 +532,28 @@ class SweptWindow {
       best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na, back, _mm256_cmp_pd(at, last, _CMP_LT_OS)));
     const double w = largestLane(best);
     if (w <= 0 || c.memory.empty()) return w;
-    if (c.reached < memory_.size()) {
-      const PreparedDab& d = memory_[c.reached];
-      if (d.roi.contains(p)) {
-        const double m = window(d, q, n, 0);
-        if (m >= w) return w - m;
-      }
-    }
     Cursor::Lanes& ml = c.memoryLanes;
     ml.at(p.x);
     const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
+    double excess;
+    // The lanes from the one that reached w at a voxel before, in lanes rather than by window():
+    // that call of legacy-SSE code from here took 7% of stroke_drag's CPU on a Zen 3 (the SSE-AVX
+    // mix). Its lanes past ml.last are masked: any lane that reaches w is one whose ROI holds p.
+    if (const std::size_t j = c.reachedLane; j >= ml.first && j < ml.last) {
+      const __m256d inside = _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(double(j)), offsets), memoryLast, _CMP_LT_OS);
+      if (reaching(c, j, quadWindows<kAnchored>(ml, j, qa, na, back, inside), enough, w, excess)) return excess;
+    }
     best = _mm256_setzero_pd();
     at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
     for (std::size_t j = ml.first; j < ml.last; j += 4, at = _mm256_add_pd(at, four)) {
       const __m256d m = quadWindows<kAnchored>(ml, j, qa, na, back, _mm256_cmp_pd(at, memoryLast, _CMP_LT_OS));
-      if (const int hit = _mm256_movemask_pd(_mm256_cmp_pd(m, enough, _CMP_GE_OS))) {
-        const int lane = __builtin_ctz(unsigned(hit));
-        c.reached = ml.dab(c.memory, j + std::size_t(lane));
-        alignas(32) double lanes[4];
-        _mm256_store_pd(lanes, m);
-        return w - lanes[lane];
-      }
+      if (reaching(c, j, m, enough, w, excess)) return excess;
       best = _mm256_max_pd(best, m);
     }
     return w - largestLane(best);
   }
+
+ private:
 #endif
 
 #if defined(__SSE2__)
@@ -520,28 +584,46 @@ class SweptWindow {
     return w - strongest(memory_, c.memory, p.x, q, n, w, c.remembered);
   }
 
-  // The dabs whose ROI holds slice z, in their order.
-  static void sliceDabs(const std::vector<PreparedDab>& dabs, int z, std::vector<std::uint32_t>& out) {
-    out.clear();
-    for (std::size_t i = 0; i < dabs.size(); ++i)
-      if (z >= dabs[i].roi.lo.z && z < dabs[i].roi.hi.z) out.push_back(std::uint32_t(i));
+  // s: the dabs of `dabs` whose ROI holds slice z (byLoY, byHiY: all of them by their ROI's lo.y,
+  // by its hi.y), none of them yet holding a row.
+  static void sliceDabs(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& byLoY,
+                        const std::vector<std::uint32_t>& byHiY, int z, Cursor::RowSet& s) {
+    s.enter.clear();
+    s.leave.clear();
+    for (const std::uint32_t i : byLoY)
+      if (const Box& b = dabs[i].roi; z >= b.lo.z && z < b.hi.z) s.enter.push_back({b.lo.y, i});
+    for (const std::uint32_t i : byHiY)
+      if (const Box& b = dabs[i].roi; z >= b.lo.z && z < b.hi.z) s.leave.push_back({b.hi.y, i});
+    s.entered = s.left = 0;
+    s.holds.assign((dabs.size() + 63) / 64, 0);
+    s.y = std::numeric_limits<int>::min();
   }
 
-  // The dabs of p's slice (`slice`, from sliceDabs) whose ROI holds p's row, and `until` lowered
-  // to the first y past p.y where a ROI begins or ends in p's slice (rows of the slice before it
-  // hold the same dabs).
-  static void rowDabs(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& slice, Int3 p,
-                      std::vector<std::uint32_t>& out, int& until) {
-    out.clear();
-    for (const std::uint32_t i : slice) {
-      const Box& b = dabs[i].roi;
-      if (p.y < b.lo.y) {
-        until = std::min(until, b.lo.y);
-      } else if (p.y < b.hi.y) {
-        out.push_back(std::uint32_t(i));
-        until = std::min(until, b.hi.y);
-      }
+  // The dabs of s's slice whose ROI holds row y, in their order, and `until` lowered to the
+  // first y past it where a ROI begins or ends in the slice (rows of the slice before it hold
+  // the same dabs). The rows mostly come up the slice; one further down starts it over.
+  static void rowDabs(Cursor::RowSet& s, int y, std::vector<std::uint32_t>& out, int& until) {
+    if (y < s.y) {
+      s.entered = s.left = 0;
+      std::fill(s.holds.begin(), s.holds.end(), 0);
     }
+    s.y = y;
+    // Every ROI that begins at or below y, then every one that ends there: one that lies wholly
+    // below y goes in and out.
+    for (; s.entered < s.enter.size() && s.enter[s.entered].y <= y; ++s.entered) {
+      const std::uint32_t d = s.enter[s.entered].dab;
+      s.holds[d >> 6] |= std::uint64_t(1) << (d & 63);
+    }
+    for (; s.left < s.leave.size() && s.leave[s.left].y <= y; ++s.left) {
+      const std::uint32_t d = s.leave[s.left].dab;
+      s.holds[d >> 6] &= ~(std::uint64_t(1) << (d & 63));
+    }
+    if (s.entered < s.enter.size()) until = std::min(until, s.enter[s.entered].y);
+    if (s.left < s.leave.size()) until = std::min(until, s.leave[s.left].y);
+    out.clear();
+    for (std::size_t w = 0; w < s.holds.size(); ++w)
+      for (std::uint64_t bits = s.holds[w]; bits != 0; bits &= bits - 1)
+        out.push_back(std::uint32_t(w * 64 + std::size_t(__builtin_ctzll(bits))));
   }
 
   // Dab d's window weight * W at foot point q (normal n), or a value <= best as soon as it
@@ -587,6 +669,8 @@ class SweptWindow {
   double inverseRadius_, anchor_;
   std::vector<PreparedDab> dabs_, memory_;
   bool lanes_ = false;  // SSE2 searches the lanes (Cursor::Lanes)
+  // Indices into dabs_ ([0]) and memory_ ([1]) by their ROI's lo.y, and by its hi.y (RowSet).
+  std::vector<std::uint32_t> byLoY_[2], byHiY_[2];
 #if defined(__SSE2__)
   LaneArrays allDabs_, allMemory_;  // lanes_: dabs_ and memory_ as lanes
 #endif
@@ -597,11 +681,14 @@ class SweptWindow {
 struct FootPoint {
   Vec3 normal, point;
 };
-FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
+[[gnu::always_inline]] inline FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
   const Vec3 n =
       normalized(GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
   return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
 }
+// footPoint in a call of its own: inlined into collectMoved's loop, it slowed the brush's
+// windows there (a dab: +5% instructions).
+[[gnu::noinline]] FootPoint footPointCall(const DenseGrid& g, std::size_t i, Int3 p) { return footPoint(g, i, p); }
 
 // The voxels evolve moves, in grid index order, cut into runs that follow each other along x
 // (a band is mostly such runs): a run's voxels are read and written four at a time.
@@ -1109,21 +1196,25 @@ void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
   }
 }
 
-// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
-// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
-void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
-                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
-                  const ProgressShare& progress) {
-  // The run being extended and the count, kept out of `out` while the loop runs.
+// Appends listed voxels to a MovedVoxels: the run being extended and the count, kept out of
+// `out` (in registers) while a loop adds.
+struct MovedAppender {
+  MovedVoxels& out;
+  const Motion* m;
   Run run{0, 0, 0};
-  std::uint32_t count = out.count;
-  if (!out.runs.empty()) {
-    run = out.runs.back();
-    out.runs.pop_back();
+  std::uint32_t count;
+
+  // Room for `more` voxels.
+  MovedAppender(MovedVoxels& o, const Motion* motion, std::size_t more) : out(o), m(motion), count(o.count) {
+    if (!out.runs.empty()) {
+      run = out.runs.back();
+      out.runs.pop_back();
+    }
+    sizeSpeeds(out, m, count + more);
   }
-  sizeSpeeds(out, m, count + (end - begin));
-  // Inlined: once per band voxel of a whole-volume pass, a call cost as much as its body.
-  auto add = [&](std::size_t i, double w) __attribute__((always_inline)) {
+  // Grid voxel i with window w (nothing when w <= 0). Inlined: once per band voxel of a
+  // whole-volume pass, a call cost as much as its body.
+  [[gnu::always_inline]] void add(std::size_t i, double w) {
     if (w <= 0) return;
     if (m) {
       setSpeed(out, count, *m, w);
@@ -1138,7 +1229,49 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       run = {std::uint32_t(i), count, 1};
     }
     ++count;
-  };
+  }
+  void finish() {
+    if (run.count != 0) out.runs.push_back(run);
+    out.count = count;
+    sizeSpeeds(out, m, count);
+  }
+};
+
+#if defined(MARZIPAN_AVX2)
+// collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):
+// the same voxels, foot points and search (footPoint and lanesAvx2 inlined), so the same list.
+template <bool kAnchored>
+__attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const Box& region, float band,
+                                                      const SweptWindow& window, const BandVoxels& voxels,
+                                                      std::size_t begin, std::size_t end, MovedVoxels& out,
+                                                      const Motion* m, const ProgressShare& progress) {
+  MovedAppender add(out, m, end - begin);
+  SweptWindow::Cursor cursor;
+  for (std::size_t k = begin; k < end; ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p) || !window.reaches(p, cursor)) continue;
+    const FootPoint f = footPoint(g, i, p);
+    add.add(i, window.lanesAvx2<kAnchored>(p, f.point, f.normal, cursor));
+  }
+  add.finish();
+}
+#endif
+
+// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
+// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
+                  const ProgressShare& progress) {
+#if defined(MARZIPAN_AVX2)
+  if (window && window->searchesAvx2()) {
+    if (window->anchored()) return collectLanesAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);
+    return collectLanesAvx2<false>(g, region, band, *window, voxels, begin, end, out, m, progress);
+  }
+#endif
+  MovedAppender add(out, m, end - begin);
   SweptWindow::Cursor cursor;
 #if defined(__SSE2__)
   // A brush's windows two voxels at a time (the square root and divisions of the foot point
@@ -1162,8 +1295,8 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
       if (++pendingCount == 2) {
         double w[2];
         brushWindows(g, pending, pendingPoint, *brush, window->inverseRadius(), w);
-        add(pending[0], w[0]);
-        add(pending[1], w[1]);
+        add.add(pending[0], w[0]);
+        add.add(pending[1], w[1]);
         pendingCount = 0;
       }
       continue;
@@ -1172,20 +1305,18 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     double w = 1;
     if (window) {
       if (!window->reaches(p, cursor)) continue;
-      const FootPoint f = footPoint(g, i, p);
+      const FootPoint f = footPointCall(g, i, p);
       w = window->at(p, f.point, f.normal, cursor);
     }
-    add(i, w);
+    add.add(i, w);
   }
 #if defined(__SSE2__)
   if (pendingCount == 1) {
-    const FootPoint f = footPoint(g, pending[0], pendingPoint[0]);
-    add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
+    const FootPoint f = footPointCall(g, pending[0], pendingPoint[0]);
+    add.add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
   }
 #endif
-  if (run.count != 0) out.runs.push_back(run);
-  out.count = count;
-  sizeSpeeds(out, m, count);
+  add.finish();
 }
 
 // Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
