@@ -139,13 +139,16 @@ struct ListPiece {
   std::vector<std::uint32_t> farUnknown;
   std::size_t keptCount = 0, farCount = 0;
   // Scratch of the pass: the moved boxes near the current z-slice (with the rows [yFrom, yTo]
-  // within reach of them) and row.
+  // within reach of them, and their NearBox for the slice: a row adds only dy^2, as a stroke's
+  // rows hold a few voxels each and rebuilding the boxes per row cost a quarter of the pass)
+  // and row (the first nearCount of near).
   struct NearZ {
-    std::uint32_t box;
-    int dz2, yFrom, yTo;
+    NearBox slice;
+    int yFrom, yTo, yLo, yHi;
   };
   std::vector<NearZ> nearZ;
   std::vector<NearBox> near;
+  std::size_t nearCount = 0;
 };
 
 // One piece (z-slab) of the flags pass: for the current z-slice, the two bytes of every
@@ -565,21 +568,24 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
           // The rows within reach: cell distance dy up to w on y.
           int w = 0;
           while (double((w + 1) * (w + 1) + dz * dz) < reach * reach) ++w;
-          out.nearZ.push_back({std::uint32_t(b), dz * dz, m.yLo - w, m.yHi + w});
+          out.nearZ.push_back({{moved[b].lo.x - 1, moved[b].hi.x, dz * dz, &m}, m.yLo - w, m.yHi + w, m.yLo, m.yHi});
         }
+        if (out.near.size() < out.nearZ.size()) out.near.resize(out.nearZ.size());
       }
       rowY = p.y;
-      out.near.clear();
+      NearBox* const near = out.near.data();
+      std::size_t count = 0;
       for (const ListPiece::NearZ& n : out.nearZ) {
         if (p.y < n.yFrom || p.y > n.yTo) continue;
-        const MovedBox& m = s.moved[n.box];
-        const int dy = cellDistance(p.y, m.yLo, m.yHi);
-        out.near.push_back({moved[n.box].lo.x - 1, moved[n.box].hi.x, dy * dy + n.dz2, &m});
+        const int dy = cellDistance(p.y, n.yLo, n.yHi);
+        near[count] = n.slice;
+        near[count++].yz2 += dy * dy;
       }
+      out.nearCount = count;
     };
     auto nearRow = [&](Int3 p) __attribute__((always_inline)) -> std::span<const NearBox> {
       if (p.y != rowY || p.z != rowZ) newRow(p);
-      return out.near;
+      return {out.near.data(), out.nearCount};
     };
     const std::uint32_t* const index = list->index.data();
     const Int3* const point = list->point.data();
