@@ -434,11 +434,9 @@ class LoadClient:
             async for k in pacer.ticks(frames):
                 pressure = round(self.rng.uniform(0.5, 1.0), 2)
                 self.stats.pointer_events += 1
-                if failed:
-                    pass
-                elif spacer is None:
+                if not failed and spacer is None:
                     queue.append(({"ray": drag.ray((k + 1) / frames), "pressure": pressure}, time.monotonic()))
-                else:
+                elif not failed:
                     now = time.monotonic()
                     for point, dab_pressure, f in spacer.add(picker.pick(drag.origin((k + 1) / frames)), pressure):
                         if f < 1:  # between two samples: on the surface under its own ray
