@@ -91,13 +91,13 @@ def decode_points(bricks):
 
 
 class SurfaceSnapshot:
-    """The bricks of a SplatSurface at one moment, with their boxes as arrays for picking."""
+    """The bricks of a SplatSurface at one moment, with the centres of their points' reach
+    ([8 b - 2, 8 b + 10) per axis) as an array for picking."""
 
     def __init__(self, bricks):
         self.bricks = bricks
         keys = np.array([b.key for b in bricks], dtype=np.float64).reshape(-1, 3)
-        self.lo = keys * _BRICK + _REACH_LO
-        self.hi = keys * _BRICK + _REACH_HI
+        self.centres = keys * _BRICK + (_REACH_LO + _REACH_HI) / 2
 
 
 class StrokePicker:
@@ -113,26 +113,26 @@ class StrokePicker:
         self.d = tuple(float(c) for c in direction)
         self.r = disc_radius
         d = np.asarray(self.d)
-        self.a = np.asarray(origin_a, dtype=np.float64)
-        span = np.asarray(origin_b, dtype=np.float64) - self.a
+        a = np.asarray(origin_a, dtype=np.float64)
+        span = np.asarray(origin_b, dtype=np.float64) - a
         span -= (span @ d) * d  # origins differ only across the view
-        self.length = float(np.sqrt(span @ span))
-        self.axis = span / self.length if self.length > 0 else np.zeros(3)
+        length = float(np.sqrt(span @ span))
+        axis = span / length if length > 0 else np.zeros(3)
+        self.origin_a, self.axis = tuple(a.tolist()), tuple(axis.tolist())
 
         def across(points):
             """Each point's place along the drag (vu from origin_a) and distance from it, across the view."""
-            rel = points - self.a
+            rel = points - a
             rel -= np.outer(rel @ d, d)
-            along = rel @ self.axis
-            gap = rel - np.outer(np.clip(along, 0.0, self.length), self.axis)
+            along = rel @ axis
+            gap = rel - np.outer(np.clip(along, 0.0, length), axis)
             return along, np.sqrt((gap * gap).sum(axis=1))
 
-        self.origin_a, self.axis_t = tuple(self.a.tolist()), tuple(self.axis.tolist())
         self.along, self.discs = [], []
         if not surface.bricks:
             return
         # A brick's points and their discs lie within 6 + disc_radius of its centre per axis.
-        _, off = across((surface.lo + surface.hi) / 2)
+        _, off = across(surface.centres)
         near = np.nonzero(off <= (6 + disc_radius) * math.sqrt(3))[0]
         if not len(near):
             return
@@ -149,7 +149,7 @@ class StrokePicker:
     def pick(self, origin):
         o = origin
         d = self.d
-        a, axis = self.origin_a, self.axis_t
+        a, axis = self.origin_a, self.axis
         at = (o[0] - a[0]) * axis[0] + (o[1] - a[1]) * axis[1] + (o[2] - a[2]) * axis[2]
         best, r2 = math.inf, self.r * self.r
         for k in range(bisect.bisect_left(self.along, at - self.r), bisect.bisect_right(self.along, at + self.r)):
