@@ -66,6 +66,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "protocol" / "pytho
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from marzipan.client import new_session_id, session_url  # noqa: E402
 from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
+from ws_link import WsLink  # noqa: E402
 from web_client_model import DAB_SPACING, MIN_DAB_SPACING, DabSpacer, SplatSurface, StrokePicker  # noqa: E402
 
 TOOLS = ("add_blob", "remove_blob", "smooth")
@@ -219,23 +220,14 @@ class LoadClient:
         self.stroke = None  # the open stroke's id
 
     async def connect(self):
-        self.ws = await websockets.connect(
-            session_url(self.args["url"], self.session.id), max_size=MAX_MESSAGE_BYTES,
-            # The server pings; websockets answers. Compression would cost both sides CPU on
-            # splat buffers, which hardly compress.
-            ping_interval=None, compression=None, open_timeout=SETUP_TIMEOUT_S)
+        self.ws = await WsLink.connect(session_url(self.args["url"], self.session.id), MAX_MESSAGE_BYTES,
+                                       self.on_text, self.on_binary, SETUP_TIMEOUT_S)
         self.reader = asyncio.create_task(self.read())
 
     async def read(self):
-        try:
-            async for message in self.ws:
-                now = time.monotonic()
-                if isinstance(message, str):
-                    self.on_text(message, now)
-                else:
-                    self.on_binary(message, now)
-        except websockets.exceptions.ConnectionClosed:
-            pass
+        """Waits for the connection's end (its messages come to on_text and on_binary as they
+        arrive) and fails whatever was waiting on it."""
+        await self.ws.closed
         if not self.stats.closing:
             self.closed_unexpectedly = (self.ws.close_code, self.ws.close_reason)
             self.stats.unexpected_closes[str(self.ws.close_code)] += 1
@@ -320,22 +312,24 @@ class LoadClient:
         if self.delta_seen is not None:
             self.delta_seen.set()
 
-    async def send(self, method: str, params: dict, want_result: bool = False, dab_times=None):
+    def send(self, method: str, params: dict, want_result: bool = False, dab_times=None):
         """Sends a request; returns a future of its result when asked for, else None. dab_times:
-        for stroke.dabs, when the pointer made each dab (for the dab->delta latency)."""
+        for stroke.dabs, when the pointer made each dab (for the dab->delta latency). Raises
+        ConnectionError once the connection is closing."""
         request_id = self.next_id
         self.next_id += 1
+        sent = time.monotonic()
+        self.ws.send_text(json.dumps({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params},
+                                     separators=(",", ":")))
         future = asyncio.get_running_loop().create_future() if want_result else None
-        self.pending[request_id] = (method, time.monotonic(), future)
+        self.pending[request_id] = (method, sent, future)
         if dab_times is not None:
             self.dab_times[request_id] = dab_times
         self.stats.sent[method] += 1
-        await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params},
-                                      separators=(",", ":")))
         return future
 
     async def call(self, method: str, params: dict):
-        return await asyncio.wait_for(await self.send(method, params, want_result=True), SETUP_TIMEOUT_S)
+        return await asyncio.wait_for(self.send(method, params, want_result=True), SETUP_TIMEOUT_S)
 
     async def enter(self):
         """Creates the session (first client) or joins it, in splats view (a full buffer follows)."""
@@ -398,12 +392,6 @@ class LoadClient:
                     queue.clear()
                 flush()
 
-            def sent(task):
-                if task.cancelled() or task.exception() is not None:
-                    answered(task)
-                else:
-                    task.result().add_done_callback(answered)
-
             def begun_done(future):
                 nonlocal stroke, failed
                 if future.cancelled() or future.exception() is not None:
@@ -422,9 +410,13 @@ class LoadClient:
                     in_flight += 1
                     idle.clear()
                     self.stats.dabs_per_message.append(len(batch))
-                    task = loop.create_task(self.send("stroke.dabs", {"stroke": stroke, "dabs": [d for d, _ in batch]},
-                                                      want_result=True, dab_times=[t for _, t in batch]))
-                    task.add_done_callback(sent)
+                    try:
+                        future = self.send("stroke.dabs", {"stroke": stroke, "dabs": [d for d, _ in batch]},
+                                           want_result=True, dab_times=[t for _, t in batch])
+                    except ConnectionError:
+                        in_flight -= 1
+                        break  # the reader sees the close and ends the stroke
+                    future.add_done_callback(answered)
                 if in_flight == 0:
                     idle.set()
 
@@ -453,7 +445,7 @@ class LoadClient:
             if self.closed_unexpectedly is not None:
                 return
             if stroke is not None:
-                await self.send("stroke.end", {"stroke": stroke})
+                self.send("stroke.end", {"stroke": stroke})
             await asyncio.sleep(WEB_CLIENT_PAUSE_S)
 
     async def sculpt_open_loop(self, end: float):
@@ -465,7 +457,7 @@ class LoadClient:
             stroke_number += 1
             params = {"tool": tool, "radius": round(self.rng.uniform(4, 10), 2),
                       "strength": round(self.rng.uniform(0.3, 0.8), 2)}
-            begun = await self.send("stroke.begin", params, want_result=True)
+            begun = self.send("stroke.begin", params, want_result=True)
             self.stroke = (await begun)["stroke"]
             drag = Drag(self.rng, self.args["size"])
             messages = max(1, round(self.rng.uniform(1.0, 2.0) * rate))
@@ -474,11 +466,11 @@ class LoadClient:
                 count = self.rng.randint(1, 4)
                 dabs = [{"ray": drag.ray((k + (j + 1) / count) / messages),
                          "pressure": round(self.rng.uniform(0.5, 1.0), 2)} for j in range(count)]
-                await self.send("stroke.dabs", {"stroke": self.stroke, "dabs": dabs})
+                self.send("stroke.dabs", {"stroke": self.stroke, "dabs": dabs})
             # The pointer is released one period after its last move, so that a client sends
             # `rate` messages a second over whole strokes, short ones too.
             await asyncio.sleep(max(0.0, min(pacer.due, end) - time.monotonic()))
-            await self.send("stroke.end", {"stroke": self.stroke})
+            self.send("stroke.end", {"stroke": self.stroke})
             self.stroke = None
 
     async def answered(self, deadline: float) -> bool:
@@ -635,7 +627,7 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
             try:
                 stats_result = await c.call("session.stats", {})
                 session_stats.append({k: stats_result[k] for k in ("revision", "memory_bytes", "history_bytes")})
-            except (RuntimeError, ConnectionError, asyncio.TimeoutError, websockets.exceptions.ConnectionClosed) as e:
+            except (RuntimeError, ConnectionError, asyncio.TimeoutError) as e:
                 failures.append(f"session.stats of session {c.session.index}: {e!r}")
     if slow is not None and "joined_at_s" in slow.report:
         joined = t0 + slow.report["joined_at_s"]

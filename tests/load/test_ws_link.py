@@ -1,0 +1,99 @@
+"""tests/load/ws_link.py: the load clients' WebSocket connection, against websockets' own server.
+
+Run: /usr/bin/python3 -m unittest tests/load/test_ws_link.py
+Marzipan's server never fragments a message nor closes a sculpting client without cause, so the
+load ctests do not reach these paths: a fragmented message, a ping, the server's close code.
+"""
+
+import asyncio
+import sys
+import unittest
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import websockets  # noqa: E402
+
+from ws_link import WsLink  # noqa: E402
+
+
+async def serve(handler):
+    server = await websockets.serve(handler, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    return server, f"ws://127.0.0.1:{port}/ws"
+
+
+class WsLinkTest(unittest.TestCase):
+    def test_messages_in_order_fragments_joined_pings_answered_close_code_kept(self):
+        async def run():
+            pong = asyncio.get_running_loop().create_future()
+
+            async def handler(ws):
+                request = await ws.recv()
+                await ws.send(f"echo {request}")
+                await ws.send([b"\x00\x01", b"\x02", b"\x03\x04"])  # one binary message in three frames
+                await ws.send(["frag", "mented"])
+                pong.set_result(await asyncio.wait_for(await ws.ping(b"p"), 5))
+                await ws.close(1008, "too far behind")
+
+            server, url = await serve(handler)
+            got = []
+            link = await WsLink.connect(url, 1 << 20, lambda t, now: got.append(t), lambda b, now: got.append(bytes(b)), 5)
+            link.send_text("hello")
+            await asyncio.wait_for(link.closed, 5)
+            server.close()
+            await server.wait_closed()
+            self.assertEqual(got, ["echo hello", b"\x00\x01\x02\x03\x04", "fragmented"])
+            self.assertIsNotNone(pong.result(), "the server's ping was not answered")
+            self.assertEqual((link.close_code, link.close_reason), (1008, "too far behind"))
+            with self.assertRaises(ConnectionError):
+                link.send_text("after the close")
+
+        asyncio.run(run())
+
+    def test_close_waits_for_the_server_and_a_refused_handshake_raises(self):
+        async def run():
+            async def handler(ws):
+                async for _ in ws:
+                    pass
+
+            server, url = await serve(handler)
+            link = await WsLink.connect(url, 1 << 20, lambda t, now: None, lambda b, now: None, 5)
+            await link.close()
+            self.assertTrue(link.closed.done())
+            self.assertEqual(link.close_code, 1000)
+            server.close()
+            await server.wait_closed()
+
+            async def refuse(path, headers):
+                return 403, [], b"no"
+
+            server = await websockets.serve(handler, "127.0.0.1", 0, process_request=refuse)
+            port = server.sockets[0].getsockname()[1]
+            with self.assertRaises(Exception):
+                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+            server.close()
+            await server.wait_closed()
+
+        asyncio.run(run())
+
+    def test_a_message_over_max_size_closes_with_1009(self):
+        async def run():
+            async def handler(ws):
+                await ws.send(b"x" * 2048)
+                await ws.wait_closed()
+
+            server, url = await serve(handler)
+            got = []
+            link = await WsLink.connect(url, 1024, lambda t, now: got.append(t), lambda b, now: got.append(b), 5)
+            await asyncio.wait_for(link.closed, 5)
+            server.close()
+            await server.wait_closed()
+            self.assertEqual(got, [])
+            self.assertEqual(link.close_code, 1009)
+
+        asyncio.run(run())
+
+
+if __name__ == "__main__":
+    unittest.main()
