@@ -2,10 +2,14 @@
 
 Run: /usr/bin/python3 -m unittest tests/load/test_ws_link.py
 Marzipan's server never fragments a message nor closes a sculpting client without cause, so the
-load ctests do not reach these paths: a fragmented message, a ping, the server's close code.
+load ctests do not reach these paths: a fragmented message, a ping, the server's close code, a
+connection reset, a handshake refused or cut short.
 """
 
 import asyncio
+import http
+import socket
+import struct
 import sys
 import unittest
 from pathlib import Path
@@ -13,6 +17,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import websockets  # noqa: E402
+from websockets.exceptions import InvalidStatus  # noqa: E402
 
 from ws_link import WsLink  # noqa: E402
 
@@ -66,14 +71,52 @@ class WsLinkTest(unittest.TestCase):
             await server.wait_closed()
 
             async def refuse(path, headers):
-                return 403, [], b"no"
+                return http.HTTPStatus.FORBIDDEN, [], b"no"
 
             server = await websockets.serve(handler, "127.0.0.1", 0, process_request=refuse)
             port = server.sockets[0].getsockname()[1]
-            with self.assertRaises(Exception):
+            with self.assertRaises(InvalidStatus) as refused:
                 await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+            self.assertEqual(refused.exception.response.status_code, 403)
             server.close()
             await server.wait_closed()
+
+            async def hang_up(reader, writer):  # a server that reads the request and closes
+                await reader.readuntil(b"\r\n\r\n")
+                writer.close()
+
+            server = await asyncio.start_server(hang_up, "127.0.0.1", 0)
+            port = server.sockets[0].getsockname()[1]
+            # ... and not as a protocol callback failing (asyncio's "Fatal error" path).
+            loop_errors = []
+            asyncio.get_running_loop().set_exception_handler(lambda loop, ctx: loop_errors.append(ctx["message"]))
+            with self.assertRaisesRegex(ConnectionError, "closed during the handshake"):
+                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+            await asyncio.sleep(0.05)
+            self.assertEqual(loop_errors, [])
+            server.close()
+            await server.wait_closed()
+
+        asyncio.run(run())
+
+    def test_a_connection_lost_without_a_closing_handshake_reads_1006_and_refuses_sends(self):
+        async def run():
+            async def handler(ws):
+                await ws.recv()
+                # A reset, not a FIN: the client sees no end of stream, only the loss.
+                ws.transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_LINGER,
+                                                                 struct.pack("ii", 1, 0))
+                ws.transport.abort()
+
+            server, url = await serve(handler)
+            link = await WsLink.connect(url, 1 << 20, lambda t, now: None, lambda b, now: None, 5)
+            link.send_text("hello")
+            await asyncio.wait_for(link.closed, 5)
+            server.close()
+            await server.wait_closed()
+            self.assertEqual((link.close_code, link.close_reason), (1006, ""))
+            with self.assertRaises(ConnectionError):
+                link.send_text("into the void")
 
         asyncio.run(run())
 

@@ -65,6 +65,8 @@ class WsLink(asyncio.Protocol):
         return end.reason if end is not None else ""
 
     def send_text(self, text: str):
+        if self.closed.done():
+            raise ConnectionError("WebSocket connection lost")
         if self.conn.state is not State.OPEN:
             raise ConnectionError(f"WebSocket {self.conn.state.name.lower()}")
         self.conn.send_text(text.encode())
@@ -119,7 +121,13 @@ class WsLink(asyncio.Protocol):
                 self.on_binary(payload, now)
 
     def eof_received(self):
-        self.conn.receive_eof()
+        try:
+            self.conn.receive_eof()
+        except EOFError as e:
+            # The server closed before its handshake response was whole: websockets 10's client
+            # lets this out of the handshake's parser instead of failing the connection.
+            if not self.opened.done():
+                self.opened.set_exception(ConnectionError(f"connection closed during the handshake: {e}"))
         self._write()
         return False  # let the transport close
 
