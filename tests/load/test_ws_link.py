@@ -56,7 +56,7 @@ class WsLinkTest(unittest.TestCase):
 
         asyncio.run(run())
 
-    def test_close_waits_for_the_server_and_a_refused_handshake_raises(self):
+    def test_close_waits_for_the_server_and_a_refused_cut_or_garbled_handshake_raises(self):
         async def run():
             async def handler(ws):
                 async for _ in ws:
@@ -91,6 +91,19 @@ class WsLinkTest(unittest.TestCase):
             loop_errors = []
             asyncio.get_running_loop().set_exception_handler(lambda loop, ctx: loop_errors.append(ctx["message"]))
             with self.assertRaisesRegex(ConnectionError, "closed during the handshake"):
+                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+            server.close()
+            await server.wait_closed()
+
+            async def babble(reader, writer):  # a server that answers with no HTTP at all
+                await reader.readuntil(b"\r\n\r\n")
+                writer.write(b"HELLO THERE\r\n\r\n")
+                await writer.drain()
+                await reader.read()
+
+            server = await asyncio.start_server(babble, "127.0.0.1", 0)
+            port = server.sockets[0].getsockname()[1]
+            with self.assertRaisesRegex(ConnectionError, "bad handshake response"):
                 await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
             await asyncio.sleep(0.05)
             self.assertEqual(loop_errors, [])

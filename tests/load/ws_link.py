@@ -92,7 +92,14 @@ class WsLink(asyncio.Protocol):
 
     def data_received(self, data: bytes):
         now = time.monotonic()
-        self.conn.receive_data(data)
+        try:
+            self.conn.receive_data(data)
+        except Exception as e:  # noqa: BLE001  as eof_received: only the handshake's parser raises
+            if self.opened.done():
+                raise
+            self.opened.set_exception(ConnectionError(f"bad handshake response: {e!r}"))
+            self.transport.abort()
+            return
         self._write()
         for event in self.conn.events_received():
             if isinstance(event, Response):
