@@ -28,7 +28,20 @@ async def serve(handler):
     return server, f"ws://127.0.0.1:{port}/ws"
 
 
+async def until_closed(link, server):
+    """Waits for the link's connection to end, then stops the server."""
+    await asyncio.wait_for(link.closed, 5)
+    server.close()
+    await server.wait_closed()
+
+
 class WsLinkTest(unittest.TestCase):
+    def assertEnded(self, link, code, reason):
+        """The connection ended with this close code and reason, and refuses to send."""
+        self.assertEqual((link.close_code, link.close_reason), (code, reason))
+        with self.assertRaises(ConnectionError):
+            link.send_text("after the end")
+
     def test_messages_in_order_fragments_joined_pings_answered_close_code_kept(self):
         async def run():
             pong = asyncio.get_running_loop().create_future()
@@ -45,14 +58,10 @@ class WsLinkTest(unittest.TestCase):
             got = []
             link = await WsLink.connect(url, 1 << 20, lambda t, now: got.append(t), lambda b, now: got.append(bytes(b)), 5)
             link.send_text("hello")
-            await asyncio.wait_for(link.closed, 5)
-            server.close()
-            await server.wait_closed()
+            await until_closed(link, server)
             self.assertEqual(got, ["echo hello", b"\x00\x01\x02\x03\x04", "fragmented"])
             self.assertIsNotNone(pong.result(), "the server's ping was not answered")
-            self.assertEqual((link.close_code, link.close_reason), (1008, "too far behind"))
-            with self.assertRaises(ConnectionError):
-                link.send_text("after the close")
+            self.assertEnded(link, 1008, "too far behind")
 
         asyncio.run(run())
 
@@ -124,12 +133,8 @@ class WsLinkTest(unittest.TestCase):
             server, url = await serve(handler)
             link = await WsLink.connect(url, 1 << 20, lambda t, now: None, lambda b, now: None, 5)
             link.send_text("hello")
-            await asyncio.wait_for(link.closed, 5)
-            server.close()
-            await server.wait_closed()
-            self.assertEqual((link.close_code, link.close_reason), (1006, ""))
-            with self.assertRaises(ConnectionError):
-                link.send_text("into the void")
+            await until_closed(link, server)
+            self.assertEnded(link, 1006, "")
 
         asyncio.run(run())
 
@@ -142,9 +147,7 @@ class WsLinkTest(unittest.TestCase):
             server, url = await serve(handler)
             got = []
             link = await WsLink.connect(url, 1024, lambda t, now: got.append(t), lambda b, now: got.append(b), 5)
-            await asyncio.wait_for(link.closed, 5)
-            server.close()
-            await server.wait_closed()
+            await until_closed(link, server)
             self.assertEqual(got, [])
             self.assertEqual(link.close_code, 1009)
 
