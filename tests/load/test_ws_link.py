@@ -22,17 +22,29 @@ from websockets.exceptions import InvalidStatus  # noqa: E402
 from ws_link import WsLink  # noqa: E402
 
 
-async def serve(handler):
-    server = await websockets.serve(handler, "127.0.0.1", 0)
-    port = server.sockets[0].getsockname()[1]
-    return server, f"ws://127.0.0.1:{port}/ws"
+async def serve(handler, **options):
+    """A websockets server of handler on a free port, and its URL."""
+    return url_of(await websockets.serve(handler, "127.0.0.1", 0, **options))
+
+
+async def serve_raw(handler):
+    """A plain TCP server of handler(reader, writer) on a free port, and its ws:// URL."""
+    return url_of(await asyncio.start_server(handler, "127.0.0.1", 0))
+
+
+def url_of(server):
+    return server, f"ws://127.0.0.1:{server.sockets[0].getsockname()[1]}/ws"
+
+
+async def stop(server):
+    server.close()
+    await server.wait_closed()
 
 
 async def until_closed(link, server):
     """Waits for the link's connection to end, then stops the server."""
     await asyncio.wait_for(link.closed, 5)
-    server.close()
-    await server.wait_closed()
+    await stop(server)
 
 
 class WsLinkTest(unittest.TestCase):
@@ -76,33 +88,28 @@ class WsLinkTest(unittest.TestCase):
             await link.close()
             self.assertTrue(link.closed.done())
             self.assertEqual(link.close_code, 1000)
-            server.close()
-            await server.wait_closed()
+            await stop(server)
 
             async def refuse(path, headers):
                 return http.HTTPStatus.FORBIDDEN, [], b"no"
 
-            server = await websockets.serve(handler, "127.0.0.1", 0, process_request=refuse)
-            port = server.sockets[0].getsockname()[1]
+            server, url = await serve(handler, process_request=refuse)
             with self.assertRaises(InvalidStatus) as refused:
-                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+                await WsLink.connect(url, 1 << 20, None, None, 5)
             self.assertEqual(refused.exception.response.status_code, 403)
-            server.close()
-            await server.wait_closed()
+            await stop(server)
 
             async def hang_up(reader, writer):  # a server that reads the request and closes
                 await reader.readuntil(b"\r\n\r\n")
                 writer.close()
 
-            server = await asyncio.start_server(hang_up, "127.0.0.1", 0)
-            port = server.sockets[0].getsockname()[1]
+            server, url = await serve_raw(hang_up)
             # ... and not as a protocol callback failing (asyncio's "Fatal error" path).
             loop_errors = []
             asyncio.get_running_loop().set_exception_handler(lambda loop, ctx: loop_errors.append(ctx["message"]))
             with self.assertRaisesRegex(ConnectionError, "closed during the handshake"):
-                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
-            server.close()
-            await server.wait_closed()
+                await WsLink.connect(url, 1 << 20, None, None, 5)
+            await stop(server)
 
             async def babble(reader, writer):  # a server that answers with no HTTP at all
                 await reader.readuntil(b"\r\n\r\n")
@@ -110,14 +117,12 @@ class WsLinkTest(unittest.TestCase):
                 await writer.drain()
                 await reader.read()
 
-            server = await asyncio.start_server(babble, "127.0.0.1", 0)
-            port = server.sockets[0].getsockname()[1]
+            server, url = await serve_raw(babble)
             with self.assertRaisesRegex(ConnectionError, "bad handshake response"):
-                await WsLink.connect(f"ws://127.0.0.1:{port}/ws", 1 << 20, None, None, 5)
+                await WsLink.connect(url, 1 << 20, None, None, 5)
             await asyncio.sleep(0.05)
             self.assertEqual(loop_errors, [])
-            server.close()
-            await server.wait_closed()
+            await stop(server)
 
         asyncio.run(run())
 

@@ -56,13 +56,16 @@ class WsLink(asyncio.Protocol):
     # else 1006 and "" (the TCP connection was lost without a closing handshake).
     @property
     def close_code(self):
-        end = self.conn.close_rcvd or self.conn.close_sent
+        end = self._close_frame()
         return end.code if end is not None else 1006
 
     @property
     def close_reason(self):
-        end = self.conn.close_rcvd or self.conn.close_sent
+        end = self._close_frame()
         return end.reason if end is not None else ""
+
+    def _close_frame(self):
+        return self.conn.close_rcvd or self.conn.close_sent
 
     def send_text(self, text: str):
         if self.closed.done():
@@ -94,10 +97,10 @@ class WsLink(asyncio.Protocol):
         now = time.monotonic()
         try:
             self.conn.receive_data(data)
-        except Exception as e:  # noqa: BLE001  as eof_received: only the handshake's parser raises
+        except Exception as e:  # noqa: BLE001  only the handshake's parser raises (see _handshake_failed)
             if self.opened.done():
                 raise
-            self.opened.set_exception(ConnectionError(f"bad handshake response: {e!r}"))
+            self._handshake_failed(f"bad handshake response: {e!r}")
             self.transport.abort()
             return
         self._write()
@@ -130,19 +133,23 @@ class WsLink(asyncio.Protocol):
     def eof_received(self):
         try:
             self.conn.receive_eof()
-        except EOFError as e:
-            # The server closed before its handshake response was whole: websockets 10's client
-            # lets this out of the handshake's parser instead of failing the connection.
-            if not self.opened.done():
-                self.opened.set_exception(ConnectionError(f"connection closed during the handshake: {e}"))
+        except EOFError as e:  # the server closed before its handshake response was whole
+            self._handshake_failed(f"connection closed during the handshake: {e}")
         self._write()
         return False  # let the transport close
 
     def connection_lost(self, exc):
-        if not self.opened.done():
-            self.opened.set_exception(ConnectionError(f"connection lost during the handshake: {exc!r}"))
+        self._handshake_failed(f"connection lost during the handshake: {exc!r}")
         if not self.closed.done():
             self.closed.set_result(None)
+
+    def _handshake_failed(self, why: str):
+        """Fails connect() with ConnectionError(why), unless the handshake already ended. Once
+        open, websockets fails the connection itself on bad or missing bytes; during the
+        handshake websockets 10's client parser lets the error out of receive_data or
+        receive_eof instead, which asyncio would report as a protocol callback's fatal error."""
+        if not self.opened.done():
+            self.opened.set_exception(ConnectionError(why))
 
     def _write(self):
         for data in self.conn.data_to_send():
