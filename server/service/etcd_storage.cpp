@@ -122,6 +122,15 @@ bool EtcdStorage::renew(const std::string& id) {
   return owner_.leaseHeld() && owned_.count(id) > 0;
 }
 
+bool EtcdStorage::holds(const std::string& id) {
+  std::shared_ptr<EtcdJournal> held;
+  {
+    const std::lock_guard lock(mutex_);
+    if (const auto it = owned_.find(id); it != owned_.end()) held = it->second;
+  }
+  return held && !held->fenced() && owner_.leaseHeld();
+}
+
 void EtcdStorage::release(const std::string& id) {
   std::shared_ptr<EtcdJournal> j;
   {

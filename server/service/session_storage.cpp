@@ -13,6 +13,7 @@ class MemoryStorage final : public SessionStorage {
   // One server, nothing shared: every lease is this server's and is never lost.
   bool acquire(const std::string&) override { return true; }
   bool renew(const std::string&) override { return true; }
+  bool holds(const std::string&) override { return true; }
   void release(const std::string&) override {}
   std::chrono::milliseconds renewEvery() const override { return std::chrono::hours(1); }
   void onLost(std::function<void(const std::string&)>) override {}

@@ -86,6 +86,11 @@ class SessionStorage {
   virtual bool acquire(const std::string& id) = 0;
   // False when the lease was lost (another server took it); then the session must go.
   virtual bool renew(const std::string& id) = 0;
+  // Whether this server still holds id's lease by the test its writes pass, asked before an
+  // edit that changed nothing (so wrote nothing) is acknowledged: a server paused past its
+  // lease must not answer "done" for a session another server now owns. Never throws; false
+  // also when the storage cannot tell.
+  virtual bool holds(const std::string& id) = 0;
   virtual void release(const std::string& id) = 0;
   virtual std::chrono::milliseconds renewEvery() const = 0;
   // A lease lost that the storage learns of by itself (a watch, a keep-alive failing). Set

@@ -410,6 +410,15 @@ bool SessionStore::renew(const std::string& id) {
   return takeLease(id, owner_, ttl_, g).has_value();
 }
 
+bool SessionStore::holds(const std::string& id) {
+  try {
+    checkFence(id);
+    return held(id).has_value();
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 void SessionStore::release(const std::string& id) {
   std::optional<std::uint64_t> g;
   {

@@ -61,6 +61,8 @@ class SessionStore final : public SessionStorage {
 
   bool acquire(const std::string& id) override;
   bool renew(const std::string& id) override;
+  // The lease file still names this server with the generation it holds (a file read).
+  bool holds(const std::string& id) override;
   void release(const std::string& id) override;
   std::chrono::milliseconds renewEvery() const override { return ttl_ / 3; }
   // Files change only through this store: it learns of a loss at renewal or at a write.

@@ -179,10 +179,15 @@ TEST_CASE("etcd storage: a session fenced while its lease was late is claimed ag
   REQUIRE(store.acquire("s"));
   std::unique_ptr<SessionLog> log = store.create("s", {"t", "v"}, makeSphere({16, 16, 16}, {8, 8, 8}, 5));
   log->append({{"stroke_end", 1}});
+  CHECK(store.holds("s"));
+  CHECK_FALSE(store.holds("never-claimed"));
   // No keep-alive answers for longer than the TTL: this server refuses the append, though
-  // etcd keeps the lease, and with it the owner key.
+  // etcd keeps the lease, and with it the owner key. An edit that writes nothing asks holds()
+  // instead (hub Durability::confirmHeld), which says no as well: as a server paused past its
+  // TTL would on waking, before its keep-alive thread has run.
   kv.stalled = true;
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  CHECK_FALSE(store.holds("s"));
   CHECK_THROWS_AS(log->append({{"stroke_end", 2}}), OwnershipLost);
   kv.stalled = false;
   for (int k = 0; k < 300 && !store.owner().leaseHeld(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -190,6 +195,7 @@ TEST_CASE("etcd storage: a session fenced while its lease was late is claimed ag
   // Loaded again, it takes appends. It used to get the fenced journal back, refusing every
   // append while the lease lived (and no other server could claim the session).
   REQUIRE(store.acquire("s"));
+  CHECK(store.holds("s"));
   const Recovered r = store.recover("s", std::size_t(64) << 20, ThreadPool::serial());
   CHECK(r.replayed == 1);
   CHECK_NOTHROW(r.journal->append({{"stroke_end", 3}}));

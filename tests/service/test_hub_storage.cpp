@@ -39,6 +39,7 @@ class FaultyStorage final : public SessionStorage {
   explicit FaultyStorage(const std::filesystem::path& dir) : inner_(dir, {}, {}, "faulty-test") {}
 
   std::atomic<int> failAppends{0};   // the next N appends throw an I/O error
+  std::atomic<bool> lapsed{false};   // holds() answers false, as after a pause past the lease
   std::atomic<int> fenceAppends{0};  // the next N appends throw OwnershipLost
   std::atomic<int> appends{0}, snapshots{0};
 
@@ -58,6 +59,7 @@ class FaultyStorage final : public SessionStorage {
   std::string where() const override { return "faulty " + inner_.where(); }
   bool acquire(const std::string& id) override { return inner_.acquire(id); }
   bool renew(const std::string& id) override { return inner_.renew(id); }
+  bool holds(const std::string& id) override { return !lapsed && inner_.holds(id); }
   void release(const std::string& id) override { inner_.release(id); }
   std::chrono::milliseconds renewEvery() const override { return inner_.renewEvery(); }
   void onLost(std::function<void(const std::string&)> handler) override {
@@ -210,6 +212,35 @@ TEST_CASE("a lease the storage reports lost closes the session and its clients",
   // The closed session answers no more edits (the connection is closed by the network layer;
   // here the hub itself refuses).
   CHECK(a.error("tool.apply", blob(28)) == -32009);
+  hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("an edit that changed nothing is not acknowledged once the lease has lapsed: the session closes",
+          "[hub][storage]") {
+  // A server paused past its lease (SIGSTOP) may take an edit on an old connection before its
+  // renewal timer runs. An edit that changes something is refused by its write's fence; one
+  // that changes nothing writes nothing, so the lease itself is asked before "done" is said.
+  const auto dir = scratch("lapsed");
+  auto storage = std::make_shared<FaultyStorage>(dir);
+  Hub hub(storageOptions(storage));
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", kCreate);
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  a.result("tool.apply", blob(20));
+  const json inside = {{"tool", "add_blob"}, {"center", {24, 24, 24}}, {"radius", 3}};
+  // While the lease holds, the same edit is answered: the revision stays, nothing changed.
+  const json answered = a.result("tool.apply", inside);
+  CHECK(answered["revision"] == 1);
+  CHECK(answered["roi"].is_null());
+
+  storage->lapsed = true;
+  const int appendsBefore = storage->appends;
+  CHECK(a.error("tool.apply", inside) == -32015);
+  CHECK(storage->appends == appendsBefore);
+  CHECK(closeCodeOf(*a.link) == 1011);
+  CHECK(closeCodeOf(*b.link) == 1011);
+  CHECK(hub.sessionCount() == 0);
   hub.shutdown();
   std::filesystem::remove_all(dir);
 }

@@ -205,7 +205,12 @@ TEST_CASE("leases are fenced: a holder that stalled past its expiry can neither 
   std::unique_ptr<SessionLog> journalA = a.create("s", {"t", "v"}, live.volume());
   journalA->append({{"stroke_end", 1}});
   CHECK(a.renew("s"));
+  CHECK(a.holds("s"));
+  CHECK_FALSE(b.holds("s"));
+  CHECK_FALSE(a.holds("another"));
   std::this_thread::sleep_for(ttl * 2);
+  // Expired but not taken: a's writes would still pass, and so does the question.
+  CHECK(a.holds("s"));
   // a stalled: its lease expired and b took it, with a newer generation.
   REQUIRE(b.acquire("s"));
   const auto leaseText = [&] {
@@ -215,6 +220,9 @@ TEST_CASE("leases are fenced: a holder that stalled past its expiry can neither 
   const std::string bLease = leaseText();
   CHECK(bLease.rfind("server-b ", 0) == 0);
   CHECK(bLease.substr(bLease.rfind(' ') + 1) == "2\n");
+  // What an edit that writes nothing asks before it is acknowledged (hub Durability::confirmHeld).
+  CHECK_FALSE(a.holds("s"));
+  CHECK(b.holds("s"));
   // a's renewal finds the lease taken and leaves b's untouched; a's append is refused and
   // leaves the journal as it was.
   CHECK_FALSE(a.renew("s"));

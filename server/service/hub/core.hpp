@@ -94,7 +94,9 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // --- running a request's work (work.cpp) ---------------------------------------------------------
   // Runs fn on the strand of c's session: checks the session is open and (for Access::Editor)
   // that c may edit, journals r.record, sends r.frame and the result, runs r.after, then lets
-  // the connection's next message start. editLatency: report it to HubEvents::editLatency.
+  // the connection's next message start. editLatency: fn is an edit (a tool, dabs, a morph,
+  // undo, redo, a load): its latency goes to HubEvents::editLatency, and when it changed
+  // nothing the lease is confirmed before it is answered (Durability::confirmHeld).
   void onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn);
   // The same on the strand of s, which c need not be a client of (yet): session.create/join,
   // and the upload of a volume.load.

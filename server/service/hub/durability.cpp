@@ -67,6 +67,14 @@ void Durability::persist(LiveSession& s, const std::function<json()>& makeRecord
   }
 }
 
+void Durability::confirmHeld(LiveSession& s) {
+  if (!s.journal || hub_.store->holds(s.id)) return;
+  hub_.log("session " + s.id + ": this server no longer holds its lease; closing it here");
+  s.journal.reset();
+  hub_.registry.closeBroken(s);
+  throw heldElsewhere(s.id, "this server no longer holds the session; the edit changed nothing. Join it again");
+}
+
 void Durability::rotate(LiveSession& s) {
   std::vector<json> head;
   for (const auto& [id, st] : s.session->openStrokeList()) head.push_back(strokeBeginRecord(id, st));

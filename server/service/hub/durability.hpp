@@ -31,6 +31,10 @@ class Durability {
   // session goes back to what the journal holds (the change is dropped) and this throws the
   // request's error; if even that fails the session is closed, its acknowledged state intact.
   void persist(LiveSession& s, const std::function<nlohmann::json()>& makeRecords);
+  // Before an edit that changed nothing is acknowledged: nothing was written, so no write's
+  // fence refused it. When the storage says this server no longer holds the lease (paused past
+  // it, say), the session is closed as a fenced write would close it and this throws -32015.
+  void confirmHeld(LiveSession& s);
   // A snapshot of s and a fresh journal that starts with the strokes still open, so that their
   // next dabs replay without the journal that began them.
   void rotate(LiveSession& s);

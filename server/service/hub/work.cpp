@@ -49,7 +49,11 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       }
       checkAccess(*c, access);
       fn(*s, r);
-      if (r.record) self->durability.persist(*s, r.record);
+      if (r.record) {
+        self->durability.persist(*s, r.record);
+      } else if (editLatency) {
+        self->durability.confirmHeld(*s);
+      }
       if (r.frame) c->link->sendBinary(r.frame, false);
       self->sendResult(*c, id, r.result);
       for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result);
