@@ -123,12 +123,15 @@ bool EtcdStorage::renew(const std::string& id) {
 }
 
 bool EtcdStorage::holds(const std::string& id) {
+  // The lease first: when it is lost, the lost handler has emptied owned_ before any new lease
+  // can be granted, so a session found below is still on the lease confirmed here.
+  if (!owner_.confirmLease()) return false;
   std::shared_ptr<EtcdJournal> held;
   {
     const std::lock_guard lock(mutex_);
     if (const auto it = owned_.find(id); it != owned_.end()) held = it->second;
   }
-  return held && !held->fenced() && owner_.leaseHeld();
+  return held && !held->fenced();
 }
 
 void EtcdStorage::release(const std::string& id) {

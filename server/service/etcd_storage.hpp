@@ -41,8 +41,9 @@ class EtcdStorage final : public SessionStorage {
 
   bool acquire(const std::string& id) override;
   bool renew(const std::string& id) override;
-  // Without asking etcd: the lease renewed within its TTL (by the steady clock, so a server
-  // stopped past it knows at once on waking) and id claimed on it, its journal not fenced.
+  // The lease renewed within its TTL (by the steady clock, which runs on while the process is
+  // stopped), else renewed now (EtcdOwner::confirmLease: a late lease is kept, an expired one
+  // says no), and id claimed on it, its journal not fenced.
   bool holds(const std::string& id) override;
   void release(const std::string& id) override;
   std::chrono::milliseconds renewEvery() const override;

@@ -119,6 +119,16 @@ bool EtcdOwner::leaseHeld() const {
   return liveLease();
 }
 
+bool EtcdOwner::confirmLease() {
+  std::unique_lock lock(mutex_);
+  if (liveLease()) return true;
+  if (!held_) return false;
+  renewNow_ = true;
+  wake_.notify_all();
+  renewed_.wait_for(lock, kLeaseWait, [this] { return stopping_ || !held_ || liveLease(); });
+  return !stopping_ && liveLease();
+}
+
 void EtcdOwner::keepAlive() {
   const auto ttl = std::chrono::seconds(options_.leaseTtlSeconds);
   std::unique_lock lock(mutex_);
@@ -166,6 +176,7 @@ void EtcdOwner::keepAlive() {
       renewed_.notify_all();
     } else if (lostWhy == "the lease expired" || Clock::now() - lastRenewed_ >= ttl) {
       held_ = false;
+      renewed_.notify_all();  // confirmLease(): gone
       const auto lost = lost_;
       lock.unlock();
       loseLease(lostWhy);

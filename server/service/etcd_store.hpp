@@ -144,6 +144,10 @@ class EtcdOwner {
   // Revokes the lease (every session it owns is free at once) and stops the keep-alive.
   void stop();
   bool leaseHeld() const;
+  // leaseHeld(), but a lease not renewed within its TTL is first renewed (waiting up to
+  // kLeaseWait, as claim() does): it may only be late (an etcd election holding the keep-alive
+  // up, etcd keeping the lease), or gone (etcd answers "expired": false at once).
+  bool confirmLease();
 
   struct Claim {
     std::unique_ptr<EtcdJournal> journal;  // set when this server owns the session now
@@ -186,7 +190,7 @@ class EtcdOwner {
 
   mutable std::mutex mutex_;  // guards everything below
   std::condition_variable wake_;     // the keep-alive thread: stop, or renew now
-  std::condition_variable renewed_;  // claim(): a lease was renewed or granted
+  std::condition_variable renewed_;  // claim(), confirmLease(): a lease was renewed, granted or lost
   bool renewNow_ = false;
   std::int64_t lease_ = 0;
   bool held_ = false, stopping_ = false;

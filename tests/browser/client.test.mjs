@@ -129,11 +129,15 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
       return;
     }
     const server = ws.connectToServer();
+    // Once the test drops the connection, what the page sent before it heard of the drop goes
+    // nowhere, as on a real network (forwarding it to the closed server socket made Chromium
+    // log "WebSocket is already in CLOSING or CLOSED state" from the proxy itself).
+    const socket = { ws, server, dropped: false };
     ws.onMessage((m) => {
       if (typeof m === "string") sent.push(JSON.parse(m));
-      server.send(m);
+      if (!socket.dropped) server.send(m);
     });
-    sockets.push({ ws, server });
+    sockets.push(socket);
   });
   const sentSince = (from, method) => sent.slice(from).filter((m) => m.method === method);
 
@@ -565,6 +569,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const dBefore = await digest(page);
   const messagesBefore = await page.evaluate(() => window.marzipan.messages.history.length);
   refusing = true;
+  sockets[0].dropped = true;
   sockets[0].ws.close({ code: 4000, reason: "network dropped by the test" });
   sockets[0].server.close();
   await page.waitForFunction(() => document.getElementById("connection").dataset.state === "reconnecting");
