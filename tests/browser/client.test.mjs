@@ -112,7 +112,7 @@ function checkStl(bytes, size) {
 
 // --- the tests ---------------------------------------------------------------------------------
 
-test("create, sculpt, undo, share, watch frames, export and reconnect", { timeout: 300000 }, async (t) => {
+test("create, sculpt, undo, share, watch frames, export and reconnect", { timeout: 450000 }, async (t) => {
   const errors = [];
   const page = await env.browser.context.newPage();
   collectErrors(page, errors);
@@ -678,7 +678,7 @@ test("Space+drag orbits around the point under the press; the stabiliser calms a
   await page.close();
 });
 
-test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 300000 }, async (t) => {
+test("frame time of a 256^3 session with a radius-100 sphere", { timeout: 450000 }, async (t) => {
   const errors = [];
   const page = await env.browser.context.newPage();
   collectErrors(page, errors);
@@ -872,7 +872,7 @@ async function scrub(page, [x, y], half, passes) {
   await page.mouse.up();
 }
 
-test("a stroke's dabs land on the surface as it was at the press, and it stands at its height however often it passes", { timeout: 360000 }, async (t) => {
+test("a stroke's dabs land on the surface as it was at the press, and it stands at its height however often it passes", { timeout: 540000 }, async (t) => {
   const errors = [];
   const page = await env.browser.context.newPage();
   collectErrors(page, errors);
