@@ -135,6 +135,33 @@ int closeCodeOf(CaptureLink& link) {
   return link.closeCode;
 }
 
+// Two clients of one session on a FaultyStorage in its own scratch directory, after one
+// journaled edit; shut down and removed at the end.
+struct SharedSession {
+  explicit SharedSession(const std::string& name)
+      : dir(scratch(name)), storage(std::make_shared<FaultyStorage>(dir)), hub(storageOptions(storage)), a(hub), b(hub) {
+    created = a.result("session.create", kCreate);
+    b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+    a.result("tool.apply", blob(20));
+  }
+  ~SharedSession() {
+    hub.shutdown();
+    std::filesystem::remove_all(dir);
+  }
+  // Both clients were closed with 1011 and the hub holds no session.
+  void checkClosed() {
+    CHECK(closeCodeOf(*a.link) == 1011);
+    CHECK(closeCodeOf(*b.link) == 1011);
+    CHECK(hub.sessionCount() == 0);
+  }
+
+  std::filesystem::path dir;
+  std::shared_ptr<FaultyStorage> storage;
+  Hub hub;
+  TestClient a, b;
+  json created;
+};
+
 }  // namespace
 
 TEST_CASE("a failed journal append rolls the session back: revision, digest and undo as before, the client told",
@@ -177,43 +204,21 @@ TEST_CASE("a failed journal append rolls the session back: revision, digest and 
 
 TEST_CASE("a fenced append refuses the edit and closes the session, its clients are told to join again",
           "[hub][storage]") {
-  const auto dir = scratch("fenced");
-  auto storage = std::make_shared<FaultyStorage>(dir);
-  Hub hub(storageOptions(storage));
-  TestClient a(hub), b(hub);
-  const json created = a.result("session.create", kCreate);
-  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
-  a.result("tool.apply", blob(20));
-
-  storage->fenceAppends = 1;
-  const int appendsBefore = storage->appends;
-  CHECK(a.error("tool.apply", blob(28)) == -32015);
-  CHECK(storage->appends == appendsBefore);  // nothing of the refused edit was written
-  CHECK(closeCodeOf(*a.link) == 1011);
-  CHECK(closeCodeOf(*b.link) == 1011);
-  CHECK(hub.sessionCount() == 0);
-  hub.shutdown();
-  std::filesystem::remove_all(dir);
+  SharedSession s("fenced");
+  s.storage->fenceAppends = 1;
+  const int appendsBefore = s.storage->appends;
+  CHECK(s.a.error("tool.apply", blob(28)) == -32015);
+  CHECK(s.storage->appends == appendsBefore);  // nothing of the refused edit was written
+  s.checkClosed();
 }
 
 TEST_CASE("a lease the storage reports lost closes the session and its clients", "[hub][storage]") {
-  const auto dir = scratch("lost");
-  auto storage = std::make_shared<FaultyStorage>(dir);
-  Hub hub(storageOptions(storage));
-  TestClient a(hub), b(hub);
-  const json created = a.result("session.create", kCreate);
-  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
-  a.result("tool.apply", blob(20));
-
-  storage->loseLease(created["session"]);
-  CHECK(closeCodeOf(*a.link) == 1011);
-  CHECK(closeCodeOf(*b.link) == 1011);
-  CHECK(hub.sessionCount() == 0);
+  SharedSession s("lost");
+  s.storage->loseLease(s.created["session"]);
+  s.checkClosed();
   // The closed session answers no more edits (the connection is closed by the network layer;
   // here the hub itself refuses).
-  CHECK(a.error("tool.apply", blob(28)) == -32009);
-  hub.shutdown();
-  std::filesystem::remove_all(dir);
+  CHECK(s.a.error("tool.apply", blob(28)) == -32009);
 }
 
 TEST_CASE("an edit that changed nothing is not acknowledged once the lease has lapsed: the session closes",
@@ -221,28 +226,18 @@ TEST_CASE("an edit that changed nothing is not acknowledged once the lease has l
   // A server paused past its lease (SIGSTOP) may take an edit on an old connection before its
   // renewal timer runs. An edit that changes something is refused by its write's fence; one
   // that changes nothing writes nothing, so the lease itself is asked before "done" is said.
-  const auto dir = scratch("lapsed");
-  auto storage = std::make_shared<FaultyStorage>(dir);
-  Hub hub(storageOptions(storage));
-  TestClient a(hub), b(hub);
-  const json created = a.result("session.create", kCreate);
-  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
-  a.result("tool.apply", blob(20));
+  SharedSession s("lapsed");
   const json inside = {{"tool", "add_blob"}, {"center", {24, 24, 24}}, {"radius", 3}};
   // While the lease holds, the same edit is answered: the revision stays, nothing changed.
-  const json answered = a.result("tool.apply", inside);
+  const json answered = s.a.result("tool.apply", inside);
   CHECK(answered["revision"] == 1);
   CHECK(answered["roi"].is_null());
 
-  storage->lapsed = true;
-  const int appendsBefore = storage->appends;
-  CHECK(a.error("tool.apply", inside) == -32015);
-  CHECK(storage->appends == appendsBefore);
-  CHECK(closeCodeOf(*a.link) == 1011);
-  CHECK(closeCodeOf(*b.link) == 1011);
-  CHECK(hub.sessionCount() == 0);
-  hub.shutdown();
-  std::filesystem::remove_all(dir);
+  s.storage->lapsed = true;
+  const int appendsBefore = s.storage->appends;
+  CHECK(s.a.error("tool.apply", inside) == -32015);
+  CHECK(s.storage->appends == appendsBefore);
+  s.checkClosed();
 }
 
 TEST_CASE("shutdown snapshots every session at its last revision and releases its lease", "[hub][storage]") {
