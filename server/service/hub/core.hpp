@@ -94,14 +94,14 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // --- running a request's work (work.cpp) ---------------------------------------------------------
   // Runs fn on the strand of c's session: checks the session is open and (for Access::Editor)
   // that c may edit, journals r.record, sends r.frame and the result, runs r.after, then lets
-  // the connection's next message start. editLatency: fn is an edit (a tool, dabs, a morph,
+  // the connection's next message start. edit: fn is an edit (a tool, dabs, a morph,
   // undo, redo, a load): its latency goes to HubEvents::editLatency, and when it changed
   // nothing the lease is confirmed before it is answered (Durability::confirmHeld).
-  void onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn);
+  void onStrand(const Call& call, bool edit, std::function<void(LiveSession&, Reply&)> fn);
   // The same on the strand of s, which c need not be a client of (yet): session.create/join,
   // and the upload of a volume.load.
   void onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<nlohmann::json>& id,
-                Clock::time_point arrived, bool editLatency, Access access, std::function<void(LiveSession&, Reply&)> fn);
+                Clock::time_point arrived, bool edit, Access access, std::function<void(LiveSession&, Reply&)> fn);
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports, measures), answers and lets the connection go on. atStrand, when given, starts
   // the reply on the strand with what needs the live session. at: the snapshot is the volume

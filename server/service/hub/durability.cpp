@@ -29,12 +29,7 @@ void Durability::persist(LiveSession& s, const std::function<json()>& makeRecord
     else
       s.journal->append(records);
   } catch (const OwnershipLost& e) {
-    // Another server owns the session now: nothing here may be kept, and its clients find it
-    // there when they join again.
-    hub_.log("session " + s.id + ": " + e.what() + "; closing it here");
-    s.journal.reset();
-    hub_.registry.closeBroken(s);
-    throw heldElsewhere(s.id, "another server took over this session; the change was not kept. Join it again");
+    closeHeldElsewhere(s, e.what(), "another server took over this session; the change was not kept. Join it again");
   } catch (const std::exception& e) {
     hub_.log("session " + s.id + ": " + e.what() + "; rolling back to the journal");
     s.journal.reset();
@@ -69,10 +64,15 @@ void Durability::persist(LiveSession& s, const std::function<json()>& makeRecord
 
 void Durability::confirmHeld(LiveSession& s) {
   if (!s.journal || hub_.store->holds(s.id)) return;
-  hub_.log("session " + s.id + ": this server no longer holds its lease; closing it here");
+  closeHeldElsewhere(s, "this server no longer holds its lease",
+                     "this server no longer holds the session; the edit changed nothing. Join it again");
+}
+
+void Durability::closeHeldElsewhere(LiveSession& s, const std::string& why, const std::string& message) {
+  hub_.log("session " + s.id + ": " + why + "; closing it here");
   s.journal.reset();
   hub_.registry.closeBroken(s);
-  throw heldElsewhere(s.id, "this server no longer holds the session; the edit changed nothing. Join it again");
+  throw heldElsewhere(s.id, message);
 }
 
 void Durability::rotate(LiveSession& s) {

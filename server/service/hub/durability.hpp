@@ -50,6 +50,9 @@ class Durability {
   void leaseLost(const std::string& id);
   // -32015, with data.owner when the storage knows which server owns the session (etcd).
   protocol::RpcException heldElsewhere(const std::string& id, const std::string& message) const;
+  // Another server owns s now: nothing here may be kept (no journal), its clients are closed
+  // and find it there when they join again, and the request gets -32015 with `message`.
+  [[noreturn]] void closeHeldElsewhere(LiveSession& s, const std::string& why, const std::string& message);
 
   // Deletes sessions at rest untouched for max_session_age, after delay and then every hour.
   void sweepOldSessions(std::chrono::milliseconds delay);

@@ -32,14 +32,14 @@ void HubCore::checkAccess(const HubClient& c, Access access) {
     throw RpcException(RpcCode::ReadOnly, "this client joined with the view token: edits are refused");
 }
 
-void HubCore::onStrand(const Call& call, bool editLatency, std::function<void(LiveSession&, Reply&)> fn) {
-  onStrand(call.client, call.client->session, call.req.id, call.arrived, editLatency, call.access, std::move(fn));
+void HubCore::onStrand(const Call& call, bool edit, std::function<void(LiveSession&, Reply&)> fn) {
+  onStrand(call.client, call.client->session, call.req.id, call.arrived, edit, call.access, std::move(fn));
 }
 
 void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<LiveSession> s, const std::optional<json>& id,
-                       Clock::time_point arrived, bool editLatency, Access access,
+                       Clock::time_point arrived, bool edit, Access access,
                        std::function<void(LiveSession&, Reply&)> fn) {
-  s->strand->post([self = shared_from_this(), c, s, id, arrived, editLatency, access, fn = std::move(fn)] {
+  s->strand->post([self = shared_from_this(), c, s, id, arrived, edit, access, fn = std::move(fn)] {
     Reply r;
     try {
       if (s->unloaded || !s->session) {
@@ -51,13 +51,13 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       fn(*s, r);
       if (r.record) {
         self->durability.persist(*s, r.record);
-      } else if (editLatency) {
+      } else if (edit) {
         self->durability.confirmHeld(*s);
       }
       if (r.frame) c->link->sendBinary(r.frame, false);
       self->sendResult(*c, id, r.result);
       for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result);
-      if (editLatency && self->options.events.editLatency) {
+      if (edit && self->options.events.editLatency) {
         const Clock::time_point now = Clock::now();
         self->options.events.editLatency(std::chrono::duration<double>(now - arrived).count());
         for (const Reply::Merged& m : r.merged)
