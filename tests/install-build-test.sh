@@ -3,8 +3,31 @@
 # Usage: bash tests/install-build-test.sh   (BUILD_DIR=... to build elsewhere)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+# Seconds per stage, printed at the end (also when a stage fails, which is then marked): the
+# command must stay under 20 min on the 2-core CI machines, and this shows where it goes.
+stage_names=() stage_seconds=() stage_name="" stage_started=$SECONDS
+stage() {
+  if [ -n "$stage_name" ]; then
+    stage_names+=("$stage_name")
+    stage_seconds+=($((SECONDS - stage_started)))
+  fi
+  stage_name="${1:-}" stage_started=$SECONDS
+}
+print_stages() {
+  local status=$? i
+  [ -z "$stage_name" ] || stage_names+=("$stage_name (failed)") stage_seconds+=($((SECONDS - stage_started)))
+  echo "== seconds per stage (load average at the end: $(cut -d' ' -f1-3 /proc/loadavg))"
+  for i in "${!stage_names[@]}"; do printf '%-28s %6d s\n' "${stage_names[$i]}" "${stage_seconds[$i]}"; done
+  printf '%-28s %6d s\n' total "$SECONDS"
+  return "$status"
+}
+trap print_stages EXIT
+
+stage "install packages"
 . tests/debian-packages.sh
 install_debian_packages "${MARZIPAN_RUN_PACKAGES[@]}" "${MARZIPAN_TEST_PACKAGES[@]}"
+stage "npm"
 # ---- Web client (tests/browser) ----------------------------------------------------------------
 # The browser tests' one npm dependency, playwright-core (pinned by tests/browser/package-lock.json);
 # reinstalled only when the lock file is newer than what node_modules holds.
@@ -21,8 +44,10 @@ if [ ! -f tests/gltf/node_modules/.package-lock.json ] ||
 fi
 # ---- end of glTF validator ---------------------------------------------------------------------------
 build="${BUILD_DIR:-build}"
+stage "configure + build"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DMARZIPAN_BUILD_TESTS=ON
 cmake --build "$build" -j "$(nproc)"
+stage "ctest"
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)"
 
 # ---- OpenVDB (tests/openvdb.sh) --------------------------------------------------------------
@@ -30,6 +55,7 @@ ctest --test-dir "$build" --output-on-failure -j "$(nproc)"
 # the build above: only the targets the .vdb tests need, then only those tests. Measured
 # 2026-11-24 on this 2-core VM at load 5-7: 34 s when the six files that see OpenVDB are
 # unchanged (every object from ccache), up to 92 s more when all six must be compiled again.
+stage "OpenVDB build + tests"
 BUILD_DIR="${build}-vdb" bash tests/openvdb.sh
 # ---- end of OpenVDB --------------------------------------------------------------------------
 
@@ -37,6 +63,9 @@ BUILD_DIR="${build}-vdb" bash tests/openvdb.sh
 # The engine and protocol suites under ASan + UBSan, then every fuzz target for 12 s. The whole
 # suite under ASan + UBSan is `bash tests/sanitize.sh`, under TSan `bash tests/tsan.sh`; longer
 # fuzzing is `bash tests/fuzz/run.sh 300` (tests/fuzz/README.md).
+stage "sanitizer build + tests"
 SUITES="engine protocol" BUILD_DIR="${build}-asan" bash tests/sanitize.sh
+stage "fuzz"
 BUILD_DIR="${build}-fuzz" bash tests/fuzz/run.sh 12
+stage
 # ---- end of Hostile input --------------------------------------------------------------------
