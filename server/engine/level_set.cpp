@@ -1372,10 +1372,11 @@ void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressS
   moved.step.resize(moved.step.size() + 3, 0.0f);
   std::vector<float>& next = s.next;
   const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
-  // Many sub-steps (smoothing's 32): each reads one copy of the grid and writes the other,
-  // which holds the same values off the list, instead of writing a list and copying it back
-  // every sub-step. An even count ends in g.v.
-  if (m.substeps > 2 && m.substeps % 2 == 0) {
+  // Many curvature sub-steps (smoothing's 32): each reads one copy of the grid and writes the
+  // other, which holds the same values off the list, instead of writing a list and copying it
+  // back every sub-step. An even count ends in g.v. (curvatureSteps runs the curvature kernel
+  // only: advection in as many sub-steps takes the blocks below.)
+  if (curvature && m.substeps > 2 && m.substeps % 2 == 0) {
     s.other.resize(g.v.size());
     curvatureSteps(g, s, m, pool, progress);
     return;
@@ -1731,6 +1732,16 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool) {
   Edit d = morph(vol, r, -1, pool);
   e.append(d.changes, d.region);
   return e;
+}
+
+Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& pool) {
+  requireRange(substeps, 1, 64, "substeps");
+  requireFinite(distance, "distance");
+  if (!(distance != 0 && std::fabs(distance) / substeps <= kAdvectDt))
+    throw EngineError(ErrorKind::InvalidArgument, "distance", "must be nonzero and at most 0.5 vu per sub-step");
+  Motion m = advection(distance / (kAdvectDt * substeps));
+  m.substeps = substeps;
+  return applyGlobal(vol, m, pool);
 }
 
 }  // namespace marzipan

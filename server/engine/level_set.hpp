@@ -122,4 +122,10 @@ Edit erode(Volume& vol, double k, ThreadPool& pool = ThreadPool::serial());
 Edit openSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
 Edit closeSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
 
+// Tests only: one whole-volume application of constant-speed advection that moves the surface
+// `distance` vu (outward when positive) in `substeps` equal sub-steps, where dilate and erode
+// take two per vu. |distance| / substeps in (0, 0.5] (the upwind scheme's CFL bound), substeps
+// in [1, 64].
+Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& pool = ThreadPool::serial());
+
 }  // namespace marzipan

@@ -129,6 +129,28 @@ TEST_CASE("dilation and erosion by k move a sphere's surface by k", "[level_set]
   }
 }
 
+TEST_CASE("advection in four or six sub-steps moves a sphere's surface by its distance, as in two",
+          "[level_set][morphology]") {
+  // Every tool advects in two sub-steps and smooths in 32; more sub-steps of advection must
+  // still advect (an even count once took smoothing's many-step path, which runs only the
+  // curvature kernel).
+  const Int3 dims{64, 64, 64};
+  const Vec3 c{31.6, 32.2, 31.9};
+  for (const int substeps : {2, 3, 4, 6}) {
+    INFO(substeps << " sub-steps");
+    Volume d = makeSphere(dims, c, 18);
+    advectInSubsteps(d, 1, substeps);
+    CHECK(equivalentRadius(d) == Approx(19).margin(0.05));
+    Volume e = makeSphere(dims, c, 18);
+    advectInSubsteps(e, -1, substeps);
+    CHECK(equivalentRadius(e) == Approx(17).margin(0.05));
+  }
+  Volume v = makeSphere(dims, c, 18);
+  CHECK_THROWS_AS(advectInSubsteps(v, 1, 1), EngineError);  // 1 vu in one step: past the CFL bound
+  CHECK_THROWS_AS(advectInSubsteps(v, 0, 4), EngineError);
+  CHECK_THROWS_AS(advectInSubsteps(v, 1, 0), EngineError);
+}
+
 TEST_CASE("opening with r = 3 removes a 4 vu fin and leaves the sphere", "[level_set][morphology]") {
   const Vec3 c{32, 32, 32};
   auto sphere = [&](Vec3 p) { return sdf::sphere(p, c, 20); };
