@@ -328,17 +328,25 @@ double ridgeHeight(const Volume& v, double x) {
 
 }  // namespace
 
-TEST_CASE("a stroke of one dab and no memory is the brush itself, bit for bit", "[level_set][stroke]") {
-  Volume a = makeSolid(SolidKind::Torus, {64, 64, 64}), b = a;
-  addBlob(a, {{50, 32, 32}, 7, 0.8});
-  const StrokeDab dab{{50, 32, 32}, 0.8};
-  applyStroke(b, {Brush::AddBlob, 7, 1.0}, {&dab, 1}, {});
-  // weight 0.8 at strength 1 is the same speed as strength 0.8, up to rounding
-  CHECK(std::fabs(insideVolume(a) - insideVolume(b)) < 1e-3);
-  Volume c = makeSolid(SolidKind::Torus, {64, 64, 64});
-  const StrokeDab full{{50, 32, 32}, 1.0};
-  applyStroke(c, {Brush::AddBlob, 7, 0.8}, {&full, 1}, {});
-  CHECK(digest(c) == digest(a));
+TEST_CASE("a brush is the stroke of its dab, bit for bit, whichever path computes the window", "[level_set][stroke]") {
+  // addBlob is applyStroke with one dab, which takes the brush's own window (two foot points at
+  // a time); a second, weaker dab at the same centre sends the same stroke through the dab
+  // search instead (the largest window of the two is the full dab's), computed by other code.
+  for (const Brush tool : {Brush::AddBlob, Brush::Smooth}) {
+    INFO((tool == Brush::AddBlob ? "add blob" : "smoothing"));
+    Volume a = makeSolid(SolidKind::Torus, {64, 64, 64}), b = a, c = a;
+    const std::uint64_t before = digest(a);
+    const BrushParams p{{50, 32, 32}, 7, 0.8};
+    tool == Brush::AddBlob ? addBlob(a, p) : smooth(a, p);
+    CHECK(digest(a) != before);
+    const StrokeDab dabs[] = {{{50, 32, 32}, 1.0}, {{50, 32, 32}, 0.5}};
+    applyStroke(b, {tool, 7, 0.8}, dabs, {});
+    CHECK(digest(b) == digest(a));
+    // weight 0.8 at strength 1 is the same speed as strength 0.8, up to rounding
+    const StrokeDab light{{50, 32, 32}, 0.8};
+    applyStroke(c, {tool, 7, 1.0}, {&light, 1}, {});
+    CHECK(std::fabs(insideVolume(a) - insideVolume(c)) < 1e-3);
+  }
 }
 
 TEST_CASE("a straight stroke leaves a ridge of even height: no beads at dabs or message boundaries",
