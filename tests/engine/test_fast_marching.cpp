@@ -216,10 +216,7 @@ TEST_CASE("the AVX2 state build gives the SSE2 one's march bit for bit", "[fmm][
   // Every kind of flags byte on both sides: sources, upper bounds (some too high), ignored
   // voxels, unknowns, the caller's own bits, interior and border voxels, on a grid whose voxel
   // count is no multiple of 32 or 16 (so that both loops end in a scalar tail).
-  if (!simd_width::avx2Available()) {
-    WARN("this CPU has no AVX2: both marches would build their state with SSE2");
-    return;
-  }
+  if (!test::avx2OrSkipped()) return;
   const test::WidestWidthAtExit restore;
   using namespace march_flag;
   constexpr float band = 3;
