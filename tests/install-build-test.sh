@@ -44,6 +44,14 @@ if [ ! -f tests/gltf/node_modules/.package-lock.json ] ||
 fi
 # ---- end of glTF validator ---------------------------------------------------------------------------
 build="${BUILD_DIR:-build}"
+# ccache (the compiler launcher, CMakeLists.txt) keys an object on the compiler's command line
+# or preprocessed output, both of which name this checkout's absolute path, and with -g (the
+# clang sanitizer and fuzz builds) on the build directory too: a clean clone elsewhere, as in CI,
+# found nothing in a warm cache and compiled all four builds anew. With paths under the checkout
+# made relative and the build directory left out of the key, a fresh clone anywhere reuses what
+# an earlier one compiled; the debug info of such an object names the build directory it was
+# first compiled in (only the directory; the file and line are this checkout's).
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}" CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-1}"
 stage "configure + build"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DMARZIPAN_BUILD_TESTS=ON
 cmake --build "$build" -j "$(nproc)"
