@@ -68,12 +68,14 @@ BUILD_DIR="${build}-vdb" bash tests/openvdb.sh
 # ---- end of OpenVDB --------------------------------------------------------------------------
 
 # ---- Hostile input (tests/sanitize.sh, tests/fuzz) -------------------------------------------
-# The engine and protocol suites under ASan + UBSan, then every fuzz target for 12 s. The whole
-# suite under ASan + UBSan is `bash tests/sanitize.sh`, under TSan `bash tests/tsan.sh`; longer
-# fuzzing is `bash tests/fuzz/run.sh 300` (tests/fuzz/README.md).
+# The engine and protocol suites under ASan + UBSan, then the fuzz gate: every fuzz target over
+# its checked-in corpus, every past finding and a short run with a fixed seed, so that the same
+# checkout passes or fails the same way every time. The whole suite under ASan + UBSan is
+# `bash tests/sanitize.sh`, under TSan `bash tests/tsan.sh`; open-ended fuzzing with random seeds
+# is `bash tests/fuzz/explore.sh 300` (tests/fuzz/README.md).
 stage "sanitizer build + tests"
 SUITES="engine protocol" BUILD_DIR="${build}-asan" bash tests/sanitize.sh
 stage "fuzz"
-BUILD_DIR="${build}-fuzz" bash tests/fuzz/run.sh 12
+BUILD_DIR="${build}-fuzz" bash tests/fuzz/run.sh
 stage
 # ---- end of Hostile input --------------------------------------------------------------------

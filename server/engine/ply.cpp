@@ -94,6 +94,7 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
     std::string_view rest = line;
     const std::string_view kw = token(rest);
     if (kw == "format") {
+      if (binaryLE) lineError(lines.number, "the format line is repeated");
       const std::string_view f = token(rest);
       if (f != "binary_little_endian") lineError(lines.number, "only binary_little_endian PLY is supported");
       binaryLE = true;
@@ -104,6 +105,10 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
       const auto r = std::from_chars(c.data(), c.data() + c.size(), e.count);
       if (e.name.empty() || r.ec != std::errc() || r.ptr != c.data() + c.size())
         lineError(lines.number, "bad element line");
+      // What is read of an element is appended to the mesh, so a second vertex (or face)
+      // element would add positions that the first one's normals or indices do not cover.
+      for (const PlyElement& seen : elements)
+        if (seen.name == e.name) lineError(lines.number, "element \"" + e.name.substr(0, 40) + "\" is repeated");
       elements.push_back(std::move(e));
     } else if (kw == "property") {
       if (elements.empty()) lineError(lines.number, "property before any element");
@@ -120,6 +125,9 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
       if (!type) lineError(lines.number, "unknown property type \"" + std::string(t.substr(0, 40)) + "\"");
       p.type = *type;
       p.name = std::string(token(rest));
+      if (p.name.empty()) lineError(lines.number, "property has no name");
+      for (const PlyProperty& seen : elements.back().props)
+        if (seen.name == p.name) lineError(lines.number, "property \"" + p.name.substr(0, 40) + "\" is repeated");
       elements.back().props.push_back(p);
     } else if (!kw.empty() && kw != "comment" && kw != "obj_info") {
       lineError(lines.number, "unknown header line");
