@@ -135,7 +135,7 @@ constexpr auto kRootInverse = [] {
 // The square root of d >= 0, correctly rounded (as std::sqrt's), without the errno branch the
 // library call keeps for a negative d.
 [[gnu::always_inline]] inline float rootOf(float d) {
-#if defined(__SSE2__) && defined(__GNUC__)
+#if defined(MARZIPAN_SSE2) && defined(__GNUC__)
   float r;
   asm("sqrtss %1, %0" : "=x"(r) : "x"(d));
   return r;
@@ -226,7 +226,7 @@ void buildState(const std::uint8_t* flags, std::uint8_t negBit, State* state, st
 #if defined(MARZIPAN_AVX2)
   if (simd_width::useAvx2()) i = buildStateAvx2(flags, negBit, st, n);
 #endif
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const __m128i negMask = _mm_set1_epi8(char(kNeg)), sideNeg = _mm_set1_epi8(char(negBit));
   const __m128i usableMask = _mm_set1_epi8(char(kKnown | kIgnored)), known = _mm_set1_epi8(char(kKnown));
   const __m128i frozen = _mm_set1_epi8(char(kFrozen)), zero = _mm_setzero_si128();

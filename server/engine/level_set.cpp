@@ -76,7 +76,7 @@ double window1(double t) {
 // Single precision: the field is stored in floats and the differences are of order 1. The
 // scalar form below is the definition; with SSE2, advectionRuns does its float operations in
 // its order in four lanes at once (four voxels along x), so the same bits.
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
 __m128 minmod4(__m128 a, __m128 b) {
   const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
   const __m128 aSmaller = _mm_cmplt_ps(_mm_and_ps(a, abs), _mm_and_ps(b, abs));
@@ -118,7 +118,7 @@ struct PreparedDab {
 // anchor: 0, or a stroke's signed height (+H add, -H remove): each dab's W is then read at q
 // moved back along the dab's normal (else n) by (q - c).normal clamped between 0 and the anchor,
 // and scaled by normal . n (level_set.hpp, strokes).
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
 // Dabs as lanes, one array per quantity, in a given order, followed by kPad dabs that are never
 // counted (a lane at or past its list's end is masked by its position), so that two or four
 // lanes may start at any dab and load in bounds.
@@ -157,7 +157,7 @@ class SweptWindow {
     // last ones the stroke applied, so the scalar search below mostly ends after a few (the
     // lanes re-sort it by x and start from the dab that reached the window at the voxel before).
     std::reverse(memory_.begin(), memory_.end());
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     // SSE2 searches the dabs whose ROI holds the voxel in full: ordered by their centres' x,
     // their ROIs' x ranges come in order too (Cursor::Lanes). With a height, only when every
     // dab has its own normal (a dab without one reads the voxel's: the scalar search).
@@ -218,7 +218,7 @@ class SweptWindow {
       std::vector<std::uint64_t> holds;         // bit d: dab d's ROI holds the row
       int y = std::numeric_limits<int>::min();  // the row
     } sliceDabs, sliceMemory;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     // The row's dabs and memory as lanes (lanes_), in the order of their centres' x
     // (boxAround's bounds and the domain's clipping only grow with the centre, and the dabs of a
     // stroke share its radius, so their ROIs' x ranges [lo, hi) are in order too; dabs with radii
@@ -308,7 +308,7 @@ class SweptWindow {
     const bool stays = c.listed && p.z == c.z && p.y > c.y && p.y < c.until;
     c.y = p.y;
     c.z = p.z;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     c.dabLanes.first = c.dabLanes.last = c.dabLanes.begin;
     c.memoryLanes.first = c.memoryLanes.last = c.memoryLanes.begin;
 #endif
@@ -333,7 +333,7 @@ class SweptWindow {
       c.xLo = std::min(c.xLo, dabs_[i].roi.lo.x);
       c.xHi = std::max(c.xHi, dabs_[i].roi.hi.x);
     }
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     if (lanes_) {
       c.dabLanes.list(dabs_, c.dabs, allDabs_, anchor_ != 0);
       c.memoryLanes.list(memory_, c.memory, allMemory_, anchor_ != 0);
@@ -342,7 +342,7 @@ class SweptWindow {
 #endif
   }
 
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   // The windows of the lanes' dabs j and j + 1 at foot point q (qa, normal na), 0 for a lane at
   // or past l.last (masked by its position, whatever its ROI: a dab past the range whose ROI
   // holds the voxel's x, one of another row's in the shared arrays, or the pad): window's operations
@@ -556,7 +556,7 @@ class SweptWindow {
  private:
 #endif
 
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   // search's lanes with a height (a call of its own keeps search's frame as light as before).
   [[gnu::noinline]] double searchAnchored(Int3 p, Vec3 q, Vec3 n, Cursor& c) const {
     const double w = lanesLargest<true>(c.dabLanes, p.x, q, n);
@@ -571,7 +571,7 @@ class SweptWindow {
     if (lanes_ && simd_width::useAvx2())
       return anchor_ == 0 ? searchAvx2<false>(p, q, n, c) : searchAvx2<true>(p, q, n, c);
 #endif
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     if (anchor_ == 0) {  // lanes_ holds
       const double w = lanesLargest<false>(c.dabLanes, p.x, q, n);
       if (w <= 0 || c.memory.empty()) return w;
@@ -671,7 +671,7 @@ class SweptWindow {
   bool lanes_ = false;  // SSE2 searches the lanes (Cursor::Lanes)
   // Indices into dabs_ ([0]) and memory_ ([1]) by their ROI's lo.y, and by its hi.y (RowSet).
   std::vector<std::uint32_t> byLoY_[2], byHiY_[2];
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   LaneArrays allDabs_, allMemory_;  // lanes_: dabs_ and memory_ as lanes
 #endif
 };
@@ -751,7 +751,7 @@ ToolScratch& toolScratch() {
   return s;
 }
 
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
 // Writes the first n (1..3) lanes of x: a run's last voxels, whose neighbours past the run may
 // be another block's.
 void storePartial(float* out, __m128 x, std::uint32_t n) {
@@ -777,7 +777,7 @@ void overRuns(const Run* r, const Run* end, float* dst, bool dstIsGrid, Lanes la
     const std::size_t index = r->index, first = r->first, count = r->count;
     float* const out = dst + (dstIsGrid ? index : first);
     std::size_t j = 0;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     for (; j + 4 <= count; j += 4) _mm_storeu_ps(out + j, lanes(index + j, first + j));
     if (j < count) storePartial(out + j, lanes(index + j, first + j), std::uint32_t(count - j));
 #else
@@ -811,7 +811,7 @@ __attribute__((target("avx2"))) void overRunsAvx2(const Run* r, const Run* end, 
 }
 #endif
 
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
 // curvatureRuns' lanes: operator() four voxels (SSE2), eight() eight (AVX2), each lane the
 // definition's operations in its order.
 struct CurvatureLanes {
@@ -952,7 +952,7 @@ struct AdvectionLanes {
 void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, const Run* end, const double* factor,
                    std::ptrdiff_t sy, std::ptrdiff_t sz, double limit) {
   const bool limited = std::isfinite(limit);  // clamping to +-infinity changes nothing
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const CurvatureLanes lanes{v, factor, sy, sz, limit, limited};
 #if defined(MARZIPAN_AVX2)
   if (simd_width::useAvx2()) return overRunsAvx2(r, end, dst, dstIsGrid, lanes);
@@ -973,7 +973,7 @@ void curvatureRuns(const float* v, float* dst, bool dstIsGrid, const Run* r, con
 // +-0 the direction does not change the result). Reads past a run's end as curvatureRuns.
 void advectionRuns(const float* v, float* next, const Run* r, const Run* end, const float* step,
                    const std::size_t stride[3]) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const AdvectionLanes lanes{v, step, {stride[0], stride[1], stride[2]}};
 #if defined(MARZIPAN_AVX2)
   if (simd_width::useAvx2()) return overRunsAvx2(r, end, next, false, lanes);
@@ -1041,7 +1041,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
     auto copyRow = [&](std::size_t from, std::size_t n) {
       const float* src = g.v.data() + from;
       float* dst = s.other.data() + from;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
       for (std::size_t k = 0; k < n; k += 4) _mm_storeu_ps(dst + k, _mm_loadu_ps(src + k));
 #else
       std::copy_n(src, n, dst);
@@ -1129,7 +1129,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
       }
       // Nothing ready: the pieces next to the ones left are being worked on by another thread.
       if (++idle < 64) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
         _mm_pause();
 #endif
       } else {
@@ -1139,7 +1139,7 @@ void curvatureSteps(DenseGrid& g, ToolScratch& s, const Motion& m, ThreadPool& p
   });
 }
 
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
 // A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
 // SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
 // factors multiplied out even after one is 0, which leaves 0), so the same bits.
@@ -1273,7 +1273,7 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
 #endif
   MovedAppender add(out, m, end - begin);
   SweptWindow::Cursor cursor;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   // A brush's windows two voxels at a time (the square root and divisions of the foot point
   // are most of a voxel's cost); the voxels are added in the same order. (Four at a time with
   // AVX2 took as long: gathering the neighbours into lanes cost what the lanes saved.)
@@ -1288,7 +1288,7 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     if (!(std::fabs(g.v[i]) < band)) continue;
     const Int3 p = voxels.point[k];
     if (!region.contains(p)) continue;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     if (brush) {
       pending[pendingCount] = i;
       pendingPoint[pendingCount] = p;
@@ -1310,7 +1310,7 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
     }
     add.add(i, w);
   }
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   if (pendingCount == 1) {
     const FootPoint f = footPointCall(g, pending[0], pendingPoint[0]);
     add.add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));

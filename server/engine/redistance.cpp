@@ -9,6 +9,7 @@
 #endif
 
 #include "chunked_pass.hpp"
+#include "simd_width.hpp"  // MARZIPAN_SSE2
 #include "volume.hpp"
 
 namespace marzipan {
@@ -83,7 +84,7 @@ template <class HasLo, class HasHi>
 
 // Bit k set when |v[k]| != band (16 voxels).
 std::uint32_t nearMask16(const float* v, float band) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)), b = _mm_set1_ps(band);
   std::uint32_t m = 0;
   for (int k = 0; k < 4; ++k)
@@ -100,7 +101,7 @@ std::uint32_t nearMask16(const float* v, float band) {
 // a block that overlaps the one before it (and writes the same bytes again).
 [[gnu::always_inline]] inline void signFlags(const float* v, std::uint8_t* f, std::size_t n, const std::uint8_t* pos,
                                              const std::uint8_t* flip) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   if (n >= 16) {
     const __m128 zero = _mm_setzero_ps();
     auto block = [&](std::size_t x) __attribute__((always_inline)) {
@@ -601,7 +602,7 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
       bool adjacent = value == 0;  // on the surface itself (grid-aligned faces, edges, corners)
       if (!adjacent && std::fabs(value) < 1.75f) {
         if constexpr (inner) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
           // The six neighbours' signs (as `< 0` reads them) in two compares: bits 0 and 2 of
           // the row around i (an inner voxel has two more on every side), bits 3 to 6 across.
           const __m128 zero = _mm_setzero_ps();

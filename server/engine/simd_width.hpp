@@ -9,9 +9,16 @@
 
 #include <atomic>
 
-// Where the AVX2 forms are compiled in (x86-64 with GCC or Clang). Only "avx2" is enabled,
-// never "fma": a fused multiply-add would round once where the definitions round twice.
-#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
+// Where the vector forms are compiled in: the SSE2 forms wherever the target has SSE2 (all of
+// x86-64), else the scalar definitions, which a build with MARZIPAN_SCALAR_KERNELS takes
+// everywhere (tests/engine_scalar: a test-only build of the kernels' files that holds them to
+// the fields the vector forms are pinned to); the AVX2 forms beside the SSE2 ones on x86-64
+// with GCC or Clang. Only "avx2" is enabled, never "fma": a fused multiply-add would round once
+// where the definitions round twice.
+#if defined(__SSE2__) && !defined(MARZIPAN_SCALAR_KERNELS)
+#define MARZIPAN_SSE2 1
+#endif
+#if defined(MARZIPAN_SSE2) && defined(__x86_64__) && defined(__GNUC__)
 #define MARZIPAN_AVX2 1
 #endif
 

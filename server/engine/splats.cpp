@@ -21,6 +21,7 @@
 
 #include "brick_table.hpp"
 #include "errors.hpp"
+#include "simd_width.hpp"  // MARZIPAN_SSE2
 #include "stencil.hpp"
 
 namespace marzipan {
@@ -187,7 +188,7 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
 // from byte i. Rows of another length need another packing: the static_assert above holds the
 // side at the wire's 8. p may be read up to 16 bytes on (the padded array has them).
 std::uint32_t packBytes(const std::uint8_t* p) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
   return std::uint32_t(_mm_movemask_epi8(_mm_slli_epi16(v, 7))) & 0xffu;
 #else
@@ -200,7 +201,7 @@ std::uint32_t packBytes(const std::uint8_t* p) {
 // The bytes over the padded array: inside[i] = g[i] < 0, near[i] = |g[i]| < kSurfaceNear, 0 or 1.
 void classify(const float* g, std::uint8_t* inside, std::uint8_t* near) {
   int i = 0;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   // Sixteen at a time: the comparisons' all-ones lanes narrowed by saturating packs (-1 stays
   // -1), then masked to 1.
   const __m128 zero = _mm_setzero_ps(), nearBound = _mm_set1_ps(kSurfaceNear);

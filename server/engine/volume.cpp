@@ -64,7 +64,7 @@ __attribute__((target("avx2"))) void fillWholeBrickAvx2(float* to, std::size_t s
 bool rowDiffers(const float* s, const float* old, float uniform, int n, float band) {
   int nan = 0, differs = 0;
   int x = 0;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   // Four at a time; min/max is std::clamp for every value but NaN, and NaN throws.
   const __m128 lo = _mm_set1_ps(-band), hi = _mm_set1_ps(band), u = _mm_set1_ps(uniform);
   __m128 bad = _mm_setzero_ps(), ne = _mm_setzero_ps();
@@ -85,7 +85,7 @@ bool rowDiffers(const float* s, const float* old, float uniform, int n, float ba
 // all are, none is NaN and each clamps to itself (stored values lie in [-band, band]), so the
 // rows do not change: the cheap test that almost every row of a tool's region passes.
 bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float uniform, int n, int rows) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   if (n == kBrickSide) {  // whole brick rows, the rule: two vectors a row, one test for all rows
 #if defined(MARZIPAN_AVX2)
     if (simd_width::useAvx2()) return wholeRowsMayDifferAvx2(s, sStride, old, uniform, rows);
@@ -133,7 +133,7 @@ bool rowsMayDiffer(const float* s, std::size_t sStride, const float* old, float 
 
 // n voxels (1 to kBrickSide) copied from a brick row.
 void copyShortRow(float* to, const float* from, int n) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   if (n >= 4) {
     _mm_storeu_ps(to, _mm_loadu_ps(from));
     _mm_storeu_ps(to + n - 4, _mm_loadu_ps(from + n - 4));
@@ -145,7 +145,7 @@ void copyShortRow(float* to, const float* from, int n) {
 
 // n voxels (1 to kBrickSide) set to one value.
 void fillShortRow(float* to, float value, int n) {
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   if (n >= 4) {
     const __m128 v = _mm_set1_ps(value);
     _mm_storeu_ps(to, v);
@@ -172,7 +172,7 @@ void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
 #if defined(MARZIPAN_AVX2)
   if (simd_width::useAvx2()) return fillWholeBrickAvx2(to, sx, sxy, value);
 #endif
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
   const __m128 v = _mm_set1_ps(value);
   for (int z = 0; z < kBrickSide; ++z, to += sxy) {
     float* row = to;
@@ -481,7 +481,7 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         // The bounds in locals (stores through d may alias band_) and the NaN test after the
         // brick: the loops have no branch per voxel. nb is dropped when it throws.
         const float lo = -band_, hi = band_;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
         if (here == Bricks::box(b)) {
           // A whole brick (in the domain, as the region is): the written values also tell
           // whether it is uniform, the test canonicalBrick would make reading them again.
@@ -506,7 +506,7 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         }
 #endif
         int nan = 0;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
         if (n >= 4) {
           // The first and last four voxels of each row (overlapping but for whole brick rows):
           // min/max is std::clamp but for NaN, and a voxel written twice gets the same value.
@@ -556,7 +556,7 @@ BrickRef Volume::canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const {
     // Sixteen voxels a step: the bricks at the band's outer edge hold +-band nearly throughout.
     const float* v = data->v;
     const float band = band_;
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
     const __m128 out = _mm_set1_ps(band), in = _mm_set1_ps(-band);
     __m128 notOut = _mm_setzero_ps(), notIn = _mm_setzero_ps();
     for (int i = 0; i < kBrickVoxels; i += 16) {
