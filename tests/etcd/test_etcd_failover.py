@@ -23,7 +23,12 @@ Usage: test_etcd_failover.py --marzipan BIN --haproxy BIN --config docker/haprox
        [--lease-seconds N] [--only kill|pause|leader ...]
 Run by ctest ("etcd: ..."). Needs Debian's /usr/bin/python3 with python3-websockets.
 Conventions: every wait is bounded; every process started here is killed at the end; a failed
-check raises AssertionError saying what was expected and what came.
+check raises AssertionError saying what was expected and what came. On any failure (a failed
+check, a closed connection, a timeout, --time-limit reached) it prints to stdout the test's own
+timed steps and the last lines of every server's, etcd member's and HAProxy's log, the servers'
+lines stamped with the wall-clock time they were read at (UTC, as etcd stamps its own): a
+failure seen once under CI load (a session closed with 1011, cause unknown, 2026-11-28) had
+left nothing to read.
 """
 
 import argparse
@@ -39,7 +44,9 @@ import signal
 import statistics
 import subprocess
 import sys
+import threading
 import time
+import traceback
 import urllib.request
 
 import websockets
@@ -55,11 +62,25 @@ SERVERS = ("s1", "s2", "s3")
 LEASE_SECONDS = 3
 TAKEOVER_LIMIT = 10.0  # seconds, the issue's "within ~10 s"
 HELD_ELSEWHERE = -32015
+LOG_TAIL_LINES = 200
 CREATE = {"size": [48, 48, 48], "solid": "sphere", "view": "none"}
 
 
 def clean_env():
     return {k: v for k, v in os.environ.items() if not k.startswith("MARZIPAN_")}
+
+
+def stamp():
+    now = time.time()
+    return time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(now)) + ".%03d" % (int(now * 1000) % 1000)
+
+
+def tail(path, label, lines):
+    try:
+        with open(path, errors="replace") as f:
+            return "".join(f"  [{label}] {line}" for line in f.readlines()[-lines:])
+    except OSError:
+        return f"  [{label}] (no log at {path})\n"
 
 
 def session_id():
@@ -119,6 +140,13 @@ class Topology:
         os.makedirs(self.data, exist_ok=True)
         self.procs = {}
         self.ports = {name: free_port() for name in SERVERS}
+        self.events_path = os.path.join(self.work, "test-events.log")
+        self.readers = []
+
+    def note(self, what):
+        """One timed step of the test, printed with the logs if it fails."""
+        with open(self.events_path, "a") as f:
+            f.write(f"{stamp()} {what}\n")
 
     def start_server(self, name, etcd=True):
         args = [self.args.marzipan, "serve", "--port", str(self.ports[name]), "--threads", "2",
@@ -126,9 +154,12 @@ class Topology:
         if etcd:
             args += ["--data-dir", self.data, "--etcd", self.cluster.endpoints,
                      "--etcd-lease-seconds", str(LEASE_SECONDS)]
-        with open(os.path.join(self.work, f"{name}.stderr"), "a") as log:
-            proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=log, text=True, env=clean_env())
+        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=clean_env())
+        reader = threading.Thread(target=self._stamp_lines, args=(proc.stderr, self.log_path(name)), daemon=True)
+        reader.start()
+        self.readers.append(reader)
         self.procs[name] = proc
+        self.note(f"started {name} (pid {proc.pid})")
         ready, _, _ = select.select([proc.stdout], [], [], 15)
         line = proc.stdout.readline() if ready else ""
         match = re.fullmatch(r"listening on http://127\.0\.0\.1:(\d+)\n", line)
@@ -139,12 +170,33 @@ class Topology:
         """What the owner keys and -32015's data.owner say: the address clients can reach."""
         return f"127.0.0.1:{self.ports[name]}"
 
-    def log(self, name):
-        try:
-            with open(os.path.join(self.work, f"{name}.stderr")) as f:
-                return "".join(f"  [{name}] {line}" for line in f.readlines()[-30:])
-        except OSError:
-            return ""
+    @staticmethod
+    def _stamp_lines(stream, path):
+        # marzipan's log lines carry no time; stamped here they line up with etcd's.
+        with open(path, "a") as log:
+            for line in stream:
+                log.write(f"{stamp()} {line}")
+                log.flush()
+
+    def log_path(self, name):
+        return os.path.join(self.work, f"{name}.stderr")
+
+    def log(self, name, lines=30):
+        return tail(self.log_path(name), name, lines)
+
+    def dump_logs(self, out=sys.stdout):
+        """The test's steps and the tail of every log it has, for a failure to explain itself."""
+        print(f"---- test steps (UTC), {self.events_path}", file=out)
+        print(tail(self.events_path, "test", LOG_TAIL_LINES), file=out)
+        for name in [*SERVERS, "reference"]:
+            print(f"---- marzipan {name}: last {LOG_TAIL_LINES} lines of {self.log_path(name)}", file=out)
+            print(self.log(name, LOG_TAIL_LINES), file=out)
+        for m in self.cluster.members:
+            print(f"---- etcd {m.name} (client {m.url}): last {LOG_TAIL_LINES} lines of {m.log_path}", file=out)
+            print(self.cluster.log_tail(m, LOG_TAIL_LINES), file=out)
+        print("---- haproxy: last 50 lines", file=out)
+        print(tail(os.path.join(self.work, "haproxy.log"), "haproxy", 50), file=out)
+        out.flush()
 
     def start_proxy(self):
         with open(self.args.config) as f:
@@ -179,6 +231,7 @@ class Topology:
         return f"ws://127.0.0.1:{self.ports[name]}/ws?session={sid}"
 
     def signal(self, name, sig):
+        self.note(f"{signal.Signals(sig).name} to {name}")
         self.procs[name].send_signal(sig)
         if sig == signal.SIGKILL:
             self.procs[name].wait(timeout=10)
@@ -190,6 +243,8 @@ class Topology:
                 proc.kill()
             proc.wait(timeout=10)
         self.cluster.stop()
+        for reader in self.readers:
+            reader.join(timeout=2)
 
 
 class Session:
@@ -272,6 +327,7 @@ async def check_kill_and_restart(t, report):
         assert created[0] == "ok", created
         s.token = created[1]["token"]
         owner = rpc.server
+        t.note(f"kill: session {s.sid} created on {owner}")
         assert owner in SERVERS, f"X-Marzipan-Server {owner!r}"
         for _ in range(20):
             assert (await s.apply(rpc))[0] == "ok"
@@ -279,6 +335,7 @@ async def check_kill_and_restart(t, report):
     took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
     report["takeover_seconds_after_sigkill"] = round(took, 2)
     new_owner = rpc.server
+    t.note(f"kill: {new_owner} acknowledged an edit after {took:.2f} s")
     assert new_owner != owner, f"the killed {owner} answered"
     for _ in range(10):
         assert (await s.apply(rpc))[0] == "ok"
@@ -348,12 +405,14 @@ async def check_pause(t, report):
     created = await stale.call("session.create", dict(CREATE, session=s.sid))
     assert created[0] == "ok", created
     s.token = created[1]["token"]
+    t.note(f"pause: session {s.sid} created on {old}")
     for _ in range(10):
         assert (await s.apply(stale))[0] == "ok"
     t.signal(old, signal.SIGSTOP)
     t0 = time.monotonic()
     took, rpc = await join_until_acked(t, s, t.direct(new, s.sid), LEASE_SECONDS + TAKEOVER_LIMIT)
     report["takeover_seconds_after_sigstop"] = round(took, 2)
+    t.note(f"pause: {new} acknowledged an edit after {took:.2f} s")
     for _ in range(5):
         assert (await s.apply(rpc))[0] == "ok"
     # Well past the lease, then the old owner wakes up and is sent edits on its old connection.
@@ -397,24 +456,29 @@ async def check_etcd_leader_kill(t, report):
         created = await rpc.call("session.create", dict(CREATE, session=s.sid))
         assert created[0] == "ok", created
         s.token = created[1]["token"]
+        t.note(f"leader: session {s.sid} created on {rpc.server}")
         for _ in range(10):
             assert (await s.apply(rpc))[0] == "ok"
         leader = t.cluster.leader()
         assert leader is not None, "no etcd leader"
+        t.note(f"leader: SIGKILL to etcd {leader.name}, the leader")
         t.cluster.kill(leader)
         t0 = time.monotonic()
         refused = 0
         while True:
+            reply_ok = False
             try:
                 reply = await s.apply(rpc)
             except ConnectionError:
                 break
             if reply[0] == "ok":
+                reply_ok = True
                 break
             refused += 1
             assert time.monotonic() - t0 < TAKEOVER_LIMIT, f"edits still refused {TAKEOVER_LIMIT} s after the leader died"
         report["first_edit_after_etcd_leader_kill_seconds"] = round(time.monotonic() - t0, 2)
         report["edits_refused_during_election"] = refused
+        t.note(f"leader: {refused} edits refused, then {'one acknowledged' if reply_ok else 'the connection closed'}")
     # Whether the session stayed or had to be joined again, every acknowledged edit is there.
     # Not a takeover (the owner kept its session): the time is reported. The owner may have
     # refused an edit and closed the session while the election held its keep-alive up past
@@ -423,6 +487,7 @@ async def check_etcd_leader_kill(t, report):
     # claims such a session afresh, tests/service/test_etcd_storage.cpp).
     took, rpc = await join_until_acked(t, s, t.via_proxy(s.sid), TAKEOVER_LIMIT)
     report["rejoin_after_etcd_leader_kill_seconds"] = round(took, 2)
+    t.note(f"leader: rejoined on {rpc.server} after {took:.2f} s")
     for _ in range(5):
         assert (await s.apply(rpc))[0] == "ok"
     await check_against_reference(t, s, rpc, "after the etcd leader was killed")
@@ -449,6 +514,9 @@ def main():
                         help="the servers' --etcd-lease-seconds (3 here to keep the test short; 5 is the default)")
     parser.add_argument("--only", choices=["kill", "pause", "leader"], action="append",
                         help="run only these checks (default: all)")
+    parser.add_argument("--time-limit", type=float, default=110,
+                        help="seconds before the test gives up and prints its logs (below ctest's TIMEOUT 120, "
+                             "which would kill it silently)")
     args = parser.parse_args()
     global LEASE_SECONDS
     LEASE_SECONDS = args.lease_seconds
@@ -456,6 +524,13 @@ def main():
     os.makedirs(args.workdir)
     t = Topology(args)
     report = {}
+
+    def out_of_time(signum, frame):
+        raise TimeoutError(f"the test ran past its --time-limit of {args.time_limit:.0f} s")
+
+    signal.signal(signal.SIGALRM, out_of_time)
+    signal.setitimer(signal.ITIMER_REAL, args.time_limit)
+    failed = True
     try:
         t.cluster.start()
         for name in SERVERS:
@@ -472,13 +547,20 @@ def main():
             asyncio.run(check_etcd_leader_kill(t, report))
         report["etcd_append"] = [etcd_append_metric(t, n) for n in SERVERS if t.procs[n].poll() is None]
         print(json.dumps(report))
+        failed = False
         return 0
-    except AssertionError:
-        for name in SERVERS:
-            print(t.log(name), file=sys.stderr)
-        raise
+    except BaseException as e:
+        t.note(f"failed: {type(e).__name__}: {(str(e).splitlines() or [''])[0]}")
+        print("FAILED; what was measured until then: " + json.dumps(report), flush=True)
+        traceback.print_exc(file=sys.stdout)
+        return 1
     finally:
-        t.stop()
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        try:
+            t.stop()
+        finally:
+            if failed:
+                t.dump_logs()
 
 
 if __name__ == "__main__":
