@@ -649,12 +649,40 @@ std::vector<char32_t> codePoints(std::string_view s) {
   return out;
 }
 
-bool isSpace(char32_t c) { return c == ' ' || c == 0xA0 || c == 0x3000 || (c >= 0x2000 && c <= 0x200B) || c == 0xFEFF; }
+// White space (Unicode's space separators): trimmed at both ends of a name, kept inside it.
+bool isSpace(char32_t c) {
+  return c == ' ' || c == 0xA0 || c == 0x1680 || (c >= 0x2000 && c <= 0x200A) || c == 0x202F || c == 0x205F ||
+         c == 0x3000;
+}
 
 // Characters a name must not hold: they would break or reorder the text around it in a UI.
 bool isControl(char32_t c) {
   return c < 0x20 || (c >= 0x7F && c <= 0x9F) || c == 0x2028 || c == 0x2029 || (c >= 0x202A && c <= 0x202E) ||
          (c >= 0x2066 && c <= 0x2069);
+}
+
+// Characters that show nothing, or a blank, wherever they stand: a name holding them could
+// look blank or the same as another name ("Ada" and "Ada" + U+200E). Zero width space,
+// (non-)joiner and direction marks, word joiner and invisible operators, the Arabic letter mark,
+// byte order mark, soft hyphen, combining grapheme joiner, Mongolian vowel separator, the
+// Khmer inherent vowels, the deprecated format characters, the Hangul fillers and the blank
+// braille pattern.
+bool isInvisible(char32_t c) {
+  return c == 0xAD || c == 0x34F || c == 0x61C || c == 0x115F || c == 0x1160 || c == 0x17B4 || c == 0x17B5 ||
+         c == 0x180E || (c >= 0x200B && c <= 0x200F) || (c >= 0x2060 && c <= 0x2064) || (c >= 0x206A && c <= 0x206F) ||
+         c == 0x2800 || c == 0x3164 || c == 0xFEFF || c == 0xFFA0;
+}
+
+// Characters that only change the look of the one before them (variation selectors, the tag
+// characters of flag emoji): allowed, but they are not what makes a name visible.
+bool isModifierOnly(char32_t c) {
+  return (c >= 0xFE00 && c <= 0xFE0F) || (c >= 0xE0000 && c <= 0xE007F) || (c >= 0xE0100 && c <= 0xE01EF);
+}
+
+std::string codePointText(char32_t c) {
+  char buf[12];
+  std::snprintf(buf, sizeof buf, "U+%04X", unsigned(c));
+  return buf;
 }
 
 }  // namespace
@@ -665,15 +693,15 @@ std::string nameValue(const json& v) {
   std::size_t lo = 0, hi = cps.size();
   while (lo < hi && isSpace(cps[lo])) ++lo;
   while (hi > lo && isSpace(cps[hi - 1])) --hi;
-  if (hi == lo) fail("name", "must hold at least one character besides white space");
   if (hi - lo > kMaxNameChars)
     fail("name", "must be at most " + std::to_string(kMaxNameChars) + " characters, got " + std::to_string(hi - lo));
-  for (std::size_t i = lo; i < hi; ++i)
-    if (isControl(cps[i])) fail("name", "must not hold control characters (U+" + [&] {
-                              char buf[8];
-                              std::snprintf(buf, sizeof buf, "%04X", unsigned(cps[i]));
-                              return std::string(buf);
-                            }() + ")");
+  bool visible = false;
+  for (std::size_t i = lo; i < hi; ++i) {
+    if (isControl(cps[i])) fail("name", "must not hold control characters (" + codePointText(cps[i]) + ")");
+    if (isInvisible(cps[i])) fail("name", "must not hold invisible characters (" + codePointText(cps[i]) + ")");
+    visible = visible || !(isSpace(cps[i]) || isModifierOnly(cps[i]));
+  }
+  if (!visible) fail("name", "must hold at least one visible character");
   // Cut the raw bytes at the trimmed code points.
   std::size_t begin = 0, end = 0, index = 0;
   for (std::size_t i = 0; i <= raw.size(); ++index) {

@@ -226,8 +226,10 @@ struct PresenceParams {
 inline constexpr std::size_t kMaxNameChars = 64;  // code points of a display name
 
 // The display name of session.create/join: trimmed of white space at both ends, 1 to
-// kMaxNameChars code points, no control characters (C0, DEL, C1), line or paragraph
-// separators, or bidirectional embedding/override/isolate controls. OpError field "name".
+// kMaxNameChars code points with at least one visible character, no control characters (C0,
+// DEL, C1), line or paragraph separators, bidirectional embedding/override/isolate controls, or
+// invisible characters (zero-width, direction marks, Hangul fillers; rpc.cpp, isInvisible).
+// OpError field "name".
 std::string nameValue(const nlohmann::json& v);
 PresenceParams parsePresenceParams(const nlohmann::json& params);
 // The canonical JSON of a presence's parts, as the server forwards them.
