@@ -184,3 +184,77 @@ TEST_CASE("PLY normals out of float range are refused, not converted", "[mesh][e
   CHECK(formatError([&] { parsePly(b); }).find("not finite") != std::string::npos);
 }
 
+
+namespace {
+
+// A binary PLY of one triangle: `header` between the format line and end_header, then `body`.
+std::vector<std::uint8_t> plyFile(const std::string& header, const std::vector<std::uint8_t>& body) {
+  const std::string text = "ply\nformat binary_little_endian 1.0\n" + header + "end_header\n";
+  std::vector<std::uint8_t> b(text.begin(), text.end());
+  b.insert(b.end(), body.begin(), body.end());
+  return b;
+}
+template <class T>
+void put(std::vector<std::uint8_t>& b, T v) {
+  const auto* c = reinterpret_cast<const std::uint8_t*>(&v);
+  b.insert(b.end(), c, c + sizeof v);
+}
+std::vector<std::uint8_t> oneFace() {
+  std::vector<std::uint8_t> b;
+  put(b, std::uint8_t(3));
+  for (const std::uint32_t i : {0u, 1u, 2u}) put(b, i);
+  return b;
+}
+
+}  // namespace
+
+TEST_CASE("a PLY header that repeats its format line, an element or a property is refused", "[mesh][errors]") {
+  // The fuzzer's find (tests/fuzz/regressions/ply/): the preamble again inside the header, so
+  // a second vertex element without normals' match. Read as two, it gave 288 positions and 144
+  // normals, which no exporter can take.
+  std::ifstream in(std::string(MARZIPAN_FUZZ_REGRESSIONS) + "/ply/repeated-preamble-second-vertex-element.ply",
+                   std::ios::binary);
+  REQUIRE(in);
+  const std::vector<std::uint8_t> found{std::istreambuf_iterator<char>(in), {}};
+  CHECK(formatError([&] { parsePly(found); }).find("line 9: the format line is repeated") != std::string::npos);
+
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  const std::string face = "element face 1\nproperty list uchar uint vertex_indices\n";
+  auto plyError = [&](const std::string& header) { return formatError([&] { parsePly(plyFile(header, {})); }); };
+  CHECK(plyError("element vertex 3\n" + xyz + "element vertex 3\n" + xyz + "property float nx\n" + face)
+            .find("line 7: element \"vertex\" is repeated") != std::string::npos);
+  CHECK(plyError("element vertex 3\n" + xyz + face + face).find("line 9: element \"face\" is repeated") !=
+        std::string::npos);
+  CHECK(plyError("element vertex 3\n" + xyz + "property float x\n" + face)
+            .find("line 7: property \"x\" is repeated") != std::string::npos);
+  CHECK(plyError("element vertex 3\nproperty float\n" + face).find("line 4: property has no name") !=
+        std::string::npos);
+}
+
+TEST_CASE("PLY vertices of mixed scalar types, with properties after the normals, read exactly", "[mesh]") {
+  // x float, y double, z short, then the normals as char, short and float, then a property
+  // the reader does not use: each value lands where its own offset says.
+  const std::string header =
+      "element vertex 3\nproperty float x\nproperty double y\nproperty short z\nproperty char nx\n"
+      "property short ny\nproperty float nz\nproperty uchar quality\n"
+      "element face 1\nproperty list uchar uint vertex_indices\n";
+  std::vector<std::uint8_t> body;
+  const float xs[3] = {0.5f, 10.25f, 3.0f};
+  const double ys[3] = {-1.5, 2.0, 12.75};
+  const std::int16_t zs[3] = {-300, 7, 32000};
+  for (int v = 0; v < 3; ++v) {
+    put(body, xs[v]);
+    put(body, ys[v]);
+    put(body, zs[v]);
+    put(body, std::int8_t(-1));
+    put(body, std::int16_t(v));
+    put(body, 0.5f * float(v));
+    put(body, std::uint8_t(200));
+  }
+  const auto f = oneFace();
+  body.insert(body.end(), f.begin(), f.end());
+  const Mesh m = parsePly(plyFile(header, body));
+  CHECK(m.positions == std::vector<float>{0.5f, -1.5f, -300, 10.25f, 2, 7, 3, 12.75f, 32000});
+  CHECK(m.normals == std::vector<float>{-1, 0, 0, -1, 1, 0.5f, -1, 2, 1});
+  CHECK(m.indices == std::vector<std::uint32_t>{0, 1, 2});
+}
