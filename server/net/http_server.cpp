@@ -337,6 +337,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       state_->options.hub->binary(client_, std::vector<std::uint8_t>(begin, begin + bytes));
     }
     buffer_.consume(buffer_.size());
+    // A flat_buffer keeps its largest capacity for the connection's life: after an upload (even
+    // a refused one) that would hold its size resident, up to max_binary_bytes per connection.
+    if (buffer_.capacity() > limits.maxTextBytes) buffer_.shrink_to_fit();
     doRead();
   }
 
