@@ -61,8 +61,11 @@ std::string boxText(const openvdb::CoordBBox& b) {
 }
 
 // Copies the first float grid of `grids` into a volume of `dims`, after checking that its active
-// voxels and tiles lie inside the domain (a grid of absurd extent is refused before any copy).
-Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, const std::string& source) {
+// voxels and tiles lie inside the domain (a grid of absurd extent is refused before any copy),
+// and stops once the volume's bricks pass maxBytes: the active voxels say nothing of the values
+// between them, and a background inside the band makes every brick data.
+Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, const std::string& source,
+                std::size_t maxBytes) {
   openvdb::FloatGrid::Ptr grid;
   for (std::size_t i = 0; grids && i < grids->size() && !grid; ++i)
     grid = openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[i]);
@@ -91,6 +94,11 @@ Volume volumeOf(const openvdb::GridPtrVecPtr& grids, Int3 dims, float band, cons
           values[std::size_t(x) + std::size_t(size.x) * (y + std::size_t(size.y) * z)] = std::clamp(v, -band, band);
         }
     vol.scatter(slab, values.data(), slab);
+    if (vol.memoryBytes() > maxBytes)
+      throw EngineError(ErrorKind::TooLarge, "file",
+                        source + ": its volume takes more than " + std::to_string(maxBytes) + " bytes of bricks (" +
+                            std::to_string(vol.memoryBytes()) + " by z = " + std::to_string(slab.hi.z) + " of " +
+                            std::to_string(dims.z) + ")");
   }
   return vol;
 }
@@ -250,7 +258,7 @@ Volume loadVdb(const std::string& path, Int3 dims, float band) {
   } catch (const openvdb::Exception& e) {
     throw EngineError(ErrorKind::Format, "file", std::string("cannot read ") + path + ": " + e.what());
   }
-  return volumeOf(grids, dims, band, path);
+  return volumeOf(grids, dims, band, path, SIZE_MAX);
 }
 
 Volume loadVdb(std::istream& in, Int3 dims, float band) {
@@ -258,7 +266,7 @@ Volume loadVdb(std::istream& in, Int3 dims, float band) {
   return loadVdb(std::span(reinterpret_cast<const std::uint8_t*>(file.data()), file.size()), dims, band);
 }
 
-Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band) {
+Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band, std::size_t maxBytes) {
   initialize();
   const std::string cut = FirstFloatGrid(std::string_view(reinterpret_cast<const char*>(file.data()), file.size())).cut();
   ViewBuf buffer(cut);
@@ -276,7 +284,7 @@ Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band) {
   } catch (const std::exception& e) {
     throw EngineError(ErrorKind::Format, "file", std::string("not a readable .vdb file: ") + e.what());
   }
-  return volumeOf(grids, dims, band, "the .vdb file");
+  return volumeOf(grids, dims, band, "the .vdb file", maxBytes);
 }
 
 }  // namespace marzipan

@@ -11,6 +11,7 @@
 // stream is OpenVDB's stream layout (io::Stream), which io::Stream reads back.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <iosfwd>
 #include <span>
@@ -42,7 +43,12 @@ Volume loadVdb(const std::string& path, Int3 dims, float band = Volume::kDefault
 // memory of a read is bounded by that multiple of the upload.
 Volume loadVdb(std::istream& in, Int3 dims, float band = Volume::kDefaultBand);
 // The same from a whole .vdb file in memory (a client's upload): the bytes OpenVDB is shown (the
-// header and the one grid) are the only copy made of it.
-Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band = Volume::kDefaultBand);
+// header and the one grid) are the only copy made of it. `maxBytes` bounds the volume's memory
+// (Volume::memoryBytes, a session's max_volume_bytes): a grid's values become bricks one slab
+// of bricks at a time, and once they pass it the read stops with EngineError(TooLarge, "file").
+// A few hundred bytes (an empty tree whose background lies inside the band) would otherwise
+// make every brick of the domain data before anything could compare it with the limit.
+Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band = Volume::kDefaultBand,
+               std::size_t maxBytes = SIZE_MAX);
 
 }  // namespace marzipan

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <streambuf>
 
+#include "engine/errors.hpp"
 #include "engine/openvdb/vdb_io.hpp"
 #endif
 #include "service/hub/core.hpp"
@@ -91,12 +92,32 @@ Bytes volumeFileBytes(const Volume& vol, protocol::VolumeFormat f) {
   return saveVolume(vol);
 }
 
-// A .vdb upload holds distances by index: it takes the session's grid size and band.
-Volume volumeFromFile(std::span<const std::uint8_t> file, protocol::VolumeFormat f, Int3 dims, float band) {
+// The refusal of a loaded volume over max_volume_bytes; `held` is unknown when the read stopped
+// once past it.
+RpcException overMaxVolume(std::size_t max, std::optional<std::size_t> held) {
+  json data{{"limit", "max_volume_bytes"}, {"max", max}, {"field", "file"}};
+  if (held) data["value"] = *held;
+  return RpcException(RpcCode::LimitExceeded,
+                      "the file's volume holds " + (held ? std::to_string(*held) : "more than " + std::to_string(max)) +
+                          " bytes of bricks, over max_volume_bytes " + std::to_string(max),
+                      data);
+}
+
+// A .vdb upload holds distances by index: it takes the session's grid size and band, and its
+// read stops once its bricks pass maxBytes (a .mzv's bricks are bounded by its own bytes).
+Volume volumeFromFile(std::span<const std::uint8_t> file, protocol::VolumeFormat f, Int3 dims, float band,
+                      std::size_t maxBytes) {
 #ifdef MARZIPAN_HAS_OPENVDB
-  if (f == protocol::VolumeFormat::Vdb) return loadVdb(file, dims, band);
+  if (f == protocol::VolumeFormat::Vdb) {
+    try {
+      return loadVdb(file, dims, band, maxBytes);
+    } catch (const EngineError& e) {
+      if (e.kind() == ErrorKind::TooLarge) throw overMaxVolume(maxBytes, std::nullopt);
+      throw;
+    }
+  }
 #endif
-  (void)f, (void)dims, (void)band;
+  (void)f, (void)dims, (void)band, (void)maxBytes;
   return ::marzipan::loadVolume(file);
 }
 
@@ -227,12 +248,9 @@ void volumeUpload(HubCore& hub, const std::shared_ptr<HubClient>& c, Bytes bytes
                                                                                format = load.format](LiveSession& s,
                                                                                                      Reply& r) {
     const std::size_t maxVolume = self->limits().maxVolumeBytes;
-    Volume vol = volumeFromFile(upload->file(), format, s.session->volume().dims(), s.session->volume().band());
-    if (vol.memoryBytes() > maxVolume)
-      throw RpcException(RpcCode::LimitExceeded,
-                         "the file's volume holds " + std::to_string(vol.memoryBytes()) +
-                             " bytes of bricks, over max_volume_bytes " + std::to_string(maxVolume),
-                         {{"limit", "max_volume_bytes"}, {"value", vol.memoryBytes()}, {"max", maxVolume}, {"field", "file"}});
+    Volume vol =
+        volumeFromFile(upload->file(), format, s.session->volume().dims(), s.session->volume().band(), maxVolume);
+    if (vol.memoryBytes() > maxVolume) throw overMaxVolume(maxVolume, vol.memoryBytes());
     const Int3 d = s.session->volume().dims();
     if (vol.dims() != d)
       throw RpcException(RpcCode::EngineRefused,
