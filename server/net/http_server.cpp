@@ -46,6 +46,7 @@
 #include "net/static_files.hpp"
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/rpc.hpp"
+#include "service/client_address.hpp"
 #include "service/hub.hpp"
 
 namespace marzipan::net {
@@ -161,7 +162,7 @@ struct SharedState : std::enable_shared_from_this<SharedState> {
   std::size_t live = 0;  // HTTP sessions and WebSockets
   std::size_t liveWs = 0;
   std::size_t connections = 0;                        // slots taken
-  std::map<std::string, std::size_t> perAddress;  // slots taken per client address
+  std::map<std::string, std::size_t> perAddress;  // slots taken per addressLimitKey
 };
 
 bool normalClose(const beast::error_code& ec) {
@@ -733,7 +734,7 @@ class Listener : public std::enable_shared_from_this<Listener> {
     beast::error_code remoteEc;
     const tcp::endpoint remote = socket.remote_endpoint(remoteEc);
     const std::string peer = remoteEc ? std::string("?") : endpointText(remote);
-    if (auto slot = state_->takeSlot(remoteEc ? peer : remote.address().to_string())) {
+    if (auto slot = state_->takeSlot(remoteEc ? peer : service::addressLimitKey(remote.address().to_string()))) {
       std::make_shared<HttpSession>(std::move(socket), state_, peer, std::move(slot))->run();
     } else {
       state_->log("http: refused " + peer + ": too many connections (max_connections / max_connections_per_address)");

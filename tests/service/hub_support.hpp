@@ -115,7 +115,8 @@ struct TestClient {
   std::shared_ptr<HubClient> client;
   int nextId = 1;
 
-  explicit TestClient(Hub& h) : hub(h), client(h.connect(link, "test")) {}
+  // `peer`: the connection's "address:port", as the network layer gives it.
+  explicit TestClient(Hub& h, const std::string& peer = "test") : hub(h), client(h.connect(link, peer)) {}
   ~TestClient() { hub.disconnect(client); }
 
   // Sends a request and returns its response (the whole message).

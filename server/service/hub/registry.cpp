@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "engine/solids.hpp"
+#include "service/client_address.hpp"
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
 #include "service/hub/secrets.hpp"
@@ -17,13 +18,6 @@ using protocol::ViewMode;
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
 namespace {
-
-// The peer's address without its port ("1.2.3.4:5", "[::1]:5").
-std::string addressOf(const std::string& peer) {
-  if (!peer.empty() && peer.front() == '[') return peer.substr(0, peer.find(']') + 1);
-  const std::size_t colon = peer.find(':');
-  return colon != std::string::npos && colon == peer.rfind(':') ? peer.substr(0, colon) : peer;
-}
 
 json limitsJson(const HubLimits& l) {
   return {{"max_text_bytes", l.maxTextBytes},
@@ -107,9 +101,10 @@ void SessionRegistry::checkCreateRate(HubClient& c) {
       while (!it->second.empty() && it->second.front() < minuteAgo) it->second.pop_front();
       it = it->second.empty() ? createsByAddress_.erase(it) : std::next(it);
     }
-    auto& mine = createsByAddress_[addressOf(c.peer)];
+    const std::string address = addressLimitKey(c.peer);
+    auto& mine = createsByAddress_[address];
     if (mine.size() >= l.maxCreatesPerAddressPerMinute) {
-      if (mine.empty()) createsByAddress_.erase(addressOf(c.peer));
+      if (mine.empty()) createsByAddress_.erase(address);
       throw refuse("max_creates_per_address_per_minute", l.maxCreatesPerAddressPerMinute, "from this address");
     }
     mine.push_back(now);
