@@ -76,8 +76,9 @@ export function startServer(extraArgs = []) {
 }
 
 // Chromium with a fresh profile directory; resolves with {context, close}. The context saves
-// downloads and allows them; hasTouch gives its pages a touch screen besides the mouse.
-export async function startBrowser({ width = 1100, height = 760, deviceScaleFactor = 1, hasTouch = false } = {}) {
+// downloads and allows them; hasTouch gives its pages a touch screen besides the mouse;
+// localStorage holds items every page of the context finds in its storage from the start.
+export async function startBrowser({ width = 1100, height = 760, deviceScaleFactor = 1, hasTouch = false, localStorage = {} } = {}) {
   const profile = mkdtempSync(join(tmpdir(), "marzipan-chromium-"));
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: chromiumPath,
@@ -88,6 +89,11 @@ export async function startBrowser({ width = 1100, height = 760, deviceScaleFact
     hasTouch,
     acceptDownloads: true,
   });
+  if (Object.keys(localStorage).length)
+    await context.addInitScript((items) => {
+      if (!location.protocol.startsWith("http")) return; // about:blank has no storage of its own
+      for (const [key, value] of Object.entries(items)) window.localStorage.setItem(key, value);
+    }, localStorage);
   return {
     context,
     async close() {

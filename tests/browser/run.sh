@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Runs the browser tests (client.test.mjs, collab.test.mjs) the way ctest does, refusing to start without what
-# they need rather than skipping: Debian's chromium, the npm dependency installed by
-# tests/install-build-test.sh, and a built marzipan.
+# Runs the browser tests (every *.test.mjs here but vdb.test.mjs, which needs a server built with
+# OpenVDB) the way ctest does, refusing to start without what they need rather than skipping:
+# Debian's chromium, the npm dependency installed by tests/install-build-test.sh, and a built
+# marzipan. ctest runs each file as its own entry; this runs the files given one after the other.
 # Usage: MARZIPAN=build/server/marzipan bash tests/browser/run.sh [FILE.test.mjs ...]
 #        (no FILE: all of them, as ctest runs them)
 #        (MARZIPAN_BROWSER_ARTIFACTS=DIR for the screenshots; default build/browser-artifacts)
@@ -17,5 +18,7 @@ fail() { echo "tests/browser: $*" >&2; exit 1; }
 [ -x "$marzipan" ] || fail "no marzipan executable at $marzipan: build it, or set MARZIPAN"
 export MARZIPAN="$(cd "$(dirname "$marzipan")" && pwd)/$(basename "$marzipan")"
 export CHROMIUM="$chromium"
-[ $# -gt 0 ] || set -- client.test.mjs collab.test.mjs
+if [ $# -eq 0 ]; then
+  for file in *.test.mjs; do [ "$file" = vdb.test.mjs ] || set -- "$@" "$file"; done
+fi
 exec node --test --test-concurrency=1 "$@"
