@@ -117,9 +117,10 @@ bool EtcdStorage::acquire(const std::string& id) {
 
 bool EtcdStorage::renew(const std::string& id) {
   // The lease is the server's, kept alive by its own thread: renewing one session is asking
-  // whether it still holds.
+  // whether it still holds. A late lease still does (the hub closes what this says no to, and
+  // etcd fences every write); a lost one is reported by the keep-alive thread as well.
   const std::lock_guard lock(mutex_);
-  return owner_.leaseHeld() && owned_.count(id) > 0;
+  return owner_.leaseKept() && owned_.count(id) > 0;
 }
 
 bool EtcdStorage::holds(const std::string& id) {

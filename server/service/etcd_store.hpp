@@ -17,7 +17,9 @@
 // token: after a lease expiry the key is gone (or re-created by another server with a higher
 // revision), so a paused owner that wakes up is refused by etcd itself, whatever its clock says.
 // The lease is lost when a keep-alive answers "expired" or none succeeded for a whole TTL: the
-// owner then refuses appends locally at once (Fenced) and `lost` is called once.
+// owner then refuses appends locally at once (Fenced) and `lost` is called once. A lease only
+// late (not renewed within its TTL, not yet found lost) is not refused locally: appends go to
+// etcd, whose fence decides; what writes nothing asks confirmLease().
 // Appends from all sessions of a server are grouped: while one transaction is in flight the
 // next ones queue and go together as one transaction (bounded by etcd's --max-txn-ops and
 // --max-request-bytes), so strokes keep up without waiting for a timer.
@@ -144,6 +146,9 @@ class EtcdOwner {
   // Revokes the lease (every session it owns is free at once) and stops the keep-alive.
   void stop();
   bool leaseHeld() const;
+  // Not (yet) found lost by the keep-alive thread: it may be late. What the fence-less local
+  // decisions that must not close a session on lateness alone ask (appends, the hub's renewal).
+  bool leaseKept() const;
   // leaseHeld(), but a lease not renewed within its TTL is first renewed (waiting up to
   // kLeaseWait, as claim() does): it may only be late (an etcd election holding the keep-alive
   // up, etcd keeping the lease), or gone (etcd answers "expired": false at once).

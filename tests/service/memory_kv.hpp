@@ -2,10 +2,13 @@
 // until delete, leases deleting their keys), for the etcd store's unit tests. Leases expire only
 // when a test says so (expire()); `down` makes every call throw KvUnavailable, and the next
 // `loseAnswers` transactions are applied but throw as if their answer was lost on the way;
-// `latency` delays every transaction (outside the lock) like a network round trip.
+// `latency` delays every transaction (outside the lock) like a network round trip;
+// `stallKeepAlives` holds keep-alives up (as an etcd election does, no member answering for a
+// while) until it is cleared, then they succeed: the lease itself does not expire.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <map>
 #include <mutex>
 #include <set>
@@ -29,6 +32,7 @@ class MemoryKv : public service::KeyValue {
     return lastLease_;
   }
   std::int64_t leaseKeepAlive(std::int64_t lease) override {
+    while (stallKeepAlives) std::this_thread::sleep_for(std::chrono::milliseconds(10));
     const std::lock_guard lock(mutex_);
     check();
     return leases_.count(lease) ? 5 : 0;
@@ -95,6 +99,7 @@ class MemoryKv : public service::KeyValue {
   }
 
   std::atomic<bool> down{false};  // set by the test while the hub's threads call in
+  std::atomic<bool> stallKeepAlives{false};  // cleared by the test before the owner stops
   std::chrono::milliseconds latency{0};  // of each transaction
   int loseAnswers = 0;
   int txns = 0;

@@ -156,23 +156,53 @@ TEST_CASE("etcd storage: etcd unreachable refuses the edit and closes the sessio
 
 namespace {
 
-// MemoryKv whose keep-alives are held up while `stalled` (as by an etcd election: no member
-// answers for a while), then succeed: the lease itself never expires.
-class StallingKv : public MemoryKv {
+// MemoryKv whose transactions take slowMs each (atomic: set while the hub's threads call in).
+class SlowKv : public MemoryKv {
  public:
-  std::atomic<bool> stalled{false};
-  std::int64_t leaseKeepAlive(std::int64_t lease) override {
-    while (stalled) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    return MemoryKv::leaseKeepAlive(lease);
+  std::atomic<int> slowMs{0};
+  service::KvTxnResult txn(const std::vector<KvCompare>& compares, const std::vector<KvOp>& success,
+                           const std::vector<KvOp>& failure) override {
+    std::this_thread::sleep_for(std::chrono::milliseconds(slowMs.load()));
+    return MemoryKv::txn(compares, success, failure);
   }
 };
 
 }  // namespace
 
-TEST_CASE("etcd storage: a session fenced while its lease was late is claimed again once the lease is renewed, not left unwritable",
+// A session is registered before its create acquires the lease (on the session's strand). The
+// renewal timer, which runs every third of the TTL while any session is loaded, asked the
+// storage for it meanwhile, heard "not held" and closed it (1011) as taken by another server:
+// the failover test's 1011 under load (issue 28: 2 of its first 12 runs under stress-ng).
+TEST_CASE("etcd storage: a session still being created is not closed by the hub's lease renewal", "[hub][etcd]") {
+  const auto dir = scratch("creating");
+  SlowKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  Hub hub(optionsFor(store));
+  TestClient a(hub);
+  a.result("session.create", kCreate);  // the renewal timer runs from here on
+  // The claim and the snapshot pointer's commit, one transaction each: past several renewals.
+  kv.slowMs = 800;
+  TestClient b(hub);
+  b.result("session.create", kCreate);
+  kv.slowMs = 0;
+  const json edited = b.call("tool.apply", blob(20));
+  CHECK(b.link->closeCode == 0);
+  INFO(edited.dump());
+  CHECK(edited.contains("result"));
+  hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+// Keep-alives held up past the TTL (an etcd election; a loaded machine) while etcd keeps the
+// lease: the lease is late, not lost. This server used to say no to renew() (the hub's renewal
+// timer then closed the session, 1011) and refused appends at once (OwnershipLost, -32015),
+// though etcd would have taken them; the failover test met it under load (issue 28).
+TEST_CASE("etcd storage: a late lease keeps its sessions: renewed, appended to; only what writes nothing waits for etcd",
           "[etcd]") {
   const auto dir = scratch("late");
-  StallingKv kv;
+  MemoryKv kv;
   EtcdOptions opt;
   opt.leaseTtlSeconds = 1;
   EtcdStorage store(kv, dir, "server-a", opt);
@@ -181,26 +211,49 @@ TEST_CASE("etcd storage: a session fenced while its lease was late is claimed ag
   log->append({{"stroke_end", 1}});
   CHECK(store.holds("s"));
   CHECK_FALSE(store.holds("never-claimed"));
-  // No keep-alive answers for longer than the TTL: this server refuses the append, though
-  // etcd keeps the lease, and with it the owner key. An edit that writes nothing asks holds()
-  // instead (hub Durability::confirmHeld), which says no as well: as a server paused past its
-  // TTL would on waking, before its keep-alive thread has run.
-  kv.stalled = true;
+  kv.stallKeepAlives = true;
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  CHECK(store.renew("s"));
+  CHECK_NOTHROW(log->append({{"stroke_end", 2}}));
+  // An edit that writes nothing has no fence to pass: holds() asks etcd to renew the lease
+  // (Durability::confirmHeld), which does not answer in time, so no: as a server paused past
+  // its TTL says on waking, before its keep-alive thread has run. The hub closes the session.
   CHECK_FALSE(store.holds("s"));
-  CHECK_THROWS_AS(log->append({{"stroke_end", 2}}), OwnershipLost);
-  kv.stalled = false;
+  kv.stallKeepAlives = false;
   for (int k = 0; k < 300 && !store.owner().leaseHeld(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   REQUIRE(store.owner().leaseHeld());
-  // Loaded again, it takes appends. It used to get the fenced journal back, refusing every
-  // append while the lease lived (and no other server could claim the session).
-  REQUIRE(store.acquire("s"));
   CHECK(store.holds("s"));
+  // Joined again, the session is loaded through the journal it had: every change is there.
+  REQUIRE(store.acquire("s"));
   const Recovered r = store.recover("s", std::size_t(64) << 20, ThreadPool::serial());
-  CHECK(r.replayed == 1);
+  CHECK(r.replayed == 2);
   CHECK_NOTHROW(r.journal->append({{"stroke_end", 3}}));
-  CHECK(store.owner().read("s").journal.size() == 2);
+  CHECK(store.owner().read("s").journal.size() == 3);
   store.release("s");
+  std::filesystem::remove_all(dir);
+}
+
+// The same through a hub: its renewal timer (every third of the TTL) and a changing edit.
+TEST_CASE("etcd storage: a hub keeps a session open while its lease is late, and acknowledges its edits", "[hub][etcd]") {
+  const auto dir = scratch("late-hub");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  Hub hub(optionsFor(store));
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  const int before = a.result("tool.apply", blob(14))["revision"].get<int>();
+  kv.stallKeepAlives = true;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1700));
+  const json during = a.call("tool.apply", blob(20));
+  kv.stallKeepAlives = false;
+  CHECK(a.link->closeCode == 0);
+  INFO(during.dump());
+  REQUIRE(during.contains("result"));
+  CHECK(during["result"]["revision"] == before + 1);
+  CHECK(a.result("tool.apply", blob(26))["revision"] == before + 2);
+  hub.shutdown();
   std::filesystem::remove_all(dir);
 }
 

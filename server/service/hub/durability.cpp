@@ -131,6 +131,7 @@ void Durability::scheduleLeaseRenewal() {
       try {
         const std::lock_guard lease(renewed->leaseMutex);
         if (renewed->leaseReleased) continue;  // unloaded meanwhile: renewing would take it back
+        if (!renewed->leaseAcquired) continue;  // still being created: not this server's yet
         held = self->store->renew(renewed->id);
       } catch (const std::exception& e) {
         self->log("session " + renewed->id + ": renewing its lease failed: " + e.what());

@@ -60,8 +60,11 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   }
 
   // The lease is released once (unload, shutdown); renewal, which runs off the strand so that a
-  // long operation cannot let it expire, must not take it again after that.
+  // long operation cannot let it expire, must not take it again after that. Nor may renewal ask
+  // for it before the storage granted it (leaseAcquired): a session is registered before its
+  // create acquires the lease on the strand, and a "no" then closed it (1011) as taken elsewhere.
   std::mutex leaseMutex;
+  bool leaseAcquired = false;
   bool leaseReleased = false;
   // Written on the strand, also read under the registry's lock: atomic.
   std::atomic<bool> unloaded{false};

@@ -145,6 +145,10 @@ std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const std::op
       s->session = std::make_unique<Session>(build(*self), self->limits().historyBytes);
       if (self->store->persistent()) {
         if (!self->store->acquire(s->id)) throw self->durability.heldElsewhere(s->id, "another server holds this session id");
+        {
+          const std::lock_guard lease(s->leaseMutex);
+          s->leaseAcquired = true;
+        }
         s->journal = self->store->create(s->id, s->secrets, s->session->volume());
         self->durability.scheduleLeaseRenewal();
       }
@@ -217,6 +221,7 @@ std::shared_ptr<LiveSession> SessionRegistry::load(const std::string& id, const 
     throw;
   }
   auto s = std::make_shared<LiveSession>(id, *secrets, hub_.workers);
+  s->leaseAcquired = true;  // registered below, once loaded: nothing else sees it yet
   s->session = std::move(rec.session);
   // Client ids are the authors of the recovered steps: a newcomer must not be taken for one of
   // them by history.undo {scope: "mine"}.
