@@ -1,9 +1,12 @@
 // Undo/redo of whole steps (see history.hpp).
 #include "service/history.hpp"
 
+#include "engine/progress.hpp"
+
 #include <zstd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <memory>
 #include <stdexcept>
@@ -227,14 +230,64 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
   return out;
 }
 
-std::size_t History::Step::bytes() const {
-  if (!edit) return packed.bytes();
-  std::size_t buffers = 0;
-  for (const auto& c : edit->changes) buffers += (c.before.data != nullptr) + (c.after.data != nullptr);
-  return buffers * kBytesPerBrick + edit->changes.size() * sizeof(BrickChange);
+namespace {
+
+// Heap bytes of a string: none while it fits in the object itself (the short-string buffer).
+std::size_t heapBytes(const std::string& s) {
+  const char* self = reinterpret_cast<const char*>(&s);
+  return s.data() >= self && s.data() < self + sizeof s ? 0 : s.capacity() + 1;
 }
 
-History::History(std::size_t budgetBytes) : budget_(budgetBytes) {}
+// The side of a step the volume does not hold, with the volume's side, as changes (before,
+// after): the step's own Edit when unpacked, else its packed side unpacked against `at`.
+Edit sidesOf(const std::optional<Edit>& edit, const PackedBricks* packed, const Box& region,
+             const std::function<BrickRef(const Int3&)>& at, bool undoSide) {
+  if (edit) return *edit;
+  Edit e;
+  e.region = region;
+  std::vector<BrickRef> live;
+  live.reserve(packed->bricks.size());
+  for (const Int3& b : packed->bricks) live.push_back(at(b));
+  const std::vector<BrickRef> other = unpackBricks(*packed, pointers(live));
+  for (std::size_t i = 0; i < other.size(); ++i) {
+    if (undoSide) e.changes.push_back({packed->bricks[i], other[i], live[i]});
+    else e.changes.push_back({packed->bricks[i], live[i], other[i]});
+  }
+  return e;
+}
+
+// The bricks a step changed.
+const std::vector<Int3>& packedBricks(const std::shared_ptr<const PackedBricks>& p) {
+  static const std::vector<Int3> none;
+  return p ? p->bricks : none;
+}
+
+}  // namespace
+
+std::size_t History::Step::bytes() const {
+  const std::size_t fixed =
+      kStepBytes + heapBytes(info.author.id) + heapBytes(info.author.name) + heapBytes(info.tool);
+  if (!edit) return fixed + (packed ? packed->bytes() : 0);
+  std::size_t buffers = 0;
+  for (const auto& c : edit->changes) buffers += (c.before.data != nullptr) + (c.after.data != nullptr);
+  return fixed + buffers * kBytesPerBrick + edit->changes.capacity() * sizeof(BrickChange);
+}
+
+Volume Rebuild::run() const {
+  Volume v = base_;
+  Progress* progress = Progress::current();
+  // Newest first: each step's bricks then hold its `after`, which its packing refers to.
+  for (const Later& s : later_) {
+    if (progress) progress->check();
+    const auto at = [&](const Int3& b) { return v.brick(b); };
+    v.publish(sidesOf(s.edit, s.packed.get(), s.region, at, true).changes, false);
+    if (progress) progress->advance(1);
+  }
+  v.setRevision(revision_);
+  return v;
+}
+
+History::History(std::size_t budgetBytes) : budget_(budgetBytes) { rewritten(); }
 
 void History::pack(Step& s) {
   if (!s.edit) return;
@@ -245,7 +298,7 @@ void History::pack(Step& s) {
     before.push_back(&c.before);
     after.push_back(&c.after);
   }
-  PackedBricks packed = packBricks(bricks, before, after);
+  auto packed = std::make_shared<const PackedBricks>(packBricks(bricks, before, after));
   remove(s);
   s.packed = std::move(packed);
   s.edit.reset();
@@ -277,7 +330,7 @@ History::StepId History::push(Edit step, StepInfo info, const std::function<bool
   info.bricks = brickBounds(bricksOf(step));
   if (info.firstRevision == 0) info.firstRevision = info.revision;
   info.undone = false;
-  undo_.push_back({id, region, std::move(info), std::move(step), {}});
+  undo_.push_back({id, region, std::move(info), std::move(step), nullptr});
   add(undo_.back());
   enforceBudget();
   return id;
@@ -303,18 +356,7 @@ bool History::amend(StepId id, const Edit& more, std::uint64_t revision) {
 }
 
 Edit History::sides(const Step& s, const std::function<BrickRef(const Int3&)>& at, bool undoSide) const {
-  if (s.edit) return *s.edit;
-  Edit e;
-  e.region = s.region;
-  std::vector<BrickRef> live;
-  live.reserve(s.packed.bricks.size());
-  for (const Int3& b : s.packed.bricks) live.push_back(at(b));
-  const std::vector<BrickRef> other = unpackBricks(s.packed, pointers(live));
-  for (std::size_t i = 0; i < other.size(); ++i) {
-    if (undoSide) e.changes.push_back({s.packed.bricks[i], other[i], live[i]});
-    else e.changes.push_back({s.packed.bricks[i], live[i], other[i]});
-  }
-  return e;
+  return sidesOf(s.edit, s.packed.get(), s.region, at, undoSide);
 }
 
 namespace {
@@ -332,7 +374,7 @@ std::optional<std::size_t> firstTouching(const Steps& steps, const std::vector<I
       for (const auto& c : s.edit->changes)
         if (keys.count(brickKey(c.brick))) return j;
     } else {
-      for (const Int3& b : s.packed.bricks)
+      for (const Int3& b : packedBricks(s.packed))
         if (keys.count(brickKey(b))) return j;
     }
   }
@@ -366,15 +408,17 @@ bool History::fold(StepId id, const Edit& more, const Volume& vol, std::uint64_t
     for (std::size_t j = undo_.size(); j-- > i + 1;)
       for (const BrickChange& c : sides(undo_[j], at, true).changes) earlier[brickKey(c.brick)] = c.before;
     std::vector<BrickRef> after;
-    for (const Int3& b : s.packed.bricks) after.push_back(at(b));
-    const std::vector<BrickRef> before = unpackBricks(s.packed, pointers(after));
+    for (const Int3& b : s.packed->bricks) after.push_back(at(b));
+    const std::vector<BrickRef> before = unpackBricks(*s.packed, pointers(after));
     e.region = s.region;
-    for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed.bricks[k], before[k], after[k]});
+    for (std::size_t k = 0; k < before.size(); ++k) e.changes.push_back({s.packed->bricks[k], before[k], after[k]});
     remove(s);
     s.edit = std::move(e);
-    s.packed = {};
+    s.packed = nullptr;
     add(s);
   }
+  // Step i's bricks change under newer steps: the version after each of them changes too.
+  rewritten();
   remove(s);
   s.edit->append(more.changes, more.region);
   if (s.edit->empty()) {
@@ -411,7 +455,9 @@ const Edit* History::moveToRedo(std::size_t i, Volume& vol) {
     before.push_back(&c.before);
     after.push_back(&c.after);
   }
-  PackedBricks packed = packBricks(bricks, after, before);
+  auto packed = std::make_shared<const PackedBricks>(packBricks(bricks, after, before));
+  // A step taken out from under newer ones: the versions after those no longer hold it.
+  if (i + 1 != undo_.size()) rewritten();
   remove(s);
   s.edit.reset();
   s.packed = std::move(packed);
@@ -431,7 +477,7 @@ const Edit* History::moveToUndo(std::size_t i, Volume& vol) {
     before.push_back(&c.before);
     after.push_back(&c.after);
   }
-  PackedBricks packed = packBricks(redo_[i].packed.bricks, before, after);
+  auto packed = std::make_shared<const PackedBricks>(packBricks(redo_[i].packed->bricks, before, after));
   // Only the newest undo step may stay unpacked (redoOf can leave one under a redo list).
   if (!undo_.empty()) pack(undo_.back());
   Step& s = redo_[i];
@@ -462,7 +508,7 @@ namespace {
 template <class Steps>
 std::optional<std::size_t> firstMeeting(const Steps& steps, std::size_t mine, std::size_t from, std::size_t to) {
   const auto& m = steps[mine];
-  return firstTouching(steps, m.edit ? bricksOf(*m.edit) : m.packed.bricks, m.info.bricks, from, to);
+  return firstTouching(steps, m.edit ? bricksOf(*m.edit) : packedBricks(m.packed), m.info.bricks, from, to);
 }
 
 // The author's newest step of `steps` moved by move(index), unless a later step of the same
@@ -512,6 +558,31 @@ std::vector<StepInfo> History::list() const {
   return out;
 }
 
+History::Page History::page(std::optional<std::uint64_t> before, std::size_t limit) const {
+  const std::size_t total = steps();
+  const auto at = [&](std::size_t k) -> const Step& {
+    return k < redo_.size() ? redo_[k] : undo_[undo_.size() - 1 - (k - redo_.size())];
+  };
+  Page p;
+  std::size_t from = 0;
+  if (before) {
+    while (from < total && at(from).info.revision != *before) ++from;
+    if (from == total) {
+      p.found = false;
+      return p;
+    }
+    ++from;
+  }
+  const std::size_t to = std::min(total, from + limit);
+  p.steps.reserve(to - from);
+  for (std::size_t k = from; k < to; ++k) {
+    p.steps.push_back(at(k).info);
+    p.steps.back().undone = k < redo_.size();
+  }
+  p.more = to < total;
+  return p;
+}
+
 std::optional<StepInfo> History::newest() const {
   if (undo_.empty()) return std::nullopt;
   return undo_.back().info;
@@ -523,14 +594,63 @@ std::optional<StepInfo> History::find(std::uint64_t revision) const {
   return std::nullopt;
 }
 
-std::optional<Volume> History::volumeAt(const Volume& live, std::uint64_t revision) const {
+std::size_t History::undoIndex(std::uint64_t revision) const {
   std::size_t i = 0;
   while (i < undo_.size() && undo_[i].info.revision != revision) ++i;
+  return i;
+}
+
+namespace {
+
+// Generations are unique across histories: a Rebuild gathered from one session's history is
+// never kept by another (a session rolled back to its journal has a new History).
+std::uint64_t nextGeneration() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+void History::rewritten() {
+  generation_ = nextGeneration();
+  kept_.reset();
+}
+
+std::optional<Rebuild> History::rebuildAt(const Volume& live, std::uint64_t revision) const {
+  const std::size_t i = undoIndex(revision);
   if (i == undo_.size()) return std::nullopt;
-  Volume v = live;
-  // Newest first: each step's bricks then hold its `after`, which its packing refers to.
-  for (std::size_t j = undo_.size(); j-- > i + 1;) v.publish(sides(undo_[j], v, true).changes, false);
-  v.setRevision(revision);
+  Rebuild r(live);
+  r.revision_ = revision;
+  r.generation_ = generation_;
+  r.later_.reserve(undo_.size() - i - 1);
+  for (std::size_t j = undo_.size(); j-- > i + 1;) {
+    const Step& s = undo_[j];
+    r.later_.push_back({s.edit, s.packed, s.region});
+    const std::size_t bricks = s.edit ? s.edit->changes.size() : s.packed->bricks.size();
+    r.voxels_ += double(bricks) * kBrickVoxels;
+  }
+  return r;
+}
+
+std::optional<Volume> History::keptAt(std::uint64_t revision) const {
+  if (!kept_ || kept_->revision != revision || kept_->generation != generation_) return std::nullopt;
+  // An amended or undone newest step no longer names this revision.
+  if (undoIndex(revision) == undo_.size()) return std::nullopt;
+  return kept_->volume;
+}
+
+void History::keep(const Rebuild& r, const Volume& built) const {
+  if (r.generation_ != generation_) return;
+  kept_.reset();
+  kept_.emplace(Kept{r.revision_, r.generation_, built});
+}
+
+std::optional<Volume> History::volumeAt(const Volume& live, std::uint64_t revision) const {
+  if (std::optional<Volume> v = keptAt(revision)) return v;
+  const std::optional<Rebuild> r = rebuildAt(live, revision);
+  if (!r) return std::nullopt;
+  Volume v = r->run();
+  keep(*r, v);
   return v;
 }
 
@@ -540,6 +660,7 @@ void History::clear() {
   bytes_ = 0;
   moved_ = Edit{};
   movedInfo_ = {};
+  rewritten();
 }
 
 void History::setBudget(std::size_t budgetBytes) {

@@ -24,7 +24,15 @@
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
 //   coordinates and kinds (capacity, not size). Uniform (null) bricks cost no frame bytes.
-//   StepInfo (author, tool) is not counted: the caller bounds its strings.
+//   Every step also counts what it holds whatever its bricks (kStepBytes: the step, its
+//   StepInfo and its slot in the list) and the heap bytes of its strings (author id and name,
+//   tool): a step of one uniform brick held ~13 counted bytes for ~400 real ones, so tiny
+//   steps could hold many times the budget.
+// - Earlier versions (volumeAt, rebuildAt): the later steps are gathered on the strand
+//   (shared, not copied: a packed side is never changed, only replaced) and unpacked anywhere
+//   (Rebuild::run). The last version built is kept (keep, keptAt) until a change of the
+//   history could make it wrong (a step taken out of the middle, a fold under newer steps, a
+//   clear): then it is dropped. It holds at most one volume's bricks more than the live one.
 // - Budget: after push(), amend() and fold() the oldest steps are dropped until bytes() <= budget(),
 //   even the newest one if it alone is larger; can_undo then says so. Undo and redo move a
 //   step between the lists and repack it, which changes bytes() by the difference between
@@ -53,6 +61,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -102,11 +111,40 @@ struct StepInfo {
   bool undone = false;    // set by list(): on the redo list
 };
 
+// The volume at an earlier revision (History::rebuildAt): gathered on the strand in
+// O(later steps), built by run() on any thread, with no access to the History.
+class Rebuild {
+ public:
+  std::uint64_t revision() const { return revision_; }
+  // The voxels of the data bricks run() unpacks and publishes (its cost, for max_op_voxels).
+  double voxels() const { return voxels_; }
+  std::size_t steps() const { return later_.size(); }
+  // The volume at revision(). Checks the thread's Progress (engine/progress.hpp) before each
+  // step (Cancelled) and counts one unit per step. Throws std::runtime_error for a damaged step.
+  Volume run() const;
+
+ private:
+  friend class History;
+  explicit Rebuild(Volume base) : base_(std::move(base)) {}
+  struct Later {
+    std::optional<Edit> edit;
+    std::shared_ptr<const PackedBricks> packed;
+    Box region;
+  };
+  Volume base_;               // the live volume when gathered (bricks shared)
+  std::vector<Later> later_;  // newest first
+  std::uint64_t revision_ = 0, generation_ = 0;
+  double voxels_ = 0;
+};
+
 class History {
  public:
   using StepId = std::uint64_t;  // 0 is never a step
   static constexpr std::size_t kDefaultBudgetBytes = std::size_t(256) << 20;
   static constexpr std::size_t kBytesPerBrick = sizeof(Brick) + 32;
+  // What every step holds besides its bricks and strings (History::Step, its StepInfo, its
+  // PackedBricks' shared block and a deque slot), rounded up; checked in test_history.cpp.
+  static constexpr std::size_t kStepBytes = 512;
 
   explicit History(std::size_t budgetBytes = kDefaultBudgetBytes);
 
@@ -160,6 +198,15 @@ class History {
   // The steps in history order: the undo list oldest first, then the redo list in the order
   // redo() would bring them back (undone set).
   std::vector<StepInfo> list() const;
+  // At most `limit` steps of list() in reverse (the newest first: the redo list from the
+  // furthest future, then the undo list newest first), starting after the step whose revision is
+  // `before` (absent: at the first). found: `before` names a step (else nothing is listed);
+  // more: steps remain after the last one listed. O(steps) to find `before`, then O(limit).
+  struct Page {
+    std::vector<StepInfo> steps;
+    bool found = true, more = false;
+  };
+  Page page(std::optional<std::uint64_t> before, std::size_t limit) const;
   // The newest undo step (the one the last push or amend made, unless undone), or nullopt.
   std::optional<StepInfo> newest() const;
   // The undo step named by its revision, or nullopt.
@@ -168,7 +215,15 @@ class History {
   // copy of live (which must be the volume the steps were recorded on, as for undo()) sharing
   // every other brick; live is not touched. Steps taken out by undoOf() are, in this view,
   // never made. nullopt when no undo step has that revision. Its revision() is `revision`.
+  // Uses and fills the kept version (keep).
   std::optional<Volume> volumeAt(const Volume& live, std::uint64_t revision) const;
+  // What volumeAt(live, revision) would build, to run off the strand; nullopt as volumeAt.
+  std::optional<Rebuild> rebuildAt(const Volume& live, std::uint64_t revision) const;
+  // The kept version of the undo step `revision`, if it is the one kept; nullopt otherwise.
+  std::optional<Volume> keptAt(std::uint64_t revision) const;
+  // Keeps what r.run() built (replacing the version kept before), unless the history changed
+  // since r was gathered in a way that makes it wrong.
+  void keep(const Rebuild& r, const Volume& built) const;
 
   void clear();
 
@@ -193,7 +248,9 @@ class History {
     Box region;
     StepInfo info;
     std::optional<Edit> edit;  // the newest undo step before it is packed
-    PackedBricks packed;       // undo list: `before` bricks; redo list: `after` bricks
+    // undo list: `before` bricks; redo list: `after` bricks; null while edit is set. Shared
+    // with Rebuilds in flight: replaced, never changed.
+    std::shared_ptr<const PackedBricks> packed;
 
     std::size_t bytes() const;
   };
@@ -213,6 +270,10 @@ class History {
   Edit sides(const Step& s, const Volume& vol, bool undoSide) const {
     return sides(s, [&](const Int3& b) { return vol.brick(b); }, undoSide);
   }
+  // The index in undo_ of the step `revision`, or undo_.size().
+  std::size_t undoIndex(std::uint64_t revision) const;
+  // A change that alters the volume at some undo step's revision: the kept version goes.
+  void rewritten();
 
   std::size_t budget_;
   std::deque<Step> undo_;  // oldest first; unpacked: the last, and folded ones until seal()
@@ -222,6 +283,12 @@ class History {
   StepId nextId_ = 1;
   Edit moved_;  // what undo()/redo() returned last
   StepInfo movedInfo_;
+  std::uint64_t generation_ = 0;  // new at every rewritten()
+  struct Kept {
+    std::uint64_t revision = 0, generation = 0;
+    Volume volume;
+  };
+  mutable std::optional<Kept> kept_;
 };
 
 }  // namespace marzipan::service

@@ -1,7 +1,9 @@
 // History (server/service/history.cpp): undo and redo restore exact digests through packed
 // (zstd) steps, bytes() counts the packed sizes, the memory budget drops the oldest steps
-// first, and a new step clears the redo list.
+// first, and a new step clears the redo list. The budget bounds the real memory of tiny steps.
 #include <catch2/catch.hpp>
+
+#include <malloc.h>
 
 #include <cstdint>
 #include <cstring>
@@ -309,4 +311,40 @@ TEST_CASE("history: a single step larger than the budget is not kept", "[history
   CHECK_FALSE(h.canUndo());
   CHECK(h.droppedSteps() == 1);
   CHECK(h.bytes() == 0);
+}
+
+TEST_CASE("history: tiny steps count what they really hold, so the budget bounds the heap", "[history]") {
+  // Issue 31 item 3: a step of one uniform brick (a blob in empty space) was counted ~13 bytes
+  // (its coordinates and kind) for 536 on the heap, so a 256 KiB budget held ~20000 steps and
+  // ~11 MB. Each step is one brick turned from outside to inside, the author's name long
+  // enough to be on the heap.
+  constexpr std::size_t kBudget = std::size_t(256) << 10;
+  constexpr int kSteps = 20000;
+  const auto heap = [] { return std::size_t(mallinfo2().uordblks); };
+  const std::size_t before = heap();
+  std::size_t after = 0, counted = 0, held = 0;
+  {
+    History h(kBudget);
+    for (int i = 0; i < kSteps; ++i) {
+      Edit e;
+      e.region = {{0, 0, 0}, {8, 8, 8}};
+      e.changes.push_back({Int3{i % 8, (i / 8) % 8, 0}, BrickRef{nullptr, i % 2 == 1}, BrickRef{nullptr, i % 2 == 0}});
+      service::StepInfo info;
+      info.revision = std::uint64_t(i + 1);
+      info.author = {std::to_string(i % 16), "a sculptor with a long display name " + std::to_string(i % 16)};
+      info.tool = "add_blob";
+      h.push(std::move(e), info);
+    }
+    after = heap();
+    counted = h.bytes();
+    held = h.undoSteps();
+    CHECK(counted <= kBudget);
+  }
+  const std::size_t real = after - before;
+  INFO("steps held " << held << ", counted " << counted << " bytes, heap " << real << " bytes");
+  CHECK(held < std::size_t(kSteps) / 10);
+  // What is counted covers what is held (the deque's blocks and the allocator's headers
+  // included: 536 bytes a step on 2026-11-29), and not by much more.
+  CHECK(real <= counted);
+  CHECK(counted <= 2 * real);
 }

@@ -1,7 +1,8 @@
 // History (server/service/history.cpp) with authors: undoOf/redoOf take one author's step out
 // of the middle of the history with exact digests (the volume as if the step had never been
 // made), refuse naming the first step in the way, list the steps, and rebuild the volume at an
-// earlier step without touching the live one.
+// earlier step without touching the live one: gathered at once, built anywhere, cancellable,
+// and kept until the history changes under it.
 #include <catch2/catch.hpp>
 
 #include <cstdint>
@@ -10,6 +11,7 @@
 
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
+#include "engine/progress.hpp"
 #include "engine/solids.hpp"
 #include "service/history.hpp"
 
@@ -353,4 +355,70 @@ TEST_CASE("history: fold grows a packed step whose other bricks a later step cha
   REQUIRE(h.redo(v) != nullptr);
   CHECK(digest(v) == all);
   CHECK(afterB != all);
+}
+
+TEST_CASE("history: an earlier version is gathered at once, built off the history, cancellable, and kept",
+          "[history][authors]") {
+  ThreadPool pool(2);
+  Volume v = sphere();
+  History h;
+  std::vector<std::uint64_t> at{digest(v)};
+  const Side sides[] = {PlusX, MinusX, PlusY, MinusY, PlusZ};
+  std::size_t laterBricks = 0;
+  for (std::uint64_t r = 1; r <= 5; ++r) {
+    Edit e = blobAt(v, sides[r - 1], pool);
+    if (r > 1) laterBricks += e.changes.size();
+    h.push(std::move(e), by(r % 2 ? "A" : "B", 10 * r));
+    at.push_back(digest(v));
+  }
+  std::optional<service::Rebuild> r10 = h.rebuildAt(v, 10);
+  REQUIRE(r10.has_value());
+  CHECK(r10->steps() == 4);
+  CHECK(r10->voxels() == double(laterBricks) * kBrickVoxels);
+  CHECK_FALSE(h.rebuildAt(v, 7).has_value());
+  CHECK_FALSE(h.keptAt(10).has_value());
+
+  SECTION("built after the live volume and the history moved on, it is still the version at 10") {
+    h.push(blobAt(v, MinusZ, pool), by("B", 60));
+    const Volume built = r10->run();
+    CHECK(digest(built) == at[1]);
+    CHECK(built.revision() == 10);
+    h.keep(*r10, built);
+    REQUIRE(h.keptAt(10).has_value());
+    CHECK(digest(*h.keptAt(10)) == at[1]);
+    // Newer steps, and undoing or redoing the newest, leave it right: it stays.
+    h.undo(v);
+    h.redo(v);
+    CHECK(h.keptAt(10).has_value());
+    CHECK(digest(*h.volumeAt(v, 10)) == at[1]);
+    // A's r30 taken out from under newer steps: the versions after it change, it goes.
+    REQUIRE(h.undoOf(v, "B").outcome == History::AuthorMove::Moved);  // B's newest, r60
+    REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // r50, the newest now
+    CHECK(h.keptAt(10).has_value());
+    REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // r30, under r40
+    CHECK_FALSE(h.keptAt(10).has_value());
+    CHECK(digest(*h.volumeAt(v, 10)) == at[1]);
+  }
+  SECTION("a Rebuild gathered before the history was rewritten is not kept") {
+    REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // r50
+    REQUIRE(h.undoOf(v, "A").outcome == History::AuthorMove::Moved);  // r30, under r40
+    h.keep(*r10, r10->run());
+    CHECK_FALSE(h.keptAt(10).has_value());
+  }
+  SECTION("the kept version names a step: not once that step is undone") {
+    std::optional<service::Rebuild> r50 = h.rebuildAt(v, 50);
+    REQUIRE(r50.has_value());
+    CHECK(r50->steps() == 0);
+    h.keep(*r50, r50->run());
+    CHECK(h.keptAt(50).has_value());
+    h.undo(v);
+    CHECK_FALSE(h.keptAt(50).has_value());
+    CHECK_FALSE(h.volumeAt(v, 50).has_value());
+  }
+  SECTION("cancelled through the thread's Progress, it stops before a step") {
+    Progress progress;
+    progress.cancel();
+    const Progress::Scope scope(progress);
+    CHECK_THROWS_AS(r10->run(), Cancelled);
+  }
 }
