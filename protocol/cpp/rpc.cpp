@@ -629,6 +629,15 @@ std::optional<std::uint64_t> parseForkParams(const json& params) {
   return std::uint64_t(integerInRange(*revision, "revision", 0, kMaxSafeInteger));
 }
 
+HistoryListParams parseHistoryListParams(const json& params) {
+  checkKeys(params, {"before", "limit"}, paramsContext(Method::HistoryList));
+  HistoryListParams p;
+  if (const json* before = find(params, "before")) p.before = std::uint64_t(integerInRange(*before, "before", 1, kMaxSafeInteger));
+  if (const json* limit = find(params, "limit"))
+    p.limit = std::size_t(integerInRange(*limit, "limit", 1, std::int64_t(kMaxHistoryListLimit)));
+  return p;
+}
+
 void parseNoParams(const json& params, Method m) { checkKeys(params, {}, paramsContext(m) + ", which takes none"); }
 
 // --- presence ----------------------------------------------------------------------------------

@@ -274,6 +274,14 @@ enum class HistoryScope { Session, Mine };
 HistoryScope parseHistoryParams(const nlohmann::json& params, Method m);
 // session.fork: the revision to start from (absent: the current one).
 std::optional<std::uint64_t> parseForkParams(const nlohmann::json& params);
+// history.list (paged since 2026-11-29): the steps listed after the step named `before` (absent: from
+// the newest), at most `limit` of them (1..kMaxHistoryListLimit, default kHistoryListLimit).
+inline constexpr std::size_t kHistoryListLimit = 100, kMaxHistoryListLimit = 1000;
+struct HistoryListParams {
+  std::optional<std::uint64_t> before;
+  std::size_t limit = kHistoryListLimit;
+};
+HistoryListParams parseHistoryListParams(const nlohmann::json& params);
 // Methods without params: refuses any key.
 void parseNoParams(const nlohmann::json& params, Method m);
 

@@ -13,6 +13,7 @@
 #include "engine/measures.hpp"
 #include "engine/thread_pool.hpp"
 #include "protocol/cpp/frames.hpp"
+#include "protocol/cpp/rpc.hpp"
 #include "service/hub.hpp"
 #include "service/session_store.hpp"
 #include "hub_support.hpp"
@@ -106,13 +107,14 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   CHECK(steps[1].author.id == "2");
   CHECK(steps[2].author.id == "1");
   CHECK(steps[2].tool == "morph");
-  // The times are the journal's, not the replay's clock: those history.list gives live.
+  // The times are the journal's, not the replay's clock: those history.list gives live (newest
+  // first).
   const json live = a.result("history.list")["steps"];
   REQUIRE(live.size() == 3);
   for (std::size_t i = 0; i < 3; ++i) {
-    CHECK(steps[i].timeMs == live[i]["time_ms"].get<std::int64_t>());
-    CHECK(steps[i].revision == live[i]["revision"].get<std::uint64_t>());
-    CHECK(steps[i].firstRevision == live[i]["first_revision"].get<std::uint64_t>());
+    CHECK(steps[i].timeMs == live[2 - i]["time_ms"].get<std::int64_t>());
+    CHECK(steps[i].revision == live[2 - i]["revision"].get<std::uint64_t>());
+    CHECK(steps[i].firstRevision == live[2 - i]["first_revision"].get<std::uint64_t>());
   }
   CHECK(steps[0].timeMs > 1'700'000'000'000);
   CHECK(steps[0].timeMs <= steps[2].timeMs);
@@ -238,8 +240,11 @@ TEST_CASE("history.list gives every step with its author, tool, time and region,
   const json list = v.result("history.list");
   INFO(list.dump());
   CHECK(list["revision"] == 4);
-  const json& steps = list["steps"];
+  CHECK(list["more"] == false);
+  // Newest first: the undone step (the redo list comes first), then B's.
+  json steps = list["steps"];
   REQUIRE(steps.size() == 2);
+  std::swap(steps[0], steps[1]);
   CHECK(steps[0]["client"] == 2);
   CHECK(steps[0]["tool"] == "add_blob");
   CHECK(steps[0]["first_revision"] == 2);
@@ -263,6 +268,50 @@ TEST_CASE("history.list gives every step with its author, tool, time and region,
   CHECK(v.call("history.list", {{"scope", "mine"}})["error"]["code"] == -32602);
   TestClient outside(hub);
   CHECK(outside.error("history.list") == -32009);
+}
+
+TEST_CASE("history.list answers one page, newest first, going on after `before`", "[hub][history]") {
+  // Issue 31 item 3: the whole list of a history of tiny steps was a JSON of ~1 GB.
+  Hub hub(twoWorkerOptions());
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  constexpr int kSteps = 120;
+  for (int i = 0; i < kSteps; ++i)
+    a.result("tool.apply", {{"tool", i % 2 ? "remove_blob" : "add_blob"}, {"center", {6, 24, 24}}, {"radius", 2},
+                            {"strength", 0.5}});
+  REQUIRE(a.result("session.stats")["revision"] == kSteps);
+  const auto revisions = [](const json& page) {
+    std::vector<int> out;
+    for (const json& st : page["steps"]) out.push_back(st["revision"]);
+    return out;
+  };
+  const json first = a.result("history.list");
+  CHECK(first["steps"].size() == protocol::kHistoryListLimit);
+  CHECK(first["steps"][0]["revision"] == kSteps);
+  CHECK(first["more"] == true);
+  const json next = a.result("history.list", {{"before", first["steps"].back()["revision"]}});
+  CHECK(next["steps"].size() == kSteps - protocol::kHistoryListLimit);
+  CHECK(next["steps"][0]["revision"] == kSteps - int(protocol::kHistoryListLimit));
+  CHECK(next["steps"].back()["revision"] == 1);
+  CHECK(next["more"] == false);
+  const json ten = a.result("history.list", {{"before", 50}, {"limit", 10}});
+  CHECK(revisions(ten) == std::vector<int>{49, 48, 47, 46, 45, 44, 43, 42, 41, 40});
+  CHECK(ten["more"] == true);
+  // Undone steps come first, from the furthest future.
+  a.result("history.undo");
+  a.result("history.undo");
+  CHECK(revisions(a.result("history.list", {{"limit", 3}})) == std::vector<int>{120, 119, 118});
+  CHECK(a.result("history.list", {{"limit", 3}})["steps"][0]["undone"] == true);
+  CHECK(a.result("history.list", {{"limit", 3}})["steps"][2]["undone"] == false);
+  // Refused: a revision that names no step, a limit out of 1..1000, an unknown key.
+  const json gone = a.call("history.list", {{"before", 7000}});
+  CHECK(gone["error"]["code"] == -32602);
+  CHECK(gone["error"]["data"]["field"] == "before");
+  CHECK(a.call("history.list", {{"limit", 0}})["error"]["data"]["field"] == "limit");
+  CHECK(a.call("history.list", {{"limit", 1001}})["error"]["data"]["field"] == "limit");
+  CHECK(a.call("history.list", {{"before", 0}})["error"]["data"]["field"] == "before");
+  CHECK(a.call("history.list", {{"after", 3}})["error"]["code"] == -32602);
+  CHECK(a.result("history.list", {{"limit", 1000}})["steps"].size() == kSteps);
 }
 
 TEST_CASE("session.fork starts a new session from the current volume or an earlier revision", "[hub][history]") {

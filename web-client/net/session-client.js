@@ -183,10 +183,12 @@ export class SessionClient extends EventTarget {
     return result;
   }
 
-  // {revision, steps}: the session's steps, oldest first, then the undone ones (history.list).
-  async historyList() {
-    const { result } = await this.request("history.list", {});
-    return result;
+  // {revision, steps, more}: the session's newest steps (history.list gives one page of at most
+  // `limit`, newest first), here oldest first, then the undone ones in redo order, as the
+  // timeline lists them; more: older steps were left out.
+  async historyList(limit = 1000) {
+    const { result } = await this.request("history.list", { limit });
+    return { ...result, steps: [...result.steps].reverse() };
   }
 
   // A new session from this one's volume at `revision` (the current one when left out): this

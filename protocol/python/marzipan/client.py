@@ -616,10 +616,17 @@ class Client:
         """history.redo, scoped as undo()."""
         return await self._result("history.redo", _without_none(scope=scope))
 
-    async def history(self) -> list:
-        """history.list: the session's steps, oldest first, then the undone ones in redo order:
-        [{revision, first_revision, client, tool, time_ms, region, undone}]."""
-        return (await self._result("history.list", {}))["steps"]
+    async def history(self, before: int | None = None, limit: int | None = None) -> list:
+        """history.list: one page of the session's steps, newest first (the undone ones first,
+        from the furthest future): at most `limit` (1..1000, the server's default 100), after
+        the step of revision `before` (absent: from the newest):
+        [{revision, first_revision, client, tool, time_ms, region, undone}]. history_page()
+        also says whether more steps follow."""
+        return (await self.history_page(before, limit))["steps"]
+
+    async def history_page(self, before: int | None = None, limit: int | None = None) -> dict:
+        """history.list as the server answers it: {revision, steps, more}."""
+        return await self._result("history.list", _without_none(before=before, limit=limit))
 
     async def fork(self, revision: int | None = None) -> dict:
         """session.fork: a new session from the current volume or an earlier `revision` still

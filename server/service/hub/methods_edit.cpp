@@ -159,11 +159,18 @@ json stepJson(const StepInfo& st) {
 }
 
 void historyList(HubCore& hub, const Call& call) {
-  protocol::parseNoParams(call.req.params, call.req.method);
-  hub.onStrand(call, false, [](LiveSession& s, Reply& r) {
+  const protocol::HistoryListParams p = protocol::parseHistoryListParams(call.req.params);
+  // One page: a history of tiny steps holds 10^5 of them, whose whole list was ~100 MB of JSON.
+  hub.onStrand(call, false, [p](LiveSession& s, Reply& r) {
+    const History::Page page = s.session->history().page(p.before, p.limit);
+    if (!page.found)
+      throw RpcException(RpcCode::InvalidParams,
+                         "\"before\" " + std::to_string(*p.before) +
+                             " names no step of this session's history (any more): list again from the newest",
+                         {{"field", "before"}});
     json steps = json::array();
-    for (const StepInfo& st : s.session->steps()) steps.push_back(stepJson(st));
-    r.result = {{"revision", s.session->revision()}, {"steps", std::move(steps)}};
+    for (const StepInfo& st : page.steps) steps.push_back(stepJson(st));
+    r.result = {{"revision", s.session->revision()}, {"steps", std::move(steps)}, {"more", page.more}};
   });
 }
 

@@ -48,7 +48,7 @@ class HistoryAgainstServer(ServerTestCase):
         self.assertEqual(after, only_b)
         self.assertEqual((undone["revision"], undone["step"]["client"], undone["step"]["revision"]), (3, 1, 1))
         self.assertEqual([(s["client"], s["tool"], s["revision"], s["undone"]) for s in steps],
-                         [(2, "add_blob", 2, False), (1, "add_blob", 1, True)])
+                         [(1, "add_blob", 1, True), (2, "add_blob", 2, False)])
         self.assertEqual(redone["revision"], 4)
 
     def test_a_conflicting_undo_names_the_other_client(self):
