@@ -2,7 +2,11 @@
 #include "service/apply_op.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
 #include <variant>
 
 #include "engine/csg.hpp"
@@ -87,6 +91,35 @@ OpCost cost(const Volume& vol, const MorphOp& op) {
 
 double brushVoxels(const Volume& vol, double radius, int images) {
   return cubeVoxels(vol, radius + vol.band()) * images;
+}
+
+std::size_t rememberedOverlap(std::span<const StrokeDab> memory, double reach) {
+  const double cell = 2 * std::max(reach, 1.0);
+  const auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return std::uint64_t(x & 0x1FFFFF) | std::uint64_t(y & 0x1FFFFF) << 21 | std::uint64_t(z & 0x1FFFFF) << 42;
+  };
+  std::unordered_map<std::uint64_t, std::size_t> cells;
+  std::vector<std::array<std::int64_t, 3>> occupied;
+  for (const StrokeDab& d : memory) {
+    const std::array<std::int64_t, 3> c{std::int64_t(std::floor(d.center.x / cell)), std::int64_t(std::floor(d.center.y / cell)),
+                                        std::int64_t(std::floor(d.center.z / cell))};
+    if (cells[key(c[0], c[1], c[2])]++ == 0) occupied.push_back(c);
+  }
+  std::size_t most = 0;
+  for (const auto& c : occupied) {
+    std::size_t n = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if (const auto it = cells.find(key(c[0] + dx, c[1] + dy, c[2] + dz)); it != cells.end()) n += it->second;
+    most = std::max(most, n);
+  }
+  return most;
+}
+
+double strokeDabVoxels(const Volume& vol, double radius, int images, double substeps, std::span<const StrokeDab> memory) {
+  const double scan = kRememberedDabVoxels * double(rememberedOverlap(memory, radius + vol.band() + 1));
+  return brushVoxels(vol, radius, images) * substeps * (1 + scan);
 }
 
 OpCost estimateCost(const Volume& vol, const Op& op) {

@@ -344,6 +344,12 @@ std::optional<Session::StrokeParams> Session::strokeSettings(StrokeId id) const 
   return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height};
 }
 
+std::span<const StrokeDab> Session::strokeMemory(StrokeId id) const {
+  const auto it = strokes_.find(id);
+  if (it == strokes_.end()) return {};
+  return it->second.memory;
+}
+
 void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
   openStroke(id);
   Stroke& s = strokes_.at(id);

@@ -26,6 +26,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -254,6 +255,9 @@ class Session {
   // One open stroke's parameters without copying its memory (left empty); nullopt when the
   // stroke is not open. What a stroke.dabs message is checked against, on every message.
   std::optional<StrokeParams> strokeSettings(StrokeId id) const;
+  // What an open stroke remembers having applied (empty when it is not open), valid until the
+  // session's next change.
+  std::span<const StrokeDab> strokeMemory(StrokeId id) const;
 
   // Measures of the live volume (reads every brick: on a large session compute measure() on a
   // snapshot off the strand and add counters(), as the hub's session.stats does).

@@ -271,7 +271,7 @@ void strokeDabs(HubCore& hub, const Call& call) {
       const int images = (st->symmetry.x ? 2 : 1) * (st->symmetry.y ? 2 : 1) * (st->symmetry.z ? 2 : 1);
       // A height takes a sub-step per vu (engine applyStroke).
       const double substeps = st->height ? std::ceil(*st->height) : 1;
-      voxelsPerDab = brushVoxels(s.session->volume(), st->radius, images) * substeps;
+      voxelsPerDab = strokeDabVoxels(s.session->volume(), st->radius, images, substeps, s.session->strokeMemory(p.stroke));
       accumulate = st->accumulate;
     }
     self->checkBudget(double(p.dabs.size()) * voxelsPerDab, "this message's dabs");
