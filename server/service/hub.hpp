@@ -67,6 +67,10 @@ struct HubLimits {
   // The memory of one session's volume (its stored bricks); a volume.load beyond it is refused
   // (-32004). Full splat buffers are at most about twice this.
   std::size_t maxVolumeBytes = std::size_t(256) << 20;
+  // An open stroke without a message for this long is ended at the session's next change, as
+  // stroke.end would. The old bricks open strokes keep alive (each holds the volume as it
+  // began) count against max_volume_bytes besides the volume: past it, the oldest are ended.
+  std::chrono::seconds strokeIdle{60};
   // The largest answer a request may build (mesh.export's file, splats.get's buffer), estimated
   // from the band before any work; beyond it -32004.
   std::size_t maxOutputBytes = std::size_t(256) << 20;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <unordered_set>
 #include <utility>
 
 #include "engine/errors.hpp"
@@ -93,6 +94,11 @@ std::int64_t systemMs() {
       .count();
 }
 
+std::int64_t steadyMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 bool sameBrick(const BrickRef& a, const BrickRef& b) {
   if (a == b) return true;
   return a.data && b.data && std::memcmp(a.data->v, b.data->v, sizeof(a.data->v)) == 0;
@@ -143,9 +149,14 @@ Session::Session(Volume initial, std::size_t historyBudgetBytes)
       history_(historyBudgetBytes),
       revision_(volume_.revision()),
       digestTerms_(digestTermSum(volume_)),
-      clock_(systemMs) {}
+      clock_(systemMs),
+      strokeClock_(steadyMs) {}
 
 void Session::setClock(std::function<std::int64_t()> nowMs) { clock_ = nowMs ? std::move(nowMs) : systemMs; }
+
+void Session::setStrokeClock(std::function<std::int64_t()> nowMs) {
+  strokeClock_ = nowMs ? std::move(nowMs) : steadyMs;
+}
 
 StepInfo Session::stepInfo(const StepAuthor& by, std::string_view tool) const {
   StepInfo info;
@@ -157,6 +168,7 @@ StepInfo Session::stepInfo(const StepAuthor& by, std::string_view tool) const {
 }
 
 void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward) {
+  changedBricks_ += changes.size();
   for (const BrickChange& c : changes) {
     const BrickRef& from = forward ? c.before : c.after;
     const BrickRef& to = forward ? c.after : c.before;
@@ -242,7 +254,8 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
                        "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
                            "); end one first");
   const StrokeId id = nextStroke_++;
-  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by, height, volume_});
+  strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by, height, volume_, strokeClock_(), 0,
+                              changedBricks_});
   return id;
 }
 
@@ -256,6 +269,7 @@ const Session::Stroke& Session::openStroke(StrokeId id) const {
 
 ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
   const Stroke& stroke = openStroke(id);
+  strokes_.at(id).lastMessageMs = strokeClock_();
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     const std::string field = "dabs[" + std::to_string(i) + "]";
     if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) requirePoint(*c, field + ".center");
@@ -370,6 +384,52 @@ void Session::endStroke(StrokeId id) {
   if (lastStroke_ == id) lastStroke_ = 0;
 }
 
+namespace {
+
+// Calls f(buffer) for each data brick of start that vol no longer holds (none when a load
+// changed the grid since: start is then unused).
+template <class F>
+void forHeldBricks(const Volume& start, const Volume& vol, F&& f) {
+  if (start.dims() != vol.dims()) return;
+  const Int3 bd = vol.brickDims();
+  for (int z = 0; z < bd.z; ++z)
+    for (int y = 0; y < bd.y; ++y)
+      for (int x = 0; x < bd.x; ++x) {
+        const BrickRef b = start.brick({x, y, z});
+        if (b.data && b.data != vol.brick({x, y, z}).data) f(b.data.get());
+      }
+}
+
+}  // namespace
+
+std::size_t Session::strokeHeldBytes() const {
+  std::unordered_set<const Brick*> held;
+  for (const auto& [id, st] : strokes_) forHeldBricks(st.start, volume_, [&](const Brick* b) { held.insert(b); });
+  return held.size() * sizeof(Brick);
+}
+
+std::vector<StrokeId> Session::endStaleStrokes(std::size_t maxBytes, std::int64_t idleMs) {
+  std::vector<StrokeId> ended;
+  const std::int64_t now = strokeClock_();
+  for (const auto& [id, st] : strokes_)
+    if (now - st.lastMessageMs > idleMs) ended.push_back(id);
+  for (const StrokeId id : ended) endStroke(id);
+  std::size_t bound = 0;
+  for (const auto& [id, st] : strokes_) bound += (st.heldBricks + (changedBricks_ - st.changedAtCount)) * sizeof(Brick);
+  if (bound <= maxBytes) return ended;
+  // Oldest first (ids grow with time): its start lies furthest back.
+  while (!strokes_.empty() && strokeHeldBytes() > maxBytes) {
+    ended.push_back(strokes_.begin()->first);
+    endStroke(strokes_.begin()->first);
+  }
+  for (auto& [id, st] : strokes_) {
+    st.heldBricks = 0;
+    st.changedAtCount = changedBricks_;
+    forHeldBricks(st.start, volume_, [&](const Brick*) { ++st.heldBricks; });
+  }
+  return ended;
+}
+
 HistoryResult Session::undo() {
   const Edit* e = history_.undo(volume_);
   if (e) trackDigest(e->changes, false);
@@ -401,14 +461,29 @@ std::optional<Volume> Session::volumeAt(std::uint64_t revision) const {
   return history_.volumeAt(volume_, revision);
 }
 
+namespace {
+
+ServiceError noSuchRevision(std::uint64_t revision, std::uint64_t current) {
+  return ServiceError(protocol::RpcCode::InvalidParams, "revision",
+                      "revision " + std::to_string(revision) + " is neither the current one (" + std::to_string(current) +
+                          ") nor a step still in this session's history");
+}
+
+}  // namespace
+
 Volume Session::forkVolume(std::optional<std::uint64_t> revision) const {
   if (!revision) return volume_;
   std::optional<Volume> v = volumeAt(*revision);
-  if (!v)
-    throw ServiceError(protocol::RpcCode::InvalidParams, "revision",
-                       "revision " + std::to_string(*revision) + " is neither the current one (" +
-                           std::to_string(revision_) + ") nor a step still in this session's history");
+  if (!v) throw noSuchRevision(*revision, revision_);
   return std::move(*v);
+}
+
+std::variant<Volume, Rebuild> Session::versionAt(std::uint64_t revision) const {
+  if (revision == revision_) return volume_;
+  if (std::optional<Volume> kept = history_.keptAt(revision)) return std::move(*kept);
+  std::optional<Rebuild> r = history_.rebuildAt(volume_, revision);
+  if (!r) throw noSuchRevision(revision, revision_);
+  return std::move(*r);
 }
 
 HistoryResult Session::historyMoved(const Edit* e) {

@@ -190,6 +190,15 @@ class Session {
   static constexpr std::size_t kMaxStrokeMemory = 4096;
   // Closes the stroke; its step can no longer grow. Throws UnknownStroke / StrokeClosed.
   void endStroke(StrokeId id);
+  // Bytes of the brick buffers that open strokes' starting volumes hold and the live volume no
+  // longer does (each buffer once): what open strokes keep alive. Reads every brick of each
+  // stroke's start.
+  std::size_t strokeHeldBytes() const;
+  // Ends, as endStroke() does, every open stroke that had no message (beginStroke, strokeDabs)
+  // for idleMs of the stroke clock (setStrokeClock), then the oldest open strokes until strokeHeldBytes() is
+  // at most maxBytes. Returns the strokes ended, in that order. Cheap while an upper bound of
+  // what the strokes hold (the bricks changed since each began) stays within maxBytes.
+  std::vector<StrokeId> endStaleStrokes(std::size_t maxBytes, std::int64_t idleMs);
 
   HistoryResult undo();
   HistoryResult redo();
@@ -226,10 +235,18 @@ class Session {
   // revision() is that revision, the new Session starts from it with an empty history. Throws
   // InvalidParams (field "revision") when the revision is neither current nor a step's.
   Volume forkVolume(std::optional<std::uint64_t> revision = std::nullopt) const;
+  // The volume at `revision` as cheaply as it comes: the current one or the history's kept
+  // version (History::keptAt) at once, else the Rebuild that builds it (History::rebuildAt), to
+  // run off the strand and hand back to keep(). Throws InvalidParams as forkVolume.
+  std::variant<Volume, Rebuild> versionAt(std::uint64_t revision) const;
+  void keep(const Rebuild& r, const Volume& built) const { history_.keep(r, built); }
 
   // Where step times come from (ms since the Unix epoch); the system clock by default. Replay
   // sets the journal's times; tests a fixed clock.
   void setClock(std::function<std::int64_t()> nowMs);
+  // Where the times of stroke messages come from (endStaleStrokes), in ms: a steady clock by
+  // default; tests set their own. Not the step clock: replay sets that one to the journal's.
+  void setStrokeClock(std::function<std::int64_t()> nowMs);
 
   // A copy of the current version for readers on other threads (see the conventions above).
   Volume snapshot() const { return volume_; }
@@ -276,6 +293,11 @@ class Session {
     StepAuthor by;
     std::optional<double> height;
     Volume start;  // the volume as the stroke began: rays pick on it, normals are read on it
+    std::int64_t lastMessageMs = 0;  // the stroke clock at its begin or last stroke.dabs
+    // At the last count (begin, or strokeHeldBytes through endStaleStrokes): the bricks of start
+    // that the volume no longer held, and changedBricks_ then. Held bricks are at most heldBricks
+    // plus the bricks changed since.
+    std::size_t heldBricks = 0, changedAtCount = 0;
   };
 
   ApplyResult finish(const Edit& edit);
@@ -315,6 +337,8 @@ class Session {
   // fold into that step.
   StrokeId lastStroke_ = 0;
   std::function<std::int64_t()> clock_;
+  std::size_t changedBricks_ = 0;  // brick changes published so far (trackDigest, load)
+  std::function<std::int64_t()> strokeClock_;
 };
 
 }  // namespace marzipan::service

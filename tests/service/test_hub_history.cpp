@@ -389,6 +389,53 @@ TEST_CASE("session.fork counts against the create limits", "[hub][history]") {
   CHECK(a.result("session.stats")["revision"] == 0);  // still in its first fork
 }
 
+TEST_CASE("session.fork is counted against the create limits before its revision is looked up or rebuilt",
+          "[hub][history]") {
+  HubOptions o = twoWorkerOptions();
+  o.limits.maxCreatesPerMinute = 2;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  a.result("tool.apply", kLeftBlob);
+  a.result("tool.apply", kRightBlob);
+  // Refused for its revision, the fork still took its share of the minute (issue 31 item 2:
+  // a fork's rebuild used to run before the count, so refused forks were free).
+  CHECK(a.call("session.fork", {{"revision", 7}})["error"]["data"]["field"] == "revision");
+  const json refused = a.call("session.fork", {{"revision", 1}});
+  INFO(refused.dump());
+  CHECK(refused["error"]["code"] == -32004);
+  CHECK(refused["error"]["data"]["limit"] == "max_creates_per_minute");
+  CHECK(a.result("session.stats")["revision"] == 2);
+}
+
+TEST_CASE("render.frame and session.fork of an earlier revision are refused over max_op_voxels before the rebuild",
+          "[hub][history]") {
+  HubOptions o = twoWorkerOptions();
+  // A blob of radius 4 costs 15^3 = 3375 voxels to apply and changes a dozen bricks or more: a
+  // rebuild across three of them unpacks over 18000 voxels.
+  o.limits.maxOpVoxels = 10000;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", kCreate);
+  for (const json& blob : {kLeftBlob, kRightBlob, json{{"tool", "add_blob"}, {"center", {24, 41, 24}}, {"radius", 4}},
+                           json{{"tool", "add_blob"}, {"center", {24, 6, 24}}, {"radius", 4}}})
+    REQUIRE(a.result("tool.apply", blob)["roi"].is_object());
+  REQUIRE(a.result("session.stats")["revision"] == 4);
+  const json camera = {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}};
+  const json refused = a.call("render.frame", {{"camera", camera}, {"width", 8}, {"height", 8}, {"format", "png"},
+                                               {"revision", 1}});
+  INFO(refused.dump());
+  REQUIRE(refused.contains("error"));
+  CHECK(refused["error"]["code"] == -32004);
+  CHECK(refused["error"]["data"]["limit"] == "max_op_voxels");
+  CHECK(refused["error"]["data"]["value"].get<double>() > 10000);
+  CHECK(a.call("session.fork", {{"revision", 1}})["error"]["data"]["limit"] == "max_op_voxels");
+  // The current revision needs no rebuild.
+  CHECK(a.result("render.frame", {{"camera", camera}, {"width", 8}, {"height", 8}, {"format", "png"},
+                                  {"revision", 4}})["revision"] == 4);
+  CHECK(a.result("session.stats")["revision"] == 4);
+}
+
 TEST_CASE("render.frame of an earlier revision draws the volume of that step, the session unchanged", "[hub][history]") {
   Hub hub(twoWorkerOptions());
   TestClient a(hub), v(hub), one(hub);
@@ -411,6 +458,13 @@ TEST_CASE("render.frame of an earlier revision draws the volume of that step, th
   CHECK(unknown["error"]["code"] == -32602);
   CHECK(unknown["error"]["data"]["field"] == "revision");
   CHECK(a.result("session.stats")["revision"] == 2);
+  // Asked again (the version kept), and after a newer step (still right), the same image.
+  CHECK(framePng(v, {{"revision", 1}}).first == expected);
+  a.result("tool.apply", {{"tool", "remove_blob"}, {"center", {24, 42, 24}}, {"radius", 4}});
+  CHECK(framePng(v, {{"revision", 1}}).first == expected);
+  // A fork at that revision starts from the same volume.
+  const json fork = v.result("session.fork", {{"revision", 1}});
+  CHECK(fork["digest"] == one.result("session.stats")["digest"]);
 }
 
 TEST_CASE("redo mine refuses a step under another client's undone step that holds its bricks", "[hub][history]") {

@@ -577,3 +577,51 @@ TEST_CASE("a global operation that fails or is cancelled part way changes nothin
     CHECK(progress.fraction() >= 0.25);
   }
 }
+
+TEST_CASE("session: open strokes' old volumes are counted, and idle or over-budget strokes are ended", "[session][strokes]") {
+  // Issue 31 item 4: each open stroke keeps the volume as it began; sixteen strokes begun
+  // between whole-volume morphs kept sixteen old volumes alive, uncounted, with no time limit.
+  ThreadPool pool(2);
+  Session s(sphere());
+  std::int64_t now = 1'000'000;
+  s.setStrokeClock([&] { return now; });
+  const std::size_t oneVolume = s.volume().memoryBytes();
+  std::vector<StrokeId> strokes;
+  std::size_t heldBefore = 0;
+  for (int i = 0; i < 16; ++i) {
+    strokes.push_back(s.beginStroke(BrushTool::AddBlob, 4, 1, {}, false, {std::to_string(i), ""}));
+    s.apply(protocol::MorphOp{i % 2 ? protocol::MorphKind::Erode : protocol::MorphKind::Dilate, 1}, pool);
+    now += 1000;
+  }
+  heldBefore = s.strokeHeldBytes();
+  INFO("one volume " << oneVolume << " bytes, held by 16 strokes " << heldBefore);
+  CHECK(heldBefore > 8 * oneVolume);
+  CHECK(s.endStaleStrokes(SIZE_MAX, 60'000).empty());
+  CHECK(s.openStrokes() == 16);
+
+  SECTION("over the bound, the oldest are ended until what they hold fits") {
+    const std::size_t bound = 3 * oneVolume;
+    const std::vector<StrokeId> ended = s.endStaleStrokes(bound, 60'000);
+    CHECK(s.strokeHeldBytes() <= bound);
+    REQUIRE_FALSE(ended.empty());
+    CHECK(ended.front() == strokes.front());
+    CHECK(std::is_sorted(ended.begin(), ended.end()));
+    CHECK(s.openStrokes() == 16 - ended.size());
+    CHECK(s.openStrokes() >= 1);
+    requireError([&] { s.strokeDabs(ended.front(), {at({kSurface, kC, kC})}, pool); }, protocol::RpcCode::NoSuchStroke,
+                 "stroke");
+    // The newest stroke goes on, and a second call with nothing new is cheap and ends nothing.
+    CHECK(s.strokeDabs(strokes.back(), {at({kSurface, kC, kC})}, pool).changed);
+    CHECK(s.endStaleStrokes(bound, 60'000).empty());
+  }
+  SECTION("a stroke without a message for longer than the idle bound is ended") {
+    now += 45'000;
+    s.strokeDabs(strokes[5], {at({kSurface, kC, kC})}, pool);  // 5 had a message just now
+    now += 20'000;
+    const std::vector<StrokeId> ended = s.endStaleStrokes(SIZE_MAX, 60'000);
+    CHECK(ended.size() == 15);
+    CHECK(std::find(ended.begin(), ended.end(), strokes[5]) == ended.end());
+    CHECK(s.openStrokes() == 1);
+    CHECK(s.strokeHeldBytes() <= 2 * oneVolume);
+  }
+}

@@ -105,8 +105,9 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // Takes a snapshot on the strand, then runs fn on the workers off the strand (renders,
   // exports, measures), answers and lets the connection go on. atStrand, when given, starts
   // the reply on the strand with what needs the live session. at: the snapshot is the volume
-  // at that revision instead (Session::volumeAt, which unpacks the later steps' bricks on the
-  // strand); -32602 field "revision" when the history has no such step.
+  // at that revision instead (Session::versionAt): the session's kept version, or rebuilt on
+  // the workers (cancellable, within max_op_voxels, then kept); -32602 field "revision" when
+  // the history has no such step.
   void offStrand(const Call& call, std::function<void(const Volume&, std::uint64_t revision, Reply&)> fn,
                  std::function<void(LiveSession&, Reply&)> atStrand = {}, std::optional<std::uint64_t> at = std::nullopt);
   // -32007 when c joined with the view token and the call needs edit rights (on the strand).
@@ -126,6 +127,21 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   std::shared_ptr<RunningOp> track(const std::shared_ptr<HubClient>& c, const std::optional<nlohmann::json>& id);
   // Refuses a request whose estimated work is over max_op_voxels (-32004), before anything runs.
   void checkBudget(double voxels, const char* what) const;
+  // Runs rb with running's progress and cancel (off the strand; a long task when it is large).
+  Volume build(const Rebuild& rb, RunningOp& running);
+  // On s's strand: hands `then` (on the strand) the volume of s at `revision`: at once when it
+  // is the current or the kept version, else rebuilt on the workers within max_op_voxels with
+  // running's cancel, and kept. One rebuild per session at a time: a request needing one while
+  // another runs waits for it and tries again (the same revision is then kept). fail gets what
+  // went wrong (-32602 "revision", -32004, -32016), on the strand or a worker.
+  void withVersion(const std::shared_ptr<LiveSession>& s, std::uint64_t revision, const std::shared_ptr<RunningOp>& running,
+                   std::function<void(std::shared_ptr<const Volume>)> then, std::function<void(std::exception_ptr)> fail);
+  // On s's strand, when its rebuild ended: the requests waiting for it try again, in order.
+  void rebuildEnded(LiveSession& s);
+  // After an edit, on the strand: ends the open strokes idle for stroke_idle, then the oldest
+  // while the old bricks they hold are over max_volume_bytes (Session::endStaleStrokes), as
+  // stroke.end would: their stroke_end records follow the edit's in r.record.
+  void endStaleStrokes(LiveSession& s, Reply& r);
 
  private:
   mutable std::mutex mutex_;  // guards stopping_ and runningOps_

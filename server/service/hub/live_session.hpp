@@ -10,7 +10,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <deque>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -40,6 +42,9 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   int nextClient = 1;
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
   HeldSplats heldSplats;       // what its splats-mode clients hold (Broadcaster)
+  // One rebuild of an earlier revision at a time (HubCore::withVersion); the others wait here.
+  bool rebuilding = false;
+  std::deque<std::function<void()>> awaitingRebuild;
 
   // Presence of the clients (its own locks; see service/hub/presence_relay.hpp).
   SessionPresence presence;

@@ -57,41 +57,74 @@ void sessionCreate(HubCore& hub, const Call& call) {
                });
 }
 
+namespace {
+
+// The second half of a fork, on the old session's strand: the new session from `volume`, the
+// caller moved into it.
+void forkFrom(const std::shared_ptr<HubCore>& self, const std::shared_ptr<HubClient>& c,
+              const std::shared_ptr<LiveSession>& old, const std::optional<json>& id, Clock::time_point arrived,
+              const Volume& volume) {
+  std::shared_ptr<LiveSession> fresh;
+  ViewMode view = ViewMode::None;
+  const std::uint64_t from = volume.revision();
+  try {
+    if (old->unloaded || !old->session || c->session != old)
+      throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
+    fresh = self->registry.create(*c, std::nullopt, [volume](HubCore&) { return volume; }, true);
+    // Frames need a camera sent again (view.set); splats follow as after session.create.
+    view = c->mode == ViewMode::Splats ? ViewMode::Splats : ViewMode::None;
+    self->registry.leave(*old, *c);
+    c->session.reset();
+  } catch (...) {
+    self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
+    return self->finish(c);
+  }
+  self->onStrand(c, fresh, id, arrived, false, Access::Anyone,
+                 [self, c, fresh, view, from, oldId = old->id, name = c->name](LiveSession& ls, Reply& r) {
+                   self->registry.admit(ls, c, false, view, r, name);  // the fork keeps the caller's name
+                   c->session = fresh;
+                   r.result["token"] = ls.secrets.token;
+                   r.result["view_token"] = ls.secrets.viewToken;
+                   r.result["forked_from"] = {{"session", oldId}, {"revision", from}};
+                   self->log("session " + ls.id + ": forked from " + oldId + " at revision " + std::to_string(from) +
+                             " by " + c->peer);
+                 });
+}
+
+}  // namespace
+
 void sessionFork(HubCore& hub, const Call& call) {
   const std::optional<std::uint64_t> revision = protocol::parseForkParams(call.req.params);
   const std::shared_ptr<HubClient>& c = call.client;
   std::shared_ptr<LiveSession> old = c->session;
+  auto running = hub.track(c, call.req.id);
   // Not through onStrand: the old session's strand takes the volume and lets the caller go, then
   // the new one's admits it and answers. The connection's pump waits for this request, so the
-  // pump-only fields (creates, session) are touched by no one else meanwhile.
-  old->strand->post([self = hub.shared_from_this(), c, old, id = call.req.id, arrived = call.arrived, revision] {
-    std::shared_ptr<LiveSession> fresh;
-    ViewMode view = ViewMode::None;
-    std::uint64_t from = 0;
+  // pump-only fields (creates, session) are touched by no one else meanwhile. An earlier
+  // revision is rebuilt on the workers, the strand free meanwhile, and the create is counted
+  // before that work: a refused fork costs what a create does.
+  old->strand->post([self = hub.shared_from_this(), c, old, id = call.req.id, arrived = call.arrived, revision,
+                     running] {
     try {
       if (old->unloaded || !old->session || c->session != old)
         throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
-      Volume volume = old->session->forkVolume(revision);  // -32602 "revision" before anything changes
-      from = volume.revision();
-      fresh = self->registry.create(*c, std::nullopt, [volume](HubCore&) { return volume; });
-      // Frames need a camera sent again (view.set); splats follow as after session.create.
-      view = c->mode == ViewMode::Splats ? ViewMode::Splats : ViewMode::None;
-      self->registry.leave(*old, *c);
-      c->session.reset();
+      self->registry.countCreate(*c);
     } catch (...) {
       self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
       return self->finish(c);
     }
-    self->onStrand(c, fresh, id, arrived, false, Access::Anyone,
-                   [self, c, fresh, view, from, oldId = old->id, name = c->name](LiveSession& ls, Reply& r) {
-                     self->registry.admit(ls, c, false, view, r, name);  // the fork keeps the caller's name
-                     c->session = fresh;
-                     r.result["token"] = ls.secrets.token;
-                     r.result["view_token"] = ls.secrets.viewToken;
-                     r.result["forked_from"] = {{"session", oldId}, {"revision", from}};
-                     self->log("session " + ls.id + ": forked from " + oldId + " at revision " + std::to_string(from) +
-                               " by " + c->peer);
-                   });
+    if (!revision) {
+      running->done();
+      return forkFrom(self, c, old, id, arrived, old->session->snapshot());
+    }
+    // -32602 "revision" before anything changes.
+    self->withVersion(
+        old, *revision, running,
+        [self, c, old, id, arrived](std::shared_ptr<const Volume> v) { forkFrom(self, c, old, id, arrived, *v); },
+        [self, c, id](std::exception_ptr e) {
+          self->sendError(*c, id, failureOf(e, self->options.events.log));
+          self->finish(c);
+        });
   });
 }
 

@@ -83,7 +83,7 @@ RpcException SessionRegistry::sessionsFull() const {
 
 // --- creating ----------------------------------------------------------------------------------
 
-void SessionRegistry::checkCreateRate(HubClient& c) {
+void SessionRegistry::countCreate(HubClient& c) {
   const HubLimits& l = hub_.limits();
   const auto now = Clock::now();
   const auto minuteAgo = now - std::chrono::minutes(1);
@@ -121,8 +121,8 @@ std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const protoco
 }
 
 std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const std::optional<std::string>& proposed,
-                                                     std::function<Volume(HubCore&)> build) {
-  checkCreateRate(c);
+                                                     std::function<Volume(HubCore&)> build, bool counted) {
+  if (!counted) countCreate(c);
   const std::string id = proposed.value_or(randomText(kSessionIdChars));
   auto s = std::make_shared<LiveSession>(id, SessionSecrets{randomText(kTokenChars), randomText(kTokenChars)}, hub_.workers);
   const auto taken = [&] {

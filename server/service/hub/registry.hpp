@@ -55,8 +55,12 @@ class SessionRegistry {
   std::shared_ptr<LiveSession> create(HubClient& c, const protocol::CreateParams& p);
   // The same with the volume build() makes on the new session's strand (session.fork: a copy
   // of another session's volume, sharing its bricks); proposed: the id, else a random one.
+  // counted: the caller counted this create already (countCreate), before the work it needed.
   std::shared_ptr<LiveSession> create(HubClient& c, const std::optional<std::string>& proposed,
-                                      std::function<Volume(HubCore&)> build);
+                                      std::function<Volume(HubCore&)> build, bool counted = false);
+  // Counts a create of c against max_creates_per_minute (per connection and per address), or
+  // refuses it (-32004). On c's pump, or on a strand while the pump waits for the request.
+  void countCreate(HubClient& c);
   // The live session of this id, loading it from the storage when it sleeps there.
   std::shared_ptr<LiveSession> findOrLoad(const std::string& id, const std::string& token);
 
@@ -78,7 +82,6 @@ class SessionRegistry {
   void scheduleLobbyCheck(const std::weak_ptr<HubClient>& weak, std::chrono::milliseconds delay);
 
  private:
-  void checkCreateRate(HubClient& c);
   std::shared_ptr<LiveSession> load(const std::string& id, const std::string& token);
   protocol::RpcException sessionsFull() const;
   void scheduleIdleCheck();

@@ -49,6 +49,7 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       }
       checkAccess(*c, access);
       fn(*s, r);
+      if (edit) self->endStaleStrokes(*s, r);
       if (r.record) {
         self->durability.persist(*s, r.record);
       } else if (edit) {
@@ -79,26 +80,17 @@ void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std:
                         std::function<void(LiveSession&, Reply&)> atStrand, std::optional<std::uint64_t> at) {
   const std::shared_ptr<HubClient>& c = call.client;
   std::shared_ptr<LiveSession> s = c->session;
-  s->strand->post([self = shared_from_this(), c, s, id = call.req.id, fn = std::move(fn),
-                   atStrand = std::move(atStrand), at]() mutable {
-    if (s->unloaded || !s->session) {
-      self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
-      return self->finish(c);
-    }
-    std::shared_ptr<Volume> snapshot;
-    try {
-      snapshot = std::make_shared<Volume>(at ? s->session->forkVolume(at) : s->session->snapshot());
-    } catch (...) {
-      self->sendError(*c, id, failureOf(std::current_exception(), self->options.events.log));
-      return self->finish(c);
-    }
-    const std::uint64_t revision = at ? *at : s->session->revision();
+  // An earlier revision may have to be rebuilt: a long operation, cancellable.
+  std::shared_ptr<RunningOp> running = at ? track(c, call.req.id) : nullptr;
+  // On the strand, with the volume to read: the reply started there, the work on the workers.
+  auto answer = [self = shared_from_this(), c, s, id = call.req.id, fn = std::move(fn),
+                 atStrand = std::move(atStrand)](std::shared_ptr<const Volume> vol, std::uint64_t revision) {
     auto started = std::make_shared<Reply>();
     if (atStrand) atStrand(*s, *started);
-    self->workers.post([self, c, id, snapshot, revision, fn = std::move(fn), started] {
+    self->workers.post([self, c, id, vol, revision, fn, started] {
       Reply& r = *started;
       try {
-        fn(*snapshot, revision, r);
+        fn(*vol, revision, r);
         if (r.frame) c->link->sendBinary(r.frame, false);
         self->sendResult(*c, id, r.result);
       } catch (...) {
@@ -106,7 +98,95 @@ void HubCore::offStrand(const Call& call, std::function<void(const Volume&, std:
       }
       self->finish(c);
     });
+  };
+  s->strand->post([self = shared_from_this(), c, s, id = call.req.id, answer = std::move(answer), at, running] {
+    if (s->unloaded || !s->session) {
+      self->sendError(*c, id, {RpcCode::NotInSession, "the session was closed", nullptr});
+      return self->finish(c);
+    }
+    if (!at) return answer(std::make_shared<const Volume>(s->session->snapshot()), s->session->revision());
+    self->withVersion(
+        s, *at, running, [answer, revision = *at](std::shared_ptr<const Volume> vol) { answer(std::move(vol), revision); },
+        [self, c, id](std::exception_ptr e) {
+          self->sendError(*c, id, failureOf(e, self->options.events.log));
+          self->finish(c);
+        });
   });
+}
+
+void HubCore::withVersion(const std::shared_ptr<LiveSession>& s, std::uint64_t revision,
+                          const std::shared_ptr<RunningOp>& running,
+                          std::function<void(std::shared_ptr<const Volume>)> then,
+                          std::function<void(std::exception_ptr)> fail) {
+  try {
+    if (s->unloaded || !s->session) throw RpcException(RpcCode::NotInSession, "the session was closed; join it again");
+    std::variant<Volume, Rebuild> version = s->session->versionAt(revision);
+    if (Volume* ready = std::get_if<Volume>(&version)) {
+      running->done();
+      return then(std::make_shared<const Volume>(std::move(*ready)));
+    }
+    const Rebuild& rb = std::get<Rebuild>(version);
+    checkBudget(rb.voxels(), "rebuilding this revision");
+    if (s->rebuilding) {
+      s->awaitingRebuild.push_back([self = shared_from_this(), s, revision, running, then, fail] {
+        self->withVersion(s, revision, running, then, fail);
+      });
+      return;
+    }
+    s->rebuilding = true;
+    // Off the strand: the session's edits go on while an old version is unpacked.
+    workers.post([self = shared_from_this(), s, rb = std::get<Rebuild>(std::move(version)), running, then, fail] {
+      std::shared_ptr<const Volume> built;
+      std::exception_ptr error;
+      try {
+        built = std::make_shared<const Volume>(self->build(rb, *running));
+      } catch (...) {
+        error = std::current_exception();
+      }
+      s->strand->post([self, s, rb, built, error, then, fail] {
+        if (built && s->session && !s->unloaded) s->session->keep(rb, *built);
+        if (error) fail(error);
+        else then(built);
+        self->rebuildEnded(*s);
+      });
+    });
+  } catch (...) {
+    fail(std::current_exception());
+  }
+}
+
+void HubCore::rebuildEnded(LiveSession& s) {
+  s.rebuilding = false;
+  while (!s.rebuilding && !s.awaitingRebuild.empty()) {
+    std::function<void()> next = std::move(s.awaitingRebuild.front());
+    s.awaitingRebuild.pop_front();
+    next();
+  }
+}
+
+void HubCore::endStaleStrokes(LiveSession& s, Reply& r) {
+  const std::vector<StrokeId> ended = s.session->endStaleStrokes(
+      limits().maxVolumeBytes, std::chrono::duration_cast<std::chrono::milliseconds>(limits().strokeIdle).count());
+  if (ended.empty()) return;
+  std::string ids;
+  for (const StrokeId id : ended) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+  log("session " + s.id + ": ended open stroke(s) " + ids + " (idle, or holding old bricks over max_volume_bytes)");
+  r.record = [made = std::move(r.record), ended] {
+    json records = made ? made() : json::array();
+    if (!records.is_array()) records = json::array({std::move(records)});
+    for (const StrokeId id : ended) records.push_back({{"stroke_end", id}});
+    return records;
+  };
+}
+
+Volume HubCore::build(const Rebuild& rb, RunningOp& running) {
+  running.progress->setTotal(double(rb.steps()));
+  std::optional<Workers::LongTask> longTask;
+  if (rb.voxels() > kLongOpVoxels) longTask.emplace(workers);
+  const Progress::Scope scope(*running.progress);
+  Volume v = rb.run();
+  running.done();
+  return v;
 }
 
 // --- long operations -------------------------------------------------------------------------------
