@@ -199,7 +199,7 @@ TEST_CASE("etcd storage: a session still being created is not closed by the hub'
 // lease: the lease is late, not lost. This server used to say no to renew() (the hub's renewal
 // timer then closed the session, 1011) and refused appends at once (OwnershipLost, -32015),
 // though etcd would have taken them; the failover test met it under load (issue 28).
-TEST_CASE("etcd storage: a late lease keeps its sessions: renewed, appended to; only what writes nothing waits for etcd",
+TEST_CASE("etcd storage: a late lease keeps its sessions: renewed, appended to, and only what writes nothing waits for etcd",
           "[etcd]") {
   const auto dir = scratch("late");
   MemoryKv kv;
