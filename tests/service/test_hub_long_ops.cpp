@@ -349,16 +349,23 @@ TEST_CASE("edits racing shutdown: every acknowledged one is journaled", "[hub][d
     Hub hub(o);
     TestClient a(hub);
     created = a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
-    // Keep up to 32 edits in flight while the hub shuts down.
-    std::thread stopper([&] {
-      std::this_thread::sleep_for(std::chrono::milliseconds(30));
-      hub.shutdown();
-    });
+    // Keep up to 32 edits in flight while the hub shuts down. The shutdown starts 30 ms after the
+    // first edit is answered, not after the first is sent: on a loaded machine the first batch
+    // could still be waiting for a core 30 ms after it was sent, and then nothing was
+    // acknowledged, which proves nothing about the race.
+    std::thread stopper;
     int sent = 0;
     for (int round = 0; round < 40; ++round) {
       for (int k = 0; k < 32; ++k) {
         const double x = 20 + (sent % 24);
         sendLong(a, 1000 + sent++, "tool.apply", {{"tool", "add_blob"}, {"center", {x, 54, 32}}, {"radius", 3}});
+      }
+      if (round == 0) {
+        REQUIRE(responseTo(a, 1000).contains("result"));
+        stopper = std::thread([&] {
+          std::this_thread::sleep_for(std::chrono::milliseconds(30));
+          hub.shutdown();
+        });
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
