@@ -47,21 +47,14 @@ if $merge; then
 fi
 
 failed=()
-printf '%-14s %-8s %12s %8s %10s  %s\n' target run execs seconds exec/s result
+table_header
 for t in "${targets[@]}"; do
-  corpus="$build/fuzz-corpus/$t" artifacts="$build/fuzz-artifacts/$t" log="$build/fuzz-logs/$t.explore.log"
-  mkdir -p "$corpus" "$artifacts" "$build/fuzz-logs"
+  corpus="$build/fuzz-corpus/$t"
+  mkdir -p "$corpus"
   mapfile -t inputs < <(fixed_inputs "$t")
   mapfile -t dict < <(dict_of "$t")
   # New inputs go to the first directory, the growing corpus; the fixed inputs are only read.
-  result=ok
-  "$build/tests/fuzz/fuzz_$t" "${fuzz_limits[@]}" -max_total_time="$seconds" -print_final_stats=1 \
-    -artifact_prefix="$artifacts/" "${dict[@]}" "$corpus" "${inputs[@]}" >"$log" 2>&1 || result=FAILED
-  report_line "$t" "$log" "$result" explore
-  if [ "$result" != ok ]; then
-    failed+=("$t")
-    tail -n 40 "$log"
-  fi
+  run_target "$t" explore -max_total_time="$seconds" "${dict[@]}" "$corpus" "${inputs[@]}"
 done
 if ((${#failed[@]})); then
   echo "exploration found: ${failed[*]} (inputs in $build/fuzz-artifacts/; each goes into tests/fuzz/regressions/TARGET/ with its fix)"

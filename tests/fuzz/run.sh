@@ -22,29 +22,14 @@ runs="${MARZIPAN_FUZZ_RUNS:-20000}"
 . tests/fuzz/setup.sh
 
 failed=()
-printf '%-14s %-8s %12s %8s %10s  %s\n' target run execs seconds exec/s result
+table_header
 for t in "${targets[@]}"; do
-  artifacts="$build/fuzz-artifacts/$t" scratch="$build/fuzz-gate-scratch/$t"
-  mkdir -p "$artifacts" "$build/fuzz-logs"
+  scratch="$build/fuzz-gate-scratch/$t"
   mapfile -t inputs < <(fixed_inputs "$t")
   mapfile -t dict < <(dict_of "$t")
-  for run in replay seeded; do
-    log="$build/fuzz-logs/$t.$run.log"
-    rm -rf "$scratch" && mkdir -p "$scratch"
-    if [ "$run" = replay ]; then
-      flags=(-runs=0 "${inputs[@]}")
-    else
-      flags=(-seed="$seed" -runs="$runs" "${dict[@]}" "$scratch" "${inputs[@]}")
-    fi
-    result=ok
-    "$build/tests/fuzz/fuzz_$t" "${fuzz_limits[@]}" -print_final_stats=1 -artifact_prefix="$artifacts/" \
-      "${flags[@]}" >"$log" 2>&1 || result=FAILED
-    report_line "$t" "$log" "$result" "$run"
-    if [ "$result" != ok ]; then
-      failed+=("$t ($run)")
-      tail -n 40 "$log"
-    fi
-  done
+  run_target "$t" replay -runs=0 "${inputs[@]}"
+  rm -rf "$scratch" && mkdir -p "$scratch"
+  run_target "$t" seeded -seed="$seed" -runs="$runs" "${dict[@]}" "$scratch" "${inputs[@]}"
 done
 rm -rf "$build/fuzz-gate-scratch"
 if ((${#failed[@]})); then

@@ -42,11 +42,27 @@ dict_of() {
   return 0
 }
 
-# One line of the results table from a libFuzzer log: target, inputs executed, seconds, rate, result.
-report_line() {
-  local t="$1" log="$2" result="$3" execs took rate
+# The results table: a line per run of a target (run_target), under this header.
+row_format='%-14s %-8s %12s %8s %10s  %s\n'
+table_header() { printf "$row_format" target run execs seconds exec/s result; }
+
+# run_target TARGET RUN FLAG...: runs fuzz_TARGET with the shared limits and FLAGs, its log in
+# $build/fuzz-logs/TARGET.RUN.log and what it finds in $build/fuzz-artifacts/TARGET/; prints its
+# line of the table (inputs executed, seconds, rate, ok or FAILED) and, when it failed, adds
+# "TARGET (RUN)" to the caller's `failed` array and prints the end of the log.
+run_target() {
+  local t="$1" run="$2" result=ok execs took rate
+  shift 2
+  local log="$build/fuzz-logs/$t.$run.log" artifacts="$build/fuzz-artifacts/$t"
+  mkdir -p "$artifacts" "$build/fuzz-logs"
+  "$build/tests/fuzz/fuzz_$t" "${fuzz_limits[@]}" -print_final_stats=1 -artifact_prefix="$artifacts/" "$@" \
+    >"$log" 2>&1 || result=FAILED
   execs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")"
   took="$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$log")"
   rate="$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log")"
-  printf '%-14s %-8s %12s %8s %10s  %s\n' "$t" "${4:-}" "${execs:-?}" "${took:-?}" "${rate:-?}" "$result"
+  printf "$row_format" "$t" "$run" "${execs:-?}" "${took:-?}" "${rate:-?}" "$result"
+  if [ "$result" != ok ]; then
+    failed+=("$t ($run)")
+    tail -n 40 "$log"
+  fi
 }
