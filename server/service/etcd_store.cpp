@@ -220,9 +220,22 @@ EtcdOwner::Claim EtcdOwner::claim(const std::string& id) {
                                   {KvOp{KvOp::Kind::range, key, {}, {}, 0}});
     if (r.succeeded) {
       // The put's revision is the key's createRevision: the token.
-      out.state = read(id);
-      for (const JournalEntry& e : out.state.journal)
-        if (e.token > r.revision) throw std::runtime_error("session " + id + ": journal token above the new owner's");
+      try {
+        out.state = read(id);
+        for (const JournalEntry& e : out.state.journal)
+          if (e.token > r.revision) throw std::runtime_error("session " + id + ": journal token above the new owner's");
+      } catch (...) {
+        // Not taken after all: left in place, the key named this server as the owner to its
+        // own later claims until the lease ended. Deleted only if still this claim's.
+        try {
+          kv_.txn({ownedBy(key, r.revision)}, {KvOp{KvOp::Kind::deleteRange, key, {}, {}, 0}}, {});
+        } catch (const std::exception& e) {
+          if (events_.log)
+            events_.log("session " + id + ": deleting the owner key of a failed claim failed (" + e.what() +
+                        "); it goes with the lease");
+        }
+        throw;
+      }
       out.journal.reset(new EtcdJournal(*this, id, r.revision, out.state));
       if (events_.ownershipChanged) events_.ownershipChanged(id, true);
       return out;

@@ -159,7 +159,9 @@ class EtcdOwner {
     EtcdSessionState state;                // what is at rest (when owned)
     std::string owner;                     // the other owner's address (when not)
   };
-  // Takes the session if no one owns it; reads back its state when taken. Without a live lease
+  // Takes the session if no one owns it; reads back its state when taken (when that read
+  // fails, the owner key just written is deleted again, if still this claim's, and the error
+  // thrown: the session stays free, here as elsewhere). Without a live lease
   // (lost, or not renewed within its TTL, e.g. after the process was stopped) it has the
   // keep-alive thread renew or replace it and waits up to kLeaseWait; then KvUnavailable.
   Claim claim(const std::string& id);

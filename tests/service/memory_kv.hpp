@@ -3,12 +3,16 @@
 // when a test says so (expire()); `down` makes every call throw KvUnavailable, and the next
 // `loseAnswers` transactions are applied but throw as if their answer was lost on the way;
 // `latency` delays every transaction (outside the lock) like a network round trip;
+// the next `failRanges` reads (range()) throw KvUnavailable, after calling `onFailedRange` (if
+// set) outside the lock, where a test may change the store as another server would meanwhile;
+// `entriesRead` counts the entries range() returned;
 // `stallKeepAlives` holds keep-alives up (as an etcd election does, no member answering for a
 // while) until it is cleared, then they succeed: the lease itself does not expire.
 #pragma once
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <set>
@@ -49,9 +53,15 @@ class MemoryKv : public service::KeyValue {
   }
 
   std::vector<KvEntry> range(const std::string& key, const std::string& end, std::int64_t limit) override {
+    if (failRanges > 0 && failRanges-- > 0) {
+      if (onFailedRange) onFailedRange();
+      throw service::KvUnavailable("memory kv: the read failed");
+    }
     const std::lock_guard lock(mutex_);
     check();
-    return rangeLocked(key, end, limit);
+    auto out = rangeLocked(key, end, limit);
+    entriesRead += out.size();
+    return out;
   }
 
   service::KvTxnResult txn(const std::vector<KvCompare>& compares, const std::vector<KvOp>& success,
@@ -103,6 +113,9 @@ class MemoryKv : public service::KeyValue {
   std::chrono::milliseconds latency{0};  // of each transaction
   int loseAnswers = 0;
   int txns = 0;
+  std::atomic<int> failRanges{0};
+  std::function<void()> onFailedRange;
+  std::atomic<std::size_t> entriesRead{0};
 
  private:
   void check() const {

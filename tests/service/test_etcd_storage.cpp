@@ -265,3 +265,18 @@ TEST_CASE("etcd storage: sessions at rest untouched longer than the age limit ar
   CHECK(kv.range(store.owner().ownerKey("old"), {}, 0).empty());
   std::filesystem::remove_all(dir);
 }
+
+// Issue 31 item 5: a claim whose read-back failed kept its owner key, and every later acquire on
+// this server found itself the owner and said no (the hub's -32015 naming this server) until
+// the lease ended.
+TEST_CASE("etcd storage: an acquire that failed after claiming leaves the session free for the next", "[etcd]") {
+  const auto dir = scratch("failed-claim");
+  MemoryKv kv;
+  EtcdStorage store(kv, dir, "server-a");
+  kv.failRanges = 1;
+  CHECK_THROWS_AS(store.acquire("s"), KvUnavailable);
+  CHECK_FALSE(store.holder("s"));
+  CHECK(store.acquire("s"));
+  store.release("s");
+  std::filesystem::remove_all(dir);
+}

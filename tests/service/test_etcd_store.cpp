@@ -286,3 +286,32 @@ TEST_CASE("etcd store: a graceful stop revokes the lease, freeing every session 
   }
   CHECK(b.claim("s").journal);
 }
+
+// A claim writes the owner key, then reads the session back. When that read failed, the key
+// stayed on this server's lease: every later claim here found this server named as the owner
+// and gave up, so the session answered -32015 pointing at this server until its lease ended
+// (issue 31 item 5). The key goes now, but only if it is still the failed claim's.
+TEST_CASE("etcd store: a claim that fails after writing the owner key deletes it, and only its own", "[etcd]") {
+  MemoryKv kv;
+  EtcdOwner a(kv, "a"), b(kv, "b");
+  a.start();
+  b.start();
+  kv.failRanges = 1;
+  CHECK_THROWS_AS(a.claim("s"), KvUnavailable);
+  CHECK_FALSE(a.ownerOf("s"));
+  auto again = a.claim("s");
+  REQUIRE(again.journal);
+  again.journal->append(change(1));
+  again.journal->release();
+
+  // Meanwhile (the read hung past the lease, say) the key expired and b claimed the session: a's
+  // failed claim leaves b's key alone, its create revision being another.
+  kv.failRanges = 1;
+  kv.onFailedRange = [&] {
+    kv.expire(leaseOf(kv, a, "s"));
+    REQUIRE(b.claim("s").journal);
+  };
+  CHECK_THROWS_AS(a.claim("s"), KvUnavailable);
+  kv.onFailedRange = nullptr;
+  CHECK(a.ownerOf("s") == std::optional<std::string>("b"));
+}
