@@ -192,26 +192,30 @@ std::unique_ptr<SessionLog> EtcdStorage::snapshot(const std::string& id, const V
     throw OwnershipLost(e.what());
   }
   try {
-    removeUnreferenced(id, owner_.read(id));
+    // The pointer just written, as the journal keeps it: reading it back from etcd (with the
+    // whole journal, as this did until 2026-11-29) cost a round trip and a parse of up to two
+    // snapshots' worth of keys on the session's strand.
+    const auto [current, previous] = j->snapshots();
+    if (current) removeUnreferenced(id, *current, previous);
   } catch (const std::exception& e) {
     if (events_.log) events_.log("session " + id + ": removing files older than its snapshots failed: " + e.what());
   }
   return std::make_unique<EtcdLog>(j);
 }
 
-void EtcdStorage::removeUnreferenced(const std::string& id, const EtcdSessionState& st) {
-  if (!st.current) return;
-  const std::uint64_t keepFrom = st.previous ? st.previous->next : st.current->next;
+void EtcdStorage::removeUnreferenced(const std::string& id, const SnapshotRef& current,
+                                     const std::optional<SnapshotRef>& previous) {
+  const std::uint64_t keepFrom = previous ? previous->next : current.next;
   std::error_code ec;
   for (const fs::directory_entry& e : fs::directory_iterator(sessionDir(id), ec)) {
     const std::string name = e.path().filename().string();
-    if (name == st.current->file || (st.previous && name == st.previous->file)) continue;
+    if (name == current.file || (previous && name == previous->file)) continue;
     const auto seq = seqOfName(name);
     if (!seq) continue;
     // Snapshots: only the two the pointer names are read. Step and upload files: only records
     // from the previous snapshot's SEQ on are replayed.
     const bool isSnapshot = name.starts_with("snapshot-");
-    if ((isSnapshot && *seq < st.current->next) || (!isSnapshot && *seq < keepFrom)) fs::remove(e.path(), ec);
+    if ((isSnapshot && *seq < current.next) || (!isSnapshot && *seq < keepFrom)) fs::remove(e.path(), ec);
   }
   syncDirectory(sessionDir(id));
 }

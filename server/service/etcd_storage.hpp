@@ -69,7 +69,7 @@ class EtcdStorage final : public SessionStorage {
   std::shared_ptr<EtcdJournal> journal(const std::string& id) const;  // throws OwnershipLost
   std::filesystem::path sessionDir(const std::string& id) const { return dir_ / "sessions" / id; }
   std::string fileName(const char* prefix, std::uint64_t revision, const EtcdJournal& j, const char* ext) const;
-  void removeUnreferenced(const std::string& id, const EtcdSessionState& st);
+  void removeUnreferenced(const std::string& id, const SnapshotRef& current, const std::optional<SnapshotRef>& previous);
 
   std::filesystem::path dir_;
   SessionStore files_;  // session.json: exists() and secrets()

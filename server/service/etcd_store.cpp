@@ -414,6 +414,11 @@ std::uint64_t EtcdJournal::nextSeq() const {
   return next_;
 }
 
+std::pair<std::optional<SnapshotRef>, std::optional<SnapshotRef>> EtcdJournal::snapshots() const {
+  const std::lock_guard lock(mutex_);
+  return {current_, previous_};
+}
+
 bool EtcdJournal::fenced() const {
   const std::lock_guard lock(mutex_);
   return state_ == State::fenced;

@@ -39,6 +39,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -106,6 +107,9 @@ class EtcdJournal {
   // holds. A fenced journal stays fenced.
   void resume(const EtcdSessionState& state);
   std::uint64_t nextSeq() const;
+  // The snapshots the pointer names, as this journal last wrote or read it: what a reader of the
+  // pointer would find while this journal owns the session, without a round trip.
+  std::pair<std::optional<SnapshotRef>, std::optional<SnapshotRef>> snapshots() const;
   // Whether it refuses every append for good (fenced by etcd, or while the lease was not live).
   bool fenced() const;
   std::int64_t token() const { return token_; }
