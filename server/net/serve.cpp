@@ -1,6 +1,6 @@
 // `marzipan serve`: parses flags and MARZIPAN_* variables, creates the data directory, runs
-// HttpServer until a signal. The default web root is MARZIPAN_DEFAULT_WEB_ROOT, which CMake
-// sets to the source tree's web-client/.
+// HttpServer until a signal. The default web root is the source tree's web-client/
+// (net/default_paths.hpp).
 #include "net/serve.hpp"
 
 #include <arpa/inet.h>
@@ -20,17 +20,12 @@
 #include <thread>
 #include <type_traits>
 
+#include "net/default_paths.hpp"
 #include "net/etcd_client.hpp"
 #include "net/http_server.hpp"
 #include "service/etcd_storage.hpp"
 #include "service/hub.hpp"
 
-#ifndef MARZIPAN_DEFAULT_WEB_ROOT
-#define MARZIPAN_DEFAULT_WEB_ROOT "web-client"
-#endif
-#ifndef MARZIPAN_DEFAULT_PROTOCOL_JS
-#define MARZIPAN_DEFAULT_PROTOCOL_JS "protocol/js"
-#endif
 
 namespace fs = std::filesystem;
 
@@ -202,13 +197,13 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   };
   splitList(origins.value, options.allowedOrigins);
   splitList(publicHosts.value, options.publicHosts);
-  options.webRoot = webRoot.value ? fs::path(*webRoot.value) : fs::path(MARZIPAN_DEFAULT_WEB_ROOT);
+  options.webRoot = webRoot.value ? fs::path(*webRoot.value) : fs::path(kDefaultWebRoot);
   if (webRoot.value && webRoot.value->empty()) throw UsageError("--web-root (or MARZIPAN_WEB_ROOT) is empty");
   std::error_code ec;
   if (!fs::is_directory(options.webRoot, ec)) {
     throw std::runtime_error("web root " + options.webRoot.string() + " is not a directory; pass --web-root DIR");
   }
-  const fs::path jsDir = protocolJs.value ? fs::path(*protocolJs.value) : fs::path(MARZIPAN_DEFAULT_PROTOCOL_JS);
+  const fs::path jsDir = protocolJs.value ? fs::path(*protocolJs.value) : fs::path(kDefaultProtocolJs);
   if (fs::is_directory(jsDir, ec)) options.mounts.emplace_back("/protocol/js/", jsDir);
   else if (protocolJs.value) throw std::runtime_error("protocol js directory " + jsDir.string() + " is not a directory");
   if (dataDir.value) {

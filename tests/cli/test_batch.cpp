@@ -1,5 +1,5 @@
-// `marzipan batch` end to end: the built binary (MARZIPAN_CLI) run through the shell in a
-// scratch directory (MARZIPAN_CLI_WORKDIR), as a user would run it.
+// `marzipan batch` end to end: the built binary (test_paths::kCli) run through the shell in a
+// scratch directory (test_paths::kCliWorkdir), as a user would run it.
 #include <catch2/catch.hpp>
 
 #include <sys/wait.h>
@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include "test_paths.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -22,7 +23,7 @@ namespace {
 
 // A fresh directory per test case, so cases can run in any order or alone.
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(MARZIPAN_CLI_WORKDIR) / name;
+  const fs::path dir = fs::path(marzipan::test_paths::kCliWorkdir) / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -54,8 +55,8 @@ struct Run {
 };
 
 // Runs `marzipan ARGS` in `dir` and returns its exit status, stdout and stderr.
-Run marzipan(const fs::path& dir, const std::string& args) {
-  const std::string command = "cd " + quote(dir) + " && " + quote(MARZIPAN_CLI) + " " + args + " >stdout.txt 2>stderr.txt";
+Run runCli(const fs::path& dir, const std::string& args) {
+  const std::string command = "cd " + quote(dir) + " && " + quote(marzipan::test_paths::kCli) + " " + args + " >stdout.txt 2>stderr.txt";
   const int raw = std::system(command.c_str());
   Run r;
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -94,7 +95,7 @@ TEST_CASE("batch, export STL, import it again: same volume within 2%, stable dig
   writeText(dir / "ops.jsonl", kOps);
   writeText(dir / "none.jsonl", "");
 
-  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.stl");
+  const Run sculpt = runCli(dir, "batch ops.jsonl --size 64 --stats --out out.stl");
   INFO(sculpt.err);
   REQUIRE(sculpt.status == 0);
   const std::vector<json> stats = statsLines(sculpt.out);
@@ -115,11 +116,11 @@ TEST_CASE("batch, export STL, import it again: same volume within 2%, stable dig
   REQUIRE(fs::file_size(dir / "out.stl") > 84);
 
   // The same input gives the same digest, for any thread count.
-  const Run again = marzipan(dir, "batch ops.jsonl --size 64 --stats --threads 1");
+  const Run again = runCli(dir, "batch ops.jsonl --size 64 --stats --threads 1");
   REQUIRE(again.status == 0);
   CHECK(statsLines(again.out).at(0)["digest"] == s["digest"]);
 
-  const Run imported = marzipan(dir, "batch none.jsonl --size 64 --load out.stl --stats");
+  const Run imported = runCli(dir, "batch none.jsonl --size 64 --load out.stl --stats");
   INFO(imported.err);
   REQUIRE(imported.status == 0);
   const json i = statsLines(imported.out).at(0);
@@ -131,7 +132,7 @@ TEST_CASE("batch, export STL, import it again: same volume within 2%, stable dig
     CHECK(std::abs(i["bounds"]["lo"][a].get<double>() - s["bounds"]["lo"][a].get<double>()) < 0.5);
     CHECK(std::abs(i["bounds"]["hi"][a].get<double>() - s["bounds"]["hi"][a].get<double>()) < 0.5);
   }
-  const Run importedAgain = marzipan(dir, "batch none.jsonl --size 64 --load out.stl --stats --threads 2");
+  const Run importedAgain = runCli(dir, "batch none.jsonl --size 64 --load out.stl --stats --threads 2");
   REQUIRE(importedAgain.status == 0);
   CHECK(statsLines(importedAgain.out).at(0)["digest"] == i["digest"]);
 }
@@ -140,11 +141,11 @@ TEST_CASE("a saved volume loads back bit for bit and keeps its revision", "[cli]
   const fs::path dir = scratch("mzv");
   writeText(dir / "ops.jsonl", kOps);
   writeText(dir / "more.jsonl", "{\"op\":\"morph\",\"kind\":\"dilate\",\"radius\":1}\n");
-  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.mzv");
+  const Run sculpt = runCli(dir, "batch ops.jsonl --size 64 --stats --out out.mzv");
   REQUIRE(sculpt.status == 0);
   const json s = statsLines(sculpt.out).at(0);
 
-  const Run loaded = marzipan(dir, "batch - --load out.mzv --stats < /dev/null");
+  const Run loaded = runCli(dir, "batch - --load out.mzv --stats < /dev/null");
   INFO(loaded.err);
   REQUIRE(loaded.status == 0);
   const json l = statsLines(loaded.out).at(0);
@@ -152,7 +153,7 @@ TEST_CASE("a saved volume loads back bit for bit and keeps its revision", "[cli]
   CHECK(l["revision"] == 7);
   CHECK(l["inside_volume"] == s["inside_volume"]);
 
-  const Run more = marzipan(dir, "batch more.jsonl --load out.mzv --stats");
+  const Run more = runCli(dir, "batch more.jsonl --load out.mzv --stats");
   REQUIRE(more.status == 0);
   CHECK(statsLines(more.out).at(0)["revision"] == 8);
 }
@@ -162,13 +163,13 @@ TEST_CASE(".vdb: a level set written by batch loads back with the same distances
   const fs::path dir = scratch("vdb");
   writeText(dir / "ops.jsonl", kOps);
 #ifdef MARZIPAN_CLI_HAS_OPENVDB
-  const Run sculpt = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.vdb");
+  const Run sculpt = runCli(dir, "batch ops.jsonl --size 64 --stats --out out.vdb");
   INFO(sculpt.err);
   REQUIRE(sculpt.status == 0);
   const json s = statsLines(sculpt.out).at(0);
   CHECK(readText(dir / "out.vdb").substr(0, 4) == " BDV");  // OpenVDB's magic number, 0x56444220 little-endian
 
-  const Run loaded = marzipan(dir, "batch - --load out.vdb --size 64 --stats < /dev/null");
+  const Run loaded = runCli(dir, "batch - --load out.vdb --size 64 --stats < /dev/null");
   INFO(loaded.err);
   REQUIRE(loaded.status == 0);
   const json l = statsLines(loaded.out).at(0);
@@ -179,20 +180,20 @@ TEST_CASE(".vdb: a level set written by batch loads back with the same distances
   CHECK(l["surface_area"] == s["surface_area"]);
 
   writeText(dir / "text.vdb", "not a vdb file\n");
-  const Run bad = marzipan(dir, "batch - --load text.vdb --stats < /dev/null");
+  const Run bad = runCli(dir, "batch - --load text.vdb --stats < /dev/null");
   CHECK(bad.status == 1);
   CHECK_THAT(bad.err, Catch::Contains("text.vdb"));
-  CHECK(marzipan(dir, "batch - --load missing.vdb < /dev/null").status == 1);
-  CHECK(marzipan(dir, "batch - --load out.vdb --fit 2 < /dev/null").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --out again.vdb --max-triangles 100").status == 2);
+  CHECK(runCli(dir, "batch - --load missing.vdb < /dev/null").status == 1);
+  CHECK(runCli(dir, "batch - --load out.vdb --fit 2 < /dev/null").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --out again.vdb --max-triangles 100").status == 2);
   CHECK_FALSE(fs::exists(dir / "again.vdb"));
 #else
-  const Run out = marzipan(dir, "batch ops.jsonl --size 64 --out out.vdb");
+  const Run out = runCli(dir, "batch ops.jsonl --size 64 --out out.vdb");
   CHECK(out.status == 2);
   CHECK_THAT(out.err, Catch::Contains("MARZIPAN_WITH_OPENVDB"));
   CHECK_FALSE(fs::exists(dir / "out.vdb"));
   writeText(dir / "in.vdb", "");
-  const Run in = marzipan(dir, "batch ops.jsonl --load in.vdb");
+  const Run in = runCli(dir, "batch ops.jsonl --load in.vdb");
   CHECK(in.status == 2);
   CHECK_THAT(in.err, Catch::Contains("MARZIPAN_WITH_OPENVDB"));
 #endif
@@ -201,7 +202,7 @@ TEST_CASE(".vdb: a level set written by batch loads back with the same distances
 TEST_CASE("stats every K ops (--stats-every) and after the last", "[cli]") {
   const fs::path dir = scratch("every");
   writeText(dir / "ops.jsonl", kOps);
-  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --stats-every 3");
+  const Run r = runCli(dir, "batch ops.jsonl --size 64 --stats-every 3");
   REQUIRE(r.status == 0);
   const std::vector<json> lines = statsLines(r.out);
   REQUIRE(lines.size() == 3);
@@ -218,7 +219,7 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
             "# a comment\n"
             "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5],\"radius\":\"big\"}\n"
             "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");
-  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --stats --out out.stl --render out.png");
+  const Run r = runCli(dir, "batch ops.jsonl --size 64 --stats --out out.stl --render out.png");
   CHECK(r.status == 1);
   CHECK_THAT(r.err, Catch::Contains("ops.jsonl:3:"));
   CHECK_THAT(r.err, Catch::Contains("\"radius\""));
@@ -227,7 +228,7 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
   CHECK_FALSE(fs::exists(dir / "out.png"));
 
   writeText(dir / "json.jsonl", "{\"op\":\"morph\",\"kind\":\"open\",\"radius\":1}\n\n{\"op\":\n");
-  const Run broken = marzipan(dir, "batch json.jsonl --size 64 --out out.mzv");
+  const Run broken = runCli(dir, "batch json.jsonl --size 64 --out out.mzv");
   CHECK(broken.status == 1);
   CHECK_THAT(broken.err, Catch::Contains("json.jsonl:3: not valid JSON"));
   CHECK_FALSE(fs::exists(dir / "out.mzv"));
@@ -237,7 +238,7 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
             "{\"op\":\"morph\",\"kind\":\"dilate\",\"radius\":1}\n"
             "\n"
             "{\"tool\":\"add_blob\",\"center\":[500,500,500]}\n");
-  const Run refused = marzipan(dir, "batch engine.jsonl --size 64 --out out.obj --stats");
+  const Run refused = runCli(dir, "batch engine.jsonl --size 64 --out out.obj --stats");
   CHECK(refused.status == 1);
   CHECK_THAT(refused.err, Catch::Contains("engine.jsonl:3: center:"));
   CHECK(refused.out.empty());
@@ -247,7 +248,7 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
 TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[cli]") {
   const fs::path dir = scratch("render");
   writeText(dir / "ops.jsonl", "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");
-  const Run r = marzipan(dir, "batch ops.jsonl --size 64 --solid pig --render frame.png --width 160 --height 90");
+  const Run r = runCli(dir, "batch ops.jsonl --size 64 --solid pig --render frame.png --width 160 --height 90");
   INFO(r.err);
   REQUIRE(r.status == 0);
   const std::string png = readText(dir / "frame.png");
@@ -257,7 +258,7 @@ TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[c
   CHECK(bigEndian32(png, 16) == 160);
   CHECK(bigEndian32(png, 20) == 90);
 
-  const Run jpeg = marzipan(dir,
+  const Run jpeg = runCli(dir,
                             "batch ops.jsonl --size 64 --render frame.jpg --camera-eye 150,80,120 "
                             "--camera-target 31.5,31.5,31.5 --camera-up 0,1,0 --fov 30 --width 64 --height 48 "
                             "--shading normals --quality 75");
@@ -272,23 +273,23 @@ TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[c
 TEST_CASE("usage errors exit with 2, help with 0", "[cli]") {
   const fs::path dir = scratch("usage");
   writeText(dir / "ops.jsonl", "");
-  CHECK(marzipan(dir, "").status == 2);
-  CHECK(marzipan(dir, "frobnicate").status == 2);
-  CHECK(marzipan(dir, "batch").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --size 4").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --solid cube").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --out out.xyz").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --render out.gif").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --render out.png --camera-eye 1,2").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --render out.png --camera-eye 31.5,31.5,31.5 --size 64").status == 2);
-  CHECK(marzipan(dir, "batch ops.jsonl --unknown").status == 2);
-  CHECK(marzipan(dir, "batch missing.jsonl").status == 1);
+  CHECK(runCli(dir, "").status == 2);
+  CHECK(runCli(dir, "frobnicate").status == 2);
+  CHECK(runCli(dir, "batch").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --size 4").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --solid cube").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --out out.xyz").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --render out.gif").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --render out.png --camera-eye 1,2").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --render out.png --camera-eye 31.5,31.5,31.5 --size 64").status == 2);
+  CHECK(runCli(dir, "batch ops.jsonl --unknown").status == 2);
+  CHECK(runCli(dir, "batch missing.jsonl").status == 1);
   CHECK_FALSE(fs::exists(dir / "out.png"));
 
-  const Run help = marzipan(dir, "--help");
+  const Run help = runCli(dir, "--help");
   CHECK(help.status == 0);
   CHECK_THAT(help.out, Catch::Contains("batch"));
-  const Run batchHelp = marzipan(dir, "batch --help");
+  const Run batchHelp = runCli(dir, "batch --help");
   CHECK(batchHelp.status == 0);
   CHECK_THAT(batchHelp.out, Catch::Contains("--stats-every"));
   CHECK_THAT(batchHelp.out, Catch::Contains("csg_intersect"));

@@ -17,6 +17,7 @@
 #include "engine/simd_width.hpp"
 #include "engine/solids.hpp"
 #include "support.hpp"
+#include "test_paths.hpp"
 
 using namespace marzipan;
 using test::equivalentRadius;
@@ -236,8 +237,8 @@ TEST_CASE("Fig. 7.13: 400 add blob + 400 smoothing on a cube face leave no error
   const GradientError e = gradientError(v);
   const Camera camera{{110, 80, 70}, {32, 32, 32}, {0, 1, 0}, 40, 384, 384};
   const Frame f = render(v, camera, Shading::GradientError, ThreadPool::serial());
-  std::filesystem::create_directories(MARZIPAN_ENGINE_ARTIFACTS);
-  const std::string png = std::string(MARZIPAN_ENGINE_ARTIFACTS) + "/fig7_13_cube_face_gradient_error.png";
+  std::filesystem::create_directories(marzipan::test_paths::kEngineArtifacts);
+  const std::string png = std::string(marzipan::test_paths::kEngineArtifacts) + "/fig7_13_cube_face_gradient_error.png";
   const auto bytes = encodePng(f.rgb, f.width, f.height);
   std::ofstream(png, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   INFO("before: max " << edges.max << "; after: max " << e.max << " mean " << e.mean << " over " << e.voxels

@@ -17,6 +17,7 @@
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "mesh_support.hpp"
+#include "test_paths.hpp"
 
 using namespace marzipan;
 using namespace marzipan::test;
@@ -212,7 +213,7 @@ TEST_CASE("a PLY header that repeats its format line, an element or a property i
   // The fuzzer's find (tests/fuzz/regressions/ply/): the preamble again inside the header, so
   // a second vertex element without normals' match. Read as two, it gave 288 positions and 144
   // normals, which no exporter can take.
-  std::ifstream in(std::string(MARZIPAN_FUZZ_REGRESSIONS) + "/ply/repeated-preamble-second-vertex-element.ply",
+  std::ifstream in(std::string(marzipan::test_paths::kFuzzRegressions) + "/ply/repeated-preamble-second-vertex-element.ply",
                    std::ios::binary);
   REQUIRE(in);
   const std::vector<std::uint8_t> found{std::istreambuf_iterator<char>(in), {}};

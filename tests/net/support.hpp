@@ -16,6 +16,7 @@
 #include <map>
 #include <stdexcept>
 #include <string>
+#include "test_paths.hpp"
 
 namespace marzipan::test {
 
@@ -26,7 +27,7 @@ std::uint32_t dataSegmentsIn(int fd);
 
 // A fresh directory per test case under the build tree.
 inline fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(MARZIPAN_NET_WORKDIR) / name;
+  const fs::path dir = fs::path(marzipan::test_paths::kNetWorkdir) / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

@@ -16,6 +16,7 @@
 #include "net/healthcheck.hpp"
 #include "net/http_server.hpp"
 #include "support.hpp"
+#include "test_paths.hpp"
 
 using marzipan::net::defaultHealthUrl;
 using marzipan::net::HttpServer;
@@ -211,7 +212,7 @@ TEST_CASE("healthcheck: usage errors exit 2", "[net][healthcheck]") {
 TEST_CASE("marzipan healthcheck: the subcommand of the built binary", "[net][healthcheck][cli]") {
   Server s("healthcheck-cli");
   const auto status = [](const std::string& args) {
-    const int raw = std::system(("'" MARZIPAN_CLI "' healthcheck " + args + " >/dev/null 2>&1").c_str());
+    const int raw = std::system((std::string("'") + marzipan::test_paths::kCli + "' healthcheck " + args + " >/dev/null 2>&1").c_str());
     return WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
   };
   CHECK(status("--url " + s.base + "/healthz") == 0);

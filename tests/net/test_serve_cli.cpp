@@ -1,4 +1,4 @@
-// `marzipan serve` as a process: the built binary (MARZIPAN_CLI) on port 0 prints where it
+// `marzipan serve` as a process: the built binary (test_paths::kCli) on port 0 prints where it
 // listens, serves, and exits 0 on SIGTERM; bad flags exit 2. Every wait is bounded (10 s).
 #include <catch2/catch.hpp>
 
@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "support.hpp"
+#include "test_paths.hpp"
 
 namespace fs = std::filesystem;
 using marzipan::test::request;
@@ -39,10 +40,10 @@ class ServeProcess {
       ::close(fds[0]);
       ::close(fds[1]);
       for (const auto& [name, value] : env) ::setenv(name.c_str(), value.c_str(), 1);
-      std::vector<char*> argv{const_cast<char*>(MARZIPAN_CLI), const_cast<char*>("serve")};
+      std::vector<char*> argv{const_cast<char*>(marzipan::test_paths::kCli), const_cast<char*>("serve")};
       for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
-      ::execv(MARZIPAN_CLI, argv.data());
+      ::execv(marzipan::test_paths::kCli, argv.data());
       ::_exit(127);
     }
     ::close(fds[1]);
@@ -96,7 +97,7 @@ class ServeProcess {
 
 // Runs `ENV marzipan serve ARGS` through the shell, output into DIR; its exit status.
 int runStatus(const std::string& args, const fs::path& dir, const std::string& env = "") {
-  const std::string command = env + " '" + MARZIPAN_CLI + "' serve " + args + " >'" + (dir / "out.txt").string() +
+  const std::string command = env + " '" + marzipan::test_paths::kCli + "' serve " + args + " >'" + (dir / "out.txt").string() +
                               "' 2>'" + (dir / "err.txt").string() + "'";
   const int raw = std::system(command.c_str());
   return WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

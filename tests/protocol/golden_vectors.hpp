@@ -1,5 +1,5 @@
 // The golden vectors that pin the protocol for every implementation
-// (tests/protocol/vectors/vectors.json; the build gives its path as MARZIPAN_PROTOCOL_VECTORS),
+// (tests/protocol/vectors/vectors.json; marzipan::test_paths::kProtocolVectors),
 // read once per test binary.
 #pragma once
 
@@ -9,12 +9,13 @@
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+#include "test_paths.hpp"
 
 namespace marzipan::testing {
 
 inline const nlohmann::json& goldenVectors() {
   static const nlohmann::json v = [] {
-    std::ifstream in(MARZIPAN_PROTOCOL_VECTORS, std::ios::binary);
+    std::ifstream in(marzipan::test_paths::kProtocolVectors, std::ios::binary);
     REQUIRE(in.good());
     std::stringstream text;
     text << in.rdbuf();

@@ -1,6 +1,6 @@
 // Binary frame headers (protocol/cpp/frames.cpp) and the golden vectors that pin the protocol
 // for every implementation (tests/protocol/vectors/vectors.json, path given by the build as
-// MARZIPAN_PROTOCOL_VECTORS): each binary vector decodes to its fields and re-encodes to the
+// marzipan::test_paths::kProtocolVectors): each binary vector decodes to its fields and re-encodes to the
 // same bytes, every damaged or truncated frame is refused with the named error, every example
 // message is well-formed JSON-RPC, and every example op passes or fails parseOp as recorded.
 #include <catch2/catch.hpp>
@@ -16,6 +16,7 @@
 #include "protocol/cpp/splats.hpp"
 #include "protocol/cpp/frames.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "test_paths.hpp"
 
 using namespace marzipan;
 using namespace marzipan::protocol;
