@@ -87,13 +87,15 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
       createRateAddress{"--max-creates-per-address-per-minute", "MARZIPAN_MAX_CREATES_PER_ADDRESS_PER_MINUTE", {}},
       maxAgeDays{"--max-session-age-days", "MARZIPAN_MAX_SESSION_AGE_DAYS", {}},
       maxOpMvoxels{"--max-op-mvoxels", "MARZIPAN_MAX_OP_MVOXELS", {}}, etcd{"--etcd", "MARZIPAN_ETCD", {}},
-      etcdLease{"--etcd-lease-seconds", "MARZIPAN_ETCD_LEASE_SECONDS", {}};
+      etcdLease{"--etcd-lease-seconds", "MARZIPAN_ETCD_LEASE_SECONDS", {}},
+      etcdSessionMb{"--etcd-session-mb", "MARZIPAN_ETCD_SESSION_MB", {}},
+      etcdSessionKeys{"--etcd-session-keys", "MARZIPAN_ETCD_SESSION_KEYS", {}};
   Setting* const settings[] = {&bind,        &port,        &threads,    &webRoot,  &protocolJs, &dataDir,
                                &origins,     &maxText,     &maxBinary,  &maxGrid,  &maxSessions, &maxClients,
                                &maxDabs,     &maxFrame,    &historyMb,  &idleSeconds, &pingSeconds, &queueMb, &fsyncMs, &serverId, &maxRate,
                                &publicHosts, &maxConnections, &maxPerAddress, &lobbySeconds,
                                &volumeMb, &outputMb, &vdbMb, &createRate, &createRateAddress, &maxAgeDays, &maxOpMvoxels,
-                               &etcd,      &etcdLease};
+                               &etcd,      &etcdLease, &etcdSessionMb, &etcdSessionKeys};
 
   for (Setting* s : settings) {
     const char* v = std::getenv(std::string(s->env).c_str());
@@ -212,11 +214,21 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
     if (ec) throw std::runtime_error("cannot create data directory " + *dataDir.value + ": " + ec.message());
     hubOptions.dataDir = *dataDir.value;
   }
-  if (etcdLease.value && !etcd.value) throw UsageError("--etcd-lease-seconds needs --etcd");
+  for (const Setting* s : {&etcdLease, &etcdSessionMb, &etcdSessionKeys})
+    if (s->value && !etcd.value) throw UsageError(std::string(s->flag) + " needs --etcd");
   service::EtcdOptions etcdOptions;
   if (etcdLease.value) {
     etcdOptions.leaseTtlSeconds = parseUnsigned(etcdLease, 3600);
     if (etcdOptions.leaseTtlSeconds < 2) throw UsageError("--etcd-lease-seconds (or MARZIPAN_ETCD_LEASE_SECONDS) must be at least 2");
+  }
+  if (etcdSessionMb.value) {
+    etcdOptions.maxSessionBytes = std::size_t(parseUnsigned(etcdSessionMb, 8192)) << 20;
+    if (etcdOptions.maxSessionBytes == 0) throw UsageError("--etcd-session-mb (or MARZIPAN_ETCD_SESSION_MB) must be at least 1");
+  }
+  if (etcdSessionKeys.value) {
+    etcdOptions.maxSessionKeys = parseUnsigned(etcdSessionKeys, 10'000'000);
+    if (etcdOptions.maxSessionKeys < 100)
+      throw UsageError("--etcd-session-keys (or MARZIPAN_ETCD_SESSION_KEYS) must be at least 100");
   }
   if (etcd.value && !dataDir.value)
     throw UsageError("--etcd (or MARZIPAN_ETCD) needs --data-dir: the snapshots are files on a volume the servers share");
@@ -299,6 +311,9 @@ Options (each also read from the environment variable in brackets; a flag wins):
   --etcd-lease-seconds N  with --etcd: this server's lease TTL; its sessions move to another
                     server that long after it dies (at once after a clean stop)
                     [MARZIPAN_ETCD_LEASE_SECONDS]; 5
+  --etcd-session-mb N, --etcd-session-keys N  with --etcd: what one session may hold in etcd
+                    (its journal, snapshot pointer and owner key); an edit past it gets
+                    -32004 [MARZIPAN_ETCD_SESSION_MB, MARZIPAN_ETCD_SESSION_KEYS]; 16, 10000
   --fsync-ms N      0: every change is fsynced before its response (default); N: at most
                     every N ms, a crash may lose that much [MARZIPAN_FSYNC_MS]
   --allowed-origins LIST  comma-separated origins (http://host:port) that browsers may open

@@ -23,12 +23,15 @@ class EtcdLog final : public SessionLog {
       journal_->append({record});
     } catch (const Fenced& e) {
       throw OwnershipLost(e.what());
+    } catch (const SessionFull& e) {
+      throw StorageLimit(e.what(), e.limit, e.value, e.max);
     }
     ++records_;
   }
   void sync() override {}
   bool dirty() const override { return false; }
   std::size_t records() const override { return records_; }
+  bool wantsSnapshot() const override { return journal_->wantsSnapshot(); }
 
  private:
   std::shared_ptr<EtcdJournal> journal_;
@@ -186,10 +189,26 @@ std::unique_ptr<SessionLog> EtcdStorage::snapshot(const std::string& id, const V
   const std::string name = fileName("snapshot", volume.revision(), *j, ".mzv");
   const std::vector<std::uint8_t> bytes = saveVolume(volume);
   writeFileAtomically(sessionDir(id) / name, bytes.data(), bytes.size());
+  // A commit that failed leaves no file: each was a whole volume, and the hub tried again after
+  // every change (issue 31). When the outcome is unknown the pointer may name it: it stays, and
+  // goes with the snapshot after next if it does not.
+  const auto removeFile = [&] {
+    std::error_code ec;
+    fs::remove(sessionDir(id) / name, ec);
+  };
   try {
     j->commitSnapshot(name, volume.revision(), head);
+  } catch (const KvUnavailable&) {
+    throw;
   } catch (const Fenced& e) {
+    removeFile();
     throw OwnershipLost(e.what());
+  } catch (const SessionFull& e) {
+    removeFile();
+    throw StorageLimit(e.what(), e.limit, e.value, e.max);
+  } catch (...) {
+    removeFile();
+    throw;
   }
   try {
     // The pointer just written, as the journal keeps it: reading it back from etcd (with the

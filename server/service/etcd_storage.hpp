@@ -12,9 +12,14 @@
 //                                record's SEQ is S): a stale owner's files are never named by
 //                                a record that etcd accepted
 // Files no pointer or kept record can name (SEQ below the previous snapshot's) are deleted
-// after each snapshot. The sync interval does not apply: an append returns once etcd has it.
-// A change etcd refuses (too large, quota) or cannot take (no member answers) is refused with
-// std::runtime_error and rolled back by the hub; another owner's fence throws OwnershipLost.
+// after each snapshot, by the pointer as the journal just wrote it (nothing is read back); a
+// snapshot whose commit failed deletes its own file (unless the outcome is unknown: then it goes
+// with the snapshot after next). The sync interval does not apply: an append returns once etcd
+// has it. A change etcd refuses (too large, quota) or cannot take (no member answers) is refused
+// with std::runtime_error and rolled back by the hub; one past what a session may hold in etcd
+// (EtcdOptions::maxSessionKeys, maxSessionBytes) with StorageLimit; another owner's fence
+// throws OwnershipLost. The log asks for a snapshot (wantsSnapshot) once a quarter of either
+// bound has passed since the current one.
 #pragma once
 
 #include <filesystem>

@@ -35,12 +35,30 @@ KvCompare absent(const std::string& key) {
 
 std::optional<SnapshotRef> parseRef(const json& j) {
   if (!j.is_object()) return std::nullopt;
-  SnapshotRef r{j.at("file").get<std::string>(), j.at("revision").get<std::uint64_t>(), j.at("next").get<std::uint64_t>(), {}};
+  SnapshotRef r;
+  r.file = j.at("file").get<std::string>();
+  r.revision = j.at("revision").get<std::uint64_t>();
+  r.next = j.at("next").get<std::uint64_t>();
+  r.headFrom = j.value("head_from", r.next);
+  if (r.headFrom > r.next) throw std::runtime_error("snapshot pointer: head_from after next");
+  // A pointer written before 2026-11-29 holds its head itself.
   for (const json& rec : j.value("head", json::array())) r.head.push_back(rec);
   return r;
 }
 json refJson(const SnapshotRef& r) {
-  return {{"file", r.file}, {"revision", r.revision}, {"next", r.next}, {"head", r.head}};
+  json j{{"file", r.file}, {"revision", r.revision}, {"head_from", r.headFrom}, {"next", r.next}};
+  if (!r.head.empty()) j["head"] = r.head;  // only a pointer written before 2026-11-29 had one
+  return j;
+}
+
+// The journal value of one part of a snapshot's head, built from its records' JSON texts.
+std::string headValue(const std::vector<std::string>& records, std::int64_t token) {
+  std::string v = "{\"head\":[";
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    if (k) v += ',';
+    v += records[k];
+  }
+  return v + "],\"token\":" + std::to_string(token) + "}";
 }
 
 }  // namespace
@@ -261,34 +279,56 @@ EtcdSessionState EtcdOwner::read(const std::string& id) {
     const json j = json::parse(p.front().value);
     st.current = parseRef(j.at("current"));
     st.previous = parseRef(j.value("previous", json()));
+    st.pointerBytes = p.front().key.size() + p.front().value.size();
   }
+  struct Key {
+    std::uint64_t seq;
+    std::size_t bytes;
+    json value;
+  };
+  std::vector<Key> keys;
   const std::string first = journalKey(id, 0);
   const std::string end = prefixEnd(options_.prefix + "sessions/" + id + "/journal/");
   std::string from = first;
   const std::size_t seqAt = first.size() - 16;
   for (;;) {
     const auto page = kv_.range(from, end, kRangePage);
-    for (const KvEntry& e : page) {
-      JournalEntry entry;
-      entry.seq = std::stoull(e.key.substr(seqAt), nullptr, 16);
-      const json j = json::parse(e.value);
-      entry.token = j.at("token").get<std::int64_t>();
-      for (const json& rec : j.at("records")) entry.records.push_back(rec);
-      st.journal.push_back(std::move(entry));
-    }
+    for (const KvEntry& e : page)
+      keys.push_back({std::stoull(e.key.substr(seqAt), nullptr, 16), e.key.size() + e.value.size(), json::parse(e.value)});
     if (page.size() < static_cast<std::size_t>(kRangePage)) break;
     from = page.back().key + '\0';
   }
-  // Keys before the oldest kept snapshot are deleted with the pointer's move; a gap would be a
-  // change whose append never succeeded: nothing after it was acknowledged on top of it.
-  const std::uint64_t start = st.previous ? st.previous->next : st.current ? st.current->next : 0;
-  std::erase_if(st.journal, [start](const JournalEntry& e) { return e.seq < start; });
-  for (std::size_t k = 0; k < st.journal.size(); ++k) {
-    if (st.journal[k].seq != start + k) {
+  // Keys before the oldest kept snapshot's head are deleted with the pointer's move; a gap would
+  // be a change whose append never succeeded: nothing after it was acknowledged on top of it.
+  const std::uint64_t start = st.previous ? st.previous->headFrom : st.current ? st.current->headFrom : 0;
+  std::erase_if(keys, [start](const Key& k) { return k.seq < start; });
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    if (keys[k].seq != start + k) {
       if (events_.log) events_.log("session " + id + ": journal gap at " + hex16(start + k) + "; stopping there");
-      st.journal.resize(k);
+      keys.resize(k);
       break;
     }
+  }
+  st.next = !keys.empty() ? keys.back().seq + 1 : st.current ? st.current->next : 0;
+  const auto headOf = [](std::optional<SnapshotRef>& ref, std::uint64_t seq) {
+    return ref && seq >= ref->headFrom && seq < ref->next ? &ref->head : nullptr;
+  };
+  for (Key& k : keys) {
+    st.keys[k.seq] = k.bytes;
+    if (const auto head = k.value.find("head"); head != k.value.end()) {
+      // A head no pointer names (its commit failed) is skipped: it announces again strokes that
+      // the replay has open already.
+      std::vector<json>* into = headOf(st.current, k.seq);
+      if (!into) into = headOf(st.previous, k.seq);
+      if (into)
+        for (const json& rec : *head) into->push_back(rec);
+      continue;
+    }
+    JournalEntry entry;
+    entry.seq = k.seq;
+    entry.token = k.value.at("token").get<std::int64_t>();
+    for (const json& rec : k.value.at("records")) entry.records.push_back(rec);
+    st.journal.push_back(std::move(entry));
   }
   return st;
 }
@@ -405,7 +445,10 @@ void EtcdOwner::runGroup(std::vector<std::shared_ptr<Pending>> group) {
 // ---- EtcdJournal ------------------------------------------------------------------------------
 
 EtcdJournal::EtcdJournal(EtcdOwner& owner, std::string id, std::int64_t token, EtcdSessionState state)
-    : owner_(owner), id_(std::move(id)), token_(token) {
+    : owner_(owner),
+      id_(std::move(id)),
+      token_(token),
+      ownerBytes_(owner.ownerKey(id_).size() + owner.address().size()) {
   resume(state);
 }
 
@@ -424,6 +467,37 @@ bool EtcdJournal::fenced() const {
   return state_ == State::fenced;
 }
 
+std::pair<std::size_t, std::size_t> EtcdJournal::held() const {
+  const std::lock_guard lock(mutex_);
+  return heldLocked();
+}
+
+std::pair<std::size_t, std::size_t> EtcdJournal::heldLocked() const {
+  return {keys_.size() + (pointerBytes_ ? 2 : 1), keyBytes_ + pointerBytes_ + ownerBytes_};
+}
+
+bool EtcdJournal::wantsSnapshot() const {
+  const std::lock_guard lock(mutex_);
+  std::size_t keys = 0, bytes = 0;
+  for (auto it = keys_.lower_bound(current_ ? current_->next : 0); it != keys_.end(); ++it) {
+    ++keys;
+    bytes += it->second;
+  }
+  const EtcdOptions& o = owner_.options_;
+  return keys >= o.maxSessionKeys / 4 || bytes >= o.maxSessionBytes / 4;
+}
+
+void EtcdJournal::checkBounds(std::size_t keys, std::size_t bytes) const {
+  const EtcdOptions& o = owner_.options_;
+  const auto refuse = [&](const char* limit, const char* what, std::size_t value, std::size_t max) {
+    throw SessionFull("session " + id_ + " would hold " + std::to_string(value) + " " + what + " in etcd, over " + limit +
+                          " " + std::to_string(max),
+                      limit, value, max);
+  };
+  if (keys > o.maxSessionKeys) refuse("max_session_etcd_keys", "keys", keys, o.maxSessionKeys);
+  if (bytes > o.maxSessionBytes) refuse("max_session_etcd_bytes", "bytes", bytes, o.maxSessionBytes);
+}
+
 void EtcdJournal::append(const std::vector<json>& records) {
   std::string value = json{{"token", token_}, {"records", records}}.dump();
   if (value.size() > owner_.options_.maxChangeBytes)
@@ -431,6 +505,13 @@ void EtcdJournal::append(const std::vector<json>& records) {
                     std::to_string(owner_.options_.maxChangeBytes) + " one etcd request may hold");
   const std::lock_guard lock(mutex_);
   refuseIfBroken();
+  const std::size_t bytes = owner_.journalKey(id_, next_).size() + value.size();
+  const auto [keys, heldBytes] = heldLocked();
+  checkBounds(keys + 1, heldBytes + bytes);
+  submitLocked(std::move(value), bytes);
+}
+
+void EtcdJournal::submitLocked(std::string value, std::size_t bytes) {
   try {
     owner_.submit(*this, next_, std::move(value));
   } catch (const KvUnavailable&) {
@@ -440,6 +521,8 @@ void EtcdJournal::append(const std::vector<json>& records) {
     state_ = State::fenced;
     throw;
   }
+  keys_[next_] = bytes;
+  keyBytes_ += bytes;
   ++next_;
 }
 
@@ -452,25 +535,67 @@ void EtcdJournal::resume(const EtcdSessionState& state) {
   const std::lock_guard lock(mutex_);
   if (state_ == State::fenced) return;
   state_ = State::open;
-  current_ = state.current;
-  previous_ = state.previous;
-  next_ = !state.journal.empty() ? state.journal.back().seq + 1 : state.current ? state.current->next : 0;
+  // A head in journal keys is not kept here; one held by an older pointer itself is, so that the
+  // next pointer names it as its previous again.
+  const auto withoutHead = [](std::optional<SnapshotRef> ref) {
+    if (ref && ref->headFrom < ref->next) ref->head.clear();
+    return ref;
+  };
+  current_ = withoutHead(state.current);
+  previous_ = withoutHead(state.previous);
+  next_ = state.next;
+  keys_ = state.keys;
+  keyBytes_ = 0;
+  for (const auto& [seq, bytes] : keys_) keyBytes_ += bytes;
+  pointerBytes_ = state.pointerBytes;
 }
 
 void EtcdJournal::commitSnapshot(const std::string& file, std::uint64_t revision, const std::vector<json>& head) {
+  const EtcdOptions& o = owner_.options_;
   const std::lock_guard lock(mutex_);
   refuseIfBroken();
-  const SnapshotRef now{file, revision, next_, head};
+  // The head as few journal values as fit one change's bytes each.
+  std::vector<std::string> values, part;
+  std::size_t partBytes = 0;
+  const std::size_t envelope = headValue({}, token_).size();
+  for (const json& rec : head) {
+    std::string text = rec.dump();
+    if (envelope + text.size() > o.maxChangeBytes)
+      throw KvRefused("session " + id_ + ": an open stroke's record of " + std::to_string(text.size()) +
+                      " bytes is beyond the " + std::to_string(o.maxChangeBytes) + " one etcd request may hold");
+    if (!part.empty() && envelope + partBytes + 1 + text.size() > o.maxChangeBytes) {
+      values.push_back(headValue(part, token_));
+      part.clear();
+      partBytes = 0;
+    }
+    partBytes += text.size() + (part.empty() ? 0 : 1);
+    part.push_back(std::move(text));
+  }
+  if (!part.empty()) values.push_back(headValue(part, token_));
+
+  SnapshotRef now{file, revision, next_, next_ + values.size(), {}};
   json pointer{{"current", refJson(now)}};
   if (current_) pointer["previous"] = refJson(*current_);
   const std::string value = pointer.dump();
-  if (value.size() > owner_.options_.maxChangeBytes)
-    throw KvRefused("a snapshot pointer of " + std::to_string(value.size()) + " bytes (its open strokes) is beyond the " +
-                    std::to_string(owner_.options_.maxChangeBytes) + " one etcd request may hold");
-  std::vector<KvOp> ops{KvOp{KvOp::Kind::put, owner_.pointerKey(id_), {}, value, 0}};
+  const std::string pointerKey = owner_.pointerKey(id_);
+  // What the session holds once the pointer has moved: the keys before the new previous's head
+  // go. A snapshot without a head never holds more than before: it always goes.
+  const std::uint64_t dropBelow = current_ ? current_->headFrom : 0;
+  std::size_t keys = keys_.size() + values.size() + 2, bytes = keyBytes_ + ownerBytes_ + pointerKey.size() + value.size();
+  for (auto it = keys_.begin(); it != keys_.end() && it->first < dropBelow; ++it) {
+    --keys;
+    bytes -= it->second;
+  }
+  for (std::size_t k = 0; k < values.size(); ++k) bytes += owner_.journalKey(id_, next_ + k).size() + values[k].size();
+  if (!values.empty()) checkBounds(keys, bytes);
+
+  for (std::string& v : values) {
+    const std::size_t vBytes = owner_.journalKey(id_, next_).size() + v.size();
+    submitLocked(std::move(v), vBytes);
+  }
+  std::vector<KvOp> ops{KvOp{KvOp::Kind::put, pointerKey, {}, value, 0}};
   // The journal before the snapshot that now becomes the previous one is covered twice over.
-  if (current_ && current_->next > 0)
-    ops.push_back(KvOp{KvOp::Kind::deleteRange, owner_.journalKey(id_, 0), owner_.journalKey(id_, current_->next), {}, 0});
+  if (dropBelow > 0) ops.push_back(KvOp{KvOp::Kind::deleteRange, owner_.journalKey(id_, 0), owner_.journalKey(id_, dropBelow), {}, 0});
   KvTxnResult r;
   try {
     r = owner_.kv_.txn({ownedBy(owner_.ownerKey(id_), token_)}, ops, {});
@@ -483,6 +608,8 @@ void EtcdJournal::commitSnapshot(const std::string& file, std::uint64_t revision
     state_ = State::fenced;
     throw Fenced("session " + id_ + ": another server owns it now; snapshot " + file + " is not current");
   }
+  for (auto it = keys_.begin(); it != keys_.end() && it->first < dropBelow; it = keys_.erase(it)) keyBytes_ -= it->second;
+  pointerBytes_ = pointerKey.size() + value.size();
   previous_ = current_;
   current_ = now;
 }

@@ -4,13 +4,28 @@
 // Keys, under options.prefix (default "marzipan/"), for session ID:
 //   sessions/ID/owner        the owning server's address (what -32015 tells clients), attached
 //                            to that server's lease; its createRevision is the FENCING TOKEN
-//   sessions/ID/journal/SEQ  one acknowledged change: {"token":T,"records":[...]} (records as in
-//                            service/journal.hpp); SEQ is 16 lower-case hex digits, from 0, so
-//                            that key order is sequence order; written only if absent
-//   sessions/ID/snapshot     the pointer readers trust: {"current":{"file","revision","next",
-//                            "head"},"previous":{...}}: a snapshot file (never-reused name,
-//                            written by the caller beside session.json), the first SEQ after
-//                            it, and the records replay starts with (the open strokes')
+//   sessions/ID/journal/SEQ  one acknowledged change: {"records":[...],"token":T} (records as in
+//                            service/journal.hpp), or part of a snapshot's head: {"head":[...],
+//                            "token":T}; SEQ is 16 lower-case hex digits, from 0, so that key
+//                            order is sequence order; written only if absent
+//   sessions/ID/snapshot     the pointer readers trust: {"current":{"file","revision",
+//                            "head_from","next"},"previous":{...}}: a snapshot file (never-reused
+//                            name, written by the caller beside session.json), its head (the
+//                            records replay starts with: the open strokes', with their
+//                            memories) in the journal keys [head_from, next), and the first SEQ
+//                            of the changes after it. A pointer written before 2026-11-29 holds
+//                            its head itself ("head":[...]), twice over with the previous one's:
+//                            read as such.
+// A snapshot is committed in two steps: its head is appended to the journal (as few keys as
+// fit maxChangeBytes, each written once; replay skips head keys no pointer names, a failed
+// commit's), then one fenced transaction moves the pointer and deletes the journal keys before
+// the previous snapshot's head.
+// What one session holds (its journal keys, pointer and owner key, counted as key and value
+// bytes) is bounded by options.maxSessionKeys and maxSessionBytes: an append past either is
+// refused with SessionFull before anything is written, and so is a snapshot whose head would
+// leave the session over them once the pointer has moved (one without a head always goes: it
+// only frees). Between a head's append and the pointer's move the session holds that head on
+// top, and a head whose commit failed stays until the snapshot after next deletes it.
 // Ownership: each server holds one lease (TTL options.leaseTtl, kept alive every third of it by
 // a thread of its own, revoked by stop()). claim() creates the owner key in a transaction only
 // if it is absent. Every write of an owner compares the owner key's createRevision with its
@@ -24,7 +39,7 @@
 // next ones queue and go together as one transaction (bounded by etcd's --max-txn-ops and
 // --max-request-bytes), so strokes keep up without waiting for a timer.
 // Errors: Fenced (not, or no longer, the owner: nothing was written), KvRefused (too large for
-// etcd, quota exceeded: nothing was written), KvUnavailable (no member answered: the outcome is
+// etcd, quota exceeded, or SessionFull: nothing was written), KvUnavailable (no member answered: the outcome is
 // unknown and the journal refuses further appends until the session is read back).
 // Thread-safety: EtcdOwner and its journals may be used from any thread.
 #pragma once
@@ -34,6 +49,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -50,6 +66,16 @@ namespace marzipan::service {
 
 struct Fenced : std::runtime_error {
   using std::runtime_error::runtime_error;
+};
+
+// A write refused because the session would hold more than options.maxSessionKeys or
+// maxSessionBytes in etcd; nothing was written.
+struct SessionFull : KvRefused {
+  SessionFull(const std::string& what, std::string limitName, std::size_t held, std::size_t bound)
+      : KvRefused(what), limit(std::move(limitName)), value(held), max(bound) {}
+  std::string limit;  // "max_session_etcd_keys" or "max_session_etcd_bytes"
+  std::size_t value;  // what the session would hold with the write
+  std::size_t max;
 };
 
 // What the metrics hear (any thread; may be empty).
@@ -69,14 +95,23 @@ struct EtcdOptions {
   std::size_t maxTxnOps = 128;
   std::size_t maxRequestBytes = 1'572'864;
   std::size_t maxChangeBytes = 1'000'000;
+  // What one session may hold in etcd (see the header): 128 sessions at these bounds fill etcd's
+  // default 2 GiB quota. The keys allow two snapshots' journals at the hub's snapshot_every
+  // (2000) with room to spare; the bytes two snapshots' heads of a dozen strokes with full
+  // memories (4096 dab images with normals: ~490 KB as JSON each) and the changes between.
+  std::size_t maxSessionKeys = 10'000;
+  std::size_t maxSessionBytes = std::size_t(16) << 20;
 };
 
 // A snapshot the pointer names.
 struct SnapshotRef {
   std::string file;
   std::uint64_t revision = 0;
-  std::uint64_t next = 0;  // the first journal SEQ after it
-  std::vector<nlohmann::json> head;  // replayed before the journal from `next`
+  std::uint64_t headFrom = 0;  // its head's journal keys: [headFrom, next)
+  std::uint64_t next = 0;      // the first journal SEQ after it
+  // Replayed before the journal from `next`: the records of its head keys, as EtcdOwner::read
+  // found them (an EtcdJournal's own refs leave them out), or of an older pointer's own head.
+  std::vector<nlohmann::json> head;
 };
 
 // A change read back from the journal.
@@ -89,7 +124,12 @@ struct JournalEntry {
 // What is at rest for a session: the pointer and the journal from the previous snapshot on.
 struct EtcdSessionState {
   std::optional<SnapshotRef> current, previous;
-  std::vector<JournalEntry> journal;  // in SEQ order, contiguous
+  std::vector<JournalEntry> journal;  // the changes, in SEQ order (head keys left out)
+  std::uint64_t next = 0;             // the SEQ after the last journal key
+  // Every journal key kept (changes and heads, from the previous snapshot's head on, contiguous):
+  // SEQ -> bytes of key and value; and the pointer key's bytes.
+  std::map<std::uint64_t, std::size_t> keys;
+  std::size_t pointerBytes = 0;
 };
 
 class EtcdOwner;
@@ -99,10 +139,18 @@ class EtcdJournal {
  public:
   // Appends one change (its records) under the next SEQ; returns once etcd has it.
   void append(const std::vector<nlohmann::json>& records);
-  // Makes `snap` current (its file must be complete and synced): moves the pointer and deletes
-  // the journal keys before the previous snapshot's, in one fenced transaction.
-  // `head` goes into the pointer itself, so that the move is all or nothing.
+  // Makes `file` current (it must be complete and synced): appends `head` (the records replay
+  // starts with) to the journal, then moves the pointer and deletes the journal keys before the
+  // previous snapshot's head, in one fenced transaction. Until the pointer has moved nothing
+  // names the head keys. Throws KvRefused (nothing written) when one head record is over
+  // maxChangeBytes, SessionFull as the header says.
   void commitSnapshot(const std::string& file, std::uint64_t revision, const std::vector<nlohmann::json>& head = {});
+  // What the session holds beyond its current snapshot (its changes, a failed commit's head)
+  // is a quarter of a bound: time for a snapshot, which deletes what came before the previous.
+  // Snapshotting at a quarter keeps a session with heads under a quarter each within its bounds.
+  bool wantsSnapshot() const;
+  // What the session holds in etcd now: keys, and bytes of keys and values.
+  std::pair<std::size_t, std::size_t> held() const;
   // After a read-back (an append's outcome was unknown): appends continue after what `state`
   // holds. A fenced journal stays fenced.
   void resume(const EtcdSessionState& state);
@@ -132,7 +180,17 @@ class EtcdJournal {
   enum class State { open, unknown, fenced };
   State state_ = State::open;
   void refuseIfBroken() const;
-  std::optional<SnapshotRef> current_, previous_;
+  // The rest with mutex_ held. Appends one journal value under next_ (bytes: of key and value).
+  void submitLocked(std::string value, std::size_t bytes);
+  std::pair<std::size_t, std::size_t> heldLocked() const;
+  // Throws SessionFull when holding `keys` keys and `bytes` bytes would pass a bound.
+  void checkBounds(std::size_t keys, std::size_t bytes) const;
+  std::optional<SnapshotRef> current_, previous_;  // without the records of head keys
+  // What the session holds: the journal keys kept (SEQ -> bytes), their sum, the pointer's bytes,
+  // the owner key's.
+  std::map<std::uint64_t, std::size_t> keys_;
+  std::size_t keyBytes_ = 0, pointerBytes_ = 0;
+  const std::size_t ownerBytes_;
 };
 
 class EtcdOwner {

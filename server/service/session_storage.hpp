@@ -14,8 +14,9 @@
 // - Durability: a change is acknowledged only after SessionLog::append() returned; snapshot()
 //   makes a new snapshot current (with a fresh log after it) atomically: the old snapshot and
 //   log stay current until it returns.
-// - Errors: OwnershipLost as above; std::runtime_error naming what failed for I/O; in both
-//   cases the refused write is not kept.
+// - Errors: OwnershipLost as above; StorageLimit past a bound on what one session may hold;
+//   std::runtime_error naming what failed for I/O; in every case the refused write is not kept,
+//   and a snapshot that failed leaves no file of its own behind (unless its outcome is unknown).
 // - Threads: a session's calls come from its strand (one at a time); renew(), release(),
 //   removeUntouched() and the lost handler may run concurrently with them.
 #pragma once
@@ -51,6 +52,16 @@ class OwnershipLost : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A change refused by the storage's bound on what one session may hold (etcd: its keys and
+// bytes there); nothing of it was written. `limit` names the bound (-32004's data.limit).
+class StorageLimit : public std::runtime_error {
+ public:
+  StorageLimit(const std::string& what, std::string limitName, std::uint64_t held, std::uint64_t bound)
+      : std::runtime_error(what), limit(std::move(limitName)), value(held), max(bound) {}
+  std::string limit;
+  std::uint64_t value, max;  // what the session would hold with the change; the bound
+};
+
 // The open journal of a session: the changes after its current snapshot, in the record format
 // of service/journal.hpp.
 class SessionLog {
@@ -63,6 +74,8 @@ class SessionLog {
   virtual bool dirty() const = 0;
   // Records since the current snapshot (the hub snapshots after snapshot_every).
   virtual std::size_t records() const = 0;
+  // A snapshot is due before snapshot_every: what the session holds nears the storage's bound.
+  virtual bool wantsSnapshot() const { return false; }
 };
 
 struct Recovered {

@@ -135,6 +135,9 @@ TEST_CASE("marzipan serve: bad flags and values are usage errors (exit 2), a mis
   CHECK(runStatus("", dir, "MARZIPAN_PORT=http") == 2);
   CHECK(runStatus("", dir, "MARZIPAN_BIND=1.2.3") == 2);
   CHECK(runStatus("--port 0 --web-root '" + (dir / "missing").string() + "'", dir) == 1);
+  CHECK(runStatus("--etcd-session-mb 8", dir) == 2);  // needs --etcd
+  CHECK(runStatus("--etcd http://127.0.0.1:1 --data-dir '" + dir.string() + "' --etcd-session-keys 99", dir) == 2);
+  CHECK(runStatus("--etcd http://127.0.0.1:1 --data-dir '" + dir.string() + "' --etcd-session-mb 0", dir) == 2);
   CHECK(runStatus("--help", dir) == 0);
   CHECK(runStatus("--port=0 --web-root='" + (dir / "missing").string() + "'", dir) == 1);
 }

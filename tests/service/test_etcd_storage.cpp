@@ -309,3 +309,192 @@ TEST_CASE("etcd storage: a snapshot reads no journal key back, and still deletes
   store.release("s");
   std::filesystem::remove_all(dir);
 }
+
+// ---- issue 31 item 1: open strokes' memories and snapshots in etcd ------------------------------
+
+namespace {
+
+// `count` dab centres on the surface of kCreate's sphere (centre 23.5, radius 0.35 * 48) in one
+// octant; a stroke with symmetry x, y, z mirrors each into eight images.
+json surfaceDabs(int count, int first = 0) {
+  json dabs = json::array();
+  for (int k = first; k < first + count; ++k) {
+    const double theta = 0.2 + 1.2 * (k % 4) / 3.0, phi = 0.2 + 1.2 * (k / 4 % 4) / 3.0;
+    const double r = 0.35 * 48, c = 23.5;
+    dabs.push_back({{"center", {c + r * std::sin(theta) * std::cos(phi), c + r * std::sin(theta) * std::sin(phi),
+                                c + r * std::cos(theta)}},
+                    {"pressure", 1}});
+  }
+  return dabs;
+}
+
+// A client of session `created` with a stroke open that remembers 64 dab images with their
+// normals (8 dabs, mirrored 8 times, height 1): its stroke_begin record is ~10 KB of JSON.
+struct OpenStroke {
+  TestClient client;
+  int stroke = 0;
+  OpenStroke(Hub& hub, const json& created) : client(hub) {
+    client.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+    stroke = client.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 2}, {"strength", 1}, {"height", 1},
+                                            {"symmetry", {"x", "y", "z"}}})["stroke"];
+    CHECK(client.result("stroke.dabs", {{"stroke", stroke}, {"dabs", surfaceDabs(8)}})["applied"] == 8);
+  }
+};
+
+int snapshotFiles(const std::filesystem::path& dir, const std::string& id) {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sessions" / id))
+    n += e.path().filename().string().starts_with("snapshot-");
+  return n;
+}
+
+std::size_t pointerBytes(MemoryKv& kv, EtcdStorage& store, const std::string& id) {
+  const auto p = kv.range(store.owner().pointerKey(id), {}, 0);
+  return p.empty() ? 0 : p[0].value.size();
+}
+
+// Every key of the session in etcd: (keys, bytes of keys and values).
+std::pair<std::size_t, std::size_t> heldInEtcd(MemoryKv& kv, const std::string& id) {
+  const std::string prefix = "marzipan/sessions/" + id + "/";
+  std::size_t bytes = 0;
+  const auto all = kv.range(prefix, prefixEnd(prefix), 0);
+  for (const auto& e : all) bytes += e.key.size() + e.value.size();
+  return {all.size(), bytes};
+}
+
+}  // namespace
+
+// The pointer held each open stroke's record with its whole memory (4096 dab images: ~580 KB)
+// and the previous snapshot's again: past maxChangeBytes the snapshot failed, its file (written
+// and synced) stayed, and each later change, the record count still over snapshot_every, wrote
+// and abandoned another full-volume file while the journal keys were never trimmed. Here three
+// strokes of 64 images (~10 KB each) against a maxChangeBytes of 20000.
+TEST_CASE("etcd storage: open strokes with memories leave snapshots working: a small pointer, no file left behind, "
+          "the journal trimmed, a takeover finds every change",
+          "[hub][etcd]") {
+  const auto dir = scratch("open-strokes");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.leaseTtlSeconds = 1;
+  opt.maxChangeBytes = 20'000;
+  auto storeA = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  auto storeB = std::make_shared<EtcdStorage>(kv, dir, "server-b", opt);
+  Hub hubA(optionsFor(storeA, 5)), hubB(optionsFor(storeB, 5));
+  TestClient a(hubA);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  OpenStroke s1(hubA, created), s2(hubA, created), s3(hubA, created);
+  for (int k = 0; k < 12; ++k) a.result("tool.apply", blob(14 + 2 * k));
+  // The strokes go on after those snapshots: their next dabs add only beyond their memories.
+  for (OpenStroke* s : {&s1, &s2, &s3})
+    s->client.result("stroke.dabs", {{"stroke", s->stroke}, {"dabs", surfaceDabs(4, 6)}});
+  for (int k = 0; k < 6; ++k) a.result("tool.apply", blob(16 + 2 * k));
+  const json last = a.result("session.stats");
+
+  CHECK(snapshotFiles(dir, id) <= 2);
+  CHECK(pointerBytes(kv, *storeA, id) < 1000);
+  const EtcdSessionState st = storeA->owner().read(id);
+  REQUIRE(st.current);
+  CHECK(st.current->revision >= last["revision"].get<std::uint64_t>() - 6);
+  CHECK(st.current->head.size() == 3);  // the three strokes, with their memories
+  CHECK(st.journal.size() <= 12);       // two snapshots' worth of changes, no more
+  INFO("etcd keys and bytes held: " << heldInEtcd(kv, id).first << ", " << heldInEtcd(kv, id).second);
+
+  kv.expire(leaseOf(kv, *storeA, id));
+  TestClient b(hubB);
+  const json joined = b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
+  CHECK(joined["revision"] == last["revision"]);
+  CHECK(b.result("session.stats")["digest"] == last["digest"]);
+  hubA.shutdown();
+  hubB.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+// A snapshot that cannot be committed (here: a stroke's record larger than one etcd value may be)
+// left its file behind, and was tried again, with another file, after every later change.
+TEST_CASE("etcd storage: a failed snapshot deletes its file and is not tried again at every change", "[hub][etcd]") {
+  const auto dir = scratch("failed-snapshot");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.maxChangeBytes = 5000;
+  auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  std::atomic<int> failures{0};
+  HubOptions o = optionsFor(store, 5);
+  o.events.log = [&](const std::string& line) { failures += line.find("snapshot failed") != std::string::npos; };
+  Hub hub(o);
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  OpenStroke s(hub, created);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::uint64_t revision = 0;
+  for (int k = 0; k < 20; ++k) revision = a.result("tool.apply", blob(14 + k))["revision"];
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  CHECK(snapshotFiles(dir, id) == 1);  // the session's first
+  INFO("snapshots tried and failed: " << failures.load() << " in " << seconds << " s of edits");
+  CHECK(failures >= 1);
+  CHECK(failures <= 2 + int(seconds));  // one at once, then after 1 s, 2 s, 4 s...
+  // Once the stroke has ended, the next snapshot (after the back-off) goes through.
+  s.client.result("stroke.end", {{"stroke", s.stroke}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  a.result("tool.apply", blob(36));
+  CHECK(store->owner().read(id).current->revision >= revision);
+  CHECK(snapshotFiles(dir, id) == 2);
+  hub.shutdown();
+  std::filesystem::remove_all(dir);
+}
+
+// What one session may hold in etcd is bounded (EtcdOptions::maxSessionKeys, maxSessionBytes):
+// snapshots come early enough to stay within it; when they cannot (here an open stroke whose
+// record no etcd value can hold), an edit past the bound gets -32004 naming it and changes
+// nothing; the roll back ends the open strokes, and the snapshot that then goes brings room back.
+TEST_CASE("etcd storage: an edit past what a session may hold in etcd gets -32004 and changes nothing, then room comes back",
+          "[hub][etcd]") {
+  const auto dir = scratch("bound");
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.maxChangeBytes = 5000;
+  opt.maxSessionBytes = 40'000;
+  auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
+  Hub hub(optionsFor(store));
+  TestClient a(hub);
+  const json created = a.result("session.create", kCreate);
+  const std::string id = created["session"];
+  const auto edit = [](int k) {
+    return json{{"tool", k % 2 ? "remove_blob" : "add_blob"}, {"center", {24, 24, 41}}, {"radius", 2.5}};
+  };
+  // Without a stroke open, snapshots keep the session within the bound however long it goes.
+  for (int k = 0; k < 400; ++k) a.result("tool.apply", edit(k));
+  CHECK(heldInEtcd(kv, id).second <= 40'000);
+  CHECK(store->owner().read(id).current->revision > 300);
+
+  OpenStroke s(hub, created);
+  json before = a.result("session.stats"), refused;
+  for (int k = 0; k < 1000 && refused.is_null(); ++k) {
+    const json r = a.call("tool.apply", edit(k));
+    if (r.contains("error"))
+      refused = r["error"];
+    else
+      before = a.result("session.stats");
+  }
+  INFO(refused.dump());
+  REQUIRE(refused.is_object());
+  CHECK(refused["code"] == -32004);
+  CHECK(refused["data"]["limit"] == "max_session_etcd_bytes");
+  CHECK(refused["data"]["max"] == 40'000);
+  CHECK(refused["data"]["value"].get<std::size_t>() > 40'000);
+  const json after = a.result("session.stats");
+  CHECK(after["revision"] == before["revision"]);
+  CHECK(after["digest"] == before["digest"]);
+  CHECK(heldInEtcd(kv, id).second <= 40'000);
+  CHECK(s.client.error("stroke.dabs", {{"stroke", s.stroke}, {"dabs", surfaceDabs(1)}}) == -32011);
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // the back-off of the failed snapshots
+  json accepted;
+  for (int k = 0; k < 3 && !accepted.contains("result"); ++k) accepted = a.call("tool.apply", edit(k));
+  INFO(accepted.dump());
+  CHECK(accepted.contains("result"));
+  CHECK(heldInEtcd(kv, id).second <= 40'000);
+  hub.shutdown();
+  std::filesystem::remove_all(dir);
+}

@@ -13,6 +13,7 @@
 using marzipan::service::EtcdEvents;
 using marzipan::service::EtcdOptions;
 using marzipan::service::EtcdOwner;
+using marzipan::service::EtcdSessionState;
 using marzipan::service::Fenced;
 using marzipan::service::KvRefused;
 using marzipan::service::KvUnavailable;
@@ -314,4 +315,188 @@ TEST_CASE("etcd store: a claim that fails after writing the owner key deletes it
   CHECK_THROWS_AS(a.claim("s"), KvUnavailable);
   kv.onFailedRange = nullptr;
   CHECK(a.ownerOf("s") == std::optional<std::string>("b"));
+}
+
+namespace {
+
+// A stroke_begin-like record of about `bytes` bytes of JSON.
+json bigRecord(int stroke, std::size_t bytes) {
+  return json{{"stroke_begin", stroke}, {"applied", std::string(bytes, 'x')}};
+}
+
+}  // namespace
+
+// Issue 31 item 1: the pointer held the open strokes' records (with their memories) and the
+// previous snapshot's again, so that it outgrew one etcd request. The head now goes into the
+// journal once, in as few keys as fit, and the pointer names them.
+TEST_CASE("etcd store: a snapshot's head goes into journal keys the pointer names, once", "[etcd]") {
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.maxChangeBytes = 2000;
+  EtcdOwner a(kv, "a", opt);
+  a.start();
+  auto c = a.claim("s");
+  c.journal->commitSnapshot("snapshot-0.mzv", 0);
+  c.journal->append(change(1));
+  const std::vector<json> head{bigRecord(1, 900), bigRecord(2, 900), bigRecord(3, 900)};
+  c.journal->commitSnapshot("snapshot-1.mzv", 1, head);  // SEQ 1, 2: the head; 3 the next change
+  CHECK(c.journal->nextSeq() == 3);
+  c.journal->append(change(2));
+  const std::string pointer = kv.range(a.pointerKey("s"), {}, 0).at(0).value;
+  CHECK(pointer.size() < 300);
+  EtcdSessionState st = a.read("s");
+  REQUIRE(st.current);
+  CHECK(st.current->headFrom == 1);
+  CHECK(st.current->next == 3);
+  CHECK(st.current->head == head);
+  CHECK(st.previous->head.empty());
+  REQUIRE(st.journal.size() == 2);  // the changes only
+  CHECK(st.journal[0].seq == 0);
+  CHECK(st.journal[1].seq == 3);
+  CHECK(st.keys.size() == 4);
+  CHECK(st.next == 4);
+
+  // The next snapshot keeps the previous one's head keys and deletes what came before them.
+  c.journal->commitSnapshot("snapshot-2.mzv", 2, {bigRecord(1, 100)});
+  st = a.read("s");
+  CHECK(st.previous->file == "snapshot-1.mzv");
+  CHECK(st.previous->head == head);
+  CHECK(st.current->head == std::vector<json>{bigRecord(1, 100)});
+  CHECK(kv.range(a.journalKey("s", 0), {}, 0).empty());
+  REQUIRE(st.journal.size() == 1);
+  CHECK(st.journal[0].seq == 3);
+  // A new owner appends after the last head key.
+  c.journal->release();
+  auto again = a.claim("s");
+  CHECK(again.journal->nextSeq() == 5);
+  CHECK(again.state.current->head.size() == 1);
+
+  // One record that no etcd value can hold: refused before anything is written.
+  CHECK_THROWS_AS(again.journal->commitSnapshot("snapshot-3.mzv", 3, {bigRecord(1, 3000)}), KvRefused);
+  CHECK(again.journal->nextSeq() == 5);
+  CHECK(a.read("s").current->file == "snapshot-2.mzv");
+}
+
+// A head appended whose pointer never moved (its transaction failed after the head's append) is
+// named by no pointer: replay skips it, and appends go on after it.
+TEST_CASE("etcd store: the head keys of a snapshot that was not committed are not replayed", "[etcd]") {
+  MemoryKv kv;
+  EtcdOwner a(kv, "a"), b(kv, "b");
+  a.start();
+  b.start();
+  auto c = a.claim("s");
+  c.journal->commitSnapshot("snapshot-0.mzv", 0);
+  c.journal->append(change(1));                                       // SEQ 0
+  c.journal->commitSnapshot("snapshot-1.mzv", 1, {bigRecord(1, 50)});  // SEQ 1: its head
+  c.journal->append(change(2));                                       // SEQ 2
+  // SEQ 3: the head of a commit whose pointer transaction then failed, as it left it.
+  const std::string orphan = json{{"head", {bigRecord(7, 50)}}, {"token", c.journal->token()}}.dump();
+  REQUIRE(kv.txn({}, {{marzipan::service::KvOp::Kind::put, a.journalKey("s", 3), {}, orphan, 0}}, {}).succeeded);
+  c.journal->release();
+  auto cb = b.claim("s");
+  REQUIRE(cb.journal);
+  CHECK(cb.state.current->file == "snapshot-1.mzv");
+  CHECK(cb.state.current->head == std::vector<json>{bigRecord(1, 50)});
+  REQUIRE(cb.state.journal.size() == 2);
+  CHECK(cb.state.journal[1].records[0]["r"] == 2);
+  CHECK(cb.state.keys.size() == 4);
+  CHECK(cb.journal->nextSeq() == 4);
+  cb.journal->append(change(3));
+  CHECK(b.read("s").journal.back().seq == 4);
+}
+
+// What one session holds in etcd is bounded in keys and bytes: a change past the bound is refused
+// with nothing written, so is a snapshot whose head would leave the session over it; a snapshot
+// without a head always goes (it frees what came before the previous one).
+TEST_CASE("etcd store: a session's keys and bytes in etcd are bounded, and a snapshot brings room back", "[etcd]") {
+  MemoryKv kv;
+  EtcdOptions opt;
+  opt.maxSessionKeys = 12;
+  opt.maxSessionBytes = 100'000;
+  EtcdOwner a(kv, "a", opt);
+  a.start();
+  auto c = a.claim("s");
+  c.journal->commitSnapshot("snapshot-0.mzv", 0);
+  CHECK_THROWS_AS(c.journal->commitSnapshot("snapshot-x.mzv", 0, {bigRecord(1, 200'000)}), marzipan::service::SessionFull);
+  CHECK(c.journal->nextSeq() == 0);
+  int tag = 0;
+  for (; tag < 40; ++tag) {
+    try {
+      c.journal->append(change(tag));
+    } catch (const marzipan::service::SessionFull& e) {
+      CHECK(e.limit == "max_session_etcd_keys");
+      CHECK(e.value == 13);
+      CHECK(e.max == 12);
+      break;
+    }
+  }
+  CHECK(tag == 10);  // owner, pointer and ten journal keys
+  CHECK(c.journal->held().first == 12);
+  CHECK(a.read("s").journal.size() == 10);
+  CHECK(c.journal->wantsSnapshot());
+  CHECK_FALSE(c.journal->fenced());
+  // A snapshot with a head that would not fit even once the older keys are gone is refused,
+  // nothing written; without one it goes, and the next one frees the keys before it.
+  const auto refusedFor = [&](const std::vector<json>& head) {
+    try {
+      c.journal->commitSnapshot("snapshot-1.mzv", 10, head);
+    } catch (const marzipan::service::SessionFull& e) {
+      return e.limit;
+    }
+    return std::string("nothing");
+  };
+  CHECK(refusedFor(std::vector<json>(3, bigRecord(1, 10))) == "max_session_etcd_keys");  // one key
+  CHECK(c.journal->nextSeq() == 10);
+  c.journal->commitSnapshot("snapshot-1.mzv", 10);
+  CHECK_FALSE(c.journal->wantsSnapshot());
+  c.journal->commitSnapshot("snapshot-2.mzv", 10);
+  CHECK(c.journal->held().first == 2);
+  for (int k = 0; k < 3; ++k) c.journal->append(change(100 + k));
+  const auto [keys, bytes] = c.journal->held();
+  CHECK(keys == 5);
+  std::size_t inEtcd = 0;
+  for (const auto& e : kv.range("marzipan/sessions/s/", marzipan::service::prefixEnd("marzipan/sessions/s/"), 0))
+    inEtcd += e.key.size() + e.value.size();
+  CHECK(bytes == inEtcd);
+
+  // The bytes likewise.
+  EtcdOptions small;
+  small.maxSessionBytes = 3000;
+  EtcdOwner b(kv, "b", small);
+  b.start();
+  auto d = b.claim("t");
+  d.journal->commitSnapshot("snapshot-0.mzv", 0);
+  CHECK_THROWS_AS(d.journal->append({json{{"blob", std::string(3000, 'x')}}}), marzipan::service::SessionFull);
+  CHECK(b.read("t").journal.empty());
+  d.journal->append(change(1));
+}
+
+// Pointers written before 2026-11-29 held their heads themselves: read as such, and the first new
+// pointer keeps the old one's head as its previous's, which a fall-back replays.
+TEST_CASE("etcd store: a pointer that holds its head itself, as before, is read and kept as the previous", "[etcd]") {
+  MemoryKv kv;
+  EtcdOwner a(kv, "a");
+  a.start();
+  const std::vector<json> head{bigRecord(1, 20), bigRecord(2, 20)};
+  const json old{{"current", {{"file", "snapshot-3.mzv"}, {"revision", 3}, {"next", 1}, {"head", head}}},
+                 {"previous", {{"file", "snapshot-0.mzv"}, {"revision", 0}, {"next", 0}, {"head", json::array()}}}};
+  using marzipan::service::KvOp;
+  REQUIRE(kv.txn({}, {{KvOp::Kind::put, a.pointerKey("s"), {}, old.dump(), 0},
+                      {KvOp::Kind::put, a.journalKey("s", 0), {}, json{{"token", 1}, {"records", change(1)}}.dump(), 0},
+                      {KvOp::Kind::put, a.journalKey("s", 1), {}, json{{"token", 1}, {"records", change(2)}}.dump(), 0}},
+                 {})
+              .succeeded);
+  auto c = a.claim("s");
+  REQUIRE(c.journal);
+  CHECK(c.state.current->head == head);
+  CHECK(c.state.current->headFrom == 1);
+  CHECK(c.state.journal.size() == 2);
+  CHECK(c.journal->nextSeq() == 2);
+  c.journal->commitSnapshot("snapshot-4.mzv", 4, {bigRecord(2, 30)});
+  const EtcdSessionState st = a.read("s");
+  CHECK(st.previous->file == "snapshot-3.mzv");
+  CHECK(st.previous->head == head);
+  CHECK(st.current->head == std::vector<json>{bigRecord(2, 30)});
+  REQUIRE(st.journal.size() == 1);  // SEQ 0 went with snapshot-0
+  CHECK(st.journal[0].seq == 1);
 }

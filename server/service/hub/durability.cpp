@@ -1,5 +1,7 @@
 #include "service/hub/durability.hpp"
 
+#include <algorithm>
+
 #include "service/hub/core.hpp"
 #include "service/journal_records.hpp"
 
@@ -43,22 +45,39 @@ void Durability::persist(LiveSession& s, const std::function<json()>& makeRecord
       hub_.registry.closeBroken(s);
     }
     for (const auto& c : s.members()) c->stroke = 0;
+    if (const auto* full = dynamic_cast<const StorageLimit*>(&e)) {
+      // Room comes back with a snapshot, which drops what came before the previous one; the roll
+      // back ended the open strokes, so it has no head to hold.
+      if (s.journal) rotateUnlessBackingOff(s);
+      throw RpcException(RpcCode::LimitExceeded,
+                         std::string("the change was not kept: ") + e.what() + ". The session is as it was; try again later",
+                         {{"limit", full->limit}, {"value", full->value}, {"max", full->max}});
+    }
     throw RpcException(RpcCode::Internal, std::string("the change could not be stored (") + e.what() +
                                               "); it was not kept. The session is as it was");
   }
   if (s.journal->dirty()) scheduleSync(s);
-  if (s.journal->records() >= hub_.options.snapshotEvery) {
-    try {
-      rotate(s);
-    } catch (const OwnershipLost& e) {
-      // The change was journaled while the lease was still this server's: acknowledged, but
-      // the session goes.
-      hub_.log("session " + s.id + ": " + e.what() + "; closing it here");
-      s.journal.reset();
-      hub_.registry.closeBroken(s);
-    } catch (const std::exception& e) {
-      hub_.log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on");
-    }
+  if (s.journal->records() >= hub_.options.snapshotEvery || s.journal->wantsSnapshot()) rotateUnlessBackingOff(s);
+}
+
+void Durability::rotateUnlessBackingOff(LiveSession& s) {
+  constexpr std::chrono::milliseconds kFirstBackoff{1000}, kLongestBackoff{60'000};
+  const auto now = Clock::now();
+  if (now < s.snapshotNotBefore) return;
+  try {
+    rotate(s);
+    s.snapshotBackoff = {};
+  } catch (const OwnershipLost& e) {
+    // The change was journaled while the lease was still this server's: acknowledged, but
+    // the session goes.
+    hub_.log("session " + s.id + ": " + e.what() + "; closing it here");
+    s.journal.reset();
+    hub_.registry.closeBroken(s);
+  } catch (const std::exception& e) {
+    s.snapshotBackoff = std::clamp(s.snapshotBackoff * 2, kFirstBackoff, kLongestBackoff);
+    s.snapshotNotBefore = now + s.snapshotBackoff;
+    hub_.log("session " + s.id + ": snapshot failed (" + e.what() + "); the journal goes on, next try in " +
+             std::to_string(s.snapshotBackoff.count() / 1000) + " s at the earliest");
   }
 }
 

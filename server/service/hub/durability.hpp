@@ -38,6 +38,10 @@ class Durability {
   // A snapshot of s and a fresh journal that starts with the strokes still open, so that their
   // next dabs replay without the journal that began them.
   void rotate(LiveSession& s);
+  // rotate() unless one failed within the back-off (1 s after a failure, doubling to 60 s): a
+  // snapshot writes the whole volume, and one that keeps failing was tried after every change.
+  // A failure is logged and the journal goes on; OwnershipLost closes the session.
+  void rotateUnlessBackingOff(LiveSession& s);
   // At unload or shutdown: a last snapshot (`when` names the moment for the log), the journal
   // closed, the lease released.
   void saveAndRelease(LiveSession& s, const char* when);

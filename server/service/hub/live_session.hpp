@@ -41,6 +41,9 @@ struct LiveSession : std::enable_shared_from_this<LiveSession> {
   std::vector<std::weak_ptr<HubClient>> clients;
   int nextClient = 1;
   bool syncScheduled = false;  // a --fsync-ms timer will sync the journal
+  // After a snapshot failed, the next is not tried before snapshotNotBefore (Durability).
+  Clock::time_point snapshotNotBefore{};
+  std::chrono::milliseconds snapshotBackoff{0};
   HeldSplats heldSplats;       // what its splats-mode clients hold (Broadcaster)
   // One rebuild of an earlier revision at a time (HubCore::withVersion); the others wait here.
   bool rebuilding = false;
