@@ -1,8 +1,9 @@
 // The socket side of `marzipan serve`: one port, GET/HEAD only, static files of the web root at
 // "/" (and of each mount under its prefix), "/healthz" (200 "ok"), "/metrics" (Prometheus
 // text), and WebSocket upgrades at "/ws", whose messages go to a service::Hub (404 without
-// one). A narrow, Beast-free interface: Boost.Beast/Asio stay inside http_server.cpp, so
-// including this header costs nothing.
+// one). A narrow, Beast-free interface: Boost.Beast/Asio stay inside server/net's .cpp files
+// and its internal headers (listener, http_session, websocket_session; http_server.cpp lists
+// them), so including this header costs nothing.
 //
 // WebSocket conventions: one read loop and one write in flight per connection; the outgoing
 // queue keeps responses and splat buffers in order and replaces a queued pushed image by a

@@ -1,5 +1,5 @@
 // `marzipan serve`: the flags and environment of the server, then HttpServer until SIGINT or
-// SIGTERM. Beast-free; the sockets are in http_server.cpp.
+// SIGTERM. Beast-free; the sockets are behind HttpServer (http_server.hpp).
 //
 // Conventions: arguments are the ones after "serve"; "listening on http://HOST:PORT" goes to
 // `out` (flushed) once connections are accepted; diagnostics to `err` as "marzipan serve: reason",

@@ -341,8 +341,8 @@ TEST_CASE("ws: a congested client gets only the newest presence of a sender, aft
 }
 
 // A presence flush hands each receiver one batch, which the server writes with the socket
-// corked so that it leaves in one TCP push (http_server.cpp, WsSession::cork). The cork must
-// come off when the batch is written: Linux would otherwise hold the batch until its 200 ms
+// corked so that it leaves in one TCP push (websocket_session.cpp, WsSession::cork). The cork
+// must come off when the batch is written: Linux would otherwise hold the batch until its 200 ms
 // cork timeout. Each round, three clients send presence (as requests, so it is handled when
 // answered) and the fourth waits for all three; a round takes at most the 50 ms flush spacing
 // and the flush, so the median over 20 rounds is far below 200 ms unless batches stall.

@@ -1,0 +1,102 @@
+// A WebSocket connection (chat-multi's `websocket_session`): reads whole messages into the hub
+// and writes what the hub sends, with the queue, limits and close codes that http_server.hpp
+// describes. After a message larger than max_text_bytes (an upload) the read buffer is given
+// back, so a connection does not keep an upload's size resident (issue 31).
+//
+// Conventions: made by an HttpSession from a GET /ws with an upgrade, which hands over its
+// stream and its connection slot. Owned by shared_ptr and alive as long as an operation is
+// pending on it; the hub holds it only weakly, through a Link (a service::ClientLink). Its
+// state is touched on the connection's strand only: send, sendTogether, sendTransient and close
+// may be called from any thread and dispatch onto the strand; the rest runs on it.
+//
+// Separate from the HTTP session because it is the other half of the Beast code: the WebSocket
+// stream's operations are instantiated in websocket_session.cpp alone; http_session.cpp (which
+// makes it) and http_server.cpp (which closes it at shutdown) only parse this header.
+#pragma once
+
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/core/tcp_stream.hpp>
+#include <boost/beast/http/message.hpp>
+#include <boost/beast/http/string_body.hpp>
+#include <boost/beast/websocket/stream.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "net/beast.hpp"
+#include "net/shared_state.hpp"
+#include "service/hub.hpp"
+
+namespace marzipan::net {
+
+class WsSession : public std::enable_shared_from_this<WsSession> {
+ public:
+  // `slot`: the connection's place under the connection bounds, released with the session.
+  WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer, std::shared_ptr<void> slot);
+  ~WsSession();  // disconnects from the hub, leaves the registry
+
+  // Accepts the upgrade `req` asked for, unless the server is stopping (then it drops it).
+  void run(http::request<http::string_body> req);
+
+  // From any thread: queue a message (see the write conventions in http_server.hpp).
+  void send(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
+            bool latestWins);
+  // Messages handed over together (ClientLink::sendTogether): queued at once, in order, and
+  // written corked so that they leave in one TCP push.
+  void sendTogether(std::vector<service::ClientLink::Message> messages);
+  // Transient texts (ClientLink::sendTransient), handed over at once and written as one batch.
+  void sendTransient(std::vector<service::ClientLink::Transient> texts);
+  void close(websocket::close_code code, std::string reason);
+
+ private:
+  class Link;  // the hub's view of this connection
+
+  // A message's place in a hand-over of several (sendTogether): the socket is corked from the
+  // first and uncorked once the last is written.
+  enum class Run : std::uint8_t { alone, more, last };
+  struct Out {
+    std::shared_ptr<const std::string> text;
+    std::shared_ptr<const std::vector<std::uint8_t>> binary;
+    bool latestWins = false;
+    std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
+    bool transient = false;  // presence: replaced by its key, overtaken by everything else
+    std::uint64_t key = 0;
+    Run run = Run::alone;
+    std::size_t size() const { return text ? text->size() : binary->size(); }
+  };
+
+  void onAccept(beast::error_code ec);
+  void doRead();
+  void onRead(beast::error_code ec, std::size_t bytes);
+  std::uint64_t announcedUpload(const std::string& text, const service::HubLimits& limits) const;
+  void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
+               bool latestWins, Run run = Run::alone);
+  void enqueueTransient(std::shared_ptr<const std::string> text, std::uint64_t key);
+  void cork(bool on);
+  void doWrite();
+  void onWrite(beast::error_code ec, std::size_t bytes);
+  void startClose(websocket::close_code code, std::string reason);
+  void doClose();
+  void fail(beast::error_code ec, std::string_view what);
+
+  websocket::stream<beast::tcp_stream> ws_;
+  beast::flat_buffer buffer_;
+  std::shared_ptr<SharedState> state_;
+  std::string peer_;
+  std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
+  std::size_t nextReadMax_ = 0;  // the largest next message: max_text_bytes, or an announced upload
+  std::shared_ptr<service::HubClient> client_;
+  std::deque<Out> queue_;
+  std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
+  bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
+  bool corked_ = false;  // TCP_CORK is set on the socket (see cork())
+  websocket::close_reason closeReason_;
+  std::string closeReasonText_;
+};
+
+}  // namespace marzipan::net
