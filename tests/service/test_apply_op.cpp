@@ -4,7 +4,6 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <functional>
 #include <string>
 #include <vector>
@@ -152,38 +151,25 @@ TEST_CASE("applyOp: engine errors propagate unchanged and leave the volume as it
 TEST_CASE("strokeDabVoxels: the scan of remembered dabs is in a stroke message's cost", "[apply_op]") {
   // Issue 31 item 8: where a stroke's remembered dabs are weaker than a message's dab, each
   // voxel the dab moves scans every remembered dab over it; the estimate left that out, so one
-  // dab cost 10-25 times its estimate. Here 4096 weak dabs lie where the message's dab lands:
-  // 2026-11-29 on the 2-core VM, 0.40-0.42 ms alone, 12-39 ms over them (29-93 times),
-  // estimate 124 times.
+  // dab cost 10-25 times its estimate. Here 4096 weak dabs lie where the message's dab lands.
+  // What the scan costs in time is the benchmark stroke_memory_scan's (tests/bench, the same
+  // dabs): 2026-11-29 on the 2-core VM, 29-93 times the dab alone between runs on the loaded
+  // machine. This checks the estimate against that range rather than timing it here, where a
+  // loaded machine decides the ratio: at least the smallest ratio measured, and not orders of
+  // magnitude more than the largest.
   const Volume sphere = makeSolid(SolidKind::Sphere, {96, 96, 96});
   const StrokeSettings st{Brush::AddBlob, 12, 1};
   const Vec3 at{47.5 + 0.35 * 96, 47.5, 47.5};
   std::vector<StrokeDab> memory;
   for (int i = 0; i < int(service::Session::kMaxStrokeMemory); ++i)
     memory.push_back({{at.x, at.y + (i % 16) * 0.25, at.z + (i / 16 % 16) * 0.25}, 0.02});
-  const std::vector<StrokeDab> dab{{at, 1}};
-  const auto seconds = [&](std::span<const StrokeDab> remembered) {
-    double best = 1e9;
-    for (int run = 0; run < 3; ++run) {
-      Volume v = sphere;
-      const auto start = std::chrono::steady_clock::now();
-      const Edit e = applyStroke(v, st, dab, remembered);
-      best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-      REQUIRE_FALSE(e.empty());
-    }
-    return best;
-  };
-  const double alone = seconds({}), scanning = seconds(memory);
   const double plain = service::strokeDabVoxels(sphere, st.radius, 1, 1, {});
   const double estimate = service::strokeDabVoxels(sphere, st.radius, 1, 1, memory);
   CHECK(plain == service::brushVoxels(sphere, st.radius));
   CHECK(service::rememberedOverlap(memory, st.radius + sphere.band() + 1) == memory.size());
-  INFO("one dab: " << alone * 1e3 << " ms alone, " << scanning * 1e3 << " ms over 4096 weak remembered dabs; estimate "
-                   << plain << " -> " << estimate << " voxels");
-  // The estimate grows at least as much as the time (which varied from 29 to 93 times between
-  // runs on the loaded VM), and not by orders of magnitude more.
-  CHECK(estimate / plain >= scanning / alone);
-  CHECK(estimate / plain <= 10 * scanning / alone);
+  INFO("estimate " << plain << " -> " << estimate << " voxels");
+  CHECK(estimate / plain >= 29);
+  CHECK(estimate / plain <= 10 * 93);
   // Remembered dabs far from each other (70 vu apart, reach 15): no voxel is under two.
   std::vector<StrokeDab> spread;
   for (int i = 0; i < 64; ++i) spread.push_back({{double(i % 4) * 70, double(i / 4 % 4) * 70, double(i / 16) * 70}, 0.02});
