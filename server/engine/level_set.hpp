@@ -17,6 +17,9 @@
 // thread count. Progress (progress.hpp): the calling thread's Progress is checked throughout
 // (a local tool every few milliseconds; a cancelled one throws Cancelled and changes nothing)
 // and advanced by one unit per local call, one per pass of a global one.
+//
+// Implemented in level_set/, a file per concern (its README.md maps them and says where a new
+// tool goes).
 #pragma once
 
 #include <optional>

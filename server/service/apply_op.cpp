@@ -66,7 +66,7 @@ double cubeVoxels(const Volume& vol, double reach) {
 // pig, 7.1M voxels).
 double passVoxels(const Volume& vol) { return vol.presentBricks() == 0 ? 0 : cubeVoxels(vol, 1e9); }
 
-// Passes of morphology by k vu, as level_set.cpp makes them (applications of at most 1 vu).
+// Passes of morphology by k vu, as engine/level_set/global.cpp makes them (applications of at most 1 vu).
 double morphPasses(double k) { return std::ceil(k - 1e-9); }
 
 OpCost cost(const Volume& vol, const BrushOp& op) { return {brushVoxels(vol, op.params.radius), 1}; }

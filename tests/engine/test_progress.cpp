@@ -63,7 +63,7 @@ TEST_CASE("smoothing on two threads, cancelled in its sub-steps, stops and chang
   Volume v = makeSphere({128, 128, 128}, {64, 64, 64}, 45);
   const std::uint64_t before = digest(v);
   ThreadPool pool(2);
-  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set.cpp). The thread that
+  // The sub-steps are the share from 0.15 to 0.3 of the call (level_set/stroke.cpp). The thread that
   // crosses `at` cancels from its report; while it reports, the other thread's advances skip
   // theirs (progress.hpp), so a reporter descheduled before its cancel (a loaded machine) lets
   // the other run the remaining sub-steps: the cancel then lands in the march, which must

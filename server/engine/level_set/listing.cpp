@@ -1,0 +1,262 @@
+// Lists the band voxels an application moves, with their speeds: each band voxel of the
+// region, its foot point q = p - d grad d (the velocity extension: the speed is read there, so
+// it is constant along normals and phi - t F stays a distance field) and the tool's window at
+// q (a brush's own, or a stroke's SweptWindow), as runs along x in grid index order
+// (internal.hpp: MovedVoxels). With the march, this is most of a dab's time, and it runs once
+// per band voxel, so everything it calls per voxel is in this file or inline in
+// swept_window.hpp (a call per voxel cost 5-10%: the comments below). Built in fixed pieces on
+// the pool, joined in order: the same list for any thread count. A speed set per voxel goes
+// through setSpeed: where a tool whose speed depends on more than the window (a plane, the
+// voxel's own normal) would compute it.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#include "engine/simd_width.hpp"
+#if defined(MARZIPAN_AVX2)
+#include <immintrin.h>
+#endif
+
+#include "engine/level_set/internal.hpp"
+#include "engine/level_set/swept_window.hpp"
+#include "engine/stencil.hpp"
+
+namespace marzipan::level_set {
+
+namespace {
+
+// A local tool checks the caller's Progress (progress.hpp) every so many band voxels.
+constexpr std::size_t kVoxelsPerCheck = std::size_t(1) << 16;
+
+// The unit normal (central differences) and foot point p - d n of grid voxel i at p: the window
+// is read there, so that it is constant along normals (velocity extension).
+struct FootPoint {
+  Vec3 normal, point;
+};
+[[gnu::always_inline]] inline FootPoint footPoint(const DenseGrid& g, std::size_t i, Int3 p) {
+  const Vec3 n =
+      normalized(GradStencil::inArray(g.v.data() + i, 1, std::ptrdiff_t(g.sx), std::ptrdiff_t(g.sxy)).gradient());
+  return {n, Vec3{double(p.x), double(p.y), double(p.z)} - n * double(g.v[i])};
+}
+// footPoint in a call of its own: inlined into collectMoved's loop, it slowed the brush's
+// windows there (a dab: +5% instructions).
+[[gnu::noinline]] FootPoint footPointCall(const DenseGrid& g, std::size_t i, Int3 p) { return footPoint(g, i, p); }
+
+#if defined(MARZIPAN_SSE2)
+// A brush's window at the foot points of two voxels (grid indices i, points p), in the lanes of
+// SSE2 vectors: footPoint's and SweptWindow::at's double operations in their order (the three
+// factors multiplied out even after one is 0, which leaves 0), so the same bits.
+void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], const PreparedDab& d,
+                  double inverseRadius, double w[2]) {
+  const float* a = g.v.data() + i[0];
+  const float* b = g.v.data() + i[1];
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  const __m128d half = _mm_set1_pd(0.5), one = _mm_set1_pd(1.0), zero = _mm_setzero_pd();
+  // GradStencil::inArray(...).gradient(): float differences, then 0.5 * in double.
+  const __m128d gx = _mm_mul_pd(half, _mm_setr_pd(double(a[1] - a[-1]), double(b[1] - b[-1])));
+  const __m128d gy = _mm_mul_pd(half, _mm_setr_pd(double(a[sy] - a[-sy]), double(b[sy] - b[-sy])));
+  const __m128d gz = _mm_mul_pd(half, _mm_setr_pd(double(a[sz] - a[-sz]), double(b[sz] - b[-sz])));
+  // normalized(): l = sqrt(x x + y y + z z), l > 0 ? g / l : 0.
+  const __m128d l = _mm_sqrt_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(gx, gx), _mm_mul_pd(gy, gy)), _mm_mul_pd(gz, gz)));
+  const __m128d positive = _mm_cmpgt_pd(l, zero);
+  const __m128d dist = _mm_setr_pd(double(a[0]), double(b[0]));
+  const __m128d q[3] = {
+      _mm_sub_pd(_mm_setr_pd(p[0].x, p[1].x), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gx, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].y, p[1].y), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gy, l)), dist)),
+      _mm_sub_pd(_mm_setr_pd(p[0].z, p[1].z), _mm_mul_pd(_mm_and_pd(positive, _mm_div_pd(gz, l)), dist))};
+  const __m128d abs = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffff)), invR = _mm_set1_pd(inverseRadius);
+  __m128d weight = _mm_set1_pd(d.weight);
+  for (int axis = 0; axis < 3; ++axis) {
+    // window1(t): t >= 1 ? 0 : (1 - t t)^2.
+    const __m128d t = _mm_mul_pd(_mm_and_pd(_mm_sub_pd(q[axis], _mm_set1_pd(d.center[axis])), abs), invR);
+    const __m128d u = _mm_sub_pd(one, _mm_mul_pd(t, t));
+    weight = _mm_mul_pd(weight, _mm_andnot_pd(_mm_cmpge_pd(t, one), _mm_mul_pd(u, u)));
+  }
+  _mm_storeu_pd(w, weight);
+  for (int k = 0; k < 2; ++k) w[k] = d.roi.contains(p[k]) && w[k] > 0 ? w[k] : 0;
+}
+#endif
+
+// The speed entry `at` of a voxel whose window is w > 0 under motion m (inlined: it runs once
+// per band voxel, as collectMoved's add).
+[[gnu::always_inline]] inline void setSpeed(MovedVoxels& out, std::size_t at, const Motion& m, double w) {
+  const double speed = float(m.speed * w);
+  if (m.kind == Motion::Kind::Curvature) {
+    out.factor[at] = m.dt * speed;
+  } else {
+    out.step[at] = float(m.dt * speed);
+  }
+}
+
+// Sizes the array a list of `count` voxels under m (null: their windows) fills.
+void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
+  if (!m) {
+    out.window.resize(count);
+  } else if (m->kind == Motion::Kind::Curvature) {
+    out.factor.resize(count);
+  } else {
+    out.step.resize(count);
+  }
+}
+
+// A run's push, out of line like SweptWindow::Cursor's destructor (see there).
+[[gnu::noinline]] void pushRun(std::vector<Run>& runs, Run r) { runs.push_back(r); }
+
+// Appends listed voxels to a MovedVoxels: the run being extended and the count, kept out of
+// `out` (in registers) while a loop adds.
+struct MovedAppender {
+  MovedVoxels& out;
+  const Motion* m;
+  Run run{0, 0, 0};
+  std::uint32_t count;
+
+  // Room for `more` voxels.
+  MovedAppender(MovedVoxels& o, const Motion* motion, std::size_t more) : out(o), m(motion), count(o.count) {
+    if (!out.runs.empty()) {
+      run = out.runs.back();
+      out.runs.pop_back();
+    }
+    sizeSpeeds(out, m, count + more);
+  }
+  // Grid voxel i with window w (nothing when w <= 0). Inlined: once per band voxel of a
+  // whole-volume pass, a call cost as much as its body.
+  [[gnu::always_inline]] void add(std::size_t i, double w) {
+    if (w <= 0) return;
+    if (m) {
+      setSpeed(out, count, *m, w);
+    } else {
+      out.window[count] = w;
+    }
+    // Consecutive indices share a row: region lies inside the grid, off its last column.
+    if (run.count != 0 && run.index + run.count == i) {
+      ++run.count;
+    } else {
+      if (run.count != 0) pushRun(out.runs, run);
+      run = {std::uint32_t(i), count, 1};
+    }
+    ++count;
+  }
+  void finish() {
+    if (run.count != 0) out.runs.push_back(run);
+    out.count = count;
+    sizeSpeeds(out, m, count);
+  }
+};
+
+#if defined(MARZIPAN_AVX2)
+// collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):
+// the same voxels, foot points and search (footPoint and lanesAvx2 inlined), so the same list.
+template <bool kAnchored>
+__attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const Box& region, float band,
+                                                      const SweptWindow& window, const BandVoxels& voxels,
+                                                      std::size_t begin, std::size_t end, MovedVoxels& out,
+                                                      const Motion* m, const ProgressShare& progress) {
+  MovedAppender add(out, m, end - begin);
+  SweptWindow::Cursor cursor;
+  for (std::size_t k = begin; k < end; ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p) || !window.reaches(p, cursor)) continue;
+    const FootPoint f = footPoint(g, i, p);
+    add.add(i, window.lanesAvx2<kAnchored>(p, f.point, f.normal, cursor));
+  }
+  add.finish();
+}
+#endif
+
+// The band voxels voxels.index[begin, end) of region that m moves, appended to out with their
+// speeds (the window at each one's foot point; none: W = 1); m null: with their windows instead.
+void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+                  const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
+                  const ProgressShare& progress) {
+#if defined(MARZIPAN_AVX2)
+  if (window && window->searchesAvx2()) {
+    if (window->anchored()) return collectLanesAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);
+    return collectLanesAvx2<false>(g, region, band, *window, voxels, begin, end, out, m, progress);
+  }
+#endif
+  MovedAppender add(out, m, end - begin);
+  SweptWindow::Cursor cursor;
+#if defined(MARZIPAN_SSE2)
+  // A brush's windows two voxels at a time (the square root and divisions of the foot point
+  // are most of a voxel's cost); the voxels are added in the same order. (Four at a time with
+  // AVX2 took as long: gathering the neighbours into lanes cost what the lanes saved.)
+  const PreparedDab* const brush = window ? window->brush() : nullptr;
+  std::size_t pending[2];
+  Int3 pendingPoint[2];
+  int pendingCount = 0;
+#endif
+  for (std::size_t k = begin; k < end; ++k) {
+    if (k % kVoxelsPerCheck == 0) progress.check();
+    const std::size_t i = voxels.index[k];
+    if (!(std::fabs(g.v[i]) < band)) continue;
+    const Int3 p = voxels.point[k];
+    if (!region.contains(p)) continue;
+#if defined(MARZIPAN_SSE2)
+    if (brush) {
+      pending[pendingCount] = i;
+      pendingPoint[pendingCount] = p;
+      if (++pendingCount == 2) {
+        double w[2];
+        brushWindows(g, pending, pendingPoint, *brush, window->inverseRadius(), w);
+        add.add(pending[0], w[0]);
+        add.add(pending[1], w[1]);
+        pendingCount = 0;
+      }
+      continue;
+    }
+#endif
+    double w = 1;
+    if (window) {
+      if (!window->reaches(p, cursor)) continue;
+      const FootPoint f = footPointCall(g, i, p);
+      w = window->at(p, f.point, f.normal, cursor);
+    }
+    add.add(i, w);
+  }
+#if defined(MARZIPAN_SSE2)
+  if (pendingCount == 1) {
+    const FootPoint f = footPointCall(g, pending[0], pendingPoint[0]);
+    add.add(pending[0], window->at(pendingPoint[0], f.point, f.normal, cursor));
+  }
+#endif
+  add.finish();
+}
+
+}  // namespace
+
+void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
+               const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress) {
+  ToolScratch& s = toolScratch();
+  MovedVoxels& moved = s.moved;
+  moved.clear();
+  // The list in pieces on the pool when there are threads and enough voxels to pay for waking
+  // them (the foot point and the window cost more per voxel than a sub-step); joined in order,
+  // the pieces are the list a single pass builds.
+  constexpr std::size_t kListPiece = 8192;
+  const std::size_t listPieces = (voxels.index.size() + kListPiece - 1) / kListPiece;
+  if (pool.threads() > 1 && listPieces >= 2) {
+    if (s.movedPieces.size() < listPieces) s.movedPieces.resize(listPieces);
+    pool.parallelFor(listPieces, [&](std::size_t c) {
+      MovedVoxels& piece = s.movedPieces[c];
+      piece.clear();
+      collectMoved(g, region, band, m, window, voxels, c * kListPiece,
+                   std::min(voxels.index.size(), (c + 1) * kListPiece), piece, progress);
+    });
+    for (std::size_t c = 0; c < listPieces; ++c) moved.append(s.movedPieces[c]);
+  } else {
+    collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
+  }
+}
+
+void withSpeeds(MovedVoxels& moved, const Motion& m) {
+  sizeSpeeds(moved, &m, moved.count);
+  for (std::size_t k = 0; k < moved.count; ++k) setSpeed(moved, k, m, moved.window[k]);
+}
+
+}  // namespace marzipan::level_set

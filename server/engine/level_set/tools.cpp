@@ -1,0 +1,79 @@
+// The speed of each brush tool (../level_set.hpp: Brush): the Motion strokeMotion gives it (F0
+// and its scheme: constant-speed advection for add / remove blob, curvature flow for smooth /
+// sharpen, with their time steps and sub-steps), the rules of its settings, and its one-dab
+// entry point (addBlob ...: a stroke of one dab, stroke.cpp). Motion::speed is signed: > 0
+// moves the surface outward (advection) or runs the flow forward in time (curvature). A new
+// surface tool starts here (README.md says what else it needs).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "engine/errors.hpp"
+#include "engine/level_set/internal.hpp"
+
+namespace marzipan::level_set {
+
+namespace {
+
+// The smoothing brush takes this many such steps per application: one step moves a groove of
+// radius 4 by a few hundredths of a vu, invisible, so a sculptor needed many passes
+// (tests/engine/level_set/test_stroke.cpp, "one smoothing application ... fills a groove").
+constexpr int kSmoothSubsteps = 32;
+// Sharpening runs the flow backwards; |L| <= 1 per voxel keeps noise from blowing up.
+constexpr double kSharpenCurvatureLimit = 1.0;
+
+}  // namespace
+
+Motion strokeMotion(const StrokeSettings& st) {
+  switch (st.tool) {
+    case Brush::AddBlob: return advection(st.strength);
+    case Brush::RemoveBlob: return advection(-st.strength);
+    case Brush::Smooth: return curvatureFlow(st.strength, std::numeric_limits<double>::infinity(), kSmoothSubsteps);
+    case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
+  }
+  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
+}
+
+}  // namespace marzipan::level_set
+
+namespace marzipan {
+
+void checkStrokeSettings(const StrokeSettings& st) {
+  requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
+  requireFinite(st.strength, "strength");
+  if (!(st.strength > 0 && st.strength <= 1))
+    throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
+  if (st.height) {
+    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob)
+      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob and remove_blob");
+    const double most = std::min(st.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
+    if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
+      throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
+  }
+}
+
+namespace {
+
+Edit applyBrush(Volume& vol, Brush tool, const BrushParams& p, ThreadPool& pool) {
+  if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+  const StrokeDab dab{p.center, 1.0};
+  return applyStroke(vol, {tool, p.radius, p.strength}, {&dab, 1}, {}, pool);
+}
+
+}  // namespace
+
+Edit addBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
+  return applyBrush(vol, Brush::AddBlob, p, pool);
+}
+
+Edit removeBlob(Volume& vol, const BrushParams& p, ThreadPool& pool) {
+  return applyBrush(vol, Brush::RemoveBlob, p, pool);
+}
+
+Edit smooth(Volume& vol, const BrushParams& p, ThreadPool& pool) { return applyBrush(vol, Brush::Smooth, p, pool); }
+
+Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool) {
+  return applyBrush(vol, Brush::Sharpen, p, pool);
+}
+
+}  // namespace marzipan
