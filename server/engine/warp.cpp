@@ -1,0 +1,418 @@
+#include "warp.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <utility>
+#include <vector>
+
+#include "dense_grid.hpp"
+#include "errors.hpp"
+#include "progress.hpp"
+#include "redistance.hpp"
+
+namespace marzipan {
+
+namespace {
+
+// The plateau (Velocity::falloff) of snake hook and of the affine warps.
+constexpr double kPlateau = 0.5;
+
+// Shares of a call's progress unit.
+constexpr double kGatherShare = 0.1, kResampleShare = 0.5, kRedistanceShare = 0.3;
+
+// A stationary velocity field with bounded support.
+struct Velocity {
+  enum class Kind { Capsule, Affine };
+  Kind kind = Kind::Capsule;
+  Vec3 anchor;
+  double radius = 1;
+  // Capsule: the segment anchor + [0, 1] * seg, velocity scale * seg * W(rho / radius).
+  Vec3 seg;
+  double segLength2 = 0;
+  double scale = 1;
+  // Affine: A (row-major), inner part of the radius where P = 1.
+  double A[3][3] = {};
+  // The falloff P(t) = 1 for t <= plateau, (1 - u^2)^2 from there to t = 1, u going from 0
+  // to 1. Inside the plateau the field moves as a whole: an affine warp is exact there, and a
+  // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
+  // tentacle was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
+  // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
+  double plateau = 0;
+  double falloff(double t2) const {
+    if (t2 <= plateau * plateau) return 1;
+    const double u = (std::sqrt(t2) - plateau) / (1 - plateau);
+    return (1 - u * u) * (1 - u * u);
+  }
+
+  Vec3 at(Vec3 y) const {
+    const Vec3 r = y - anchor;
+    const double R2 = radius * radius;
+    if (kind == Kind::Capsule) {
+      const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
+      const Vec3 off = r - seg * t;
+      const double rho2 = dot(off, off);
+      if (rho2 >= R2) return {};
+      return seg * (scale * falloff(rho2 / R2));
+    }
+    const double r2 = dot(r, r);
+    if (r2 >= R2) return {};
+    const double p = falloff(r2 / R2);
+    return Vec3{A[0][0] * r.x + A[0][1] * r.y + A[0][2] * r.z, A[1][0] * r.x + A[1][1] * r.y + A[1][2] * r.z,
+                A[2][0] * r.x + A[2][1] * r.y + A[2][2] * r.z} *
+           p;
+  }
+
+  // Whether y lies in the support's interior (elsewhere v = 0 and the flow leaves y alone).
+  bool moves(Vec3 y) const {
+    const Vec3 r = y - anchor;
+    if (kind == Kind::Capsule) {
+      const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
+      const Vec3 off = r - seg * t;
+      return dot(off, off) < radius * radius;
+    }
+    return dot(r, r) < radius * radius;
+  }
+
+  // An upper bound of |grad v| (max |W'| = 8 / (3 sqrt 3) for W(t) = (1 - t^2)^2).
+  double lipschitz() const {
+    constexpr double kMaxSlope = 8 / (3 * std::numbers::sqrt3);
+    if (kind == Kind::Capsule) return scale * std::sqrt(segLength2) * kMaxSlope / ((1 - plateau) * radius);
+    double frobenius = 0;
+    for (const auto& row : A)
+      for (const double a : row) frobenius += a * a;
+    return std::sqrt(frobenius) * (1 + kMaxSlope / (1 - plateau));
+  }
+
+  int substeps() const { return std::max(1, int(std::ceil(lipschitz() / kWarpStretchPerStep))); }
+
+  // The support's bounding box.
+  Box support() const {
+    if (kind == Kind::Capsule) {
+      Box b = boxAround(anchor, {radius, radius, radius});
+      const Box e = boxAround(anchor + seg, {radius, radius, radius});
+      for (int a = 0; a < 3; ++a) {
+        b.lo[a] = std::min(b.lo[a], e.lo[a]);
+        b.hi[a] = std::max(b.hi[a], e.hi[a]);
+      }
+      return b;
+    }
+    return boxAround(anchor, {radius, radius, radius});
+  }
+
+  // The flow for unit time from y, forward (+v) or backward (-v), in n midpoint sub-steps.
+  Vec3 flow(Vec3 y, int n, double direction) const {
+    const double dt = direction / n;
+    for (int i = 0; i < n; ++i) {
+      const Vec3 mid = y + at(y) * (0.5 * dt);
+      y = y + at(mid) * dt;
+    }
+    return y;
+  }
+};
+
+// Trilinear interpolation of g at p; +band off the grid (the grid reaches past the support, and
+// off the domain the field is air).
+double trilinear(const DenseGrid& g, Vec3 p, float band) {
+  const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
+  const double fx = std::floor(q.x), fy = std::floor(q.y), fz = std::floor(q.z);
+  const long ix = long(fx), iy = long(fy), iz = long(fz);
+  if (ix < 0 || iy < 0 || iz < 0 || ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z) return band;
+  const double tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
+  const float* c = g.v.data() + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
+  const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
+  const double c00 = lerp(c[0], c[1], tx), c10 = lerp(c[g.sx], c[g.sx + 1], tx);
+  const double c01 = lerp(c[g.sxy], c[g.sxy + 1], tx), c11 = lerp(c[g.sxy + g.sx], c[g.sxy + g.sx + 1], tx);
+  return lerp(lerp(c00, c10, ty), lerp(c01, c11, ty), tz);
+}
+
+// The box of the bricks where vol and base differ (empty when none): what earlier calls of the
+// stroke changed.
+Box changedSinceBase(const Volume& vol, const Volume& base) {
+  Box out{{0, 0, 0}, {0, 0, 0}};
+  bool any = false;
+  const Int3 n = vol.brickDims();
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        float uv = 0, ub = 0;
+        const Int3 b{x, y, z};
+        const float* dv = vol.brickData(b, &uv);
+        const float* db = base.brickData(b, &ub);
+        if (dv == db && (dv || uv == ub)) continue;
+        const Box bb = Bricks::box(b);
+        if (!any) {
+          out = bb;
+          any = true;
+        }
+        for (int a = 0; a < 3; ++a) {
+          out.lo[a] = std::min(out.lo[a], bb.lo[a]);
+          out.hi[a] = std::max(out.hi[a], bb.hi[a]);
+        }
+      }
+  return out.intersect(vol.domain());
+}
+
+Box unite(const Box& a, const Box& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  Box u;
+  for (int i = 0; i < 3; ++i) {
+    u.lo[i] = std::min(a.lo[i], b.lo[i]);
+    u.hi[i] = std::max(a.hi[i], b.hi[i]);
+  }
+  return u;
+}
+
+struct WarpScratch {
+  DenseGrid base, warped;
+};
+
+WarpScratch& warpScratch() {
+  thread_local WarpScratch s;
+  return s;
+}
+
+// vol becomes base warped by the flow of v (warp.hpp).
+Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& pool) {
+  const float band = base.band();
+  // As in applyStroke: a voxel band + 1 or more from every changed one keeps its distance; one
+  // more voxel for the kept-voxel test at the region's edge and the stencils.
+  const int reach = int(std::ceil(band + 1)) - 1;
+  const int margin = reach + 2;
+  const Box work = v.support().intersect(vol.domain());
+  const int n = v.substeps();
+
+  const ProgressShare share{Progress::current(), 1};
+  WarpScratch& s = warpScratch();
+  const Box gridBox = work.grown(margin);
+  s.base.gatherFrom(base, gridBox, share.part(kGatherShare), pool);
+  s.warped.box = s.base.box;
+  s.warped.size = s.base.size;
+  s.warped.sx = s.base.sx;
+  s.warped.sxy = s.base.sxy;
+  s.warped.v.assign(s.base.v.begin(), s.base.v.end());
+
+  // Each slice z of `work` resamples its voxels and notes the box of those that changed.
+  const int slices = work.size().z;
+  std::vector<Box> changed(std::size_t(std::max(0, slices)));
+  const ProgressShare resample = share.part(kResampleShare);
+  pool.parallelFor(std::size_t(std::max(0, slices)), [&](std::size_t i) {
+    resample.check();
+    const int z = work.lo.z + int(i);
+    Box c{{0, 0, 0}, {0, 0, 0}};
+    bool any = false;
+    for (int y = work.lo.y; y < work.hi.y; ++y)
+      for (int x = work.lo.x; x < work.hi.x; ++x) {
+        const Vec3 p{double(x), double(y), double(z)};
+        if (!v.moves(p)) continue;
+        const std::size_t k = s.warped.index({x, y, z});
+        const float value = float(trilinear(s.base, v.flow(p, n, -1), band));
+        if (value == s.base.v[k]) continue;
+        s.warped.v[k] = value;
+        const Box one{{x, y, z}, {x + 1, y + 1, z + 1}};
+        c = any ? unite(c, one) : one;
+        any = true;
+      }
+    changed[i] = any ? c : Box{};
+    resample.advance(1.0 / slices);
+  });
+  Box moved{};
+  for (const Box& c : changed) moved = unite(moved, c);
+
+  // The changed voxels next to the zero set are the sources of the redistance. phi0(X(x)) is
+  // not a distance where the map stretches or squeezes, and central differences of the voxels
+  // cannot say by how much where it squeezes the band to a voxel or two: the gradient comes
+  // from phi0 o X at x +- kSlopeStep instead, and the value is phi1 / |grad phi1|, bounded by
+  // the crossings on the voxel's edges as the redistance bounds its own normalisation.
+  constexpr double kSlopeStep = 0.5;
+  // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
+  // them: every voxel the flow moves within a voxel of the changed ones is looked at.
+  if (!moved.empty()) moved = moved.grown(1).intersect(work);
+  const int movedSlices = moved.size().z;
+  std::vector<std::vector<std::pair<std::size_t, float>>> kept(std::size_t(std::max(0, moved.size().z)));
+  pool.parallelFor(std::size_t(std::max(0, movedSlices)), [&](std::size_t i) {
+    resample.check();
+    const int z = moved.lo.z + int(i);
+    auto& out = kept[i];
+    for (int y = moved.lo.y; y < moved.hi.y; ++y)
+      for (int x = moved.lo.x; x < moved.hi.x; ++x) {
+        const Vec3 p{double(x), double(y), double(z)};
+        if (!v.moves(p)) continue;
+        const std::size_t k = s.warped.index({x, y, z});
+        const float value = s.warped.v[k];
+        const bool neg = value < 0;
+        double bound = 1;
+        for (int a = 0; a < 3; ++a)
+          for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
+            const float nb = s.warped.v[j];
+            if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
+          }
+        if (bound == 1 && value != 0) continue;  // not next to the zero set
+        double g2 = 0;
+        for (int a = 0; a < 3; ++a) {
+          Vec3 lo = p, hi = p;
+          lo[a] -= kSlopeStep;
+          hi[a] += kSlopeStep;
+          const double slope = (trilinear(s.base, v.flow(hi, n, -1), band) - trilinear(s.base, v.flow(lo, n, -1), band)) /
+                               (2 * kSlopeStep);
+          g2 += slope * slope;
+        }
+        const double len = std::sqrt(g2);
+        const double mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
+        out.emplace_back(k, float(std::copysign(mag, double(value))));
+      }
+  });
+  for (const auto& slice : kept)
+    for (const auto& [k, value] : slice) s.warped.v[k] = value;
+
+  Box region{};
+  if (!moved.empty()) {
+    region = moved.grown(reach).intersect(vol.domain());
+    const Box resetBoxes[] = {region};
+    const Box movedBoxes[] = {moved};
+    RedistanceOptions options;
+    options.resetBoxes = resetBoxes;
+    options.movedBoxes = movedBoxes;
+    options.normalizeKept = false;
+    options.progress = share.part(kRedistanceShare);
+    redistanceRegion(s.warped, region, band, Outside::Source, options, pool);
+  }
+  share.check();  // the last check: nothing below stops part way
+
+  // Earlier calls of the stroke may have changed bricks beyond this region: base's values go
+  // back there.
+  const Box earlier = changedSinceBase(vol, base);
+  Edit edit;
+  if (earlier.empty() || unite(region, earlier) == region) {
+    if (!region.empty()) edit.append(vol.scatter(region, s.warped.v.data(), s.warped.box, pool), region);
+  } else {
+    const Box all = unite(region, earlier);
+    DenseGrid out;
+    out.gatherFrom(base, all, {}, pool);
+    for (int z = region.lo.z; z < region.hi.z; ++z)
+      for (int y = region.lo.y; y < region.hi.y; ++y)
+        std::copy_n(&s.warped.v[s.warped.index({region.lo.x, y, z})], region.size().x, &out.v[out.index({region.lo.x, y, z})]);
+    edit.append(vol.scatter(all, out.v.data(), out.box, pool), all);
+  }
+  share.advance(1 - kGatherShare - kResampleShare - kRedistanceShare);
+  return edit;
+}
+
+void checkBase(const Volume& vol, const Volume& base) {
+  if (!(vol.dims() == base.dims()) || vol.band() != base.band())
+    throw EngineError(ErrorKind::InvalidArgument, "base", "must have the volume's dimensions and band");
+}
+
+void checkAnchor(const Volume& vol, Vec3 anchor) {
+  if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
+  const Int3 n = vol.dims();
+  for (int a = 0; a < 3; ++a)
+    if (!(anchor[a] >= 0 && anchor[a] <= n[a] - 1))
+      throw EngineError(ErrorKind::OutOfDomain, "anchor", "must lie in the volume");
+}
+
+void checkRadius(double radius) { requireRange(radius, kMinWarpRadius, kMaxWarpRadius, "radius"); }
+
+Vec3 unitAxis(Vec3 axis) {
+  if (!isFinite(axis) || !(length(axis) > 1e-9))
+    throw EngineError(ErrorKind::InvalidArgument, "axis", "must be a finite non-zero vector");
+  return normalized(axis);
+}
+
+Velocity affine(Vec3 anchor, double radius) {
+  Velocity v;
+  v.kind = Velocity::Kind::Affine;
+  v.anchor = anchor;
+  v.radius = radius;
+  v.plateau = kPlateau;
+  return v;
+}
+
+Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double plateau, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  checkRadius(radius);
+  if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
+  if (!(length(d) <= kMaxWarpTravelPerRadius * radius))
+    throw EngineError(ErrorKind::TooLarge, "d", "must be at most 8 radii long");
+  Velocity v;
+  v.anchor = anchor;
+  v.radius = radius;
+  v.seg = d;
+  v.segLength2 = dot(d, d);
+  v.plateau = plateau;
+  // The anchor must land on anchor + d: along the segment v = scale * d, so scale 1 lands it up
+  // to rounding; a secant search on the scale would correct a field that did not.
+  const Vec3 target = anchor + d;
+  const auto miss = [&](double scale) {
+    Velocity w = v;
+    w.scale = scale;
+    return dot(w.flow(anchor, w.substeps(), 1) - target, normalized(d));
+  };
+  if (v.segLength2 > 0) {
+    double s0 = 1, m0 = miss(s0);
+    double s1 = 1.1, m1 = miss(s1);
+    for (int i = 0; i < 16 && std::fabs(m0) > 0.01 * kWarpAnchorTolerance && m1 != m0; ++i) {
+      const double s2 = s1 - m1 * (s1 - s0) / (m1 - m0);
+      s0 = s1, m0 = m1, s1 = s2, m1 = miss(s2);
+      if (std::fabs(m1) < std::fabs(m0)) std::swap(s0, s1), std::swap(m0, m1);
+    }
+    v.scale = s0;
+    Velocity w = v;
+    if (!(length(w.flow(anchor, w.substeps(), 1) - target) <= kWarpAnchorTolerance))
+      throw EngineError(ErrorKind::InvalidArgument, "d", "the anchor cannot be carried to its target");
+  }
+  return applyWarp(vol, base, v, pool);
+}
+
+}  // namespace
+
+Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
+  return grabWith(vol, base, anchor, d, radius, 0, pool);
+}
+
+Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
+  if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
+  const Volume base = vol;
+  return grabWith(vol, base, anchor, target - anchor, radius, kPlateau, pool);
+}
+
+Edit twist(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double angle, double radius, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  checkRadius(radius);
+  const Vec3 n = unitAxis(axis);
+  requireRange(angle, -2 * std::numbers::pi, 2 * std::numbers::pi, "angle");
+  Velocity v = affine(anchor, radius);
+  // angle * [n]x: the cross product n x r.
+  const double m[3][3] = {{0, -n.z, n.y}, {n.z, 0, -n.x}, {-n.y, n.x, 0}};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) v.A[i][j] = angle * m[i][j];
+  return applyWarp(vol, base, v, pool);
+}
+
+Edit localScale(Volume& vol, const Volume& base, Vec3 anchor, double factor, double radius, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  checkRadius(radius);
+  requireRange(factor, 0.25, 4, "factor");
+  Velocity v = affine(anchor, radius);
+  for (int i = 0; i < 3; ++i) v.A[i][i] = std::log(factor);
+  return applyWarp(vol, base, v, pool);
+}
+
+Edit pinch(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double amount, double radius, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  checkRadius(radius);
+  const Vec3 n = unitAxis(axis);
+  requireRange(amount, -1, 1, "amount");
+  Velocity v = affine(anchor, radius);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) v.A[i][j] = -amount * ((i == j ? 1 : 0) - n[i] * n[j]);
+  return applyWarp(vol, base, v, pool);
+}
+
+}  // namespace marzipan

@@ -1,0 +1,86 @@
+// Warp scenarios (engine/warp.hpp): a grab message on the 256^3 sphere at two drag lengths, and
+// a snake hook move beside an add-blob dab of the same radius.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "bench.hpp"
+#include "engine/level_set.hpp"
+#include "engine/solids.hpp"
+#include "engine/warp.hpp"
+
+namespace marzipan::bench {
+
+namespace {
+
+struct WarpSphere {
+  Int3 dims;
+  Vec3 centre;
+  double radius;
+};
+
+WarpSphere warpSphere(const Options& opt) {
+  return opt.quick ? WarpSphere{{96, 96, 96}, {48, 48, 48}, 30} : WarpSphere{{256, 256, 256}, {128, 128, 128}, 100};
+}
+
+Vec3 randomUnit(std::mt19937& rng) {
+  std::normal_distribution<double> gauss;
+  return normalized({gauss(rng), gauss(rng), gauss(rng)});
+}
+
+}  // namespace
+
+// One grab message of a stroke under way: the volume already holds the stroke's previous
+// message (the pointer 90% as far along), and this one moves the anchor (a random point of the
+// sphere) `pointer` vu in a random direction, from the stroke's base. Radius 20; the targets are
+// <= 8 ms at 20 vu and <= 25 ms at 60 vu on 2 threads (issue 29 §5).
+MARZIPAN_BENCH("grab") {
+  const WarpSphere s = warpSphere(opt);
+  ThreadPool pool(opt.threads);
+  const Volume base = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{7};
+  const double r = 20;
+  for (const double pointer : opt.quick ? std::vector<double>{10} : std::vector<double>{20, 60}) {
+    Volume v = base;
+    Vec3 anchor, d;
+    const Timing t = measure(
+        opt.quick ? 3 : 31,
+        [&] {
+          anchor = s.centre + randomUnit(rng) * s.radius;
+          d = randomUnit(rng) * pointer;
+          v = base;
+          grab(v, base, anchor, d * 0.9, r, pool);
+        },
+        [&] { grab(v, base, anchor, d, r, pool); });
+    emit("grab", opt.threads, t, {{"radius", r}, {"pointer_vu", pointer}});
+  }
+}
+
+// A snake hook move of 2 vu from a random point of the sphere against an add-blob dab there,
+// both radius 8: the target is <= 2x the dab.
+MARZIPAN_BENCH("snake_hook") {
+  const WarpSphere s = warpSphere(opt);
+  ThreadPool pool(opt.threads);
+  const Volume sphere = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{9};
+  const double r = 8;
+  Volume v = sphere;
+  Vec3 anchor, step;
+  const int reps = opt.quick ? 5 : 101;
+  const Timing hook = measure(
+      reps,
+      [&] {
+        const Vec3 n = randomUnit(rng);
+        anchor = s.centre + n * s.radius;
+        step = normalized(n + randomUnit(rng) * 0.5) * 2.0;
+      },
+      [&] { snakeHook(v, anchor, anchor + step, r, pool); });
+  v = sphere;
+  BrushParams p{{}, r, 1};
+  const Timing dab = measure(
+      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
+  emit("snake_hook", opt.threads, hook,
+       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", hook.median_ms / dab.median_ms}});
+}
+
+}  // namespace marzipan::bench
