@@ -1,4 +1,4 @@
-// Warp tools (docs/method.md §3.4): grab, snake hook, twist, local scale, pinch. Sign and units
+// Warp tools (docs/method.md §3, Warps): grab, snake hook, twist, local scale, pinch. Sign and units
 // as in volume.hpp (vu; d < 0 inside).
 //
 // A warp moves the solid by the flow of a stationary velocity field v for unit time. The new
@@ -54,8 +54,9 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
           ThreadPool& pool = ThreadPool::serial());
 
 // Snake hook: one small move of a path-dependent stroke: grab of vol itself (its own base) from
-// the current anchor to `target`; the caller then takes target as the next anchor. A drag is
-// the composition of its moves, so a long one pulls out a tentacle along the pointer's path.
+// the current anchor to `target`, with a falloff that is 1 up to half the radius (the tip moves
+// as a whole and keeps its thickness); the caller then takes target as the next anchor. A drag
+// is the composition of its moves, so a long one pulls out a tentacle along the pointer's path.
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());
 
 // Affine warps: v(x) = P(|x - anchor| / radius) * A (x - anchor), P = 1 up to half the radius
