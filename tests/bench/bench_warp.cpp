@@ -1,4 +1,4 @@
-// Warp scenarios (engine/warp.hpp): a grab message on the 256^3 sphere at two drag lengths, and
+// Warp scenarios (engine/level_set.hpp, warps): a grab message on the 256^3 sphere at two drag lengths, and
 // a snake hook move beside an add-blob dab of the same radius.
 #include <cmath>
 #include <random>
@@ -7,7 +7,6 @@
 #include "bench.hpp"
 #include "engine/level_set.hpp"
 #include "engine/solids.hpp"
-#include "engine/warp.hpp"
 
 namespace marzipan::bench {
 

@@ -6,12 +6,12 @@
 #include <vector>
 
 #include "engine/errors.hpp"
+#include "engine/level_set.hpp"
 #include "engine/measures.hpp"
 #include "engine/progress.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
-#include "engine/warp.hpp"
-#include "support.hpp"
+#include "../support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::test;

@@ -1,4 +1,7 @@
-#include "warp.hpp"
+// The warp resampler and its velocity fields (../level_set.hpp, warps; docs/method.md §3,
+// Warps). One file: the fields are evaluated inline in the per-voxel integration, where a call
+// into another file per evaluation would cost more than the evaluation.
+#include "engine/level_set.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,10 +10,10 @@
 #include <utility>
 #include <vector>
 
-#include "dense_grid.hpp"
-#include "errors.hpp"
-#include "progress.hpp"
-#include "redistance.hpp"
+#include "engine/dense_grid.hpp"
+#include "engine/errors.hpp"
+#include "engine/progress.hpp"
+#include "engine/redistance.hpp"
 
 namespace marzipan {
 
@@ -281,7 +284,7 @@ WarpScratch& warpScratch() {
   return s;
 }
 
-// vol becomes base warped by the flow of v (warp.hpp).
+// vol becomes base warped by the flow of v (../level_set.hpp, warps).
 Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& pool) {
   const float band = base.band();
   // As in applyStroke: a voxel band + 1 or more from every changed one keeps its distance; one
