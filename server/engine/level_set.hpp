@@ -59,7 +59,7 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // of the cells they touch) is redistanced: elsewhere every voxel keeps its bits, and a group of
 // dabs with nothing left to add changes nothing at all.
 //
-// A stroke with a height H (add and remove blob only) moves each point of the surface by H
+// A stroke with a height H (add and remove blob, inflate and clay) moves each point of the surface by H
 // times that excess window, so a stroke with memory raises (lowers) the surface under a dab's
 // centre by H, however its dabs were grouped. H may be several vu, more than the band is wide:
 // the application runs in ceil(H * largest excess) sub-steps of at most 1 vu, each evolved and
@@ -71,10 +71,21 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // window is constant along n over the height (a flank of a ridge reads its own distance from
 // the ridge's line, not a shorter one). The surface moves as if carried along n (speed times
 // n . its own normal, 0 where it faces away): then the moves of several applications add up
-// exactly, in whatever pieces they come. The redistances of a stroke with a height do not
+// exactly, in whatever pieces they come. A dab without a normal reads each voxel's own n, and
+// then q moves back by all of (q - c).n, unclamped: q projected along n onto the plane through c,
+// which a point moving along its own normal keeps (a ridge's flanks tilt n as it rises, so the
+// pieces add up less exactly than along one normal: test_tools.cpp, inflate). The redistances of a stroke with a height do not
 // normalize the kept voxels (that crept a crest outward message by message). Without a height, add and
 // remove move the surface strength vu per application as before (bit for bit).
-enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen };
+//
+// The surface tools a sculptor knows by other names are these motions with rules of their own:
+// - Inflate: every point moves outward along its own normal. Without a height that is what add
+//   blob does (advection moves each point along its own normal), bit for bit; with a height each
+//   dab's normal must be zero, so the window is anchored along each voxel's own normal.
+// - Clay: add blob with a height under the palette's name: every point rises along the dab's
+//   normal, which the caller sets to the stroke's average normal at its start (a clay dab with
+//   a height must have one; without a height it is add blob, bit for bit).
+enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay };
 
 struct StrokeSettings {
   StrokeSettings() = default;
@@ -85,7 +96,7 @@ struct StrokeSettings {
   double radius = 8;    // as BrushParams::radius
   double strength = 1;  // as BrushParams::strength; unused by add / remove blob with a height
   // vu, in (0, min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight)] (values.hpp); add
-  // and remove blob only.
+  // and remove blob, inflate and clay only.
   std::optional<double> height;
 };
 
@@ -96,14 +107,15 @@ struct StrokeDab {
   Vec3 center;        // vu; the dab's ROI must meet the domain
   double weight = 1;  // in (0, 1]: scales the dab's window (a pen's pressure)
   // A stroke with a height only: the unit outward normal of the surface at the centre as it was
-  // when the stroke began, the direction the window is anchored along; zero: each voxel's own.
+  // when the stroke began, the direction the window is anchored along; zero: each voxel's own
+  // (inflate's only choice; clay's must be a unit vector).
   Vec3 normal;
 };
 
 // Throws EngineError (field "radius", "strength" or "height") for settings applyStroke would
 // refuse whatever its dabs.
 void checkStrokeSettings(const StrokeSettings& st);
-// Throws EngineError (field "center", "weight", "radius", "strength" or "height") for a dab that
+// Throws EngineError (field "center", "weight", "normal", "radius", "strength" or "height") for a dab that
 // applyStroke would refuse; the volume is not read beyond its domain.
 void checkStrokeDab(const Volume& vol, const StrokeSettings& st, const StrokeDab& dab);
 // Applies `dabs` as one application (nothing when empty). Every dab is checked before

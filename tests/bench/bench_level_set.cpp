@@ -153,6 +153,48 @@ MARZIPAN_BENCH("dab") {
   }
 }
 
+// The surface tools' dabs (level_set.hpp, Brush) at random points of the sphere, next to an
+// add-blob dab of the same radius at the same points (the target: within 2x). A row per tool:
+// inflate with a height of 1 vu (one sub-step, the distance an add-blob dab at strength 1 moves)
+// and of 4 vu (next to clay, add blob along the dab's normal, at the same height).
+MARZIPAN_BENCH("surface_dab") {
+  const Sphere s = benchSphere(opt);
+  ThreadPool pool(opt.threads);
+  Volume v = makeSphere(s.dims, s.centre, s.radius);
+  const int reps = opt.quick ? 5 : 101;
+  for (const double r : opt.quick ? std::vector<double>{8} : std::vector<double>{8, 15}) {
+    // Each tool at the same sequence of points, on a fresh copy of the sphere each time (the
+    // copy shares its bricks: only the ones a dab writes are copied, outside the timing).
+    const auto timeTool = [&](const StrokeSettings& st, bool withNormal) {
+      std::mt19937 rng{11};
+      std::normal_distribution<double> gauss;
+      Volume work = v;
+      StrokeDab dab;
+      return measure(
+          reps,
+          [&] {
+            const Vec3 n = normalized({gauss(rng), gauss(rng), gauss(rng)});
+            dab = {s.centre + n * s.radius, 1.0, withNormal ? n : Vec3{}};
+            work = v;
+          },
+          [&] { applyStroke(work, st, {&dab, 1}, {}, pool); });
+    };
+    const Timing add = timeTool({Brush::AddBlob, r, 1}, false);
+    const auto row = [&](const char* tool, const Timing& t, const Timing& base, const char* baseName,
+                         nlohmann::ordered_json extra) {
+      extra["tool"] = tool;
+      extra["radius"] = r;
+      extra[std::string(baseName) + "_ms"] = base.median_ms;
+      extra[std::string("ratio_to_") + baseName] = t.median_ms / base.median_ms;
+      extra[std::string("cpu_ratio_to_") + baseName] = t.cpu_median_ms / base.cpu_median_ms;
+      emit("surface_dab", opt.threads, t, std::move(extra));
+    };
+    row("inflate", timeTool({Brush::Inflate, r, 1, 1.0}, false), add, "add_blob", {{"height", 1}});
+    const Timing clay4 = timeTool({Brush::Clay, r, 1, 4.0}, true);
+    row("inflate", timeTool({Brush::Inflate, r, 1, 4.0}, false), clay4, "clay", {{"height", 4}});
+  }
+}
+
 // n dabs r/4 apart along a random line through a random point of the sphere, each carrying the
 // sphere's normal there (the starting normal a stroke with a height reads; others ignore it).
 class DabLine {

@@ -139,5 +139,9 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
 // --- tools.cpp -----------------------------------------------------------------------------
 // The Motion of each brush tool at its settings' strength (throws EngineError "tool" for a value that is none).
 Motion strokeMotion(const StrokeSettings& st);
+// A stroke's height signed by its tool (> 0 raises, < 0 lowers), 0 without one.
+double signedHeight(const StrokeSettings& st);
+// Throws EngineError for a dab the tool's own rules refuse (inflate's and clay's normals).
+void checkToolDab(const StrokeSettings& st, const StrokeDab& d);
 
 }  // namespace marzipan::level_set

@@ -45,6 +45,7 @@ void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const St
     if (!(d.weight > 0 && d.weight <= 1)) throw EngineError(ErrorKind::InvalidArgument, "weight", "must be in (0, 1]");
     if (!isFinite(d.normal) || (d.normal != Vec3{} && !(std::fabs(dot(d.normal, d.normal) - 1) <= 1e-6)))
       throw EngineError(ErrorKind::InvalidArgument, "normal", "must be a unit vector or zero");
+    level_set::checkToolDab(st, d);
     if (boxAround(d.center, {st.radius, st.radius, st.radius}).intersect(vol.domain()).empty())
       throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
   }
@@ -60,7 +61,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
                  std::span<const StrokeDab> memory, ThreadPool& pool) {
   checkStroke(vol, st, dabs);
   // With a height: the signed height, the window's anchor and each sub-step's speed scale.
-  const double height = !st.height ? 0 : st.tool == Brush::AddBlob ? *st.height : -*st.height;
+  const double height = level_set::signedHeight(st);
   const float band = vol.band();
   const double r = st.radius;
   // The surface moves only inside the dabs' ROIs (W = 0 on their boundaries, voxels outside

@@ -52,8 +52,9 @@ struct PreparedDab {
 // largest window weight * W(q) over the message's dabs whose ROI holds p, less the largest the
 // stroke already applied there (memory), or 0. With one dab and no memory it is W(q) itself.
 // anchor: 0, or a stroke's signed height (+H add, -H remove): each dab's W is then read at q
-// moved back along the dab's normal (else n) by (q - c).normal clamped between 0 and the anchor,
-// and scaled by normal . n (level_set.hpp, strokes).
+// moved back along the dab's normal by (q - c).normal clamped between 0 and the anchor (a dab
+// without a normal: along n by all of (q - c).n), and scaled by normal . n (level_set.hpp,
+// strokes).
 #if defined(MARZIPAN_SSE2)
 // Dabs as lanes, one array per quantity, in a given order, followed by kPad dabs that are never
 // counted (a lane at or past its list's end is masked by its position), so that two or four
@@ -579,7 +580,8 @@ class SweptWindow {
       w *= std::max(0.0, dot(axis, n));
       if (!(w > best)) return w;
       const double along = dot(q - d.center, axis);
-      x = q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
+      x = d.normal == Vec3{} ? q - axis * along
+                             : q - axis * (anchor_ > 0 ? std::clamp(along, 0.0, anchor_) : std::clamp(along, anchor_, 0.0));
     }
     for (int a = 0; a < 3 && w > best; ++a) w *= window1(std::fabs(x[a] - d.center[a]) * inverseRadius_);
     return w;

@@ -26,12 +26,27 @@ constexpr double kSharpenCurvatureLimit = 1.0;
 
 Motion strokeMotion(const StrokeSettings& st) {
   switch (st.tool) {
-    case Brush::AddBlob: return advection(st.strength);
+    case Brush::AddBlob:
+    case Brush::Inflate:
+    case Brush::Clay: return advection(st.strength);
     case Brush::RemoveBlob: return advection(-st.strength);
     case Brush::Smooth: return curvatureFlow(st.strength, std::numeric_limits<double>::infinity(), kSmoothSubsteps);
     case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
   }
   throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
+}
+
+double signedHeight(const StrokeSettings& st) {
+  if (!st.height) return 0;
+  return st.tool == Brush::RemoveBlob ? -*st.height : *st.height;
+}
+
+void checkToolDab(const StrokeSettings& st, const StrokeDab& d) {
+  if (!st.height) return;
+  if (st.tool == Brush::Inflate && d.normal != Vec3{})
+    throw EngineError(ErrorKind::InvalidArgument, "normal", "inflate moves each point along its own normal: must be zero");
+  if (st.tool == Brush::Clay && d.normal == Vec3{})
+    throw EngineError(ErrorKind::InvalidArgument, "normal", "clay with a height needs the stroke's normal");
 }
 
 }  // namespace marzipan::level_set
@@ -44,8 +59,8 @@ void checkStrokeSettings(const StrokeSettings& st) {
   if (!(st.strength > 0 && st.strength <= 1))
     throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
   if (st.height) {
-    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob)
-      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob and remove_blob");
+    if (st.tool != Brush::AddBlob && st.tool != Brush::RemoveBlob && st.tool != Brush::Inflate && st.tool != Brush::Clay)
+      throw EngineError(ErrorKind::InvalidArgument, "height", "is only for add_blob, remove_blob, inflate and clay");
     const double most = std::min(st.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
     if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
       throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");

@@ -15,45 +15,10 @@
 #include "engine/redistance.hpp"
 #include "engine/shapes.hpp"
 #include "engine/solids.hpp"
+#include "strokes.hpp"
 
 using namespace marzipan;
-
-namespace {
-
-// A slab whose top face is y = 16, long in x.
-Volume strokeSlab() { return makeBox({80, 40, 40}, {39.5, 12, 19.5}, {36, 4, 16}); }
-
-// Dabs along the slab's top from x0 to x1 at z = 19.5, `spacing` apart, with the top's normal.
-std::vector<StrokeDab> strokeLine(double x0, double x1, double spacing) {
-  std::vector<StrokeDab> dabs;
-  const int n = int(std::round((x1 - x0) / spacing));
-  for (int i = 0; i <= n; ++i) dabs.push_back({{x0 + (x1 - x0) * i / n, 16, 19.5}, 1.0, {0, 1, 0}});
-  return dabs;
-}
-
-// Sends the dabs as `messages` consecutive applications of one stroke that remembers them.
-void sendStroke(Volume& v, const StrokeSettings& st, const std::vector<StrokeDab>& dabs, std::size_t messages,
-                bool accumulate = false) {
-  std::vector<StrokeDab> memory;
-  for (std::size_t m = 0; m < messages; ++m) {
-    const std::size_t lo = dabs.size() * m / messages, hi = dabs.size() * (m + 1) / messages;
-    const std::span<const StrokeDab> part(dabs.data() + lo, hi - lo);
-    applyStroke(v, st, part, memory);
-    if (!accumulate) memory.insert(memory.end(), part.begin(), part.end());
-  }
-}
-
-// Height of the surface above y = 16 at (x, z = 19.5), by bisection of the interpolant.
-double ridgeHeight(const Volume& v, double x) {
-  double lo = 10, hi = 30;  // inside, outside
-  for (int i = 0; i < 50; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (v.sample({x, mid, 19.5}) < 0 ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi) - 16;
-}
-
-}  // namespace
+using namespace marzipan::test_strokes;
 
 TEST_CASE("a brush is the stroke of its dab, bit for bit, whichever path computes the window", "[level_set][stroke]") {
   // addBlob is applyStroke with one dab, which takes the brush's own window (two foot points at
@@ -168,20 +133,6 @@ TEST_CASE("a stroke's application leaves every voxel as it was where it adds not
   CHECK(changedBehind == 0);
 }
 
-namespace {
-
-// Distance from `centre` along `dir` (unit) to the surface, by bisection of the interpolant
-// between `inside` and `outside` vu.
-double surfaceAlong(const Volume& v, Vec3 centre, Vec3 dir, double inside, double outside) {
-  for (int i = 0; i < 50; ++i) {
-    const double mid = 0.5 * (inside + outside);
-    (v.sample(centre + dir * mid) < 0 ? inside : outside) = mid;
-  }
-  return 0.5 * (inside + outside);
-}
-
-}  // namespace
-
 TEST_CASE("a stroke with a height moves the surface under its dab by that height", "[level_set][stroke][height]") {
   // A sphere of radius 30; one dab on its surface (off the grid's axes), radius 8.
   const Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2});
@@ -280,7 +231,7 @@ TEST_CASE("strokes refuse bad dabs and change nothing", "[level_set][stroke][err
     CHECK_THROWS_AS(applyStroke(v, st, dabs, {}), EngineError);
   }
   CHECK_THROWS_AS(applyStroke(v, {Brush::Smooth, 6, 0}, {&good, 1}, {}), EngineError);
-  // A height is for add and remove blob only, in (0, min(radius / 2, 64)] vu.
+  // A height is for add and remove blob, inflate and clay only, in (0, min(radius / 2, 64)] vu.
   for (const auto& [tool, height] : std::vector<std::pair<Brush, double>>{{Brush::Smooth, 1},
                                                                          {Brush::Sharpen, 1},
                                                                          {Brush::AddBlob, 0},
