@@ -144,8 +144,8 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
 Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& pool = ThreadPool::serial());
 
 // --- warps (level_set/warp.cpp) ----------------------------------------------------------
-// Warp tools (docs/method.md §3, Warps): grab, snake hook, twist, local scale, pinch. Sign and
-// units as in volume.hpp (vu; d < 0 inside).
+// Warp tools (docs/method.md §3, Warps): grab, elastic grab, snake hook, twist, local scale,
+// pinch. Sign and units as in volume.hpp (vu; d < 0 inside).
 //
 // A warp moves the solid by the flow of a stationary velocity field v for unit time. The new
 // field is the old one read back through the inverse map: phi1(x) = phi0(X(x)), X(x) the point
@@ -197,6 +197,18 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
 // as a whole and keeps its thickness); the caller then takes target as the next anchor. A drag
 // is the composition of its moves, so a long one pulls out a tentacle along the pointer's path.
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());
+
+// Elastic grab: the anchor (a surface point) moved by d under a bi-scale regularized Kelvinlet
+// (de Goes & James 2017; epsilons `radius` and 2 radius, Poisson ratio `volume` in [0, 0.5],
+// 0.5 keeping the volume for small motions), cut off by a falloff that is 1 up to half of
+// kElasticCutoff radii and 0 at kElasticCutoff radii, where the bi-scale field has fallen to a
+// few percent: the changed region is that ball. The load is scaled by a 1-D search until the
+// anchor lands on anchor + d within kWarpAnchorTolerance; radius in [1, kMaxWarpRadius /
+// kElasticCutoff], |d| <= kMaxElasticTravelPerRadius radii.
+inline constexpr double kElasticCutoff = 3;
+inline constexpr double kMaxElasticTravelPerRadius = 2;
+Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double volume,
+                 ThreadPool& pool = ThreadPool::serial());
 
 // Affine warps: v(x) = P(|x - anchor| / radius) * A (x - anchor), P = 1 up to half the radius
 // and falling as (1 - u^2)^2 (u from 0 to 1 over the outer half) to 0 at the radius: inside

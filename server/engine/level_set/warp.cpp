@@ -27,7 +27,7 @@ constexpr double kGatherShare = 0.1, kLatticeShare = 0.2, kResampleShare = 0.3, 
 
 // A stationary velocity field with bounded support.
 struct Velocity {
-  enum class Kind { Capsule, Affine };
+  enum class Kind { Capsule, Affine, Elastic };
   Kind kind = Kind::Capsule;
   Vec3 anchor;
   double radius = 1;
@@ -37,6 +37,22 @@ struct Velocity {
   double scale = 1;
   // Affine: A (row-major), inner part of the radius where P = 1.
   double A[3][3] = {};
+  // Elastic: a bi-scale regularized Kelvinlet (de Goes & James 2017) centred on anchor under
+  // the load `load` (scaled by `scale`), with epsilons eps and 2 eps and Poisson ratio nu,
+  // cut off smoothly by the falloff at `radius` = kElasticCutoff * eps.
+  Vec3 load;
+  double eps = 1, nu = 0.5;
+
+  // K_e(r) f = ((a - b) / re) f + (b / re^3) r (r . f) + (a e^2 / (2 re^3)) f, re = sqrt(r^2 + e^2),
+  // with a = 1 (the brush is normalised, so the shear modulus drops out), b = 1 / (4 (1 - nu)).
+  static Vec3 kelvinlet(Vec3 r, Vec3 f, double e, double nu) {
+    const double a = 1, b = 1 / (4 * (1 - nu));
+    const double re = std::sqrt(dot(r, r) + e * e), re3 = re * re * re;
+    return f * ((a - b) / re + a * e * e / (2 * re3)) + r * (b * dot(r, f) / re3);
+  }
+  Vec3 elastic(Vec3 r) const {
+    return (kelvinlet(r, load, eps, nu) - kelvinlet(r, load, 2 * eps, nu)) * scale;
+  }
   // The falloff P(t) = 1 for t <= plateau, (1 - u^2)^2 from there to t = 1, u going from 0
   // to 1. Inside the plateau the field moves as a whole: an affine warp is exact there, and a
   // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
@@ -63,6 +79,19 @@ struct Velocity {
     const double R2 = radius * radius;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) J[i][j] = 0;
+    if (kind == Kind::Elastic) {
+      // Central differences: this runs only along the flows of the voxels next to the zero set.
+      if (dot(r, r) >= R2) return {};
+      const double h = 1e-4 * eps;
+      for (int j = 0; j < 3; ++j) {
+        Vec3 lo = y, hi = y;
+        lo[j] -= h;
+        hi[j] += h;
+        const Vec3 dv = (at(hi) - at(lo)) / (2 * h);
+        for (int i = 0; i < 3; ++i) J[i][j] = dv[i];
+      }
+      return at(y);
+    }
     if (kind == Kind::Capsule) {
       const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
       const Vec3 off = r - seg * t;
@@ -98,6 +127,7 @@ struct Velocity {
     const double r2 = dot(r, r);
     if (r2 >= R2) return {};
     const double p = falloff(r2 / R2);
+    if (kind == Kind::Elastic) return elastic(r) * p;
     return Vec3{A[0][0] * r.x + A[0][1] * r.y + A[0][2] * r.z, A[1][0] * r.x + A[1][1] * r.y + A[1][2] * r.z,
                 A[2][0] * r.x + A[2][1] * r.y + A[2][2] * r.z} *
            p;
@@ -118,6 +148,12 @@ struct Velocity {
   double lipschitz() const {
     constexpr double kMaxSlope = 8 / (3 * std::numbers::sqrt3);
     if (kind == Kind::Capsule) return scale * std::sqrt(segLength2) * kMaxSlope / ((1 - plateau) * radius);
+    // The Kelvinlets' own slope is below |load| / eps^2 (their peak is about |load| / eps,
+    // reached over eps), plus the cut-off's.
+    if (kind == Kind::Elastic) {
+      const double l = scale * length(load);
+      return l / (eps * eps) + l / eps * kMaxSlope / ((1 - plateau) * radius);
+    }
     double frobenius = 0;
     for (const auto& row : A)
       for (const double a : row) frobenius += a * a;
@@ -450,6 +486,28 @@ Velocity affine(Vec3 anchor, double radius) {
   return v;
 }
 
+// Sets v.scale so that the flow carries the anchor to anchor + d within kWarpAnchorTolerance
+// (a secant search from scale 1), or throws EngineError (field "d").
+void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
+  if (!(length(d) > 0)) return;
+  const Vec3 target = anchor + d;
+  const auto miss = [&](double scale) {
+    Velocity w = v;
+    w.scale = scale;
+    return dot(w.flow(anchor, w.substeps(), 1) - target, normalized(d));
+  };
+  double s0 = 1, m0 = miss(s0);
+  double s1 = 1.1, m1 = miss(s1);
+  for (int i = 0; i < 24 && std::fabs(m0) > 0.01 * kWarpAnchorTolerance && m1 != m0; ++i) {
+    const double s2 = std::max(0.0, s1 - m1 * (s1 - s0) / (m1 - m0));
+    s0 = s1, m0 = m1, s1 = s2, m1 = miss(s2);
+    if (std::fabs(m1) < std::fabs(m0)) std::swap(s0, s1), std::swap(m0, m1);
+  }
+  v.scale = s0;
+  if (!(length(v.flow(anchor, v.substeps(), 1) - target) <= kWarpAnchorTolerance))
+    throw EngineError(ErrorKind::InvalidArgument, "d", "the anchor cannot be carried to its target");
+}
+
 Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double plateau, ThreadPool& pool) {
   checkBase(vol, base);
   checkAnchor(vol, anchor);
@@ -463,27 +521,8 @@ Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radiu
   v.seg = d;
   v.segLength2 = dot(d, d);
   v.plateau = plateau;
-  // The anchor must land on anchor + d: along the segment v = scale * d, so scale 1 lands it up
-  // to rounding; a secant search on the scale would correct a field that did not.
-  const Vec3 target = anchor + d;
-  const auto miss = [&](double scale) {
-    Velocity w = v;
-    w.scale = scale;
-    return dot(w.flow(anchor, w.substeps(), 1) - target, normalized(d));
-  };
-  if (v.segLength2 > 0) {
-    double s0 = 1, m0 = miss(s0);
-    double s1 = 1.1, m1 = miss(s1);
-    for (int i = 0; i < 16 && std::fabs(m0) > 0.01 * kWarpAnchorTolerance && m1 != m0; ++i) {
-      const double s2 = s1 - m1 * (s1 - s0) / (m1 - m0);
-      s0 = s1, m0 = m1, s1 = s2, m1 = miss(s2);
-      if (std::fabs(m1) < std::fabs(m0)) std::swap(s0, s1), std::swap(m0, m1);
-    }
-    v.scale = s0;
-    Velocity w = v;
-    if (!(length(w.flow(anchor, w.substeps(), 1) - target) <= kWarpAnchorTolerance))
-      throw EngineError(ErrorKind::InvalidArgument, "d", "the anchor cannot be carried to its target");
-  }
+  // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
+  landAnchor(v, anchor, d);
   return applyWarp(vol, base, v, pool);
 }
 
@@ -497,6 +536,29 @@ Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool&
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
   const Volume base = vol;
   return grabWith(vol, base, anchor, target - anchor, radius, kPlateau, pool);
+}
+
+Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double volume, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  requireRange(radius, kMinWarpRadius, kMaxWarpRadius / kElasticCutoff, "radius");
+  requireRange(volume, 0, 0.5, "volume");
+  if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
+  if (!(length(d) <= kMaxElasticTravelPerRadius * radius))
+    throw EngineError(ErrorKind::TooLarge, "d", "must be at most 2 radii long");
+  Velocity v;
+  v.kind = Velocity::Kind::Elastic;
+  v.anchor = anchor;
+  v.eps = radius;
+  v.nu = volume;
+  v.radius = kElasticCutoff * radius;
+  v.plateau = kPlateau;
+  // At the centre the bi-scale Kelvinlet is (3/2 - b) (1 / eps - 1 / (2 eps)) load: this load
+  // gives d there, before the flow's search.
+  v.load = d * (2 * radius / (1.5 - 1 / (4 * (1 - volume))));
+  v.seg = d;
+  landAnchor(v, anchor, d);
+  return applyWarp(vol, base, v, pool);
 }
 
 Edit twist(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double angle, double radius, ThreadPool& pool) {

@@ -198,6 +198,9 @@ TEST_CASE("warps give the same bits on any number of threads", "[warp][threads]"
     grab(serial, base, surfacePoint(), {4, 9, -2}, 12);
     grab(parallel, base, surfacePoint(), {4, 9, -2}, 12, *pool);
     CHECK(sameField(serial, parallel));
+    elasticGrab(serial, base, surfacePoint(), {2, 5, 1}, 5, 0.5);
+    elasticGrab(parallel, base, surfacePoint(), {2, 5, 1}, 5, 0.5, *pool);
+    CHECK(sameField(serial, parallel));
     twist(serial, base, surfacePoint(), {0.3, 1, 0.2}, 1.0, 12);
     twist(parallel, base, surfacePoint(), {0.3, 1, 0.2}, 1.0, 12, *pool);
     CHECK(sameField(serial, parallel));
@@ -246,6 +249,27 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   CHECK(worst <= 1.0);
   // Not within the brushes' largest gradient error (0.1): measured 0.311 at the tip, mean 0.0040.
   checkSoundSolid(v, 0.35, 0.005);
+}
+
+TEST_CASE("elastic grab carries the anchor by d and keeps the volume better than grab", "[warp][elastic]") {
+  const Volume base = sphere();
+  const Vec3 a = surfacePoint(), n = normalized(Vec3{0.3, 1, 0.2});
+  const double before = insideVolume(base);
+  for (const Vec3 d : {n * 6.0, n * 4.0 + Vec3{3, 0, -2}}) {
+    // The same drag, the same changed region: elastic grab's cut-off (3 eps) is grab's radius.
+    const double eps = 6;
+    Volume plain = base, elastic = base, compressible = base;
+    grab(plain, base, a, d, kElasticCutoff * eps);
+    elasticGrab(elastic, base, a, d, eps, 0.5);
+    elasticGrab(compressible, base, a, d, eps, 0.0);
+    INFO("d " << d.x << " " << d.y << " " << d.z << ": value at a + d " << elastic.sample(a + d));
+    CHECK(std::fabs(elastic.sample(a + d) - base.sample(a)) <= 0.25);
+    const double grabChange = insideVolume(plain) - before, elasticChange = insideVolume(elastic) - before;
+    INFO("volume " << before << ": grab " << grabChange << ", elastic (nu 0.5) " << elasticChange << ", nu 0 "
+                   << insideVolume(compressible) - before << " vu^3");
+    CHECK(std::fabs(elasticChange) < std::fabs(grabChange));
+    checkSoundSolid(elastic);
+  }
 }
 
 TEST_CASE("local scale of a covered sphere scales its radius", "[warp][scale]") {
@@ -311,6 +335,10 @@ TEST_CASE("warps refuse invalid parameters before anything changes", "[warp][err
   CHECK_THROWS_AS(grab(v, base, a, {81, 0, 0}, 10), EngineError);
   CHECK_THROWS_AS(grab(v, makeSphere({64, 64, 64}, {32, 32, 32}, 10), a, {1, 0, 0}, 10), EngineError);
   CHECK_THROWS_AS(snakeHook(v, a, {nan, 0, 0}, 10), EngineError);
+  CHECK_THROWS_AS(elasticGrab(v, base, a, {1, 0, 0}, 6, 0.6), EngineError);
+  CHECK_THROWS_AS(elasticGrab(v, base, a, {1, 0, 0}, 6, nan), EngineError);
+  CHECK_THROWS_AS(elasticGrab(v, base, a, {1, 0, 0}, 22, 0.5), EngineError);
+  CHECK_THROWS_AS(elasticGrab(v, base, a, {13, 0, 0}, 6, 0.5), EngineError);
   CHECK_THROWS_AS(twist(v, base, a, {0, 0, 0}, 1, 10), EngineError);
   CHECK_THROWS_AS(twist(v, base, a, {0, 0, 1}, nan, 10), EngineError);
   CHECK_THROWS_AS(twist(v, base, a, {0, 0, 1}, 7, 10), EngineError);
