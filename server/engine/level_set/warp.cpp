@@ -534,8 +534,19 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, T
 
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
+  checkAnchor(vol, anchor);
   const Volume base = vol;
-  return grabWith(vol, base, anchor, target - anchor, radius, kPlateau, pool);
+  // Each resample rounds the tip a little, so the surface drifts off the anchor the caller
+  // carries from move to move (1.5 vu over 97 moves of a 200 vu drag): the move starts from the
+  // surface point nearest the anchor (two Newton steps along the gradient, within the band).
+  Vec3 from = anchor;
+  for (int i = 0; i < 2; ++i) {
+    const double d = vol.sample(from);
+    const Vec3 g = vol.gradient(from);
+    if (!(std::fabs(d) < vol.band()) || !(length(g) > 0.5)) break;
+    from = from - normalized(g) * (d / length(g));
+  }
+  return grabWith(vol, base, from, target - from, radius, kPlateau, pool);
 }
 
 Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double volume, ThreadPool& pool) {
