@@ -85,7 +85,26 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 // - Clay: add blob with a height under the palette's name: every point rises along the dab's
 //   normal, which the caller sets to the stroke's average normal at its start (a clay dab with
 //   a height must have one; without a height it is add blob, bit for bit).
-enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay };
+// - Flatten: the surface moves towards StrokeSettings::plane, the plane fitted (fitBrushPlane)
+//   when the stroke began: F0 = -h (n . m) at the foot point, h its signed distance to the plane
+//   clamped to [-1, 1] vu (m the plane's unit normal), n the voxel's normal. One application
+//   moves a point within 1 vu of the plane s * W of its way there along m ((n . m)^2 <= 1: never
+//   past it), one farther by s * W (n . m) vu towards it, as add blob would. Contrast is its
+//   inverse, away from the plane. With a memory a point near the plane moves by the excess
+//   window's share of what is left, so a stroke sent in pieces flattens a little less there
+//   than in one (test_tools.cpp).
+enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay, Flatten, Contrast };
+
+// A plane: the points x with (x - point) . normal = 0; normal a unit vector.
+struct Plane {
+  Vec3 point, normal;
+};
+// The plane flatten and contrast move towards (from): the area-weighted centre and normal of
+// the surface points of vol within `radius` of `center` (each band voxel's foot point, weighted
+// by the hat 1 - |d| of its distance d, the surface's area per voxel). The caller fits it once, on
+// the stroke's starting volume. Throws EngineError "center" where no surface lies within the
+// radius, "radius" for one out of StrokeSettings' range.
+Plane fitBrushPlane(const Volume& vol, Vec3 center, double radius);
 
 struct StrokeSettings {
   StrokeSettings() = default;
@@ -98,6 +117,8 @@ struct StrokeSettings {
   // vu, in (0, min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight)] (values.hpp); add
   // and remove blob, inflate and clay only.
   std::optional<double> height;
+  // Flatten and contrast only, and they need one: finite, its normal a unit vector.
+  std::optional<Plane> plane;
 };
 
 struct StrokeDab {
@@ -112,8 +133,8 @@ struct StrokeDab {
   Vec3 normal;
 };
 
-// Throws EngineError (field "radius", "strength" or "height") for settings applyStroke would
-// refuse whatever its dabs.
+// Throws EngineError (field "radius", "strength", "height" or "plane") for settings applyStroke
+// would refuse whatever its dabs.
 void checkStrokeSettings(const StrokeSettings& st);
 // Throws EngineError (field "center", "weight", "normal", "radius", "strength" or "height") for a dab that
 // applyStroke would refuse; the volume is not read beyond its domain.

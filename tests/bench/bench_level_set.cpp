@@ -156,7 +156,8 @@ MARZIPAN_BENCH("dab") {
 // The surface tools' dabs (level_set.hpp, Brush) at random points of the sphere, next to an
 // add-blob dab of the same radius at the same points (the target: within 2x). A row per tool:
 // inflate with a height of 1 vu (one sub-step, the distance an add-blob dab at strength 1 moves)
-// and of 4 vu (next to clay, add blob along the dab's normal, at the same height).
+// and of 4 vu (next to clay, add blob along the dab's normal, at the same height); flatten, with
+// the time of fitting its plane at a stroke's start.
 MARZIPAN_BENCH("surface_dab") {
   const Sphere s = benchSphere(opt);
   ThreadPool pool(opt.threads);
@@ -165,17 +166,21 @@ MARZIPAN_BENCH("surface_dab") {
   for (const double r : opt.quick ? std::vector<double>{8} : std::vector<double>{8, 15}) {
     // Each tool at the same sequence of points, on a fresh copy of the sphere each time (the
     // copy shares its bricks: only the ones a dab writes are copied, outside the timing).
-    const auto timeTool = [&](const StrokeSettings& st, bool withNormal) {
+    // Flatten's plane is fitted once per stroke, at its start (outside the timing; its own
+    // time is a figure of the flatten row).
+    const auto timeTool = [&](StrokeSettings st, bool withNormal) {
       std::mt19937 rng{11};
       std::normal_distribution<double> gauss;
       Volume work = v;
       StrokeDab dab;
+      const bool planar = st.tool == Brush::Flatten || st.tool == Brush::Contrast;
       return measure(
           reps,
           [&] {
             const Vec3 n = normalized({gauss(rng), gauss(rng), gauss(rng)});
             dab = {s.centre + n * s.radius, 1.0, withNormal ? n : Vec3{}};
             work = v;
+            if (planar) st.plane = fitBrushPlane(v, dab.center, r);
           },
           [&] { applyStroke(work, st, {&dab, 1}, {}, pool); });
     };
@@ -192,6 +197,12 @@ MARZIPAN_BENCH("surface_dab") {
     row("inflate", timeTool({Brush::Inflate, r, 1, 1.0}, false), add, "add_blob", {{"height", 1}});
     const Timing clay4 = timeTool({Brush::Clay, r, 1, 4.0}, true);
     row("inflate", timeTool({Brush::Inflate, r, 1, 4.0}, false), clay4, "clay", {{"height", 4}});
+    std::mt19937 rng{12};
+    std::normal_distribution<double> gauss;
+    const Timing fit = measure(reps, [&] {
+      fitBrushPlane(v, s.centre + normalized({gauss(rng), gauss(rng), gauss(rng)}) * s.radius, r);
+    });
+    row("flatten", timeTool({Brush::Flatten, r, 1}, false), add, "add_blob", {{"fit_plane_ms", fit.median_ms}});
   }
 }
 

@@ -29,6 +29,11 @@ struct Motion {
   double dt = 0;         // time step of one sub-step
   int substeps = 1;
   double curvatureLimit = std::numeric_limits<double>::infinity();
+  // Advection towards a plane (flatten: speed > 0; contrast: < 0): each voxel's speed is
+  // speed * W * -h (n . m), h = (q - planePoint) . m clamped to [-1, 1], m = planeNormal, at its
+  // foot point q and normal n (listing.cpp, planeSpeed): |speed| <= 1 keeps the CFL bound.
+  bool towardsPlane = false;
+  Vec3 planePoint, planeNormal;
 };
 
 // Advection: two sub-steps of dt |F| <= 0.5 vu (the CFL bound of the upwind scheme), so one

@@ -91,6 +91,15 @@ void brushWindows(const DenseGrid& g, const std::size_t i[2], const Int3 p[2], c
   }
 }
 
+// Flatten's and contrast's speed at a voxel with foot point f and window w > 0 (internal.hpp,
+// Motion::towardsPlane): -speed * w * h (n . m), h clamped to [-1, 1]: farther from the plane a
+// point moves as add blob's would, by speed * w (n . m), and the moves of a stroke's pieces add
+// up as add blob's do, where a clamp of the speed itself let each piece move its full vu.
+[[gnu::always_inline]] inline double planeSpeed(const Motion& m, const FootPoint& f, double w) {
+  const double h = std::clamp(dot(f.point - m.planePoint, m.planeNormal), -1.0, 1.0);
+  return -m.speed * w * h * dot(f.normal, m.planeNormal);
+}
+
 // Sizes the array a list of `count` voxels under m (null: their windows) fills.
 void sizeSpeeds(MovedVoxels& out, const Motion* m, std::size_t count) {
   if (!m) {
@@ -130,6 +139,14 @@ struct MovedAppender {
     } else {
       out.window[count] = w;
     }
+    push(i);
+  }
+  // Grid voxel i, whose window is > 0, at an advection speed of its own.
+  void addSpeed(std::size_t i, double speed) {
+    out.step[count] = float(m->dt * float(speed));
+    push(i);
+  }
+  [[gnu::always_inline]] void push(std::size_t i) {
     // Consecutive indices share a row: region lies inside the grid, off its last column.
     if (run.count != 0 && run.index + run.count == i) {
       ++run.count;
@@ -174,6 +191,25 @@ __attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const 
 void collectMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                   const BandVoxels& voxels, std::size_t begin, std::size_t end, MovedVoxels& out,
                   const ProgressShare& progress) {
+  if (m && m->towardsPlane) {
+    // Flatten and contrast: the speed needs the foot point itself, so the window's search and
+    // the foot point are the plain ones (the same windows bit for bit: the other paths give
+    // the same, as test_swept_window.cpp checks).
+    MovedAppender add(out, m, end - begin);
+    SweptWindow::Cursor cursor;
+    for (std::size_t k = begin; k < end; ++k) {
+      if (k % kVoxelsPerCheck == 0) progress.check();
+      const std::size_t i = voxels.index[k];
+      if (!(std::fabs(g.v[i]) < band)) continue;
+      const Int3 p = voxels.point[k];
+      if (!region.contains(p) || !window->reaches(p, cursor)) continue;
+      const FootPoint f = footPointCall(g, i, p);
+      const double w = window->at(p, f.point, f.normal, cursor);
+      if (w > 0) add.addSpeed(i, planeSpeed(*m, f, w));
+    }
+    add.finish();
+    return;
+  }
 #if defined(MARZIPAN_AVX2)
   if (window && window->searchesAvx2()) {
     if (window->anchored()) return collectLanesAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);

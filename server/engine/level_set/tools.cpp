@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "engine/errors.hpp"
 #include "engine/level_set/internal.hpp"
@@ -32,6 +33,14 @@ Motion strokeMotion(const StrokeSettings& st) {
     case Brush::RemoveBlob: return advection(-st.strength);
     case Brush::Smooth: return curvatureFlow(st.strength, std::numeric_limits<double>::infinity(), kSmoothSubsteps);
     case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
+    case Brush::Flatten:
+    case Brush::Contrast: {
+      Motion m = advection(st.tool == Brush::Flatten ? st.strength : -st.strength);
+      m.towardsPlane = true;
+      m.planePoint = st.plane->point;
+      m.planeNormal = st.plane->normal;
+      return m;
+    }
   }
   throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
 }
@@ -65,6 +74,50 @@ void checkStrokeSettings(const StrokeSettings& st) {
     if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
       throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
   }
+  const bool planar = st.tool == Brush::Flatten || st.tool == Brush::Contrast;
+  if (planar != st.plane.has_value())
+    throw EngineError(ErrorKind::InvalidArgument, "plane", planar ? "flatten and contrast need the stroke's plane"
+                                                                   : "is only for flatten and contrast");
+  if (st.plane && (!isFinite(st.plane->point) || !isFinite(st.plane->normal) ||
+                   !(std::fabs(dot(st.plane->normal, st.plane->normal) - 1) <= 1e-6)))
+    throw EngineError(ErrorKind::InvalidArgument, "plane", "must be a finite point and a unit normal");
+}
+
+Plane fitBrushPlane(const Volume& vol, Vec3 center, double radius) {
+  requireRange(radius, 0.5, kMaxDomainSide, "radius");
+  if (!isFinite(center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+  // The voxels whose foot point may lie within the radius, and one more for the normals.
+  const double reach = radius + vol.band() + 1;
+  const Box inner = boxAround(center, {reach, reach, reach}).intersect(vol.domain());
+  const Box box = inner.grown(1).intersect(vol.domain());
+  if (inner.empty()) throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
+  std::vector<float> d(std::size_t(box.voxels()));
+  vol.gather(box, d.data());
+  const std::size_t sy = std::size_t(box.hi.x - box.lo.x), sz = sy * std::size_t(box.hi.y - box.lo.y);
+  Vec3 sumPoint{}, sumNormal{};
+  double sumWeight = 0;
+  // The sums in index order, one thread: the plane does not depend on the pool.
+  for (int z = inner.lo.z; z < inner.hi.z; ++z)
+    for (int y = inner.lo.y; y < inner.hi.y; ++y)
+      for (int x = inner.lo.x; x < inner.hi.x; ++x) {
+        if (x == box.lo.x || y == box.lo.y || z == box.lo.z || x + 1 == box.hi.x || y + 1 == box.hi.y ||
+            z + 1 == box.hi.z)
+          continue;  // a normal needs both neighbours
+        const std::size_t i = std::size_t(x - box.lo.x) + std::size_t(y - box.lo.y) * sy + std::size_t(z - box.lo.z) * sz;
+        const double phi = d[i];
+        const double weight = 1 - std::fabs(phi);
+        if (!(weight > 0)) continue;
+        const Vec3 n = normalized(Vec3{double(d[i + 1] - d[i - 1]), double(d[i + sy] - d[i - sy]),
+                                       double(d[i + sz] - d[i - sz])});
+        const Vec3 q = Vec3{double(x), double(y), double(z)} - n * phi;
+        if (length(q - center) > radius) continue;
+        sumPoint = sumPoint + q * weight;
+        sumNormal = sumNormal + n * weight;
+        sumWeight += weight;
+      }
+  if (!(sumWeight > 0) || !(length(sumNormal) > 0))
+    throw EngineError(ErrorKind::InvalidArgument, "center", "no surface lies within the radius");
+  return {sumPoint * (1 / sumWeight), normalized(sumNormal)};
 }
 
 namespace {

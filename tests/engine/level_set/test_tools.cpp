@@ -380,3 +380,235 @@ TEST_CASE("inflate and clay refuse a dab normal that is not theirs and change no
   CHECK_NOTHROW(applyStroke(v, {Brush::Inflate, 6, 1}, {&withNormal, 1}, {}));
   CHECK(digest(v) != d0);
 }
+
+namespace {
+
+// Every point where the surface crosses a grid edge (the interpolant's zero on each edge whose
+// ends differ in sign): the whole surface, not a sample of it.
+std::vector<Vec3> surfaceCrossings(const Volume& v) {
+  std::vector<Vec3> points;
+  const Int3 n = v.dims();
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        const double a = v.at({x, y, z});
+        const Int3 next[3] = {{x + 1, y, z}, {x, y + 1, z}, {x, y, z + 1}};
+        for (int k = 0; k < 3; ++k) {
+          if (next[k][k] >= n[k]) continue;
+          const double b = v.at(next[k]);
+          if ((a < 0) == (b < 0)) continue;
+          Vec3 p{double(x), double(y), double(z)};
+          p[k] += a / (a - b);
+          points.push_back(p);
+        }
+      }
+  return points;
+}
+
+// The signed height along m above the plane (o, m) of the sphere (centre, radius)'s near
+// surface on the line through x parallel to m, or NaN where the line misses it.
+double sphereHeightAlong(Vec3 centre, double radius, const Plane& plane, Vec3 x) {
+  const Vec3 m = plane.normal;
+  const Vec3 rel = x - centre;
+  const double along = dot(rel, m);
+  const double off2 = dot(rel, rel) - along * along;
+  if (off2 > radius * radius) return std::nan("");
+  const Vec3 top = x + m * (std::sqrt(radius * radius - off2) - along);
+  return dot(top - plane.point, m);
+}
+
+}  // namespace
+
+TEST_CASE("the brush plane of a sphere's cap is its area-weighted centre and normal", "[level_set][surface][flatten]") {
+  // The surface within r of a point c on a sphere of radius R is a cap of depth r^2 / (2R);
+  // a cap's area grows evenly with its depth (Archimedes), so its centroid lies r^2 / (4R)
+  // below c, on the sphere's radius through c.
+  const Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2});
+  const Volume v = makeSphere({96, 96, 96}, centre, 30);
+  for (const double r : {6.0, 10.0, 14.0}) {
+    const Plane p = fitBrushPlane(v, centre + up * 30.0, r);
+    const Vec3 expected = centre + up * (30 - r * r / 120);
+    // The plane's height is the centroid's depth; along the plane, which voxels' foot points
+    // fall within the radius moves the centroid by up to 0.1 vu (measured 0.10, 0.03, 0.02 with
+    // a height error of 0.005, 0.006, 0.011 vu, 2026-11-29).
+    const double height = dot(expected - p.point, p.normal);
+    const double sideways = length((expected - p.point) - p.normal * height);
+    INFO("radius " << r << ": normal . up " << dot(p.normal, up) << ", plane " << height << " vu off, centre "
+                   << sideways << " vu sideways");
+    CHECK(dot(p.normal, up) >= 0.9999);
+    CHECK(std::fabs(height) <= 0.02);
+    CHECK(sideways <= 0.15);
+  }
+  CHECK_THROWS_AS(fitBrushPlane(v, {48, 48, 48}, 8), EngineError);  // no surface within 8 of the centre
+  CHECK_THROWS_AS(fitBrushPlane(v, {500, 48, 48}, 8), EngineError);
+  CHECK_THROWS_AS(fitBrushPlane(v, centre + up * 30.0, 0), EngineError);
+}
+
+TEST_CASE("a flatten stroke over a sphere's cap leaves its middle flat to the plane and nothing past it",
+          "[level_set][surface][flatten]") {
+  // Sphere of radius 30, a dab of radius 10 on it off the grid's axes: the cap under it is 1.67
+  // vu deep, its plane 0.83 vu below the top. Measured over every surface crossing of the grid:
+  // those within 0.6 r of the brush's axis lie within 0.25 vu of the plane after one flatten
+  // application at strength 1, and none within the ROI has crossed it (its height above the
+  // plane has the sign the sphere's surface had on the same line along the plane's normal, up to
+  // 0.02 vu) or moved away from it.
+  const Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2}), c = centre + up * 30.0;
+  constexpr double r = 10;
+  Volume v = makeSphere({96, 96, 96}, centre, 30);
+  const Plane plane = fitBrushPlane(v, c, r);
+  StrokeSettings st{Brush::Flatten, r, 1};
+  st.plane = plane;
+  const StrokeDab dab{c, 1.0};
+  applyStroke(v, st, {&dab, 1}, {});
+  double middleWorst = 0, crossed = 0, away = 0;
+  std::size_t middle = 0, inside = 0;
+  for (const Vec3 x : surfaceCrossings(v)) {
+    const double h = dot(x - plane.point, plane.normal);
+    const Vec3 off = x - c;
+    if (std::fabs(off.x) >= r || std::fabs(off.y) >= r || std::fabs(off.z) >= r) continue;  // outside the ROI
+    const double radial = length(off - plane.normal * dot(off, plane.normal));
+    if (radial <= 0.6 * r && h > -3) {
+      ++middle;
+      middleWorst = std::max(middleWorst, std::fabs(h));
+    }
+    const double before = sphereHeightAlong(centre, 30, plane, x);
+    if (std::isnan(before) || std::fabs(h - before) > 3) continue;  // the far side of the sphere
+    ++inside;
+    crossed = std::max(crossed, before >= 0 ? -h : h);
+    away = std::max(away, std::fabs(h) - std::fabs(before));
+  }
+  INFO(middle << " crossings in the middle 60 %, the farthest " << middleWorst << " vu from the plane; of "
+              << inside << " in the ROI the deepest past it " << crossed << " vu, the most moved away " << away);
+  CHECK(middle > 100);  // 1.5 a vu^2 over the disc of radius 6
+  CHECK(middleWorst <= 0.25);
+  CHECK(crossed <= 0.02);
+  CHECK(away <= 0.02);
+  const GradientError e = gradientError(v);
+  INFO("gradient error max " << e.max << " mean " << e.mean);
+  CHECK(e.max <= 0.1);
+  CHECK(e.mean <= 0.005);
+}
+
+namespace {
+
+// A stroke over the sphere of radius 30 at (48, 48, 48) in 96^3: n dabs 1.5 vu apart along a
+// great circle through the point above the centre along up, with its plane fitted there.
+struct CapStroke {
+  Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2});
+  std::vector<StrokeDab> dabs;
+  Plane plane;
+  explicit CapStroke(const Volume& v, double r, int n) {
+    const Vec3 along = normalized(cross(up, Vec3{0, 0, 1}));
+    for (int i = 0; i < n; ++i) {
+      const double angle = 1.5 * (i - (n - 1) / 2.0) / 30;
+      dabs.push_back({centre + (up * std::cos(angle) + along * std::sin(angle)) * 30.0, 1.0});
+    }
+    plane = fitBrushPlane(v, dabs.front().center, r);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("contrast moves the cap away from the plane that flatten moves it to", "[level_set][surface][flatten]") {
+  const Vec3 centre{48, 48, 48}, up = normalized(Vec3{0.3, 1, 0.2}), c = centre + up * 30.0;
+  constexpr double r = 10;
+  for (const Brush tool : {Brush::Flatten, Brush::Contrast}) {
+    Volume v = makeSphere({96, 96, 96}, centre, 30);
+    const double top = surfaceAlong(v, centre, up, 20, 40);
+    StrokeSettings st{tool, r, 1};
+    st.plane = fitBrushPlane(v, c, r);
+    const StrokeDab dab{c, 1.0};
+    applyStroke(v, st, {&dab, 1}, {});
+    // The top is 0.83 vu above the plane: flatten takes nearly all of it off (the window is 1
+    // there), contrast adds as much.
+    const double moved = surfaceAlong(v, centre, up, 20, 40) - top;
+    INFO((tool == Brush::Flatten ? "flatten" : "contrast") << ": the top moved " << moved);
+    CHECK(std::fabs(std::fabs(moved) - 0.83) <= 0.1);
+    CHECK((tool == Brush::Flatten ? -moved : moved) > 0);
+    const GradientError e = gradientError(v);
+    INFO("gradient error max " << e.max << " mean " << e.mean);
+    CHECK(e.max <= 0.1);
+    CHECK(e.mean <= 0.005);
+  }
+}
+
+TEST_CASE("a flatten stroke moves about the same volume however its dabs are grouped", "[level_set][surface][flatten]") {
+  // 17 dabs of radius 8 along the sphere, one plane fitted under the first: the sphere falls
+  // away below it, and flatten fills there (the volume grows) as far as 1 vu from the plane by
+  // W (n . m), as add blob would. Nearer the plane each message moves a point by its window's
+  // excess share of what is left, so pieces move a little less than one message: 133.7 vu^3 in
+  // one, 126.5 in 4, 122.6 in 17 (2026-11-29).
+  constexpr double r = 8;
+  const Volume start = makeSphere({96, 96, 96}, {48, 48, 48}, 30);
+  const double before = insideVolume(start);
+  const CapStroke stroke(start, r, 17);
+  StrokeSettings st{Brush::Flatten, r, 1};
+  st.plane = stroke.plane;
+  const auto added = [&](std::size_t messages, bool accumulate = false) {
+    Volume v = start;
+    sendStroke(v, st, stroke.dabs, messages, accumulate);
+    return insideVolume(v) - before;
+  };
+  const double one = added(1);
+  INFO("one message: " << one << " vu^3");
+  CHECK(one > 20);
+  for (const std::size_t messages : {std::size_t(4), std::size_t(17)}) {
+    const double a = added(messages);
+    INFO(messages << " messages: " << a << " vu^3");
+    CHECK(std::fabs(a - one) <= 0.1 * one);
+  }
+  CHECK(added(17, true) > 1.5 * one);  // without a memory each dab moves it again
+}
+
+TEST_CASE("flatten and contrast give the same field on 1 and 2 threads", "[level_set][surface][determinism]") {
+  auto run = [](Brush tool, ThreadPool& pool) {
+    const Volume start = makeSphere({96, 96, 96}, {48, 48, 48}, 30);
+    Volume v = start;
+    const CapStroke stroke(start, 20, 5);
+    StrokeSettings st{tool, 20, 1};
+    st.plane = stroke.plane;
+    applyStroke(v, st, stroke.dabs, {}, pool);
+    return digest(v);
+  };
+  ThreadPool one(1), two(2);
+  for (const Brush tool : {Brush::Flatten, Brush::Contrast}) CHECK(run(tool, one) == run(tool, two));
+}
+
+TEST_CASE("flatten and contrast refuse a missing or bad plane, others any plane, and change nothing",
+          "[level_set][surface][errors]") {
+  Volume v = strokeSlab();
+  const std::uint64_t d0 = digest(v);
+  const StrokeDab dab{{30, 16, 19.5}, 1};
+  const Plane good{{30, 16, 19.5}, {0, 1, 0}};
+  std::vector<StrokeSettings> bad;
+  for (const Brush tool : {Brush::Flatten, Brush::Contrast}) {
+    bad.push_back({tool, 6, 1});  // no plane
+    for (const Plane p : {Plane{{30, 16, 19.5}, {0, 2, 0}}, Plane{{30, 16, 19.5}, {}},
+                          Plane{{std::nan(""), 16, 19.5}, {0, 1, 0}}, Plane{{30, 16, 19.5}, {0, INFINITY, 0}}}) {
+      bad.push_back({tool, 6, 1});
+      bad.back().plane = p;
+    }
+  }
+  for (const Brush tool : {Brush::AddBlob, Brush::Smooth, Brush::Inflate}) {
+    bad.push_back({tool, 6, 1});
+    bad.back().plane = good;
+  }
+  for (const StrokeSettings& st : bad) {
+    try {
+      applyStroke(v, st, {&dab, 1}, {});
+      FAIL("accepted");
+    } catch (const EngineError& e) {
+      CHECK(e.field() == "plane");
+    }
+  }
+  StrokeSettings tall{Brush::Flatten, 6, 1, 2.0};  // no height either
+  tall.plane = good;
+  CHECK_THROWS_AS(applyStroke(v, tall, {&dab, 1}, {}), EngineError);
+  CHECK(digest(v) == d0);
+  // The slab's top is its own plane: flatten finds nothing to move there.
+  StrokeSettings flat{Brush::Flatten, 6, 1};
+  flat.plane = fitBrushPlane(v, dab.center, 6);
+  CHECK(std::fabs(flat.plane->point.y - 16) <= 0.01);
+  applyStroke(v, flat, {&dab, 1}, {});
+  CHECK(std::fabs(ridgeHeight(v, 30)) <= 0.01);
+}
