@@ -93,7 +93,11 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 //   inverse, away from the plane. With a memory a point near the plane moves by the excess
 //   window's share of what is left, so a stroke sent in pieces flattens a little less there
 //   than in one (test_tools.cpp).
-enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay, Flatten, Contrast };
+// - Crease: remove blob with a window that falls to 0 at radius / 2.5 (tools.cpp), inside the
+//   same ROI: as deep under the stroke, its groove is 2.5 times narrower at every depth, so its
+//   flanks are 2.5 times steeper and it pinches to a sharp line as it sinks. Memory, pressure
+//   and grouping are remove blob's.
+enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay, Flatten, Contrast, Crease };
 
 // A plane: the points x with (x - point) . normal = 0; normal a unit vector.
 struct Plane {

@@ -144,6 +144,8 @@ void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const 
 // --- tools.cpp -----------------------------------------------------------------------------
 // The Motion of each brush tool at its settings' strength (throws EngineError "tool" for a value that is none).
 Motion strokeMotion(const StrokeSettings& st);
+// The radius at which a tool's window W falls to 0 (its ROI's is st.radius): crease's is narrower.
+double windowRadius(const StrokeSettings& st);
 // A stroke's height signed by its tool (> 0 raises, < 0 lowers), 0 without one.
 double signedHeight(const StrokeSettings& st);
 // Throws EngineError for a dab the tool's own rules refuse (inflate's and clay's normals).

@@ -131,7 +131,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       return b;
     }();
     scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
-    const SweptWindow window(r, std::move(mine), std::move(remembered), height);
+    const SweptWindow window(level_set::windowRadius(st), std::move(mine), std::move(remembered), height);
     // A height moves the surface up to |height| * the largest window: sub-steps of <= 1 vu.
     int steps = 1;
     Motion m = strokeMotion(st);

@@ -22,6 +22,9 @@ namespace {
 constexpr int kSmoothSubsteps = 32;
 // Sharpening runs the flow backwards; |L| <= 1 per voxel keeps noise from blowing up.
 constexpr double kSharpenCurvatureLimit = 1.0;
+// Crease's window reaches 0 at radius / this: its groove is as deep as remove blob's under the
+// stroke and this much narrower at every depth (half as wide at half depth needs 2 or more).
+constexpr double kCreaseNarrowing = 2.5;
 
 }  // namespace
 
@@ -30,7 +33,8 @@ Motion strokeMotion(const StrokeSettings& st) {
     case Brush::AddBlob:
     case Brush::Inflate:
     case Brush::Clay: return advection(st.strength);
-    case Brush::RemoveBlob: return advection(-st.strength);
+    case Brush::RemoveBlob:
+    case Brush::Crease: return advection(-st.strength);
     case Brush::Smooth: return curvatureFlow(st.strength, std::numeric_limits<double>::infinity(), kSmoothSubsteps);
     case Brush::Sharpen: return curvatureFlow(-st.strength, kSharpenCurvatureLimit);
     case Brush::Flatten:
@@ -43,6 +47,10 @@ Motion strokeMotion(const StrokeSettings& st) {
     }
   }
   throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
+}
+
+double windowRadius(const StrokeSettings& st) {
+  return st.tool == Brush::Crease ? st.radius / kCreaseNarrowing : st.radius;
 }
 
 double signedHeight(const StrokeSettings& st) {
