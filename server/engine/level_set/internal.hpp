@@ -33,7 +33,7 @@ struct Motion {
   // speed * W * -h (n . m), h = (q - planePoint) . m clamped to [-1, 1], m = planeNormal, at its
   // foot point q and normal n (listing.cpp, planeSpeed): |speed| <= 1 keeps the CFL bound.
   bool towardsPlane = false;
-  Vec3 planePoint, planeNormal;
+  Vec3 planePoint{}, planeNormal{};
 };
 
 // Advection: two sub-steps of dt |F| <= 0.5 vu (the CFL bound of the upwind scheme), so one
