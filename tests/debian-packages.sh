@@ -1,6 +1,7 @@
 # Sourced by the install scripts: the Debian packages Marzipan builds, runs and tests with.
-# What building and running `marzipan` needs (server/install-build-run.sh installs only these):
-MARZIPAN_RUN_PACKAGES=(g++ cmake ninja-build pkg-config libboost-dev nlohmann-json3-dev libstb-dev libzstd-dev libturbojpeg0-dev libmeshoptimizer-dev)
+# What building and running `marzipan` needs (server/install-build-run.sh installs only these;
+# python3 runs protocol/registry/generate.py during the build):
+MARZIPAN_RUN_PACKAGES=(g++ cmake ninja-build pkg-config python3 libboost-dev nlohmann-json3-dev libstb-dev libzstd-dev libturbojpeg0-dev libmeshoptimizer-dev)
 # What only the tests need (tests/install-build-test.sh installs both lists): Catch2, ccache for
 # rebuilds, node for the JavaScript and browser tests, python3-websockets for the Python client
 # and the process tests, python3-numpy for the load tool's picking (tests/load/web_client_model.py),

@@ -12,6 +12,7 @@ extern const char* const kCliWorkdir;       // scratch directory of the cli suit
 extern const char* const kNetWorkdir;       // scratch directory of the net suite
 extern const char* const kEngineArtifacts;  // pictures the engine suite leaves for a person
 extern const char* const kProtocolVectors;  // tests/protocol/vectors/vectors.json
+extern const char* const kToolRegistry;     // protocol/registry/tools.json
 extern const char* const kFuzzRegressions;  // tests/fuzz/regressions (inputs that broke a reader)
 
 }  // namespace marzipan::test_paths

@@ -1,6 +1,7 @@
 // The checks of json_checks.hpp.
 #include "json_checks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -48,9 +49,15 @@ std::string describe(const json& v) {
   throw OpError(std::string(key), inQuotes(key) + " " + what);
 }
 
+std::string listNames(std::span<const std::string_view> names) {
+  std::string out;
+  for (std::string_view n : names) out += (out.empty() ? "" : ", ") + std::string(n);
+  return out;
+}
+
 // Refuses any key outside `allowed`; `context` says for which tool, so that a key that is
 // valid elsewhere ("shape" on a brush) is explained rather than just called unknown.
-void checkKeys(const json& obj, std::initializer_list<std::string_view> allowed, const std::string& context) {
+void checkKeys(const json& obj, std::span<const std::string_view> allowed, const std::string& context) {
   for (const auto& item : obj.items()) {
     bool known = false;
     for (std::string_view a : allowed) known = known || item.key() == a;
@@ -122,6 +129,49 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound) {
                                           formatNumber(c[a]));
   }
   return c;
+}
+
+double numberParam(const json& obj, const NumberParam& p, const std::string& context, double radius) {
+  const json* v = find(obj, p.key);
+  if (!v) {
+    if (!p.defaultValue) fail(p.key, "is missing (required for " + context + ")");
+    return *p.defaultValue;
+  }
+  const double d = finiteNumber(*v, p.key);
+  const double most = p.maxPerRadius > 0 ? std::min(p.maximum, p.maxPerRadius * radius) : p.maximum;
+  const bool aboveLow = p.exclusiveMinimum ? d > p.minimum : d >= p.minimum;
+  if (aboveLow && d <= most) return d;
+  std::string range = p.exclusiveMinimum ? "in (" + formatNumber(p.minimum) + ", " + formatNumber(most) + "]"
+                                         : "between " + formatNumber(p.minimum) + " and " + formatNumber(most);
+  if (p.maxPerRadius > 0) {
+    const std::string share = p.maxPerRadius == 0.5 ? "half the radius"
+                              : p.maxPerRadius == 1 ? "the radius"
+                                                    : formatNumber(p.maxPerRadius) + " times the radius";
+    range += " (at most " + share + ", at most " + formatNumber(p.maximum) + ")";
+  }
+  fail(p.key, "must be " + range + ", got " + formatNumber(d));
+}
+
+std::int64_t integerParam(const json& obj, const IntegerParam& p, const std::string& context) {
+  const json* v = find(obj, p.key);
+  if (!v) {
+    if (!p.defaultValue) fail(p.key, "is missing (required for " + context + ")");
+    return *p.defaultValue;
+  }
+  return integerInRange(*v, p.key, p.minimum, p.maximum);
+}
+
+Vec3 pointParam(const json& obj, const PointParam& p, const std::string& context) {
+  return vec3Value(require(obj, p.key, context), p.key, p.bound);
+}
+
+std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& context) {
+  const json* v = find(obj, p.key);
+  const std::string name = v ? stringValue(*v, p.key) : p.defaultValue ? std::string(*p.defaultValue) : std::string();
+  if (!v && !p.defaultValue) fail(p.key, "is missing (required for " + context + ")");
+  for (std::size_t i = 0; i < p.values.size(); ++i)
+    if (p.values[i] == name) return i;
+  fail(p.key, "must be one of " + listNames(p.values) + ", got " + inQuotes(name));
 }
 
 namespace {

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -34,12 +35,16 @@ std::string listNames(const std::array<NameOf<E>, N>& table) {
   for (const auto& entry : table) out += (out.empty() ? "" : ", ") + std::string(entry.name);
   return out;
 }
+std::string listNames(std::span<const std::string_view> names);
 
 [[noreturn]] void fail(std::string_view key, const std::string& what);
 
 // Refuses any key of `obj` outside `allowed`; `context` ("tool \"add_blob\"", "params of
 // session.create") explains where.
-void checkKeys(const json& obj, std::initializer_list<std::string_view> allowed, const std::string& context);
+void checkKeys(const json& obj, std::span<const std::string_view> allowed, const std::string& context);
+inline void checkKeys(const json& obj, std::initializer_list<std::string_view> allowed, const std::string& context) {
+  checkKeys(obj, std::span(allowed.begin(), allowed.size()), context);
+}
 const json* find(const json& obj, std::string_view key);
 const json& require(const json& obj, std::string_view key, const std::string& context);
 
@@ -50,6 +55,15 @@ bool booleanValue(const json& v, std::string_view key);
 std::int64_t integerInRange(const json& v, std::string_view key, std::int64_t lo, std::int64_t hi);
 // An array of three finite numbers, each within +-bound.
 Vec3 vec3Value(const json& v, std::string_view key, double bound);
+
+// A registry parameter (tool_spec.hpp) of `obj`: its default when the key is left out, or
+// "is missing" when it has none; else a value of its type in its range. `radius` is the tool's,
+// for a parameter bounded by it too (maxPerRadius).
+double numberParam(const json& obj, const NumberParam& p, const std::string& context, double radius = 0);
+std::int64_t integerParam(const json& obj, const IntegerParam& p, const std::string& context);
+Vec3 pointParam(const json& obj, const PointParam& p, const std::string& context);
+// The index of the value in p.values.
+std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& context);
 
 // Arrays and objects parseJsonText reads nested (the outermost counts): far more levels than
 // any message has (a request's dab ray is 6 deep).

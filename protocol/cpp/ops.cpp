@@ -18,74 +18,66 @@ namespace {
 using nlohmann::json;
 using namespace checks;
 
-double strengthValue(const json& v) {
-  const double d = finiteNumber(v, "strength");
-  if (!(d > 0 && d <= 1)) fail("strength", "must be in (0, 1], got " + formatNumber(d));
-  return d;
-}
+// The tool's spec; the generated tables name every tool of every kind.
+const ToolSpec& specOf(std::string_view name) { return *findTool(kTools, name); }
 
-Vec3 centerValue(const json& v) { return vec3Value(v, "center", kMaxCoordinate); }
-
-int iterationsValue(const json& v) { return int(integerInRange(v, "iterations", 1, kMaxIterations)); }
+// The registry's values of the enumerations values.hpp shares with the engine, and the axis
+// order CsgParams::axis counts in.
+static_assert(sameNames(kToolShapeNames, kShapeValues), "the registry's shapes are values.hpp's ToolShape");
+static_assert(kAxisValues.size() == 3 && kAxisValues[0] == "x" && kAxisValues[1] == "y" && kAxisValues[2] == "z",
+              "CsgParams::axis counts x, y, z");
 
 GlobalSmoothOp parseGlobalSmooth(const json& obj, std::string_view nameKey) {
   const std::string context = "global smoothing";
-  checkKeys(obj, {nameKey, "global", "iterations", "strength"}, context);
+  std::vector<std::string_view> keys{nameKey, "global"};
+  keys.insert(keys.end(), kGlobalSmoothKeys.begin(), kGlobalSmoothKeys.end());
+  checkKeys(obj, keys, context);
   GlobalSmoothOp op;
-  op.iterations = iterationsValue(require(obj, "iterations", context));
-  if (const json* s = find(obj, "strength")) op.strength = strengthValue(*s);
+  op.iterations = int(integerParam(obj, kParamIterations, context));
+  op.strength = numberParam(obj, kParamStrength, context);
   return op;
 }
 
 BrushOp parseBrush(const json& obj, BrushTool tool) {
-  const std::string context = "tool " + inQuotes(nameOf(kBrushToolNames, tool));
-  checkKeys(obj, {"tool", "global", "center", "radius", "strength"}, context);
+  const ToolSpec& spec = specOf(nameOf(kBrushToolNames, tool));
+  const std::string context = "tool " + inQuotes(spec.name);
+  checkKeys(obj, spec.opKeys, context);
   BrushOp op;
   op.tool = tool;
-  op.params.center = centerValue(require(obj, "center", context));
-  op.params.radius = kDefaultBrushRadius;
-  if (const json* r = find(obj, "radius")) op.params.radius = numberInRange(*r, "radius", kMinToolRadius, kMaxToolRadius);
-  op.params.strength = kDefaultStrength;
-  if (const json* s = find(obj, "strength")) op.params.strength = strengthValue(*s);
+  op.params.center = pointParam(obj, kParamCenter, context);
+  op.params.radius = numberParam(obj, kParamRadius, context);
+  op.params.strength = numberParam(obj, kParamStrength, context);
   return op;
 }
 
 CsgToolOp parseCsg(const json& obj, CsgOp csg) {
-  const std::string context = "tool " + inQuotes(nameOf(kCsgToolNames, csg));
-  checkKeys(obj, {"tool", "shape", "center", "radius", "blend", "axis"}, context);
+  const ToolSpec& spec = specOf(nameOf(kCsgToolNames, csg));
+  const std::string context = "tool " + inQuotes(spec.name);
+  checkKeys(obj, spec.opKeys, context);
   CsgToolOp op;
   op.params.op = csg;
-  const std::string shape = stringValue(require(obj, "shape", context), "shape");
-  const auto s = fromWireName(kToolShapeNames, shape);
-  if (!s) fail("shape", "must be one of " + listNames(kToolShapeNames) + ", got " + inQuotes(shape));
-  op.params.shape = *s;
-  op.params.center = centerValue(require(obj, "center", context));
-  op.params.radius = numberInRange(require(obj, "radius", context), "radius", kMinToolRadius, kMaxToolRadius);
-  op.params.blend = 0;
-  if (const json* b = find(obj, "blend")) op.params.blend = numberInRange(*b, "blend", 0, op.params.radius);
-  op.params.axis = 1;
-  if (const json* a = find(obj, "axis")) {
-    // Only a cylinder has an axis; accepting it elsewhere would let two spellings mean one op.
-    if (op.params.shape != ToolShape::Cylinder) fail("axis", "applies to shape \"cylinder\" only");
-    const std::string name = stringValue(*a, "axis");
-    int axis = -1;
-    for (std::size_t i = 0; i < kAxisNames.size(); ++i)
-      if (kAxisNames[i] == name) axis = int(i);
-    if (axis < 0) fail("axis", "must be one of x, y, z, got " + inQuotes(name));
-    op.params.axis = axis;
-  }
+  op.params.shape = kToolShapeNames[enumParam(obj, kParamShape, context)].value;
+  op.params.center = pointParam(obj, kParamCenter, context);
+  op.params.radius = numberParam(obj, kParamShapeRadius, context);
+  op.params.blend = numberParam(obj, kParamBlend, context, op.params.radius);
+  // Only a cylinder has an axis; accepting it elsewhere would let two spellings mean one op.
+  if (find(obj, kParamAxis.key) && op.params.shape != ToolShape::Cylinder)
+    fail(kParamAxis.key, "applies to shape \"cylinder\" only");
+  op.params.axis = int(enumParam(obj, kParamAxis, context));
   return op;
 }
 
 MorphOp parseMorph(const json& obj) {
   const std::string context = "op \"morph\"";
-  checkKeys(obj, {"op", "kind", "radius"}, context);
+  std::vector<std::string_view> keys{"op", "kind"};
+  keys.insert(keys.end(), kMorphKeys.begin(), kMorphKeys.end());
+  checkKeys(obj, keys, context);
   MorphOp op;
   const std::string kind = stringValue(require(obj, "kind", context), "kind");
   const auto k = fromWireName(kMorphKindNames, kind);
   if (!k) fail("kind", "must be one of " + listNames(kMorphKindNames) + ", got " + inQuotes(kind));
   op.kind = *k;
-  op.radius = numberInRange(require(obj, "radius", context), "radius", kMinMorphRadius, kMaxMorphRadius);
+  op.radius = numberParam(obj, kParamMorphRadius, context);
   return op;
 }
 
@@ -93,7 +85,7 @@ Op parseTool(const json& obj, const std::string& name) {
   if (const auto brush = fromWireName(kBrushToolNames, name)) {
     const json* global = find(obj, "global");
     if (global && booleanValue(*global, "global")) {
-      if (*brush != BrushTool::Smooth) fail("global", "is only available for tool \"smooth\"");
+      if (name != kOpSmooth) fail("global", "is only available for tool \"smooth\"");
       return parseGlobalSmooth(obj, "tool");
     }
     return parseBrush(obj, *brush);
@@ -145,7 +137,7 @@ json toJson(const Op& op) {
                     {"center", center(o.params.center)},
                     {"radius", o.params.radius},
                     {"blend", o.params.blend}};
-          if (o.params.shape == ToolShape::Cylinder) j["axis"] = kAxisNames[std::size_t(o.params.axis)];
+          if (o.params.shape == ToolShape::Cylinder) j["axis"] = kAxisValues[std::size_t(o.params.axis)];
           return j;
         } else {
           return {{"op", kOpMorph}, {"kind", nameOf(kMorphKindNames, o.kind)}, {"radius", o.radius}};

@@ -4,9 +4,10 @@
 //
 // Conventions: coordinates and lengths in vu, as in server/engine/volume.hpp. Parsing is
 // strict: every key must be known for its tool, every value of the right JSON type, finite
-// and in range, or OpError names the key and what is wrong. Ranges are the engine's own, so
-// an op that parses is only refused by the engine for what depends on the volume (a tool
-// whose region misses the domain). toJson writes the canonical form (every field, defaults
+// and in range, or OpError names the key and what is wrong. Ranges are the engine's own (the
+// tool registry writes them down; tests/service/test_engine_tools.cpp checks that the engine
+// agrees), so an op that parses is only refused by the engine for what depends on the volume
+// (a tool whose region misses the domain). toJson writes the canonical form (every field, defaults
 // included, keys in a fixed order), and parseOp(toJson(op)) == op.
 #pragma once
 
@@ -19,15 +20,20 @@
 
 #include <nlohmann/json.hpp>
 
+#include "protocol/cpp/tools.generated.hpp"
 #include "protocol/cpp/values.hpp"
 
 namespace marzipan::protocol {
 
-// One of the four localized level-set tools, applied once in the ROI cube around `center`.
-enum class BrushTool { AddBlob, RemoveBlob, Smooth, Sharpen };
+// The tools, their parameters' ranges and defaults and the keys each takes come from the tool
+// registry (protocol/registry/tools.json), generated at build time into this header's neighbour
+// protocol/cpp/tools.generated.hpp (tool_spec.hpp says how to read it): BrushTool and
+// kBrushToolNames (the surface-speed tools), kCsgToolNames, MorphKind and kMorphKindNames, kTools
+// and a kParam... constant per parameter. A surface-speed tool applied once in the ROI cube
+// around `center`.
 struct BrushOp {
   BrushTool tool = BrushTool::AddBlob;
-  BrushParams params;  // radius default 8, strength default 1
+  BrushParams params;  // defaults: kParamRadius, kParamStrength
   friend bool operator==(const BrushOp& a, const BrushOp& b) {
     return a.tool == b.tool && a.params.center == b.params.center && a.params.radius == b.params.radius &&
            a.params.strength == b.params.strength;
@@ -49,7 +55,6 @@ struct CsgToolOp {
   }
 };
 
-enum class MorphKind { Erode, Dilate, Open, Close };
 struct MorphOp {
   MorphKind kind = MorphKind::Dilate;
   double radius = 1;
@@ -72,33 +77,15 @@ class OpError : public std::runtime_error {
   std::string field_;
 };
 
-// --- the names, in one place --------------------------------------------------------------
-// Tables of WireName (values.hpp), looked up with fromWireName and nameOf.
+// --- the names ---------------------------------------------------------------------------
+// Tables of WireName (values.hpp), looked up with fromWireName and nameOf; the tools' own are
+// generated (see above).
 template <class E>
 using NameOf = WireName<E>;
 
-// The "tool" values. A tool is a brush, a CSG operation, or (smooth only) global smoothing.
-inline constexpr std::array<NameOf<BrushTool>, 4> kBrushToolNames{{
-    {BrushTool::AddBlob, "add_blob"},
-    {BrushTool::RemoveBlob, "remove_blob"},
-    {BrushTool::Smooth, "smooth"},
-    {BrushTool::Sharpen, "sharpen"},
-}};
-inline constexpr std::array<NameOf<CsgOp>, 3> kCsgToolNames{{
-    {CsgOp::Add, "csg_add"},
-    {CsgOp::Subtract, "csg_subtract"},
-    {CsgOp::Intersect, "csg_intersect"},
-}};
 // The "op" values: whole-volume operations.
 inline constexpr std::string_view kOpSmooth = "smooth";
 inline constexpr std::string_view kOpMorph = "morph";
-inline constexpr std::array<NameOf<MorphKind>, 4> kMorphKindNames{{
-    {MorphKind::Erode, "erode"},
-    {MorphKind::Dilate, "dilate"},
-    {MorphKind::Open, "open"},
-    {MorphKind::Close, "close"},
-}};
-inline constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
 
 // The name of `value`, or "" for a value without one (wireName says "unknown").
 template <class E, std::size_t N>
@@ -108,14 +95,9 @@ constexpr std::string_view nameOf(const std::array<NameOf<E>, N>& table, E value
   return {};
 }
 
-// --- ranges (the engine's; see level_set.hpp and csg.hpp) -------------------------------
-inline constexpr double kMinToolRadius = 0.5, kMaxToolRadius = 1024;
-inline constexpr double kMinMorphRadius = 0.001, kMaxMorphRadius = 64;
-inline constexpr int kMaxIterations = 100000;
 // No domain is wider than 1024 vu and no tool reaches further than 1024 vu, so a centre
 // beyond this can only miss; the bound keeps coordinates far from int overflow in ROI maths.
-inline constexpr double kMaxCoordinate = 1e6;
-inline constexpr double kDefaultBrushRadius = 8, kDefaultStrength = 1;
+inline constexpr double kMaxCoordinate = kParamCenter.bound;
 
 // --- parsing and writing --------------------------------------------------------------------
 // One operation object. Throws OpError.

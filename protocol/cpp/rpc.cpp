@@ -427,17 +427,29 @@ ToolApplyParams parseToolApplyParams(const json& params) {
 
 StrokeBeginParams parseStrokeBeginParams(const json& params) {
   const std::string context = paramsContext(Method::StrokeBegin);
-  checkKeys(params, {"tool", "radius", "strength", "symmetry", "accumulate", "height"}, context);
+  checkKeys(params, kStrokeBeginKeys, context);
   StrokeBeginParams p;
   const std::string tool = stringValue(require(params, "tool", context), "tool");
+  const ToolSpec* spec = findTool(kTools, tool);
   const auto t = fromWireName(kBrushToolNames, tool);
-  if (!t) fail("tool", "must be one of " + listNames(kBrushToolNames) + " for a stroke, got " + inQuotes(tool));
-  p.tool = *t;
-  if (const json* r = find(params, "radius")) p.radius = numberInRange(*r, "radius", kMinToolRadius, kMaxToolRadius);
-  if (const json* s = find(params, "strength")) {
-    p.strength = finiteNumber(*s, "strength");
-    if (!(p.strength > 0 && p.strength <= 1)) fail("strength", "must be in (0, 1], got " + formatNumber(p.strength));
+  if (!spec || !spec->strokes || !t) {
+    std::vector<std::string_view> strokes;
+    for (const ToolSpec& s : kTools)
+      if (s.strokes) strokes.push_back(s.name);
+    fail("tool", "must be one of " + listNames(strokes) + " for a stroke, got " + inQuotes(tool));
   }
+  p.tool = *t;
+  // A key of stroke.begin that some tools take but not this one.
+  for (const auto& item : params.items()) {
+    const std::string& key = item.key();
+    if (key == "tool" || key == "symmetry" || key == "accumulate" || hasKey(spec->strokeKeys, key)) continue;
+    std::vector<std::string_view> takers;
+    for (const ToolSpec& s : kTools)
+      if (hasKey(s.strokeKeys, key)) takers.push_back(s.name);
+    fail(key, "is only for " + listNames(takers) + ", not " + inQuotes(tool));
+  }
+  p.radius = numberParam(params, kParamRadius, context);
+  p.strength = numberParam(params, kParamStrength, context);
   if (const json* sym = find(params, "symmetry")) {
     if (!sym->is_array() || sym->size() > 3) fail("symmetry", "must be an array of axes such as [\"x\", \"z\"], got " + describe(*sym));
     for (const json& axis : *sym) {
@@ -449,15 +461,9 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
     }
   }
   if (const json* a = find(params, "accumulate")) p.accumulate = booleanValue(*a, "accumulate");
-  if (const json* h = find(params, "height")) {
-    if (p.tool != BrushTool::AddBlob && p.tool != BrushTool::RemoveBlob)
-      fail("height", "is only for add_blob and remove_blob, not " + inQuotes(tool));
+  if (find(params, kParamHeight.key)) {
     if (p.accumulate) fail("height", "is for strokes that remember what they applied, not with \"accumulate\": true");
-    const double most = std::min(p.radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight);
-    p.height = finiteNumber(*h, "height");
-    if (!(*p.height > 0 && *p.height <= most))
-      fail("height", "must be in (0, " + formatNumber(most) + "] vu (at most half the radius, at most 64), got " +
-                         formatNumber(*p.height));
+    p.height = numberParam(params, kParamHeight, context, p.radius);
   }
   return p;
 }
@@ -508,7 +514,9 @@ std::uint64_t parseStrokeEndParams(const json& params) {
 
 MorphOp parseMorphParams(const json& params) {
   const std::string context = paramsContext(Method::VolumeMorph);
-  checkKeys(params, {"kind", "radius"}, context);
+  std::vector<std::string_view> keys{"kind"};
+  keys.insert(keys.end(), kMorphKeys.begin(), kMorphKeys.end());
+  checkKeys(params, keys, context);
   json op = params;
   op["op"] = "morph";
   return std::get<MorphOp>(parseOp(op));
@@ -736,10 +744,12 @@ PresenceParams parsePresenceParams(const json& params) {
       checkKeys(*b, {"tool", "radius", "point", "normal", "active"}, what);
       BrushPresence brush;
       brush.tool = stringValue(require(*b, "tool", what), "tool");
-      if (!fromWireName(kBrushToolNames, brush.tool) && !fromWireName(kCsgToolNames, brush.tool))
-        fail("tool", "must be one of " + listNames(kBrushToolNames) + ", " + listNames(kCsgToolNames) + ", got " +
-                         inQuotes(brush.tool));
-      brush.radius = numberInRange(require(*b, "radius", what), "radius", kMinToolRadius, kMaxToolRadius);
+      if (!findTool(kTools, brush.tool)) {
+        std::vector<std::string_view> names;
+        for (const ToolSpec& s : kTools) names.push_back(s.name);
+        fail("tool", "must be one of " + listNames(names) + ", got " + inQuotes(brush.tool));
+      }
+      brush.radius = numberInRange(require(*b, "radius", what), "radius", kParamRadius.minimum, kParamRadius.maximum);
       brush.point = vec3Value(require(*b, "point", what), "point", kMaxCoordinate);
       const Vec3 n = vec3Value(require(*b, "normal", what), "normal", kMaxCoordinate);
       const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);

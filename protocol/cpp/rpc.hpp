@@ -170,12 +170,11 @@ struct ToolApplyParams {
 };
 struct StrokeBeginParams {
   BrushTool tool = BrushTool::AddBlob;
-  double radius = kDefaultBrushRadius, strength = kDefaultStrength;
+  double radius = *kParamRadius.defaultValue, strength = *kParamStrength.defaultValue;
   bool mirrorX = false, mirrorY = false, mirrorZ = false;
   bool accumulate = false;  // every stroke.dabs adds (build-up), see PROTOCOL.md
-  // vu: add/remove blob move the surface by this at most, however often the stroke passes
-  // (since 1.4); in (0, min(radius * kMaxStrokeHeightPerRadius, kMaxStrokeHeight)], not with
-  // accumulate
+  // vu (since 1.4): the stroke moves the surface by this at most, however often it passes;
+  // kParamHeight, for the tools that take it (kTools), not with accumulate
   std::optional<double> height;
 };
 struct DabParam {
@@ -213,8 +212,8 @@ struct RenderFrameParams {
 // What a client reports of itself: its brush under the pointer and its camera. Each presence
 // replaces the sender's whole previous one (a part left out is none).
 struct BrushPresence {
-  std::string tool;  // a brush or CSG tool name (kBrushToolNames, kCsgToolNames)
-  double radius = kDefaultBrushRadius;  // [kMinToolRadius, kMaxToolRadius] vu
+  std::string tool;  // a tool name (kTools)
+  double radius = *kParamRadius.defaultValue;  // kParamRadius's range, vu
   Vec3 point;   // within +-kMaxCoordinate vu
   Vec3 normal;  // unit length (the decoder normalizes any finite, non-zero vector)
   bool active = false;  // sculpting now (a stroke is open)

@@ -9,15 +9,11 @@
 // silently, presence being a notification) and throws TypeError/RangeError; PresenceBoard reads
 // untrusted server messages and never throws for their content (it ignores what is malformed).
 
-export const PRESENCE_TOOLS = Object.freeze([
-  "add_blob",
-  "remove_blob",
-  "smooth",
-  "sharpen",
-  "csg_add",
-  "csg_subtract",
-  "csg_intersect",
-]);
+import { PARAMETERS, TOOL_NAMES } from "./tools.js";
+
+// The names a brush's `tool` may be: every tool of the registry (protocol/registry/tools.json).
+export const PRESENCE_TOOLS = TOOL_NAMES;
+const RADIUS = PARAMETERS.radius;
 // A receiver gets one sender's presence at most this often (ms): sending faster only replaces.
 export const PRESENCE_INTERVAL_MS = 50;
 
@@ -50,8 +46,8 @@ export function presenceParams({ brush, camera } = {}) {
     if (!isObject(brush)) throw new TypeError("brush must be an object {tool, radius, point, normal, active}");
     onlyKeys(brush, ["tool", "radius", "point", "normal", "active"], "a brush");
     if (!PRESENCE_TOOLS.includes(brush.tool)) throw new RangeError(`brush.tool must be one of ${PRESENCE_TOOLS.join(", ")}`);
-    if (typeof brush.radius !== "number" || !(brush.radius >= 0.5 && brush.radius <= 1024))
-      throw new RangeError("brush.radius must be a number in [0.5, 1024]");
+    if (typeof brush.radius !== "number" || !(brush.radius >= RADIUS.minimum && brush.radius <= RADIUS.maximum))
+      throw new RangeError(`brush.radius must be a number in [${RADIUS.minimum}, ${RADIUS.maximum}]`);
     const normal = vec3(brush.normal, "brush.normal", MAX_COORDINATE);
     if (normal.every((v) => v === 0)) throw new RangeError("brush.normal must not be zero");
     if (typeof brush.active !== "boolean") throw new TypeError("brush.active must be a boolean");

@@ -18,39 +18,19 @@ namespace {
 
 using namespace protocol;
 
+// Every surface-speed tool is a one-dab stroke, bit for bit the engine's addBlob, smooth, ...
 Edit apply(Volume& vol, const BrushOp& op, ThreadPool& pool) {
-  switch (op.tool) {
-    case BrushTool::AddBlob:
-      return addBlob(vol, op.params, pool);
-    case BrushTool::RemoveBlob:
-      return removeBlob(vol, op.params, pool);
-    case BrushTool::Smooth:
-      return smooth(vol, op.params, pool);
-    case BrushTool::Sharpen:
-      return sharpen(vol, op.params, pool);
-  }
-  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
+  const StrokeDab dab{op.params.center, 1.0};
+  return applyStroke(vol, {engineBrush(op.tool), op.params.radius, op.params.strength}, {&dab, 1}, {}, pool);
 }
 
 Edit apply(Volume& vol, const GlobalSmoothOp& op, ThreadPool& pool) {
-  return meanCurvatureFlow(vol, op.iterations, op.strength, pool);
+  return applyGlobalSmooth(vol, op.iterations, op.strength, pool);
 }
 
 Edit apply(Volume& vol, const CsgToolOp& op, ThreadPool& pool) { return applyCsg(vol, op.params, pool); }
 
-Edit apply(Volume& vol, const MorphOp& op, ThreadPool& pool) {
-  switch (op.kind) {
-    case MorphKind::Erode:
-      return erode(vol, op.radius, pool);
-    case MorphKind::Dilate:
-      return dilate(vol, op.radius, pool);
-    case MorphKind::Open:
-      return openSolid(vol, op.radius, pool);
-    case MorphKind::Close:
-      return closeSolid(vol, op.radius, pool);
-  }
-  throw EngineError(ErrorKind::InvalidArgument, "kind", "unknown morphology kind");
-}
+Edit apply(Volume& vol, const MorphOp& op, ThreadPool& pool) { return applyMorph(vol, op.kind, op.radius, pool); }
 
 // The voxels of a cube of half side `reach` around a point, clipped to the domain (the
 // centre is unknown before a pick, so the worst place is assumed).
@@ -128,16 +108,6 @@ OpCost estimateCost(const Volume& vol, const Op& op) {
 
 Edit applyOp(Volume& vol, const Op& op, ThreadPool& pool) {
   return std::visit([&](const auto& o) { return apply(vol, o, pool); }, op);
-}
-
-Brush engineBrush(protocol::BrushTool tool) {
-  switch (tool) {
-    case protocol::BrushTool::AddBlob: return Brush::AddBlob;
-    case protocol::BrushTool::RemoveBlob: return Brush::RemoveBlob;
-    case protocol::BrushTool::Smooth: return Brush::Smooth;
-    case protocol::BrushTool::Sharpen: return Brush::Sharpen;
-  }
-  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown brush tool");
 }
 
 }  // namespace marzipan::service

@@ -13,13 +13,13 @@
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
+// engineBrush (the engine's Brush of a surface-speed tool), applyMorph, applyGlobalSmooth:
+// generated from the tool registry (protocol/registry/tools.json) at build time.
+#include "service/engine_tools.generated.hpp"
 
 namespace marzipan::service {
 
 Edit applyOp(Volume& vol, const protocol::Op& op, ThreadPool& pool);
-
-// The engine's name of a brush tool (for strokes, which call the engine's applyStroke).
-Brush engineBrush(protocol::BrushTool tool);
 
 // What an op will cost before it runs, for the server's per-request budget and progress.
 // voxels: voxels processed, an upper estimate that goes with the time it takes: a local

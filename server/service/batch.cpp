@@ -405,6 +405,18 @@ int run(const std::vector<std::string>& args, std::ostream& out) {
 
 }  // namespace
 
+namespace {
+
+// "a"|"b"|"c": the quoted names of a table, as the usage shows alternatives.
+template <class E, std::size_t N>
+std::string alternatives(const std::array<WireName<E>, N>& table) {
+  std::string out;
+  for (const auto& entry : table) out += (out.empty() ? "\"" : "|\"") + std::string(entry.name) + "\"";
+  return out;
+}
+
+}  // namespace
+
 void printBatchUsage(std::ostream& os) {
   os << R"(Usage: marzipan batch OPS.jsonl [options]
 
@@ -413,12 +425,14 @@ the result. Blank lines and lines starting with # are skipped; OPS "-" reads sta
 Every line is checked before the first is applied; output files are written only when every
 operation succeeded.
 
-Operations (coordinates and lengths in vu, the voxel spacing):
-  {"tool":"add_blob"|"remove_blob"|"smooth"|"sharpen","center":[x,y,z],"radius":8,"strength":1}
+Operations (coordinates and lengths in vu, the voxel spacing; the tools are the tool registry's,
+protocol/registry/tools.json, described in protocol/PROTOCOL.md):
+  {"tool":)" << alternatives(protocol::kBrushToolNames) << R"(,
+   "center":[x,y,z],"radius":8,"strength":1}
   {"op":"smooth","global":true,"iterations":N,"strength":1}   (or "tool":"smooth","global":true)
-  {"tool":"csg_add"|"csg_subtract"|"csg_intersect","shape":"sphere"|"box"|"cylinder",
+  {"tool":)" << alternatives(protocol::kCsgToolNames) << R"(,"shape":)" << alternatives(kToolShapeNames) << R"(,
    "center":[x,y,z],"radius":R,"blend":0,"axis":"y"}
-  {"op":"morph","kind":"erode"|"dilate"|"open"|"close","radius":K}
+  {"op":"morph","kind":)" << alternatives(protocol::kMorphKindNames) << R"(,"radius":K}
 
 Starting solid:
   --size N              domain of N^3 voxels, 8..1024 (default 128)

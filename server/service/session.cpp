@@ -240,8 +240,8 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
   const auto known = std::any_of(protocol::kBrushToolNames.begin(), protocol::kBrushToolNames.end(),
                                  [&](const auto& n) { return n.value == tool; });
   if (!known) invalid("tool", "is not a brush tool");
-  if (!std::isfinite(radius) || radius < protocol::kMinToolRadius || radius > protocol::kMaxToolRadius)
-    invalid("radius", "must be a number of vu in [0.5, 1024]");
+  if (!std::isfinite(radius) || radius < protocol::kParamRadius.minimum || radius > protocol::kParamRadius.maximum)
+    invalid("radius", "must be a number of vu in " + protocol::rangeText(protocol::kParamRadius));
   if (height && accumulate) invalid("height", "is for strokes that remember what they applied, not for accumulating ones");
   // The strength and the height as the engine will check every message's dabs (one check).
   try {

@@ -30,6 +30,7 @@ import urllib.request
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "protocol", "python"))
 
 from marzipan import Client  # noqa: E402  (the path above makes this checkout's package importable)
+from marzipan import tools as registry  # noqa: E402
 from marzipan.rpc import ConnectionClosed, RpcError  # noqa: E402
 
 STORAGE_FAILED = -32000  # PROTOCOL.md: a change that could not be journaled is refused with it
@@ -372,7 +373,9 @@ class Workload:
     CSG, strokes with and without symmetry (one request per dab batch), morphology, global
     smoothing, undo/redo, volume.save and a later volume.load of a saved file."""
 
-    TOOLS = ("add_blob", "remove_blob", "smooth", "sharpen")
+    # The tools applied by centre or ray with a radius and strength, and stroked: the registry's
+    # surface-speed tools.
+    TOOLS = tuple(t["name"] for t in registry.TOOLS if t["kind"] == "surface_speed" and t["strokes"])
 
     def __init__(self, rng: random.Random, dims, mirror: Mirror):
         self.rng = rng

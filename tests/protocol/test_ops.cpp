@@ -98,7 +98,7 @@ TEST_CASE("each kind of operation object parses into its typed op", "[ops]") {
 
 TEST_CASE("optional fields take their documented defaults", "[ops]") {
   const BrushOp brush = std::get<BrushOp>(parseOp(json{{"tool", "smooth"}, {"center", {1, 2, 3}}}));
-  CHECK(brush.params.radius == kDefaultBrushRadius);
+  CHECK(brush.params.radius == kParamRadius.defaultValue);
   CHECK(brush.params.radius == 8);
   CHECK(brush.params.strength == 1);
   CHECK(std::get<BrushOp>(parseOp(with(kBrush, "global", false))) == std::get<BrushOp>(parseOp(kBrush)));
@@ -179,7 +179,7 @@ TEST_CASE("numbers out of range, non-finite numbers and unknown names are named"
 
   requireRefused(with(kMorph, "radius", 0), "radius", "between 0.001 and 64");
   requireRefused(with(kMorph, "radius", 65), "radius", "between 0.001 and 64");
-  requireRefused(with(kMorph, "kind", "grow"), "kind", "erode, dilate, open, close");
+  requireRefused(with(kMorph, "kind", "grow"), "kind", "dilate, erode, open, close");
 
   requireRefused(with(kBrush, "tool", "add_blobs"), "tool", "must be one of");
   requireRefused(with(kBrush, "tool", ""), "tool", "must be one of");

@@ -8,26 +8,32 @@
 // merge into the next message, so a slow server gets fewer, larger messages rather than a
 // growing backlog. Every message has an id: failures come back and are shown.
 
+// The tool registry (protocol/registry/tools.json): which tools take a height, and its bound.
+// A relative path, which the browser resolves to the server's /protocol/js/ (ui/tools.js says why).
+import { PARAMETERS, TOOLS } from "../../protocol/js/tools.js";
+
 const MAX_IN_FLIGHT = 3;
 
-// How high a stroke of add_blob / remove_blob stands (stroke.begin `height`, vu): strength times
-// HEIGHT_PER_RADIUS of the radius, at most MAX_HEIGHT. Half the radius is the most the server
-// takes; at radius 8 and strength 1 that is a ridge of 4 vu, plain to see on a 128^3 model and
-// nowhere near a tentacle. The cap keeps a big brush's message affordable (the server's work
-// grows with the height: a sub-step per vu).
-export const HEIGHT_PER_RADIUS = 0.5;
+// How high a stroke of a tool that takes a height (add_blob, remove_blob) stands (stroke.begin
+// `height`, vu): strength times HEIGHT_PER_RADIUS of the radius, at most MAX_HEIGHT.
+// HEIGHT_PER_RADIUS is the most the server takes (half the radius); at radius 8 and strength 1
+// that is a ridge of 4 vu, plain to see on a 128^3 model and nowhere near a tentacle. The cap
+// keeps a big brush's message affordable (the server's work grows with the height: a sub-step
+// per vu).
+export const HEIGHT_PER_RADIUS = PARAMETERS.height.max_per_radius;
 export const MAX_HEIGHT = 16;
 
+const TAKES_HEIGHT = new Set(TOOLS.filter((t) => t.params.includes(PARAMETERS.height)).map((t) => t.name));
+
 // The stroke.begin params for the brush settings {tool, radius, strength, symmetry, buildUp}.
-// add_blob / remove_blob: a `height`, so that the stroke rises (sinks) that far however often
+// A tool that takes a height gets one, so that the stroke rises (sinks) that far however often
 // the pointer passes (the stroke memory, PROTOCOL.md), or with buildUp `accumulate`: every
-// message adds again, paint-like. smooth / sharpen take no height: they accumulate, since
-// passing again is how one smooths more.
+// message adds again, paint-like. The others (smooth, sharpen) accumulate, since passing again
+// is how one smooths more.
 export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = false }) {
   const params = { tool, radius, strength };
   if (symmetry && symmetry.length) params.symmetry = symmetry;
-  const shaping = tool === "add_blob" || tool === "remove_blob";
-  if (shaping && !buildUp) {
+  if (TAKES_HEIGHT.has(tool) && !buildUp) {
     // Rounded down to 1/1000 vu, so that it never exceeds half the radius.
     params.height = Math.max(0.001, Math.floor(1000 * strength * Math.min(HEIGHT_PER_RADIUS * radius, MAX_HEIGHT)) / 1000);
   } else {

@@ -1,7 +1,10 @@
 // Which undo a person means (PROTOCOL.md, history.undo `scope`), and what the timeline shows of
-// each step of history.list. Pure functions, no DOM and no protocol imports, for the unit tests.
+// each step of history.list. Pure functions, no DOM, for the unit tests; tools are named as the
+// palette names them (ui/tools.js, from the tool registry).
 // Conventions: clients are the session's {client, read_only} list (session.clients); `self` is
 // this page's client id; steps are history.list's step objects.
+
+import { toolName } from "../ui/tools.js";
 
 // "mine" while another client who can edit is in the session, so that Ctrl+Z never takes back a
 // collaborator's stroke; "session" when this page is the only editor (viewers make no steps):
@@ -34,15 +37,8 @@ export function undoConflictText(conflict, redo, self = null, names = new Map())
   );
 }
 
-// Tool wire names as a person reads them.
-const TOOL_NAMES = {
-  add_blob: "add blob",
-  remove_blob: "remove blob",
-  smooth: "smooth",
-  sharpen: "sharpen",
-  csg_add: "CSG add",
-  csg_subtract: "CSG subtract",
-  csg_intersect: "CSG intersect",
+// The steps that are no tool (history.list `tool`), as a person reads them.
+const OTHER_STEPS = {
   morph: "whole volume",
   "volume.load": "load .mzv",
 };
@@ -55,7 +51,7 @@ export function timelineRows(steps, self, timeOf = localTime, names = new Map())
   return steps.map((s) => ({
     revision: s.revision,
     author: authorName(s.client, self, s.name || names.get(s.client)),
-    tool: Object.hasOwn(TOOL_NAMES, s.tool) ? TOOL_NAMES[s.tool] : String(s.tool).replace(/_/g, " "),
+    tool: Object.hasOwn(OTHER_STEPS, s.tool) ? OTHER_STEPS[s.tool] : toolName(s.tool),
     time: timeOf(s.time_ms),
     undone: Boolean(s.undone),
     mine: s.client === self,

@@ -1,13 +1,16 @@
 // The side panel: the tool palette, brush settings, whole-volume operations, history, view,
 // files and session details. It owns `settings`, which the sculpting code reads, and calls the
-// app's handlers for actions; it never talks to the server itself.
+// app's handlers for actions; it never talks to the server itself. The palette and the
+// whole-volume menu are built from the tool registry (ui/tools.js), and the brush controls a
+// tool shows follow the parameters it takes.
 // Conventions: radius in vu (0.5 to 1024, the server's range; the slider covers 1 to 64 and
-// the keys go beyond); strength in (0, 1] for brushes; for CSG tools the same slider sets the
-// blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x", "y", "z");
-// lazy: the stroke stabiliser's slack in CSS pixels (0 = off); buildUp: add / remove blob strokes
-// add with every message instead of standing at a height (net/stroke-sender.js).
+// the keys go beyond); strength in (0, 1] for tools that take it; for the others (CSG) the same
+// slider sets the blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x",
+// "y", "z"); lazy: the stroke stabiliser's slack in CSS pixels (0 = off); buildUp: strokes of
+// tools that take a height add with every message instead of standing at a height
+// (net/stroke-sender.js).
 
-import { GLOBAL_OPS, TOOLS, toolById } from "./tools.js";
+import { GLOBAL_OPS, GROUPS, TOOLS, toolById } from "./tools.js";
 
 // Shadings only the server's ray caster draws: choosing one switches to the frame view.
 const FRAMES_ONLY = new Set(["gradient_error", "thickness"]);
@@ -53,6 +56,7 @@ export class Controls {
       });
 
     const op = $("global-op");
+    for (const [name, spec] of Object.entries(GLOBAL_OPS)) op.append(new Option(spec.menu, name));
     op.addEventListener("change", () => this.#globalOpChanged());
     $("global-apply").addEventListener("click", () => {
       const amount = Number($("global-amount").value);
@@ -86,22 +90,34 @@ export class Controls {
     return toolById(this.settings.tool);
   }
 
+  // One row of the grid per group: its name, then its tools, each an icon, a label and its key.
   #buildPalette() {
     const list = this.$("tool-list");
-    for (const tool of TOOLS) {
-      const label = this.doc.createElement("label");
-      label.title = `${tool.label} (key ${tool.key.toUpperCase()})`;
-      const input = this.doc.createElement("input");
-      input.type = "radio";
-      input.name = "tool";
-      input.value = tool.id;
-      input.checked = tool.id === this.settings.tool;
-      input.setAttribute("aria-keyshortcuts", tool.key.toUpperCase());
-      input.addEventListener("change", () => input.checked && this.setTool(tool.id));
-      const kbd = this.doc.createElement("kbd");
-      kbd.textContent = tool.key.toUpperCase();
-      label.append(input, tool.label, kbd);
-      list.append(label);
+    for (const group of GROUPS) {
+      const name = this.doc.createElement("span");
+      name.className = "tool-group";
+      name.textContent = group.name;
+      name.title = group.description;
+      list.append(name);
+      for (const tool of group.tools) {
+        const label = this.doc.createElement("label");
+        label.title = `${tool.label} (key ${tool.key.toUpperCase()})`;
+        const input = this.doc.createElement("input");
+        input.type = "radio";
+        input.name = "tool";
+        input.value = tool.id;
+        input.checked = tool.id === this.settings.tool;
+        input.setAttribute("aria-keyshortcuts", tool.key.toUpperCase());
+        input.addEventListener("change", () => input.checked && this.setTool(tool.id));
+        const icon = this.doc.createElement("span");
+        icon.className = "tool-icon";
+        icon.setAttribute("aria-hidden", "true");
+        icon.textContent = tool.icon;
+        const kbd = this.doc.createElement("kbd");
+        kbd.textContent = tool.key.toUpperCase();
+        label.append(input, icon, tool.label, kbd);
+        list.append(label);
+      }
     }
   }
 
@@ -144,16 +160,20 @@ export class Controls {
     this.handlers.onSettings();
   }
 
-  // The second slider: strength for brushes, blend for CSG tools.
+  // The second slider: strength for the tools that take it, else the blend (CSG tools).
   setStrength(s) {
-    if (this.tool.kind === "click") this.settings.blend = Math.min(1, Math.max(0, s));
+    if (this.#sliderIsBlend) this.settings.blend = Math.min(1, Math.max(0, s));
     else this.settings.strength = Math.min(1, Math.max(0.05, Math.round(s * 20) / 20));
     this.#syncBrush();
     this.handlers.onSettings();
   }
 
   get secondValue() {
-    return this.tool.kind === "click" ? this.settings.blend : this.settings.strength;
+    return this.#sliderIsBlend ? this.settings.blend : this.settings.strength;
+  }
+
+  get #sliderIsBlend() {
+    return !this.tool.takes.has("strength") && this.tool.takes.has("blend");
   }
 
   setView(view) {
@@ -177,17 +197,17 @@ export class Controls {
 
   #syncBrush() {
     const s = this.settings;
-    const click = this.tool.kind === "click";
+    const blend = this.#sliderIsBlend;
     this.radius.value = String(Math.min(64, s.radius));
     this.$("radius-value").textContent = `${s.radius} vu`;
-    this.$("strength-name").textContent = click ? "Blend" : "Strength";
-    this.strength.min = click ? "0" : "0.05";
+    this.$("strength-name").textContent = blend ? "Blend" : "Strength";
+    this.strength.min = blend ? "0" : "0.05";
     this.strength.value = String(this.secondValue);
-    this.$("strength-value").textContent = click ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
-    this.$("shape-row").hidden = !click;
+    this.$("strength-value").textContent = blend ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
+    this.$("shape-row").hidden = !this.tool.takes.has("shape");
     this.$("lazy-value").textContent = s.lazy ? `${s.lazy} px` : "off";
-    this.doc.querySelector(".symmetry").hidden = click;
-    this.$("build-up-label").hidden = !(s.tool === "add_blob" || s.tool === "remove_blob");
+    this.doc.querySelector(".symmetry").hidden = this.tool.kind !== "stroke";
+    this.$("build-up-label").hidden = !this.tool.takes.has("height");
   }
 
   #globalOpChanged() {

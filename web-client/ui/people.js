@@ -9,7 +9,7 @@
 // client id to its newest presence entry (protocol/js PresenceBoard's), `tools` a client id to
 // the last tool its brush showed (kept when the pointer leaves the model).
 
-import { toolById } from "./tools.js";
+import { toolName } from "./tools.js";
 
 // One row per client, this page's first: {client, name, color, you, readOnly, doing, active,
 // followed}.
@@ -19,7 +19,7 @@ export function peopleRows(clients, self, presence, tools, leader) {
     const tool = brush ? brush.tool : tools.get(c.client);
     let doing = "";
     if (c.read_only) doing = "view only";
-    else if (tool) doing = toolById(tool).label.toLowerCase() + (brush && brush.active ? " · sculpting" : "");
+    else if (tool) doing = toolName(tool).toLowerCase() + (brush && brush.active ? " · sculpting" : "");
     return {
       client: c.client,
       name: typeof c.name === "string" && c.name ? c.name : `#${c.client}`,

@@ -1,6 +1,6 @@
 // Keyboard shortcuts, for the whole page except while typing in a field or in a dialog.
-//   A R S H C X I: tools (add blob, remove blob, smooth, sharpen, CSG add / subtract /
-//   intersect); [ ]: brush radius down / up; { }: strength (blend) down / up;
+//   each tool's key (the tool registry's, ui/tools.js: A add blob, R remove blob, ...) selects
+//   it; [ ]: brush radius down / up; { }: strength (blend) down / up;
 //   Ctrl+Z: undo; Ctrl+Shift+Z or Ctrl+Y: redo (Cmd on macOS); V: splats / frames view;
 //   G: gradient-error shading; 0 or Home: reset view; 1 front, 3 side, 7 top;
 //   arrow keys (on the canvas): orbit; + and -: zoom; Escape: cancel the gesture; ?: the
@@ -8,6 +8,31 @@
 //   drag (ui/gesture-map.js), not pressed.
 
 import { TOOLS } from "./tools.js";
+
+// The page's own single keys (without Ctrl, Cmd or Alt), by what they do; the tools' keys come
+// after them, so a tool's key must be none of PAGE_KEYS (tests/browser/unit/tools.test.mjs).
+const KEY_ACTIONS = Object.freeze({
+  "[": (a) => a.radiusBy(1 / 1.2),
+  "]": (a) => a.radiusBy(1.2),
+  "{": (a) => a.strengthBy(-0.05),
+  "}": (a) => a.strengthBy(0.05),
+  v: (a) => a.toggleView(),
+  g: (a) => a.toggleGradientError(),
+  0: (a) => a.camera("home"),
+  Home: (a) => a.camera("home"),
+  1: (a) => a.camera("front"),
+  3: (a) => a.camera("side"),
+  7: (a) => a.camera("top"),
+  5: (a) => a.toggleOrthographic(),
+  "+": (a) => a.zoom(1 / 1.15),
+  "=": (a) => a.zoom(1 / 1.15),
+  "-": (a) => a.zoom(1.15),
+  _: (a) => a.zoom(1.15),
+  Escape: (a) => a.cancel(),
+  "?": (a) => a.help(),
+});
+// Also taken: F and Space, held during a drag (ui/gesture-map.js).
+export const PAGE_KEYS = Object.freeze(new Set([...Object.keys(KEY_ACTIONS).map((k) => k.toLowerCase()), "f", " "]));
 
 export const KEY_HELP = Object.freeze([
   ...TOOLS.map((t) => [t.key.toUpperCase(), t.label]),
@@ -34,6 +59,13 @@ export function isTyping(t) {
 }
 const ORBIT_STEP_PX = 24;
 
+// The action of a page key; letters in either case (V and v).
+function pageAction(key) {
+  if (Object.hasOwn(KEY_ACTIONS, key)) return KEY_ACTIONS[key];
+  const lower = key.toLowerCase();
+  return key.length === 1 && /[a-z]/.test(lower) && Object.hasOwn(KEY_ACTIONS, lower) ? KEY_ACTIONS[lower] : null;
+}
+
 export function installShortcuts(doc, actions) {
   doc.addEventListener("keydown", (e) => {
     const t = e.target;
@@ -47,21 +79,7 @@ export function installShortcuts(doc, actions) {
       else actions.undo();
     } else if (mod && (key === "y" || key === "Y")) actions.redo();
     else if (mod || e.altKey) handled = false;
-    else if (key === "[") actions.radiusBy(1 / 1.2);
-    else if (key === "]") actions.radiusBy(1.2);
-    else if (key === "{") actions.strengthBy(-0.05);
-    else if (key === "}") actions.strengthBy(0.05);
-    else if (key === "v" || key === "V") actions.toggleView();
-    else if (key === "g" || key === "G") actions.toggleGradientError();
-    else if (key === "0" || key === "Home") actions.camera("home");
-    else if (key === "1") actions.camera("front");
-    else if (key === "3") actions.camera("side");
-    else if (key === "7") actions.camera("top");
-    else if (key === "5") actions.toggleOrthographic();
-    else if (key === "+" || key === "=") actions.zoom(1 / 1.15);
-    else if (key === "-" || key === "_") actions.zoom(1.15);
-    else if (key === "Escape") actions.cancel();
-    else if (key === "?") actions.help();
+    else if (pageAction(key)) pageAction(key)(actions);
     else if (t === actions.canvas && key.startsWith("Arrow")) {
       const dx = key === "ArrowLeft" ? -ORBIT_STEP_PX : key === "ArrowRight" ? ORBIT_STEP_PX : 0;
       const dy = key === "ArrowUp" ? -ORBIT_STEP_PX : key === "ArrowDown" ? ORBIT_STEP_PX : 0;

@@ -1,44 +1,85 @@
-// The sculpting tools of the server, as the palette shows them.
-// kind "stroke": a pointer drag is one stroke of dabs (stroke.begin / dabs / end), the brush
-// tools of PROTOCOL.md; kind "click": a click applies the tool once where the pointer ray meets
-// the surface (tool.apply with a ray), the CSG tools. Global operations are in GLOBAL_OPS.
-// `key` is the keyboard shortcut that selects the tool; `short` its name on the compact toolbar
-// of small screens.
+// The sculpting tools as the palette shows them, read from the tool registry
+// (protocol/registry/tools.json, generated into protocol/js/tools.js; docs/tools.md): nothing
+// about a tool is written here, so a tool the registry gains appears in the palette, its group,
+// the shortcuts and the overlay by itself.
+// Each entry: `id` (the wire name), `label`, `short` (its name on the compact toolbar of small
+// screens), `key` (the shortcut that selects it), `icon`, `color` ([r, g, b] in 0..1, the brush
+// cursor's: one per effect), `group`, `inverse` (or null), `takes` (the set of its parameters'
+// wire keys) and `kind`, the gesture: "stroke" for a tool that strokes (a drag is one stroke of
+// dabs: stroke.begin / dabs / end), "click" for one that does not (a click applies it once where
+// the pointer ray meets the surface: tool.apply with a ray, the CSG tools). Global operations are
+// in GLOBAL_OPS.
+// The registry is imported by a relative path, not "/protocol/js/...": the server serves this
+// file at /ui/tools.js and protocol/js/ at /protocol/js/, so the browser resolves it to the same
+// module as the other imports, and node's unit tests find it on disk.
 
-// `color` ([r, g, b] in 0..1) is the brush cursor's, one per effect: adding green, removing red,
-// smoothing blue, sharpening amber, intersecting violet.
-const ADD = [0.5, 0.86, 0.5];
-const REMOVE = [0.96, 0.48, 0.42];
-export const TOOLS = Object.freeze([
-  { id: "add_blob", label: "Add blob", short: "Add", key: "a", kind: "stroke", color: ADD },
-  { id: "remove_blob", label: "Remove blob", short: "Remove", key: "r", kind: "stroke", color: REMOVE },
-  { id: "smooth", label: "Smooth", short: "Smooth", key: "s", kind: "stroke", color: [0.45, 0.74, 0.96] },
-  { id: "sharpen", label: "Sharpen", short: "Sharpen", key: "h", kind: "stroke", color: [0.96, 0.78, 0.36] },
-  { id: "csg_add", label: "CSG add", short: "∪", key: "c", kind: "click", color: ADD },
-  { id: "csg_subtract", label: "CSG subtract", short: "−", key: "x", kind: "click", color: REMOVE },
-  { id: "csg_intersect", label: "CSG intersect", short: "∩", key: "i", kind: "click", color: [0.76, 0.56, 0.96] },
-]);
+import { GROUPS as REGISTRY_GROUPS, OPERATIONS, TOOLS as REGISTRY_TOOLS } from "../../protocol/js/tools.js";
+
+export const TOOLS = Object.freeze(
+  REGISTRY_TOOLS.map((t) =>
+    Object.freeze({
+      id: t.name,
+      label: t.label,
+      short: t.browser.short,
+      key: t.browser.key,
+      icon: t.browser.icon,
+      color: t.browser.color,
+      group: t.group,
+      inverse: t.inverse,
+      takes: new Set(t.params.map((p) => p.key)),
+      kind: t.strokes ? "stroke" : "click",
+    }),
+  ),
+);
+
+// The palette's groups in order, each {name, description, tools}, without the groups that have
+// no tool yet.
+export const GROUPS = Object.freeze(
+  REGISTRY_GROUPS.map((g) => Object.freeze({ ...g, tools: TOOLS.filter((t) => t.group === g.name) })).filter((g) => g.tools.length),
+);
 
 export function toolById(id) {
   return TOOLS.find((t) => t.id === id) || TOOLS[0];
 }
 
-// The whole-volume operations: morphology (volume.morph, a radius in vu) and global smoothing
-// (tool.apply {"tool":"smooth","global":true}, a number of iterations).
-export const GLOBAL_OPS = Object.freeze({
-  dilate: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Dilating" },
-  erode: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Eroding" },
-  open: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Opening" },
-  close: { amount: "Radius (vu)", min: 0.001, max: 64, step: "any", value: 2, label: "Closing" },
-  smooth: { amount: "Iterations", min: 1, max: 100000, step: 1, value: 10, label: "Smoothing" },
-});
+// A tool's name inside a sentence ("sculpting with add blob", "CSG add"): its label, lower-cased
+// unless it starts with an abbreviation.
+export function toolName(id) {
+  const t = TOOLS.find((x) => x.id === id);
+  if (!t) return String(id).replace(/_/g, " ");
+  const first = t.label.split(" ")[0];
+  return first === first.toUpperCase() ? t.label : t.label[0].toLowerCase() + t.label.slice(1);
+}
 
-const INVERSES = { add_blob: "remove_blob", remove_blob: "add_blob", smooth: "sharpen", sharpen: "smooth", csg_add: "csg_subtract", csg_subtract: "csg_add" };
+// The whole-volume operations by name, each {menu, amount, min, max, step, value, label}: the
+// menu entry, the amount's name and range (its first parameter: morphology's radius in vu, global
+// smoothing's iterations), the amount the menu starts with, and what the page says while it runs
+// ("Dilating the whole volume").
+export const GLOBAL_OPS = Object.freeze(
+  Object.fromEntries(
+    OPERATIONS.map((o) => {
+      const p = o.params[0];
+      const name = p.key[0].toUpperCase() + p.key.slice(1);
+      return [
+        o.name,
+        Object.freeze({
+          menu: o.label,
+          amount: p.unit ? `${name} (${p.unit})` : name,
+          min: p.minimum,
+          max: p.maximum,
+          step: p.type === "integer" ? 1 : "any",
+          value: o.browser.value,
+          label: o.browser.doing,
+        }),
+      ];
+    }),
+  ),
+);
 
-// The tool a modifier turns `id` into: "invert" swaps a tool with its opposite (CSG intersect
-// has none and stays), "smooth" is the smoothing brush for strokes; null keeps the tool.
+// The tool a modifier turns `id` into: "invert" swaps a tool with its opposite (one without, like
+// CSG intersect, stays), "smooth" is the smoothing brush for strokes; null keeps the tool.
 export function toolWithModifier(id, modifier) {
-  if (modifier === "invert") return INVERSES[id] || id;
+  if (modifier === "invert") return TOOLS.find((t) => t.id === id)?.inverse || id;
   if (modifier === "smooth" && toolById(id).kind === "stroke") return "smooth";
   return id;
 }

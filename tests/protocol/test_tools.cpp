@@ -1,0 +1,311 @@
+// The tool registry's C++ side (protocol/cpp/tool_spec.hpp and the tables generated from
+// protocol/registry/tools.json) against the registry file itself: the generated names and keys
+// are the registry's, and the parsers obey every parameter it describes. Each tool parses with
+// its parameters at their bounds and is refused just beyond them, naming the key; a parameter
+// left out takes its default; stroke.begin takes exactly the tools that stroke, each with its
+// own keys; presence takes every tool. The cases are built from the registry, so a tool the
+// registry gains is checked here without a new line.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/rpc.hpp"
+#include "test_paths.hpp"
+
+using namespace marzipan;
+using namespace marzipan::protocol;
+using nlohmann::json;
+
+namespace {
+
+const json& registry() {
+  static const json r = [] {
+    std::ifstream in(test_paths::kToolRegistry, std::ios::binary);
+    REQUIRE(in.good());
+    std::stringstream text;
+    text << in.rdbuf();
+    return json::parse(text.str());
+  }();
+  return r;
+}
+
+// A parameter by id, with its wire key filled in.
+json param(const std::string& id) {
+  json p = registry()["parameters"][id];
+  p["id"] = id;
+  if (!p.contains("key")) p["key"] = id;
+  return p;
+}
+
+bool givenIn(const json& p, const std::string& where) {
+  for (const json& w : p["in"])
+    if (w == where) return true;
+  return false;
+}
+
+std::vector<json> paramsOf(const json& entry, const std::string& where) {
+  std::vector<json> out;
+  for (const json& id : entry["params"])
+    if (const json p = param(id); givenIn(p, where)) out.push_back(p);
+  return out;
+}
+
+std::vector<std::string> strings(std::span<const std::string_view> keys) { return {keys.begin(), keys.end()}; }
+
+bool isOptional(const json& p) { return p.contains("default") || p.value("optional", false); }
+
+// The largest value the parameter takes when the tool's radius is `radius`.
+double most(const json& p, double radius) {
+  const double m = p["maximum"];
+  return p.contains("max_per_radius") ? std::min(m, p["max_per_radius"].get<double>() * radius) : m;
+}
+
+// A valid number: its default, or its maximum.
+json validNumber(const json& p) {
+  if (p.contains("default")) return p["default"];
+  return p["maximum"];
+}
+
+// The operation object of `tool` with every parameter at a valid value (an enum at the first
+// value that every other parameter's only_with accepts, so that they may all be given).
+json baseOp(const json& tool) {
+  json op = {{"tool", tool["name"]}};
+  const auto ops = paramsOf(tool, "op");
+  for (const json& p : ops) {
+    const std::string key = p["key"];
+    if (p["type"] == "point") op[key] = {1.5, 2, -3};
+    else if (p["type"] == "enum") {
+      std::string value = p.value("default", p["values"][0].get<std::string>());
+      for (const json& other : ops)
+        if (other.contains("only_with") && other["only_with"].contains(p["id"].get<std::string>()))
+          value = other["only_with"][p["id"].get<std::string>()][0];
+      op[key] = value;
+    } else op[key] = validNumber(p);
+  }
+  return op;
+}
+
+// The key of the parameter of `op` that refuses `value` of parameter `p` (its only_with), or "".
+std::string dependentRefusing(const json& tool, const json& p, const json& value) {
+  for (const json& other : paramsOf(tool, "op"))
+    if (other.contains("only_with") && other["only_with"].contains(p["id"].get<std::string>())) {
+      const json& allowed = other["only_with"][p["id"].get<std::string>()];
+      if (std::find(allowed.begin(), allowed.end(), value) == allowed.end()) return other["key"];
+    }
+  return "";
+}
+
+std::string refusedField(const json& op) {
+  try {
+    parseOp(op);
+  } catch (const OpError& e) {
+    return e.field();
+  }
+  return "(accepted)";
+}
+
+std::string strokeRefusedField(const json& params) {
+  try {
+    parseStrokeBeginParams(params);
+  } catch (const OpError& e) {
+    return e.field();
+  }
+  return "(accepted)";
+}
+
+}  // namespace
+
+TEST_CASE("the generated tables name the registry's tools, in its order, with its keys", "[tools]") {
+  const json& tools = registry()["tools"];
+  REQUIRE(kTools.size() == tools.size());
+  std::vector<std::string> surface, csg;
+  std::set<std::string> strokeKeys{"tool", "symmetry", "accumulate"};
+  for (std::size_t i = 0; i < tools.size(); ++i) {
+    const json& t = tools[i];
+    INFO(t["name"]);
+    CHECK(kTools[i].name == t["name"].get<std::string>());
+    CHECK(kTools[i].strokes == t["strokes"].get<bool>());
+    CHECK(kTools[i].kind == (t["kind"] == "csg" ? ToolKind::Csg : ToolKind::SurfaceSpeed));
+    std::vector<std::string> opKeys{"tool"};
+    if (t["kind"] == "surface_speed") opKeys.push_back("global");
+    for (const json& p : paramsOf(t, "op")) opKeys.push_back(p["key"]);
+    CHECK(strings(kTools[i].opKeys) == opKeys);
+    std::vector<std::string> own;
+    for (const json& p : paramsOf(t, "stroke")) own.push_back(p["key"]);
+    CHECK(strings(kTools[i].strokeKeys) == own);
+    strokeKeys.insert(own.begin(), own.end());
+    (t["kind"] == "csg" ? csg : surface).push_back(t["name"]);
+  }
+  std::vector<std::string> names;
+  for (const auto& n : kBrushToolNames) names.emplace_back(n.name);
+  CHECK(names == surface);
+  names.clear();
+  for (const auto& n : kCsgToolNames) names.emplace_back(n.name);
+  CHECK(names == csg);
+  std::vector<std::string> morph;
+  for (const json& o : registry()["operations"])
+    if (o["kind"] == "morphology") morph.push_back(o["name"]);
+  names.clear();
+  for (const auto& n : kMorphKindNames) names.emplace_back(n.name);
+  CHECK(names == morph);
+  const auto begin = strings(kStrokeBeginKeys);
+  CHECK(std::set<std::string>(begin.begin(), begin.end()) == strokeKeys);
+}
+
+TEST_CASE("the parameter constants the parsers name are the registry's", "[tools]") {
+  const auto same = [](const NumberParam& c, const std::string& id) {
+    const json p = param(id);
+    INFO(id);
+    CHECK(c.key == p["key"].get<std::string>());
+    CHECK(c.minimum == p["minimum"].get<double>());
+    CHECK(c.maximum == p["maximum"].get<double>());
+    CHECK(c.exclusiveMinimum == p.value("exclusive_minimum", false));
+    CHECK(c.maxPerRadius == p.value("max_per_radius", 0.0));
+    CHECK(c.defaultValue.has_value() == p.contains("default"));
+    if (c.defaultValue) CHECK(*c.defaultValue == p["default"].get<double>());
+  };
+  same(kParamRadius, "radius");
+  same(kParamStrength, "strength");
+  same(kParamHeight, "height");
+  same(kParamShapeRadius, "shape_radius");
+  same(kParamBlend, "blend");
+  same(kParamMorphRadius, "morph_radius");
+  CHECK(kParamCenter.bound == param("center")["bound"].get<double>());
+  CHECK(kMaxCoordinate == kParamCenter.bound);
+  CHECK(kParamIterations.minimum == param("iterations")["minimum"].get<std::int64_t>());
+  CHECK(kParamIterations.maximum == param("iterations")["maximum"].get<std::int64_t>());
+  CHECK(strings(kParamShape.values) == param("shape")["values"].get<std::vector<std::string>>());
+  CHECK(strings(kParamAxis.values) == param("axis")["values"].get<std::vector<std::string>>());
+  CHECK(*kParamAxis.defaultValue == param("axis")["default"].get<std::string>());
+}
+
+TEST_CASE("every tool parses with its parameters at their bounds and is refused beyond them", "[tools]") {
+  for (const json& tool : registry()["tools"]) {
+    const json base = baseOp(tool);
+    INFO(base.dump());
+    REQUIRE(refusedField(base) == "(accepted)");
+    const json canonical = toJson(parseOp(base));
+    CHECK(canonical["tool"] == tool["name"]);
+    json unknown = base;
+    unknown["no_such_key"] = 1;
+    CHECK(refusedField(unknown) == "no_such_key");
+    const double radius = base.contains("radius") ? base["radius"].get<double>() : 0;
+    for (const json& p : paramsOf(tool, "op")) {
+      const std::string key = p["key"];
+      INFO("parameter " << p.dump());
+      json without = base;
+      without.erase(key);
+      if (!isOptional(p)) CHECK(refusedField(without) == key);
+      else if (p.contains("default") && !p.contains("only_with")) CHECK(toJson(parseOp(without))[key] == p["default"]);
+      json bad = base;
+      bad[key] = "not a value";
+      if (p["type"] != "enum") CHECK(refusedField(bad) == key);
+      if (p["type"] == "number" || p["type"] == "integer") {
+        const bool integer = p["type"] == "integer";
+        const double lo = p["minimum"], hi = most(p, key == "radius" ? 0 : radius);
+        const auto at = [&](double v) {
+          json op = base;
+          if (integer) op[key] = std::int64_t(v);
+          else op[key] = v;
+          return refusedField(op);
+        };
+        CHECK(at(hi) == "(accepted)");
+        CHECK(at(integer ? hi + 1 : std::nextafter(hi, 1e300)) == key);
+        CHECK(at(p.value("exclusive_minimum", false) ? lo : integer ? lo - 1 : std::nextafter(lo, -1e300)) == key);
+        if (!p.value("exclusive_minimum", false)) CHECK(at(lo) == "(accepted)");
+        else CHECK(at(std::nextafter(lo, 1e300)) == "(accepted)");
+      } else if (p["type"] == "enum") {
+        for (const json& v : p["values"]) {
+          json op = base;
+          op[key] = v;
+          const std::string refusing = p.contains("only_with") ? "" : dependentRefusing(tool, p, v);
+          CHECK(refusedField(op) == (refusing.empty() ? "(accepted)" : refusing));
+        }
+        CHECK(refusedField(bad) == key);
+      }
+      if (p.contains("only_with")) {
+        for (const auto& [other, allowed] : p["only_with"].items()) {
+          const json q = param(other);
+          for (const json& v : q["values"]) {
+            json op = base;
+            op[q["key"].get<std::string>()] = v;
+            const bool ok = std::find(allowed.begin(), allowed.end(), v) != allowed.end();
+            CHECK(refusedField(op) == (ok ? "(accepted)" : key));
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[tools]") {
+  std::vector<json> strokeParams;
+  for (const json& tool : registry()["tools"])
+    for (const json& p : paramsOf(tool, "stroke"))
+      if (std::find(strokeParams.begin(), strokeParams.end(), p) == strokeParams.end()) strokeParams.push_back(p);
+  CHECK(!strokeParams.empty());
+  for (const json& tool : registry()["tools"]) {
+    INFO(tool["name"]);
+    const json begin = {{"tool", tool["name"]}, {"radius", 8}};
+    if (!tool["strokes"].get<bool>()) {
+      CHECK(strokeRefusedField(begin) == "tool");
+      continue;
+    }
+    CHECK(strokeRefusedField(begin) == "(accepted)");
+    const auto own = paramsOf(tool, "stroke");
+    for (const json& p : strokeParams) {
+      const std::string key = p["key"];
+      INFO(key);
+      const bool takes = std::find(own.begin(), own.end(), p) != own.end();
+      json params = begin;
+      params[key] = key == "radius" ? 8.0 : most(p, 8);
+      CHECK(strokeRefusedField(params) == (takes ? "(accepted)" : key));
+      if (!takes) continue;
+      params[key] = std::nextafter(most(p, 8), 1e300);
+      CHECK(strokeRefusedField(params) == key);
+      params[key] = p.value("exclusive_minimum", false) ? p["minimum"].get<double>()
+                                                       : std::nextafter(p["minimum"].get<double>(), -1e300);
+      CHECK(strokeRefusedField(params) == key);
+      for (const json& flag : p.value("not_with", json::array())) {
+        params = begin;
+        params[key] = most(p, 8);
+        params[flag.get<std::string>()] = true;
+        CHECK(strokeRefusedField(params) == key);
+      }
+    }
+  }
+}
+
+TEST_CASE("presence takes every tool's name and no other", "[tools]") {
+  for (const json& tool : registry()["tools"]) {
+    const json params = {{"brush", {{"tool", tool["name"]}, {"radius", 4}, {"point", {1, 2, 3}}, {"normal", {0, 1, 0}}, {"active", true}}}};
+    CHECK(parsePresenceParams(params).brush->tool == tool["name"].get<std::string>());
+  }
+  const json bad = {{"brush", {{"tool", "morph"}, {"radius", 4}, {"point", {1, 2, 3}}, {"normal", {0, 1, 0}}, {"active", true}}}};
+  CHECK_THROWS_AS(parsePresenceParams(bad), OpError);
+}
+
+TEST_CASE("whole-volume operations take the registry's parameters at their bounds", "[tools]") {
+  for (const json& o : registry()["operations"]) {
+    json op = o["kind"] == "morphology" ? json{{"op", "morph"}, {"kind", o["name"]}} : json{{"op", "smooth"}};
+    for (const json& p : paramsOf(o, "op")) op[p["key"].get<std::string>()] = validNumber(p);
+    INFO(op.dump());
+    CHECK(refusedField(op) == "(accepted)");
+    for (const json& p : paramsOf(o, "op")) {
+      const std::string key = p["key"];
+      json beyond = op;
+      if (p["type"] == "integer") beyond[key] = p["maximum"].get<std::int64_t>() + 1;
+      else beyond[key] = std::nextafter(p["maximum"].get<double>(), 1e300);
+      CHECK(refusedField(beyond) == key);
+      json at = op;
+      at[key] = p["maximum"];
+      CHECK(refusedField(at) == "(accepted)");
+    }
+  }
+}
