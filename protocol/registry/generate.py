@@ -322,9 +322,9 @@ def cpp_engine_header(reg: Registry) -> str:
     out = [f"// The tie between the tool registry and the engine, {GENERATED_NOTE}:",
            "// do not edit; change the registry. The registry's \"engine\" field names each tool's enumerator of the",
            "// engine's enum, or each whole-volume operation's engine function: a name the engine lacks fails to",
-           "// compile here, and so does an engine enumerator that no registry entry names (-Wswitch is an error",
-           "// in this file), so the engine's tools and the registry cannot drift apart. The engine itself knows",
-           "// nothing of the registry.",
+           "// compile here (-Wswitch is an error in this file: every registry tool is mapped). An engine",
+           "// enumerator that no registry entry names yet (a tool the engine has before the wire does) has no",
+           "// registry name. The engine itself knows nothing of the registry.",
            "#pragma once", "",
            "#include <string_view>", "",
            '#include "engine/edit.hpp"',
@@ -348,13 +348,13 @@ def cpp_engine_header(reg: Registry) -> str:
             out.append("  }")
             out.append(f'  throw EngineError(ErrorKind::InvalidArgument, "tool", "unknown {kind["title"]} tool");')
             out.append("}")
-        out.append(f"// The registry's name of each {engine} of the engine.")
+        out.append(f"// The registry's name of a {engine} of the engine, or \"\" for one no registry tool names.")
         out.append(f"inline std::string_view registryName({engine} value) {{")
         out.append("  switch (value) {")
         for t in tools:
             out.append(f"    case {engine}::{t['engine']}: return {cpp_string(t['name'])};")
+        out.append("    default: return {};")
         out.append("  }")
-        out.append("  return {};")
         out.append("}")
         out.append("")
     out.append("// The engine function of each morphology kind: the volume by `radius` vu.")
