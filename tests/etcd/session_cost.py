@@ -36,11 +36,10 @@ import subprocess
 import sys
 import time
 
-import websockets
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from cluster import EtcdCluster, free_port  # noqa: E402
+from rpc import Rpc  # noqa: E402
 
 SIDE = 64
 CREATE = {"size": [SIDE, SIDE, SIDE], "solid": "sphere", "view": "none"}
@@ -53,40 +52,6 @@ def b64(text):
 
 def prefix_end(prefix):
     return prefix[:-1] + chr(ord(prefix[-1]) + 1)
-
-
-class Rpc:
-    """One WebSocket, JSON-RPC. call() returns the result or raises RuntimeError(code, message)."""
-
-    def __init__(self, url):
-        self.url = url
-        self.next_id = 1
-
-    async def __aenter__(self):
-        self.ws = await asyncio.wait_for(websockets.connect(self.url, max_size=None), 5)
-        return self
-
-    async def __aexit__(self, *exc):
-        try:
-            await asyncio.wait_for(self.ws.close(), 2)
-        except Exception:
-            pass
-
-    async def call(self, method, params, timeout=30):
-        rid = self.next_id
-        self.next_id += 1
-        await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": rid, "method": method, "params": params}))
-        deadline = time.monotonic() + timeout
-        while True:
-            message = await asyncio.wait_for(self.ws.recv(), max(0.01, deadline - time.monotonic()))
-            if isinstance(message, bytes):
-                continue
-            reply = json.loads(message)
-            if reply.get("id") != rid:
-                continue
-            if "error" in reply:
-                raise RuntimeError(reply["error"]["code"], reply["error"]["message"], reply["error"].get("data"))
-            return reply["result"]
 
 
 class Setup:
@@ -181,12 +146,12 @@ def report(**fields):
 
 async def typical(s, edits, every):
     async with Rpc(s.url()) as rpc:
-        created = await rpc.call("session.create", CREATE)
+        created = await rpc.result("session.create", CREATE)
         sid = created["session"]
         base = s.db_size()
         revision = 0
         for k in range(edits):
-            revision = (await rpc.call("tool.apply", edit(k)))["revision"]
+            revision = (await rpc.result("tool.apply", edit(k)))["revision"]
             if (k + 1) % every == 0 or k + 1 == edits:
                 keys, size, kinds, pointer = s.held(sid)
                 snaps, file_bytes = s.files(sid)
@@ -212,24 +177,24 @@ def surface_dabs(count, first):
 async def hostile(s, edits, every):
     ok = True
     async with Rpc(s.url()) as owner:
-        created = await owner.call("session.create", CREATE)
+        created = await owner.result("session.create", CREATE)
         sid = created["session"]
         join = {"session": sid, "token": created["token"], "view": "none"}
         base = s.db_size()
         strokes = []
         for who in range(3):
             rpc = await Rpc(s.url(sid)).__aenter__()
-            await rpc.call("session.join", join)
-            stroke = (await rpc.call("stroke.begin", {"tool": "add_blob", "radius": 2, "strength": 1, "height": 1,
+            await rpc.result("session.join", join)
+            stroke = (await rpc.result("stroke.begin", {"tool": "add_blob", "radius": 2, "strength": 1, "height": 1,
                                                        "symmetry": ["x", "y", "z"]}))["stroke"]
             for m in range(2):
                 dabs = surface_dabs(256, 256 * m)
-                applied = (await rpc.call("stroke.dabs", {"stroke": stroke, "dabs": dabs}, timeout=60))["applied"]
+                applied = (await rpc.result("stroke.dabs", {"stroke": stroke, "dabs": dabs}, timeout=60))["applied"]
                 report(case="hostile", stroke=who + 1, message=m + 1, dabs=len(dabs), applied=applied)
             strokes.append(rpc)
         t0 = time.monotonic()
         for k in range(edits):
-            await owner.call("tool.apply", edit(k))
+            await owner.result("tool.apply", edit(k))
             if (k + 1) % every == 0 or k + 1 == edits:
                 keys, size, kinds, pointer = s.held(sid)
                 snaps, file_bytes = s.files(sid)

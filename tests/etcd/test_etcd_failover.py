@@ -49,11 +49,11 @@ import time
 import traceback
 import urllib.request
 
-import websockets
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from cluster import EtcdCluster, free_port  # noqa: E402
+from rpc import Rpc  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "protocol", "python"))
 from marzipan import Client  # noqa: E402  (this checkout's package)
@@ -90,45 +90,6 @@ def session_id():
 def edit(tag):
     """The tagged edit number `tag`: a small blob at a position of its own on the sphere."""
     return {"tool": "add_blob", "center": [8 + (tag * 7) % 32, 8 + (tag * 11) % 32, 24 + (tag % 3)], "radius": 2.5}
-
-
-class Rpc:
-    """One WebSocket, JSON-RPC, view none. call() returns ("ok", result) or ("error", code, data);
-    a closed connection raises ConnectionError."""
-
-    def __init__(self, url):
-        self.url = url
-        self.next_id = 1
-
-    async def __aenter__(self):
-        self.ws = await asyncio.wait_for(websockets.connect(self.url, max_size=None), 5)
-        self.server = self.ws.response_headers.get("X-Marzipan-Server")
-        return self
-
-    async def __aexit__(self, *exc):
-        try:
-            await asyncio.wait_for(self.ws.close(), 2)
-        except Exception:
-            pass
-
-    async def call(self, method, params, timeout=10):
-        rid = self.next_id
-        self.next_id += 1
-        try:
-            await self.ws.send(json.dumps({"jsonrpc": "2.0", "id": rid, "method": method, "params": params}))
-            deadline = time.monotonic() + timeout
-            while True:
-                message = await asyncio.wait_for(self.ws.recv(), max(0.01, deadline - time.monotonic()))
-                if isinstance(message, bytes):
-                    continue
-                reply = json.loads(message)
-                if reply.get("id") != rid:
-                    continue
-                if "error" in reply:
-                    return ("error", reply["error"]["code"], reply["error"].get("data"))
-                return ("ok", reply["result"])
-        except (websockets.ConnectionClosed, OSError) as e:
-            raise ConnectionError(str(e)) from None
 
 
 class Topology:
