@@ -156,6 +156,39 @@ class Drag:
         return {"origin": [round(c, 2) for c in self.origin(t)], "direction": self.direction}
 
 
+class WebClientStroke:
+    """One stroke as the browser makes it, drawn from `rng` in a fixed order (the compiled
+    client, load_client.cpp, draws the same numbers from the same seed: test_load_client.py):
+    its tool's parameters (radius 4-10, strength 0.3-0.8), a Drag, its pointer events
+    (`frames`, ~1.5 s at 60 Hz); pointer(k) gives the dabs pointer event k makes. With a dab
+    spacing each event is picked on `surface` as it was when the stroke began, the hits spaced
+    into dabs along their path and each dab put on the surface under its own interpolated ray
+    (a centre); with spacing 0 each event is one `ray` dab the server picks."""
+
+    def __init__(self, rng: random.Random, tool: str, size: int, surface: SplatSurface, dab_spacing: float):
+        self.rng = rng
+        self.params = web_client_stroke_params(tool, round(rng.uniform(4, 10), 2), round(rng.uniform(0.3, 0.8), 2))
+        self.drag = Drag(rng, size)
+        self.picker = self.spacer = None
+        if dab_spacing > 0:
+            self.picker = StrokePicker(surface.snapshot(), self.drag.origin(0), self.drag.origin(1), self.drag.direction)
+            self.spacer = DabSpacer(max(MIN_DAB_SPACING, dab_spacing * self.params["radius"]))
+        self.frames = max(1, round(rng.uniform(0.8, 1.2) * WEB_CLIENT_STROKE_S * WEB_CLIENT_FRAME_HZ))
+
+    def pointer(self, k: int) -> list:
+        """The dabs of pointer event k (0 <= k < frames), in order."""
+        pressure = round(self.rng.uniform(0.5, 1.0), 2)
+        if self.spacer is None:
+            return [{"ray": self.drag.ray((k + 1) / self.frames), "pressure": pressure}]
+        dabs = []
+        for point, dab_pressure, f in self.spacer.add(self.picker.pick(self.drag.origin((k + 1) / self.frames)),
+                                                      pressure):
+            if f < 1:  # between two samples: on the surface under its own ray
+                point = self.picker.pick(self.drag.origin((k + f) / self.frames)) or point
+            dabs.append({"center": [round(c, 4) for c in point], "pressure": round(dab_pressure, 4)})
+        return dabs
+
+
 # ------------------------------------------------------------------------------------ clients
 
 class Pacer:
@@ -368,15 +401,8 @@ class LoadClient:
         while time.monotonic() < end:
             tool = TOOLS[(self.index + stroke_number) % len(TOOLS)]
             stroke_number += 1
-            params = web_client_stroke_params(tool, round(self.rng.uniform(4, 10), 2),
-                                              round(self.rng.uniform(0.3, 0.8), 2))
-            drag = Drag(self.rng, self.args["size"])
-            spacer = picker = None
-            if self.args["dab_spacing"] > 0:
-                # The browser picks a stroke's dabs on its splats as they were at the press.
-                picker = StrokePicker(self.session.surface.snapshot(), drag.origin(0), drag.origin(1), drag.direction)
-                spacer = DabSpacer(max(MIN_DAB_SPACING, self.args["dab_spacing"] * params["radius"]))
-            frames = max(1, round(self.rng.uniform(0.8, 1.2) * WEB_CLIENT_STROKE_S * WEB_CLIENT_FRAME_HZ))
+            # The browser picks a stroke's dabs on its splats as they were at the press.
+            plan = WebClientStroke(self.rng, tool, self.args["size"], self.session.surface, self.args["dab_spacing"])
             queue = []  # (dab, pointer time)
             in_flight = 0
             stroke = None
@@ -420,20 +446,15 @@ class LoadClient:
                 if in_flight == 0:
                     idle.set()
 
-            begun = loop.create_task(self.call("stroke.begin", params))
+            begun = loop.create_task(self.call("stroke.begin", plan.params))
             begun.add_done_callback(begun_done)
             pacer = Pacer(1.0 / WEB_CLIENT_FRAME_HZ, end, self.stats.send_lag)
-            async for k in pacer.ticks(frames):
-                pressure = round(self.rng.uniform(0.5, 1.0), 2)
+            async for k in pacer.ticks(plan.frames):
                 self.stats.pointer_events += 1
-                if not failed and spacer is None:
-                    queue.append(({"ray": drag.ray((k + 1) / frames), "pressure": pressure}, time.monotonic()))
-                elif not failed:
+                dabs = plan.pointer(k)
+                if not failed:
                     now = time.monotonic()
-                    for point, dab_pressure, f in spacer.add(picker.pick(drag.origin((k + 1) / frames)), pressure):
-                        if f < 1:  # between two samples: on the surface under its own ray
-                            point = picker.pick(drag.origin((k + f) / frames)) or point
-                        queue.append(({"center": [round(c, 4) for c in point], "pressure": round(dab_pressure, 4)}, now))
+                    queue.extend((dab, now) for dab in dabs)
                 flush()
             try:
                 await begun
@@ -664,6 +685,8 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
 def worker_entry(spec: dict, conn, start_event, start_time):
     """A client process: its sessions' clients on one asyncio loop; the result goes back on conn."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    if spec["client_cpus"]:
+        os.sched_setaffinity(0, spec["client_cpus"])
     try:
         result = asyncio.run(worker_main(spec, conn, start_event, start_time))
         if result:
@@ -679,7 +702,7 @@ def worker_entry(spec: dict, conn, start_event, start_time):
 class ServerProcess:
     """`marzipan serve` started by the tool; its stderr lines are kept with their arrival time."""
 
-    def __init__(self, binary: str, threads: int, max_queue_mb, extra):
+    def __init__(self, binary: str, threads: int, max_queue_mb, extra, cpus=None):
         command = [binary, "serve", "--port", "0", "--threads", str(threads)]
         if max_queue_mb is not None:
             command += ["--max-queue-mb", str(max_queue_mb)]
@@ -689,7 +712,9 @@ class ServerProcess:
         command += extra
         env = {k: v for k, v in os.environ.items() if not k.startswith("MARZIPAN_")}
         try:
-            self.proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+            # Pinned before exec, so that every thread it starts inherits the core.
+            self.proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                         preexec_fn=(lambda: os.sched_setaffinity(0, cpus)) if cpus else None)
         except OSError as e:
             raise RuntimeError(f"cannot start {binary}: {e.strerror}") from None
         self.log = []
@@ -828,8 +853,76 @@ def receive(conn, timeout: float, what: str):
     raise RuntimeError(f"a client process did not {what} within {timeout:.0f} s")
 
 
+def pinned_cpus(args):
+    """--pin: (the server's core, the clients' cores) of the cores this process may use, the
+    first for the server and the second for every client process; (None, None) without --pin."""
+    if not args.pin:
+        return None, None
+    cores = sorted(os.sched_getaffinity(0))
+    if len(cores) < 2:
+        raise RuntimeError(f"--pin needs two cores, this process may use {cores}")
+    return {cores[0]}, {cores[1]}
+
+
+class CompiledClients:
+    """The sculpting clients in one process of the compiled load client (load_client.cpp), in
+    place of the Python client processes: it sets its sessions up and prints "ready", starts on
+    a line "start T0" (T0 in time.monotonic()'s clock, the same CLOCK_MONOTONIC as its
+    steady_clock) and prints its result as the Python workers return theirs, one JSON line."""
+
+    def __init__(self, binary: str, url: str, specs: list, args, cpus):
+        sessions = sorted((s for spec in specs for s in spec["sessions"]), key=lambda s: s["index"])
+        command = [binary, "--url", url, "--clients", str(args.clients), "--sessions", ",".join(s["id"] for s in sessions),
+                   "--size", str(args.size), "--solid", args.solid, "--seed", str(args.seed),
+                   "--duration", str(args.duration), "--dab-spacing", str(args.dab_spacing)]
+        try:
+            self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                         preexec_fn=(lambda: os.sched_setaffinity(0, cpus)) if cpus else None)
+        except OSError as e:
+            raise RuntimeError(f"cannot start {binary}: {e.strerror}") from None
+        self.lines = []
+        self.arrived = threading.Condition()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            with self.arrived:
+                self.lines.append(line)
+                self.arrived.notify_all()
+        with self.arrived:
+            self.lines.append(None)
+            self.arrived.notify_all()
+
+    def receive(self, timeout: float, what: str):
+        with self.arrived:
+            if not self.arrived.wait_for(lambda: self.lines, timeout):
+                raise RuntimeError(f"the compiled client did not {what} within {timeout:.0f} s")
+            line = self.lines.pop(0)
+        if line is None:
+            raise RuntimeError(f"the compiled client ended (status {self.proc.wait()}) before it could {what}")
+        if line.strip() == "ready":
+            return "ready", None
+        result = json.loads(line)
+        for key in ("session_dabs_latency", "session_delta_latency"):  # JSON's keys are strings
+            result[key] = {int(k): v for k, v in result[key].items()}
+        return "result", result
+
+    def start(self, t0: float):
+        self.proc.stdin.write(f"start {t0!r}\n")
+        self.proc.stdin.flush()
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+
+
 def run(args) -> tuple[dict, int]:
-    server = ServerProcess(args.marzipan, args.threads, args.max_queue_mb, args.server_arg) if args.marzipan else None
+    server_cpus, client_cpus = pinned_cpus(args)
+    if client_cpus:
+        os.sched_setaffinity(0, client_cpus)  # this process, its sampler and whatever it starts
+    server = ServerProcess(args.marzipan, args.threads, args.max_queue_mb, args.server_arg, server_cpus) \
+        if args.marzipan else None
     url = server.url if server else args.url
     sampler = ProcessSampler(server.pid if server else args.server_pid)
     specs = plan(args)
@@ -840,17 +933,24 @@ def run(args) -> tuple[dict, int]:
     context = multiprocessing.get_context("spawn")
     start_event, start_time = context.Event(), context.Value("d", 0.0)
     workers = []
+    compiled = None
     try:
-        for spec in specs:
-            parent_end, child_end = context.Pipe(duplex=False)
-            proc = context.Process(target=worker_entry, args=(dict(spec, args=shared), child_end, start_event,
-                                                              start_time), daemon=True)
-            proc.start()
-            child_end.close()
-            workers.append((proc, parent_end))
+        if args.client_bin:
+            compiled = CompiledClients(args.client_bin, url, specs, args, client_cpus)
+            receivers = [compiled.receive]
+        else:
+            for spec in specs:
+                parent_end, child_end = context.Pipe(duplex=False)
+                proc = context.Process(target=worker_entry,
+                                       args=(dict(spec, args=shared, client_cpus=client_cpus), child_end, start_event,
+                                             start_time), daemon=True)
+                proc.start()
+                child_end.close()
+                workers.append((proc, parent_end))
+            receivers = [lambda timeout, what, conn=conn: receive(conn, timeout, what) for _, conn in workers]
         failures = []
-        for proc, conn in workers:
-            kind, detail = receive(conn, SETUP_TIMEOUT_S + 30, "set up its sessions")
+        for receiver in receivers:
+            kind, detail = receiver(SETUP_TIMEOUT_S + 30, "set up its sessions")
             if kind != "ready":
                 raise RuntimeError(f"a client process failed: {detail}")
         idle = sampler.sample()
@@ -859,13 +959,16 @@ def run(args) -> tuple[dict, int]:
         sampler.start()
         start_time.value = t0 = time.monotonic() + 0.2
         start_event.set()
+        if compiled:
+            compiled.start(t0)
         results = []
-        for proc, conn in workers:
-            kind, detail = receive(conn, args.duration + 2 * DRAIN_TIMEOUT_S + SLOW_CLIENT_DRAIN_S + 60, "finish")
+        for receiver in receivers:
+            kind, detail = receiver(args.duration + 2 * DRAIN_TIMEOUT_S + SLOW_CLIENT_DRAIN_S + 60, "finish")
             if kind != "result":
                 failures.append(f"client process: {detail}")
             else:
                 results.append(detail)
+        for proc, _ in workers:
             proc.join(30)
         load_after = os.getloadavg()
         metrics_after = scrape_edit_latency(url)
@@ -878,9 +981,12 @@ def run(args) -> tuple[dict, int]:
         for proc, _ in workers:
             if proc.is_alive():
                 proc.kill()
+        if compiled:
+            compiled.stop()
         server_status = server.stop() if server else None
     return report(args, specs, results, failures, sampler, idle, final, t0, load_before, load_after,
-                  histogram_summary(metrics_before, metrics_after), server, server_status)
+                  histogram_summary(metrics_before, metrics_after), server, server_status,
+                  {"server_cpus": sorted(server_cpus), "client_cpus": sorted(client_cpus)} if args.pin else None)
 
 
 def merged(results, key):
@@ -898,7 +1004,7 @@ def counter_sum(results, key):
 
 
 def report(args, specs, results, failures, sampler, idle, final, t0, load_before, load_after, server_hist,
-           server, server_status) -> tuple[dict, int]:
+           server, server_status, pinned) -> tuple[dict, int]:
     failures = failures + [f for r in results for f in r["failures"]]
     drained = max((r["drained_at"] for r in results), default=t0)
     wall = max(drained - t0, 1e-9)
@@ -964,7 +1070,10 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "mode": args.mode,
         "rate_per_client": args.rate if args.mode == "open-loop" else None,
         "dab_spacing": args.dab_spacing if args.mode == "web-client" else None,
-        "processes": len(specs),
+        "processes": 1 if args.client_bin else len(specs),
+        "client": "compiled" if args.client_bin else "python",
+        "server_threads": args.threads if args.marzipan else None,
+        "pinned": pinned,
         "duration_s": args.duration,
         "elapsed_s": round(wall, 2),
         "requests": {"sent": sum(sent.values()), "answered": answered, "unanswered": unanswered, "by_method": sent},
@@ -1032,6 +1141,15 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
     # The slow client's close is expected and not counted: only the sculpting clients' are.
     ok = (not errors and not unexpected and not unanswered and not failures and dabs_applied > 0
           and server_status in (None, 0))
+    if pinned:
+        # The capacity figures are what a pinned run is for: a run that could not measure them failed.
+        missing = [name for name, value in (("server CPU per dab", out["server"]["cpu_ms_per_dab_applied"]),
+                                            ("dab->delta p99", dab_delta["p99"] if args.mode == "web-client" else 0),
+                                            ("client CPU", out["client_side"]["cpu_cores"] if results else None))
+                   if value is None]
+        if missing:
+            out["failures"].append("missing figures: " + ", ".join(missing))
+            ok = False
     return out, 0 if ok else 1
 
 
@@ -1059,6 +1177,11 @@ def summary(out: dict) -> str:
         f"{c['cpu_cores']} cores ({c['cpu_ms_per_dabs_message']} ms; per process {c['cpu_cores_per_process']}), "
         f"client loop lag p99 {c['loop_lag_ms']['p99']} ms",
         f"waiting for a core (s per s): server {s['runqueue_wait_s_per_s']}, clients {c['runqueue_wait_s_per_s']}",
+        *([f"pinned: server on cores {out['pinned']['server_cpus']} (--threads {out['server_threads']}), "
+           f"{out['client']} clients on {out['pinned']['client_cpus']}: server {s['cpu_cores']} of its core, "
+           f"{s['cpu_ms_per_dab_applied']} ms CPU per dab; dab->delta p50 {out['latency_ms']['dab_delta']['p50']} / "
+           f"p99 {out['latency_ms']['dab_delta']['p99']} ms; clients {c['cpu_cores']} of theirs"]
+          if out["pinned"] else []),
         f"load average before {out['load_average']['before'][0]}, after {out['load_average']['after'][0]}",
     ]
     if out["slow_client"]:
@@ -1095,7 +1218,14 @@ def main(argv=None) -> int:
     p.add_argument("--processes", type=int, default=0,
                    help="client processes, 0 = one per 16 clients, at most one per session (default %(default)s)")
     p.add_argument("--slow-client", action="store_true", help="add a client in session 0 that stops reading")
-    p.add_argument("--threads", type=int, default=2, help="--threads of the server started (default %(default)s)")
+    p.add_argument("--threads", type=int,
+                   help="--threads of the server started (default 2, with --pin 1: the server has one core)")
+    p.add_argument("--pin", action="store_true",
+                   help="capacity per server core: the server started on the first core this process may use, "
+                        "every client process on the second")
+    p.add_argument("--client-bin",
+                   help="web-client mode: the compiled load client (build/tests/load/marzipan-load-client) "
+                        "instead of the Python client processes")
     p.add_argument("--max-queue-mb", type=int, help="--max-queue-mb of the server started (default: the server's)")
     p.add_argument("--server-arg", action="append", default=[], help="a further argument for `marzipan serve`")
     p.add_argument("--seed", type=int, default=1, help="seed of the strokes (default %(default)s)")
@@ -1107,8 +1237,12 @@ def main(argv=None) -> int:
         p.error("--rate and --duration must be positive")
     if not 0 <= args.dab_spacing <= 4:
         p.error("--dab-spacing must be in [0, 4]")
-    if args.marzipan is None and (args.max_queue_mb is not None or args.server_arg):
-        p.error("--max-queue-mb and --server-arg need --marzipan")
+    if args.marzipan is None and (args.max_queue_mb is not None or args.server_arg or args.pin):
+        p.error("--max-queue-mb, --server-arg and --pin need --marzipan")
+    if args.client_bin and (args.mode != "web-client" or args.slow_client):
+        p.error("--client-bin sculpts like the web client (--mode web-client), without --slow-client")
+    if args.threads is None:
+        args.threads = 1 if args.pin else 2
     try:
         out, status = run(args)
     except RuntimeError as e:
