@@ -151,7 +151,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   await page.locator("#radius").fill("16");
   await page.mouse.move(cx, cy);
   await page.waitForFunction(() => !document.getElementById("brush-readout").hidden);
-  assert.equal(await text(page, "brush-readout"), "CSG subtract · sphere 16 vu", "the cursor names the tool, shape and size");
+  assert.equal(await text(page, "brush-readout"), "\u2216 CSG subtract · sphere 16 vu", "the cursor names the tool with its icon, shape and size");
   const ghost = await page.evaluate(() => window.marzipan.renderer.cursorShape);
   assert.equal(ghost.rings.filter((r) => r.radius === 16).length, 3, "a CSG sphere shows as its ghost");
   assert.deepEqual(ghost.color, [0.96, 0.48, 0.42], "in the colour of removing");
@@ -196,12 +196,20 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(viewerErrors, 0, "Ctrl+Z on a view-only page does nothing, without a protocol error");
   await viewer.close();
 
-  // Layout: on this 1100×760 window the tools, brush, undo/redo and the view switch need no
-  // scrolling; a phone gets a compact toolbar of tools and undo over the view.
-  for (const id of ["tool-palette", "brush", "history", "view-controls"]) {
-    const box = await page.locator(`#${id}`).boundingBox();
-    assert.ok(box.y + box.height <= 760, `#${id} is on screen without scrolling (bottom ${box.y + box.height})`);
+  // Layout: on a 1280×800 window the tools, brush, undo/redo and the view switch need no
+  // scrolling, with the tool whose brush controls take the most room (web-client/README.md,
+  // Layout); a phone gets a compact toolbar of tools and undo over the view.
+  await page.setViewportSize({ width: 1280, height: 800 });
+  const toolBefore = await page.evaluate(() => window.marzipan.controls.settings.tool);
+  for (const tool of ["add_blob", "csg_add"]) {
+    await page.evaluate((t) => window.marzipan.controls.setTool(t), tool);
+    for (const id of ["tool-palette", "brush", "history", "view-controls"]) {
+      const box = await page.locator(`#${id}`).boundingBox();
+      assert.ok(box.y + box.height <= 800, `with ${tool}, #${id} is on screen without scrolling (bottom ${box.y + box.height})`);
+    }
   }
+  await page.evaluate((t) => window.marzipan.controls.setTool(t), toolBefore);
+  await page.setViewportSize({ width: 1100, height: 760 });
   assert.equal(await page.locator("#quickbar").isVisible(), false, "no compact toolbar on a wide screen");
   const phone = await env.browser.context.newPage();
   collectErrors(phone, errors);

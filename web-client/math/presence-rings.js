@@ -39,7 +39,7 @@ export function project(viewProjection, p, width, height) {
 // Each ring's line is about RING_LINE_PIXELS wide on screen at its depth; a ring whose surface
 // faces away from the eye (seen through the model, since rings are drawn over everything) is
 // fainter; a sculpting client's ring is brighter, thicker and has a dot at its centre.
-// Labels: {client, name, color, x, y, visible, active}, (x, y) just above the ring's top.
+// Labels: {client, name, tool, color, x, y, visible, active}, (x, y) just above the ring's top.
 export function presenceRings(others, camera, width, height, now, staleMs) {
   const rings = [];
   const labels = [];
@@ -65,7 +65,7 @@ export function presenceRings(others, camera, width, height, now, staleMs) {
       client: o.client,
     });
     const top = project(camera.viewProjection, addScaled(b.point, up, b.radius), width, height);
-    labels.push({ client: o.client, name: o.name, color: o.color, x: top.x, y: top.y - LABEL_GAP_PX, visible: top.visible, active: b.active });
+    labels.push({ client: o.client, name: o.name, tool: b.tool, color: o.color, x: top.x, y: top.y - LABEL_GAP_PX, visible: top.visible, active: b.active });
   }
   return { rings, labels };
 }

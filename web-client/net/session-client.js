@@ -202,9 +202,10 @@ export class SessionClient extends EventTarget {
     return result;
   }
 
+  // Resolves with stroke.begin's result: {stroke} (and, for flatten and contrast, maybe `plane`).
   async beginStroke(params) {
     const { result } = await this.request("stroke.begin", params);
-    return result.stroke;
+    return result;
   }
 
   async strokeDabs(stroke, dabs) {

@@ -1,18 +1,26 @@
 // One brush stroke on the wire: stroke.begin, dabs as they happen, stroke.end
 // (PROTOCOL.md, "stroke.begin / stroke.dabs / stroke.end").
-// Conventions: a dab is {ray: {origin, direction}, pressure} in vu; the server picks the
-// surface along each ray on the live volume, so dabs land on the surface as it is when they
-// apply, even if this client's splats lag behind. Dabs queue until stroke.begin has answered
-// with the stroke's id, and go out at most once per display frame (flush()), in one
-// stroke.dabs of up to max_dabs; while MAX_IN_FLIGHT messages are unanswered, dabs wait and
-// merge into the next message, so a slow server gets fewer, larger messages rather than a
-// growing backlog. Every message has an id: failures come back and are shown.
+// Conventions: a dab is {center, pressure?} in vu (or {ray, pressure}). Dabs queue until
+// stroke.begin has answered with the stroke's id, and go out at most once per display frame
+// (flush()), in one stroke.dabs of up to max_dabs; while MAX_IN_FLIGHT messages are unanswered,
+// dabs wait and merge into the next message, so a slow server gets fewer, larger messages rather
+// than a growing backlog. Every message has an id: failures come back and are shown.
+// Warp strokes (registry kind "warp", math/warp-drag.js) send at most one message per display
+// frame, answers included: a warp message costs the server a resampling of the region however
+// few its dabs. Those whose dabs are "anchored" (grab, twist, ...: only the stroke's last point
+// counts) keep only the newest point waiting, behind the anchor while that has not gone yet,
+// and have one message in flight at a time, so the server always works on the pointer's newest
+// point. A "path" stroke (snake hook) sends every point, as a brush does.
+// The server may return the plane a stroke works towards (flatten, contrast: `plane {point,
+// normal}`, in stroke.begin's result or in a stroke.dabs result): `plane` holds the first one,
+// and onPlane(plane) is called when it arrives.
 
 // The tool registry (protocol/registry/tools.json): which tools take a height, and its bound.
 // A relative path, which the browser resolves to the server's /protocol/js/ (ui/tools.js says why).
 import { PARAMETERS, TOOLS } from "../../protocol/js/tools.js";
 
 const MAX_IN_FLIGHT = 3;
+const MAX_IN_FLIGHT_ANCHORED = 1;
 
 // How high a stroke of a tool that takes a height (add_blob, remove_blob) stands (stroke.begin
 // `height`, vu): strength times HEIGHT_PER_RADIUS of the radius, at most MAX_HEIGHT.
@@ -23,17 +31,33 @@ const MAX_IN_FLIGHT = 3;
 export const HEIGHT_PER_RADIUS = PARAMETERS.height.max_per_radius;
 export const MAX_HEIGHT = 16;
 
-const TAKES_HEIGHT = new Set(TOOLS.filter((t) => t.params.includes(PARAMETERS.height)).map((t) => t.name));
+// `tools` below is the registry's list (protocol/js/tools.js TOOLS) unless a test gives its own.
+const entry = (tool, tools) => tools.find((t) => t.name === tool);
+const takes = (tool, key, tools) => Boolean(entry(tool, tools)?.params.some((p) => p.key === key));
+const isWarp = (tool, tools) => entry(tool, tools)?.kind === "warp";
 
-// The stroke.begin params for the brush settings {tool, radius, strength, symmetry, buildUp}.
-// A tool that takes a height gets one, so that the stroke rises (sinks) that far however often
-// the pointer passes (the stroke memory, PROTOCOL.md), or with buildUp `accumulate`: every
-// message adds again, paint-like. The others (smooth, sharpen) accumulate, since passing again
-// is how one smooths more.
-export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = false }) {
-  const params = { tool, radius, strength };
+// What a tool's stroke dabs are (the registry's `dabs`): "swept" for brushes, "anchored" or
+// "path" for warps.
+export function dabsOf(tool, tools = TOOLS) {
+  return entry(tool, tools)?.dabs || "swept";
+}
+
+// The stroke.begin params for the brush settings {tool, radius, strength, symmetry, buildUp,
+// direction}. A tool that takes a height gets one, so that the stroke rises (sinks) that far
+// however often the pointer passes (the stroke memory, PROTOCOL.md), or with buildUp
+// `accumulate`: every message adds again, paint-like. The other brushes (smooth, sharpen)
+// accumulate, since passing again is how one smooths more. A warp takes neither, nor symmetry
+// (the server refuses it); those that take a `direction` (twist, scale, pinch) get the one given
+// (the camera's screen-right axis: dragging right twists, grows or pinches).
+export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = false, direction = null }, tools = TOOLS) {
+  const params = { tool, radius };
+  if (takes(tool, "strength", tools)) params.strength = strength;
+  if (isWarp(tool, tools)) {
+    if (direction && takes(tool, "direction", tools)) params.direction = direction;
+    return params;
+  }
   if (symmetry && symmetry.length) params.symmetry = symmetry;
-  if (TAKES_HEIGHT.has(tool) && !buildUp) {
+  if (takes(tool, "height", tools) && !buildUp) {
     // Rounded down to 1/1000 vu, so that it never exceeds half the radius.
     params.height = Math.max(0.001, Math.floor(1000 * strength * Math.min(HEIGHT_PER_RADIUS * radius, MAX_HEIGHT)) / 1000);
   } else {
@@ -44,8 +68,8 @@ export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = 
 
 export class StrokeSender {
   // session: net/session-client.js; settings: as strokeBeginParams takes them; maxDabs: the
-  // server's max_dabs limit.
-  constructor(session, settings, maxDabs = 256) {
+  // server's max_dabs limit; tools: the registry's list.
+  constructor(session, settings, maxDabs = 256, tools = TOOLS) {
     this.session = session;
     this.maxDabs = maxDabs;
     this.queue = [];
@@ -53,12 +77,20 @@ export class StrokeSender {
     this.ended = false;
     this.failed = false;
     this.applied = 0; // dabs the server reported as applied
+    this.sent = 0; // dabs sent
     this.stroke = null;
-    this.params = strokeBeginParams(settings);
+    this.plane = null;
+    this.onPlane = () => {};
+    this.params = strokeBeginParams(settings, tools);
+    this.coalesce = dabsOf(settings.tool, tools) === "anchored";
+    this.perFrame = isWarp(settings.tool, tools); // one message per display frame, answers included
+    this.frameOpen = true; // no message has gone since the last display frame
+    this.maxInFlight = this.coalesce ? MAX_IN_FLIGHT_ANCHORED : MAX_IN_FLIGHT;
     this.begun = session.beginStroke(this.params).then(
-      (id) => {
-        this.stroke = id;
-        this.flush();
+      (result) => {
+        this.stroke = result.stroke;
+        this.#takePlane(result);
+        this.#pump();
       },
       () => {
         this.failed = true;
@@ -69,18 +101,30 @@ export class StrokeSender {
   }
 
   add(dab) {
-    if (!this.failed && !this.ended) this.queue.push(dab);
+    if (this.failed || this.ended) return;
+    // Anchored: the newest point replaces the one waiting; an anchor not sent yet stays first.
+    const keep = this.sent ? 0 : 1;
+    if (this.coalesce && this.queue.length > keep) this.queue.length = keep;
+    this.queue.push(dab);
   }
 
-  // Sends what is queued, if the stroke has its id and the pipe is not full.
+  // A display frame: sends what is queued, if the stroke has its id and the pipe is not full.
   flush() {
+    this.frameOpen = true;
+    this.#pump();
+  }
+
+  #pump() {
     if (this.stroke === null || this.failed) return;
-    while (this.queue.length && this.inFlight < MAX_IN_FLIGHT) {
+    while (this.queue.length && this.inFlight < this.maxInFlight && (this.frameOpen || !this.perFrame)) {
       const dabs = this.queue.splice(0, this.maxDabs);
       ++this.inFlight;
+      this.sent += dabs.length;
+      this.frameOpen = false;
       this.session.strokeDabs(this.stroke, dabs).then(
         (result) => {
           this.applied += result.applied;
+          this.#takePlane(result);
         },
         () => {
           this.failed = true;
@@ -88,20 +132,29 @@ export class StrokeSender {
         },
       ).finally(() => {
         --this.inFlight;
-        this.flush();
+        this.#pump();
         this.#maybeEnd();
       });
     }
     this.#maybeEnd();
   }
 
+  #takePlane(result) {
+    const plane = result && result.plane;
+    if (this.plane || !plane || !Array.isArray(plane.point) || !Array.isArray(plane.normal)) return;
+    this.plane = { point: plane.point, normal: plane.normal };
+    this.onPlane(this.plane);
+  }
+
   // Ends the stroke once every queued dab is out; resolves when stroke.end has answered.
   end() {
     this.ended = true;
+    this.perFrame = false; // no display frame flushes a stroke that has ended
+    this.frameOpen = true;
     this.done = new Promise((resolve) => {
       this.resolveDone = resolve;
     });
-    this.begun.then(() => this.flush());
+    this.begun.then(() => this.#pump());
     return this.done;
   }
 

@@ -206,7 +206,9 @@ export class Controls {
     this.$("strength-value").textContent = blend ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
     this.$("shape-row").hidden = !this.tool.takes.has("shape");
     this.$("lazy-value").textContent = s.lazy ? `${s.lazy} px` : "off";
-    this.doc.querySelector(".symmetry").hidden = this.tool.kind !== "stroke";
+    // warps take no symmetry (the server refuses it); a tool without strength or blend no slider
+    this.doc.querySelector(".symmetry").hidden = this.tool.kind !== "stroke" || Boolean(this.tool.warp);
+    this.$("strength-label").hidden = this.$("strength-help").hidden = !this.tool.takes.has("strength") && !blend;
     this.$("build-up-label").hidden = !this.tool.takes.has("height");
   }
 

@@ -11,7 +11,8 @@
 // One row per gesture for the shortcuts overlay: [what, how with a mouse, how on touch].
 export const GESTURE_HELP = Object.freeze([
   ["sculpt with the selected tool", "drag on the model", "one finger on the model"],
-  ["invert the tool (add ↔ remove, smooth ↔ sharpen)", "Ctrl, Cmd or Alt + drag on the model", ""],
+  ["invert the tool (add ↔ remove, smooth ↔ sharpen, flatten ↔ contrast)", "Ctrl, Cmd or Alt + drag on the model", ""],
+  ["warp (grab, twist …): the anchor goes where the pointer points", "drag from the model", "one finger from the model"],
   ["smooth, whatever the tool", "Shift + drag on the model", ""],
   ["orbit", "Space + drag, right drag, or drag beside the model", "one finger beside the model, or two fingers turning"],
   ["pan", "middle drag, Shift + right drag, or Shift + Space + drag", "two fingers moved together"],

@@ -13,6 +13,7 @@ import { EditMarks, presenceRings } from "../math/presence-rings.js";
 import { PresenceSender, STALE_MS, composePresence } from "../net/presence-sender.js";
 import { Follow } from "./follow.js";
 import { PeopleList, followNote, peopleRows } from "./people.js";
+import { TOOLS, toolName } from "./tools.js";
 
 const STALE_CHECK_MS = 1000;
 const STOPPED_NOTE_MS = 6000; // how long the note says why following stopped
@@ -169,6 +170,11 @@ export class PresenceView {
       el.dataset.client = String(l.client);
       el.dataset.active = String(l.active);
       el.textContent = l.name;
+      // the tool's icon follows the name (style.css, generated content: the text stays the name)
+      const tool = TOOLS.find((t) => t.id === l.tool);
+      el.dataset.tool = l.tool;
+      el.dataset.icon = tool ? tool.icon : "";
+      el.title = `${l.name}: ${toolName(l.tool)}`;
       el.style.left = `${l.x}px`;
       el.style.top = `${l.y}px`;
       el.style.borderColor = l.color;

@@ -11,17 +11,25 @@
 // mirrored images, x' = nx - 1 - x for a mirror across x. A modifier held at the press (ui/
 // gesture-map.js) inverts the tool or makes it smooth for that stroke; with the stabiliser on
 // (settings.lazy, in CSS pixels) the brush trails the pointer on a string (math/lazy-mouse.js).
+// A warp stroke (grab, elastic grab, snake hook, twist, scale, pinch; math/warp-drag.js) picks
+// its anchor on the surface at the press and sends it as the first dab; then each pointer
+// position as the point where the pointer's ray meets the plane through the anchor facing the
+// camera, so the anchor goes where the pointer points (no stabiliser for the anchored ones:
+// the grab follows the pointer itself); twist, scale and pinch send the camera's screen-right
+// axis as their `direction`, and no warp sends symmetry.
 
 import { DabSpacer } from "../math/dab-spacer.js";
-import { brushGhost } from "../math/brush-ghost.js";
+import { brushGhost, planeGhost, warpGhost } from "../math/brush-ghost.js";
 import { LazyMouse } from "../math/lazy-mouse.js";
 import { transformPoint } from "../math/mat4.js";
 import { pickSplats } from "../math/splat-pick.js";
+import { distance } from "../math/vec3.js";
+import { WarpDrag, warpAmount } from "../math/warp-drag.js";
 import { LINE_PIXELS } from "../render/brush-cursor.js";
 import { DISC_RADIUS } from "../render/splat-renderer.js";
 import { StrokeSender } from "../net/stroke-sender.js";
 import { BrushDrag } from "./brush-drag.js";
-import { toolWithModifier } from "./tools.js";
+import { toolById, toolWithModifier } from "./tools.js";
 
 export const DAB_SPACING = 0.25;
 
@@ -75,7 +83,8 @@ export class Sculpt {
 
   // The settings or the view changed: the cursor follows.
   refresh() {
-    if (this.hoverAt) this.hit = this.pick(...this.hoverAt, this.stroke ? this.stroke.surface : undefined);
+    // a warp's cursor is its drag's, which new splats do not move
+    if (this.hoverAt && !(this.stroke && this.stroke.warp)) this.hit = this.pick(...this.hoverAt, this.stroke ? this.stroke.surface : undefined);
     this.#updateCursor();
   }
 
@@ -103,6 +112,7 @@ export class Sculpt {
     const s = this.controls.settings;
     const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
     const tool = toolWithModifier(s.tool, modifier);
+    if (toolById(tool).warp) return this.#warpStart(x, y, toolById(tool), maxDabs);
     this.stroke = {
       tool,
       // add / remove blob strokes have a height set by strength and radius (or build up, the
@@ -112,8 +122,47 @@ export class Sculpt {
       lazy: new LazyMouse(s.lazy || 0),
       surface: [...this.store.bricks.values()], // the splats at the press, for picking its dabs
     };
-    this.#setOpenStrokes(this.openStrokes + 1);
+    this.#startSending();
     this.strokeMove(x, y, pressure);
+  }
+
+  #startSending() {
+    const sender = this.stroke.sender;
+    sender.onPlane = (plane) => {
+      if (this.stroke && this.stroke.sender === sender) this.#updateCursor();
+    };
+    this.#setOpenStrokes(this.openStrokes + 1);
+  }
+
+  // The anchor is the surface under the press, on the splats as they are (a press lands on the
+  // model: ui/gesture-map.js); it goes as the stroke's first dab.
+  #warpStart(x, y, tool, maxDabs) {
+    const s = this.controls.settings;
+    const hit = this.pick(x, y);
+    if (!hit) return;
+    this.camera.update(this.renderer.canvas.clientWidth, this.renderer.canvas.clientHeight);
+    const anchor = hit.point.map(round);
+    const direction = tool.takes.has("direction") ? this.camera.right.map(round) : null;
+    const drag = new WarpDrag({ anchor, viewNormal: this.camera.backward, dabs: tool.warp, spacing: Math.max(0.25, DAB_SPACING * s.radius) });
+    this.stroke = {
+      tool: tool.id,
+      warp: { drag, tool, anchorNormal: hit.normal, direction },
+      sender: new StrokeSender(this.session, { tool: tool.id, radius: s.radius, strength: s.strength, direction }, maxDabs),
+      lazy: new LazyMouse(tool.warp === "path" ? s.lazy || 0 : 0),
+    };
+    this.stroke.sender.add({ center: anchor });
+    this.hit = hit;
+    this.hoverAt = [x, y];
+    this.#startSending();
+    this.#updateCursor();
+  }
+
+  #warpMove(x, y) {
+    const { drag, anchorNormal } = this.stroke.warp;
+    for (const p of drag.move(this.#ray(x, y))) this.stroke.sender.add({ center: p.map(round) });
+    // the brush others see (presence) is where the anchor goes
+    if (drag.point) this.hit = { t: distance(this.camera.eye, drag.point), point: drag.point, normal: anchorNormal };
+    this.#updateCursor();
   }
 
   strokeMove(px, py, pressure) {
@@ -122,6 +171,7 @@ export class Sculpt {
     if (!at) return;
     const [x, y] = at;
     this.hoverAt = [x, y];
+    if (this.stroke.warp) return this.#warpMove(x, y);
     const surface = this.stroke.surface;
     this.hit = this.pick(x, y, surface);
     for (const dab of this.stroke.spacer.add(this.hit && this.hit.point, [x, y], pressure)) {
@@ -135,8 +185,10 @@ export class Sculpt {
 
   strokeEnd() {
     if (!this.stroke) return;
-    const { sender } = this.stroke;
+    const { sender, warp } = this.stroke;
+    if (warp) for (const p of warp.drag.end()) sender.add({ center: p.map(round) });
     this.stroke = null;
+    if (warp && this.hoverAt) this.hit = this.pick(...this.hoverAt);
     sender.end().finally(() => this.#setOpenStrokes(this.openStrokes - 1));
     this.renderer.requestRedraw();
     this.onCursor();
@@ -179,7 +231,8 @@ export class Sculpt {
   // brushes, the shape's ghost for CSG tools), fainter rings at the mirrored dabs, and the size
   // readout beside the pointer.
   #updateCursor() {
-    const tool = this.controls.tool;
+    const stroke = this.stroke;
+    const tool = stroke ? toolById(stroke.tool) : this.controls.tool;
     const cursor = { rings: [], segments: [], color: tool.color };
     const hit = this.hit;
     const readout = this.renderer.canvas.ownerDocument.getElementById("brush-readout");
@@ -187,14 +240,25 @@ export class Sculpt {
       const s = this.controls.settings;
       const perPixel = (2 * hit.t * Math.tan(this.camera.fovY / 2)) / Math.max(1, this.renderer.canvas.clientHeight);
       const width = LINE_PIXELS * perPixel;
-      const ghost = brushGhost({ kind: tool.kind, shape: s.shape, strength: s.strength }, hit.point, hit.normal, s.radius);
+      const warp = stroke && stroke.warp;
+      const plane = stroke && stroke.sender.plane;
+      const ghost = warp
+        ? warpGhost({ name: tool.id, dabs: tool.warp }, { anchor: warp.drag.anchor, anchorNormal: warp.anchorNormal, point: warp.drag.point, path: warp.drag.path, direction: warp.direction, viewNormal: warp.drag.viewNormal }, s.radius)
+        : brushGhost({ kind: tool.kind, shape: s.shape, strength: tool.warp ? 1 : s.strength }, hit.point, hit.normal, s.radius);
+      if (plane) {
+        const disc = planeGhost(plane, s.radius);
+        ghost.rings.push(...disc.rings);
+      }
       cursor.segments = ghost.segments;
-      for (const r of ghost.rings) cursor.rings.push({ ...r, width, color: tool.color, alpha: r.inner ? 0.6 : 0.95, primary: !r.inner && tool.kind === "stroke" });
+      for (const r of ghost.rings)
+        cursor.rings.push({ width, alpha: r.inner ? 0.6 : 0.95, ...r, color: tool.color, primary: !r.inner && tool.kind === "stroke" });
       if (tool.kind === "click") cursor.rings.push({ center: hit.point, normal: hit.normal, radius: 0, width, color: tool.color, alpha: 0.95, primary: true });
-      if (tool.kind === "stroke")
+      if (tool.kind === "stroke" && !tool.warp)
         for (const image of mirrorImages(hit.point, hit.normal, s.symmetry, this.session.info.size))
           cursor.rings.push({ ...image, radius: s.radius, width, color: tool.color, alpha: 0.45, primary: false });
-      this.#placeReadout(readout, hit.point, tool.kind === "click" ? `${tool.label} · ${s.shape} ${s.radius} vu` : `${tool.label} · ${s.radius} vu · ${s.strength.toFixed(2)}`);
+      let size = tool.kind === "click" ? `${s.shape} ${s.radius} vu` : tool.takes.has("strength") ? `${s.radius} vu · ${s.strength.toFixed(2)}` : `${s.radius} vu`;
+      if (warp && warp.drag.point) size = warpReadout(tool.id, warp, s.radius);
+      this.#placeReadout(readout, hit.point, `${tool.icon} ${tool.label} · ${size}`);
     } else if (readout) {
       readout.hidden = true;
     }
@@ -214,6 +278,16 @@ export class Sculpt {
     readout.style.left = `${((nx + 1) / 2) * canvas.clientWidth + 14}px`;
     readout.style.top = `${((1 - ny) / 2) * canvas.clientHeight + 14}px`;
   }
+}
+
+// What an open warp stroke does so far, for the readout: how far the anchor moved, the twist's
+// angle, the scale's factor, the pinch's amount (PROTOCOL.md, stroke.begin).
+function warpReadout(name, { drag, direction }, radius) {
+  const s = warpAmount(drag.anchor, drag.point, direction, radius);
+  if (name === "twist") return `${Math.round(s * 90)}°`;
+  if (name === "scale") return `× ${(2 ** s).toFixed(2)}`;
+  if (name === "pinch") return `${(s / 2).toFixed(2)}`;
+  return `${distance(drag.anchor, drag.point).toFixed(1)} vu`;
 }
 
 // The distinct mirror images of a point and its normal across the domain's middle planes of

@@ -2,12 +2,12 @@
 //   each tool's key (the tool registry's, ui/tools.js: A add blob, R remove blob, ...) selects
 //   it; [ ]: brush radius down / up; { }: strength (blend) down / up;
 //   Ctrl+Z: undo; Ctrl+Shift+Z or Ctrl+Y: redo (Cmd on macOS); V: splats / frames view;
-//   G: gradient-error shading; 0 or Home: reset view; 1 front, 3 side, 7 top;
-//   arrow keys (on the canvas): orbit; + and -: zoom; Escape: cancel the gesture; ?: the
+//   D: gradient-error shading (the distance field's check; G is grab's); 0 or Home: reset
+//   view; 1 front, 3 side, 7 top; arrow keys (on the canvas): orbit; + and -: zoom; Escape: cancel the gesture; ?: the
 //   shortcuts overlay. KEY_HELP lists them for that overlay. Space and F are held during a
 //   drag (ui/gesture-map.js), not pressed.
 
-import { TOOLS } from "./tools.js";
+import { GROUPS, TOOLS } from "./tools.js";
 
 // The page's own single keys (without Ctrl, Cmd or Alt), by what they do; the tools' keys come
 // after them, so a tool's key must be none of PAGE_KEYS (tests/browser/unit/tools.test.mjs).
@@ -17,7 +17,7 @@ const KEY_ACTIONS = Object.freeze({
   "{": (a) => a.strengthBy(-0.05),
   "}": (a) => a.strengthBy(0.05),
   v: (a) => a.toggleView(),
-  g: (a) => a.toggleGradientError(),
+  d: (a) => a.toggleGradientError(),
   0: (a) => a.camera("home"),
   Home: (a) => a.camera("home"),
   1: (a) => a.camera("front"),
@@ -34,14 +34,15 @@ const KEY_ACTIONS = Object.freeze({
 // Also taken: F and Space, held during a drag (ui/gesture-map.js).
 export const PAGE_KEYS = Object.freeze(new Set([...Object.keys(KEY_ACTIONS).map((k) => k.toLowerCase()), "f", " "]));
 
+// The tools one row per palette group: "G E K T L P", "Warp: Grab, Elastic grab, ...".
 export const KEY_HELP = Object.freeze([
-  ...TOOLS.map((t) => [t.key.toUpperCase(), t.label]),
+  ...GROUPS.map((g) => [g.tools.map((t) => t.key.toUpperCase()).join(" "), `${g.name}: ${g.tools.map((t) => t.label).join(", ")}`]),
   ["[  ]", "brush radius smaller / larger"],
   ["{  }", "strength (blend) lower / higher"],
   ["Ctrl+Z", "undo"],
   ["Ctrl+Shift+Z, Ctrl+Y", "redo"],
   ["V", "splats / frames view"],
-  ["G", "gradient-error shading"],
+  ["D", "gradient-error shading"],
   ["0 or Home", "reset the view to the model"],
   ["1  3  7", "front, side, top (the model's front: the pig's face)"],
   ["5", "orthographic / perspective"],

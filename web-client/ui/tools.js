@@ -7,8 +7,9 @@
 // cursor's: one per effect), `group`, `inverse` (or null), `takes` (the set of its parameters'
 // wire keys) and `kind`, the gesture: "stroke" for a tool that strokes (a drag is one stroke of
 // dabs: stroke.begin / dabs / end), "click" for one that does not (a click applies it once where
-// the pointer ray meets the surface: tool.apply with a ray, the CSG tools). Global operations are
-// in GLOBAL_OPS.
+// the pointer ray meets the surface: tool.apply with a ray, the CSG tools); `warp`, for a tool of
+// the registry's kind "warp", what its dabs are ("anchored": grab, twist ...; "path": snake
+// hook; math/warp-drag.js), else null. Global operations are in GLOBAL_OPS.
 // The registry is imported by a relative path, not "/protocol/js/...": the server serves this
 // file at /ui/tools.js and protocol/js/ at /protocol/js/, so the browser resolves it to the same
 // module as the other imports, and node's unit tests find it on disk.
@@ -28,6 +29,7 @@ export const TOOLS = Object.freeze(
       inverse: t.inverse,
       takes: new Set(t.params.map((p) => p.key)),
       kind: t.strokes ? "stroke" : "click",
+      warp: t.kind === "warp" ? t.dabs : null,
     }),
   ),
 );

@@ -8,6 +8,7 @@ import { EDIT_MARK_MS, EditMarks, boxEdges, hexColor, presenceRings, project } f
 import { OrbitCamera, ORTHOGRAPHIC_FOV_DEGREES } from "../../../web-client/math/orbit-camera.js";
 import { Follow } from "../../../web-client/ui/follow.js";
 import { PeopleList, followNote, peopleRows } from "../../../web-client/ui/people.js";
+import { TOOLS, toolName } from "../../../web-client/ui/tools.js";
 
 const near = (a, b, eps = 1e-9) => a.every((v, k) => Math.abs(v - b[k]) <= eps * Math.max(1, Math.abs(b[k])));
 
@@ -38,6 +39,7 @@ test("a ring at the target: its label is centred above it, one radius up on scre
   assert.deepEqual(rings[0].color, hexColor("#e6194b"));
   const [label] = labels;
   assert.equal(label.visible, true);
+  assert.equal(label.tool, "add_blob", "the label carries the tool, whose icon it shows");
   assert.ok(Math.abs(label.x - w / 2) < 1e-3, `x ${label.x}`);
   // one radius at the target's depth is 10 / (200 tan(fov/2)) of the half height; the label
   // sits 4 px above that
@@ -143,6 +145,15 @@ test("the people list: this page first, names and colours, the tool each shows, 
   );
   assert.equal(rows[1].color, "#e6194b");
   assert.deepEqual(peopleRows([{ client: 9, read_only: false }], 1, new Map(), new Map(), null)[0].name, "#9", "a client without a name");
+});
+
+test("every tool of the registry shows in the people list by its name, warps and surface tools alike", () => {
+  for (const t of TOOLS) {
+    const presence = new Map([[3, { client: 3, brush: { tool: t.id, active: true } }]]);
+    const [row] = peopleRows([{ client: 3, read_only: false, name: "Ada", color: "#e6194b" }], 1, presence, new Map(), null);
+    assert.equal(row.doing, `${toolName(t.id).toLowerCase()} · sculpting`, t.id);
+    assert.ok(!row.doing.includes("_"), `${t.id} is named in words: ${row.doing}`);
+  }
 });
 
 test("taking another client's camera gives exactly its eye, target and up, at the poles and in the telephoto view too", () => {

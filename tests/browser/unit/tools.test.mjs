@@ -30,9 +30,13 @@ test("a tool's key is one letter of its own, free among the page's keys, and the
   for (const t of TOOLS) {
     assert.match(t.key, /^[a-z]$/);
     assert.ok(!PAGE_KEYS.has(t.key), `${t.id}'s key ${t.key} is one of the page's own`);
-    assert.ok(KEY_HELP.some(([k, what]) => k === t.key.toUpperCase() && what === t.label), `the overlay lists ${t.id}`);
+    const row = KEY_HELP.find(([, what]) => what.startsWith(`${t.group}: `));
+    assert.ok(row, `the overlay has a row for ${t.group}`);
+    const at = row[0].split(" ").indexOf(t.key.toUpperCase());
+    assert.ok(at >= 0, `the overlay lists ${t.id}'s key in its group's row`);
+    assert.equal(row[1].slice(t.group.length + 2).split(", ")[at], t.label, `the overlay names ${t.id} in its key's place`);
   }
-  for (const k of ["v", "g", "0", "5", "[", "}", "?", "f", " ", "escape", "home"]) assert.ok(PAGE_KEYS.has(k), k);
+  for (const k of ["v", "d", "0", "5", "[", "}", "?", "f", " ", "escape", "home"]) assert.ok(PAGE_KEYS.has(k), k);
 });
 
 test("tools that stroke are dragged, the others clicked; inverses come in pairs", () => {
@@ -59,12 +63,17 @@ test("the whole-volume menu holds the registry's operations, with their first pa
   assert.equal(GLOBAL_OPS.smooth.amount, "Iterations");
 });
 
-test("a stroke of a tool that takes a height stands at one; the others accumulate", () => {
+test("a stroke of a tool that takes a height stands at one; the other brushes accumulate; warps do neither", () => {
   for (const t of registry.tools.filter((x) => x.strokes)) {
     const params = strokeBeginParams({ tool: t.name, radius: 8, strength: 1 });
-    if (t.params.includes("height")) assert.equal(params.height, 4, t.name);
+    if (t.kind === "warp") assert.deepEqual([params.height, params.accumulate], [undefined, undefined], t.name);
+    else if (t.params.includes("height")) assert.equal(params.height, 4, t.name);
     else assert.deepEqual([params.height, params.accumulate], [undefined, true], t.name);
   }
+});
+
+test("a warp's gesture is its registry dabs; the other tools have none", () => {
+  for (const t of TOOLS) assert.equal(t.warp, entry(t.id).kind === "warp" ? entry(t.id).dabs ?? "swept" : null, t.id);
 });
 
 test("tools are named in sentences as the palette names them", () => {
