@@ -5,8 +5,8 @@
 // on the point as the server centres it (PROTOCOL.md: sphere radius, box half side, cylinder
 // radius and half height, axis-aligned). During a warp stroke (warpGhost) the cursor shows
 // what the drag does: an arrow from the anchor to the pointer's point for grab, elastic grab
-// and snake hook (the snake's whole path), the turned arc for twist, the ring scaled for scale
-// and pinch; flatten and contrast show the plane they work towards as a disc (planeGhost).
+// and snake hook (the snake's whole path; elastic grab also the ring of 3 radii it reaches), the
+// turned arc for twist, the ring scaled for scale and pinch; flatten and contrast show the plane they work towards as a disc (planeGhost).
 // Conventions: vu, world axes; a ring's normal is unit; a ring with a `width` is drawn that
 // wide (a disc: radius r/2, width r), the others get the cursor's line width.
 
@@ -18,6 +18,7 @@ const ARROW_HEAD = Math.PI / 7; // half the angle of an arrow's head
 const ARC_STEP = Math.PI / 48; // the chord of a drawn arc
 export const TWIST_ARC = 0.75; // the twist's arc runs at this fraction of the radius
 export const PLANE_ALPHA = 0.22; // the plane disc's opacity (its rim is drawn as a ring)
+export const ELASTIC_REACH = 3; // elastic grab changes the ball of this many radii about the anchor
 
 // kind: "stroke" or "click"; shape: sphere|box|cylinder (click tools); axis: 0, 1, 2 (cylinder).
 // Returns {rings: [{center, normal, radius, inner}], segments: [[a, b]]}.
@@ -94,6 +95,8 @@ export function arcSegments(center, n, r, from, angle) {
 // Returns {rings: [{center, normal, radius, inner}], segments}.
 export function warpGhost({ name, dabs }, { anchor, anchorNormal, point, path = [], direction = null, viewNormal }, radius) {
   const rings = [{ center: anchor, normal: anchorNormal, radius, inner: false }];
+  // elastic grab's radius is the Kelvinlet's scale; what it changes reaches 3 radii (registry)
+  if (name === "elastic_grab") rings.push({ center: anchor, normal: anchorNormal, radius: ELASTIC_REACH * radius, inner: true });
   const segments = [];
   if (!point) return { rings, segments };
   const head = 0.3 * radius;
@@ -109,9 +112,9 @@ export function warpGhost({ name, dabs }, { anchor, anchorNormal, point, path = 
       segments.push(...arrowSegments(addScaled(b, normalize(sub(b, a)), -head), b, anchorNormal, head / 2).slice(1));
     }
   } else if (name === "scale") {
-    rings.push({ center: anchor, normal: anchorNormal, radius: radius * 2 ** s, inner: true });
+    rings.push({ center: anchor, normal: anchorNormal, radius: radius * scaleFactor(s), inner: true });
   } else if (name === "pinch") {
-    rings.push({ center: anchor, normal: anchorNormal, radius: radius * Math.max(0, 1 - s / 2), inner: true });
+    rings.push({ center: anchor, normal: anchorNormal, radius: radius * pinchFactor(s), inner: true });
   } else {
     // grab and elastic grab: the anchor goes to the point; snake hook: it went along the path
     let line = [anchor, point];
@@ -121,6 +124,17 @@ export function warpGhost({ name, dabs }, { anchor, anchorNormal, point, path = 
     rings.push({ center: point, normal: anchorNormal, radius, inner: true });
   }
   return { rings, segments };
+}
+
+// Scale's factor for a drag of s radii: 2^s, within 0.25 to 4 (the server's bounds, registry).
+export function scaleFactor(s) {
+  return Math.min(4, Math.max(0.25, 2 ** s));
+}
+
+// Pinch's factor towards the anchor's normal line for a drag of s radii: e^-a, a = s / 2 within
+// -1 to 1 (the registry's description of pinch).
+export function pinchFactor(s) {
+  return Math.exp(-Math.min(1, Math.max(-1, s / 2)));
 }
 
 // The plane a flatten or contrast stroke works towards ({point, normal}, the server's), as a

@@ -5,8 +5,11 @@
 // tool shows follow the parameters it takes.
 // Conventions: radius in vu (0.5 to 1024, the server's range; the slider covers 1 to 64 and
 // the keys go beyond); strength in (0, 1] for tools that take it; for the others (CSG) the same
-// slider sets the blend, a fraction of the radius in [0, 1]; symmetry as a list of axes ("x",
-// "y", "z"); lazy: the stroke stabiliser's slack in CSS pixels (0 = off); buildUp: strokes of
+// slider sets the blend, a fraction of the radius in [0, 1]; a warp's strength is its own
+// (warpStrength, 1 to begin with: a grab then puts the anchor where the pointer points, the
+// server moving it by strength times the drag), so that the brushes' gentler strength does not
+// carry over; the radius stays within the selected tool's range (the registry's: warps 1 to
+// 64 vu, elastic grab to 21.3); symmetry as a list of axes ("x", "y", "z"); lazy: the stroke stabiliser's slack in CSS pixels (0 = off); buildUp: strokes of
 // tools that take a height add with every message instead of standing at a height
 // (net/stroke-sender.js).
 
@@ -26,6 +29,7 @@ export class Controls {
       tool: "add_blob",
       radius: 8,
       strength: 0.5,
+      warpStrength: 1,
       blend: 0.2,
       shape: "sphere",
       symmetry: [],
@@ -148,6 +152,7 @@ export class Controls {
 
   setTool(id) {
     this.settings.tool = toolById(id).id;
+    this.settings.radius = this.#clampRadius(this.settings.radius);
     for (const input of this.doc.querySelectorAll('input[name="tool"]')) input.checked = input.value === this.settings.tool;
     for (const b of this.doc.querySelectorAll("#quickbar [data-tool]")) b.setAttribute("aria-pressed", String(b.dataset.tool === this.settings.tool));
     this.#syncBrush();
@@ -155,21 +160,33 @@ export class Controls {
   }
 
   setRadius(r) {
-    this.settings.radius = Math.min(RADIUS_MAX, Math.max(RADIUS_MIN, Math.round(r * 2) / 2));
+    this.settings.radius = this.#clampRadius(Math.round(r * 2) / 2);
     this.#syncBrush();
     this.handlers.onSettings();
   }
 
+  #clampRadius(r) {
+    const [lo, hi] = this.tool.radiusRange || [RADIUS_MIN, RADIUS_MAX];
+    return Math.min(hi, RADIUS_MAX, Math.max(lo, RADIUS_MIN, r));
+  }
+
+  // The strength the selected tool strokes with: a warp's own, else the brushes'.
+  get toolStrength() {
+    return this.tool.warp ? this.settings.warpStrength : this.settings.strength;
+  }
+
   // The second slider: strength for the tools that take it, else the blend (CSG tools).
   setStrength(s) {
+    const strength = Math.min(1, Math.max(0.05, Math.round(s * 20) / 20));
     if (this.#sliderIsBlend) this.settings.blend = Math.min(1, Math.max(0, s));
-    else this.settings.strength = Math.min(1, Math.max(0.05, Math.round(s * 20) / 20));
+    else if (this.tool.warp) this.settings.warpStrength = strength;
+    else this.settings.strength = strength;
     this.#syncBrush();
     this.handlers.onSettings();
   }
 
   get secondValue() {
-    return this.#sliderIsBlend ? this.settings.blend : this.settings.strength;
+    return this.#sliderIsBlend ? this.settings.blend : this.toolStrength;
   }
 
   get #sliderIsBlend() {
@@ -203,7 +220,7 @@ export class Controls {
     this.$("strength-name").textContent = blend ? "Blend" : "Strength";
     this.strength.min = blend ? "0" : "0.05";
     this.strength.value = String(this.secondValue);
-    this.$("strength-value").textContent = blend ? `${Math.round(s.blend * 100)}% of radius` : s.strength.toFixed(2);
+    this.$("strength-value").textContent = blend ? `${Math.round(s.blend * 100)}% of radius` : this.toolStrength.toFixed(2);
     this.$("shape-row").hidden = !this.tool.takes.has("shape");
     this.$("lazy-value").textContent = s.lazy ? `${s.lazy} px` : "off";
     // warps take no symmetry (the server refuses it); a tool without strength or blend no slider

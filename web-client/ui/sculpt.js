@@ -19,7 +19,7 @@
 // axis as their `direction`, and no warp sends symmetry.
 
 import { DabSpacer } from "../math/dab-spacer.js";
-import { brushGhost, planeGhost, warpGhost } from "../math/brush-ghost.js";
+import { brushGhost, pinchFactor, planeGhost, scaleFactor, warpGhost } from "../math/brush-ghost.js";
 import { LazyMouse } from "../math/lazy-mouse.js";
 import { transformPoint } from "../math/mat4.js";
 import { pickSplats } from "../math/splat-pick.js";
@@ -147,7 +147,7 @@ export class Sculpt {
     this.stroke = {
       tool: tool.id,
       warp: { drag, tool, anchorNormal: hit.normal, direction },
-      sender: new StrokeSender(this.session, { tool: tool.id, radius: s.radius, strength: s.strength, direction }, maxDabs),
+      sender: new StrokeSender(this.session, { tool: tool.id, radius: s.radius, strength: s.warpStrength, direction }, maxDabs),
       lazy: new LazyMouse(tool.warp === "path" ? s.lazy || 0 : 0),
     };
     this.stroke.sender.add({ center: anchor });
@@ -256,7 +256,8 @@ export class Sculpt {
       if (tool.kind === "stroke" && !tool.warp)
         for (const image of mirrorImages(hit.point, hit.normal, s.symmetry, this.session.info.size))
           cursor.rings.push({ ...image, radius: s.radius, width, color: tool.color, alpha: 0.45, primary: false });
-      let size = tool.kind === "click" ? `${s.shape} ${s.radius} vu` : tool.takes.has("strength") ? `${s.radius} vu · ${s.strength.toFixed(2)}` : `${s.radius} vu`;
+      const strength = tool.warp ? s.warpStrength : s.strength;
+      let size = tool.kind === "click" ? `${s.shape} ${s.radius} vu` : tool.takes.has("strength") ? `${s.radius} vu · ${strength.toFixed(2)}` : `${s.radius} vu`;
       if (warp && warp.drag.point) size = warpReadout(tool.id, warp, s.radius);
       this.#placeReadout(readout, hit.point, `${tool.icon} ${tool.label} · ${size}`);
     } else if (readout) {
@@ -281,12 +282,12 @@ export class Sculpt {
 }
 
 // What an open warp stroke does so far, for the readout: how far the anchor moved, the twist's
-// angle, the scale's factor, the pinch's amount (PROTOCOL.md, stroke.begin).
+// angle, the scale's factor, the pinch's factor (PROTOCOL.md, stroke.begin).
 function warpReadout(name, { drag, direction }, radius) {
   const s = warpAmount(drag.anchor, drag.point, direction, radius);
   if (name === "twist") return `${Math.round(s * 90)}°`;
-  if (name === "scale") return `× ${(2 ** s).toFixed(2)}`;
-  if (name === "pinch") return `${(s / 2).toFixed(2)}`;
+  if (name === "scale") return `× ${scaleFactor(s).toFixed(2)}`;
+  if (name === "pinch") return `× ${pinchFactor(s).toFixed(2)} towards the middle`;
   return `${distance(drag.anchor, drag.point).toFixed(1)} vu`;
 }
 

@@ -9,12 +9,15 @@
 // dabs: stroke.begin / dabs / end), "click" for one that does not (a click applies it once where
 // the pointer ray meets the surface: tool.apply with a ray, the CSG tools); `warp`, for a tool of
 // the registry's kind "warp", what its dabs are ("anchored": grab, twist ...; "path": snake
-// hook; math/warp-drag.js), else null. Global operations are in GLOBAL_OPS.
+// hook; math/warp-drag.js), else null; `radiusRange`, [min, max] of its radius in vu (null for a
+// tool without one). Global operations are in GLOBAL_OPS.
 // The registry is imported by a relative path, not "/protocol/js/...": the server serves this
 // file at /ui/tools.js and protocol/js/ at /protocol/js/, so the browser resolves it to the same
 // module as the other imports, and node's unit tests find it on disk.
 
 import { GROUPS as REGISTRY_GROUPS, OPERATIONS, TOOLS as REGISTRY_TOOLS } from "../../protocol/js/tools.js";
+
+const rangeOf = (p) => (p && p.type === "number" ? Object.freeze([p.minimum, p.maximum]) : null);
 
 export const TOOLS = Object.freeze(
   REGISTRY_TOOLS.map((t) =>
@@ -30,6 +33,7 @@ export const TOOLS = Object.freeze(
       takes: new Set(t.params.map((p) => p.key)),
       kind: t.strokes ? "stroke" : "click",
       warp: t.kind === "warp" ? t.dabs : null,
+      radiusRange: rangeOf(t.params.find((p) => p.key === "radius")),
     }),
   ),
 );

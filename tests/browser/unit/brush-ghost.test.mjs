@@ -74,10 +74,10 @@ test("an arc turns right-handed about its normal by the angle, on its radius", (
   assert.ok(near(arcSegments([0, 0, 0], [0, 0, 1], 1, [1, 0, 0], -Math.PI / 2).at(-1)[1], [0, -1, 0]));
 });
 
-test("grab and elastic grab: the ring at the anchor, an arrow from it to the pointer's point, the ring again where it goes", () => {
+test("grab: the ring at the anchor, an arrow from it to the pointer's point, the ring again where it goes", () => {
   const anchor = [10, 20, 30];
   const point = [40, 20, 30];
-  for (const name of ["grab", "elastic_grab"]) {
+  for (const name of ["grab"]) {
     assert.deepEqual(warpGhost({ name, dabs: "anchored" }, { anchor, anchorNormal: [1, 0, 0], point: null, viewNormal: [0, 0, 1] }, 8), {
       rings: [{ center: anchor, normal: [1, 0, 0], radius: 8, inner: false }],
       segments: [],
@@ -100,7 +100,7 @@ test("snake hook: the path it went, the arrow's head at the pointer's point", ()
   assert.equal(atEnd.segments.length, 5);
 });
 
-test("twist: an arc about the anchor's normal of s pi/2, s the drag along the direction in radii; scale: the ring times 2^s; pinch: times 1 - s/2", () => {
+test("twist: an arc about the anchor's normal of s pi/2, s the drag along the direction in radii; scale: the ring times 2^s within 1/4 to 4; pinch: times e^-(s/2) within e^-1 to e", () => {
   const anchor = [0, 0, 0];
   const n = [0, 0, 1];
   const view = { anchor, anchorNormal: n, direction: [1, 0, 0], viewNormal: [0, 0, 1] };
@@ -116,11 +116,19 @@ test("twist: an arc about the anchor's normal of s pi/2, s the drag along the di
   assert.ok(near(back.at(-1)[1], [r * Math.cos(-Math.PI / 4), r * Math.sin(-Math.PI / 4), 0]), "dragging left: the other way, s = -1/2");
   const scale = warpGhost({ name: "scale", dabs: "anchored" }, { ...view, point: [8, 0, 0] }, 8);
   assert.deepEqual(scale.rings.map((x) => x.radius), [8, 16], "s = 1 doubles");
-  assert.deepEqual(warpGhost({ name: "scale", dabs: "anchored" }, { ...view, point: [-8, 0, 0] }, 8).rings[1].radius, 4, "s = -1 halves");
-  assert.deepEqual(warpGhost({ name: "pinch", dabs: "anchored" }, { ...view, point: [8, 0, 0] }, 8).rings[1].radius, 4, "s = 1: amount 1/2");
-  assert.deepEqual(warpGhost({ name: "pinch", dabs: "anchored" }, { ...view, point: [-8, 0, 0] }, 8).rings[1].radius, 12, "s = -1 spreads");
-  assert.deepEqual(warpGhost({ name: "pinch", dabs: "anchored" }, { ...view, point: [40, 0, 0] }, 8).rings[1].radius, 0, "never below nothing");
-  for (const g of [scale]) assert.deepEqual(g.segments, []);
+  assert.deepEqual(scale.segments, []);
+  assert.equal(warpGhost({ name: "scale", dabs: "anchored" }, { ...view, point: [-8, 0, 0] }, 8).rings[1].radius, 4, "s = -1 halves");
+  assert.equal(warpGhost({ name: "scale", dabs: "anchored" }, { ...view, point: [80, 0, 0] }, 8).rings[1].radius, 32, "at most 4 times");
+  assert.equal(warpGhost({ name: "scale", dabs: "anchored" }, { ...view, point: [-80, 0, 0] }, 8).rings[1].radius, 2, "at least a quarter");
+  const pinch = (x) => warpGhost({ name: "pinch", dabs: "anchored" }, { ...view, point: [x, 0, 0] }, 8).rings[1].radius;
+  assert.ok(Math.abs(pinch(8) - 8 * Math.exp(-0.5)) < 1e-12, "s = 1: a = 1/2 draws in by e^-1/2");
+  assert.ok(Math.abs(pinch(-8) - 8 * Math.exp(0.5)) < 1e-12, "s = -1 spreads");
+  assert.ok(Math.abs(pinch(80) - 8 * Math.exp(-1)) < 1e-12 && Math.abs(pinch(-80) - 8 * Math.E) < 1e-12, "a within -1 to 1");
+});
+
+test("elastic grab also shows the ball of 3 radii its Kelvinlet changes", () => {
+  const g = warpGhost({ name: "elastic_grab", dabs: "anchored" }, { anchor: [0, 0, 0], anchorNormal: [0, 1, 0], point: [5, 0, 0], viewNormal: [0, 0, 1] }, 6);
+  assert.deepEqual(g.rings.map((r) => [r.center, r.radius, r.inner]), [[[0, 0, 0], 6, false], [[0, 0, 0], 18, true], [[5, 0, 0], 6, true]]);
 });
 
 test("flatten and contrast: the server's plane as a translucent disc of the radius (a ring of radius r/2, r wide) and its rim", () => {

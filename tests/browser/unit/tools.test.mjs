@@ -76,6 +76,14 @@ test("a warp's gesture is its registry dabs; the other tools have none", () => {
   for (const t of TOOLS) assert.equal(t.warp, entry(t.id).kind === "warp" ? entry(t.id).dabs ?? "swept" : null, t.id);
 });
 
+test("a tool's radius range is its radius parameter's, which the brush slider keeps to", () => {
+  for (const t of TOOLS) {
+    const p = entry(t.id).params.map((id) => ({ id, ...registry.parameters[id] })).find((q) => (q.key ?? q.id) === "radius");
+    assert.deepEqual(t.radiusRange, p ? [p.minimum, p.maximum] : null, t.id);
+  }
+  assert.deepEqual(toolById("add_blob").radiusRange, [0.5, 1024]);
+});
+
 test("tools are named in sentences as the palette names them", () => {
   assert.equal(toolName("add_blob"), "add blob");
   assert.equal(toolName("csg_intersect"), "CSG intersect");
