@@ -7,8 +7,9 @@ MARZIPAN_RUN_PACKAGES=(g++ cmake ninja-build pkg-config python3 libboost-dev nlo
 # and the process tests, python3-numpy for the load tool's picking (tests/load/web_client_model.py),
 # HAProxy and openssl for the scale-out test, etcd (server and etcdctl) for the etcd-owned
 # sessions' tests (serving with --etcd needs a reachable etcd, not these), Chromium for the web client, clang and its runtime for the sanitizer and fuzz builds, OpenVDB
-# (and the Boost.Iostreams its CMake config asks for) for the optional .vdb build (tests/openvdb.sh).
-MARZIPAN_TEST_PACKAGES=(catch2 ccache nodejs haproxy python3-websockets python3-jsonschema python3-numpy openssl etcd-server etcd-client chromium clang libclang-rt-14-dev admesh libopenvdb-dev libboost-iostreams-dev)
+# (and the Boost.Iostreams its CMake config asks for) for the optional .vdb build (tests/openvdb.sh),
+# valgrind (callgrind and its callgrind.h) for the benchmark's instruction counts (tests/bench/instructions.py).
+MARZIPAN_TEST_PACKAGES=(catch2 ccache nodejs haproxy python3-websockets python3-jsonschema python3-numpy openssl etcd-server etcd-client chromium clang libclang-rt-14-dev admesh libopenvdb-dev libboost-iostreams-dev valgrind)
 
 # install_debian_packages PACKAGE...: installs those of the given packages that are missing.
 install_debian_packages() {

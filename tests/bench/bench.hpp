@@ -1,5 +1,11 @@
 // The benchmark harness: scenarios register themselves by name and print one JSON object per
 // line (at least scenario, threads, median_ms, min_ms, max_ms, reps, then their own figures).
+//
+// Instruction counts (tests/bench/instructions.py): under callgrind started with
+// --collect-atstart=no, measure() collects only the calls it times and dumps them as one part,
+// "marzipan-bench measurement N reps R"; the line that reports a Timing then carries
+// "measurement": N (a scenario reporting a second Timing names it "<what>_measurement"), which
+// the wrapper turns into instructions per call. Outside callgrind nothing changes.
 #pragma once
 
 #include <algorithm>
@@ -24,7 +30,14 @@ struct Timing {
   // The median CPU time of the process over the reps, all threads together: on a machine shared
   // with other work it stays near the quiet figure when the wall-clock time does not.
   double cpu_median_ms = 0;
+  int measurement = 0;  // its callgrind part, 0 when not counting instructions
 };
+
+// Under callgrind: whether instructions are counted, collection on or off around a timed call,
+// and the dump of one measurement's calls (its number). Elsewhere: false, nothing, 0.
+bool countingInstructions();
+void toggleInstructionCount();
+int dumpInstructionCount(int reps);
 
 inline double processCpuMs() {
   timespec t{};
@@ -36,17 +49,20 @@ inline double processCpuMs() {
 template <class Setup, class F>
 Timing measure(int reps, Setup&& setup, F&& f) {
   std::vector<double> ms, cpu;
+  const bool counting = countingInstructions();
   for (int r = 0; r < reps; ++r) {
     setup();
     const double c0 = processCpuMs();
     const auto t0 = std::chrono::steady_clock::now();
+    if (counting) toggleInstructionCount();
     f();
+    if (counting) toggleInstructionCount();
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     cpu.push_back(processCpuMs() - c0);
   }
   std::sort(ms.begin(), ms.end());
   std::sort(cpu.begin(), cpu.end());
-  return {ms[ms.size() / 2], ms.front(), ms.back(), reps, cpu[cpu.size() / 2]};
+  return {ms[ms.size() / 2], ms.front(), ms.back(), reps, cpu[cpu.size() / 2], counting ? dumpInstructionCount(reps) : 0};
 }
 template <class F>
 Timing measure(int reps, F&& f) {

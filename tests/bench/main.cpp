@@ -9,7 +9,27 @@
 
 #include "bench.hpp"
 
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#define MARZIPAN_BENCH_CALLGRIND 1
+#endif
+
 namespace marzipan::bench {
+
+#ifdef MARZIPAN_BENCH_CALLGRIND
+bool countingInstructions() { return RUNNING_ON_VALGRIND != 0; }
+void toggleInstructionCount() { CALLGRIND_TOGGLE_COLLECT; }
+int dumpInstructionCount(int reps) {
+  static int measurements = 0;
+  const std::string name = "marzipan-bench measurement " + std::to_string(++measurements) + " reps " + std::to_string(reps);
+  CALLGRIND_DUMP_STATS_AT(name.c_str());
+  return measurements;
+}
+#else
+bool countingInstructions() { return false; }
+void toggleInstructionCount() {}
+int dumpInstructionCount(int) { return 0; }
+#endif
 
 namespace {
 std::map<std::string, ScenarioFn>& registry() {
@@ -29,6 +49,7 @@ void emit(const std::string& scenario, int threads, const Timing& t, nlohmann::o
   j["max_ms"] = t.max_ms;
   j["reps"] = t.reps;
   j["cpu_median_ms"] = t.cpu_median_ms;
+  if (t.measurement) j["measurement"] = t.measurement;
   for (auto& [k, v] : extra.items()) j[k] = v;
   std::cout << j.dump() << std::endl;
 }
