@@ -99,6 +99,10 @@ Edit sharpen(Volume& vol, const BrushParams& p, ThreadPool& pool = ThreadPool::s
 //   and grouping are remove blob's.
 enum class Brush { AddBlob, RemoveBlob, Smooth, Sharpen, Inflate, Clay, Flatten, Contrast, Crease };
 
+// Whether the brush moves towards (away from) StrokeSettings::plane, which it then needs:
+// flatten and contrast.
+inline bool brushUsesPlane(Brush tool) { return tool == Brush::Flatten || tool == Brush::Contrast; }
+
 // A plane: the points x with (x - point) . normal = 0; normal a unit vector.
 struct Plane {
   Vec3 point, normal;

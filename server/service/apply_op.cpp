@@ -19,9 +19,14 @@ namespace {
 using namespace protocol;
 
 // Every surface-speed tool is a one-dab stroke, bit for bit the engine's addBlob, smooth, ...
+// Flatten and contrast move towards (from) the plane fitted around the centre on the volume as
+// it is, as a stroke's first dab fits it (Session::beginStroke): a replay of the op fits the
+// same plane. Inflate and clay are add blob without a height.
 Edit apply(Volume& vol, const BrushOp& op, ThreadPool& pool) {
   const StrokeDab dab{op.params.center, 1.0};
-  return applyStroke(vol, {engineBrush(op.tool), op.params.radius, op.params.strength}, {&dab, 1}, {}, pool);
+  StrokeSettings st{engineBrush(op.tool), op.params.radius, op.params.strength};
+  if (brushUsesPlane(st.tool)) st.plane = fitBrushPlane(vol, op.params.center, op.params.radius);
+  return applyStroke(vol, st, {&dab, 1}, {}, pool);
 }
 
 Edit apply(Volume& vol, const GlobalSmoothOp& op, ThreadPool& pool) {

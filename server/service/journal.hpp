@@ -7,11 +7,14 @@
 //   {"r":R,"op":{...}}                       tool.apply / volume.morph: the canonical op object
 //   {"r":R,"stroke":S,"dabs":[[x,y,z,p(,nx,ny,nz)],...]} stroke.dabs: the centres that applied,
 //                                          pressure p, and in a stroke with a height the normal
-//                                          each was anchored along
+//                                          each was anchored along; [,"plane":{"point":[x,y,z],
+//                                          "normal":[x,y,z]}] once the stroke has one (flatten,
+//                                          contrast, clay with a height: Session::beginStroke)
 //   {"stroke_begin":S,"tool":T,"radius":r,"strength":s,"symmetry":"xz"[,"accumulate":true]
-//    [,"height":h][,"applied":[[x,y,z,w(,nx,ny,nz)],...]]}
+//    [,"height":h][,"applied":[[x,y,z,w(,nx,ny,nz)],...]][,"plane":{...}]}
 //                                          "applied": the dab images an open stroke had applied
-//                                            (its memory), when re-announced after a snapshot
+//                                            (its memory), "plane" its plane, when re-announced
+//                                            after a snapshot
 //   {"stroke_end":S}
 //   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a
 //                                            replay whose history lost the step to a snapshot

@@ -33,7 +33,12 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
     }
     record["applied"] = std::move(applied);
   }
+  if (st.plane) record["plane"] = planeJson(*st.plane);
   return record;
+}
+
+json planeJson(const Plane& plane) {
+  return {{"point", protocol::vec3Json(plane.point)}, {"normal", protocol::vec3Json(plane.normal)}};
 }
 
 void stampRecord(json& record, const StepAuthor& by, std::int64_t timeMs) {
@@ -49,6 +54,19 @@ json authorMoveRecord(bool undo, std::uint64_t revision, const std::string& file
 }
 
 namespace {
+
+Vec3 vec3Of(const json& a) {
+  if (!a.is_array() || a.size() != 3) throw std::runtime_error("bad stroke plane");
+  return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+}
+
+// The plane of a record that has one, set on the replayed stroke (before its dabs: the starting
+// volume it was fitted on may be gone with a snapshot).
+void replayPlane(Session& s, StrokeId id, const json& rec) {
+  const auto it = rec.find("plane");
+  if (it == rec.end()) return;
+  s.setStrokePlane(id, Plane{vec3Of(it->at("point")), vec3Of(it->at("normal"))});
+}
 
 StepAuthor authorOf(const json& rec) {
   const auto it = rec.find("by");
@@ -176,6 +194,7 @@ void Replay::apply(const json& rec) {
       }
       s.setStrokeMemory(id, std::move(applied));
     }
+    replayPlane(s, id, rec);
   } else if (rec.contains("stroke_end")) {
     const auto it = strokes_.find(rec["stroke_end"].get<std::uint64_t>());
     if (it != strokes_.end()) {
@@ -189,7 +208,9 @@ void Replay::apply(const json& rec) {
       if (d.size() == 7) dab.normal = Vec3{d[4], d[5], d[6]};
       dabs.push_back(std::move(dab));
     }
-    s.strokeDabs(strokes_.at(rec["stroke"].get<std::uint64_t>()), dabs, pool_);
+    const StrokeId id = strokes_.at(rec["stroke"].get<std::uint64_t>());
+    replayPlane(s, id, rec);
+    s.strokeDabs(id, dabs, pool_);
   } else if (rec.contains("undo") || rec.contains("redo")) {
     // From the bricks it put in place, not from the replayed history: that history starts at
     // the snapshot and may hold only part of a stroke that began before it.

@@ -23,6 +23,8 @@ namespace marzipan::service {
 // applied so far (its memory), which recovery reads back. The hub writes it at stroke.begin and
 // at the head of every new journal for the strokes still open.
 nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);
+// A stroke's plane as the journal and the replies write it: {"point":[x,y,z],"normal":[x,y,z]}.
+nlohmann::json planeJson(const Plane& plane);
 
 // Adds who made a step ("by", when the author has an id or a name) and when ("t") to the
 // record of a change: an op, a stroke message or a load (see service/journal.hpp).

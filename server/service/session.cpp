@@ -81,6 +81,47 @@ std::vector<StrokeDab> mirrorImages(const StrokeDab& dab, Symmetry s, Int3 dims)
   return distinct;
 }
 
+// The mirrors a symmetry enables, each a set of axes (bit a: mirrored across axis a), in the
+// order mirrorImages makes their images: the identity (0) first.
+std::vector<int> mirrorSets(Symmetry s) {
+  std::vector<int> sets{0};
+  const bool on[3] = {s.x, s.y, s.z};
+  for (int a = 0; a < 3; ++a) {
+    if (!on[a]) continue;
+    const std::size_t n = sets.size();
+    for (std::size_t i = 0; i < n; ++i) sets.push_back(sets[i] | 1 << a);
+  }
+  return sets;
+}
+
+// A point and a direction mirrored across the axes of `set` (as mirrorImages mirrors them).
+void mirror(Vec3& point, Vec3& direction, int set, Int3 dims) {
+  for (int a = 0; a < 3; ++a)
+    if (set & 1 << a) {
+      point[a] = (dims[a] - 1) - point[a];
+      direction[a] = -direction[a];
+    }
+}
+
+// The images under mirror sets[k] of the dabs that are not their own image under an earlier
+// mirror of the list (a dab on a mirror plane applies once, as in mirrorImages).
+std::vector<StrokeDab> imagesUnder(std::span<const StrokeDab> dabs, const std::vector<int>& sets, std::size_t k,
+                                   Int3 dims) {
+  std::vector<StrokeDab> out;
+  for (const StrokeDab& d : dabs) {
+    StrokeDab image = d;
+    mirror(image.center, image.normal, sets[k], dims);
+    bool seen = false;
+    for (std::size_t j = 0; j < k && !seen; ++j) {
+      StrokeDab earlier = d;
+      mirror(earlier.center, earlier.normal, sets[j], dims);
+      seen = earlier.center == image.center;
+    }
+    if (!seen) out.push_back(image);
+  }
+  return out;
+}
+
 // The unit outward normal of vol's surface at a point on it, or zero where the field there has
 // no slope to speak of (a point off the band).
 Vec3 surfaceNormal(const Volume& vol, Vec3 p) {
@@ -244,8 +285,11 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
     invalid("radius", "must be a number of vu in " + protocol::rangeText(protocol::kParamRadius));
   if (height && accumulate) invalid("height", "is for strokes that remember what they applied, not for accumulating ones");
   // The strength and the height as the engine will check every message's dabs (one check).
+  // A stroke's plane comes with its first dab: any valid one stands for it here.
   try {
-    checkStrokeSettings(StrokeSettings{engineBrush(tool), radius, strength, height});
+    StrokeSettings settings{engineBrush(tool), radius, strength, height};
+    if (brushUsesPlane(settings.tool)) settings.plane = Plane{{0, 0, 0}, {0, 0, 1}};
+    checkStrokeSettings(settings);
   } catch (const EngineError& e) {
     rethrow(e, "");
   }
@@ -278,9 +322,14 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   }
 
   ApplyResult result;
-  const StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength, stroke.height};
+  StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength, stroke.height};
   // The surface as the stroke began (a load that changed the grid since: as it is now).
   const Volume& start = stroke.start.dims() == volume_.dims() ? stroke.start : volume_;
+  // Flatten and contrast apply each mirror's images with the plane mirrored alike (beginStroke,
+  // "The stroke's plane"): what they remember, and what applies here, are the dabs themselves.
+  const bool planar = brushUsesPlane(settings.tool);
+  const bool clayNormal = settings.tool == Brush::Clay && stroke.height;
+  std::optional<Plane> plane = stroke.plane;
   std::vector<StrokeDab> images;
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     std::optional<Vec3> centre;
@@ -292,27 +341,63 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
       if (!centre) ++result.missed;
     }
     result.hits.push_back(centre);
-    // A stroke with a height anchors each dab along the starting surface's normal there.
-    Vec3 normal;
-    if (stroke.height && centre) normal = dabs[i].normal ? *dabs[i].normal : surfaceNormal(start, *centre);
-    result.normals.push_back(normal);
+    const std::string field = "dabs[" + std::to_string(i) + "]";
     const double pressure = dabs[i].pressure.value_or(1.0);
-    if (!centre || pressure == 0) continue;
-    for (const StrokeDab& dab : mirrorImages(StrokeDab{*centre, pressure, normal}, stroke.symmetry, volume_.dims())) {
+    if ((planar || clayNormal) && !plane && centre && pressure > 0) {
       try {
-        checkStrokeDab(volume_, settings, dab);
+        plane = fitBrushPlane(start, *centre, stroke.radius);
       } catch (const EngineError& e) {
-        rethrow(e, "dabs[" + std::to_string(i) + "]");
+        rethrow(e, field);
       }
-      images.push_back(dab);
     }
+    if (planar) settings.plane = plane;
+    // A stroke with a height anchors each dab along the starting surface's normal there (add
+    // and remove blob), along the stroke's normal (clay), or along each point's own (inflate).
+    Vec3 normal;
+    if (stroke.height && centre && settings.tool != Brush::Inflate)
+      normal = dabs[i].normal ? *dabs[i].normal : clayNormal && plane ? plane->normal : surfaceNormal(start, *centre);
+    result.normals.push_back(normal);
+    if (!centre || pressure == 0) continue;
+    const StrokeDab dab{*centre, pressure, normal};
+    for (const StrokeDab& image : mirrorImages(dab, stroke.symmetry, volume_.dims())) {
+      try {
+        checkStrokeDab(volume_, settings, image);
+      } catch (const EngineError& e) {
+        rethrow(e, field);
+      }
+      if (!planar) images.push_back(image);
+    }
+    if (planar) images.push_back(dab);
   }
   Edit message;
+  const std::vector<int> sets = mirrorSets(stroke.symmetry);
+  // Bricks shared (O(tiles)): put back when a later mirror's application fails (cancelled, out
+  // of memory) after an earlier one changed the volume. One application changes nothing then.
+  std::optional<Volume> before;
+  if (planar && sets.size() > 1) before = volume_;
   try {
-    message = applyStroke(volume_, settings, images, stroke.memory, pool);
+    if (!planar) {
+      message = applyStroke(volume_, settings, images, stroke.memory, pool);
+    } else if (plane) {
+      for (std::size_t k = 0; k < sets.size(); ++k) {
+        StrokeSettings mirrored = settings;
+        mirror(mirrored.plane->point, mirrored.plane->normal, sets[k], volume_.dims());
+        const std::vector<StrokeDab> here = imagesUnder(images, sets, k, volume_.dims());
+        const std::vector<StrokeDab> remembered = imagesUnder(stroke.memory, sets, k, volume_.dims());
+        const Edit part = applyStroke(volume_, mirrored, here, remembered, pool);
+        if (k == 0) message = part;
+        else message.append(part.changes, part.region);
+      }
+    }
   } catch (const EngineError& e) {
+    if (before) volume_ = std::move(*before);
     rethrow(e, "dabs");
+  } catch (...) {
+    if (before) volume_ = std::move(*before);
+    throw;
   }
+  strokes_.at(id).plane = plane;
+  result.plane = plane;
   // An application that changed nothing is not journaled, so a recovered stroke never learns
   // its dabs: remembered, they would hold back this stroke's later messages here but not there.
   if (!stroke.accumulate && !message.empty()) {
@@ -355,7 +440,7 @@ std::optional<Session::StrokeParams> Session::strokeSettings(StrokeId id) const 
   const auto it = strokes_.find(id);
   if (it == strokes_.end()) return std::nullopt;
   const Stroke& st = it->second;
-  return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height};
+  return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height, st.plane};
 }
 
 std::span<const StrokeDab> Session::strokeMemory(StrokeId id) const {
@@ -370,6 +455,16 @@ void Session::setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied) {
   if (s.accumulate) return;
   if (applied.size() > kMaxStrokeMemory) applied.erase(applied.begin(), applied.end() - std::ptrdiff_t(kMaxStrokeMemory));
   s.memory = std::move(applied);
+}
+
+void Session::setStrokePlane(StrokeId id, const Plane& plane) {
+  openStroke(id);
+  Stroke& s = strokes_.at(id);
+  if (!brushUsesPlane(engineBrush(s.tool)) && !(engineBrush(s.tool) == Brush::Clay && s.height))
+    invalid("plane", "is only for flatten, contrast and clay with a height");
+  if (!isFinite(plane.point) || !isFinite(plane.normal) || !(std::abs(dot(plane.normal, plane.normal) - 1) <= 1e-6))
+    invalid("plane", "must be a finite point and a unit normal");
+  s.plane = plane;
 }
 
 bool Session::growingStep(History::StepId step, StrokeId except) const {
@@ -530,7 +625,10 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
     volume_ = std::move(vol);
     resetDigest();
     history_.clear();
-    for (auto& [id, stroke] : strokes_) stroke.start = volume_;
+    for (auto& [id, stroke] : strokes_) {
+      stroke.start = volume_;
+      stroke.plane.reset();
+    }
     bump();
     ApplyResult r;
     r.revision = revision_;
@@ -550,7 +648,10 @@ ApplyResult Session::load(Volume vol, const StepAuthor& by) {
         if (!sameBrick(before, after)) edit.changes.push_back({b, std::move(before), std::move(after)});
       }
   volume_.publish(edit.changes, true);
-  for (auto& [id, stroke] : strokes_) stroke.start = volume_;
+  for (auto& [id, stroke] : strokes_) {
+    stroke.start = volume_;
+    stroke.plane.reset();
+  }
   history_.push(edit, stepInfo(by, "volume.load"), [this](History::StepId st) { return growingStep(st); });
   ApplyResult r = finish(edit);
   if (!r.changed) {

@@ -114,6 +114,9 @@ struct ApplyResult {
   // strokeDabs only, one per dab: the normal it was anchored along (zero: none; a stroke
   // without a height, or a missed ray), for the journal.
   std::vector<Vec3> normals;
+  // strokeDabs only: the stroke's plane once it has one (Session::beginStroke, "The stroke's
+  // plane"), for the reply and the journal.
+  std::optional<Plane> plane;
   std::size_t missed = 0;  // how many rays missed
 };
 
@@ -161,10 +164,24 @@ class Session {
 
   // Opens a stroke of one brush tool. radius in [0.5, 1024] vu, strength in (0, 1].
   // accumulate: every message adds (build-up) instead of only what exceeds the stroke's
-  // earlier dabs (see strokeDabs). height (add/remove blob, not accumulating; vu in (0,
-  // min(radius / 2, 64)]): the stroke moves the surface by at most this (engine StrokeSettings),
-  // each dab anchored along the starting surface's normal at its centre.
+  // earlier dabs (see strokeDabs). height (add/remove blob, inflate, clay; not accumulating; vu
+  // in (0, min(radius / 2, 64)]): the stroke moves the surface by at most this (engine
+  // StrokeSettings), each dab anchored along the starting surface's normal at its centre (add
+  // and remove blob), along each point's own normal (inflate) or along the stroke's normal
+  // (clay: its plane's, below).
   // Its steps are recorded as by's. The stroke keeps the volume as it began (bricks shared).
+  //
+  // The stroke's plane: flatten and contrast move towards (away from) a plane, and clay with a
+  // height along one normal, both of the surface as the stroke began. stroke.begin has no
+  // centre, so the plane is fitted (engine fitBrushPlane: the area-weighted centre and normal of
+  // the surface within the radius) on the stroke's starting volume around the first dab that
+  // applies (a centre, or a ray's hit, with a pressure above 0), in the message that has it,
+  // and kept for the rest of the stroke. A message whose first such dab has no surface within
+  // the radius is refused (InvalidParams, field "dabs[i].center") and changes nothing. With
+  // symmetry each mirror image moves towards the plane mirrored alike: flatten and contrast
+  // apply the images of each mirror one after the other in the same message (each with its own
+  // share of the memory), so near a mirror plane, where the images' regions meet, a point moves
+  // by both rather than by the stronger (clay's images are one application, as add blob's).
   StrokeId beginStroke(protocol::BrushTool tool, double radius, double strength, Symmetry symmetry = {},
                        bool accumulate = false, const StepAuthor& by = {},
                        std::optional<double> height = std::nullopt);
@@ -187,6 +204,11 @@ class Session {
   // Replaces what an open stroke remembers having applied (a journal replayed after a snapshot
   // that cut the stroke in two). Throws UnknownStroke / StrokeClosed.
   void setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied);
+  // Sets an open stroke's plane (its first message's, as the journal recorded it: replay after a
+  // snapshot no longer has the starting volume it was fitted on). Throws UnknownStroke /
+  // StrokeClosed, InvalidParams (field "plane") for a plane not finite or not of a unit normal,
+  // or for a stroke of a tool without one.
+  void setStrokePlane(StrokeId id, const Plane& plane);
   static constexpr std::size_t kMaxStrokeMemory = 4096;
   // Closes the stroke; its step can no longer grow. Throws UnknownStroke / StrokeClosed.
   void endStroke(StrokeId id);
@@ -263,9 +285,12 @@ class Session {
     double radius, strength;
     Symmetry symmetry;
     bool accumulate = false;
-    std::vector<StrokeDab> memory;  // the dab images it applied, oldest first
+    // the dab images it applied, oldest first (flatten and contrast: the dabs before their mirror
+    // images, each mirror's images being made again from them)
+    std::vector<StrokeDab> memory;
     StepAuthor by{};
     std::optional<double> height{};
+    std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -298,6 +323,7 @@ class Session {
     // that the volume no longer held, and changedBricks_ then. Held bricks are at most heldBricks
     // plus the bricks changed since.
     std::size_t heldBricks = 0, changedAtCount = 0;
+    std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
   };
 
   ApplyResult finish(const Edit& edit);

@@ -50,8 +50,11 @@ TEST_CASE("the registry's ranges of surface-speed tools are the engine's", "[eng
   for (const auto& [tool, name] : kBrushToolNames) {
     INFO(name);
     const Brush brush = service::engineBrush(tool);
+    // Flatten and contrast also need the stroke's plane (the session fits it at the first dab).
     const auto check = [&](double radius, double strength, std::optional<double> height = std::nullopt) {
-      return refused([&] { checkStrokeSettings(StrokeSettings{brush, radius, strength, height}); });
+      StrokeSettings st{brush, radius, strength, height};
+      if (brushUsesPlane(brush)) st.plane = Plane{{8, 8, 8}, {0, 1, 0}};
+      return refused([&] { checkStrokeSettings(st); });
     };
     CHECK(check(kParamRadius.minimum, 1) == "(accepted)");
     CHECK(check(kParamRadius.maximum, 1) == "(accepted)");

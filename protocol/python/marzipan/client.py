@@ -550,10 +550,11 @@ class Client:
 
     async def begin_stroke(self, tool: str, *, radius: float | None = None, strength: float | None = None,
                            symmetry=None, accumulate: bool | None = None, height: float | None = None) -> int:
-        """stroke.begin; accumulate=True makes every stroke.dabs add (build-up) instead of only
-        what exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; add_blob
-        and remove_blob, at most half the radius, not with accumulate): the stroke moves the
-        surface by at most this, however often it passes."""
+        """stroke.begin of any tool that strokes (marzipan.tools: add_blob, inflate, clay, flatten,
+        crease, ...); accumulate=True makes every stroke.dabs add (build-up) instead of only what
+        exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; the tools whose
+        parameters list it: add_blob, remove_blob, inflate, clay; at most half the radius, not
+        with accumulate): the stroke moves the surface by at most this, however often it passes."""
         result = await self._result("stroke.begin", _without_none(
             tool=tool, radius=radius, strength=strength, symmetry=list(symmetry) if symmetry else None,
             accumulate=accumulate, height=height))
@@ -569,16 +570,19 @@ class Client:
                      symmetry=None, accumulate: bool | None = None, height: float | None = None) -> dict:
         """A whole stroke, one undo step: stroke.begin, the dabs (centres [x, y, z] or dicts
         {center | ray, pressure?}) in messages of at most max_dabs, stroke.end. Returns
-        {stroke, applied, revision, can_undo, can_redo}."""
+        {stroke, applied, revision, can_undo, can_redo}, and the stroke's `plane` ({point,
+        normal}, fitted at its first dab: flatten, contrast, clay with a height) when it has one."""
         dabs = [_dab(d) for d in dabs]
         per_message = int(self.limits.get("max_dabs", 256)) or 256
         stroke = await self.begin_stroke(tool, radius=radius, strength=strength, symmetry=symmetry,
                                          accumulate=accumulate, height=height)
         applied = 0
+        plane = None
         try:
             for start in range(0, len(dabs), per_message):
                 result = await self.stroke_dabs(stroke, dabs[start:start + per_message])
                 applied += result["applied"]
+                plane = result.get("plane", plane)
         except MarzipanError:
             # Close the step the applied dabs made, but report the first failure.
             try:
@@ -587,7 +591,7 @@ class Client:
                 pass
             raise
         end = await self.end_stroke(stroke)
-        return {"stroke": stroke, "applied": applied, **end}
+        return {"stroke": stroke, "applied": applied, **end, **({"plane": plane} if plane else {})}
 
     # ------------------------------------------------------------------------------- presence
 

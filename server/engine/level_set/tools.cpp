@@ -82,7 +82,7 @@ void checkStrokeSettings(const StrokeSettings& st) {
     if (!(std::isfinite(*st.height) && *st.height > 0 && *st.height <= most))
       throw EngineError(ErrorKind::InvalidArgument, "height", "must be in (0, min(radius / 2, 64)] vu");
   }
-  const bool planar = st.tool == Brush::Flatten || st.tool == Brush::Contrast;
+  const bool planar = brushUsesPlane(st.tool);
   if (planar != st.plane.has_value())
     throw EngineError(ErrorKind::InvalidArgument, "plane", planar ? "flatten and contrast need the stroke's plane"
                                                                    : "is only for flatten and contrast");

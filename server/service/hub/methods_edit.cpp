@@ -308,10 +308,13 @@ void strokeDabs(HubCore& hub, const Call& call) {
       return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
     };
     r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
+    // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
+    if (a.plane) r.result["plane"] = planeJson(*a.plane);
     std::size_t from = p.dabs.size();
     for (const DabsMessage& m : merged) {
       if (self->options.events.request) self->options.events.request("stroke.dabs");
-      const json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
+      json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
+      if (a.plane) result["plane"] = planeJson(*a.plane);
       r.merged.push_back({m.id, result, m.raw.arrived});
       from += m.params.dabs.size();
     }
@@ -319,8 +322,8 @@ void strokeDabs(HubCore& hub, const Call& call) {
       // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
       // started (a step they folded into keeps its own). One record per application: replay
       // applies its dabs as one, as here. Built only when there is a journal to take it.
-      r.record = [stroke = p.stroke, hits = a.hits, normals = a.normals, params = std::move(params), rev = a.revision,
-                  t = stepTime(*s.session)] {
+      r.record = [stroke = p.stroke, hits = a.hits, normals = a.normals, plane = a.plane, params = std::move(params),
+                  rev = a.revision, t = stepTime(*s.session)] {
         json applied = json::array();
         for (std::size_t i = 0; i < hits.size(); ++i)
           if (hits[i]) {
@@ -328,7 +331,9 @@ void strokeDabs(HubCore& hub, const Call& call) {
             if (const Vec3 n = normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
             applied.push_back(std::move(dab));
           }
-        return json{{"r", rev}, {"stroke", stroke}, {"dabs", std::move(applied)}, {"t", t}};
+        json rec{{"r", rev}, {"stroke", stroke}, {"dabs", std::move(applied)}, {"t", t}};
+        if (plane) rec["plane"] = planeJson(*plane);
+        return rec;
       };
       r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
     }

@@ -403,6 +403,36 @@ class AgainstServer(ServerTestCase):
         self.assertAlmostEqual(after_thrice["inside_volume"] - before["inside_volume"], added, delta=0.005 * added)
         self.assertEqual(refused.data.get("field"), "height")
 
+    def test_the_surface_tools_stroke_and_flatten_answers_its_plane(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "sphere")
+                start = await client.stats()
+                top = [{"ray": [[x, 100, 33], [0, -1, 0]]} for x in (36, 38, 40)]
+                done = {}
+                for tool, height in (("inflate", 2), ("clay", 2), ("flatten", None), ("contrast", None), ("crease", None)):
+                    before = await client.stats()
+                    stroke = await client.stroke(tool, top, radius=6, height=height, symmetry=["x"])
+                    after = await client.stats()
+                    steps = await client.history(limit=1)
+                    done[tool] = (before, stroke, after, steps[0]["tool"])
+                with self.assertRaises(rpc.InvalidParams) as refused:
+                    await client.stroke("flatten", [[4, 4, 4]], radius=3)
+                end = await client.stats()
+                return start, done, refused.exception, end
+
+        start, done, refused, end = run(go())
+        for tool, (before, stroke, after, listed) in done.items():
+            self.assertEqual(stroke["applied"], 3, tool)
+            self.assertNotEqual(after["digest"], before["digest"], tool)
+            self.assertEqual(listed, tool)
+            self.assertEqual("plane" in stroke, tool in ("clay", "flatten", "contrast"), tool)
+        plane = done["flatten"][1]["plane"]
+        self.assertGreater(plane["normal"][1], 0.9)
+        self.assertAlmostEqual(math.hypot(*plane["normal"]), 1, delta=1e-9)
+        self.assertEqual(refused.data.get("field"), "dabs[0].center")
+        self.assertEqual(end["digest"], done["crease"][2]["digest"])
+
     def test_two_clients_see_each_others_changes(self):
         async def go():
             async with Client.connect(self.url) as owner:
