@@ -245,6 +245,34 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
   CHECK_FALSE(fs::exists(dir / "out.obj"));
 }
 
+TEST_CASE("the surface tools in an ops file each change the volume; a flatten over nothing stops the run", "[cli]") {
+  const fs::path dir = scratch("surface");
+  // On the 64^3 sphere's side (radius 22.4 around 31.5); flatten and contrast fit their plane
+  // at their centre.
+  writeText(dir / "ops.jsonl",
+            "{\"tool\":\"inflate\",\"center\":[53.9,31.5,31.5],\"radius\":6}\n"
+            "{\"tool\":\"clay\",\"center\":[53.9,36,31.5],\"radius\":6}\n"
+            "{\"tool\":\"flatten\",\"center\":[53.9,31.5,31.5],\"radius\":8}\n"
+            "{\"tool\":\"contrast\",\"center\":[31.5,53.9,31.5],\"radius\":8}\n"
+            "{\"tool\":\"crease\",\"center\":[31.5,31.5,53.9],\"radius\":6,\"strength\":0.5}\n");
+  const Run r = runCli(dir, "batch ops.jsonl --size 64 --stats-every 1");
+  REQUIRE(r.status == 0);
+  const std::vector<json> lines = statsLines(r.out);
+  REQUIRE(lines.size() == 5);
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    INFO("line " << i + 1);
+    CHECK(lines[i]["revision"] == i + 1);
+    if (i > 0) CHECK(lines[i]["digest"] != lines[i - 1]["digest"]);
+  }
+  writeText(dir / "nothing.jsonl",
+            "{\"tool\":\"crease\",\"center\":[31.5,31.5,53.9]}\n"
+            "{\"tool\":\"flatten\",\"center\":[4,4,4],\"radius\":3}\n");
+  const Run refused = runCli(dir, "batch nothing.jsonl --size 64 --out out.mzv");
+  CHECK(refused.status == 1);
+  CHECK_THAT(refused.err, Catch::Contains("nothing.jsonl:2: center: no surface lies within the radius"));
+  CHECK_FALSE(fs::exists(dir / "out.mzv"));
+}
+
 TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[cli]") {
   const fs::path dir = scratch("render");
   writeText(dir / "ops.jsonl", "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");
