@@ -173,7 +173,7 @@ MARZIPAN_BENCH("surface_dab") {
       std::normal_distribution<double> gauss;
       Volume work = v;
       StrokeDab dab;
-      const bool planar = st.tool == Brush::Flatten || st.tool == Brush::Contrast;
+      const bool planar = brushUsesPlane(st.tool);
       return measure(
           reps,
           [&] {
