@@ -185,6 +185,37 @@ TEST_CASE("surface tools: a stroke via the hub replays to its digest, undoes in 
   fs::remove_all(dir);
 }
 
+TEST_CASE("surface tools: merged stroke.dabs of a flatten stroke each answer the plane the first dab fitted",
+          "[surface][hub]") {
+  Hub hub(twoWorkerOptions());
+  TestClient a(hub);
+  a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}});
+  const json stroke = a.result("stroke.begin", {{"tool", "flatten"}, {"radius", 6}})["stroke"];
+  // A morph keeps the connection busy: the two messages wait behind it and are applied as one.
+  const int first = a.nextId;
+  a.nextId += 3;
+  const auto send = [&](int id, const std::string& method, const json& params) {
+    a.hub.text(a.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+  };
+  send(first, "volume.morph", {{"kind", "dilate"}, {"radius", 2}});
+  send(first + 1, "stroke.dabs", {{"stroke", stroke}, {"dabs", {{{"center", {40, 53, 33}}}}}});
+  send(first + 2, "stroke.dabs", {{"stroke", stroke}, {"dabs", {{{"center", {42, 52.5, 33}}}}}});
+  std::vector<json> results;
+  for (int id = first; id < first + 3; ++id) {
+    const json r = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+    INFO(r.dump());
+    REQUIRE(r.contains("result"));
+    results.push_back(r["result"]);
+  }
+  REQUIRE(results[1].contains("plane"));
+  CHECK(results[2]["plane"] == results[1]["plane"]);
+  CHECK(results[2]["revision"] == results[1]["revision"]);  // one application
+  // The plane fitted on the volume as the stroke began (before the morph) at the first dab.
+  const Volume begun = makeSolid(SolidKind::Sphere, {64, 64, 64});
+  const Plane want = fitBrushPlane(begun, {40, 53, 33}, 6);
+  CHECK(results[1]["plane"] == planeJson(want));
+}
+
 TEST_CASE("surface tools: the stroke's plane is fitted once, on the starting volume at the first dab that applies",
           "[surface][session]") {
   for (BrushTool tool : {BrushTool::Flatten, BrushTool::Contrast}) {
