@@ -185,6 +185,21 @@ TEST_CASE("surface tools: a stroke via the hub replays to its digest, undoes in 
   fs::remove_all(dir);
 }
 
+TEST_CASE("surface tools: presence carries each tool's name to the session's other clients", "[surface][hub]") {
+  Hub hub(twoWorkerOptions());
+  TestClient a(hub), b(hub);
+  const json created = a.result("session.create", {{"size", {32, 32, 32}}, {"solid", "sphere"}});
+  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
+  for (const char* tool : {"inflate", "clay", "flatten", "contrast", "crease"}) {
+    INFO(tool);
+    a.result("presence", {{"brush", {{"tool", tool}, {"radius", 6}, {"point", {16, 27, 16}}, {"normal", {0, 1, 0}},
+                                     {"active", true}}}});
+    b.link->waitFor([&](const auto& m) {
+      return isNotification(m, "presence") && std::get<json>(m)["params"]["brush"]["tool"] == tool;
+    });
+  }
+}
+
 TEST_CASE("surface tools: merged stroke.dabs of a flatten stroke each answer the plane the first dab fitted",
           "[surface][hub]") {
   Hub hub(twoWorkerOptions());
