@@ -242,9 +242,11 @@ export class Sculpt {
       const width = LINE_PIXELS * perPixel;
       const warp = stroke && stroke.warp;
       const plane = stroke && stroke.sender.plane;
-      const ghost = warp
-        ? warpGhost({ name: tool.id, dabs: tool.warp }, { anchor: warp.drag.anchor, anchorNormal: warp.anchorNormal, point: warp.drag.point, path: warp.drag.path, direction: warp.direction, viewNormal: warp.drag.viewNormal }, s.radius)
-        : brushGhost({ kind: tool.kind, shape: s.shape, strength: tool.warp ? 1 : s.strength }, hit.point, hit.normal, s.radius);
+      let ghost;
+      if (warp)
+        ghost = warpGhost({ name: tool.id, dabs: tool.warp }, { anchor: warp.drag.anchor, anchorNormal: warp.anchorNormal, point: warp.drag.point, path: warp.drag.path, direction: warp.direction, viewNormal: warp.drag.viewNormal }, s.radius);
+      else if (tool.warp) ghost = warpGhost({ name: tool.id, dabs: tool.warp }, { anchor: hit.point, anchorNormal: hit.normal, point: null }, s.radius);
+      else ghost = brushGhost({ kind: tool.kind, shape: s.shape, strength: s.strength }, hit.point, hit.normal, s.radius);
       if (plane) {
         const disc = planeGhost(plane, s.radius);
         ghost.rings.push(...disc.rings);
