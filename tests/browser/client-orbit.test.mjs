@@ -1,13 +1,15 @@
-// The web client end to end (as client.test.mjs): orbiting and the stabiliser.
+// The web client end to end (as client.test.mjs): orbiting and the stabiliser; the new tools.
 // What must hold: Space+drag orbits around the point under the press, which stays under it;
-// the stabiliser lays a calmer path of dabs for a shaky drag.
+// the stabiliser lays a calmer path of dabs for a shaky drag; flatten takes a bump down
+// towards the plane the server fitted, which the cursor shows (a second page and session in
+// the same browser, which saves a file's start-up).
 // Conventions: pixel positions in CSS pixels of the page; screenshots, downloads and measures go
 // to MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
 
 import { test } from "node:test";
 import assert from "node:assert/strict";
 
-import { canvasCenter, collectErrors, createSession, drag, env, text, useServerAndBrowser } from "./client-page.mjs";
+import { canvasCenter, collectErrors, createSession, drag, env, shot, text, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 
 useServerAndBrowser({ hintDismissed: true });
@@ -68,6 +70,105 @@ test("Space+drag orbits around the point under the press; the stabiliser calms a
   await page.locator("#lazy").fill("0");
   t.diagnostic(`a shaky 120 px drag at radius 4: ${plainDabs} dabs, ${lazyDabs} with the stabiliser at 30 px`);
   assert.ok(lazyDabs >= 1 && lazyDabs < 0.8 * plainDabs, `the stabiliser calms the path: ${lazyDabs} dabs vs ${plainDabs}`);
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});
+
+// --- the new tools (issue 29 §4), on a sphere of radius 0.35 * 128 = 44.8 vu about the grid's
+// middle: a grab of its side 30 vu out and back, a snake hook, flatten on a bump ------------------
+
+const CENTER = [63.5, 63.5, 63.5];
+const R0 = 44.8;
+
+// In the page: the surface point under a page pixel (the client's pick), a world point's page
+// pixel, the camera's right axis.
+const pickAt = (page, [x, y]) =>
+  page.evaluate(([px, py]) => {
+    const r = document.getElementById("view").getBoundingClientRect();
+    const hit = window.marzipan.sculpt.pick(px - r.left, py - r.top);
+    return hit && hit.point;
+  }, [x, y]);
+const pixelOf = (page, p) =>
+  page.evaluate((q) => {
+    const c = document.getElementById("view");
+    const r = c.getBoundingClientRect();
+    const m = window.marzipan.camera.update(c.clientWidth, c.clientHeight).viewProjection; // column-major
+    const clip = [0, 1, 2, 3].map((i) => m[i] * q[0] + m[4 + i] * q[1] + m[8 + i] * q[2] + m[12 + i]);
+    return [r.left + ((clip[0] / clip[3] + 1) / 2) * c.clientWidth, r.top + ((1 - clip[1] / clip[3]) / 2) * c.clientHeight];
+  }, p);
+// Every splat as [x, y, z] (the client's copy, current once settled()).
+const splats = (page) =>
+  page.evaluate(() => {
+    const out = [];
+    for (const b of window.marzipan.store.bricks.values()) for (let i = 0; i < 3 * b.count; i += 3) out.push([b.positions[i], b.positions[i + 1], b.positions[i + 2]]);
+    return out;
+  });
+const sub = (a, b) => a.map((v, i) => v - b[i]);
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const norm = (a) => Math.hypot(...a);
+const along = (a, k, d) => a.map((v, i) => v + k * d[i]);
+
+// One drag of the selected tool from page pixel `from` through `to` in `steps` moves; resolves
+// with the stroke's messages once the page has settled. `beforeRelease(page)` runs with the
+// pointer still down at `to`.
+async function strokeOf(page, sent, from, to, steps, beforeRelease = async () => {}) {
+  const first = sent.length;
+  const r = await revision(page);
+  await page.mouse.move(from[0], from[1]);
+  await page.mouse.down();
+  for (let i = 1; i <= steps; ++i) await page.mouse.move(from[0] + ((to[0] - from[0]) * i) / steps, from[1] + ((to[1] - from[1]) * i) / steps);
+  await beforeRelease(page);
+  await page.mouse.up();
+  await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, r);
+  await settled(page);
+  const mine = sent.slice(first);
+  return {
+    begin: mine.find((m) => m.method === "stroke.begin").params,
+    messages: mine.filter((m) => m.method === "stroke.dabs").map((m) => m.params.dabs),
+  };
+}
+
+test("flatten in the page takes a bump down, towards the plane the server fitted, which the cursor shows", { timeout: 240000 }, async (t) => {
+  const errors = [];
+  const page = await env.browser.context.newPage();
+  collectErrors(page, errors);
+  const sent = [];
+  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  await createSession(page, 128, "sphere");
+  const right = await page.evaluate(() => window.marzipan.camera.right);
+  const [ccx, ccy] = await pixelOf(page, CENTER);
+  const [rx] = await pixelOf(page, along(CENTER, R0, right));
+  const rPx = rx - ccx;
+  // A bump that add blob raised at the front, then flatten (key B) over it: the bump's height drops.
+  await page.keyboard.press("a");
+  await page.locator("#radius").fill("8");
+  await page.locator("#strength").fill("1");
+  const front = [ccx, ccy - 0.3 * rPx];
+  const bumpAt = await pickAt(page, front);
+  const u = sub(bumpAt, CENTER).map((v) => v / norm(sub(bumpAt, CENTER)));
+  const bump = (points) => Math.max(...points.filter((p) => dot(sub(p, CENTER), u) > 0.95 * norm(sub(p, CENTER))).map((p) => norm(sub(p, CENTER)))) - R0;
+  await strokeOf(page, sent, [front[0] - 10, front[1]], [front[0] + 10, front[1]], 4);
+  const raised = bump(await splats(page));
+  await page.keyboard.press("b");
+  await page.locator("#radius").fill("12");
+  const r = await revision(page);
+  // pressed on the bump (the plane is fitted within the radius of the first dab), then two
+  // passes over it
+  await page.mouse.move(front[0], front[1]);
+  await page.mouse.down();
+  for (let i = 1; i <= 4; ++i) await page.mouse.move(front[0] + 4 * i, front[1]);
+  await page.waitForFunction(() => Boolean(window.marzipan.sculpt.stroke && window.marzipan.sculpt.stroke.sender.plane), null, { timeout: 30000 });
+  const disc = await page.evaluate(() => window.marzipan.renderer.cursorShape.rings.filter((x) => x.width === 12).length);
+  assert.equal(disc, 1, "the cursor shows the fitted plane as a disc of the radius");
+  for (const [a, b] of [[16, -16], [-16, 16], [16, 0]]) for (let i = 1; i <= 8; ++i) await page.mouse.move(front[0] + a + ((b - a) * i) / 8, front[1]);
+  await page.mouse.up();
+  await page.waitForFunction((v) => Number(document.getElementById("revision").dataset.revision) > v, r);
+  await settled(page);
+  const flattened = bump(await splats(page));
+  t.diagnostic(`flatten: the bump stood ${raised.toFixed(2)} vu, after flatten ${flattened.toFixed(2)} vu`);
+  assert.ok(raised > 3, `add blob raised a bump: ${raised} vu`);
+  assert.ok(flattened < 0.5 * raised, `flatten took the bump down: ${raised} -> ${flattened} vu`);
+  await shot(page, "19-flatten");
   assert.deepEqual(errors, [], "no script errors");
   await page.close();
 });
