@@ -245,7 +245,7 @@ TEST_CASE("a bad line stops the run with its line number, exit 1 and no output",
   CHECK_FALSE(fs::exists(dir / "out.obj"));
 }
 
-TEST_CASE("the surface tools in an ops file each change the volume; a flatten over nothing stops the run", "[cli]") {
+TEST_CASE("the surface tools in an ops file each change the volume, and a flatten over nothing stops the run", "[cli]") {
   const fs::path dir = scratch("surface");
   // On the 64^3 sphere's side (radius 22.4 around 31.5); flatten and contrast fit their plane
   // at their centre.
