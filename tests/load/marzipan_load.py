@@ -16,11 +16,17 @@ first splat delta that shows its revision arrives ("delta", what a user sees). T
 own view of edit latency (request arrival to response) comes from its /metrics histogram.
 Server memory: VmRSS and VmHWM from /proc/PID/status every second, during and after the run.
 
-With --marzipan BIN the tool starts `BIN serve --port 0 --threads 2` itself (and stops it);
+With --marzipan BIN the tool starts `BIN serve --port 0 --threads 2` itself (and stops it; 1 with --pin);
 with --url it uses a running server (--server-pid PID then gives its memory). The clients run
 in several processes (--processes), each an asyncio loop, because one Python process cannot
 receive the ~10,000 messages per second of 64 clients; the client side's CPU is reported so
 that a saturated client is told apart from a slow server.
+
+--pin measures capacity per server core: the server started on one core (--threads 1), the
+tool and its clients on another; the report's server CPU per dab and dab->delta p50/p99 are
+then the figures that count, and a pinned run fails without them. --client-bin runs the
+compiled client (load_client.cpp, the same web-client strokes from the same seed) in place of
+the Python client processes, which saturate their one core near 48 sculptors.
 
 --slow-client adds one client that joins session 0 a little after the start and then stops
 reading; the server should close it with 1008 "too far behind" once its queue passes
@@ -456,10 +462,14 @@ class LoadClient:
                     now = time.monotonic()
                     queue.extend((dab, now) for dab in dabs)
                 flush()
+            # The stroke's id from the awaited answer itself: when stroke.begin finished before
+            # this await, begun_done is only scheduled, and the loop below, whose idle.wait()
+            # returns at once while nothing is in flight, would never let it run.
             try:
-                await begun
+                stroke = (await begun)["stroke"]
             except (RuntimeError, ConnectionError, asyncio.TimeoutError):
-                pass  # counted as an error by the reader
+                failed = True  # counted as an error by the reader
+                queue.clear()
             while (queue or in_flight) and self.closed_unexpectedly is None:
                 flush()
                 await idle.wait()
