@@ -68,6 +68,7 @@ struct Velocity {
 
   // d falloff / d t2.
   double falloffSlope(double t2) const {
+    if (plateau == 0) return -2 * (1 - t2);
     if (t2 <= plateau * plateau) return 0;
     const double t = std::sqrt(t2);
     const double u = (t - plateau) / (1 - plateau);
@@ -228,9 +229,71 @@ struct Velocity {
     return y + axis * (a - a0);
   }
 
+  // inverseWithJacobian() of a capsule, on the coordinates of capsuleFlow(): a along seg and
+  // q, the squared distance to its line, which the flow keeps. With f(a, q) the speed, the
+  // backward flow is a' = -f, and the variational equation follows m = da/da0 and
+  // w = da/dq by the same midpoint rule (the general one restricted to this flow):
+  // X(y) = y + axis (a - a0), DX = I + axis (m axis + 2 w off - axis)^T.
+  Vec3 capsuleInverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) X[i][j] = i == j ? 1 : 0;
+    if (!(segLength2 > 0)) return y;
+    const double length = std::sqrt(segLength2), R2 = radius * radius;
+    const Vec3 axis = seg / length;
+    const Vec3 r = y - anchor;
+    const double a0 = dot(r, axis);
+    const Vec3 off = r - axis * a0;
+    const double q = dot(off, off);
+    if (q >= R2) return y;
+    const double speed = scale * length;
+    // f, df/da and df/dq at a.
+    struct Speed {
+      double f = 0, fa = 0, fq = 0;
+    };
+    const auto speedAt = [&](double a) {
+      const double e = a < 0 ? -a : a > length ? a - length : 0;
+      const double rho2 = q + e * e;
+      Speed out;
+      if (rho2 >= R2) return out;
+      const double slope = speed * falloffSlope(rho2 / R2) / R2;
+      out.f = speed * falloff(rho2 / R2);
+      out.fa = slope * 2 * (a < 0 ? a : e);
+      out.fq = slope;
+      return out;
+    };
+    const double dt = 1.0 / n;
+    const Speed inside = speedAt(0);  // between the end planes
+    double a = a0, m = 1, w = 0;
+    for (int i = 0; i < n;) {
+      if (a >= 0 && a <= length && inside.f > 0) {
+        // Sub-steps that start and end between the end planes: f_a = 0 there.
+        const int k = int(std::min(double(n - i), std::floor(a / (dt * inside.f))));
+        if (k > 0) {
+          a -= k * (dt * inside.f);
+          w -= k * (dt * inside.fq);
+          i += k;
+          continue;
+        }
+      }
+      const Speed s0 = speedAt(a);
+      const double mid = a - 0.5 * dt * s0.f;
+      const double mMid = m - 0.5 * dt * s0.fa * m, wMid = w - 0.5 * dt * (s0.fa * w + s0.fq);
+      const Speed s1 = speedAt(mid);
+      a -= dt * s1.f;
+      m -= dt * s1.fa * mMid;
+      w -= dt * (s1.fa * wMid + s1.fq);
+      ++i;
+    }
+    const Vec3 g = axis * (m - 1) + off * (2 * w);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) X[i][j] += axis[i] * g[j];
+    return y + axis * (a - a0);
+  }
+
   // The same backwards, with the Jacobian of the map y -> X(y) (the variational equation
   // dJ/dt = -grad v J, by the same midpoint rule).
   Vec3 inverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
+    if (kind == Kind::Capsule) return capsuleInverseWithJacobian(y, n, X);
     const double dt = 1.0 / n;
     double J[3][3], Jm[3][3], M[3][3], G[3][3];
     for (int i = 0; i < 3; ++i)
