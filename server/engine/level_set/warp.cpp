@@ -543,8 +543,9 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   share.check();  // the last check: nothing below stops part way
 
   // Earlier calls of the stroke may have changed bricks beyond this region: base's values go
-  // back there.
-  const Box earlier = changedSinceBase(vol, base);
+  // back there. When base is vol itself (a snake hook's move) there are none, and the scan of
+  // every brick of the volume is spared.
+  const Box earlier = &vol == &base ? Box{} : changedSinceBase(vol, base);
   Edit edit;
   if (earlier.empty() || unite(region, earlier) == region) {
     if (!region.empty()) edit.append(vol.scatter(region, s.warped.v.data(), s.warped.box, pool), region);
@@ -640,7 +641,6 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, T
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
   checkAnchor(vol, anchor);
-  const Volume base = vol;
   // Each resample rounds the tip a little, so the surface drifts off the anchor the caller
   // carries from move to move (1.5 vu over 97 moves of a 200 vu drag): the move starts from the
   // surface point nearest the anchor (two Newton steps along the gradient, within the band).
@@ -651,7 +651,8 @@ Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool&
     if (!(std::fabs(d) < vol.band()) || !(length(g) > 0.5)) break;
     from = from - normalized(g) * (d / length(g));
   }
-  return grabWith(vol, base, from, target - from, radius, kPlateau, pool);
+  // vol is its own base: applyWarp reads it before it writes the result.
+  return grabWith(vol, vol, from, target - from, radius, kPlateau, pool);
 }
 
 Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double volume, ThreadPool& pool) {
