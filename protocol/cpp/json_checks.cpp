@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <vector>
@@ -163,6 +164,14 @@ std::int64_t integerParam(const json& obj, const IntegerParam& p, const std::str
 
 Vec3 pointParam(const json& obj, const PointParam& p, const std::string& context) {
   return vec3Value(require(obj, p.key, context), p.key, p.bound);
+}
+
+std::optional<Vec3> vectorParam(const json& obj, const VectorParam& p) {
+  const json* v = find(obj, p.key);
+  if (!v) return std::nullopt;
+  const Vec3 d = vec3Value(*v, p.key, std::numeric_limits<double>::max());
+  if (d == Vec3{0, 0, 0}) fail(p.key, "must not be [0, 0, 0] (a direction)");
+  return d;
 }
 
 std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& context) {

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -62,6 +63,8 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound);
 double numberParam(const json& obj, const NumberParam& p, const std::string& context, double radius = 0);
 std::int64_t integerParam(const json& obj, const IntegerParam& p, const std::string& context);
 Vec3 pointParam(const json& obj, const PointParam& p, const std::string& context);
+// Absent: nullopt; else three finite numbers, not all zero.
+std::optional<Vec3> vectorParam(const json& obj, const VectorParam& p);
 // The index of the value in p.values.
 std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& context);
 

@@ -91,6 +91,9 @@ Op parseTool(const json& obj, const std::string& name) {
     return parseBrush(obj, *brush);
   }
   if (const auto csg = fromWireName(kCsgToolNames, name)) return parseCsg(obj, *csg);
+  if (fromWireName(kWarpToolNames, name))
+    fail("tool", inQuotes(name) + " is a warp tool: it has no operation object, it strokes (stroke.begin, then "
+                 "stroke.dabs from the anchor)");
   fail("tool", "must be one of " + listNames(kBrushToolNames) + ", " + listNames(kCsgToolNames) + ", got " +
                    inQuotes(name));
 }

@@ -432,13 +432,13 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
   const std::string tool = stringValue(require(params, "tool", context), "tool");
   const ToolSpec* spec = findTool(kTools, tool);
   const auto t = fromWireName(kBrushToolNames, tool);
-  if (!spec || !spec->strokes || !t) {
+  const auto warp = fromWireName(kWarpToolNames, tool);
+  if (!spec || !spec->strokes || !(t || warp)) {
     std::vector<std::string_view> strokes;
     for (const ToolSpec& s : kTools)
       if (s.strokes) strokes.push_back(s.name);
     fail("tool", "must be one of " + listNames(strokes) + " for a stroke, got " + inQuotes(tool));
   }
-  p.tool = *t;
   // A key of stroke.begin that some tools take but not this one.
   for (const auto& item : params.items()) {
     const std::string& key = item.key();
@@ -448,6 +448,21 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
       if (hasKey(s.strokeKeys, key)) takers.push_back(s.name);
     fail(key, "is only for " + listNames(takers) + ", not " + inQuotes(tool));
   }
+  if (warp) {
+    // A warp moves the volume as the stroke began by one field: it has no mirror images, and
+    // nothing to accumulate (PROTOCOL.md, warp strokes).
+    for (const std::string_view flag : {"symmetry", "accumulate"})
+      if (find(params, flag)) fail(flag, "is not for warp tools (" + inQuotes(tool) + " moves the volume as the stroke began)");
+    WarpBeginParams w;
+    w.tool = *warp;
+    if (hasKey(spec->strokeKeys, kParamVolume.key)) w.volume = numberParam(params, kParamVolume, context);
+    if (hasKey(spec->strokeKeys, kParamDirection.key)) w.direction = vectorParam(params, kParamDirection);
+    p.warp = w;
+    p.radius = numberParam(params, radiusParamOf(*warp), context);
+    p.strength = numberParam(params, kParamStrength, context);
+    return p;
+  }
+  p.tool = *t;
   p.radius = numberParam(params, kParamRadius, context);
   p.strength = numberParam(params, kParamStrength, context);
   if (const json* sym = find(params, "symmetry")) {

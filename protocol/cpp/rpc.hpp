@@ -168,8 +168,16 @@ struct ToolApplyParams {
   Op op;                       // a tool op; its centre is a placeholder when `ray` is set
   std::optional<RayParam> ray;
 };
+// The parameters of a warp stroke (PROTOCOL.md, warp strokes): volume for elastic_grab,
+// direction (any length, not zero) for twist, scale and pinch.
+struct WarpBeginParams {
+  WarpTool tool = WarpTool::Grab;
+  double volume = *kParamVolume.defaultValue;
+  std::optional<Vec3> direction;
+};
 struct StrokeBeginParams {
-  BrushTool tool = BrushTool::AddBlob;
+  BrushTool tool = BrushTool::AddBlob;  // unless warp is set
+  std::optional<WarpBeginParams> warp;  // a warp tool: tool is then unused; no symmetry, no accumulate
   double radius = *kParamRadius.defaultValue, strength = *kParamStrength.defaultValue;
   bool mirrorX = false, mirrorY = false, mirrorZ = false;
   bool accumulate = false;  // every stroke.dabs adds (build-up), see PROTOCOL.md

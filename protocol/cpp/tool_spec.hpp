@@ -51,14 +51,20 @@ struct BooleanParam {
   std::string_view key;
 };
 
-// How a tool changes the volume (the registry's "kind"): the shape of its operation object.
-enum class ToolKind { SurfaceSpeed, Csg };
+// A direction: [x, y, z], finite and not all zero; its length does not matter.
+struct VectorParam {
+  std::string_view key;
+};
+
+// How a tool changes the volume (the registry's "kind"): the shape of its operation object
+// (a warp has none: it strokes only).
+enum class ToolKind { SurfaceSpeed, Csg, Warp };
 
 struct ToolSpec {
   std::string_view name;  // the wire "tool"
   ToolKind kind;
   bool strokes;           // stroke.begin takes it
-  std::span<const std::string_view> opKeys;      // every key of its operation object, "tool" first
+  std::span<const std::string_view> opKeys;      // every key of its operation object, "tool" first; none for a warp
   std::span<const std::string_view> strokeKeys;  // its own keys in stroke.begin (radius, height, ...)
 };
 

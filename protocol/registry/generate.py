@@ -47,13 +47,22 @@ TOOL_KINDS = {
         # (server/engine/level_set.hpp), applied by applyStroke.
         "enum": "BrushTool", "defines_enum": True, "names": "kBrushToolNames", "engine_enum": "Brush",
         "keys": {"center", "radius", "strength", "height"}, "strokes": True, "cpp": "SurfaceSpeed",
-        "title": "surface speed",
+        "title": "surface speed", "op": True, "dabs": {"swept"},
     },
     "csg": {
         # CsgToolOp (CsgParams); CsgOp is values.hpp's, shared with the engine (applyCsg).
         "enum": "CsgOp", "defines_enum": False, "names": "kCsgToolNames", "engine_enum": "CsgOp",
         "keys": {"shape", "center", "radius", "blend", "axis"}, "strokes": False, "cpp": "Csg",
-        "title": "CSG",
+        "title": "CSG", "op": True, "dabs": {"swept"},
+    },
+    "warp": {
+        # StrokeBeginParams::warp (rpc.hpp) and the service's WarpStroke (server/service/apply_op.hpp),
+        # whose applyWarpStroke calls the engine function the registry's "engine" names
+        # (server/engine/level_set.hpp, warps; enumerators: that name capitalised). Strokes only:
+        # no operation object (tool.apply refuses them); the dabs are anchored or a path.
+        "enum": "WarpTool", "defines_enum": True, "names": "kWarpToolNames", "engine_enum": None,
+        "keys": {"radius", "strength", "volume", "direction"}, "strokes": True, "cpp": "Warp",
+        "title": "warp", "op": False, "dabs": {"anchored", "path"},
     },
 }
 OPERATION_KINDS = {
@@ -97,6 +106,8 @@ class Registry:
         if what == "tool":
             e.setdefault("dabs", "swept")
             e.setdefault("inverse", None)
+            kind = TOOL_KINDS.get(e["kind"])
+            e["enumerator"] = camel(e["engine"]) if kind and kind["engine_enum"] is None else e["engine"]
         return e
 
     def tool(self, name):
@@ -125,8 +136,8 @@ class Registry:
                     raise RegistryError(f"{where}: default {p['default']} is outside its range")
             if p["type"] == "enum" and "default" in p and p["default"] not in p["values"]:
                 raise RegistryError(f'{where}: default "{p["default"]}" is not one of its values')
-            if p["type"] == "point" and "default" in p:
-                raise RegistryError(f"{where}: a point has no default")
+            if p["type"] in ("point", "vector") and "default" in p:
+                raise RegistryError(f"{where}: a {p['type']} has no default")
             for other, values in p.get("only_with", {}).items():
                 q = self.params.get(other)
                 if not q or q["type"] != "enum" or not set(values) <= set(q["values"]):
@@ -155,19 +166,25 @@ class Registry:
                 for other in p.get("only_with", {}):
                     if other not in t["params"]:
                         raise RegistryError(f'{where}: parameter "{p["id"]}" depends on "{other}", which the tool lacks')
-            if not any(p["type"] == "point" and p["role"] == "center" for p in t["param_specs"]):
+            if kind["op"] and not any(p["type"] == "point" and p["role"] == "center" for p in t["param_specs"]):
                 raise RegistryError(f"{where}: needs a point parameter of role center (where it acts)")
+            if not kind["op"] and any("stroke" not in p["in"] for p in t["param_specs"]):
+                raise RegistryError(f"{where}: the tools of kind {t['kind']} have no operation object: each of its "
+                                    'parameters must be given to stroke.begin ("in": ["stroke"])')
             if t["strokes"] != kind["strokes"]:
                 raise RegistryError(f'{where}: the tools of kind {t["kind"]} {"stroke" if kind["strokes"] else "do not stroke"} '
                                     "in the code (stroke.begin, and the browser's drag or click)")
-            if t["dabs"] != "swept":
-                raise RegistryError(f'{where}: dabs "{t["dabs"]}" has no mechanism in the code yet (docs/tools.md)')
+            if t["dabs"] not in kind["dabs"]:
+                raise RegistryError(f'{where}: dabs "{t["dabs"]}" has no mechanism for kind {t["kind"]} in the code '
+                                    f'(it has {", ".join(sorted(kind["dabs"]))}; docs/tools.md)')
+            if not kind["op"] and [p for p in t["param_specs"] if p["key"] == "radius"] == []:
+                raise RegistryError(f"{where}: a {t['kind']} tool needs a radius parameter")
             if t["inverse"] is not None:
                 inv = self.tool(t["inverse"])
                 if inv is None or inv["inverse"] != t["name"]:
                     raise RegistryError(f'{where}: its inverse "{t["inverse"]}" must be a tool whose inverse is "{t["name"]}"')
         for kind_name in TOOL_KINDS:
-            unique([t["engine"] for t in self.tools if t["kind"] == kind_name], f"engine name of kind {kind_name}")
+            unique([t["enumerator"] for t in self.tools if t["kind"] == kind_name], f"engine name of kind {kind_name}")
         for o in self.operations:
             where = f'operation "{o["name"]}"'
             kind = OPERATION_KINDS.get(o["kind"])
@@ -184,6 +201,10 @@ class Registry:
 
     def stroke_tools(self):
         return [t for t in self.tools if t["strokes"]]
+
+    def op_tools(self):
+        """The tools with an operation object (tool.apply, `marzipan batch`, the journal's ops)."""
+        return [t for t in self.tools if TOOL_KINDS[t["kind"]]["op"]]
 
     def morphology(self):
         return [o for o in self.operations if o["kind"] == "morphology"]
@@ -211,7 +232,9 @@ def load(path=REGISTRY) -> Registry:
 
 
 def op_keys(t) -> list:
-    """The keys of the tool's operation object, in the order messages list them."""
+    """The keys of the tool's operation object, in the order messages list them (none: it has none)."""
+    if not TOOL_KINDS[t["kind"]]["op"]:
+        return []
     grammar = ["tool", "global"] if t["kind"] == "surface_speed" else ["tool"]
     return grammar + [p["key"] for p in t["param_specs"] if "op" in p["in"]]
 
@@ -255,6 +278,8 @@ def cpp_param(p) -> str:
         return f"inline constexpr IntegerParam {name}{{{key}, {p['minimum']}, {p['maximum']}, {default}}};"
     if p["type"] == "point":
         return f"inline constexpr PointParam {name}{{{key}, {cpp_number(p['bound'])}}};"
+    if p["type"] == "vector":
+        return f"inline constexpr VectorParam {name}{{{key}}};"
     if p["type"] == "enum":
         values = f"k{camel(p['id'])}Values"
         default = cpp_string(p["default"]) if "default" in p else "std::nullopt"
@@ -283,8 +308,8 @@ def cpp_tools_header(reg: Registry) -> str:
         tools = [t for t in reg.tools if t["kind"] == kind_name]
         out.append(f"// --- kind {kind_name}: the \"tool\" names, enumerators named after the registry's \"engine\" ---")
         if kind["defines_enum"]:
-            out.append(f"enum class {kind['enum']} {{ {', '.join(t['engine'] for t in tools)} }};")
-        entries = ", ".join(f"{{{kind['enum']}::{t['engine']}, {cpp_string(t['name'])}}}" for t in tools)
+            out.append(f"enum class {kind['enum']} {{ {', '.join(t['enumerator'] for t in tools)} }};")
+        entries = ", ".join(f"{{{kind['enum']}::{t['enumerator']}, {cpp_string(t['name'])}}}" for t in tools)
         out.append(f"inline constexpr std::array<WireName<{kind['enum']}>, {len(tools)}> {kind['names']}{{{{{entries}}}}};")
         out.append("")
     out.append("// --- every tool: its kind, whether it strokes, the keys of its operation object and of stroke.begin ---")
@@ -299,7 +324,26 @@ def cpp_tools_header(reg: Registry) -> str:
     out.append(f"inline constexpr std::array<ToolSpec, {len(reg.tools)}> kTools{{{{")
     out.extend(specs)
     out.append("}};")
-    begin = ["tool"] + [p["key"] for p in reg.stroke_params()] + STROKE_FLAGS
+    warps = [t for t in reg.tools if t["kind"] == "warp"]
+    if warps:
+        out.append("// Each warp tool's radius parameter (the engine's range differs between them), and whether its")
+        out.append("// dabs are a path (snake hook: the anchor follows them) rather than anchored (only the last counts).")
+        out.append("constexpr const NumberParam& radiusParamOf(WarpTool tool) {")
+        out.append("  switch (tool) {")
+        for t in warps:
+            radius = next(p for p in t["param_specs"] if p["key"] == "radius")
+            out.append(f"    case WarpTool::{t['enumerator']}: return kParam{camel(radius['id'])};")
+        out.append("  }")
+        out.append(f"  return kParam{camel(next(p for p in warps[0]['param_specs'] if p['key'] == 'radius')['id'])};")
+        out.append("}")
+        out.append("constexpr bool dabsArePath(WarpTool tool) {")
+        out.append("  switch (tool) {")
+        for t in warps:
+            out.append(f"    case WarpTool::{t['enumerator']}: return {cpp_number(t['dabs'] == 'path')};")
+        out.append("  }")
+        out.append("  return false;")
+        out.append("}")
+    begin = ["tool"] + list(dict.fromkeys(p["key"] for p in reg.stroke_params())) + STROKE_FLAGS
     out.append("// Every key stroke.begin may have, for some tool.")
     out.append(f"inline constexpr std::array<std::string_view, {len(begin)}> kStrokeBeginKeys{cpp_strings(begin)};")
     out.append("")
@@ -339,6 +383,8 @@ def cpp_engine_header(reg: Registry) -> str:
     for kind_name, kind in TOOL_KINDS.items():
         tools = [t for t in reg.tools if t["kind"] == kind_name]
         enum, engine = kind["enum"], kind["engine_enum"]
+        if engine is None:
+            continue  # a function per tool, called by the service (TOOL_KINDS)
         if enum != engine:
             out.append(f"// The engine's {engine} of each tool of kind {kind_name}.")
             out.append(f"inline {engine} engine{engine}(protocol::{enum} tool) {{")
@@ -384,6 +430,10 @@ def schema_of(p, in_tool_apply=False) -> dict:
         b = float(p["bound"])
         return {"type": "array", "items": {"type": "number", "minimum": -b, "maximum": b}, "minItems": 3, "maxItems": 3,
                 "description": f"a point in vu, each coordinate finite and within +-{bound_text(p['bound'])}"}
+    if t == "vector":
+        s = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3, "not": {"items": {"const": 0}},
+             "description": "a direction: three finite numbers, not all zero; its length does not matter"}
+        return s
     if t == "enum":
         s = {"enum": list(p["values"])}
     elif t == "boolean":
@@ -435,7 +485,7 @@ def tool_branches(reg: Registry) -> list:
     """op.json's branches for the tools: tools of one kind with the same parameters share one, and
     a parameter allowed only with some values of another splits its tools' branch in two."""
     groups = []
-    for t in reg.tools:
+    for t in reg.op_tools():
         sig = (t["kind"], tuple(p["id"] for p in t["param_specs"] if "op" in p["in"]))
         for g in groups:
             if g["sig"] == sig:
@@ -546,7 +596,11 @@ def stroke_begin_schema(reg: Registry) -> dict:
     tools = reg.stroke_tools()
     props = {"tool": {"enum": [t["name"] for t in tools]}}
     conditions = []
+    by_key = {}
     for p in reg.stroke_params():
+        by_key.setdefault(p["key"], []).append(p)
+
+    def described(p):
         s = schema_of(p)
         users = [t["name"] for t in tools if p in t["param_specs"]]
         notes = [p["description"] + (f" ({p['unit']})" if "unit" in p else "")]
@@ -557,17 +611,45 @@ def stroke_begin_schema(reg: Registry) -> dict:
         if "max_per_radius" in p:
             notes.append(f"at most {ratio_text(p['max_per_radius'])}the radius (checked by the server)")
         notes += [f"not with {flag}" for flag in p.get("not_with", [])]
+        if s.get("description"):
+            notes.append(s["description"])
         s["description"] = "; ".join(notes)
-        props[p["key"]] = s
+        return s, users
+
+    for key, params in by_key.items():
+        if len(params) == 1:
+            s, users = described(params[0])
+            props[key] = s
+        else:
+            # Several parameters share the key (a warp's radius has the engine's own range): each
+            # applies to its tools.
+            users = []
+            kinds = {p["type"] for p in params}
+            props[key] = {"type": kinds.pop() if len(kinds) == 1 else None,
+                          "description": "; ".join(f"{', '.join(u)}: see the condition below" for u in [[t["name"] for t in tools if p in t["param_specs"]] for p in params])}
+            if props[key]["type"] is None:
+                del props[key]["type"]
+            for p in params:
+                s, own = described(p)
+                users += own
+                conditions.append({"if": {"properties": {"tool": {"enum": own}}, "required": ["tool"]},
+                                   "then": {"properties": {key: s}}})
         others = [t["name"] for t in tools if t["name"] not in users]
         if others:
             conditions.append({"if": {"properties": {"tool": {"enum": others}}, "required": ["tool"]},
-                               "then": {"not": {"required": [p["key"]]}}})
-        for flag in p.get("not_with", []):
-            conditions.append({"if": {"properties": {flag: {"const": True}}, "required": [flag]},
-                               "then": {"not": {"required": [p["key"]]}}})
+                               "then": {"not": {"required": [key]}}})
+        for p in params:
+            for flag in p.get("not_with", []):
+                conditions.append({"if": {"properties": {flag: {"const": True}}, "required": [flag]},
+                                   "then": {"not": {"required": [p["key"]]}}})
     props["symmetry"] = {"type": "array", "items": {"enum": ["x", "y", "z"]}, "uniqueItems": True, "maxItems": 3}
     props["accumulate"] = {"type": "boolean"}
+    warps = [t["name"] for t in tools if t["kind"] == "warp"]
+    if warps:
+        # PROTOCOL.md, warp strokes: a warp has no mirror images and remembers no dabs.
+        for flag in ("symmetry", "accumulate"):
+            conditions.append({"if": {"properties": {"tool": {"enum": warps}}, "required": ["tool"]},
+                               "then": {"not": {"required": [flag]}}})
     body = {"type": "object", "additionalProperties": False, "properties": props, "required": ["tool"]}
     if conditions:
         body["allOf"] = conditions
@@ -733,6 +815,8 @@ def range_text(p) -> str:
     t = p["type"]
     if t == "point":
         return f"[x, y, z], each finite, within ±{bound_text(p['bound'])} vu"
+    if t == "vector":
+        return "[x, y, z], finite, not all zero, any length"
     if t == "enum":
         return " ".join(f"`{v}`" for v in p["values"])
     if t == "boolean":
@@ -769,9 +853,9 @@ def protocol_tools_table(reg: Registry) -> str:
     rows = ["| object | kind | fields | `stroke.begin` fields | what one application does |", "| --- | --- | --- | --- | --- |"]
     previous = None
     for t in reg.tools:
-        ops = [p for p in t["param_specs"] if "op" in p["in"]]
+        ops = [p for p in t["param_specs"] if "op" in p["in"]] if TOOL_KINDS[t["kind"]]["op"] else []
         strokes = [p for p in t["param_specs"] if "stroke" in p["in"]]
-        fields = field_list(ops)
+        fields = field_list(ops) if ops else "— (strokes only)"
         shown = "same" if fields == previous else fields
         previous = fields
         stroke = "`tool`, " + field_list(strokes) if t["strokes"] else "— (no strokes)"
@@ -790,6 +874,8 @@ def protocol_tools_table(reg: Registry) -> str:
 def users_text(reg: Registry, pid: str) -> str:
     users = []
     for kind_name, kind in TOOL_KINDS.items():
+        if not kind["op"]:
+            continue  # the operation object's fields: a warp has none
         tools = [t for t in reg.tools if t["kind"] == kind_name]
         taking = [t for t in tools if pid in t["params"]]
         if taking and len(taking) == len(tools):
@@ -806,7 +892,7 @@ def users_text(reg: Registry, pid: str) -> str:
 
 def protocol_fields_table(reg: Registry) -> str:
     rows = ["| field | JSON type | valid values | default | used by |", "| --- | --- | --- | --- | --- |"]
-    names = " ".join(f"`{t['name']}`" for t in reg.tools)
+    names = " ".join(f"`{t['name']}`" for t in reg.op_tools())
     rows.append(f"| `tool` | string | {names} | — | tools, global smoothing |")
     rows.append("| `op` | string | `smooth` `morph` | — | global smoothing, morphology |")
     rows.append("| `global` | boolean | `true` selects global smoothing: only with `\"tool\":\"smooth\"` or `\"op\":\"smooth\"`; "
@@ -861,7 +947,7 @@ def readme_ops_table(reg: Registry) -> str:
         return "; ".join(out)
 
     previous = None
-    for t in reg.tools:
+    for t in reg.op_tools():
         ops = [p for p in t["param_specs"] if "op" in p["in"]]
         text = fields(ops)
         shown = "the same" if text == previous else text

@@ -5,6 +5,10 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <iomanip>
+#include <sstream>
+#include <numbers>
+#include <string>
 #include <unordered_map>
 #include <vector>
 #include <variant>
@@ -105,6 +109,185 @@ std::size_t rememberedOverlap(std::span<const StrokeDab> memory, double reach) {
 double strokeDabVoxels(const Volume& vol, double radius, int images, double substeps, std::span<const StrokeDab> memory) {
   const double scan = kRememberedDabVoxels * double(rememberedOverlap(memory, radius + vol.band() + 1));
   return brushVoxels(vol, radius, images) * substeps * (1 + scan);
+}
+
+namespace {
+
+using protocol::WarpTool;
+
+// The largest |W'| of the warps' falloff W(t) = (1 - t^2)^2 (engine/level_set/warp.cpp).
+const double kMaxWarpSlope = 8 / (3 * std::numbers::sqrt3);
+// The plateau of snake hook's and the affine warps' falloff (engine warp.cpp, kPlateau).
+constexpr double kWarpPlateau = 0.5;
+
+double maxTravel(const WarpStroke& w) {
+  return (w.tool == WarpTool::ElasticGrab ? kMaxElasticTravelPerRadius : kMaxWarpTravelPerRadius) * w.radius;
+}
+
+// v no longer than `most` (a hair under it, so that rounding stays within the engine's bound).
+Vec3 clampLength(Vec3 v, double most) {
+  const double l = length(v);
+  return l <= most ? v : v * (most / l * (1 - 1e-12));
+}
+
+// A unit vector along d (finite, not zero), robust to components near the double range's ends.
+Vec3 unitOf(Vec3 d) {
+  const double m = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+  return normalized(d / m);
+}
+
+// The affine warps' amount of the drag D, clamped: twist radians, scale log2 of the factor, pinch.
+double amountOf(const WarpStroke& w, Vec3 D) {
+  const Vec3 u = w.direction ? unitOf(*w.direction) : length(D) > 0 ? D / length(D) : Vec3{};
+  const double s = dot(D, u) / w.radius;
+  switch (w.tool) {
+    case WarpTool::Twist: return std::clamp(s * std::numbers::pi / 2, -2 * std::numbers::pi, 2 * std::numbers::pi);
+    case WarpTool::LocalScale: return std::clamp(s, -2.0, 2.0);
+    case WarpTool::Pinch: return std::clamp(s / 2, -1.0, 1.0);
+    case WarpTool::Grab:
+    case WarpTool::ElasticGrab:
+    case WarpTool::SnakeHook: break;
+  }
+  return 0;
+}
+
+// What an anchored stroke's engine call gets for the pointer at p: the grabs' anchor and d, or
+// the affine warps' amount, less what the base already holds.
+struct WarpCall {
+  Vec3 anchor, d;
+  double amount = 0;
+};
+
+WarpCall anchoredCall(const WarpStroke& w, Vec3 anchor, Vec3 p) {
+  const Vec3 D = clampLength((p - anchor) * w.strength, maxTravel(w));
+  WarpCall c{anchor, {}, 0};
+  if (w.tool == WarpTool::Grab || w.tool == WarpTool::ElasticGrab) {
+    c.anchor = anchor + w.heldD;
+    c.d = clampLength(D - w.heldD, maxTravel(w));
+  } else {
+    const double limit = w.tool == WarpTool::Twist ? 2 * std::numbers::pi : w.tool == WarpTool::LocalScale ? 2 : 1;
+    c.amount = std::clamp(amountOf(w, D) - w.heldAmount, -limit, limit);
+  }
+  return c;
+}
+
+// One engine call's work (warpStrokeCost): its support's box grown by the resampler's margin,
+// and its sub-steps from the engine's bound of |grad v| (warp.cpp, Velocity::lipschitz).
+double warpCallVoxels(const Volume& vol, const WarpStroke& w, const WarpCall& c) {
+  const double margin = vol.band() + 3, r = w.radius;
+  Vec3 half{r + margin, r + margin, r + margin};
+  double lipschitz = 0;
+  switch (w.tool) {
+    case WarpTool::Grab:
+    case WarpTool::SnakeHook: {
+      for (int a = 0; a < 3; ++a) half[a] += std::abs(c.d[a]) / 2;
+      const double plateau = w.tool == WarpTool::SnakeHook ? kWarpPlateau : 0;
+      lipschitz = length(c.d) * kMaxWarpSlope / ((1 - plateau) * r);
+      break;
+    }
+    case WarpTool::ElasticGrab: {
+      half = half + Vec3{2 * r, 2 * r, 2 * r};
+      const double load = length(c.d) * 2 * r / (1.5 - 1 / (4 * (1 - w.volume)));
+      lipschitz = load / (r * r) + load / r * kMaxWarpSlope / ((1 - kWarpPlateau) * kElasticCutoff * r);
+      break;
+    }
+    case WarpTool::Twist:
+      lipschitz = std::numbers::sqrt2 * std::abs(c.amount) * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
+      break;
+    case WarpTool::LocalScale:
+      lipschitz = std::numbers::sqrt3 * std::abs(c.amount) * std::numbers::ln2 * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
+      break;
+    case WarpTool::Pinch:
+      lipschitz = std::numbers::sqrt2 * std::abs(c.amount) * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
+      break;
+  }
+  double box = 1;
+  for (int a = 0; a < 3; ++a) box *= std::min(double(vol.dims()[a]), 2 * half[a] + 1);
+  const double substeps = std::max(1.0, std::ceil(lipschitz / kWarpStretchPerStep));
+  return box * (1 + kWarpStepVoxels * substeps);
+}
+
+}  // namespace
+
+void checkWarpSettings(const WarpStroke& w) {
+  const protocol::NumberParam& radius = protocol::radiusParamOf(w.tool);
+  requireRange(w.radius, radius.minimum, radius.maximum, "radius");
+  if (!(w.strength > 0 && w.strength <= 1)) throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
+  requireRange(w.volume, 0, 0.5, "volume");
+  if (w.direction && (!isFinite(*w.direction) || *w.direction == Vec3{0, 0, 0}))
+    throw EngineError(ErrorKind::InvalidArgument, "direction", "must be three finite numbers, not all zero");
+}
+
+void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at) {
+  const Int3 n = base.dims();
+  for (int a = 0; a < 3; ++a)
+    if (!(at[a] >= 0 && at[a] <= n[a] - 1))
+      throw EngineError(ErrorKind::OutOfDomain, "center", "the anchor (the stroke's first dab) must lie in the volume");
+  const double distance = std::abs(base.sample(at));
+  if (!(distance <= kMaxWarpAnchorDistance)) {
+    std::ostringstream what;
+    what << "the anchor (the stroke's first dab) must lie on the surface, within " << kMaxWarpAnchorDistance
+         << " vu of it: it is " << (distance >= base.band() ? "at least " : "") << std::setprecision(3) << distance
+         << " vu away";
+    throw EngineError(ErrorKind::InvalidArgument, "center", what.str());
+  }
+  const Vec3 g = base.gradient(at);
+  if (!isFinite(g) || !(length(g) > 0.5))
+    throw EngineError(ErrorKind::InvalidArgument, "center", "the surface has no normal at the anchor");
+  w.anchor = at;
+  w.normal = g / length(g);
+}
+
+Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool) {
+  if (!w.anchor) throw EngineError(ErrorKind::InvalidArgument, "center", "the stroke has no anchor yet");
+  Edit edit;
+  if (points.empty()) return edit;
+  if (protocol::dabsArePath(w.tool)) {
+    Vec3 at = *w.anchor;
+    for (const Vec3 p : points) {
+      const Vec3 d = clampLength((p - at) * w.strength, maxTravel(w));
+      if (d == Vec3{0, 0, 0}) continue;
+      const Edit move = snakeHook(vol, at, at + d, w.radius, pool);
+      edit.append(move.changes, move.region);
+      at = at + d;
+    }
+    w.anchor = at;
+    return edit;
+  }
+  const WarpCall c = anchoredCall(w, *w.anchor, points.back());
+  switch (w.tool) {
+    case WarpTool::Grab: edit = grab(vol, base, c.anchor, c.d, w.radius, pool); break;
+    case WarpTool::ElasticGrab: edit = elasticGrab(vol, base, c.anchor, c.d, w.radius, w.volume, pool); break;
+    case WarpTool::Twist: edit = twist(vol, base, c.anchor, w.normal, c.amount, w.radius, pool); break;
+    case WarpTool::LocalScale: edit = localScale(vol, base, c.anchor, std::exp2(c.amount), w.radius, pool); break;
+    case WarpTool::Pinch: edit = pinch(vol, base, c.anchor, w.normal, c.amount, w.radius, pool); break;
+    case WarpTool::SnakeHook: break;  // a path, above
+  }
+  w.pointer = points.back();
+  return edit;
+}
+
+OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points) {
+  if (w.anchor) anchor = w.anchor;
+  if (!anchor || points.empty()) return {0, 0};
+  if (!protocol::dabsArePath(w.tool)) return {warpCallVoxels(vol, w, anchoredCall(w, *anchor, points.back())), 1};
+  OpCost cost;
+  Vec3 at = *anchor;
+  for (const Vec3 p : points) {
+    const Vec3 d = clampLength((p - at) * w.strength, maxTravel(w));
+    if (d == Vec3{0, 0, 0}) continue;
+    cost.voxels += warpCallVoxels(vol, w, WarpCall{at, d, 0});
+    cost.passes += 1;
+    at = at + d;
+  }
+  return cost;
+}
+
+void rebaseWarp(WarpStroke& w) {
+  if (protocol::dabsArePath(w.tool) || !w.anchor || !w.pointer) return;
+  const Vec3 D = clampLength((*w.pointer - *w.anchor) * w.strength, maxTravel(w));
+  if (w.tool == WarpTool::Grab || w.tool == WarpTool::ElasticGrab) w.heldD = D;
+  else w.heldAmount = amountOf(w, D);
 }
 
 OpCost estimateCost(const Volume& vol, const Op& op) {

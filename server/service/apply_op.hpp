@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <span>
 
 #include "engine/edit.hpp"
@@ -52,5 +53,65 @@ std::size_t rememberedOverlap(std::span<const StrokeDab> memory, double reach);
 double strokeDabVoxels(const Volume& vol, double radius, int images, double substeps,
                        std::span<const StrokeDab> memory);
 inline constexpr double kRememberedDabVoxels = 0.03;
+
+// --- warp strokes (protocol/PROTOCOL.md, "Warp strokes") ------------------------------------
+// What a warp stroke keeps between its messages. The stroke's first dab is the anchor, a point
+// of the base's surface (the volume as the stroke began); every later dab is the pointer's point
+// p, and D = strength * (p - anchor) the drag. Anchored tools warp the base by the last p only:
+// grab and elastic grab by d = D, twist, scale and pinch by an amount from s = (D . u) / radius,
+// u the unit direction (or unit(D) without one): twist by s * pi / 2 radians about the anchor's
+// outward normal, scale by the factor 2^s, pinch by s / 2 towards the normal's line. Snake
+// hook moves the current anchor to anchor + D, dab after dab, each move composed on the last.
+// Every value is clamped to the engine's limits (level_set.hpp, warps): |d| to
+// kMaxWarpTravelPerRadius (elastic: kMaxElasticTravelPerRadius) radii, the angle to +-2 pi, the
+// factor to [0.25, 4], the pinch to [-1, 1]; past them the surface stays where the limit left it.
+// Pressure does not enter: the pointer's place is the drag. Units: vu and radians.
+struct WarpStroke {
+  protocol::WarpTool tool = protocol::WarpTool::Grab;
+  double radius = 8, strength = 1;
+  double volume = 0.5;            // elastic grab's Poisson-like ratio, in [0, 0.5]
+  std::optional<Vec3> direction;  // twist, scale, pinch: finite, not zero, any length
+  // Set by the first dab: the anchor (snake hook: the current one, moved by every dab) and the
+  // base's outward unit normal there.
+  std::optional<Vec3> anchor;
+  Vec3 normal;
+  // The last pointer point applied (anchored tools).
+  std::optional<Vec3> pointer;
+  // What the base already holds of the drag since a rebase (rebaseWarp): the grab's d, or the
+  // affine warps' amount (twist: radians; scale: log2 of the factor; pinch: the amount).
+  Vec3 heldD;
+  double heldAmount = 0;
+};
+
+// The farthest a warp's anchor may lie from the base's surface (|distance| in vu).
+inline constexpr double kMaxWarpAnchorDistance = 2;
+
+// Checks a warp stroke's settings as the engine will (radius: the tool's range; volume,
+// direction); throws EngineError naming the field.
+void checkWarpSettings(const WarpStroke& w);
+// Takes `at` as the anchor on `base`: throws EngineError (field "center") when it lies
+// outside the domain, farther than kMaxWarpAnchorDistance from base's surface, or where base's
+// field has no slope to give a normal.
+void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at);
+// One message's pointer points (the dabs after the anchor) on a stroke with its anchor set:
+// anchored tools write base warped by the last point into vol (which must be base or base
+// changed by this stroke's earlier calls, engine warps); snake hook moves the anchor through
+// each point in turn on vol. Returns the Edit from vol as it was, and sets w's pointer and
+// anchor. A throw (EngineError, Cancelled) leaves w as it was and, for anchored tools, vol; a
+// snake hook's earlier moves of the message stay in vol: the caller puts vol back.
+Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool);
+// The work of that call (OpCost units, as estimateCost: voxels processed; passes: its engine
+// calls). `anchor` stands for w.anchor when that is not set yet (the message's first dab).
+// A warp resamples the box of its support (grown by the band) and integrates the flow of each
+// voxel near the zero set over |grad v| / kWarpStretchPerStep sub-steps, so its work goes with
+// the box times (1 + kWarpStepVoxels * sub-steps): for a grab by d, |d|^2 * radius once d
+// outgrows the radius. kWarpStepVoxels: measured 2026-11-29 on this 2-core VM (bench_warp).
+OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points);
+inline constexpr double kWarpStepVoxels = 0.15;
+// After a change of the volume that was not the stroke's (or at a snapshot): the stroke goes on
+// from the volume as it is, which holds what it applied. Its base is then that volume (the
+// caller's part); here what the drag had applied becomes held, so that the next message
+// applies only the rest (grab: from the moved anchor). Idempotent.
+void rebaseWarp(WarpStroke& w);
 
 }  // namespace marzipan::service

@@ -15,6 +15,15 @@
 //                                          "applied": the dab images an open stroke had applied
 //                                            (its memory), "plane" its plane, when re-announced
 //                                            after a snapshot
+//   {"stroke_begin":S,"tool":W,"radius":r,"strength":s[,"volume":v][,"direction":[x,y,z]]
+//    [,"warp":{"anchor":[..],"normal":[..],"held":[..],"held_amount":a[,"pointer":[..]]}]}
+//                                          a warp stroke (PROTOCOL.md, warp strokes); "warp": its
+//                                            state when re-announced after a snapshot, from whose
+//                                            volume it goes on (service/apply_op.hpp WarpStroke).
+//                                            Its "stroke" records hold its dabs as given (the
+//                                            anchor first; pressure p unused), and the record of
+//                                            the message that took the anchor has the same R as
+//                                            the record before it when it changed nothing
 //   {"stroke_end":S}
 //   {"r":R,"undo":"step-R.bin"}  {"r":R,"redo":"step-R.bin"}: the bricks it put in place, for a
 //                                            replay whose history lost the step to a snapshot

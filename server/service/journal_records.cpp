@@ -13,7 +13,56 @@ namespace marzipan::service {
 
 using nlohmann::json;
 
+namespace {
+
+json vec3Json(Vec3 v) { return json::array({v.x, v.y, v.z}); }
+
+Vec3 warpPointOf(const json& j) {
+  if (!j.is_array() || j.size() != 3) throw std::runtime_error("bad point in a warp stroke's record");
+  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
+
+// A warp stroke's record: its settings, and once it has an anchor its state (apply_op.hpp,
+// WarpStroke), which replay takes back as it is.
+json warpBeginRecord(StrokeId id, const Session::StrokeParams& st) {
+  const WarpStroke& w = *st.warp;
+  json record{{"stroke_begin", id},
+              {"tool", protocol::nameOf(protocol::kWarpToolNames, w.tool)},
+              {"radius", w.radius},
+              {"strength", w.strength}};
+  if (w.tool == protocol::WarpTool::ElasticGrab) record["volume"] = w.volume;
+  if (w.direction) record["direction"] = vec3Json(*w.direction);
+  if (!st.by.id.empty() || !st.by.name.empty()) record["by"] = {{"id", st.by.id}, {"name", st.by.name}};
+  if (w.anchor) {
+    json state{{"anchor", vec3Json(*w.anchor)}, {"normal", vec3Json(w.normal)}, {"held", vec3Json(w.heldD)},
+               {"held_amount", w.heldAmount}};
+    if (w.pointer) state["pointer"] = vec3Json(*w.pointer);
+    record["warp"] = std::move(state);
+  }
+  return record;
+}
+
+WarpStroke warpOfRecord(const json& rec, protocol::WarpTool tool) {
+  WarpStroke w;
+  w.tool = tool;
+  w.radius = rec.at("radius").get<double>();
+  w.strength = rec.at("strength").get<double>();
+  w.volume = rec.value("volume", w.volume);
+  if (const auto d = rec.find("direction"); d != rec.end()) w.direction = warpPointOf(*d);
+  if (const auto s = rec.find("warp"); s != rec.end()) {
+    w.anchor = warpPointOf(s->at("anchor"));
+    w.normal = warpPointOf(s->at("normal"));
+    w.heldD = warpPointOf(s->at("held"));
+    w.heldAmount = s->at("held_amount").get<double>();
+    if (const auto p = s->find("pointer"); p != s->end()) w.pointer = warpPointOf(*p);
+  }
+  return w;
+}
+
+}  // namespace
+
 json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
+  if (st.warp) return warpBeginRecord(id, st);
   const std::string symmetry =
       std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
   json record{{"stroke_begin", id},
@@ -171,7 +220,12 @@ void Replay::apply(const json& rec) {
       s.endStroke(it->second);
       strokes_.erase(it);
     }
-    const auto tool = fromWireName(protocol::kBrushToolNames, rec.at("tool").get<std::string>());
+    const std::string toolName = rec.at("tool").get<std::string>();
+    if (const auto warp = fromWireName(protocol::kWarpToolNames, toolName)) {
+      strokes_[rec["stroke_begin"].get<std::uint64_t>()] = s.beginWarp(warpOfRecord(rec, *warp), authorOf(rec));
+      return;
+    }
+    const auto tool = fromWireName(protocol::kBrushToolNames, toolName);
     if (!tool) throw std::runtime_error("unknown stroke tool");
     const std::string sym = rec.value("symmetry", "");
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,

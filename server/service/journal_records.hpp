@@ -20,7 +20,9 @@
 namespace marzipan::service {
 
 // The record of a stroke's start: tool, radius, strength, symmetry, accumulate, height, and what it
-// applied so far (its memory), which recovery reads back. The hub writes it at stroke.begin and
+// applied so far (its memory), which recovery reads back; of a warp stroke: tool, radius,
+// strength, volume, direction, and once it has an anchor "warp": its state (anchor, normal,
+// pointer, held, held_amount; apply_op.hpp WarpStroke), from which it goes on. The hub writes it at stroke.begin and
 // at the head of every new journal for the strokes still open.
 nlohmann::json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st);
 // A stroke's plane as the journal and the replies write it: {"point":[x,y,z],"normal":[x,y,z]}.

@@ -299,7 +299,7 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
                            "); end one first");
   const StrokeId id = nextStroke_++;
   strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by, height, volume_, strokeClock_(), 0,
-                              changedBricks_});
+                              changedBricks_, std::nullopt, std::nullopt, 0});
   return id;
 }
 
@@ -311,9 +311,148 @@ const Session::Stroke& Session::openStroke(StrokeId id) const {
   throw ServiceError(protocol::RpcCode::NoSuchStroke, "stroke", "no stroke " + std::to_string(id) + " in this session");
 }
 
+std::string_view Session::toolName(const Stroke& s) {
+  return s.warp ? protocol::nameOf(protocol::kWarpToolNames, s.warp->tool) : protocol::nameOf(protocol::kBrushToolNames, s.tool);
+}
+
+StrokeId Session::beginWarp(WarpStroke w, const StepAuthor& by) {
+  const auto known = std::any_of(protocol::kWarpToolNames.begin(), protocol::kWarpToolNames.end(),
+                                 [&](const auto& n) { return n.value == w.tool; });
+  if (!known) invalid("tool", "is not a warp tool");
+  try {
+    checkWarpSettings(w);
+  } catch (const EngineError& e) {
+    rethrow(e, "");
+  }
+  for (const std::optional<Vec3>& p : {w.anchor, w.pointer})
+    if (p) requirePoint(*p, "anchor");
+  if (!isFinite(w.normal) || !isFinite(w.heldD) || !std::isfinite(w.heldAmount))
+    invalid("anchor", "the stroke's state must be finite");
+  if (strokes_.size() >= kMaxOpenStrokes)
+    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
+                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
+                           "); end one first");
+  const StrokeId id = nextStroke_++;
+  strokes_.emplace(id, Stroke{protocol::BrushTool::AddBlob, w.radius, w.strength, {}, false, {}, 0, by, std::nullopt,
+                              volume_, strokeClock_(), 0, changedBricks_, std::nullopt, std::move(w), revision_});
+  return id;
+}
+
+std::optional<OpCost> Session::warpCost(StrokeId id, const std::vector<Dab>& dabs) const {
+  const auto it = strokes_.find(id);
+  if (it == strokes_.end() || !it->second.warp || dabs.empty()) return std::nullopt;
+  const WarpStroke& w = *it->second.warp;
+  std::optional<Vec3> anchor;
+  std::vector<Vec3> points;
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    const auto* c = std::get_if<Vec3>(&dabs[i].at);
+    // A ray can only be the anchor; its hit is not known before the pick: the anchor's worst
+    // place is the farthest from the pointer, which the engine's travel bound caps anyway.
+    if (i == 0 && !w.anchor) anchor = c ? *c : Vec3{};
+    else if (c) points.push_back(*c);
+  }
+  if (!w.anchor && !std::holds_alternative<Vec3>(dabs[0].at) && !points.empty()) {
+    const double far = 1e9;
+    anchor = points.back() + Vec3{far, far, far};
+  }
+  return warpStrokeCost(volume_, w, anchor, points);
+}
+
+void Session::rebaseWarps() {
+  for (auto& [id, s] : strokes_)
+    if (s.warp) {
+      rebaseWarp(*s.warp);
+      s.start = volume_;
+      s.warpRevision = revision_;
+    }
+}
+
+ApplyResult Session::warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
+  Stroke& stroke = strokes_.at(id);
+  WarpStroke w = *stroke.warp;  // the stroke's state changes only when the whole message applied
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    const std::string field = "dabs[" + std::to_string(i) + "]";
+    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) requirePoint(*c, field + ".center");
+    else if (i == 0 && !w.anchor) requireRay(std::get<Ray>(dabs[i].at), field + ".ray");
+    else invalid(field + ".ray", "a warp stroke's dabs after its anchor are the pointer's points: give a centre");
+    if (const auto& p = dabs[i].pressure; p && !(*p >= 0 && *p <= 1)) invalid(field + ".pressure", "must be in [0, 1]");
+  }
+  // Something else changed the session since the stroke's last message: it goes on from the
+  // volume as it is (a base that lacks those changes would take them back).
+  const bool rebase = stroke.warpRevision != revision_;
+  std::optional<Volume> rebased;  // the volume as it is: bricks shared, untouched by the warp below
+  if (rebase) {
+    rebaseWarp(w);
+    rebased = volume_;
+  }
+  const Volume& base = rebased ? *rebased : stroke.start;
+
+  ApplyResult result;
+  std::size_t first = 0;
+  Vec3 anchorAt;  // the anchor this message took (a ray's hit), for the journal
+  if (!w.anchor) {
+    std::optional<Vec3> at;
+    if (const auto* c = std::get_if<Vec3>(&dabs[0].at)) at = *c;
+    else if (!(at = pickSurface(base, std::get<Ray>(dabs[0].at).origin, std::get<Ray>(dabs[0].at).direction)))
+      ++result.missed;
+    if (!at) {
+      // No anchor: the message does nothing (its other dabs have nothing to move).
+      result.hits.assign(dabs.size(), std::nullopt);
+      result.normals.assign(dabs.size(), Vec3{});
+      result.revision = revision_;
+      return result;
+    }
+    try {
+      setWarpAnchor(w, base, *at);
+    } catch (const EngineError& e) {
+      rethrow(e, "");
+    }
+    result.anchored = true;
+    anchorAt = *at;
+    first = 1;
+  }
+  std::vector<Vec3> points;
+  for (std::size_t i = first; i < dabs.size(); ++i) points.push_back(std::get<Vec3>(dabs[i].at));
+
+  Edit message;
+  Volume before = volume_;
+  try {
+    message = applyWarpStroke(volume_, base, w, points, pool);
+  } catch (const EngineError& e) {
+    volume_ = std::move(before);
+    rethrow(e, "dabs");
+  } catch (...) {
+    volume_ = std::move(before);
+    throw;
+  }
+  if (rebased) stroke.start = std::move(*rebased);
+  stroke.warp = w;
+  if (first == 1) result.hits.push_back(anchorAt);
+  for (const Vec3 p : points) result.hits.push_back(p);
+  result.normals.assign(dabs.size(), Vec3{});
+  if (!message.empty()) {
+    const bool folded = stroke.by.id.empty() ? lastStroke_ == id && history_.amend(stroke.step, message, revision_ + 1)
+                                             : history_.fold(stroke.step, message, volume_, revision_ + 1);
+    if (!folded) {
+      history_.seal(stroke.step);
+      stroke.step = history_.push(message, stepInfo(stroke.by, toolName(stroke)),
+                                  [this, id](History::StepId st) { return growingStep(st, id); });
+    }
+    lastStroke_ = id;
+  }
+  const ApplyResult done = finish(message);
+  stroke.warpRevision = revision_;
+  result.revision = done.revision;
+  result.changed = done.changed;
+  result.roi = done.roi;
+  result.bricks = done.bricks;
+  return result;
+}
+
 ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
   const Stroke& stroke = openStroke(id);
   strokes_.at(id).lastMessageMs = strokeClock_();
+  if (stroke.warp) return warpDabs(id, dabs, pool);
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     const std::string field = "dabs[" + std::to_string(i) + "]";
     if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) requirePoint(*c, field + ".center");
@@ -414,7 +553,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
     if (!folded) {
       // The stroke's earlier step grows no more: packed like any step under a newer one.
       history_.seal(s.step);
-      s.step = history_.push(message, stepInfo(s.by, protocol::nameOf(protocol::kBrushToolNames, s.tool)),
+      s.step = history_.push(message, stepInfo(s.by, toolName(s)),
                              [this, id](History::StepId st) { return growingStep(st, id); });
     }
     lastStroke_ = id;
@@ -440,7 +579,8 @@ std::optional<Session::StrokeParams> Session::strokeSettings(StrokeId id) const 
   const auto it = strokes_.find(id);
   if (it == strokes_.end()) return std::nullopt;
   const Stroke& st = it->second;
-  return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height, st.plane};
+  return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height, st.plane,
+                      st.warp};
 }
 
 std::span<const StrokeDab> Session::strokeMemory(StrokeId id) const {

@@ -41,6 +41,7 @@
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
 #include "protocol/cpp/rpc.hpp"
+#include "service/apply_op.hpp"
 #include "service/history.hpp"
 
 namespace marzipan::service {
@@ -118,6 +119,9 @@ struct ApplyResult {
   // plane"), for the reply and the journal.
   std::optional<Plane> plane;
   std::size_t missed = 0;  // how many rays missed
+  // A warp stroke's message that took the stroke's anchor: it changed the stroke even when it
+  // changed no voxel (changed false), so the journal records it.
+  bool anchored = false;
 };
 
 struct HistoryResult {
@@ -200,7 +204,24 @@ class Session {
   // stays one step while other people sculpt elsewhere. The whole message is checked
   // before anything changes, so a throw changes nothing. One revision per call that changed
   // something.
+  // A warp stroke's message (beginWarp; PROTOCOL.md, warp strokes): its first dab, while the
+  // stroke has none, is the anchor (a centre, or a ray picked on the stroke's base; refused,
+  // field "center", off the surface), every other dab a centre (a ray: refused); the volume
+  // becomes the base warped by the stroke (apply_op.hpp, applyWarpStroke), folded into the
+  // stroke's step as a brush's messages are. The base is the volume as the stroke began, or,
+  // when something else changed the session since the stroke's last message, the volume as it
+  // is then (rebaseWarp): a stroke never undoes others' changes. Pressure is ignored.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  // Opens a warp stroke with w's settings (checkWarpSettings; InvalidParams naming the field).
+  // A w whose anchor is set (re-announced after a snapshot, journal_records.hpp) goes on from
+  // the volume as it is. Its steps are recorded as by's.
+  StrokeId beginWarp(WarpStroke w, const StepAuthor& by = {});
+  // The work of a warp stroke's message (warpStrokeCost), for the caller's budget; nullopt when
+  // the stroke is no open warp stroke.
+  std::optional<OpCost> warpCost(StrokeId id, const std::vector<Dab>& dabs) const;
+  // Every open warp stroke goes on from the volume as it is (rebaseWarp), as the head records
+  // of a new journal announce them: called when a snapshot was taken.
+  void rebaseWarps();
   // Replaces what an open stroke remembers having applied (a journal replayed after a snapshot
   // that cut the stroke in two). Throws UnknownStroke / StrokeClosed.
   void setStrokeMemory(StrokeId id, std::vector<StrokeDab> applied);
@@ -291,6 +312,7 @@ class Session {
     StepAuthor by{};
     std::optional<double> height{};
     std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
+    std::optional<WarpStroke> warp{};  // a warp stroke (tool, symmetry, accumulate, memory unused)
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -324,7 +346,13 @@ class Session {
     // plus the bricks changed since.
     std::size_t heldBricks = 0, changedAtCount = 0;
     std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
+    std::optional<WarpStroke> warp;  // a warp stroke: its state; start is its base
+    std::uint64_t warpRevision = 0;  // the session's revision after its begin or last message
   };
+
+  ApplyResult warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  // The wire name of the stroke's tool, for its steps.
+  static std::string_view toolName(const Stroke& s);
 
   ApplyResult finish(const Edit& edit);
   // Swaps the digest terms of bricks that went from `from` to what the volume now holds.

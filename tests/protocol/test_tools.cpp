@@ -124,23 +124,26 @@ std::string strokeRefusedField(const json& params) {
 TEST_CASE("the generated tables name the registry's tools, in its order, with its keys", "[tools]") {
   const json& tools = registry()["tools"];
   REQUIRE(kTools.size() == tools.size());
-  std::vector<std::string> surface, csg;
+  std::vector<std::string> surface, csg, warp;
   std::set<std::string> strokeKeys{"tool", "symmetry", "accumulate"};
   for (std::size_t i = 0; i < tools.size(); ++i) {
     const json& t = tools[i];
     INFO(t["name"]);
     CHECK(kTools[i].name == t["name"].get<std::string>());
     CHECK(kTools[i].strokes == t["strokes"].get<bool>());
-    CHECK(kTools[i].kind == (t["kind"] == "csg" ? ToolKind::Csg : ToolKind::SurfaceSpeed));
-    std::vector<std::string> opKeys{"tool"};
+    CHECK(kTools[i].kind == (t["kind"] == "csg" ? ToolKind::Csg : t["kind"] == "warp" ? ToolKind::Warp : ToolKind::SurfaceSpeed));
+    // A warp has no operation object.
+    std::vector<std::string> opKeys;
+    if (t["kind"] != "warp") opKeys.push_back("tool");
     if (t["kind"] == "surface_speed") opKeys.push_back("global");
-    for (const json& p : paramsOf(t, "op")) opKeys.push_back(p["key"]);
+    if (t["kind"] != "warp")
+      for (const json& p : paramsOf(t, "op")) opKeys.push_back(p["key"]);
     CHECK(strings(kTools[i].opKeys) == opKeys);
     std::vector<std::string> own;
     for (const json& p : paramsOf(t, "stroke")) own.push_back(p["key"]);
     CHECK(strings(kTools[i].strokeKeys) == own);
     strokeKeys.insert(own.begin(), own.end());
-    (t["kind"] == "csg" ? csg : surface).push_back(t["name"]);
+    (t["kind"] == "csg" ? csg : t["kind"] == "warp" ? warp : surface).push_back(t["name"]);
   }
   std::vector<std::string> names;
   for (const auto& n : kBrushToolNames) names.emplace_back(n.name);
@@ -148,6 +151,9 @@ TEST_CASE("the generated tables name the registry's tools, in its order, with it
   names.clear();
   for (const auto& n : kCsgToolNames) names.emplace_back(n.name);
   CHECK(names == csg);
+  names.clear();
+  for (const auto& n : kWarpToolNames) names.emplace_back(n.name);
+  CHECK(names == warp);
   std::vector<std::string> morph;
   for (const json& o : registry()["operations"])
     if (o["kind"] == "morphology") morph.push_back(o["name"]);
@@ -176,6 +182,10 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
   same(kParamShapeRadius, "shape_radius");
   same(kParamBlend, "blend");
   same(kParamMorphRadius, "morph_radius");
+  same(kParamWarpRadius, "warp_radius");
+  same(kParamElasticRadius, "elastic_radius");
+  same(kParamVolume, "volume");
+  CHECK(kParamDirection.key == param("direction")["key"].get<std::string>());
   CHECK(kParamCenter.bound == param("center")["bound"].get<double>());
   CHECK(kMaxCoordinate == kParamCenter.bound);
   CHECK(kParamIterations.minimum == param("iterations")["minimum"].get<std::int64_t>());
@@ -187,6 +197,11 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
 
 TEST_CASE("every tool parses with its parameters at their bounds and is refused beyond them", "[tools]") {
   for (const json& tool : registry()["tools"]) {
+    if (tool["kind"] == "warp") {
+      // Strokes only: its name is no operation object.
+      CHECK(refusedField(json{{"tool", tool["name"]}, {"center", {1, 2, 3}}}) == "tool");
+      continue;
+    }
     const json base = baseOp(tool);
     INFO(base.dump());
     REQUIRE(refusedField(base) == "(accepted)");
@@ -245,11 +260,12 @@ TEST_CASE("every tool parses with its parameters at their bounds and is refused 
 }
 
 TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[tools]") {
-  std::vector<json> strokeParams;
+  // Every key of stroke.begin, with the parameters that give it (a warp's radius has its own).
+  std::vector<std::string> keys;
   for (const json& tool : registry()["tools"])
     for (const json& p : paramsOf(tool, "stroke"))
-      if (std::find(strokeParams.begin(), strokeParams.end(), p) == strokeParams.end()) strokeParams.push_back(p);
-  CHECK(!strokeParams.empty());
+      if (std::find(keys.begin(), keys.end(), p["key"]) == keys.end()) keys.push_back(p["key"]);
+  CHECK(!keys.empty());
   for (const json& tool : registry()["tools"]) {
     INFO(tool["name"]);
     const json begin = {{"tool", tool["name"]}, {"radius", 8}};
@@ -259,15 +275,29 @@ TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[
     }
     CHECK(strokeRefusedField(begin) == "(accepted)");
     const auto own = paramsOf(tool, "stroke");
-    for (const json& p : strokeParams) {
-      const std::string key = p["key"];
+    for (const std::string& key : keys) {
       INFO(key);
-      const bool takes = std::find(own.begin(), own.end(), p) != own.end();
+      const auto mine = std::find_if(own.begin(), own.end(), [&](const json& p) { return p["key"] == key; });
       json params = begin;
-      params[key] = key == "radius" ? 8.0 : most(p, 8);
-      CHECK(strokeRefusedField(params) == (takes ? "(accepted)" : key));
-      if (!takes) continue;
-      params[key] = std::nextafter(most(p, 8), 1e300);
+      if (mine == own.end()) {
+        params[key] = key == "direction" ? json{1, 0, 0} : json(1.0);
+        CHECK(strokeRefusedField(params) == key);
+        continue;
+      }
+      const json& p = *mine;
+      if (p["type"] == "vector") {
+        params[key] = {0.5, -2, 1e300};
+        CHECK(strokeRefusedField(params) == "(accepted)");
+        params[key] = {0, 0, 0};
+        CHECK(strokeRefusedField(params) == key);
+        params[key] = {1, 0};
+        CHECK(strokeRefusedField(params) == key);
+        continue;
+      }
+      const double bound = key == "radius" ? 0 : 8;
+      params[key] = key == "radius" ? most(p, 0) : most(p, bound);
+      CHECK(strokeRefusedField(params) == "(accepted)");
+      params[key] = std::nextafter(key == "radius" ? most(p, 0) : most(p, bound), 1e300);
       CHECK(strokeRefusedField(params) == key);
       params[key] = p.value("exclusive_minimum", false) ? p["minimum"].get<double>()
                                                        : std::nextafter(p["minimum"].get<double>(), -1e300);
@@ -279,6 +309,12 @@ TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[
         CHECK(strokeRefusedField(params) == key);
       }
     }
+    if (tool["kind"] == "warp")
+      for (const std::string flag : {"symmetry", "accumulate"}) {
+        json params = begin;
+        params[flag] = flag == "symmetry" ? json{"x"} : json(true);
+        CHECK(strokeRefusedField(params) == flag);
+      }
   }
 }
 

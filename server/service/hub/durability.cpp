@@ -95,9 +95,15 @@ void Durability::closeHeldElsewhere(LiveSession& s, const std::string& why, cons
 }
 
 void Durability::rotate(LiveSession& s) {
+  // An open warp stroke is announced as going on from the snapshot's volume (its base is not
+  // saved), and once the snapshot is there it does so here too (Session::rebaseWarps).
   std::vector<json> head;
-  for (const auto& [id, st] : s.session->openStrokeList()) head.push_back(strokeBeginRecord(id, st));
+  for (auto [id, st] : s.session->openStrokeList()) {
+    if (st.warp) rebaseWarp(*st.warp);
+    head.push_back(strokeBeginRecord(id, st));
+  }
   s.journal = hub_.store->snapshot(s.id, s.session->volume(), head);
+  s.session->rebaseWarps();
 }
 
 void Durability::saveAndRelease(LiveSession& s, const char* when) {

@@ -141,6 +141,100 @@ std::vector<DabsMessage> takeFollowers(HubCore& hub, HubClient& c, const protoco
   return out;
 }
 
+// The answers and the journal record of one application of stroke.dabs messages (p and the
+// messages merged behind it, whose dabs `params` are, in order).
+void answerDabs(HubCore& hub, const std::shared_ptr<HubClient>& c, LiveSession& s, Reply& r,
+                const protocol::StrokeDabsParams& p, const std::vector<DabsMessage>& merged,
+                std::vector<protocol::DabParam> params, const ApplyResult& a) {
+  // Every message of the application answers its revision and box; `applied` counts its own dabs.
+  const json roi = protocol::boxJson(a.changed ? a.roi : Box{});
+  auto appliedIn = [&a](std::size_t from, std::size_t count) -> std::size_t {
+    if (!a.changed) return 0;
+    const auto begin = a.hits.begin() + std::ptrdiff_t(from);
+    return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
+  };
+  r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
+  // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
+  if (a.plane) r.result["plane"] = planeJson(*a.plane);
+  std::size_t from = p.dabs.size();
+  for (const DabsMessage& m : merged) {
+    if (hub.options.events.request) hub.options.events.request("stroke.dabs");
+    json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
+    if (a.plane) result["plane"] = planeJson(*a.plane);
+    r.merged.push_back({m.id, result, m.raw.arrived});
+    from += m.params.dabs.size();
+  }
+  // A warp stroke's message that took its anchor is recorded though it changed nothing: the
+  // stroke's later messages depend on it.
+  if (a.changed || a.anchored) {
+    // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
+    // started (a step they folded into keeps its own). One record per application: replay
+    // applies its dabs as one, as here. Built only when there is a journal to take it.
+    r.record = [stroke = p.stroke, hits = a.hits, normals = a.normals, plane = a.plane, params = std::move(params),
+                rev = a.revision, t = stepTime(*s.session)] {
+      json applied = json::array();
+      for (std::size_t i = 0; i < hits.size(); ++i)
+        if (hits[i]) {
+          json dab{hits[i]->x, hits[i]->y, hits[i]->z, params[i].pressure};
+          if (const Vec3 n = normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
+          applied.push_back(std::move(dab));
+        }
+      json rec{{"r", rev}, {"stroke", stroke}, {"dabs", std::move(applied)}, {"t", t}};
+      if (plane) rec["plane"] = planeJson(*plane);
+      return rec;
+    };
+  }
+  if (a.changed)
+    r.after = [self = hub.shared_from_this(), &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
+}
+
+// A warp stroke's stroke.dabs (Session::strokeDabs; PROTOCOL.md, warp strokes): costed before
+// any work (warpStrokeCost against max_op_voxels), run on the hub's pool with progress and
+// cancellation as a long tool.apply is. An anchored stroke's result depends only on its last
+// dab, so the messages of the stroke waiting behind this one are applied with it as one
+// application when their work together fits the budget: a slow warp then skips the pointer's
+// intermediate places instead of falling behind. A snake hook's every dab is a move: it takes
+// its messages one by one.
+void warpMessage(HubCore& hub, const std::shared_ptr<HubClient>& c, LiveSession& s, Reply& r,
+                 const protocol::StrokeDabsParams& p, const WarpStroke& w, HubCore::RunningOp& running) {
+  OpCost cost = *s.session->warpCost(p.stroke, toDabs(p.dabs));
+  hub.checkBudget(cost.voxels, "this warp message");
+  std::vector<DabsMessage> merged;
+  std::vector<protocol::DabParam> params = p.dabs;
+  if (!protocol::dabsArePath(w.tool)) {
+    merged = takeFollowers(hub, *c, p, 0);
+    if (!merged.empty()) {
+      std::vector<protocol::DabParam> all = p.dabs;
+      for (const DabsMessage& m : merged) all.insert(all.end(), m.params.dabs.begin(), m.params.dabs.end());
+      const OpCost together = *s.session->warpCost(p.stroke, toDabs(all));
+      if (together.voxels <= hub.limits().maxOpVoxels) {
+        cost = together;
+        params = std::move(all);
+      } else {
+        for (auto m = merged.rbegin(); m != merged.rend(); ++m) c->queue.putBack(std::move(m->raw));
+        merged.clear();
+      }
+    }
+  }
+  running.progress->setTotal(std::max(1.0, cost.passes));
+  std::optional<Workers::LongTask> longTask;
+  if (cost.voxels > kLongOpVoxels) longTask.emplace(hub.workers);
+  const Progress::Scope scope(*running.progress);
+  ApplyResult a;
+  try {
+    a = s.session->strokeDabs(p.stroke, toDabs(params), hub.pool);
+  } catch (...) {
+    if (merged.empty()) throw;
+    // As for a brush's merged messages: each then gets the answer it would have had alone.
+    for (auto m = merged.rbegin(); m != merged.rend(); ++m) c->queue.putBack(std::move(m->raw));
+    merged.clear();
+    params = p.dabs;
+    a = s.session->strokeDabs(p.stroke, toDabs(params), hub.pool);
+  }
+  running.done();
+  answerDabs(hub, c, s, r, p, merged, std::move(params), a);
+}
+
 }  // namespace
 
 // The step keeps the display name the author had then: a timeline still names who left.
@@ -250,10 +344,21 @@ void strokeBegin(HubCore& hub, const Call& call) {
       }
       c->stroke = 0;
     }
-    const Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
-                                       p.accumulate, {}, authorOf(*c), p.height};
-    c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate,
-                                       params.by, params.height);
+    Session::StrokeParams params{p.tool, p.radius, p.strength, Symmetry{p.mirrorX, p.mirrorY, p.mirrorZ},
+                                 p.accumulate, {}, authorOf(*c), p.height};
+    if (p.warp) {
+      WarpStroke w;
+      w.tool = p.warp->tool;
+      w.radius = p.radius;
+      w.strength = p.strength;
+      w.volume = p.warp->volume;
+      w.direction = p.warp->direction;
+      params.warp = w;
+      c->stroke = s.session->beginWarp(*params.warp, params.by);
+    } else {
+      c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate,
+                                         params.by, params.height);
+    }
     records.push_back(strokeBeginRecord(c->stroke, params));
     r.record = [records] { return records; };
     r.result = {{"stroke", c->stroke}};
@@ -265,9 +370,11 @@ void strokeDabs(HubCore& hub, const Call& call) {
   const auto running = hub.track(call.client, call.req.id);
   hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, p, running](LiveSession& s, Reply& r) {
     if (p.stroke != c->stroke) throw notOpenStroke(p.stroke);
+    const std::optional<Session::StrokeParams> settings = s.session->strokeSettings(p.stroke);
+    if (settings && settings->warp) return warpMessage(*self, c, s, r, p, *settings->warp, *running);
     double voxelsPerDab = 0;
     bool accumulate = false;
-    if (const auto st = s.session->strokeSettings(p.stroke)) {
+    if (const auto& st = settings) {
       const int images = (st->symmetry.x ? 2 : 1) * (st->symmetry.y ? 2 : 1) * (st->symmetry.z ? 2 : 1);
       // A height takes a sub-step per vu (engine applyStroke).
       const double substeps = st->height ? std::ceil(*st->height) : 1;
@@ -300,43 +407,7 @@ void strokeDabs(HubCore& hub, const Call& call) {
       a = s.session->strokeDabs(p.stroke, toDabs(params), ThreadPool::serial());
     }
     running->done();
-    // Every message of the application answers its revision and box; `applied` counts its own dabs.
-    const json roi = protocol::boxJson(a.changed ? a.roi : Box{});
-    auto appliedIn = [&a](std::size_t from, std::size_t count) -> std::size_t {
-      if (!a.changed) return 0;
-      const auto begin = a.hits.begin() + std::ptrdiff_t(from);
-      return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
-    };
-    r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
-    // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
-    if (a.plane) r.result["plane"] = planeJson(*a.plane);
-    std::size_t from = p.dabs.size();
-    for (const DabsMessage& m : merged) {
-      if (self->options.events.request) self->options.events.request("stroke.dabs");
-      json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
-      if (a.plane) result["plane"] = planeJson(*a.plane);
-      r.merged.push_back({m.id, result, m.raw.arrived});
-      from += m.params.dabs.size();
-    }
-    if (a.changed) {
-      // The stroke's author is in its stroke_begin record; the time is that of a step the dabs
-      // started (a step they folded into keeps its own). One record per application: replay
-      // applies its dabs as one, as here. Built only when there is a journal to take it.
-      r.record = [stroke = p.stroke, hits = a.hits, normals = a.normals, plane = a.plane, params = std::move(params),
-                  rev = a.revision, t = stepTime(*s.session)] {
-        json applied = json::array();
-        for (std::size_t i = 0; i < hits.size(); ++i)
-          if (hits[i]) {
-            json dab{hits[i]->x, hits[i]->y, hits[i]->z, params[i].pressure};
-            if (const Vec3 n = normals[i]; n != Vec3{}) dab.insert(dab.end(), {n.x, n.y, n.z});
-            applied.push_back(std::move(dab));
-          }
-        json rec{{"r", rev}, {"stroke", stroke}, {"dabs", std::move(applied)}, {"t", t}};
-        if (plane) rec["plane"] = planeJson(*plane);
-        return rec;
-      };
-      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "stroke", a.roi, a.bricks, a.fullRefresh); };
-    }
+    answerDabs(*self, c, s, r, p, merged, std::move(params), a);
   });
 }
 
