@@ -465,8 +465,9 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         if (std::fabs(value) < kExactNear) value = float(trilinear(s.base, v.flow(p, steps, -1), band));
         if (value == s.base.v[k]) continue;
         s.warped.v[k] = value;
-        const Box one{{x, y, z}, {x + 1, y + 1, z + 1}};
-        c = any ? unite(c, one) : one;
+        if (!any) c = {{x, y, z}, {x + 1, y + 1, z + 1}};
+        c.lo.x = std::min(c.lo.x, x), c.lo.y = std::min(c.lo.y, y);
+        c.hi.x = std::max(c.hi.x, x + 1), c.hi.y = std::max(c.hi.y, y + 1);
         any = true;
       }
     changed[i] = any ? c : Box{};
