@@ -87,6 +87,12 @@ WEB_CLIENT_PAUSE_S = 0.25  # between a stroke's end and the next one's begin
 # strength x half the radius (at most 16 vu; the server works a sub-step per vu), smoothing builds up.
 WEB_CLIENT_HEIGHT_PER_RADIUS = 0.5
 WEB_CLIENT_MAX_HEIGHT = 16.0
+# Grab strokes among the web-client mode's (issue 29 section 5), with dab spacing only (their
+# anchor is a point the client picked): a fifth of the strokes, each dragging its anchor this
+# far in the plane facing the camera by the stroke's last pointer event, at the warps' default
+# strength of 1 (web-client/ui: a warp keeps a strength of its own).
+GRAB_SHARE = 0.2
+GRAB_REACH = 20.0  # vu
 
 
 def web_client_stroke_params(tool: str, radius: float, strength: float) -> dict:
@@ -165,15 +171,23 @@ class Drag:
 class WebClientStroke:
     """One stroke as the browser makes it, drawn from `rng` in a fixed order (the compiled
     client, load_client.cpp, draws the same numbers from the same seed: test_load_client.py):
-    its tool's parameters (radius 4-10, strength 0.3-0.8), a Drag, its pointer events
-    (`frames`, ~1.5 s at 60 Hz); pointer(k) gives the dabs pointer event k makes. With a dab
-    spacing each event is picked on `surface` as it was when the stroke began, the hits spaced
-    into dabs along their path and each dab put on the surface under its own interpolated ray
-    (a centre); with spacing 0 each event is one `ray` dab the server picks."""
+    whether it is a grab, its tool's parameters (radius 4-10, strength 0.3-0.8), a Drag, its
+    pointer events (`frames`, ~1.5 s at 60 Hz); pointer(k) gives the dabs pointer event k makes.
+    With a dab spacing each event is picked on `surface` as it was when the stroke began, the
+    hits spaced into dabs along their path and each dab put on the surface under its own
+    interpolated ray (a centre); with spacing 0 each event is one `ray` dab the server picks.
+    A grab (GRAB_SHARE of the strokes, with a dab spacing only) sends as its first dab the first
+    point the drag picks, its anchor (protocol/PROTOCOL.md, warp strokes), then one dab per
+    pointer event: the anchor moved along the drag's screen direction, GRAB_REACH vu by the
+    stroke's last event."""
 
     def __init__(self, rng: random.Random, tool: str, size: int, surface: SplatSurface, dab_spacing: float):
         self.rng = rng
-        self.params = web_client_stroke_params(tool, round(rng.uniform(4, 10), 2), round(rng.uniform(0.3, 0.8), 2))
+        self.grab = rng.random() < GRAB_SHARE and dab_spacing > 0
+        radius, strength = round(rng.uniform(4, 10), 2), round(rng.uniform(0.3, 0.8), 2)
+        self.params = {"tool": "grab", "radius": radius, "strength": 1.0} if self.grab else \
+            web_client_stroke_params(tool, radius, strength)
+        self.anchor = self.anchor_event = None
         self.drag = Drag(rng, size)
         self.picker = self.spacer = None
         if dab_spacing > 0:
@@ -184,6 +198,8 @@ class WebClientStroke:
     def pointer(self, k: int) -> list:
         """The dabs of pointer event k (0 <= k < frames), in order."""
         pressure = round(self.rng.uniform(0.5, 1.0), 2)
+        if self.grab:
+            return self._grab_pointer(k, pressure)
         if self.spacer is None:
             return [{"ray": self.drag.ray((k + 1) / self.frames), "pressure": pressure}]
         dabs = []
@@ -193,6 +209,20 @@ class WebClientStroke:
                 point = self.picker.pick(self.drag.origin((k + f) / self.frames)) or point
             dabs.append({"center": [round(c, 4) for c in point], "pressure": round(dab_pressure, 4)})
         return dabs
+
+    def _grab_pointer(self, k: int, pressure: float) -> list:
+        if self.anchor is None:
+            self.anchor = self.picker.pick(self.drag.origin((k + 1) / self.frames))
+            if self.anchor is None:
+                return []
+            self.anchor_event = k
+            point = self.anchor
+        else:
+            a, b = self.drag.origin(0), self.drag.origin(1)
+            along = math.dist(a, b)
+            reach = GRAB_REACH * (k - self.anchor_event) / max(1, self.frames - 1 - self.anchor_event)
+            point = [p + reach * (y - x) / along for p, x, y in zip(self.anchor, a, b)]
+        return [{"center": [round(c, 4) for c in point], "pressure": pressure}]
 
 
 # ------------------------------------------------------------------------------------ clients

@@ -2,7 +2,8 @@
 strokes as marzipan_load.py's web-client mode from the same seed. Its --plan mode prints the
 first strokes of one client on a splat buffer (no server); WebClientStroke makes them here
 from the same buffer and seed, and they must agree: tool, radius, strength, height, the
-number of pointer events, the dabs of each event (how many, where, how hard).
+number of pointer events, the dabs of each event (how many, where, how hard), grab strokes
+among them.
 
 Run: MARZIPAN_LOAD_CLIENT=build/tests/marzipan-load-client /usr/bin/python3 tests/load/test_load_client.py
 (ctest sets the variable). Centres are sent rounded to 4 decimals by both; the two pick with
@@ -11,6 +12,7 @@ place, hence the 2e-4 vu tolerance.
 """
 
 import json
+import math
 import os
 import random
 import subprocess
@@ -89,10 +91,24 @@ class CompiledClientAgainstPython(unittest.TestCase):
             for client in range(6):
                 d, e = self.compare(client, seed, 0.25)
                 dabs, events = dabs + d, events + e
-        # Drags that mostly hit, spaced a quarter of the radius apart: about half a dab per event
-        # on the pig (tests/load/README.md), so neither none nor one per event.
+        # Drags that mostly hit, spaced a quarter of the radius apart, and a fifth of the strokes
+        # grabs of a dab per event: neither none nor one per event.
         self.assertGreater(dabs, 0.2 * events)
-        self.assertLess(dabs, 0.9 * events)
+        self.assertLess(dabs, 0.95 * events)
+
+    def test_grab_strokes(self):
+        strokes = [s for seed in (1, 7) for client in range(6)
+                   for s in compiled_plan(self.path, client, seed, 0.25)]
+        grabs = [s for s in strokes if s["params"]["tool"] == "grab"]
+        self.assertTrue(2 <= len(grabs) <= len(strokes) // 2, (len(grabs), len(strokes)))
+        for g in grabs:
+            self.assertEqual(g["params"]["strength"], 1.0)
+            dabs = [d["center"] for event in g["pointer"] for d in event]
+            # The anchor, then one dab per pointer event from the first that picked it, the
+            # last GRAB_REACH (20) vu from the anchor.
+            first = next(k for k, event in enumerate(g["pointer"]) if event)
+            self.assertEqual(len(dabs), g["frames"] - first)
+            self.assertAlmostEqual(math.dist(dabs[0], dabs[-1]), 20.0, delta=1e-3)
 
     def test_ray_dabs_without_spacing(self):
         for client in range(3):

@@ -271,9 +271,13 @@ StrokeParams drawParams(PyRandom& rng, const std::string& tool) {
 
 WebClientStroke::WebClientStroke(PyRandom& rng, const std::string& tool, int size,
                                  const std::vector<SplatSurface::Brick>& surface, double dabSpacing)
-    : params(drawParams(rng, tool)), rng_(rng), drag_(rng, size) {
+    : rng_(rng) {
+  grab = rng.random() < kGrabShare && dabSpacing > 0;
+  params = drawParams(rng, tool);
+  if (grab) params = {"grab", params.radius, 1.0, std::nullopt, false};  // the warps' strength
+  drag_.emplace(rng, size);
   if (dabSpacing > 0) {
-    picker_.emplace(surface, drag_.origin(0), drag_.origin(1), drag_.direction());
+    picker_.emplace(surface, drag_->origin(0), drag_->origin(1), drag_->direction());
     spacer_.emplace(std::max(kMinDabSpacing, dabSpacing * params.radius));
   }
   frames = std::max(1, int(std::nearbyint(rng.uniform(0.8, 1.2) * kStrokeS * kFrameHz)));
@@ -281,20 +285,38 @@ WebClientStroke::WebClientStroke(PyRandom& rng, const std::string& tool, int siz
 
 std::vector<WireDab> WebClientStroke::pointer(int k) {
   const double pressure = pyRound(rng_.uniform(0.5, 1.0), 2);
+  if (grab) return grabPointer(k, pressure);
   if (!spacer_) {
-    Vec o = drag_.origin((k + 1) / double(frames));
+    Vec o = drag_->origin((k + 1) / double(frames));
     for (double& c : o) c = pyRound(c, 2);
-    return {{o, pressure, true, drag_.direction()}};
+    return {{o, pressure, true, drag_->direction()}};
   }
   std::vector<WireDab> dabs;
-  for (const auto& dab : spacer_->add(picker_->pick(drag_.origin((k + 1) / double(frames))), pressure)) {
+  for (const auto& dab : spacer_->add(picker_->pick(drag_->origin((k + 1) / double(frames))), pressure)) {
     Vec point = dab.point;
     if (dab.fraction < 1)  // between two samples: on the surface under its own ray
-      if (const auto hit = picker_->pick(drag_.origin((k + dab.fraction) / frames))) point = *hit;
+      if (const auto hit = picker_->pick(drag_->origin((k + dab.fraction) / frames))) point = *hit;
     for (double& c : point) c = pyRound(c, 4);
     dabs.push_back({point, pyRound(dab.pressure, 4)});
   }
   return dabs;
+}
+
+std::vector<WireDab> WebClientStroke::grabPointer(int k, double pressure) {
+  Vec point;
+  if (!anchor_) {
+    anchor_ = picker_->pick(drag_->origin((k + 1) / double(frames)));
+    if (!anchor_) return {};
+    anchorEvent_ = k;
+    point = *anchor_;
+  } else {
+    const Vec a = drag_->origin(0), b = drag_->origin(1), ab = sub(b, a);
+    const double along = std::sqrt(dot(ab, ab));
+    const double reach = kGrabReach * (k - anchorEvent_) / std::max(1, frames - 1 - anchorEvent_);
+    for (int i = 0; i < 3; ++i) point[i] = (*anchor_)[i] + reach * ab[i] / along;
+  }
+  for (double& c : point) c = pyRound(c, 4);
+  return {{point, pressure}};
 }
 
 }  // namespace marzipan::load

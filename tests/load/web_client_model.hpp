@@ -52,6 +52,8 @@ inline constexpr double kPauseS = 0.25;  // between a stroke's end and the next 
 inline constexpr int kMaxInFlight = 3;
 inline constexpr int kMaxDabs = 256;
 inline constexpr const char* kTools[] = {"add_blob", "remove_blob", "smooth"};
+inline constexpr double kGrabShare = 0.2;   // of the strokes, with dab spacing only
+inline constexpr double kGrabReach = 20.0;  // vu the anchor is dragged by the stroke's end
 
 // A session's splats by brick as a client holds them; a snapshot shares the bricks' points.
 class SplatSurface {
@@ -117,7 +119,8 @@ class DabSpacer {
   double travelled_ = 0;
 };
 
-// marzipan_load.py's WebClientStroke: one stroke's parameters and the dabs of its pointer events.
+// marzipan_load.py's WebClientStroke: one stroke's parameters and the dabs of its pointer events
+// (a grab: the anchor first, then the anchor dragged along the drag's screen direction).
 struct StrokeParams {
   std::string tool;
   double radius = 0, strength = 0;
@@ -135,14 +138,18 @@ class WebClientStroke {
   WebClientStroke(PyRandom& rng, const std::string& tool, int size, const std::vector<SplatSurface::Brick>& surface,
                   double dabSpacing);
   std::vector<WireDab> pointer(int k);
+  bool grab = false;
   StrokeParams params;
   int frames = 1;
 
  private:
+  std::vector<WireDab> grabPointer(int k, double pressure);
   PyRandom& rng_;
-  Drag drag_;
+  std::optional<Drag> drag_;
   std::optional<StrokePicker> picker_;
   std::optional<DabSpacer> spacer_;
+  std::optional<Vec> anchor_;
+  int anchorEvent_ = 0;
 };
 
 }  // namespace marzipan::load
