@@ -114,7 +114,7 @@ struct Config {
 // What all clients count, as marzipan_load.py's WorkerStats.
 struct Stats {
   bool closing = false;
-  std::map<std::string, long> sent, errors, notifications, anomalies, unexpectedCloses;
+  std::map<std::string, long> sent, errors, notifications, anomalies, unexpectedCloses, strokeTools;
   json errorSamples = json::array();
   long answered = 0, dabsApplied = 0, deltas = 0, deltaBytes = 0, fullBuffers = 0, pointerEvents = 0;
   std::vector<double> dabsLatency, dabsSent, deltaLatency, dabDeltaLatency, sendLag, loopLag;
@@ -373,6 +373,7 @@ class Client {
     ++strokeNumber_;
     // The browser picks a stroke's dabs on its splats as they were at the press.
     plan_.emplace(rng_, tool, cfg_.size, session_.surface.snapshot(), cfg_.dabSpacing);
+    ++stats_.strokeTools[plan_->params.tool];
     stroke_ = nullptr;
     begun_ = failed_ = pointerDone_ = ending_ = false;
     inFlight_ = 0;
@@ -615,6 +616,7 @@ int runClients(const Config& cfg) {
       {"dab_delta_latency", stats.dabDeltaLatency},
       {"dabs_per_message", stats.dabsPerMessage},
       {"pointer_events", stats.pointerEvents},
+      {"stroke_tools", stats.strokeTools},
       {"session_dabs_latency", keyed(stats.sessionDabsLatency)},
       {"session_delta_latency", keyed(stats.sessionDeltaLatency)},
       {"other_latency", stats.otherLatency},

@@ -439,6 +439,7 @@ class LoadClient:
             stroke_number += 1
             # The browser picks a stroke's dabs on its splats as they were at the press.
             plan = WebClientStroke(self.rng, tool, self.args["size"], self.session.surface, self.args["dab_spacing"])
+            self.stats.stroke_tools[plan.params["tool"]] += 1
             queue = []  # (dab, pointer time)
             in_flight = 0
             stroke = None
@@ -621,6 +622,7 @@ class WorkerStats:
         self.dab_delta_latency = []  # web-client mode: pointer event until the delta showing its dab
         self.dabs_per_message = []  # web-client mode
         self.pointer_events = 0  # web-client mode
+        self.stroke_tools = collections.Counter()  # web-client mode: strokes begun, by tool
         self.session_dabs_latency = {s: [] for s in sessions}
         self.session_delta_latency = {s: [] for s in sessions}
         self.other_latency = collections.defaultdict(list)
@@ -712,7 +714,7 @@ async def worker_main(spec: dict, conn, start_event, start_time) -> dict:
         "unexpected_closes": dict(stats.unexpected_closes), "failures": failures,
         "dabs_latency": stats.dabs_latency, "dabs_sent": stats.dabs_sent, "delta_latency": stats.delta_latency,
         "dab_delta_latency": stats.dab_delta_latency, "dabs_per_message": stats.dabs_per_message,
-        "pointer_events": stats.pointer_events,
+        "pointer_events": stats.pointer_events, "stroke_tools": dict(stats.stroke_tools),
         "session_dabs_latency": stats.session_dabs_latency, "session_delta_latency": stats.session_delta_latency,
         "other_latency": dict(stats.other_latency), "send_lag": stats.send_lag, "loop_lag": stats.loop_lag,
         "dabs_applied": stats.dabs_applied, "deltas": stats.deltas, "delta_bytes": stats.delta_bytes,
@@ -1129,6 +1131,7 @@ def report(args, specs, results, failures, sampler, idle, final, t0, load_before
         "dabs_per_message": None if not dabs_per_message else
         {"mean": round(dabs_sent / len(dabs_per_message), 2), "max": max(dabs_per_message)},
         "pointer_events": pointer_events if args.mode == "web-client" else None,
+        "strokes_by_tool": counter_sum(results, "stroke_tools") if args.mode == "web-client" else None,
         "dabs_per_pointer_event": round(dabs_sent / pointer_events, 3) if args.mode == "web-client" and pointer_events else None,
         "dab_applications": applications,
         "dabs_per_application": None if not applications else round(dabs_applied / applications, 2),
