@@ -329,30 +329,29 @@ double trilinear(const DenseGrid& g, Vec3 p, float band) {
   return lerp(lerp(c00, c10, ty), lerp(c01, c11, ty), tz);
 }
 
+Box unite(const Box& a, const Box& b);
+
 // The box of the bricks where vol and base differ (empty when none): what earlier calls of the
-// stroke changed.
-Box changedSinceBase(const Volume& vol, const Volume& base) {
-  Box out{{0, 0, 0}, {0, 0, 0}};
-  bool any = false;
+// stroke changed. Every brick of the volume is looked at, a layer of bricks per task: on a
+// grab message's critical path this scan was the longest serial part.
+Box changedSinceBase(const Volume& vol, const Volume& base, ThreadPool& pool) {
   const Int3 n = vol.brickDims();
-  for (int z = 0; z < n.z; ++z)
+  std::vector<Box> layers(std::size_t(n.z));
+  pool.parallelFor(std::size_t(n.z), [&](std::size_t z) {
+    Box out{};
     for (int y = 0; y < n.y; ++y)
       for (int x = 0; x < n.x; ++x) {
         float uv = 0, ub = 0;
-        const Int3 b{x, y, z};
+        const Int3 b{x, y, int(z)};
         const float* dv = vol.brickData(b, &uv);
         const float* db = base.brickData(b, &ub);
         if (dv == db && (dv || uv == ub)) continue;
-        const Box bb = Bricks::box(b);
-        if (!any) {
-          out = bb;
-          any = true;
-        }
-        for (int a = 0; a < 3; ++a) {
-          out.lo[a] = std::min(out.lo[a], bb.lo[a]);
-          out.hi[a] = std::max(out.hi[a], bb.hi[a]);
-        }
+        out = unite(out, Bricks::box(b));
       }
+    layers[z] = out;
+  });
+  Box out{};
+  for (const Box& b : layers) out = unite(out, b);
   return out.intersect(vol.domain());
 }
 
@@ -546,7 +545,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // Earlier calls of the stroke may have changed bricks beyond this region: base's values go
   // back there. When base is vol itself (a snake hook's move) there are none, and the scan of
   // every brick of the volume is spared.
-  const Box earlier = &vol == &base ? Box{} : changedSinceBase(vol, base);
+  const Box earlier = &vol == &base ? Box{} : changedSinceBase(vol, base, pool);
   Edit edit;
   if (earlier.empty() || unite(region, earlier) == region) {
     if (!region.empty()) edit.append(vol.scatter(region, s.warped.v.data(), s.warped.box, pool), region);
