@@ -250,25 +250,39 @@ std::uint64_t brickDigestTerm(Int3 brick, const BrickRef& ref) {
       std::memcpy(&w, ref.data->v + i, sizeof w);
       h = mixWord(h, w);
     }
+    if (ref.paint) {
+      h = mixWord(h, 0x3c6ef372fe94f82bull);
+      for (int i = 0; i < kBrickVoxels; i += 2) {
+        const Texel a = ref.paint->t[i], b = ref.paint->t[i + 1];
+        h = mixWord(h, std::uint64_t(a.r) | std::uint64_t(a.g) << 8 | std::uint64_t(a.b) << 16 | std::uint64_t(a.mask) << 24 |
+                           std::uint64_t(b.r) << 32 | std::uint64_t(b.g) << 40 | std::uint64_t(b.b) << 48 |
+                           std::uint64_t(b.mask) << 56);
+      }
+    }
   }
   // Terms are summed: each must be well spread on its own.
   return finalMix(h);
 }
 
-std::uint64_t digestFromTerms(Int3 dims, float band, std::uint64_t termSum) {
+std::uint64_t digestFromTerms(Int3 dims, float band, std::uint64_t termSum, Rgb8 base) {
   std::uint64_t h = mixWord(0xbb67ae8584caa73bull, std::uint64_t(dims.x) | std::uint64_t(dims.y) << 20 | std::uint64_t(dims.z) << 40);
   h = mixWord(h, std::bit_cast<std::uint32_t>(band));
   h = mixWord(h, termSum);
+  if (base != kClayColor) h = mixWord(h, 0x1000000ull | std::uint64_t(base.r) | std::uint64_t(base.g) << 8 | std::uint64_t(base.b) << 16);
   return finalMix(h);
 }
 
-std::uint64_t digest(const Volume& vol) { return digestFromTerms(vol.dims(), vol.band(), digestTermSum(vol)); }
+std::uint64_t digest(const Volume& vol) {
+  return digestFromTerms(vol.dims(), vol.band(), digestTermSum(vol), vol.baseColor());
+}
 
 std::uint64_t digestTermSum(const Volume& vol) {
   std::uint64_t sum = 0;
   vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
     BrickRef ref;
+    // Aliases without ownership: the volume holds both for the call.
     ref.data = std::shared_ptr<const Brick>(std::shared_ptr<const Brick>(), &br);
+    if (const BrickPaint* p = vol.brickPaint(b)) ref.paint = std::shared_ptr<const BrickPaint>(std::shared_ptr<const BrickPaint>(), p);
     sum += brickDigestTerm(b, ref);
   });
   vol.forEachInsideBrick([&](Int3 b) { sum += brickDigestTerm(b, BrickRef{nullptr, true}); });

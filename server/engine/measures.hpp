@@ -39,13 +39,17 @@ GradientError gradientError(const Volume& vol, const Box& region);
 // A 64-bit hash of the field (dims, band and every brick's values): identical volumes have
 // identical digests whatever their history. It is a sum (mod 2^64) of one term per brick, so a
 // session can follow it through edits by swapping the terms of the changed bricks instead of
-// reading the whole volume: digest = digestFromTerms(dims, band, sum of brickDigestTerm).
+// reading the whole volume: digest = digestFromTerms(dims, band, sum of brickDigestTerm, base).
+// The channels (channels.hpp) count once painted: a brick's BrickPaint is hashed into its term,
+// and a base colour other than kClayColor into the whole; a volume never painted, of the clay
+// colour, has the digest it had before volumes had channels (journals and pinned digests hold).
 std::uint64_t digest(const Volume& vol);
 std::string digestHex(const Volume& vol);
 // A brick's term: 0 for uniform outside (what an absent brick is), a hash of its position and
-// kind for uniform inside, and of its position and every value for a brick with data.
+// kind for uniform inside, and of its position and every value (then every texel, when it has
+// channels) for a brick with data.
 std::uint64_t brickDigestTerm(Int3 brick, const BrickRef& ref);
-std::uint64_t digestFromTerms(Int3 dims, float band, std::uint64_t termSum);
+std::uint64_t digestFromTerms(Int3 dims, float band, std::uint64_t termSum, Rgb8 base = kClayColor);
 std::uint64_t digestTermSum(const Volume& vol);
 std::string digestText(std::uint64_t digest);  // 16 lower-case hex digits
 

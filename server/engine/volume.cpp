@@ -25,6 +25,7 @@ namespace {
 
 // make_shared keeps the brick and its control block in one allocation; this is its size.
 constexpr std::size_t kBrickAllocation = sizeof(Brick) + 2 * sizeof(void*) + 16;
+constexpr std::size_t kPaintAllocation = sizeof(BrickPaint) + 2 * sizeof(void*) + 16;
 
 #if defined(MARZIPAN_AVX2)
 
@@ -189,6 +190,23 @@ void fillWholeBrick(float* to, std::size_t sx, std::size_t sxy, float value) {
 #endif
 }
 
+// The mask (channels.hpp): each voxel of a new brick moved back towards its old value by its
+// weight, all the way at 255. Old and new lie within the band, and so does what lies between.
+// Whether some voxel still differs from the old brick.
+bool holdMasked(float* now, const float* old, const BrickPaint& paint) {
+  bool differs = false;
+  for (int i = 0; i < kBrickVoxels; ++i) {
+    const int w = paint.t[i].mask;
+    if (w == 255) {
+      now[i] = old[i];
+    } else if (w != 0) {
+      now[i] = old[i] + (1.0f - float(w) / 255.0f) * (now[i] - old[i]);
+    }
+    differs = differs || now[i] != old[i];
+  }
+  return differs;
+}
+
 }  // namespace
 
 Volume::Volume(Int3 dims, float band) : dims_(dims), band_(band) {
@@ -225,7 +243,65 @@ BrickRef Volume::brick(Int3 b) const {
   const Tile* t = tiles_[ti].get();
   if (!t) return {nullptr, tileInside_[ti] != 0};
   const int s = slotInTile(b);
+  if (paintedBricks_ != 0)
+    if (const PaintTile* pt = paintTiles_[ti].get()) return {t->bricks[s], t->inside[s], pt->paint[s]};
   return {t->bricks[s], t->inside[s]};
+}
+
+const BrickPaint* Volume::brickPaint(Int3 b) const {
+  if (paintedBricks_ == 0) return nullptr;
+  const PaintTile* pt = paintTiles_[tileIndex(b)].get();
+  return pt ? pt->paint[slotInTile(b)].get() : nullptr;
+}
+
+Texel Volume::texel(Int3 p) const {
+  if (paintedBricks_ == 0 || p.x < 0 || p.y < 0 || p.z < 0 || p.x >= dims_.x || p.y >= dims_.y || p.z >= dims_.z)
+    return texelOf(base_);
+  const BrickPaint* bp = brickPaint(Bricks::brickOf(p));
+  return bp ? bp->t[Bricks::indexOf(p)] : texelOf(base_);
+}
+
+void Volume::gatherTexels(const Box& box, Texel* out) const {
+  if (box.empty()) return;
+  const Int3 s = box.size();
+  const std::size_t sx = std::size_t(s.x), sxy = sx * std::size_t(s.y);
+  std::fill(out, out + sxy * std::size_t(s.z), texelOf(base_));
+  const Box inside = box.intersect(domain());
+  if (paintedBricks_ == 0 || inside.empty()) return;
+  const Box bricks = Bricks::bricksOf(inside);
+  for (int bz = bricks.lo.z; bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        const BrickPaint* bp = brickPaint({bx, by, bz});
+        if (!bp) continue;
+        const Box here = Bricks::box({bx, by, bz}).intersect(inside);
+        const Int3 o = Bricks::origin({bx, by, bz});
+        for (int z = here.lo.z; z < here.hi.z; ++z)
+          for (int y = here.lo.y; y < here.hi.y; ++y) {
+            const Texel* from = bp->t + Bricks::index(here.lo.x - o.x, y - o.y, z - o.z);
+            Texel* to = out + std::size_t(here.lo.x - box.lo.x) + sx * std::size_t(y - box.lo.y) +
+                        sxy * std::size_t(z - box.lo.z);
+            std::copy(from, from + (here.hi.x - here.lo.x), to);
+          }
+      }
+}
+
+void Volume::setBaseColor(Rgb8 c) {
+  if (paintedBricks_ != 0)
+    throw EngineError(ErrorKind::InvalidArgument, "color", "the base colour can only be set before anything is painted");
+  base_ = c;
+}
+
+std::shared_ptr<const BrickPaint> Volume::canonicalPaint(std::shared_ptr<BrickPaint> paint) const {
+  const Texel base = texelOf(base_);
+  bool plain = true, masked = false;
+  for (const Texel& t : paint->t) {
+    plain = plain && t == base;
+    masked = masked || t.mask != 0;
+  }
+  if (plain) return nullptr;
+  paint->masked = masked;
+  return paint;
 }
 
 const float* Volume::brickData(Int3 b, float* uniformValue) const {
@@ -380,8 +456,11 @@ Vec3 Volume::voxelGradient(Int3 p) const {
 std::size_t Volume::memoryBytes() const {
   std::size_t tiles = 0;
   for (const auto& t : tiles_) tiles += t ? 1 : 0;
+  std::size_t paintTiles = 0;
+  for (const auto& t : paintTiles_) paintTiles += t ? 1 : 0;
   return presentBricks_ * kBrickAllocation + tiles * sizeof(Tile) + tiles_.size() * sizeof(tiles_[0]) +
-         tileInside_.size() + sizeof(*this);
+         tileInside_.size() + paintedBricks_ * kPaintAllocation + paintTiles * sizeof(PaintTile) +
+         paintTiles_.size() * sizeof(paintTiles_[0]) + sizeof(*this);
 }
 
 std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox) {
@@ -461,6 +540,9 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         const float* stored = brickData(b, &uniform);
         if (!brickChanges(b, here, stored, uniform, src, srcBox)) continue;
         BrickRef old = brick(b);
+        // Channels stay with a brick that stays stored; the mask holds its voxels back.
+        std::shared_ptr<const BrickPaint> paint = old.paint;
+        const bool masked = paint && paint->masked;
         // Every voxel is set below: no zero-fill first.
         auto nb = std::make_shared_for_overwrite<Brick>();
         // Voxels of the brick outside the region keep their old values (the rule is the whole brick).
@@ -482,7 +564,7 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
         // brick: the loops have no branch per voxel. nb is dropped when it throws.
         const float lo = -band_, hi = band_;
 #if defined(MARZIPAN_SSE2)
-        if (here == Bricks::box(b)) {
+        if (here == Bricks::box(b) && !masked) {
           // A whole brick (in the domain, as the region is): the written values also tell
           // whether it is uniform, the test canonicalBrick would make reading them again.
           const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
@@ -501,7 +583,8 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
             }
           if (_mm_movemask_ps(bad)) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
           const bool allOut = _mm_movemask_ps(notOut) == 0, allIn = _mm_movemask_ps(notIn) == 0;
-          changes.push_back({b, std::move(old), allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false}});
+          changes.push_back({b, std::move(old),
+                             allOut || allIn ? BrickRef{nullptr, allIn} : BrickRef{std::move(nb), false, std::move(paint)}});
           continue;
         }
 #endif
@@ -539,9 +622,13 @@ void Volume::diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const
             }
         }
         if (nan) throw EngineError(ErrorKind::InvalidArgument, "src", "values must not be NaN");
-        // brickChanges found a voxel whose clamped value differs (!=) from the stored one: the
-        // new brick cannot equal the old, byte for byte or as the same uniform side.
-        changes.push_back({b, std::move(old), canonicalBrick(b, std::move(nb))});
+        if (masked && !holdMasked(nb->v, old.data->v, *paint)) continue;
+        // brickChanges found a voxel whose clamped value differs (!=) from the stored one (and
+        // the mask let one move): the new brick cannot equal the old, byte for byte or as the
+        // same uniform side.
+        BrickRef now = canonicalBrick(b, std::move(nb));
+        if (now.data) now.paint = std::move(paint);
+        changes.push_back({b, std::move(old), std::move(now)});
       }
 }
 
@@ -615,6 +702,7 @@ void Volume::setSlots(std::size_t n, SlotAt slotAt) {
       t = std::make_shared<Tile>();
       if (tileInside_[ti]) t->inside.set();
     }
+    std::shared_ptr<PaintTile> pt;  // the tile's channels, copied at the first slot whose channels change
     for (; i < n && order[i].first == ti; ++i) {
       const auto [b, refPtr] = slotAt(order[i].second);
       const int s = slotInTile(b);
@@ -624,6 +712,24 @@ void Volume::setSlots(std::size_t n, SlotAt slotAt) {
       presentBricks_ -= (t->bricks[s] ? 1 : 0);
       t->bricks[s] = ref.data;
       t->inside[s] = ref.data ? false : ref.inside;
+      // A uniform slot carries no channels.
+      const BrickPaint* paint = ref.data ? ref.paint.get() : nullptr;
+      const BrickPaint* had = pt                                         ? pt->paint[s].get()
+                              : !paintTiles_.empty() && paintTiles_[ti] ? paintTiles_[ti]->paint[s].get()
+                                                                         : nullptr;
+      if (paint == had) continue;
+      if (!pt) {
+        if (paintTiles_.empty()) paintTiles_.assign(tiles_.size(), nullptr);
+        pt = paintTiles_[ti] ? std::make_shared<PaintTile>(*paintTiles_[ti]) : std::make_shared<PaintTile>();
+      }
+      pt->present += (paint ? 1 : 0) - (had ? 1 : 0);
+      paintedBricks_ = paintedBricks_ + (paint ? 1 : 0) - (had ? 1 : 0);
+      pt->paint[s] = paint ? ref.paint : nullptr;
+    }
+    if (pt) {
+      paintTiles_[ti] = pt->present != 0 ? std::move(pt) : nullptr;
+      // Painted back to nothing: as a volume never painted, in memory too.
+      if (paintedBricks_ == 0) paintTiles_.clear();
     }
     // A tile whose real bricks are all uniform on one side collapses to a null tile.
     bool collapse = t->present == 0;

@@ -12,15 +12,21 @@
 //   shares every brick; an edit publishes new bricks and new tiles and leaves copies alone.
 //   A copy may be handed to another thread and read there without any lock while the
 //   original goes on being edited on its own thread.
+// - Channels (channels.hpp): a stored brick may carry a BrickPaint (colour and mask weight of
+//   each voxel) in a slot of the same address, kept in tiles of their own that exist only once
+//   something is painted: an unpainted volume stores nothing more than a colourless one.
+//   A BrickRef names both; an edit of either is a BrickChange like any other (undo, redo).
 #pragma once
 
 #include <bitset>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "brick.hpp"
+#include "channels.hpp"
 #include "geometry.hpp"
 #include "protocol/cpp/values.hpp"  // kMaxDomainSide
 
@@ -32,14 +38,20 @@ struct Brick {
   float v[kBrickVoxels];  // index Bricks::index(local voxel)
 };
 
-// One slot of the brick table: shared voxel data, or uniform inside/outside when data is null.
+// One slot of the brick table: shared voxel data, or uniform inside/outside when data is null;
+// with data, its channels, or null for the base colour and weight 0 throughout.
 struct BrickRef {
+  BrickRef() = default;
+  BrickRef(std::shared_ptr<const Brick> d, bool in, std::shared_ptr<const BrickPaint> p = nullptr)
+      : data(std::move(d)), inside(in), paint(std::move(p)) {}
+
   std::shared_ptr<const Brick> data;
   bool inside = false;  // meaningful only when data is null
+  std::shared_ptr<const BrickPaint> paint;  // null when data is null
 
   bool uniform() const { return !data; }
   friend bool operator==(const BrickRef& a, const BrickRef& b) {
-    return a.data == b.data && (a.data || a.inside == b.inside);
+    return a.data == b.data && (a.data || a.inside == b.inside) && a.paint == b.paint;
   }
 };
 
@@ -62,6 +74,11 @@ class Volume {
   float band() const { return band_; }
   Int3 brickDims() const { return brickDims_; }
 
+  // The colour of every voxel nothing has painted (channels.hpp). Settable only while nothing is
+  // painted (throws EngineError "color" otherwise): it is what an absent BrickPaint means.
+  Rgb8 baseColor() const { return base_; }
+  void setBaseColor(Rgb8 c);
+
   // Counts published edits; saved with the volume. The service sets it after undo/redo.
   std::uint64_t revision() const { return revision_; }
   void setRevision(std::uint64_t r) { revision_ = r; }
@@ -82,6 +99,19 @@ class Volume {
   // Central-difference gradient at a voxel.
   Vec3 voxelGradient(Int3 p) const;
 
+  // The brick's channels, or null (base colour, weight 0); b must be within brickDims().
+  const BrickPaint* brickPaint(Int3 b) const;
+  // The channels of voxel p: the base colour and weight 0 where nothing is painted or outside
+  // the domain.
+  Texel texel(Int3 p) const;
+  // Copies the channels of box into out (x fastest, then y, then z), as gather() the distances.
+  void gatherTexels(const Box& box, Texel* out) const;
+  // Stored bricks that carry channels; 0 for a volume never painted (or painted back to base).
+  std::size_t paintedBricks() const { return paintedBricks_; }
+  // Calls fn(brickCoord, const BrickPaint&) for every brick with channels, in z,y,x order.
+  template <class F>
+  void forEachPaintedBrick(F&& fn) const;
+
   std::size_t presentBricks() const { return presentBricks_; }
   // Calls fn(brickCoord, const Brick&) for every brick that stores data, in z,y,x order.
   template <class F>
@@ -90,7 +120,7 @@ class Volume {
   template <class F>
   void forEachInsideBrick(F&& fn) const;
 
-  // Bytes held by this version: bricks, tiles and the tile table.
+  // Bytes held by this version: bricks, tiles and the tile table, and the channels' bricks and tiles.
   std::size_t memoryBytes() const;
 
   // --- editing -------------------------------------------------------------------------
@@ -98,6 +128,9 @@ class Volume {
   // srcBox (x fastest) that must contain the clipped region. Values are clamped to +-band.
   // Publishes one new brick per brick whose values really changed (a brick that becomes
   // uniform is stored as such) and returns the changes, old bricks included.
+  // The mask: a voxel of weight w (channels.hpp) takes old + (1 - w/255) (new - old) in float,
+  // its old value exactly at 255; a brick that then equals its old one is no change. A changed
+  // brick that stays stored keeps its channels, one that becomes uniform loses them.
   std::vector<BrickChange> scatter(const Box& region, const float* src, const Box& srcBox);
   // The same with the comparison (diff) spread over the pool: the same changes in the same order.
   std::vector<BrickChange> scatter(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool);
@@ -117,6 +150,10 @@ class Volume {
   // Writes the padding into `data`; safe to call from several threads at once.
   BrickRef canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const;
 
+  // The channels' slot for newly computed texels: null when every texel is the base colour
+  // with weight 0, else `paint` with its `masked` flag set. Safe to call from several threads.
+  std::shared_ptr<const BrickPaint> canonicalPaint(std::shared_ptr<BrickPaint> paint) const;
+
   // Sets every voxel of the domain to the given uniform side (used for clearing).
   std::vector<BrickChange> fill(bool inside);
 
@@ -129,6 +166,11 @@ class Volume {
   struct Tile {
     std::shared_ptr<const Brick> bricks[kTileBricks];
     std::bitset<kTileBricks> inside;
+    int present = 0;
+  };
+  // The channels of a tile's bricks; a tile with none has no PaintTile.
+  struct PaintTile {
+    std::shared_ptr<const BrickPaint> paint[kTileBricks];
     int present = 0;
   };
 
@@ -156,6 +198,10 @@ class Volume {
   // A null tile is uniform: every brick of it inside (tileInside_ = 1) or outside.
   std::vector<std::shared_ptr<const Tile>> tiles_;
   std::vector<std::uint8_t> tileInside_;
+  // Empty until something is painted; then one per tile, null for a tile without channels.
+  std::vector<std::shared_ptr<const PaintTile>> paintTiles_;
+  std::uint32_t paintedBricks_ = 0;
+  Rgb8 base_ = kClayColor;
 };
 
 template <class F>
@@ -170,6 +216,22 @@ void Volume::forEachPresentBrick(F&& fn) const {
           continue;
         }
         if (const Brick* br = t->bricks[slotInTile(b)].get()) fn(b, *br);
+      }
+}
+
+template <class F>
+void Volume::forEachPaintedBrick(F&& fn) const {
+  if (paintedBricks_ == 0) return;
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        const PaintTile* t = paintTiles_[tileIndex(b)].get();
+        if (!t) {
+          bx = (bx / kTileSide + 1) * kTileSide - 1;
+          continue;
+        }
+        if (const BrickPaint* p = t->paint[slotInTile(b)].get()) fn(b, *p);
       }
 }
 

@@ -77,6 +77,9 @@ Int3 readAddress(const std::uint8_t* p, Int3 grid, std::uint64_t& lastKey, bool&
   return b;
 }
 
+// Version 2 is written only for what version 1 cannot hold.
+bool withChannels(const Volume& vol) { return vol.paintedBricks() != 0 || vol.baseColor() != kClayColor; }
+
 }  // namespace
 
 std::uint32_t crc32Ieee(std::span<const std::uint8_t> bytes) {
@@ -89,6 +92,7 @@ std::size_t savedVolumeSize(const Volume& vol) {
   std::size_t inside = 0;
   vol.forEachInsideBrick([&](Int3) { ++inside; });
   return kVolumeFileHeaderBytes + kVolumeFileBrickBytes * vol.presentBricks() + kVolumeFileInsideBytes * inside +
+         (withChannels(vol) ? kVolumeFileBaseColorBytes + kVolumeFilePaintBytes * vol.paintedBricks() : 0) +
          kVolumeFileTrailerBytes;
 }
 
@@ -96,11 +100,11 @@ std::vector<std::uint8_t> saveVolume(const Volume& vol) {
   std::vector<Int3> inside;
   vol.forEachInsideBrick([&](Int3 b) { inside.push_back(b); });
   const std::size_t present = vol.presentBricks();
-  std::vector<std::uint8_t> out(kVolumeFileHeaderBytes + kVolumeFileBrickBytes * present +
-                                kVolumeFileInsideBytes * inside.size() + kVolumeFileTrailerBytes);
+  const bool channels = withChannels(vol);
+  std::vector<std::uint8_t> out(savedVolumeSize(vol));
   std::uint8_t* p = out.data();
   std::memcpy(p, kMagic, 4);
-  put32(p + 4, kVolumeFileVersion);
+  put32(p + 4, channels ? 2 : 1);
   const Int3 d = vol.dims();
   put32(p + 8, std::uint32_t(d.x));
   put32(p + 12, std::uint32_t(d.y));
@@ -110,7 +114,7 @@ std::vector<std::uint8_t> saveVolume(const Volume& vol) {
   put32(p + 32, kBrickSide);
   put32(p + 36, std::uint32_t(present));
   put32(p + 40, std::uint32_t(inside.size()));
-  put32(p + 44, 0);
+  put32(p + 44, std::uint32_t(vol.paintedBricks()));
   p += kVolumeFileHeaderBytes;
   vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
     put16(p, std::uint32_t(b.x));
@@ -127,6 +131,22 @@ std::vector<std::uint8_t> saveVolume(const Volume& vol) {
     put16(p + 6, 0);
     p += kVolumeFileInsideBytes;
   }
+  if (channels) {
+    const Rgb8 base = vol.baseColor();
+    p[0] = base.r, p[1] = base.g, p[2] = base.b, p[3] = 0;
+    p += kVolumeFileBaseColorBytes;
+    vol.forEachPaintedBrick([&](Int3 b, const BrickPaint& bp) {
+      put16(p, std::uint32_t(b.x));
+      put16(p + 2, std::uint32_t(b.y));
+      put16(p + 4, std::uint32_t(b.z));
+      put16(p + 6, 0);
+      for (int i = 0; i < kBrickVoxels; ++i) {
+        const Texel t = bp.t[i];
+        p[8 + 4 * i] = t.r, p[9 + 4 * i] = t.g, p[10 + 4 * i] = t.b, p[11 + 4 * i] = t.mask;
+      }
+      p += kVolumeFilePaintBytes;
+    });
+  }
   put32(p, crc32Ieee({out.data(), out.size() - kVolumeFileTrailerBytes}));
   return out;
 }
@@ -140,8 +160,8 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
                 std::to_string(kMinSize));
   if (std::memcmp(p, kMagic, 4) != 0) formatError("not a Marzipan volume file (wrong magic bytes)");
   const std::uint32_t version = get32(p + 4);
-  if (version != kVolumeFileVersion)
-    formatError("unsupported format version " + std::to_string(version) + " (this build reads version " +
+  if (version != 1 && version != 2)
+    formatError("unsupported format version " + std::to_string(version) + " (this build reads versions 1 to " +
                 std::to_string(kVolumeFileVersion) + ")");
 
   Int3 dims;
@@ -156,19 +176,23 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
   const std::uint64_t revision = get64(p + 24);
   if (get32(p + 32) != std::uint32_t(kBrickSide))
     formatError("brick side " + std::to_string(get32(p + 32)) + " (this build uses " + std::to_string(kBrickSide) + ")");
-  if (get32(p + 44) != 0) formatError("reserved header bytes must be 0");
+  if (version == 1 && get32(p + 44) != 0) formatError("reserved header bytes must be 0");
   const Int3 grid = Bricks::gridOf(dims);
   const std::uint64_t slots = std::uint64_t(grid.x) * std::uint64_t(grid.y) * std::uint64_t(grid.z);
-  const std::uint64_t present = get32(p + 36), inside = get32(p + 40);
+  const std::uint64_t present = get32(p + 36), inside = get32(p + 40), painted = version == 2 ? get32(p + 44) : 0;
   if (present + inside > slots)
     formatError(std::to_string(present) + " stored and " + std::to_string(inside) + " inside bricks exceed the " +
                 std::to_string(slots) + " bricks of the grid");
-  const std::uint64_t expected = kVolumeFileHeaderBytes + kVolumeFileBrickBytes * present +
-                                 kVolumeFileInsideBytes * inside + kVolumeFileTrailerBytes;
+  if (painted > present)
+    formatError(std::to_string(painted) + " painted bricks exceed the " + std::to_string(present) + " stored ones");
+  const std::uint64_t expected =
+      kVolumeFileHeaderBytes + kVolumeFileBrickBytes * present + kVolumeFileInsideBytes * inside +
+      (version == 2 ? kVolumeFileBaseColorBytes + kVolumeFilePaintBytes * painted : 0) + kVolumeFileTrailerBytes;
   if (std::uint64_t(size) != expected)
-    formatError("size mismatch: the header describes " + std::to_string(present) + " stored and " +
-                std::to_string(inside) + " inside bricks, " + std::to_string(expected) + " bytes; the file has " +
-                std::to_string(size) + (std::uint64_t(size) < expected ? " (truncated)" : " (trailing bytes)"));
+    formatError("size mismatch: the header describes " + std::to_string(present) + " stored, " +
+                std::to_string(inside) + " inside and " + std::to_string(painted) + " painted bricks, " +
+                std::to_string(expected) + " bytes; the file has " + std::to_string(size) +
+                (std::uint64_t(size) < expected ? " (truncated)" : " (trailing bytes)"));
   const std::uint32_t stored = get32(p + size - kVolumeFileTrailerBytes);
   const std::uint32_t computed = crc32Ieee({p, size - kVolumeFileTrailerBytes});
   if (stored != computed) formatError("checksum mismatch: the file is corrupted");
@@ -208,6 +232,28 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
     const Int3 b = readAddress(p + at, grid, lastKey, first, "inside");
     if (seen[slot(b)]) formatError(brickName(b) + " is listed both as stored and as inside");
     changes.push_back({b, {}, BrickRef{nullptr, true}});
+  }
+  if (version == 2) {
+    const std::uint8_t* c = p + at;
+    if (c[3] != 0) formatError("the reserved byte of the base colour must be 0");
+    vol.setBaseColor({c[0], c[1], c[2]});
+    at += kVolumeFileBaseColorBytes;
+    // The stored bricks' changes are the first `present`, in the same z, y, x order.
+    std::size_t next = 0;
+    first = true;
+    for (std::uint64_t i = 0; i < painted; ++i, at += kVolumeFilePaintBytes) {
+      const Int3 b = readAddress(p + at, grid, lastKey, first, "painted");
+      while (next < present && orderKey(changes[next].brick) < orderKey(b)) ++next;
+      if (next == present || changes[next].brick != b) formatError("painted " + brickName(b) + " is not a stored brick");
+      auto bp = std::make_shared<BrickPaint>();
+      for (int k = 0; k < kBrickVoxels; ++k) {
+        const std::uint8_t* t = p + at + 8 + 4 * k;
+        bp->t[k] = {t[0], t[1], t[2], t[3]};
+      }
+      changes[next].after.paint = vol.canonicalPaint(std::move(bp));
+      if (!changes[next].after.paint)
+        formatError("painted " + brickName(b) + " holds only the base colour with weight 0 (leave it out)");
+    }
   }
   vol.publish(changes, true);
   vol.setRevision(revision);

@@ -25,11 +25,20 @@
 //   I inside bricks, 8 bytes each, in z, y, x order
 //     0   6  u16 x, y, z as above
 //     6   2  u16 reserved = 0
+//   version 2 only: the channels (channels.hpp)
+//     0   4  base colour: u8 R, G, B (sRGB), u8 reserved = 0
+//   version 2 only: C painted bricks (C: header bytes 44..48, which version 1 keeps 0), 2056
+//   bytes each, in z, y, x order, each one of the stored bricks
+//     0   8  u16 x, y, z, reserved = 0 as above
+//     8 2048 512 texels, u8 R, G, B, mask each, index x + 8 * (y + 8 * z)
 //   trailer, 4 bytes
 //     0   4  u32 CRC-32 (IEEE 802.3, as zlib's crc32) of every byte before it
 //
 // Every brick not listed is uniformly outside (+band). The file size is exactly
-// 48 + 2056 P + 8 I + 4 bytes. Every value is finite and within [-band, band] (voxels of a
+// 48 + 2056 P + 8 I + 4 bytes (version 1) or 48 + 2056 P + 8 I + 4 + 2056 C + 4 (version 2).
+// saveVolume writes version 1 for a volume with no channels and the clay base colour (the bytes
+// it wrote before volumes had channels), version 2 otherwise; loadVolume reads both. A painted
+// brick whose texels are all the base colour with weight 0 is refused (it is stored as none). Every value is finite and within [-band, band] (voxels of a
 // brick past the domain's far edge included: Volume keeps them at +band); each section is in
 // strictly increasing z, y, x order, no brick is both stored and inside, and no stored brick
 // is uniform (its voxels in the domain all -band or all +band: it is listed as inside or left
@@ -48,11 +57,13 @@
 
 namespace marzipan {
 
-inline constexpr std::uint32_t kVolumeFileVersion = 1;
+inline constexpr std::uint32_t kVolumeFileVersion = 2;  // the newest; version 1 still loads
 inline constexpr std::size_t kVolumeFileHeaderBytes = 48;
 inline constexpr std::size_t kVolumeFileBrickBytes = 8 + 4 * std::size_t(kBrickVoxels);
 inline constexpr std::size_t kVolumeFileInsideBytes = 8;
 inline constexpr std::size_t kVolumeFileTrailerBytes = 4;
+inline constexpr std::size_t kVolumeFileBaseColorBytes = 4;
+inline constexpr std::size_t kVolumeFilePaintBytes = 8 + 4 * std::size_t(kBrickVoxels);
 
 std::vector<std::uint8_t> saveVolume(const Volume& vol);
 // The size saveVolume(vol) will have, without building it.
@@ -61,7 +72,7 @@ std::size_t savedVolumeSize(const Volume& vol);
 // Throws EngineError Format (field "file") for anything but a valid file as described above:
 // wrong magic, unknown version, wrong size, checksum mismatch, out-of-range header values,
 // bricks outside the grid, out of order or listed twice, uniform stored bricks, values NaN or
-// beyond +-band. Never reads out of bounds
+// beyond +-band, painted bricks that are not stored or hold only the base colour. Never reads out of bounds
 // and allocates nothing from the header's counts before the file's size has confirmed them.
 Volume loadVolume(std::span<const std::uint8_t> bytes);
 

@@ -401,9 +401,21 @@ MARZIPAN_BENCH("memory") {
     const double h = (c.n - 1) / 2.0;
     const Timing t = measure(1, [&] { v = makeSphere({c.n, c.n, c.n}, {h, h, h}, c.r); });
     const std::size_t band = bandVoxelsIn(v, v.domain());
+    // Painted all over: every stored brick carries channels (channels.hpp), a colour per voxel.
+    Volume painted = v;
+    std::vector<BrickChange> paint;
+    painted.forEachPresentBrick([&](Int3 b, const Brick&) {
+      auto bp = std::make_shared<BrickPaint>();
+      for (int i = 0; i < kBrickVoxels; ++i) bp->t[i] = {std::uint8_t(i), 90, 200, 0};
+      BrickRef now = painted.brick(b);
+      now.paint = painted.canonicalPaint(std::move(bp));
+      paint.push_back({b, painted.brick(b), std::move(now)});
+    });
+    painted.publish(paint, true);
     emit("memory", opt.threads, t,
          {{"size", c.n}, {"radius", c.r}, {"bytes", v.memoryBytes()}, {"bricks", v.presentBricks()},
           {"band_voxels", band}, {"bytes_per_band_voxel", double(v.memoryBytes()) / double(band)},
+          {"painted_bytes", painted.memoryBytes()}, {"painted_bricks", painted.paintedBricks()},
           {"openvdb_bytes", c.n == 256 ? 10.55e6 : 0.0}});
   }
 }

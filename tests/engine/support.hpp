@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <iostream>
+#include <memory>
+#include <vector>
 #include <numbers>
 #include <string_view>
 
@@ -72,6 +74,23 @@ inline int strayBandVoxels(const Volume& v) {
         stray += found ? 0 : 1;
       }
   return stray;
+}
+
+// Gives every stored brick of vol the channels texelAt(brick, local index) and publishes them:
+// channels without the paint tool, for the tests of storage, digest and file. Returns the changes.
+template <class TexelAt>
+std::vector<BrickChange> paintBricks(Volume& vol, TexelAt texelAt) {
+  std::vector<BrickChange> changes;
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    auto bp = std::make_shared<BrickPaint>();
+    for (int i = 0; i < kBrickVoxels; ++i) bp->t[i] = texelAt(b, i);
+    BrickRef old = vol.brick(b);
+    BrickRef now = old;
+    now.paint = vol.canonicalPaint(std::move(bp));
+    if (!(now == old)) changes.push_back({b, std::move(old), std::move(now)});
+  });
+  vol.publish(changes, true);
+  return changes;
 }
 
 }  // namespace marzipan::test

@@ -51,3 +51,34 @@ TEST_CASE("the digest tells volumes apart and ignores history", "[measures]") {
   CHECK(m.components == 1);
   CHECK(m.digest == digestHex(s1));
 }
+
+TEST_CASE("the digest counts the channels once painted, and only then", "[measures][channels]") {
+  Volume v = makeSphere({48, 48, 48}, {24, 24, 24}, 15);
+  const std::uint64_t plain = digest(v);
+  // Pinned: the digest of this sphere before volumes had channels (commit 120ebd0).
+  CHECK(digestText(plain) == "83be94b2ed256fe1");
+  const auto colored = test::paintBricks(v, [](Int3 b, int i) { return Texel{std::uint8_t(i), std::uint8_t(b.x), 9, 0}; });
+  const std::uint64_t painted = digest(v);
+  CHECK(painted != plain);
+  // One texel of one brick, or only a weight, tells volumes apart.
+  Volume one = v;
+  test::paintBricks(one, [&](Int3 b, int i) {
+    Texel t = v.brickPaint(b)->t[i];
+    if (b == colored.front().brick && i == 100) t.mask = 1;
+    return t;
+  });
+  CHECK(digest(one) != painted);
+  // Painted back to the base colour: the digest of the unpainted volume again.
+  v.publish(colored, false);
+  CHECK(digest(v) == plain);
+  // The sum of brick terms follows paint changes as a session's running digest does.
+  std::uint64_t terms = digestTermSum(v);
+  for (const BrickChange& c : colored) terms += brickDigestTerm(c.brick, c.after) - brickDigestTerm(c.brick, c.before);
+  v.publish(colored, true);
+  CHECK(digestFromTerms(v.dims(), v.band(), terms) == painted);
+  // A base colour other than the clay's counts, painted or not.
+  Volume blue({48, 48, 48});
+  const std::uint64_t clay = digest(blue);
+  blue.setBaseColor({0, 0, 255});
+  CHECK(digest(blue) != clay);
+}

@@ -1,6 +1,8 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <bit>
+#include <memory>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -455,4 +457,129 @@ TEST_CASE("diff and scatter on 1, 2 and 3 threads give the bricks of the voxel-b
     CHECK_THROWS_AS(v.scatter(region, src.data(), srcBox, pool), EngineError);
     CHECK(digest(v) == digest(base));
   }
+}
+
+// --- channels (channels.hpp) -------------------------------------------------------------
+
+using test::paintBricks;
+
+TEST_CASE("a volume never painted stores no channels and reads its base colour", "[volume][channels]") {
+  Volume v = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
+  CHECK(v.baseColor() == kClayColor);
+  CHECK(kClayColor == Rgb8{221, 181, 155});
+  CHECK(v.paintedBricks() == 0);
+  CHECK(v.texel({32, 32, 12}) == Texel{221, 181, 155, 0});
+  v.forEachPresentBrick([&](Int3 b, const Brick&) { REQUIRE(v.brickPaint(b) == nullptr); });
+  v.setBaseColor({10, 20, 30});
+  CHECK(v.texel({32, 32, 12}) == Texel{10, 20, 30, 0});
+  CHECK(v.texel({-1, 0, 0}) == Texel{10, 20, 30, 0});
+}
+
+TEST_CASE("channels cost memory per painted brick, and nothing once painted back to the base", "[volume][channels][memory]") {
+  Volume v = makeSphere({256, 256, 256}, {127.5, 127.5, 127.5}, 100);
+  const std::size_t unpainted = v.memoryBytes();
+  const std::vector<BrickChange> painted = paintBricks(v, [](Int3, int i) { return Texel{std::uint8_t(i), 0, 200, 0}; });
+  CHECK(v.paintedBricks() == v.presentBricks());
+  const std::size_t all = v.memoryBytes();
+  INFO("unpainted " << unpainted << " bytes, painted all over " << all << " bytes, " << v.presentBricks() << " bricks");
+  // One BrickPaint (2 KiB and its control block) per stored brick, plus the channels' tiles.
+  CHECK(all - unpainted >= v.presentBricks() * sizeof(BrickPaint));
+  CHECK(all - unpainted <= v.presentBricks() * (sizeof(BrickPaint) + 64) + 64 * 8300);
+  CHECK(v.texel({127, 127, 27}).b == 200);
+  // Undone, the volume is as it was, its memory too.
+  v.publish(painted, false);
+  CHECK(v.paintedBricks() == 0);
+  CHECK(v.memoryBytes() == unpainted);
+  paintBricks(v, [](Int3, int) { return Texel{1, 2, 3, 0}; });
+  CHECK_THROWS_AS(v.setBaseColor({1, 1, 1}), EngineError);
+}
+
+TEST_CASE("channels of all base texels are stored as none", "[volume][channels]") {
+  Volume v = makeSphere({32, 32, 32}, {16, 16, 16}, 9);
+  auto plain = std::make_shared<BrickPaint>();
+  std::fill(std::begin(plain->t), std::end(plain->t), texelOf(kClayColor));
+  CHECK(v.canonicalPaint(plain) == nullptr);
+  auto masked = std::make_shared<BrickPaint>(*plain);
+  masked->t[7].mask = 1;
+  const auto m = v.canonicalPaint(masked);
+  REQUIRE(m != nullptr);
+  CHECK(m->masked);
+  auto colored = std::make_shared<BrickPaint>(*plain);
+  colored->t[7].r = 0;
+  const auto c = v.canonicalPaint(colored);
+  REQUIRE(c != nullptr);
+  CHECK_FALSE(c->masked);
+}
+
+TEST_CASE("gatherTexels reads every voxel as texel() does", "[volume][channels]") {
+  Volume v = makeSphere({40, 40, 40}, {20, 20, 20}, 12);
+  paintBricks(v, [](Int3 b, int i) {
+    return (b.x + b.y) % 2 ? texelOf(kClayColor) : Texel{std::uint8_t(i), std::uint8_t(b.x), std::uint8_t(b.z), std::uint8_t(i / 2)};
+  });
+  REQUIRE(v.paintedBricks() > 0);
+  const Box box{{-3, 5, 1}, {43, 22, 30}};
+  std::vector<Texel> out(std::size_t(box.voxels()));
+  v.gatherTexels(box, out.data());
+  std::size_t k = 0, mismatches = 0;
+  for (int z = box.lo.z; z < box.hi.z; ++z)
+    for (int y = box.lo.y; y < box.hi.y; ++y)
+      for (int x = box.lo.x; x < box.hi.x; ++x) mismatches += !(out[k++] == v.texel({x, y, z}));
+  CHECK(mismatches == 0);
+}
+
+TEST_CASE("a geometry edit keeps a brick's channels, or drops them where the brick turns uniform", "[volume][channels]") {
+  Volume v = makeSphere({32, 32, 32}, {16, 16, 16}, 9);
+  paintBricks(v, [](Int3, int) { return Texel{1, 2, 3, 0}; });
+  const std::size_t painted = v.paintedBricks();
+  REQUIRE(painted == v.presentBricks());
+  // Moving the whole field by 0.25 vu changes every stored brick; all stay stored.
+  const Box all = v.domain();
+  std::vector<float> moved(std::size_t(all.voxels()));
+  v.gather(all, moved.data());
+  for (float& d : moved) d += 0.25f;
+  const auto changes = v.scatter(all, moved.data(), all);
+  CHECK(v.paintedBricks() == v.presentBricks());
+  CHECK(v.texel({16, 16, 7}) == Texel{1, 2, 3, 0});
+  // Clearing the volume drops every brick's channels.
+  const auto cleared = v.fill(false);
+  CHECK(v.paintedBricks() == 0);
+  v.publish(cleared, false);
+  CHECK(v.paintedBricks() == painted);
+  v.publish(changes, false);
+  CHECK(v.texel({16, 16, 7}) == Texel{1, 2, 3, 0});
+}
+
+TEST_CASE("the mask holds voxels back: 255 keeps them bit for bit, 128 lets them move halfway", "[volume][channels][mask]") {
+  Volume v = makeSphere({32, 32, 32}, {16, 16, 16}, 9);
+  // Weight 255 at x < 16, 128 at x >= 16 (every stored brick's voxels).
+  paintBricks(v, [](Int3 b, int i) { return Texel{221, 181, 155, std::uint8_t(Bricks::origin(b).x + Bricks::local(i).x < 16 ? 255 : 128)}; });
+  const Volume before = v;
+  const Box all = v.domain();
+  std::vector<float> old(std::size_t(all.voxels())), moved;
+  v.gather(all, old.data());
+  moved = old;
+  for (float& d : moved) d = std::clamp(d + 0.5f, -v.band(), v.band());
+  v.scatter(all, moved.data(), all);
+  std::size_t k = 0, wrong = 0, movedHalf = 0;
+  for (int z = 0; z < 32; ++z)
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x, ++k) {
+        const float now = v.at(x, y, z);
+        if (!before.brick(Bricks::brickOf(Int3{x, y, z})).data) continue;  // uniform bricks carry no mask
+        if (x < 16) {
+          wrong += std::bit_cast<std::uint32_t>(now) != std::bit_cast<std::uint32_t>(old[k]);
+        } else {
+          const float expected = old[k] + (1.0f - 128.0f / 255.0f) * (moved[k] - old[k]);
+          wrong += now != expected;
+          movedHalf += moved[k] != old[k];
+        }
+      }
+  CHECK(wrong == 0);
+  CHECK(movedHalf > 1000);
+  // Fully masked, an edit is no change at all.
+  Volume frozen = before;
+  paintBricks(frozen, [](Int3, int) { return Texel{221, 181, 155, 255}; });
+  const Volume frozenBefore = frozen;
+  CHECK(frozen.scatter(Box{{0, 0, 0}, {32, 32, 32}}.intersect(Box{{4, 4, 4}, {28, 28, 28}}), moved.data(), all).empty());
+  CHECK(digest(frozen) == digest(frozenBefore));
 }

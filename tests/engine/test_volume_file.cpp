@@ -19,6 +19,7 @@
 #include "engine/solids.hpp"
 #include "engine/volume.hpp"
 #include "engine/volume_file.hpp"
+#include "support.hpp"
 
 using namespace marzipan;
 
@@ -138,7 +139,10 @@ TEST_CASE("hand-built files with bad contents are refused with a clear reason", 
     return formatErrorOf(resealed(b));
   };
   CHECK(contains(edit([](auto& b) { b[0] = 'X'; }), "magic"));
-  CHECK(contains(edit([](auto& b) { put32(b, 4, 2); }), "version 2"));
+  CHECK(contains(edit([](auto& b) { put32(b, 4, 3); }), "version 3"));
+  CHECK(contains(edit([](auto& b) { put32(b, 4, 0); }), "version 0"));
+  // A version-1 file relabelled 2 lacks the base colour.
+  CHECK(contains(edit([](auto& b) { put32(b, 4, 2); }), "size mismatch"));
   CHECK(contains(edit([](auto& b) { put32(b, 8, 4); }), "dimension"));
   CHECK(contains(edit([](auto& b) { put32(b, 8, 2048); }), "dimension"));
   CHECK(contains(edit([](auto& b) { put32(b, 20, std::bit_cast<std::uint32_t>(10.0f)); }), "band"));
@@ -281,4 +285,119 @@ TEST_CASE("a stored brick that is uniformly inside or outside is refused", "[fil
       CHECK(contains(formatErrorOf(resealed(bytes)), "uniform"));
     }
   }
+}
+
+// --- version 2: the channels ---------------------------------------------------------------
+
+namespace {
+
+// A sphere with some bricks painted (colour varying per voxel, a weight in some) and others not.
+Volume paintedSphere() {
+  Volume v = makeSphere({40, 40, 48}, {20, 20, 24}, 13);
+  test::paintBricks(v, [](Int3 b, int i) {
+    if ((b.x + b.y + b.z) % 3 == 0) return texelOf(kClayColor);
+    return Texel{std::uint8_t(i), std::uint8_t(7 * b.x), std::uint8_t(200 - b.z), std::uint8_t(b.y % 2 ? i / 2 : 0)};
+  });
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("an unpainted volume of the clay colour is written as version 1, byte for byte as before", "[file][channels]") {
+  const Volume v = makeSolid(SolidKind::Sphere, {32, 32, 32});
+  const auto bytes = saveVolume(v);
+  CHECK(bytes[4] == 1);
+  std::size_t inside = 0;
+  v.forEachInsideBrick([&](Int3) { ++inside; });
+  CHECK(bytes.size() == 48 + 2056 * v.presentBricks() + 8 * inside + 4);
+  // The bytes of version 1 (the layout before channels): header bytes 44..48 are 0.
+  CHECK(bytes[44] == 0);
+  CHECK(bytes[45] == 0);
+  // Pinned: the size and checksum of this file as the code before channels wrote it (120ebd0).
+  CHECK(bytes.size() == 115188);
+  CHECK(crc32Ieee({bytes.data(), bytes.size() - 4}) == 0xba4cea68u);
+  CHECK(digest(loadVolume(bytes)) == digest(v));
+}
+
+TEST_CASE("a painted volume round-trips through version 2 with every texel and its base colour", "[file][channels]") {
+  Volume v = paintedSphere();
+  v.setRevision(77);
+  REQUIRE(v.paintedBricks() > 10);
+  REQUIRE(v.paintedBricks() < v.presentBricks());
+  const auto bytes = saveVolume(v);
+  CHECK(bytes[4] == 2);
+  CHECK(bytes.size() == savedVolumeSize(v));
+  std::size_t inside = 0;
+  v.forEachInsideBrick([&](Int3) { ++inside; });
+  CHECK(bytes.size() == 48 + 2056 * v.presentBricks() + 8 * inside + 4 + 2056 * v.paintedBricks() + 4);
+  const Volume back = loadVolume(bytes);
+  CHECK(digest(back) == digest(v));
+  CHECK(back.revision() == 77);
+  CHECK(back.paintedBricks() == v.paintedBricks());
+  std::size_t differ = 0;
+  v.forEachPaintedBrick([&](Int3 b, const BrickPaint& bp) {
+    const BrickPaint* other = back.brickPaint(b);
+    differ += !other || !std::equal(std::begin(bp.t), std::end(bp.t), std::begin(other->t)) || other->masked != bp.masked;
+  });
+  CHECK(differ == 0);
+  CHECK(saveVolume(back) == bytes);
+
+  // Only a base colour: version 2 with no painted brick.
+  Volume blue = makeSolid(SolidKind::Sphere, {16, 16, 16});
+  blue.setBaseColor({1, 2, 250});
+  const auto blueBytes = saveVolume(blue);
+  CHECK(blueBytes[4] == 2);
+  CHECK(loadVolume(blueBytes).baseColor() == Rgb8{1, 2, 250});
+  CHECK(digest(loadVolume(blueBytes)) == digest(blue));
+}
+
+TEST_CASE("version 2: every truncated prefix and every single-byte corruption is refused", "[file][channels][errors]") {
+  Volume v = makeSolid(SolidKind::Sphere, {16, 16, 16});
+  test::paintBricks(v, [](Int3 b, int i) { return Texel{std::uint8_t(i), std::uint8_t(b.x), 3, std::uint8_t(i % 3)}; });
+  const auto bytes = saveVolume(v);
+  REQUIRE(bytes[4] == 2);
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    const std::string e = formatErrorOf(std::span<const std::uint8_t>(bytes.data(), n));
+    REQUIRE(!e.empty());
+    REQUIRE(!contains(e, "wrong kind"));
+  }
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    auto bad = bytes;
+    bad[i] ^= 0x01;
+    const std::string e = formatErrorOf(bad);
+    REQUIRE(!e.empty());
+    REQUIRE(!contains(e, "wrong kind"));
+  }
+}
+
+TEST_CASE("version 2: painted bricks that are not stored, out of order or plain are refused", "[file][channels][errors]") {
+  const Volume v = paintedSphere();
+  const auto good = saveVolume(v);
+  REQUIRE(formatErrorOf(good).empty());
+  std::size_t inside = 0;
+  v.forEachInsideBrick([&](Int3) { ++inside; });
+  const std::size_t base = 48 + 2056 * v.presentBricks() + 8 * inside;
+  const std::size_t firstPainted = base + 4;
+  auto edit = [&](auto change) {
+    auto b = good;
+    change(b);
+    return formatErrorOf(resealed(b));
+  };
+  CHECK(contains(edit([&](auto& b) { b[base + 3] = 1; }), "reserved byte of the base colour"));
+  // An inside brick's address (never stored) for the first painted brick.
+  CHECK(contains(edit([&](auto& b) {
+                   std::memcpy(b.data() + firstPainted, b.data() + 48 + 2056 * v.presentBricks(), 6);
+                 }),
+                 "not a stored brick"));
+  CHECK(contains(edit([&](auto& b) { std::memcpy(b.data() + firstPainted + 2056, b.data() + firstPainted, 6); }),
+                 "listed twice"));
+  CHECK(contains(edit([&](auto& b) {
+                   for (int k = 0; k < kBrickVoxels; ++k) {
+                     b[firstPainted + 8 + 4 * k] = kClayColor.r, b[firstPainted + 9 + 4 * k] = kClayColor.g;
+                     b[firstPainted + 10 + 4 * k] = kClayColor.b, b[firstPainted + 11 + 4 * k] = 0;
+                   }
+                 }),
+                 "only the base colour"));
+  CHECK(contains(edit([&](auto& b) { put32(b, 44, std::uint32_t(v.presentBricks() + 1)); }), "exceed"));
+  CHECK(contains(edit([&](auto& b) { put32(b, 44, std::uint32_t(v.paintedBricks() - 1)); }), "size mismatch"));
 }
