@@ -33,6 +33,7 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
   const Volume& source = vol;  // read by the chunks, unchanged until the pass publishes
   e.changes = chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool& inner) {
     const Box region = g.box.grown(-kStencilReach);
+    level_set::gatherMask(source, g);
     BandVoxels& voxels = toolScratch().band;
     voxels.collect(g, region.grown(1), band, source);
     evolve(g, region, band, m, nullptr, voxels, inner);

@@ -109,6 +109,9 @@ struct ToolScratch {
   std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
+  // The mask weight (channels.hpp) of each voxel of `grid`, x fastest; empty when no brick the
+  // grid covers is masked (gatherMask). listMoved scales each listed voxel's speed by 1 - w/255.
+  std::vector<std::uint8_t> mask;
 };
 // One per thread (inline: a single object across the folder's files).
 inline ToolScratch& toolScratch() {
@@ -126,6 +129,10 @@ class SweptWindow;  // swept_window.hpp
 // joined in order: thread-count independent. progress: checked per piece.
 void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress);
+// Sets toolScratch().mask for a grid gathered from vol over g.box (or empties it: nothing there
+// is masked, the rule, which costs one look-up per brick). Every caller of listMoved or evolve
+// calls it after gathering, so that a grid never reads the mask of another.
+void gatherMask(const Volume& vol, const DenseGrid& g);
 // Gives a list made without a motion the speeds listMoved would have given it under m.
 void withSpeeds(MovedVoxels& moved, const Motion& m);
 

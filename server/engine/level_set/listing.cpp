@@ -266,6 +266,45 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
 
 }  // namespace
 
+void gatherMask(const Volume& vol, const DenseGrid& g) {
+  std::vector<std::uint8_t>& mask = toolScratch().mask;
+  mask.clear();
+  if (vol.paintedBricks() == 0) return;
+  const Box inside = g.box.intersect(vol.domain());
+  if (inside.empty()) return;
+  const Box bricks = Bricks::bricksOf(inside);
+  bool masked = false;
+  for (int bz = bricks.lo.z; !masked && bz < bricks.hi.z; ++bz)
+    for (int by = bricks.lo.y; !masked && by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; !masked && bx < bricks.hi.x; ++bx) {
+        const BrickPaint* p = vol.brickPaint({bx, by, bz});
+        masked = p && p->masked;
+      }
+  if (!masked) return;
+  std::vector<Texel> texels(std::size_t(g.box.voxels()));
+  vol.gatherTexels(g.box, texels.data());
+  mask.resize(texels.size());
+  for (std::size_t i = 0; i < texels.size(); ++i) mask[i] = texels[i].mask;
+}
+
+namespace {
+
+// The mask (channels.hpp): each listed voxel's speed (or window) scaled by 1 - w/255, 0 at 255.
+void holdMasked(MovedVoxels& moved, const std::vector<std::uint8_t>& mask) {
+  for (const Run& r : moved.runs)
+    for (std::uint32_t j = 0; j < r.count; ++j) {
+      const int w = mask[r.index + j];
+      if (w == 0) continue;
+      const std::size_t k = r.first + j;
+      const double keep = 1.0 - double(w) / 255.0;
+      if (!moved.window.empty()) moved.window[k] *= keep;
+      if (!moved.factor.empty()) moved.factor[k] *= keep;
+      if (!moved.step.empty()) moved.step[k] = float(double(moved.step[k]) * keep);
+    }
+}
+
+}  // namespace
+
 void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress) {
   ToolScratch& s = toolScratch();
@@ -288,6 +327,7 @@ void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* 
   } else {
     collectMoved(g, region, band, m, window, voxels, 0, voxels.index.size(), moved, progress);
   }
+  if (!s.mask.empty()) holdMasked(moved, s.mask);
 }
 
 void withSpeeds(MovedVoxels& moved, const Motion& m) {

@@ -125,6 +125,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     ToolScratch& scratch = toolScratch();
     DenseGrid& g = scratch.grid;
     g.gatherFrom(vol, group.box.grown(gatherMargin), share.part(kGatherShare), pool);
+    level_set::gatherMask(vol, g);
     const std::vector<Box> rois = [&] {
       std::vector<Box> b;
       for (const PreparedDab& d : mine) b.push_back(d.roi);

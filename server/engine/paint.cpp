@@ -1,0 +1,229 @@
+// Paint and mask strokes (paint.hpp): brick by brick, each stored brick the dabs may reach is
+// read with a ring of one voxel (for the normals), its band voxels' alphas found at their foot
+// points, and a new BrickPaint made where a texel changes.
+#include "paint.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "errors.hpp"
+#include "progress.hpp"
+
+namespace marzipan {
+
+namespace {
+
+// Bricks to paint per piece of work on the pool: a piece is a few tens of microseconds.
+constexpr std::size_t kBricksPerPiece = 16;
+
+struct PaintDab {
+  Vec3 center;
+  double weight;
+  Box reach;  // the voxels whose foot point may lie within the radius
+};
+
+class Falloff {
+ public:
+  explicit Falloff(const PaintSettings& st)
+      : radius_(st.radius), inner_(st.hardness * st.radius), strength_(st.strength) {}
+  // The alpha of a dab of weight w at offset v from its centre.
+  double alpha(Vec3 v, double w) const {
+    const double rho2 = dot(v, v);
+    if (!(rho2 < radius_ * radius_)) return 0;
+    if (rho2 <= inner_ * inner_) return strength_ * w;
+    const double rho = std::sqrt(rho2);
+    const double t = (rho - inner_) / (radius_ - inner_);
+    const double s = 1 - t * t;
+    return strength_ * w * s * s;
+  }
+
+ private:
+  double radius_, inner_, strength_;
+};
+
+// Rounded to nearest, halves up: floor(x + 0.5), lround for the non-negative values here.
+std::uint8_t toward(std::uint8_t from, double to, double e) {
+  return std::uint8_t(std::clamp(double(from) + e * (to - double(from)), 0.0, 255.0) + 0.5);
+}
+
+// The distance from p to the nearest point of box (0 inside it).
+double distanceToBox(Vec3 p, const Box& b) {
+  double s = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = b.lo[a], hi = b.hi[a] - 1;
+    const double d = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0;
+    s += d * d;
+  }
+  return std::sqrt(s);
+}
+
+// The texel t painted by e (> 0) of the way that is left.
+Texel painted(Texel t, const PaintSettings& st, double e) {
+  switch (st.mode) {
+    case PaintMode::Color: {
+      const double k = e * (1 - double(t.mask) / 255);
+      return {toward(t.r, st.color.r, k), toward(t.g, st.color.g, k), toward(t.b, st.color.b, k), t.mask};
+    }
+    case PaintMode::MaskAdd:
+      return {t.r, t.g, t.b, toward(t.mask, 255, e)};
+    case PaintMode::MaskErase:
+      return {t.r, t.g, t.b, toward(t.mask, 0, e)};
+  }
+  return t;
+}
+
+// The new channels of stored brick b, or null when no texel changes.
+// A voxel's foot point lies within band of it, so a dab reaches only the voxels within
+// radius + band of its centre: `near` are the dabs that reach some voxel of brick b.
+std::shared_ptr<BrickPaint> paintBrick(const Volume& vol, Int3 b, const PaintSettings& st, const Falloff& falloff,
+                                       std::span<const PaintDab> dabs, std::span<const PaintDab> memory,
+                                       std::vector<const PaintDab*>& near, std::vector<const PaintDab*>& remembered) {
+  const Box box = Bricks::box(b);
+  const double reach = st.radius + vol.band();
+  near.clear();
+  remembered.clear();
+  for (const PaintDab& d : dabs)
+    if (distanceToBox(d.center, box) < reach) near.push_back(&d);
+  if (near.empty()) return nullptr;
+  for (const PaintDab& d : memory)
+    if (distanceToBox(d.center, box) < reach) remembered.push_back(&d);
+  constexpr int kSide = kBrickSide + 2;
+  float d[kSide * kSide * kSide];
+  vol.gather(box.grown(1), d);
+  const float band = vol.band();
+  const BrickPaint* old = vol.brickPaint(b);
+  const Texel base = texelOf(vol.baseColor());
+  const Int3 o = Bricks::origin(b);
+  std::shared_ptr<BrickPaint> now;
+  for (int z = 0; z < kBrickSide; ++z)
+    for (int y = 0; y < kBrickSide; ++y)
+      for (int x = 0; x < kBrickSide; ++x) {
+        const int i = (x + 1) + kSide * ((y + 1) + kSide * (z + 1));
+        const double phi = d[i];
+        if (!(std::fabs(phi) <= band)) continue;
+        const Vec3 p{double(o.x + x), double(o.y + y), double(o.z + z)};
+        bool reached = false;
+        const double most = (st.radius + std::fabs(phi)) * (st.radius + std::fabs(phi));
+        for (const PaintDab* dab : near) reached = reached || dot(p - dab->center, p - dab->center) < most;
+        if (!reached) continue;
+        const Vec3 g{double(d[i + 1] - d[i - 1]), double(d[i + kSide] - d[i - kSide]),
+                     double(d[i + kSide * kSide] - d[i - kSide * kSide])};
+        const double len = length(g);
+        const Vec3 q = len > 0 ? p - g * (phi / len) : p;
+        double a = 0;
+        for (const PaintDab* dab : near) a = std::max(a, falloff.alpha(q - dab->center, dab->weight));
+        if (!(a > 0)) continue;
+        double m = 0;
+        for (const PaintDab* dab : remembered) m = std::max(m, falloff.alpha(q - dab->center, dab->weight));
+        if (!(a > m)) continue;
+        const int k = Bricks::index(x, y, z);
+        const Texel t = now ? now->t[k] : old ? old->t[k] : base;
+        const Texel n = painted(t, st, (a - m) / (1 - m));
+        if (n == t) continue;
+        if (!now) {
+          now = std::make_shared<BrickPaint>();
+          if (old) {
+            *now = *old;
+          } else {
+            std::fill(std::begin(now->t), std::end(now->t), base);
+          }
+        }
+        now->t[k] = n;
+      }
+  return now;
+}
+
+}  // namespace
+
+void checkPaintSettings(const PaintSettings& st) {
+  requireRange(st.radius, 0.5, kMaxDomainSide, "radius");
+  requireFinite(st.strength, "strength");
+  if (!(st.strength > 0 && st.strength <= 1)) throw EngineError(ErrorKind::InvalidArgument, "strength", "must be in (0, 1]");
+  if (!(st.hardness >= 0 && st.hardness < 1)) throw EngineError(ErrorKind::InvalidArgument, "hardness", "must be in [0, 1)");
+  if (st.mode != PaintMode::Color && st.mode != PaintMode::MaskAdd && st.mode != PaintMode::MaskErase)
+    throw EngineError(ErrorKind::InvalidArgument, "mode", "must be color, mask add or mask erase");
+}
+
+Edit paintStroke(Volume& vol, const PaintSettings& st, std::span<const StrokeDab> dabs,
+                 std::span<const StrokeDab> memory, ThreadPool& pool) {
+  checkPaintSettings(st);
+  const double reach = st.radius + vol.band() + 1;
+  auto prepare = [&](std::span<const StrokeDab> from, bool check) {
+    std::vector<PaintDab> out;
+    for (const StrokeDab& d : from) {
+      if (check) {
+        if (!isFinite(d.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
+        if (!(d.weight > 0 && d.weight <= 1)) throw EngineError(ErrorKind::InvalidArgument, "weight", "must be in (0, 1]");
+      } else if (!isFinite(d.center) || !(d.weight > 0 && d.weight <= 1)) {
+        continue;
+      }
+      const Box box = boxAround(d.center, {reach, reach, reach}).intersect(vol.domain());
+      if (box.empty()) {
+        if (check) throw EngineError(ErrorKind::OutOfDomain, "center", "the tool's region lies outside the volume");
+        continue;
+      }
+      out.push_back({d.center, d.weight, box});
+    }
+    return out;
+  };
+  const std::vector<PaintDab> mine = prepare(dabs, true), remembered = prepare(memory, false);
+  Edit edit;
+  if (mine.empty()) return edit;
+  Box region = mine.front().reach;
+  for (const PaintDab& d : mine)
+    for (int a = 0; a < 3; ++a) {
+      region.lo[a] = std::min(region.lo[a], d.reach.lo[a]);
+      region.hi[a] = std::max(region.hi[a], d.reach.hi[a]);
+    }
+  // The stored bricks some dab reaches, in z, y, x order.
+  std::vector<Int3> bricks;
+  const Box span = Bricks::bricksOf(region);
+  for (int bz = span.lo.z; bz < span.hi.z; ++bz)
+    for (int by = span.lo.y; by < span.hi.y; ++by)
+      for (int bx = span.lo.x; bx < span.hi.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        float uniform;
+        if (!vol.brickData(b, &uniform)) continue;
+        const Box box = Bricks::box(b);
+        if (std::any_of(mine.begin(), mine.end(),
+                        [&](const PaintDab& d) { return distanceToBox(d.center, box) < st.radius + vol.band(); }))
+          bricks.push_back(b);
+      }
+  const Falloff falloff(st);
+  Progress* const progress = Progress::current();
+  std::vector<std::shared_ptr<BrickPaint>> now(bricks.size());
+  const std::size_t pieces = (bricks.size() + kBricksPerPiece - 1) / kBricksPerPiece;
+  auto run = [&](std::size_t piece) {
+    if (progress) progress->check();
+    std::vector<const PaintDab*> near, before;
+    const std::size_t end = std::min(bricks.size(), (piece + 1) * kBricksPerPiece);
+    for (std::size_t k = piece * kBricksPerPiece; k < end; ++k)
+      now[k] = paintBrick(vol, bricks[k], st, falloff, mine, remembered, near, before);
+  };
+  if (pieces > 1 && pool.threads() > 1) {
+    pool.parallelFor(pieces, run);
+  } else {
+    for (std::size_t piece = 0; piece < pieces; ++piece) run(piece);
+  }
+  for (std::size_t k = 0; k < bricks.size(); ++k) {
+    if (!now[k]) continue;
+    BrickRef old = vol.brick(bricks[k]);
+    BrickRef after = old;
+    after.paint = vol.canonicalPaint(std::move(now[k]));
+    if (after == old) continue;
+    edit.changes.push_back({bricks[k], std::move(old), std::move(after)});
+  }
+  vol.publish(edit.changes, true);
+  edit.region = region;
+  if (progress) progress->advance(1);
+  return edit;
+}
+
+Edit paint(Volume& vol, const PaintSettings& st, Vec3 center, ThreadPool& pool) {
+  const StrokeDab dab(center);
+  return paintStroke(vol, st, {&dab, 1}, {}, pool);
+}
+
+}  // namespace marzipan
