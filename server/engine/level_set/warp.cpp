@@ -146,6 +146,47 @@ struct Velocity {
     return dot(r, r) < radius * radius;
   }
 
+  // A range [x0, x1) of the row (y, z) of `box` holding every voxel where moves() holds (a
+  // superset: the support grown by a voxel, whose rows are intervals, as it is convex), so
+  // that the loops over a box need not test each voxel of its rows outside the support.
+  std::pair<int, int> row(int y, int z, const Box& box) const {
+    const double R = radius + 1, R2 = R * R;
+    double lo = 1e300, hi = -1e300;
+    const auto ball = [&](Vec3 c) {
+      const double rest = R2 - (y - c.y) * (y - c.y) - (z - c.z) * (z - c.z);
+      if (rest <= 0) return;
+      lo = std::min(lo, c.x - std::sqrt(rest));
+      hi = std::max(hi, c.x + std::sqrt(rest));
+    };
+    ball(anchor);
+    if (kind == Kind::Capsule && segLength2 > 0) {
+      ball(anchor + seg);
+      // The cylinder between the end planes: for x = anchor.x + s, a(s) = a0 + s ax along the
+      // axis and the squared distance to its line A s^2 + B s + C + R^2.
+      const double length = std::sqrt(segLength2);
+      const Vec3 axis = seg / length, r0{0, y - anchor.y, z - anchor.z};
+      const double ax = axis.x, a0 = dot(r0, axis);
+      const double A = 1 - ax * ax, B = -2 * a0 * ax, C = dot(r0, r0) - a0 * a0 - R2;
+      double s0 = -1e300, s1 = 1e300;
+      if (A > 1e-9) {
+        const double disc = B * B - 4 * A * C;
+        if (disc <= 0) s0 = 1e300;
+        else s0 = (-B - std::sqrt(disc)) / (2 * A), s1 = (-B + std::sqrt(disc)) / (2 * A);
+      }
+      if (std::fabs(ax) > 1e-9) {
+        const double e0 = -a0 / ax, e1 = (length - a0) / ax;
+        s0 = std::max(s0, std::min(e0, e1)), s1 = std::min(s1, std::max(e0, e1));
+      } else if (a0 < -1 || a0 > length + 1) {
+        s0 = 1e300;
+      }
+      if (s0 < s1) lo = std::min(lo, anchor.x + s0), hi = std::max(hi, anchor.x + s1);
+    }
+    if (!(lo <= hi)) return {box.lo.x, box.lo.x};
+    const int x0 = int(std::max(double(box.lo.x), std::floor(lo) - 1));
+    const int x1 = int(std::min(double(box.hi.x), std::ceil(hi) + 2));
+    return {x0, std::max(x0, x1)};
+  }
+
   // An upper bound of |grad v| (max |W'| = 8 / (3 sqrt 3) for W(t) = (1 - t^2)^2).
   double lipschitz() const {
     constexpr double kMaxSlope = 8 / (3 * std::numbers::sqrt3);
@@ -454,8 +495,9 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     const int z = work.lo.z + int(i);
     Box c{{0, 0, 0}, {0, 0, 0}};
     bool any = false;
-    for (int y = work.lo.y; y < work.hi.y; ++y)
-      for (int x = work.lo.x; x < work.hi.x; ++x) {
+    for (int y = work.lo.y; y < work.hi.y; ++y) {
+      const auto [x0, x1] = v.row(y, z, work);
+      for (int x = x0; x < x1; ++x) {
         const Vec3 p{double(x), double(y), double(z)};
         if (!v.moves(p)) continue;
         const std::size_t k = s.warped.index({x, y, z});
@@ -469,6 +511,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         c.hi.x = std::max(c.hi.x, x + 1), c.hi.y = std::max(c.hi.y, y + 1);
         any = true;
       }
+    }
     changed[i] = any ? c : Box{};
     resample.advance(1.0 / slices);
   });
@@ -490,8 +533,9 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     resample.check();
     const int z = moved.lo.z + int(i);
     auto& out = kept[i];
-    for (int y = moved.lo.y; y < moved.hi.y; ++y)
-      for (int x = moved.lo.x; x < moved.hi.x; ++x) {
+    for (int y = moved.lo.y; y < moved.hi.y; ++y) {
+      const auto [x0, x1] = v.row(y, z, moved);
+      for (int x = x0; x < x1; ++x) {
         const Vec3 p{double(x), double(y), double(z)};
         if (!v.moves(p)) continue;
         const std::size_t k = s.warped.index({x, y, z});
@@ -524,6 +568,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         const double mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
         out.emplace_back(k, float(std::copysign(mag, double(value))));
       }
+    }
   });
   for (const auto& slice : kept)
     for (const auto& [k, value] : slice) s.warped.v[k] = value;
