@@ -1,8 +1,10 @@
 // The web client end to end (as client.test.mjs): orbiting and the stabiliser; the new tools.
 // What must hold: Space+drag orbits around the point under the press, which stays under it;
-// the stabiliser lays a calmer path of dabs for a shaky drag; flatten takes a bump down
-// towards the plane the server fitted, which the cursor shows (a second page and session in
-// the same browser, which saves a file's start-up).
+// the stabiliser lays a calmer path of dabs for a shaky drag; then, each with a page and
+// session of its own in the same browser (which saves a file's start-up): a grab takes a
+// sphere's side where the pointer points, 30 vu out, and back to within 0.5 vu; a snake hook
+// pulls the solid longer along the drag; flatten takes a bump down towards the plane the
+// server fitted, which the cursor shows.
 // Conventions: pixel positions in CSS pixels of the page; screenshots, downloads and measures go
 // to MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
 
@@ -127,6 +129,99 @@ async function strokeOf(page, sent, from, to, steps, beforeRelease = async () =>
     messages: mine.filter((m) => m.method === "stroke.dabs").map((m) => m.params.dabs),
   };
 }
+
+test("warps in the page: grab a sphere's side 30 vu out and back, a snake hook pulls it longer", { timeout: 300000 }, async (t) => {
+  const errors = [];
+  const page = await env.browser.context.newPage();
+  collectErrors(page, errors);
+  const sent = [];
+  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  await createSession(page, 128, "sphere");
+  const before = await splats(page);
+  const deviation = (points) => Math.max(...points.map((p) => Math.abs(norm(sub(p, CENTER)) - R0)));
+  const dev0 = deviation(before);
+  // The sphere leaves 19 vu to the grid's faces but 38 vu along its diagonals: the drags go in
+  // the screen's plane towards a corner of the grid, (1, 1, -1) for the grab and (1, -1, 1)
+  // for the snake hook (up and right, down, in the starting view).
+  const backward = await page.evaluate(() => window.marzipan.camera.backward);
+  const towards = (corner) => {
+    const w = sub(corner, backward.map((v) => v * dot(corner, backward)));
+    return w.map((v) => v / norm(w));
+  };
+  const inGrid = (p, what) => assert.ok(p.every((v) => v > 4 && v < 123), `${what} ${p.map((v) => v.toFixed(1))} lies well inside the grid`);
+  const [ccx, ccy] = await pixelOf(page, CENTER);
+  // the press: where the sphere's rim lies along w on screen, 0.8 of the way from its middle
+  const pressAt = async (w) => {
+    const [x, y] = await pixelOf(page, along(CENTER, R0, w));
+    return [ccx + 0.8 * (x - ccx), ccy + 0.8 * (y - ccy)];
+  };
+
+  // Grab (key G): the press on the sphere's side, the pointer moved to where that point 30 vu
+  // further out shows; the surface follows the anchor there.
+  await page.keyboard.press("g");
+  assert.equal(await page.evaluate(() => window.marzipan.controls.settings.tool), "grab", "G selects grab");
+  await page.locator("#radius").fill("16");
+  const w = towards([1, 1, -1]);
+  const p0 = await pressAt(w);
+  const anchor = await pickAt(page, p0);
+  inGrid(along(anchor, 30, w), "the grab's target");
+  const p1 = await pixelOf(page, along(anchor, 30, w));
+  const out = await strokeOf(page, sent, p0, p1, 6, async () => {
+    const cursor = await page.evaluate(() => ({ segments: window.marzipan.renderer.cursorShape.segments.length, readout: document.getElementById("brush-readout").textContent }));
+    assert.equal(cursor.segments, 3, "the cursor shows an arrow from the anchor to the pointer");
+    assert.match(cursor.readout, /Grab · (30\.\d|29\.9) vu/, "and says how far");
+  });
+  assert.equal(out.begin.tool, "grab");
+  assert.equal(out.begin.strength, 1, "a warp's own strength, 1, whatever the brushes' (0.5)");
+  for (const k of ["symmetry", "height", "accumulate", "direction"]) assert.ok(!(k in out.begin), `grab's stroke.begin has no ${k}: ${JSON.stringify(out.begin)}`);
+  const dabs = out.messages.flat();
+  assert.ok(norm(sub(dabs[0].center, anchor)) < 0.01, "the first dab is the anchor picked under the press");
+  assert.ok(out.messages.length <= 7 && out.messages.slice(1).every((m) => m.length === 1), `only the newest point goes: ${out.messages.map((m) => m.length)}`);
+  const target = dabs.at(-1).center;
+  const moved = sub(target, dabs[0].center);
+  assert.ok(Math.abs(norm(moved) - 30) < 0.3, `the pointer's point is 30 vu from the anchor: ${norm(moved)}`);
+  assert.ok(Math.abs(dot(moved, backward)) < 1e-3, "on the plane facing the camera");
+  const grabbed = await splats(page);
+  const gap = Math.min(...grabbed.map((p) => norm(sub(p, target))));
+  const reach = Math.max(...grabbed.map((p) => norm(sub(p, CENTER))));
+  t.diagnostic(`grab 30 vu out: nearest splat to the pointer's point ${gap.toFixed(2)} vu, reach ${reach.toFixed(1)} vu (sphere ${R0})`);
+  assert.ok(gap < 1.25, `the surface went where the pointer pointed: nearest splat ${gap} vu from it`);
+  await shot(page, "17-grab-out");
+
+  // And back: the press on the moved side, the pointer to where the anchor minus the move shows.
+  const anchor2 = await pickAt(page, p1);
+  const back1 = await pixelOf(page, sub(anchor2, moved));
+  const backStroke = await strokeOf(page, sent, p1, back1, 6);
+  const backDabs = backStroke.messages.flat();
+  t.diagnostic(`grab back: anchor ${norm(sub(backDabs[0].center, target)).toFixed(2)} vu from where the first grab left it, moved ${norm(sub(backDabs.at(-1).center, backDabs[0].center)).toFixed(2)} vu`);
+  const dev = deviation(await splats(page));
+  t.diagnostic(`after out and back: every splat within ${dev.toFixed(3)} vu of the sphere (before: ${dev0.toFixed(3)})`);
+  assert.ok(dev < 0.5 + dev0, `the sphere came back within 0.5 vu: ${dev} (before ${dev0})`);
+
+  // Snake hook (key K): from another side, 40 vu further out in 12 moves; the solid gets
+  // longer along the drag, its tip where the pointer ended.
+  await page.keyboard.press("k");
+  await page.locator("#radius").fill("10");
+  const w2 = towards([1, -1, 1]);
+  const extent = (points) => Math.max(...points.map((p) => dot(sub(p, CENTER), w2)));
+  const extent0 = extent(await splats(page));
+  const s0 = await pressAt(w2);
+  const snakeAnchor = await pickAt(page, s0);
+  inGrid(along(snakeAnchor, 40, w2), "the snake hook's end");
+  const snakeEnd = await pixelOf(page, along(snakeAnchor, 40, w2));
+  const snake = await strokeOf(page, sent, s0, snakeEnd, 12);
+  const snakeDabs = snake.messages.flat();
+  assert.ok(snakeDabs.length >= 10, `a path: its points go, spaced (${snakeDabs.length})`);
+  const tip = dot(sub(snakeDabs.at(-1).center, CENTER), w2);
+  const extent1 = extent(await splats(page));
+  t.diagnostic(`snake hook 40 vu: the solid reaches ${extent1.toFixed(1)} vu along the drag (before ${extent0.toFixed(1)}, the pointer's last point ${tip.toFixed(1)}), ${snakeDabs.length} points in ${snake.messages.length} messages`);
+  // the anchor sat 0.8 of the way out; the tip's surface reaches the pointer's last point
+  assert.ok(extent1 >= tip - 1 && extent1 > extent0 + 20, `the solid got longer along the drag: ${extent0} -> ${extent1} (the pointer's last point ${tip})`);
+  await shot(page, "18-snake-hook");
+
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});
 
 test("flatten in the page takes a bump down, towards the plane the server fitted, which the cursor shows", { timeout: 240000 }, async (t) => {
   const errors = [];
