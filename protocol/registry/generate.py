@@ -963,6 +963,16 @@ def readme_ops_table(reg: Registry) -> str:
         shown = "the same" if text == previous else text
         previous = text
         rows.append(f'| `{{"op":"morph","kind":"{o["name"]}", ...}}` | {shown} | {o["description"]} |')
+    # A warp has no operation object: a line holds a whole stroke (server/service/batch.cpp).
+    previous = None
+    for t in reg.tools:
+        if TOOL_KINDS[t["kind"]]["op"]:
+            continue
+        text = fields([p for p in t["param_specs"] if "stroke" in p["in"]])
+        shown = "the same" if text == previous else text
+        previous = text
+        rows.append(f'| `{{"stroke":{{"tool":"{t["name"]}", ...}},"dabs":[...]}}` | {shown}; `dabs`: the anchor on the '
+                    f'surface, then the pointer\'s points | {t["description"]} |')
     return "\n".join(rows)
 
 

@@ -17,6 +17,8 @@
 #include <optional>
 #include <stdexcept>
 #include <string_view>
+#include <variant>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -33,8 +35,11 @@
 #ifdef MARZIPAN_HAS_OPENVDB
 #include "engine/openvdb/vdb_io.hpp"
 #endif
+#include "protocol/cpp/json_checks.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/rpc.hpp"
 #include "service/apply_op.hpp"
+#include "service/session.hpp"
 #include "service/measures_json.hpp"
 
 namespace marzipan::service {
@@ -72,10 +77,66 @@ std::string nameList(const std::array<WireName<E>, N>& names) {
   return out;
 }
 
+// A warp stroke, one line: {"stroke": {stroke.begin's params}, "dabs": [[x,y,z] | {center |
+// ray}, ...]}, the first dab the anchor (PROTOCOL.md, warp strokes), applied as one message.
+struct WarpLine {
+  WarpStroke settings;
+  std::vector<protocol::DabParam> dabs;
+};
+
 struct NumberedOp {
   int line;
-  protocol::Op op;
+  std::variant<protocol::Op, WarpLine> op;
 };
+
+// Dabs in one line: far more than a drag has, few enough to parse at once.
+constexpr std::size_t kMaxLineDabs = 1 << 16;
+
+WarpLine parseWarpLine(const nlohmann::json& obj) {
+  using protocol::OpError;
+  for (const auto& item : obj.items())
+    if (item.key() != "stroke" && item.key() != "dabs")
+      throw OpError(item.key(), "a stroke line has \"stroke\" and \"dabs\" only, got \"" + item.key() + "\"");
+  const protocol::StrokeBeginParams begin = protocol::parseStrokeBeginParams(obj.at("stroke"));
+  if (!begin.warp)
+    throw OpError("stroke", "a stroke line is for the warp tools (grab, snake_hook, ...): a brush's dabs are op lines");
+  const auto dabs = obj.find("dabs");
+  if (dabs == obj.end()) throw OpError("dabs", "\"dabs\" is missing: the anchor, then the pointer's points");
+  nlohmann::json message{{"stroke", 1}, {"dabs", nlohmann::json::array()}};
+  if (dabs->is_array())
+    for (const nlohmann::json& d : *dabs) message["dabs"].push_back(d.is_array() ? nlohmann::json{{"center", d}} : d);
+  else
+    message["dabs"] = *dabs;
+  WarpLine line;
+  line.settings.tool = begin.warp->tool;
+  line.settings.radius = begin.radius;
+  line.settings.strength = begin.strength;
+  line.settings.volume = begin.warp->volume;
+  line.settings.direction = begin.warp->direction;
+  line.dabs = protocol::parseStrokeDabsParams(message, kMaxLineDabs).dabs;
+  for (std::size_t i = 1; i < line.dabs.size(); ++i)
+    if (!std::holds_alternative<Vec3>(line.dabs[i].at))
+      throw OpError("dabs", "\"dabs\"[" + std::to_string(i) + "]: after the anchor a warp's dabs are the pointer's points");
+  return line;
+}
+
+// A warp stroke line on vol: the volume as the line began is its base.
+Edit applyWarpLine(Volume& vol, WarpLine line, ThreadPool& pool) {
+  const Volume base = vol;
+  Vec3 anchor;
+  if (const auto* c = std::get_if<Vec3>(&line.dabs[0].at)) {
+    anchor = *c;
+  } else {
+    const auto& ray = std::get<protocol::RayParam>(line.dabs[0].at);
+    const std::optional<Vec3> hit = pickSurface(base, ray.origin, ray.direction);
+    if (!hit) throw EngineError(ErrorKind::InvalidArgument, "dabs", "the anchor's ray misses the surface");
+    anchor = *hit;
+  }
+  setWarpAnchor(line.settings, base, anchor);
+  std::vector<Vec3> points;
+  for (std::size_t i = 1; i < line.dabs.size(); ++i) points.push_back(std::get<Vec3>(line.dabs[i].at));
+  return applyWarpStroke(vol, base, line.settings, points, pool);
+}
 
 struct Options {
   std::string opsPath;
@@ -255,8 +316,12 @@ std::vector<NumberedOp> readOps(const std::string& path, std::istream& in) {
     if (first == std::string::npos || line[first] == '#') continue;
     const auto last = line.find_last_not_of(" \t\r");
     try {
-      ops.push_back({number, protocol::parseOpText(std::string_view(line).substr(first, last + 1 - first))});
+      const nlohmann::json obj = protocol::checks::parseJsonText(std::string_view(line).substr(first, last + 1 - first));
+      if (obj.is_object() && obj.contains("stroke")) ops.push_back({number, parseWarpLine(obj)});
+      else ops.push_back({number, protocol::parseOp(obj)});
     } catch (const protocol::OpError& e) {
+      throw InputError(path + ":" + std::to_string(number) + ": " + e.what());
+    } catch (const protocol::RpcException& e) {  // a stroke line of more than kMaxLineDabs dabs
       throw InputError(path + ":" + std::to_string(number) + ": " + e.what());
     }
   }
@@ -384,7 +449,8 @@ int run(const std::vector<std::string>& args, std::ostream& out) {
   for (const NumberedOp& item : ops) {
     const auto start = std::chrono::steady_clock::now();
     try {
-      service::applyOp(vol, item.op, pool);
+      if (const auto* op = std::get_if<protocol::Op>(&item.op)) service::applyOp(vol, *op, pool);
+      else applyWarpLine(vol, std::get<WarpLine>(item.op), pool);
     } catch (const EngineError& e) {
       const std::string path = o.opsPath == "-" ? "<stdin>" : o.opsPath;
       throw InputError(path + ":" + std::to_string(item.line) + ": " + e.what());
@@ -433,6 +499,11 @@ protocol/registry/tools.json, described in protocol/PROTOCOL.md):
   {"tool":)" << alternatives(protocol::kCsgToolNames) << R"(,"shape":)" << alternatives(kToolShapeNames) << R"(,
    "center":[x,y,z],"radius":R,"blend":0,"axis":"y"}
   {"op":"morph","kind":)" << alternatives(protocol::kMorphKindNames) << R"(,"radius":K}
+  {"stroke":{"tool":)" << alternatives(protocol::kWarpToolNames) << R"(,"radius":8,
+   "strength":1,"volume":0.5,"direction":[x,y,z]},"dabs":[[x,y,z],...]}
+                        a warp stroke: the first dab the anchor on the surface (or {"ray":
+                        {"origin","direction"}}), the others the pointer's points; the volume as
+                        the line began is warped (PROTOCOL.md, warp strokes)
 
 Starting solid:
   --size N              domain of N^3 voxels, 8..1024 (default 128)

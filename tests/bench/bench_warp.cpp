@@ -1,12 +1,16 @@
-// Warp scenarios (engine/level_set.hpp, warps): a grab message on the 256^3 sphere at two drag lengths, and
-// a snake hook move beside an add-blob dab of the same radius.
+// Warp scenarios (engine/level_set.hpp, warps): a grab message on the 256^3 sphere at two drag lengths, the
+// same message through the service (a Session's warp stroke), and a snake hook move beside an add-blob dab
+// of the same radius.
 #include <cmath>
+#include <optional>
 #include <random>
 #include <vector>
 
 #include "bench.hpp"
 #include "engine/level_set.hpp"
 #include "engine/solids.hpp"
+#include "service/apply_op.hpp"
+#include "service/session.hpp"
 
 namespace marzipan::bench {
 
@@ -52,6 +56,40 @@ MARZIPAN_BENCH("grab") {
         },
         [&] { grab(v, base, anchor, d, r, pool); });
     emit("grab", opt.threads, t, {{"radius", r}, {"pointer_vu", pointer}});
+  }
+}
+
+// The grab message of "grab" as the hub applies it: Session::strokeDabs of a warp stroke (PROTOCOL.md,
+// warp strokes) whose previous message put the pointer 90% as far, the message the pointer's point
+// alone: the engine's grab of the stroke's base, the fold into its history step, the digest and
+// the bricks to send. Also the cost estimate of the message (apply_op.hpp, warpStrokeCost) and
+// the voxels per second it implies, which the other tools' estimates run at (2.2-3.3e7 quiet).
+MARZIPAN_BENCH("grab_message") {
+  const WarpSphere s = warpSphere(opt);
+  ThreadPool pool(opt.threads);
+  const Volume base = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{7};
+  service::WarpStroke w;
+  w.radius = 20;
+  for (const double pointer : opt.quick ? std::vector<double>{10} : std::vector<double>{20, 60}) {
+    std::optional<service::Session> session;
+    service::StrokeId id = 0;
+    Vec3 anchor, d;
+    const Timing t = measure(
+        opt.quick ? 3 : 31,
+        [&] {
+          anchor = s.centre + randomUnit(rng) * s.radius;
+          d = randomUnit(rng) * pointer;
+          session.emplace(base);
+          id = session->beginWarp(w);
+          session->strokeDabs(id, {service::Dab{anchor}, service::Dab{anchor + d * 0.9}}, pool);
+        },
+        [&] { session->strokeDabs(id, {service::Dab{anchor + d}}, pool); });
+    const std::vector<Vec3> last{anchor + d};
+    const double estimate = service::warpStrokeCost(base, w, anchor, last).voxels;
+    emit("grab_message", opt.threads, t,
+         {{"radius", w.radius}, {"pointer_vu", pointer}, {"estimate_voxels", estimate},
+          {"voxels_per_s", estimate / (t.median_ms / 1000)}});
   }
 }
 

@@ -273,6 +273,46 @@ TEST_CASE("the surface tools in an ops file each change the volume, and a flatte
   CHECK_FALSE(fs::exists(dir / "out.mzv"));
 }
 
+TEST_CASE("warp strokes in an ops file: a line is a stroke from its anchor, only a grab's last point counts", "[cli]") {
+  const fs::path dir = scratch("warp");
+  // The 64^3 sphere's surface point on +x is (53.9, 31.5, 31.5).
+  writeText(dir / "path.jsonl",
+            "{\"stroke\":{\"tool\":\"grab\",\"radius\":12},\"dabs\":[[53.9,31.5,31.5],[55,32,31.5],[57,33,31],[59.9,31.5,31.5]]}\n"
+            "{\"stroke\":{\"tool\":\"twist\",\"radius\":10,\"direction\":[0,0,1]},\"dabs\":[[31.5,53.9,31.5],[31.5,54,38]]}\n"
+            "{\"stroke\":{\"tool\":\"snake_hook\",\"radius\":6},\"dabs\":[{\"ray\":{\"origin\":[31.5,31.5,70],\"direction\":[0,0,-1]}},"
+            "[31.5,31.5,56],[31.5,33,58],[31.5,35,60]]}\n");
+  writeText(dir / "last.jsonl", "{\"stroke\":{\"tool\":\"grab\",\"radius\":12},\"dabs\":[[53.9,31.5,31.5],[59.9,31.5,31.5]]}\n");
+  const Run r = runCli(dir, "batch path.jsonl --size 64 --stats-every 1");
+  REQUIRE(r.status == 0);
+  const Run last = runCli(dir, "batch last.jsonl --size 64 --stats");
+  REQUIRE(last.status == 0);
+  const std::vector<json> lines = statsLines(r.out);
+  REQUIRE(lines.size() == 3);
+  CHECK(lines[0]["digest"] == statsLines(last.out)[0]["digest"]);
+  // The anchor went 6 vu out along +x, to 59.9 (within 0.25 vu; bounds are whole voxels).
+  CHECK(lines[0]["bounds"]["hi"][0].get<double>() == Approx(59.9).margin(1.25));
+  CHECK(lines[1]["digest"] != lines[0]["digest"]);
+  CHECK(lines[2]["digest"] != lines[1]["digest"]);
+  CHECK(lines[2]["bounds"]["hi"][2].get<double>() > 58);
+
+  writeText(dir / "bad.jsonl",
+            "{\"stroke\":{\"tool\":\"grab\"},\"dabs\":[[53.9,31.5,31.5],[55,31.5,31.5]]}\n"
+            "{\"stroke\":{\"tool\":\"grab\"},\"dabs\":[[58,31.5,31.5],[60,31.5,31.5]]}\n");
+  const Run off = runCli(dir, "batch bad.jsonl --size 64 --out out.mzv");
+  CHECK(off.status == 1);
+  CHECK_THAT(off.err, Catch::Contains("bad.jsonl:2: center: the anchor (the stroke's first dab) must lie on the surface"));
+  CHECK_FALSE(fs::exists(dir / "out.mzv"));
+  writeText(dir / "brush.jsonl", "{\"stroke\":{\"tool\":\"add_blob\"},\"dabs\":[[53.9,31.5,31.5]]}\n");
+  const Run brush = runCli(dir, "batch brush.jsonl --size 64");
+  CHECK(brush.status == 1);
+  CHECK_THAT(brush.err, Catch::Contains("brush.jsonl:1: a stroke line is for the warp tools"));
+  writeText(dir / "mirror.jsonl", "{\"stroke\":{\"tool\":\"grab\",\"symmetry\":[\"x\"]},\"dabs\":[[53.9,31.5,31.5]]}\n");
+  const Run mirror = runCli(dir, "batch mirror.jsonl --size 64");
+  CHECK(mirror.status == 1);
+  CHECK_THAT(mirror.err, Catch::Contains("mirror.jsonl:1:"));
+  CHECK_THAT(mirror.err, Catch::Contains("symmetry"));
+}
+
 TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[cli]") {
   const fs::path dir = scratch("render");
   writeText(dir / "ops.jsonl", "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");

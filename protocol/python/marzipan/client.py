@@ -549,15 +549,19 @@ class Client:
         return await self._result("volume.morph", {"kind": kind, "radius": radius})
 
     async def begin_stroke(self, tool: str, *, radius: float | None = None, strength: float | None = None,
-                           symmetry=None, accumulate: bool | None = None, height: float | None = None) -> int:
+                           symmetry=None, accumulate: bool | None = None, height: float | None = None,
+                           volume: float | None = None, direction=None) -> int:
         """stroke.begin of any tool that strokes (marzipan.tools: add_blob, inflate, clay, flatten,
-        crease, ...); accumulate=True makes every stroke.dabs add (build-up) instead of only what
-        exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; the tools whose
-        parameters list it: add_blob, remove_blob, inflate, clay; at most half the radius, not
-        with accumulate): the stroke moves the surface by at most this, however often it passes."""
+        crease, grab, ...); accumulate=True makes every stroke.dabs add (build-up) instead of only
+        what exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; the tools
+        whose parameters list it: add_blob, remove_blob, inflate, clay; at most half the radius,
+        not with accumulate): the stroke moves the surface by at most this, however often it
+        passes. volume (elastic_grab, 0..0.5) and direction ([x, y, z]: twist, scale, pinch) are
+        the warp tools' (PROTOCOL.md, warp strokes; see warp())."""
         result = await self._result("stroke.begin", _without_none(
             tool=tool, radius=radius, strength=strength, symmetry=list(symmetry) if symmetry else None,
-            accumulate=accumulate, height=height))
+            accumulate=accumulate, height=height, volume=volume,
+            direction=_point(direction, "direction") if direction is not None else None))
         return result["stroke"]
 
     async def stroke_dabs(self, stroke: int, dabs) -> dict:
@@ -592,6 +596,35 @@ class Client:
             raise
         end = await self.end_stroke(stroke)
         return {"stroke": stroke, "applied": applied, **end, **({"plane": plane} if plane else {})}
+
+    async def warp(self, tool: str, anchor, points, *, radius: float | None = None, strength: float | None = None,
+                   volume: float | None = None, direction=None) -> dict:
+        """A whole warp stroke (grab, elastic_grab, snake_hook, twist, scale, pinch; PROTOCOL.md,
+        warp strokes), one undo step: stroke.begin, the anchor (a point on the surface, [x, y, z],
+        or a dict {center | ray}) and then the pointer's points, in messages of at most max_dabs,
+        stroke.end. grab and elastic_grab move the anchor to the last point; snake_hook follows
+        every point; twist, scale and pinch take their amount from the last point's way along
+        `direction` (default: along the drag), in radii: a quarter turn, a factor 2, a pinch of
+        0.5 per radius. Returns {stroke, revision, can_undo, can_redo}."""
+        dabs = [_dab(anchor)] + [_dab(p) for p in points]
+        per_message = int(self.limits.get("max_dabs", 256)) or 256
+        stroke = await self.begin_stroke(tool, radius=radius, strength=strength, volume=volume, direction=direction)
+        try:
+            for start in range(0, len(dabs), per_message):
+                await self.stroke_dabs(stroke, dabs[start:start + per_message])
+        except MarzipanError:
+            try:
+                await self.end_stroke(stroke)
+            except MarzipanError:
+                pass
+            raise
+        end = await self.end_stroke(stroke)
+        return {"stroke": stroke, **end}
+
+    async def grab(self, anchor, to, radius: float, *, strength: float | None = None) -> dict:
+        """Grabs the surface at `anchor` (a point on it) and moves it to `to`, the material within
+        `radius` vu of the way following less and less: a grab stroke of two dabs (warp())."""
+        return await self.warp("grab", anchor, [to], radius=radius, strength=strength)
 
     # ------------------------------------------------------------------------------- presence
 

@@ -433,6 +433,45 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(refused.data.get("field"), "dabs[0].center")
         self.assertEqual(end["digest"], done["crease"][2]["digest"])
 
+    def test_warp_strokes_grab_and_twist_as_the_contract_says(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "sphere")
+                start = await client.stats()
+                hi = start["bounds"]["hi"][0]
+                anchor = [31.5 + 22.4, 31.5, 31.5]  # the 64^3 sphere's surface point on +x
+                grabbed = await client.grab(anchor, [anchor[0] + 6, 31.5, 31.5], 12)
+                after = await client.stats()
+                listed = (await client.history(limit=1))[0]["tool"]
+                await client.undo()
+                undone = await client.stats()
+                # One stroke, its pointer in three messages: the same volume as in one message.
+                path = [[anchor[0], 31.5 + y, 31.5] for y in (2, 4, 6)]
+                one = await client.warp("twist", anchor, path, radius=10, direction=[0, 1, 0])
+                in_one = await client.stats()
+                await client.undo()
+                stroke = await client.begin_stroke("twist", radius=10, direction=[0, 1, 0])
+                for dabs in ([anchor], path[:1], path[1:2], path[2:]):
+                    await client.stroke_dabs(stroke, dabs)
+                await client.end_stroke(stroke)
+                in_four = await client.stats()
+                with self.assertRaises(rpc.InvalidParams) as off:
+                    await client.grab([anchor[0] + 5, 31.5, 31.5], [60, 31.5, 31.5], 8)
+                with self.assertRaises(rpc.InvalidParams) as mirrored:
+                    await client.begin_stroke("grab", symmetry=["x"])
+                return hi, grabbed, after, listed, undone, start, one, in_one, in_four, off.exception, mirrored.exception
+
+        hi, grabbed, after, listed, undone, start, one, in_one, in_four, off, mirrored = run(go())
+        self.assertEqual((grabbed["revision"], grabbed["can_undo"]), (1, True))
+        # The anchor went 6 vu out along +x: the solid's bounds grow by that (within 0.25 vu).
+        self.assertAlmostEqual(after["bounds"]["hi"][0] - hi, 6, delta=0.25 + 1)
+        self.assertEqual(listed, "grab")
+        self.assertEqual(undone["digest"], start["digest"])
+        self.assertNotEqual(in_one["digest"], start["digest"])
+        self.assertEqual(in_one["digest"], in_four["digest"])
+        self.assertEqual(off.data.get("field"), "center")
+        self.assertEqual(mirrored.data.get("field"), "symmetry")
+
     def test_two_clients_see_each_others_changes(self):
         async def go():
             async with Client.connect(self.url) as owner:

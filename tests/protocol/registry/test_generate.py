@@ -144,6 +144,7 @@ class Tables(unittest.TestCase):
             else:
                 self.assertNotIn(f'`{t["name"]}`', fields)  # no operation object
                 self.assertIn(f'`{t["name"]}`', strokes)
+                self.assertIn(f'`{{"stroke":{{"tool":"{t["name"]}", ...}},"dabs":[...]}}`', generate.readme_ops_table(reg))
         keys = generate.web_client_keys_table(reg)
         for t in REGISTRY["tools"]:
             self.assertIn(t["browser"]["key"].upper(), keys)
