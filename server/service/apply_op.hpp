@@ -105,9 +105,15 @@ Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<c
 // A warp resamples the box of its support (grown by the band) and integrates the flow of each
 // voxel near the zero set over |grad v| / kWarpStretchPerStep sub-steps, so its work goes with
 // the box times (1 + kWarpStepVoxels * sub-steps): for a grab by d, |d|^2 * radius once d
-// outgrows the radius. kWarpStepVoxels: measured 2026-11-29 on this 2-core VM (bench_warp).
+// outgrows the radius. kWarpStepVoxels: marzipan-bench grab_message, 2026-11-29 10:44 UTC on
+// this 2-core VM (load 6-7, three runs): a grab message of radius 20 on the 256^3 sphere, the
+// pointer 20 / 60 vu from the anchor, took 12.9-16.1 / 26.5-44.9 ms (CPU 8.5-9.0 / 17.9-19.1),
+// its box 2.6e5 / 5.7e5 voxels and 7 / 19 sub-steps: the box alone accounts for most of it since
+// the flow runs on the segment's one coordinate; 0.05 puts the estimate at 3.5e5 / 1.1e6, the
+// rate of the other tools (2.2-3.3e7 voxels/s quiet), and keeps the sub-steps' share for
+// the affine and elastic warps, whose flow is integrated per sub-step.
 OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points);
-inline constexpr double kWarpStepVoxels = 0.15;
+inline constexpr double kWarpStepVoxels = 0.05;
 // After a change of the volume that was not the stroke's (or at a snapshot): the stroke goes on
 // from the volume as it is, which holds what it applied. Its base is then that volume (the
 // caller's part); here what the drag had applied becomes held, so that the next message

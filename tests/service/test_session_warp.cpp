@@ -243,7 +243,7 @@ TEST_CASE("session warp: a cost grows with the drag and caps at the engine's tra
   const Vec3 a{128, 128, 128};
   const std::vector<Vec3> near{a + Vec3{20, 0, 0}}, farther{a + Vec3{60, 0, 0}}, beyond{a + Vec3{1000, 0, 0}};
   const double c20 = warpStrokeCost(big, w, a, near).voxels, c60 = warpStrokeCost(big, w, a, farther).voxels;
-  CHECK(c60 > 2 * c20);
+  CHECK(c60 > 1.5 * c20);
   // Past 8 radii the drag is clamped: the cost of 1000 vu is that of 160.
   const std::vector<Vec3> most{a + Vec3{160, 0, 0}};
   CHECK(warpStrokeCost(big, w, a, beyond).voxels == Approx(warpStrokeCost(big, w, a, most).voxels));
