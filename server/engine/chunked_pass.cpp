@@ -112,6 +112,7 @@ std::vector<BrickChange> chunkedPass(Volume& vol, int margin, ThreadPool& pool, 
   if (chunks.empty() && progress) progress->advance(1);
   std::vector<BrickChange> changes;
   for (auto& pc : perChunk) changes.insert(changes.end(), std::make_move_iterator(pc.begin()), std::make_move_iterator(pc.end()));
+  vol.extendChannels(changes);
   vol.publish(changes, true);
   return changes;
 }

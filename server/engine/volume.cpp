@@ -469,8 +469,69 @@ std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, co
 
 std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, const Box& srcBox, ThreadPool& pool) {
   auto changes = diff(region, src, srcBox, pool);
+  extendChannels(changes);
   publish(changes, true);
   return changes;
+}
+
+void Volume::extendChannels(std::vector<BrickChange>& changes) const {
+  if (paintedBricks_ == 0 || changes.empty()) return;
+  // The new field: a changed brick's `after`, this volume elsewhere.
+  std::vector<std::pair<std::uint64_t, std::size_t>> index;
+  index.reserve(changes.size());
+  const auto key = [](Int3 b) {
+    return std::uint64_t(std::uint32_t(b.z)) << 42 | std::uint64_t(std::uint32_t(b.y)) << 21 | std::uint32_t(b.x);
+  };
+  for (std::size_t i = 0; i < changes.size(); ++i) index.push_back({key(changes[i].brick), i});
+  std::sort(index.begin(), index.end());
+  const auto newAt = [&](Int3 p) -> float {
+    if (p.x < 0 || p.y < 0 || p.z < 0 || p.x >= dims_.x || p.y >= dims_.y || p.z >= dims_.z) return band_;
+    const Int3 b = Bricks::brickOf(p);
+    const auto it = std::lower_bound(index.begin(), index.end(), std::pair<std::uint64_t, std::size_t>{key(b), 0});
+    if (it == index.end() || it->first != key(b)) return at(p);
+    const BrickRef& r = changes[it->second].after;
+    return r.data ? r.data->v[Bricks::indexOf(p)] : (r.inside ? -band_ : band_);
+  };
+  const Texel base = texelOf(base_);
+  for (BrickChange& c : changes) {
+    if (!c.after.data) continue;
+    const float* before = c.before.data ? c.before.data->v : nullptr;
+    const float* after = c.after.data->v;
+    std::shared_ptr<BrickPaint> now;
+    for (int i = 0; i < kBrickVoxels; ++i) {
+      if (!(std::fabs(after[i]) < band_) || (before && std::fabs(before[i]) < band_)) continue;
+      const Int3 p = Bricks::origin(c.brick) + Bricks::local(i);
+      const Vec3 g = GradStencil::around(p, newAt).gradient();
+      const double len = length(g);
+      const Vec3 n = len > 0 ? g * (1 / len) : Vec3{};
+      Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * double(after[i]);
+      // From the new surface back to the old one: along the new normal while the old field is
+      // clamped there (a surface that grew by more than the band), then to the old foot point.
+      for (int step = 0; step < 16; ++step) {
+        const double d0 = sample(q);
+        if (std::fabs(d0) < band_ - 0.5 || n == Vec3{}) {
+          const Vec3 g0 = gradient(q);
+          if (length(g0) > 0) q = q - g0 * (d0 / length(g0));
+          break;
+        }
+        q = q - n * d0;
+      }
+      const Texel t = texel({int(std::floor(q.x + 0.5)), int(std::floor(q.y + 0.5)), int(std::floor(q.z + 0.5))});
+      const Texel had = now ? now->t[i] : c.after.paint ? c.after.paint->t[i] : base;
+      if (t == had) continue;
+      if (!now) {
+        now = std::make_shared<BrickPaint>();
+        if (c.after.paint) {
+          *now = *c.after.paint;
+        } else {
+          std::fill(std::begin(now->t), std::end(now->t), base);
+        }
+      }
+      now->t[i] = t;
+    }
+    if (now) c.after.paint = canonicalPaint(std::move(now));
+  }
+  std::erase_if(changes, [](const BrickChange& c) { return c.before == c.after; });
 }
 
 bool Volume::brickChanges(Int3 b, const Box& here, const float* old, float uniform, const float* src,

@@ -150,6 +150,15 @@ class Volume {
   // Writes the padding into `data`; safe to call from several threads at once.
   BrickRef canonicalBrick(Int3 brick, std::shared_ptr<Brick> data) const;
 
+  // Colour follows the surface: in changes (bricks of this volume, not yet published), every
+  // voxel that enters the band (|d| >= band before, < band after) takes the texel this volume
+  // holds at the voxel nearest the old surface point it came from: its foot point on the new
+  // surface, p - d n (n the central-difference normal of the new field), carried back along -n
+  // while the old field is clamped there, then to its foot point on the old surface.
+  // Does nothing to a volume with no channels. scatter calls it; whoever publishes diff()'s
+  // changes itself should too (chunked_pass.cpp does).
+  void extendChannels(std::vector<BrickChange>& changes) const;
+
   // The channels' slot for newly computed texels: null when every texel is the base colour
   // with weight 0, else `paint` with its `masked` flag set. Safe to call from several threads.
   std::shared_ptr<const BrickPaint> canonicalPaint(std::shared_ptr<BrickPaint> paint) const;

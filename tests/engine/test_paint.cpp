@@ -315,3 +315,49 @@ TEST_CASE("a half-masked sphere smoothed globally keeps its masked half bit for 
   meanCurvatureFlow(serial, 20, 1);
   CHECK(digest(serial) == digest(v));
 }
+
+// --- colour follows the surface (Volume::extendChannels) -------------------------------------
+
+TEST_CASE("a blob added over a painted stripe stretches it: no clay-coloured voxel in its band", "[paint][extend]") {
+  Volume v = sphere();
+  const Vec3 top = kCentre + Vec3{0, kRadius, 0};
+  // A stripe along x over the top, red through and through within 4 vu of its line.
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = 8;
+  red.hardness = 0.6;
+  std::vector<StrokeDab> stripe;
+  for (int k = -8; k <= 8; k += 2) stripe.push_back({top + Vec3{double(k), 0, 0}});
+  paintStroke(v, red, stripe, {});
+  // A blob 4 vu high over the stripe's middle (four sub-steps, into bricks that were air).
+  const StrokeDab blob(top, 1, {0, 1, 0});
+  const Edit e = applyStroke(v, {Brush::AddBlob, 8, 1, 4.0}, {&blob, 1}, {});
+  REQUIRE(!e.empty());
+  // Over the whole band: every voxel whose foot point lies above the old top by 0.5 vu or more
+  // (on the grown part) and within 2 vu of the stripe's plane z = 32 came from the stripe.
+  std::size_t grown = 0, clay = 0;
+  forEachBandVoxel(v, [&](Int3 p, float, Vec3 q) {
+    if (q.y < top.y + 0.5 || std::fabs(q.z - kCentre.z) > 2) return;
+    ++grown;
+    clay += v.texel(p).color() == kClayColor;
+  });
+  CHECK(grown > 50);
+  CHECK(clay == 0);
+}
+
+TEST_CASE("colour follows the surface alike on 1 and 2 threads, and costs nothing unpainted", "[paint][extend][determinism]") {
+  Volume one = sphere(), two = sphere();
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = 10;
+  const Vec3 at = kCentre + Vec3{kRadius, 0, 0};
+  paint(one, red, at);
+  paint(two, red, at);
+  ThreadPool p1(1), p2(2);
+  dilate(one, 2, p1);
+  dilate(two, 2, p2);
+  CHECK(digest(one) == digest(two));
+  Volume plain = sphere();
+  dilate(plain, 2, p2);
+  CHECK(plain.paintedBricks() == 0);
+}
