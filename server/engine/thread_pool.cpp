@@ -1,6 +1,10 @@
 #include "thread_pool.hpp"
 
+#include <algorithm>
 #include <utility>
+#if defined(__linux__)
+#include <sched.h>
+#endif
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -28,8 +32,18 @@ bool spinWhile(Waiting waiting) {
 
 }  // namespace
 
+unsigned usableCores() {
+#if defined(__linux__)
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  // The calling thread's mask: a process started under taskset gives it to every thread.
+  if (sched_getaffinity(0, sizeof set, &set) == 0) return unsigned(std::max(1, CPU_COUNT(&set)));
+#endif
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
 ThreadPool::ThreadPool(int threads) {
-  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  if (threads <= 0) threads = int(usableCores());
   for (int t = 1; t < threads; ++t) workers_.emplace_back([this] { workerLoop(); });
 }
 

@@ -14,9 +14,14 @@
 
 namespace marzipan {
 
+// The cores this process may run on: its CPU affinity mask (taskset, a container's cpuset),
+// which std::thread::hardware_concurrency ignores; at least 1. Every "one per core" default
+// counts these, so a server pinned to one core does not start threads that take turns on it.
+unsigned usableCores();
+
 class ThreadPool {
  public:
-  // threads <= 0 means one per hardware core. A pool of 1 runs everything on the caller.
+  // threads <= 0 means one per usable core (usableCores). A pool of 1 runs everything on the caller.
   explicit ThreadPool(int threads = 0);
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;

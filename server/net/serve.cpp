@@ -20,6 +20,7 @@
 #include <thread>
 #include <type_traits>
 
+#include "engine/thread_pool.hpp"
 #include "net/default_paths.hpp"
 #include "net/etcd_client.hpp"
 #include "net/http_server.hpp"
@@ -129,7 +130,7 @@ int serve(const std::vector<std::string>& args, std::ostream& out) {
   }
   if (port.value) options.port = static_cast<std::uint16_t>(parseUnsigned(port, 65535));
   const unsigned threadCount = threads.value ? parseUnsigned(threads, 1024) : 0;
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const unsigned cores = usableCores();
   // Sockets need little CPU; geometry runs on the hub's workers.
   options.threads = std::min(2u, cores);
 

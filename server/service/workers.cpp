@@ -3,13 +3,15 @@
 // fairly with others instead of holding a thread until its queue is empty.
 #include "service/workers.hpp"
 
+#include "engine/thread_pool.hpp"
+
 #include <algorithm>
 #include <exception>
 
 namespace marzipan::service {
 
 Workers::Workers(unsigned threads, std::function<void(const std::string&)> onError) : onError_(std::move(onError)) {
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  if (threads == 0) threads = usableCores();
   count_ = threads;
   for (unsigned i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
 }

@@ -25,7 +25,7 @@ namespace marzipan::service {
 class Workers {
  public:
   using Task = std::function<void()>;
-  // threads == 0: one per core. onError gets what an escaping exception said.
+  // threads == 0: one per usable core (usableCores, engine/thread_pool.hpp). onError gets what an escaping exception said.
   explicit Workers(unsigned threads, std::function<void(const std::string&)> onError = {});
   ~Workers();  // stop()
   Workers(const Workers&) = delete;

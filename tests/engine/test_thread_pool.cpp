@@ -8,6 +8,10 @@
 
 #include "engine/thread_pool.hpp"
 
+#if defined(__linux__)
+#include <sched.h>
+#endif
+
 using namespace marzipan;
 
 // Every call runs each of its items exactly once and returns after the last, also when calls
@@ -70,3 +74,30 @@ TEST_CASE("callers of one pool from several threads, and nested calls, all compl
   // Each call adds 1 + 2 + ... + 12 = 78.
   CHECK(sum.load() == 3L * 300 * 78);
 }
+
+#if defined(__linux__)
+// A server started under `taskset -c 0` must count one core, not the machine's: before
+// usableCores the pool, the hub's workers and the socket threads all took
+// hardware_concurrency() threads, which then took turns on the one core. The check runs on a
+// thread of its own so that the test runner's mask stays as it was.
+TEST_CASE("usableCores counts the affinity mask, and a default pool follows it", "[thread_pool]") {
+  cpu_set_t all;
+  CPU_ZERO(&all);
+  REQUIRE(sched_getaffinity(0, sizeof all, &all) == 0);
+  CHECK(usableCores() == unsigned(CPU_COUNT(&all)));
+  int first = 0;
+  while (!CPU_ISSET(first, &all)) ++first;
+  unsigned pinnedCount = 0;
+  int pinnedPool = 0;
+  std::thread([&] {
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(first, &one);
+    if (sched_setaffinity(0, sizeof one, &one) != 0) return;
+    pinnedCount = usableCores();
+    pinnedPool = ThreadPool(0).threads();
+  }).join();
+  CHECK(pinnedCount == 1);
+  CHECK(pinnedPool == 1);
+}
+#endif
