@@ -110,7 +110,7 @@ TEST_CASE("a paint dab colours the band by its foot points and moves no geometry
   CHECK(v.memoryBytes() == before.memoryBytes());
 }
 
-TEST_CASE("a paint stroke over the same spot twice is once; without memory it accumulates", "[paint]") {
+TEST_CASE("a paint stroke over the same spot twice is once, and without memory it accumulates", "[paint]") {
   const Vec3 at = kCentre + Vec3{0, kRadius, 0};
   PaintSettings st;
   st.color = kRed;
@@ -141,7 +141,7 @@ TEST_CASE("a paint stroke over the same spot twice is once; without memory it ac
   CHECK(worst <= 1);
 }
 
-TEST_CASE("mask strokes add and erase the weight; colour paint spares masked clay", "[paint][mask]") {
+TEST_CASE("mask strokes add and erase the weight, and colour paint spares masked clay", "[paint][mask]") {
   Volume v = sphere();
   const Vec3 at = kCentre + Vec3{0, 0, kRadius};
   PaintSettings mask;
