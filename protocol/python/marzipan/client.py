@@ -571,15 +571,17 @@ class Client:
         return await self._result("stroke.end", {"stroke": stroke})
 
     async def stroke(self, tool: str, dabs, *, radius: float | None = None, strength: float | None = None,
-                     symmetry=None, accumulate: bool | None = None, height: float | None = None) -> dict:
+                     symmetry=None, accumulate: bool | None = None, height: float | None = None,
+                     volume: float | None = None, direction=None) -> dict:
         """A whole stroke, one undo step: stroke.begin, the dabs (centres [x, y, z] or dicts
         {center | ray, pressure?}) in messages of at most max_dabs, stroke.end. Returns
         {stroke, applied, revision, can_undo, can_redo}, and the stroke's `plane` ({point,
-        normal}, fitted at its first dab: flatten, contrast, clay with a height) when it has one."""
+        normal}, fitted at its first dab: flatten, contrast, clay with a height) when it has one.
+        `volume` and `direction` are the warp tools' (warp())."""
         dabs = [_dab(d) for d in dabs]
         per_message = int(self.limits.get("max_dabs", 256)) or 256
         stroke = await self.begin_stroke(tool, radius=radius, strength=strength, symmetry=symmetry,
-                                         accumulate=accumulate, height=height)
+                                         accumulate=accumulate, height=height, volume=volume, direction=direction)
         applied = 0
         plane = None
         try:
@@ -606,20 +608,10 @@ class Client:
         every point; twist, scale and pinch take their amount from the last point's way along
         `direction` (default: along the drag), in radii: a quarter turn, a factor 2, a pinch of
         0.5 per radius. Returns {stroke, revision, can_undo, can_redo}."""
-        dabs = [_dab(anchor)] + [_dab(p) for p in points]
-        per_message = int(self.limits.get("max_dabs", 256)) or 256
-        stroke = await self.begin_stroke(tool, radius=radius, strength=strength, volume=volume, direction=direction)
-        try:
-            for start in range(0, len(dabs), per_message):
-                await self.stroke_dabs(stroke, dabs[start:start + per_message])
-        except MarzipanError:
-            try:
-                await self.end_stroke(stroke)
-            except MarzipanError:
-                pass
-            raise
-        end = await self.end_stroke(stroke)
-        return {"stroke": stroke, **end}
+        result = await self.stroke(tool, [anchor, *points], radius=radius, strength=strength, volume=volume,
+                                   direction=direction)
+        del result["applied"]
+        return result
 
     async def grab(self, anchor, to, radius: float, *, strength: float | None = None) -> dict:
         """Grabs the surface at `anchor` (a point on it) and moves it to `to`, the material within
