@@ -60,6 +60,14 @@ std::string brickName(Int3 b) {
 
 std::uint64_t orderKey(Int3 b) { return std::uint64_t(b.z) << 32 | std::uint64_t(b.y) << 16 | std::uint64_t(b.x); }
 
+// The 8-byte brick address: u16 x, y, z, reserved 0.
+void putAddress(std::uint8_t* p, Int3 b) {
+  put16(p, std::uint32_t(b.x));
+  put16(p + 2, std::uint32_t(b.y));
+  put16(p + 4, std::uint32_t(b.z));
+  put16(p + 6, 0);
+}
+
 // Reads the 8-byte brick address (u16 x, y, z, reserved) and checks it against the grid and
 // the z, y, x order that makes files canonical. `what` ("stored", "inside") names the section.
 Int3 readAddress(const std::uint8_t* p, Int3 grid, std::uint64_t& lastKey, bool& first, const char* what) {
@@ -117,18 +125,12 @@ std::vector<std::uint8_t> saveVolume(const Volume& vol) {
   put32(p + 44, std::uint32_t(vol.paintedBricks()));
   p += kVolumeFileHeaderBytes;
   vol.forEachPresentBrick([&](Int3 b, const Brick& br) {
-    put16(p, std::uint32_t(b.x));
-    put16(p + 2, std::uint32_t(b.y));
-    put16(p + 4, std::uint32_t(b.z));
-    put16(p + 6, 0);
+    putAddress(p, b);
     putValues(p + 8, br.v);
     p += kVolumeFileBrickBytes;
   });
   for (const Int3& b : inside) {
-    put16(p, std::uint32_t(b.x));
-    put16(p + 2, std::uint32_t(b.y));
-    put16(p + 4, std::uint32_t(b.z));
-    put16(p + 6, 0);
+    putAddress(p, b);
     p += kVolumeFileInsideBytes;
   }
   if (channels) {
@@ -136,10 +138,7 @@ std::vector<std::uint8_t> saveVolume(const Volume& vol) {
     p[0] = base.r, p[1] = base.g, p[2] = base.b, p[3] = 0;
     p += kVolumeFileBaseColorBytes;
     vol.forEachPaintedBrick([&](Int3 b, const BrickPaint& bp) {
-      put16(p, std::uint32_t(b.x));
-      put16(p + 2, std::uint32_t(b.y));
-      put16(p + 4, std::uint32_t(b.z));
-      put16(p + 6, 0);
+      putAddress(p, b);
       for (int i = 0; i < kBrickVoxels; ++i) {
         const Texel t = bp.t[i];
         p[8 + 4 * i] = t.r, p[9 + 4 * i] = t.g, p[10 + 4 * i] = t.b, p[11 + 4 * i] = t.mask;
@@ -215,8 +214,8 @@ Volume loadVolume(std::span<const std::uint8_t> bytes) {
     for (const float v : br->v)
       if (!(std::fabs(v) <= band)) formatError(brickName(b) + " holds a value that is NaN or outside +-band");
     for (int k = 0; k < kBrickVoxels; ++k) {
-      const Int3 p = Bricks::origin(b) + Bricks::local(k);
-      const bool past = p.x >= dims.x || p.y >= dims.y || p.z >= dims.z;
+      const Int3 v = Bricks::origin(b) + Bricks::local(k);
+      const bool past = v.x >= dims.x || v.y >= dims.y || v.z >= dims.z;
       if (past && br->v[k] != band) formatError(brickName(b) + " holds a voxel past the domain's edge that is not +band");
     }
     // Volume keeps such a brick as a uniform slot; storing it would give the same field another
@@ -287,10 +286,11 @@ Volume loadVolumeFile(const std::string& path) {
   if (!f) throw EngineError(ErrorKind::InvalidArgument, "path", "cannot open " + path);
   const std::streamoff size = f.tellg();
   if (size < 0) throw EngineError(ErrorKind::InvalidArgument, "path", "cannot read " + path);
-  // The largest valid file: every brick of a 1024^3 grid stored.
+  // The largest valid file: every brick of a 1024^3 grid stored and painted.
   constexpr std::uint64_t kMaxSlots =
       std::uint64_t(kMaxDomainSide / kBrickSide) * (kMaxDomainSide / kBrickSide) * (kMaxDomainSide / kBrickSide);
-  if (std::uint64_t(size) > kVolumeFileHeaderBytes + kVolumeFileBrickBytes * kMaxSlots + kVolumeFileTrailerBytes)
+  if (std::uint64_t(size) > kVolumeFileHeaderBytes + (kVolumeFileBrickBytes + kVolumeFilePaintBytes) * kMaxSlots +
+                                kVolumeFileBaseColorBytes + kVolumeFileTrailerBytes)
     formatError(path + " is larger than any volume file");
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
   f.seekg(0);
