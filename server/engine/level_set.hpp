@@ -197,6 +197,12 @@ Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& po
 // stroke ends the same, bit for bit, however its messages were grouped. Each call returns the
 // Edit that takes vol (as it was) to the result.
 //
+// Channels (channels.hpp): on a painted volume a voxel takes the colour of the voxel nearest
+// X(x) (the colour moves with the clay) and keeps its own mask weight. The mask holds a voxel's
+// distance and colour by the largest weight on the clay's path from X(x) to x (its own voxel
+// left out) before the redistance, and its distance by its own weight against base's where
+// the result is written (Volume::diff): under a full mask nothing changes, bit for bit.
+//
 // All calls: invalid parameters throw EngineError before anything changes; the calling thread's
 // Progress (progress.hpp) is checked per slice (a cancelled call throws Cancelled and changes
 // nothing) and advanced by one unit per call; results do not depend on the pool's threads.

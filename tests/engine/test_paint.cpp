@@ -261,9 +261,9 @@ TEST_CASE("under a full mask every geometry tool leaves distances and colours bi
   CHECK(digest(v) == frozen);
 }
 
-// A warp is held where it writes back (Volume::diff), after its redistance: every voxel of a
-// masked brick keeps its bits, but the redistance may still move a voxel of the air around
-// (a uniform brick, no mask) by a few ulps: not yet the whole field bit for bit.
+// A warp is held where it writes back (Volume::diff), and along the clay's paths before its
+// redistance (level_set.hpp, warps): every voxel of a masked brick keeps its bits (the whole
+// field does too: tests/engine/level_set/test_warp.cpp, under a full mask).
 TEST_CASE("under a full mask a grab keeps every masked voxel bit for bit", "[paint][mask]") {
   Volume v = sphere();
   PaintSettings mask;

@@ -1,10 +1,13 @@
 // The warp resampler and its velocity fields (../level_set.hpp, warps; docs/method.md §3,
-// Warps). One file: the fields are evaluated inline in the per-voxel integration, where a call
-// into another file per evaluation would cost more than the evaluation.
+// Warps). One file, over the engine's ~800 lines: the fields are evaluated inline in the
+// per-voxel integration (and along the mask's paths), where a call into another file per
+// evaluation would cost more than the evaluation.
 #include "engine/level_set.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <iterator>
 #include <limits>
 #include <numbers>
 #include <utility>
@@ -230,6 +233,29 @@ struct Velocity {
     return y;
   }
 
+  // Calls visit(point) at points along the backward flow from y (the path of the clay that
+  // arrives at y), no two of them more than kPathSpacing vu apart, X(y) last: a capsule's
+  // paths are straight (capsuleFlow()), the others' are followed sub-step by sub-step.
+  static constexpr double kPathSpacing = 0.5;
+  template <class Visit>
+  void visitPath(Vec3 y, int n, Vec3 x, Visit visit) const {
+    if (kind == Kind::Capsule) {
+      const int k = std::max(1, int(std::ceil(length(x - y) / kPathSpacing)));
+      for (int i = 0; i <= k; ++i) visit(y + (x - y) * (double(i) / k));
+      return;
+    }
+    // |v| <= lipschitz() * 2 radius (v vanishes on the support's boundary): sub-steps that
+    // short move at most kPathSpacing.
+    const int m = std::max(n, int(std::ceil(2 * lipschitz() * radius / kPathSpacing)));
+    const double dt = -1.0 / m;
+    visit(y);
+    for (int i = 0; i < m; ++i) {
+      const Vec3 mid = y + at(y) * (0.5 * dt);
+      y = y + at(mid) * dt;
+      visit(y);
+    }
+  }
+
   // flow() of a capsule. Its velocity is parallel to seg everywhere, so a point moves along
   // the line through it parallel to seg and its distance to the segment's line stays put: the
   // midpoint rule runs on the one coordinate a along seg. Between the segment's end planes the
@@ -386,7 +412,7 @@ Box changedSinceBase(const Volume& vol, const Volume& base, ThreadPool& pool) {
         const Int3 b{x, y, int(z)};
         const float* dv = vol.brickData(b, &uv);
         const float* db = base.brickData(b, &ub);
-        if (dv == db && (dv || uv == ub)) continue;
+        if (dv == db && (dv || uv == ub) && vol.brickPaint(b) == base.brickPaint(b)) continue;
         out = unite(out, Bricks::box(b));
       }
     layers[z] = out;
@@ -458,11 +484,86 @@ struct InverseLattice {
 struct WarpScratch {
   DenseGrid base, warped;
   InverseLattice lattice;
+  // The channels of base over the grids' box, and the warped ones (painted volumes only).
+  std::vector<Texel> texels, warpedTexels;
 };
 
 WarpScratch& warpScratch() {
   thread_local WarpScratch s;
   return s;
+}
+
+// The changes that take vol to base with `warped`'s distances over `region` and `texels`'s
+// channels over their grid's box, within `all` (which holds both and every brick where vol
+// differs from base), published. The distances are compared with base's (Volume::diff, whose
+// mask holds them against base's, as one call of the stroke from base would), and each
+// brick's `before` is vol's.
+std::vector<BrickChange> writeBack(Volume& vol, const Volume& base, const Box& all, const Box& region,
+                                   const DenseGrid& warped, const std::vector<Texel>& texels, ThreadPool& pool) {
+  if (all.empty()) return {};
+  DenseGrid out;
+  out.gatherFrom(base, all, {}, pool);
+  for (int z = region.lo.z; z < region.hi.z; ++z)
+    for (int y = region.lo.y; y < region.hi.y; ++y)
+      std::copy_n(&warped.v[warped.index({region.lo.x, y, z})], region.size().x, &out.v[out.index({region.lo.x, y, z})]);
+  std::vector<BrickChange> found = base.diff(all, out.v.data(), out.box, pool);
+  const Box bricks = Bricks::bricksOf(all);
+  const Int3 nb = bricks.size();
+  std::vector<std::vector<BrickChange>> layers(std::size_t(nb.z));
+  std::size_t next = 0;  // found is in z, y, x order of the bricks
+  std::vector<std::pair<std::size_t, std::size_t>> ranges(std::size_t(nb.z));
+  for (int bz = 0; bz < nb.z; ++bz) {
+    const std::size_t first = next;
+    while (next < found.size() && found[next].brick.z == bricks.lo.z + bz) ++next;
+    ranges[std::size_t(bz)] = {first, next};
+  }
+  const Texel plain = texelOf(base.baseColor());
+  pool.parallelFor(std::size_t(nb.z), [&](std::size_t k) {
+    const int bz = bricks.lo.z + int(k);
+    std::size_t f = ranges[k].first;
+    for (int by = bricks.lo.y; by < bricks.hi.y; ++by)
+      for (int bx = bricks.lo.x; bx < bricks.hi.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        BrickRef after;
+        if (f < ranges[k].second && found[f].brick == b) {
+          after = std::move(found[f++].after);
+        } else {
+          after = base.brick(b);
+        }
+        BrickRef before = vol.brick(b);
+        if (after.data) {
+          // The brick's channels: base's, with the warped ones where their grid reaches.
+          const Box here = Bricks::box(b).intersect(warped.box);
+          const BrickPaint* had = base.brickPaint(b);
+          auto paint = std::make_shared<BrickPaint>();
+          if (had) {
+            *paint = *had;
+          } else {
+            std::fill(std::begin(paint->t), std::end(paint->t), plain);
+          }
+          const Int3 o = Bricks::origin(b);
+          for (int z = here.lo.z; z < here.hi.z; ++z)
+            for (int y = here.lo.y; y < here.hi.y; ++y)
+              for (int x = here.lo.x; x < here.hi.x; ++x)
+                paint->t[Bricks::index(x - o.x, y - o.y, z - o.z)] = texels[warped.index({x, y, z})];
+          std::shared_ptr<const BrickPaint> now = vol.canonicalPaint(std::move(paint));
+          // Equal channels keep the very BrickPaint they equal (no change where nothing moved).
+          const auto same = [](const BrickPaint* a, const BrickPaint* c) {
+            return a && c && std::equal(std::begin(a->t), std::end(a->t), std::begin(c->t));
+          };
+          if (now && same(now.get(), had)) now = base.brick(b).paint;
+          if (now && same(now.get(), before.paint.get())) now = before.paint;
+          after.paint = std::move(now);
+        } else {
+          after.paint = nullptr;
+        }
+        if (!(before == after)) layers[k].push_back({b, std::move(before), std::move(after)});
+      }
+  });
+  std::vector<BrickChange> changes;
+  for (auto& l : layers) std::move(l.begin(), l.end(), std::back_inserter(changes));
+  vol.publish(changes, true);
+  return changes;
 }
 
 // vol becomes base warped by the flow of v (../level_set.hpp, warps).
@@ -485,25 +586,79 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   s.warped.v.assign(s.base.v.begin(), s.base.v.end());
   s.lattice.build(v, work, pool, share.part(kLatticeShare));
 
-  // Each slice z of `work` resamples its voxels and notes the box of those that changed.
+  // Channels (../../channels.hpp), for a painted volume only: the colour is read back through
+  // the same inverse map as the distance (the texel of the voxel nearest X(x)), so it moves
+  // with the clay; the mask weight stays with its voxel. The mask holds a voxel x of weight w
+  // where the result is written (Volume::diff, against base), and here the clay x receives is
+  // held by the largest weight w' on its way, from X(x) to x (x's own voxel left out): x's
+  // distance and colour move by (1 - w' / 255) of what they would before the redistance, by
+  // (1 - w / 255) of that after. So frozen clay stays, and clay behind it cannot pass through
+  // it (a grab's deep inside, which no mask reaches, is not carried out into the air).
+  const bool painted = base.paintedBricks() != 0 || vol.paintedBricks() != 0;
+  bool masked = false;
+  if (painted) {
+    s.texels.resize(std::size_t(gridBox.voxels()));
+    base.gatherTexels(gridBox, s.texels.data());
+    s.warpedTexels = s.texels;
+    for (const Texel& t : s.texels) masked = masked || t.mask != 0;
+  }
+  const auto texelIndex = [&](Vec3 q) -> std::ptrdiff_t {
+    Int3 c;
+    for (int a = 0; a < 3; ++a) c[a] = int(std::floor(q[a] + 0.5));
+    return s.base.box.contains(c) ? std::ptrdiff_t(s.base.index(c)) : -1;
+  };
+
+  // Each slice z of `work` resamples its voxels and notes the box of those that changed, and
+  // of those whose channels changed.
   const int steps = v.substeps();
   const int slices = work.size().z;
-  std::vector<Box> changed(std::size_t(std::max(0, slices)));
+  std::vector<Box> changed(std::size_t(std::max(0, slices))), recoloured(changed.size());
   const ProgressShare resample = share.part(kResampleShare);
   pool.parallelFor(std::size_t(std::max(0, slices)), [&](std::size_t i) {
     resample.check();
     const int z = work.lo.z + int(i);
     Box c{{0, 0, 0}, {0, 0, 0}};
     bool any = false;
+    Box tc{};
     for (int y = work.lo.y; y < work.hi.y; ++y) {
       const auto [x0, x1] = v.row(y, z, work);
       for (int x = x0; x < x1; ++x) {
         const Vec3 p{double(x), double(y), double(z)};
         if (!v.moves(p)) continue;
         const std::size_t k = s.warped.index({x, y, z});
-        float value = float(trilinear(s.base, s.lattice.inverse(p), band));
+        Vec3 q = s.lattice.inverse(p);
+        float value = float(trilinear(s.base, q, band));
         // Near the zero set the surface's place is read: there X is integrated at the voxel.
-        if (std::fabs(value) < kExactNear) value = float(trilinear(s.base, v.flow(p, steps, -1), band));
+        if (std::fabs(value) < kExactNear) {
+          q = v.flow(p, steps, -1);
+          value = float(trilinear(s.base, q, band));
+        }
+        if (painted) {
+          int held = 0;
+          if (masked)
+            v.visitPath(p, steps, q, [&](Vec3 on) {
+              const std::ptrdiff_t j = texelIndex(on);
+              if (j >= 0 && std::size_t(j) != k) held = std::max(held, int(s.texels[std::size_t(j)].mask));
+            });
+          const float old = s.base.v[k];
+          const float keep = 1.0f - float(held) / 255.0f;
+          if (held == 255) value = old;
+          else if (held != 0) value = old + keep * (value - old);
+          const std::ptrdiff_t from = texelIndex(q);
+          const Texel own = s.texels[k];
+          const Texel src = from >= 0 ? s.texels[std::size_t(from)] : texelOf(base.baseColor());
+          // The colour's share that moves: the path's hold and the voxel's own (the write-back
+          // holds only distances).
+          const float move = keep * (1.0f - float(own.mask) / 255.0f);
+          const auto mix = [&](std::uint8_t a, std::uint8_t b) {
+            return move == 1.0f ? b : std::uint8_t(std::lround(float(a) + move * (float(b) - float(a))));
+          };
+          const Texel now{mix(own.r, src.r), mix(own.g, src.g), mix(own.b, src.b), own.mask};
+          if (!(now == own)) {
+            s.warpedTexels[k] = now;
+            tc = unite(tc, Box{{x, y, z}, {x + 1, y + 1, z + 1}});
+          }
+        }
         if (value == s.base.v[k]) continue;
         s.warped.v[k] = value;
         if (!any) c = {{x, y, z}, {x + 1, y + 1, z + 1}};
@@ -513,10 +668,12 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
       }
     }
     changed[i] = any ? c : Box{};
+    recoloured[i] = tc;
     resample.advance(1.0 / slices);
   });
-  Box moved{};
+  Box moved{}, texelsMoved{};
   for (const Box& c : changed) moved = unite(moved, c);
+  for (const Box& c : recoloured) texelsMoved = unite(texelsMoved, c);
 
   // The changed voxels next to the zero set are the sources of the redistance. phi0(X(x)) is
   // not a distance where the map stretches or squeezes, and central differences of the voxels
@@ -592,7 +749,10 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // every brick of the volume is spared.
   const Box earlier = &vol == &base ? Box{} : changedSinceBase(vol, base, pool);
   Edit edit;
-  if (earlier.empty() || unite(region, earlier) == region) {
+  if (painted) {
+    const Box all = unite(unite(region, texelsMoved), earlier);
+    edit.append(writeBack(vol, base, all, region, s.warped, s.warpedTexels, pool), all);
+  } else if (earlier.empty() || unite(region, earlier) == region) {
     if (!region.empty()) edit.append(vol.scatter(region, s.warped.v.data(), s.warped.box, pool), region);
   } else {
     const Box all = unite(region, earlier);

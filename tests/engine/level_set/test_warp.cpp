@@ -1,6 +1,8 @@
 #include <catch2/catch.hpp>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <numbers>
 #include <vector>
@@ -8,6 +10,7 @@
 #include "engine/errors.hpp"
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
+#include "engine/paint.hpp"
 #include "engine/progress.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
@@ -137,6 +140,53 @@ Volume sphere() { return makeSphere({96, 96, 96}, kCentre, kSphereRadius); }
 
 // A point of the sphere's surface off the grid's axes.
 Vec3 surfacePoint() { return kCentre + normalized(Vec3{0.3, 1, 0.2}) * kSphereRadius; }
+
+// Every voxel's distance as bits, and every voxel's channels.
+std::vector<std::uint32_t> distanceBits(const Volume& v) {
+  std::vector<float> d(std::size_t(v.domain().voxels()));
+  v.gather(v.domain(), d.data());
+  std::vector<std::uint32_t> bits(d.size());
+  for (std::size_t i = 0; i < d.size(); ++i) bits[i] = std::bit_cast<std::uint32_t>(d[i]);
+  return bits;
+}
+
+std::vector<Texel> allTexels(const Volume& v) {
+  std::vector<Texel> t(std::size_t(v.domain().voxels()));
+  v.gatherTexels(v.domain(), t.data());
+  return t;
+}
+
+// How many entries of two arrays of the same length differ.
+template <class T>
+std::size_t differing(const std::vector<T>& a, const std::vector<T>& b) {
+  std::size_t n = a.size() == b.size() ? 0 : std::max(a.size(), b.size());
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) n += !(a[i] == b[i]);
+  return n;
+}
+
+Int3 nearestVoxel(Vec3 p) { return {int(std::lround(p.x)), int(std::lround(p.y)), int(std::lround(p.z))}; }
+
+const Rgb8 kRed{200, 20, 10};
+
+// The sphere with a red spot around p: full strength within 0.6 of `radius`.
+Volume paintedSphere(Vec3 p, double radius) {
+  Volume v = sphere();
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = radius;
+  red.hardness = 0.6;
+  paint(v, red, p);
+  return v;
+}
+
+// Weight 255 on every voxel of every stored brick.
+void maskAll(Volume& v) {
+  test::paintBricks(v, [&](Int3 b, int i) {
+    Texel t = v.texel(Bricks::origin(b) + Bricks::local(i));
+    t.mask = 255;
+    return t;
+  });
+}
 
 }  // namespace
 
@@ -366,4 +416,147 @@ TEST_CASE("a cancelled warp changes nothing", "[warp][progress]") {
   // The same call without the cancel does change it (the test above is not vacuous).
   grab(v, base, surfacePoint(), {3, 5, 1}, 12);
   CHECK_FALSE(sameField(v, base));
+}
+
+// --- channels (../../channels.hpp): colour moves with the clay, the mask holds it ------------
+
+TEST_CASE("a painted spot moves with the clay: grab, snake hook and twist carry its colour", "[warp][paint]") {
+  const Vec3 a = surfacePoint(), n = normalized(Vec3{0.3, 1, 0.2});
+  // Red through and through within 8.4 vu of the anchor: the whole plateau of a snake hook of
+  // radius 8 (its tip), and the clay a grab's tip is stretched from.
+  const Volume base = paintedSphere(a, 14);
+  REQUIRE(base.texel(nearestVoxel(a)).color() == kRed);
+  // Band voxels whose foot point lies within `within` of `at`: how many, and how many not red.
+  const auto notRedNear = [](const Volume& v, Vec3 at, double within) {
+    std::size_t near = 0, other = 0;
+    v.forEachPresentBrick([&](Int3 b, const Brick& br) {
+      for (int i = 0; i < kBrickVoxels; ++i) {
+        const Int3 p = Bricks::origin(b) + Bricks::local(i);
+        const float d = br.v[i];
+        if (!(std::fabs(d) < 1.5f)) continue;
+        const Vec3 g = v.voxelGradient(p);
+        const Vec3 foot = Vec3{double(p.x), double(p.y), double(p.z)} - g * (double(d) / std::max(length(g), 1e-9));
+        if (length(foot - at) > within) continue;
+        ++near;
+        other += !(v.texel(p).color() == kRed);
+      }
+    });
+    return std::pair{near, other};
+  };
+  SECTION("grab: the red clay is where the anchor went, none left behind on the surface") {
+    const Vec3 d = n * 16.0;
+    Volume v = base;
+    grab(v, base, a, d, 12);
+    CHECK(v.texel(nearestVoxel(a + d)).color() == kRed);
+    const auto [near, other] = notRedNear(v, a + d, 2.0);
+    INFO(near << " band voxels by the moved anchor, " << other << " not red");
+    CHECK(near > 20);
+    CHECK(other == 0);
+    // Far from the capsule the channels are base's, voxel for voxel.
+    const Box far{{0, 0, 0}, {96, 20, 96}};
+    std::vector<Texel> was(std::size_t(far.voxels())), now(was.size());
+    base.gatherTexels(far, was.data());
+    v.gatherTexels(far, now.data());
+    CHECK(differing(was, now) == 0);
+  }
+  SECTION("snake hook: the red tip follows the path") {
+    Volume v = base;
+    Vec3 at = a;
+    for (int i = 0; i < 10; ++i) {
+      const Vec3 next = at + n * 2.0 + Vec3{0.4, 0, 0};
+      snakeHook(v, at, next, 8);
+      at = next;
+    }
+    CHECK(v.texel(nearestVoxel(at)).color() == kRed);
+    const auto [near, other] = notRedNear(v, at, 2.0);
+    INFO(near << " band voxels by the tip, " << other << " not red");
+    CHECK(near > 10);
+    CHECK(other == 0);
+  }
+  SECTION("twist about the centre: the spot turns with the sphere") {
+    // The plateau (half of 60 vu) holds the whole sphere: it turns as a rigid body, by 90
+    // degrees about z, and the spot with it.
+    Volume v = base;
+    twist(v, base, kCentre, {0, 0, 1}, std::numbers::pi / 2, 60);
+    const Vec3 r = a - kCentre, turned = kCentre + Vec3{-r.y, r.x, r.z};
+    CHECK(v.texel(nearestVoxel(turned)).color() == kRed);
+    CHECK(!(v.texel(nearestVoxel(a)).color() == kRed));
+    const auto [near, other] = notRedNear(v, turned, 2.0);
+    INFO(near << " band voxels by the turned spot, " << other << " not red");
+    CHECK(near > 20);
+    CHECK(other == 0);
+  }
+}
+
+TEST_CASE("under a full mask every warp leaves distances and colours bit for bit", "[warp][paint][mask]") {
+  const Vec3 a = surfacePoint(), n = normalized(Vec3{0.3, 1, 0.2});
+  Volume v = paintedSphere(a, 8);
+  maskAll(v);
+  const Volume base = v;
+  const auto bits = distanceBits(base);
+  const auto channels = allTexels(base);
+  ThreadPool pool(2);
+  // A grab of three radii reaches far past the band, into uniform bricks that no mask reaches:
+  // the clay it would carry out comes through the frozen band and stays.
+  SECTION("grab of a voxel") { grab(v, base, a, n, 4, pool); }
+  SECTION("grab of three radii") { grab(v, base, a, n * 36.0, 12, pool); }
+  SECTION("elastic grab") { elasticGrab(v, base, a, n * 6.0, 5, 0.5, pool); }
+  SECTION("snake hook") {
+    Vec3 at = a;
+    for (int i = 0; i < 10; ++i) snakeHook(v, at, at + n * 2.0, 8, pool), at = at + n * 2.0;
+  }
+  SECTION("twist") { twist(v, base, a, n, 1.5, 12, pool); }
+  SECTION("local scale") { localScale(v, base, a, 1.6, 12, pool); }
+  SECTION("pinch") { pinch(v, base, a, n, 0.8, 12, pool); }
+  CHECK(differing(distanceBits(v), bits) == 0);
+  CHECK(differing(allTexels(v), channels) == 0);
+  CHECK(digest(v) == digest(base));
+}
+
+TEST_CASE("a half-masked sphere grabbed keeps its masked half bit for bit", "[warp][paint][mask]") {
+  Volume v = sphere();
+  // Weight 255 on every voxel with x < 48 (every stored brick's), 0 elsewhere.
+  test::paintBricks(v, [](Int3 b, int i) {
+    return texelOf(kClayColor, Bricks::origin(b).x + Bricks::local(i).x < 48 ? 255 : 0);
+  });
+  const Volume base = v;
+  // A grab on the free side by the boundary, pulled across it.
+  const Vec3 a = kCentre + normalized(Vec3{0.2, 1, 0}) * kSphereRadius;
+  grab(v, base, a, {-8, 6, 0}, 12);
+  std::size_t wrong = 0, changedFree = 0;
+  for (int z = 0; z < 96; ++z)
+    for (int y = 0; y < 96; ++y)
+      for (int x = 0; x < 96; ++x) {
+        const float was = base.at(x, y, z), now = v.at(x, y, z);
+        if (x < 48 && base.texel({x, y, z}).mask == 255) {
+          wrong += std::bit_cast<std::uint32_t>(was) != std::bit_cast<std::uint32_t>(now);
+        } else {
+          changedFree += was != now;
+        }
+      }
+  CHECK(wrong == 0);
+  CHECK(changedFree > 1000);
+  CHECK(differing(allTexels(v), allTexels(base)) == 0);  // one colour: nothing to move
+}
+
+TEST_CASE("paint elsewhere changes no warped distance, and a painted grab stroke groups alike", "[warp][paint]") {
+  const Vec3 a = surfacePoint();
+  const Volume plain = sphere();
+  // Red on the far side, and red under the anchor: the distances are the plain sphere's.
+  for (const Vec3 spot : {kCentre * 2.0 - a, a}) {
+    const Volume base = paintedSphere(spot, 8);
+    Volume painted = base, unpainted = plain;
+    for (const Vec3 d : {Vec3{0, 20, 0}, Vec3{-6, 3, 0}, Vec3{3, 7, 2}}) {
+      grab(painted, base, a, d, 10);
+      grab(unpainted, plain, a, d, 10);
+    }
+    CHECK(differing(distanceBits(painted), distanceBits(unpainted)) == 0);
+    Volume once = base;
+    grab(once, base, a, {3, 7, 2}, 10);
+    CHECK(digest(once) == digest(painted));
+    ThreadPool two(2);
+    Volume parallel = base;
+    grab(parallel, base, a, {3, 7, 2}, 10, two);
+    CHECK(digest(parallel) == digest(once));
+  }
 }
