@@ -5,11 +5,48 @@
 
 #include "dense_grid.hpp"
 #include "errors.hpp"
+#include "paint.hpp"
 #include "progress.hpp"
 #include "redistance.hpp"
 #include "shapes.hpp"
 
 namespace marzipan {
+
+namespace {
+
+// Paints `color` into the band voxels of the changed bricks that fromTool (over region, x
+// fastest) marks as the tool's: the header's rule.
+void paintFromTool(const Volume& vol, std::vector<BrickChange>& changes, const Box& region,
+                   const std::vector<std::uint8_t>& fromTool, Rgb8 color) {
+  const Int3 rs = region.size();
+  const Texel base = texelOf(vol.baseColor());
+  for (BrickChange& c : changes) {
+    if (!c.after.data) continue;
+    std::shared_ptr<BrickPaint> now;
+    for (int i = 0; i < kBrickVoxels; ++i) {
+      const Int3 p = Bricks::origin(c.brick) + Bricks::local(i);
+      if (!region.contains(p) || !(std::fabs(c.after.data->v[i]) < vol.band())) continue;
+      const Int3 r = p - region.lo;
+      if (!fromTool[std::size_t(r.x) + std::size_t(rs.x) * (std::size_t(r.y) + std::size_t(rs.y) * std::size_t(r.z))])
+        continue;
+      const Texel had = now ? now->t[i] : c.after.paint ? c.after.paint->t[i] : base;
+      const Texel t = tinted(had, color, 1);
+      if (t == had) continue;
+      if (!now) {
+        now = std::make_shared<BrickPaint>();
+        if (c.after.paint) {
+          *now = *c.after.paint;
+        } else {
+          std::fill(std::begin(now->t), std::end(now->t), base);
+        }
+      }
+      now->t[i] = t;
+    }
+    if (now) c.after.paint = vol.canonicalPaint(std::move(now));
+  }
+}
+
+}  // namespace
 
 double toolDistance(const CsgParams& p, Vec3 x) {
   switch (p.shape) {
@@ -23,7 +60,7 @@ double toolDistance(const CsgParams& p, Vec3 x) {
   return 0;
 }
 
-Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool) {
+Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool, std::optional<Rgb8> color) {
   if (!isFinite(p.center)) throw EngineError(ErrorKind::InvalidArgument, "center", "must be three finite numbers");
   requireRange(p.radius, 0.5, kMaxDomainSide, "radius");
   requireRange(p.blend, 0, p.radius, "blend");
@@ -43,6 +80,9 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool) {
   const int margin = int(std::ceil(band)) + 1;
   DenseGrid g;
   g.gatherFrom(vol, region.grown(margin), share.part(0.1));
+  // With a colour: whether each voxel of the region takes its value from the tool.
+  std::vector<std::uint8_t> fromTool(color ? std::size_t(region.voxels()) : 0);
+  std::size_t k = 0;
   for (int z = region.lo.z; z < region.hi.z; ++z) {
     share.check();
     for (int y = region.lo.y; y < region.hi.y; ++y)
@@ -51,11 +91,13 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool) {
         const double d = g.v[i];
         const double t = toolDistance(p, {double(x), double(y), double(z)});
         double r = d;
+        bool tool = false;
         switch (p.op) {
-          case CsgOp::Add: r = sdf::smoothMin(d, t, p.blend); break;
-          case CsgOp::Subtract: r = sdf::smoothMax(d, -t, p.blend); break;
-          case CsgOp::Intersect: r = sdf::smoothMax(d, t, p.blend); break;
+          case CsgOp::Add: r = sdf::smoothMin(d, t, p.blend); tool = t < d; break;
+          case CsgOp::Subtract: r = sdf::smoothMax(d, -t, p.blend); tool = -t > d; break;
+          case CsgOp::Intersect: r = sdf::smoothMax(d, t, p.blend); tool = t > d; break;
         }
+        if (color) fromTool[k++] = tool;
         // Beyond the band only the sign matters (those voxels are marched afresh; on the side
         // kept exact both terms lie within it), and clamped they stay off the band list.
         g.v[i] = float(std::clamp(r, -double(band), double(band)));
@@ -76,8 +118,12 @@ Edit applyCsg(Volume& vol, const CsgParams& p, ThreadPool& pool) {
   redistanceRegion(g, region, band, Outside::Source, opt, pool);
   share.check();  // the last check: nothing below stops part way
   Edit e;
-  if (p.op == CsgOp::Intersect) e.append(vol.fill(false), vol.domain());
-  e.append(vol.scatter(region, g.v.data(), g.box), region);
+  if (p.op == CsgOp::Intersect) e.append(vol.clearOutside(region), vol.domain());
+  std::vector<BrickChange> changes = vol.diff(region, g.v.data(), g.box);
+  vol.extendChannels(changes);
+  if (color) paintFromTool(vol, changes, region, fromTool, *color);
+  vol.publish(changes, true);
+  e.append(changes, region);
   share.advance(0.1);
   return e;
 }

@@ -62,10 +62,8 @@ double distanceToBox(Vec3 p, const Box& b) {
 // The texel t painted by e (> 0) of the way that is left.
 Texel painted(Texel t, const PaintSettings& st, double e) {
   switch (st.mode) {
-    case PaintMode::Color: {
-      const double k = e * (1 - double(t.mask) / 255);
-      return {toward(t.r, st.color.r, k), toward(t.g, st.color.g, k), toward(t.b, st.color.b, k), t.mask};
-    }
+    case PaintMode::Color:
+      return tinted(t, st.color, e);
     case PaintMode::MaskAdd:
       return {t.r, t.g, t.b, toward(t.mask, 255, e)};
     case PaintMode::MaskErase:
@@ -136,6 +134,11 @@ std::shared_ptr<BrickPaint> paintBrick(const Volume& vol, Int3 b, const PaintSet
 }
 
 }  // namespace
+
+Texel tinted(Texel t, Rgb8 color, double e) {
+  const double k = e * (1 - double(t.mask) / 255);
+  return {toward(t.r, color.r, k), toward(t.g, color.g, k), toward(t.b, color.b, k), t.mask};
+}
 
 void checkPaintSettings(const PaintSettings& st) {
   requireRange(st.radius, 0.5, kMaxDomainSide, "radius");

@@ -44,6 +44,10 @@ struct PaintSettings {
   double hardness = 0.5;    // in [0, 1): the share of the radius painted at full strength
 };
 
+// The colour rule of a dab of alpha e at a texel: c += e (1 - w/255) (C - c), each channel
+// rounded to the nearest integer; the weight stays. Other tools that paint (CSG's `color`) use it.
+Texel tinted(Texel t, Rgb8 color, double e);
+
 // Throws EngineError (field "radius", "strength" or "hardness").
 void checkPaintSettings(const PaintSettings& st);
 

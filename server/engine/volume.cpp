@@ -827,6 +827,36 @@ std::vector<BrickChange> Volume::fill(bool inside) {
   return changes;
 }
 
+std::vector<BrickChange> Volume::clearOutside(const Box& keep) {
+  const Box k = keep.intersect(domain());
+  std::vector<BrickChange> changes;
+  for (int bz = 0; bz < brickDims_.z; ++bz)
+    for (int by = 0; by < brickDims_.y; ++by)
+      for (int bx = 0; bx < brickDims_.x; ++bx) {
+        const Int3 b{bx, by, bz};
+        const Box inDomain = Bricks::box(b).intersect(domain());
+        if (inDomain.intersect(k) == inDomain) continue;
+        BrickRef old = brick(b);
+        if (!old.data && !old.inside) continue;
+        auto nb = std::make_shared<Brick>();
+        const float was = old.inside ? -band_ : band_;
+        bool differs = false;
+        for (int i = 0; i < kBrickVoxels; ++i) {
+          const float before = old.data ? old.data->v[i] : was;
+          nb->v[i] = k.contains(Bricks::origin(b) + Bricks::local(i)) ? before : band_;
+          differs = differs || nb->v[i] != before;
+        }
+        if (old.paint && old.paint->masked) differs = holdMasked(nb->v, old.data->v, *old.paint);
+        if (!differs) continue;
+        BrickRef now = canonicalBrick(b, std::move(nb));
+        if (now.data) now.paint = old.paint;
+        changes.push_back({b, std::move(old), std::move(now)});
+      }
+  extendChannels(changes);
+  publish(changes, true);
+  return changes;
+}
+
 void Volume::publish(const std::vector<BrickChange>& changes, bool forward) {
   setSlots(changes.size(), [&](std::size_t i) {
     const BrickChange& c = changes[i];

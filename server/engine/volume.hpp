@@ -163,8 +163,13 @@ class Volume {
   // with weight 0, else `paint` with its `masked` flag set. Safe to call from several threads.
   std::shared_ptr<const BrickPaint> canonicalPaint(std::shared_ptr<BrickPaint> paint) const;
 
-  // Sets every voxel of the domain to the given uniform side (used for clearing).
+  // Sets every voxel of the domain to the given uniform side and drops every channel: a new
+  // start, not a tool (the mask does not hold it).
   std::vector<BrickChange> fill(bool inside);
+  // Sets every voxel of the domain outside `keep` to +band (air) and publishes the changes: an
+  // intersection's clearing. The mask holds as in scatter, a brick that stays stored keeps its
+  // channels, and colour follows the surface (extendChannels) where a held voxel enters the band.
+  std::vector<BrickChange> clearOutside(const Box& keep);
 
   // Re-publishes recorded changes: forward sets `after` (redo), backward sets `before` (undo).
   void publish(const std::vector<BrickChange>& changes, bool forward);

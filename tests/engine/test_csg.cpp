@@ -1,10 +1,16 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "engine/channels.hpp"
 #include "engine/csg.hpp"
 #include "engine/errors.hpp"
 #include "engine/measures.hpp"
 #include "engine/shapes.hpp"
 #include "engine/solids.hpp"
+#include "engine/thread_pool.hpp"
 #include "support.hpp"
 
 using namespace marzipan;
@@ -110,4 +116,128 @@ TEST_CASE("constructive tools refuse bad parameters and change nothing", "[csg][
   CHECK(digest(v) == d0);
   CHECK(toolShapeFromName("box") == ToolShape::Box);
   CHECK_FALSE(toolShapeFromName("cone").has_value());
+}
+
+// --- channels: a CSG tool's colour, and colour that follows the cut ---------------------------
+
+namespace {
+
+const Rgb8 kRed{200, 20, 10}, kBlue{20, 40, 210};
+
+// Over every band voxel of v: how many lie where the tool's exact term beats the solid's by more
+// than `margin` vu (`tool`, and how many of those do not read `inTool`), and where the solid's
+// beats the tool's by more than that (`solid`, and how many do not read `inSolid`). The solid's
+// exact distance is clamped to the band, as the tool's rule reads the stored field.
+struct Sides {
+  std::size_t tool = 0, toolWrong = 0, solid = 0, solidWrong = 0;
+};
+template <class ToolWins>
+Sides colourSides(const Volume& v, ToolWins toolWins, Rgb8 inTool, Rgb8 inSolid, double margin = 0.5) {
+  Sides s;
+  const Int3 n = v.dims();
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) {
+        if (!(std::fabs(v.at(x, y, z)) < v.band())) continue;
+        const double w = toolWins(Vec3{double(x), double(y), double(z)});
+        const Rgb8 c = v.texel({x, y, z}).color();
+        if (w > margin) {
+          ++s.tool;
+          s.toolWrong += !(c == inTool);
+        } else if (w < -margin) {
+          ++s.solid;
+          s.solidWrong += !(c == inSolid);
+        }
+      }
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("a union paints what it adds in its colour, and without one adds clay", "[csg][paint]") {
+  const Int3 dims{64, 64, 64};
+  const Vec3 c{30, 32, 32}, t{44, 33, 31};
+  const double band = Volume::kDefaultBand;
+  auto solid = [&](Vec3 p) { return std::min(sdf::sphere(p, c, 15), band); };
+  CsgParams p;
+  p.op = CsgOp::Add;
+  p.center = t;
+  p.radius = 7;
+  Volume painted = makeSphere(dims, c, 15), plain = painted;
+  ThreadPool pool(2);
+  applyCsg(painted, p, pool, kRed);
+  applyCsg(plain, p, pool);
+  // The tool's term wins where t < d (the rule reads d clamped to the band).
+  const Sides s = colourSides(painted, [&](Vec3 x) { return solid(x) - toolDistance(p, x); }, kRed, kClayColor);
+  CHECK(s.tool > 1000);
+  CHECK(s.solid > 1000);
+  CHECK(s.toolWrong == 0);
+  CHECK(s.solidWrong == 0);
+  // Colour moves no distance, and without it nothing is stored.
+  std::vector<float> a(std::size_t(painted.domain().voxels())), b(a.size());
+  painted.gather(painted.domain(), a.data());
+  plain.gather(plain.domain(), b.data());
+  CHECK(a == b);
+  CHECK(plain.paintedBricks() == 0);
+  CHECK(painted.paintedBricks() > 0);
+  // On one thread the same.
+  Volume serial = makeSphere(dims, c, 15);
+  applyCsg(serial, p, ThreadPool::serial(), kRed);
+  CHECK(digest(serial) == digest(painted));
+}
+
+TEST_CASE("a subtraction's walls keep the cut solid's colour, or take the tool's", "[csg][paint][extend]") {
+  const Int3 dims{64, 64, 64};
+  const Vec3 c{30, 32, 32}, t{44, 33, 31};
+  const double band = Volume::kDefaultBand;
+  auto solid = [&](Vec3 p) { return std::min(sdf::sphere(p, c, 15), band); };
+  CsgParams p;
+  p.op = CsgOp::Subtract;
+  p.center = t;
+  p.radius = 7;
+  Volume red = makeSphere(dims, c, 15);
+  test::paintBricks(red, [](Int3, int) { return texelOf(kRed); });
+  Volume cut = red;
+  applyCsg(red, p);
+  applyCsg(cut, p, ThreadPool::serial(), kBlue);
+  // -t > d: the tool's wall.
+  const auto toolWins = [&](Vec3 x) { return -toolDistance(p, x) - solid(x); };
+  const Sides kept = colourSides(red, toolWins, kRed, kRed);
+  CHECK(kept.tool > 500);
+  CHECK(kept.solid > 1000);
+  CHECK(kept.toolWrong == 0);  // the new wall, red by extension: no clay in it
+  CHECK(kept.solidWrong == 0);
+  const Sides blue = colourSides(cut, toolWins, kBlue, kRed);
+  CHECK(blue.tool == kept.tool);
+  CHECK(blue.toolWrong == 0);
+  CHECK(blue.solidWrong == 0);
+}
+
+// Before Volume::clearOutside an intersection cleared the whole volume first (Volume::fill), and
+// every channel with it: the kept part came out clay.
+TEST_CASE("an intersection keeps the colour of what it keeps and paints its cut in its colour", "[csg][paint]") {
+  const Int3 dims{64, 64, 64};
+  const Vec3 c{32, 32, 32};
+  const double band = Volume::kDefaultBand;
+  auto solid = [&](Vec3 p) { return std::max(std::min(sdf::sphere(p, c, 18), band), -band); };
+  CsgParams p;
+  p.op = CsgOp::Intersect;
+  p.shape = ToolShape::Box;
+  p.center = {36, 32, 32};
+  p.radius = 14;
+  Volume red = makeSphere(dims, c, 18);
+  test::paintBricks(red, [](Int3, int) { return texelOf(kRed); });
+  Volume cut = red;
+  applyCsg(red, p);
+  applyCsg(cut, p, ThreadPool::serial(), kBlue);
+  const auto toolWins = [&](Vec3 x) { return toolDistance(p, x) - solid(x); };
+  const Sides kept = colourSides(red, toolWins, kRed, kRed);
+  CHECK(kept.tool > 500);
+  CHECK(kept.solid > 500);
+  CHECK(kept.toolWrong == 0);
+  CHECK(kept.solidWrong == 0);
+  const Sides blue = colourSides(cut, toolWins, kBlue, kRed);
+  CHECK(blue.tool == kept.tool);
+  CHECK(blue.toolWrong == 0);
+  CHECK(blue.solidWrong == 0);
 }

@@ -236,6 +236,7 @@ TEST_CASE("under a full mask every geometry tool leaves distances and colours bi
   const auto bits = distanceBits(v);
   const auto colours = texels(v);
   const std::uint64_t frozen = digest(v);
+  const Volume before = v;
   const Vec3 at = kCentre + Vec3{kRadius, 0, 0};
   ThreadPool pool(2);
   SECTION("add blob") { CHECK(addBlob(v, {at, 8, 1}, pool).empty()); }
@@ -253,9 +254,40 @@ TEST_CASE("under a full mask every geometry tool leaves distances and colours bi
     p.center = kCentre + Vec3{kRadius - 3, 0, 0};
     p.radius = 2;
     CHECK(applyCsg(v, p, pool).empty());
+    CHECK(applyCsg(v, p, pool, kRed).empty());
+  }
+  // A sphere 3 vu outside the surface cuts into the band only (beyond it -t < band).
+  SECTION("CSG subtract") {
+    CsgParams p;
+    p.op = CsgOp::Subtract;
+    p.center = kCentre + Vec3{kRadius + 3, 0, 0};
+    p.radius = 2;
+    CHECK(applyCsg(v, p, pool).empty());
+    CHECK(applyCsg(v, p, pool, kRed).empty());
+  }
+  // A box of half side R + 2 cuts the outer band around the poles, holds every uniform brick
+  // inside (t <= -5 there) and clears nothing outside its reach that was not air.
+  SECTION("CSG intersect") {
+    CsgParams p;
+    p.op = CsgOp::Intersect;
+    p.shape = ToolShape::Box;
+    p.center = kCentre;
+    p.radius = kRadius + 2;
+    CHECK(applyCsg(v, p, pool).empty());
+    CHECK(applyCsg(v, p, pool, kRed).empty());
   }
   SECTION("mean curvature flow") { CHECK(meanCurvatureFlow(v, 3, 1, pool).empty()); }
   SECTION("dilate") { CHECK(dilate(v, 1.5, pool).empty()); }
+  SECTION("erode") { CHECK(erode(v, 1.5, pool).empty()); }
+  SECTION("open") { CHECK(openSolid(v, 2, pool).empty()); }
+  SECTION("close") { CHECK(closeSolid(v, 2, pool).empty()); }
+  // Brick by brick: every slot still shares the very bricks and channels it had.
+  std::size_t otherSlots = 0;
+  const Int3 nb = v.brickDims();
+  for (int bz = 0; bz < nb.z; ++bz)
+    for (int by = 0; by < nb.y; ++by)
+      for (int bx = 0; bx < nb.x; ++bx) otherSlots += !(v.brick({bx, by, bz}) == before.brick({bx, by, bz}));
+  CHECK(otherSlots == 0);
   CHECK(differing(distanceBits(v), bits) == 0);
   CHECK(differing(texels(v), colours) == 0);
   CHECK(digest(v) == frozen);
@@ -288,10 +320,11 @@ TEST_CASE("under a full mask a grab keeps every masked voxel bit for bit", "[pai
 
 TEST_CASE("a half-masked sphere smoothed globally keeps its masked half bit for bit", "[paint][mask]") {
   Volume v = makeSphere(kDims, kCentre, kRadius);
-  // Weight 255 on every voxel with x < 32 (every stored brick's), 0 elsewhere.
-  test::paintBricks(v, [](Int3 b, int i) {
-    return texelOf(kClayColor, Bricks::origin(b).x + Bricks::local(i).x < 32 ? 255 : 0);
-  });
+  // Weight 255 on every voxel of one half (every stored brick's), 0 elsewhere: x < 32, or the
+  // upper half y > 32 (whose held voxels are those with y >= 33: the free ones y <= 32).
+  const bool upper = GENERATE(false, true);
+  const auto isHeld = [upper](Int3 p) { return upper ? p.y > 32 : p.x < 32; };
+  test::paintBricks(v, [&](Int3 b, int i) { return texelOf(kClayColor, isHeld(Bricks::origin(b) + Bricks::local(i)) ? 255 : 0); });
   const Volume before = v;
   ThreadPool pool(2);
   meanCurvatureFlow(v, 20, 1, pool);
@@ -300,7 +333,7 @@ TEST_CASE("a half-masked sphere smoothed globally keeps its masked half bit for 
     for (int y = 0; y < kDims.y; ++y)
       for (int x = 0; x < kDims.x; ++x) {
         const float a = before.at(x, y, z), b = v.at(x, y, z);
-        if (x < 32) {
+        if (isHeld({x, y, z})) {
           wrong += std::bit_cast<std::uint32_t>(a) != std::bit_cast<std::uint32_t>(b);
           kept += std::fabs(a) < v.band();
         } else {
@@ -360,4 +393,38 @@ TEST_CASE("colour follows the surface alike on 1 and 2 threads, and costs nothin
   Volume plain = sphere();
   dilate(plain, 2, p2);
   CHECK(plain.paintedBricks() == 0);
+}
+
+// The share of the band voxels whose foot point lies in the stripe's region (seen from the
+// centre: within 1.5 vu of the plane z = 32 at the sphere's radius, within 5 vu of the y axis,
+// on top) that read the stripe's colour.
+TEST_CASE("a painted stripe stretches under dilation: every voxel of its region keeps the colour", "[paint][extend]") {
+  Volume v = sphere();
+  const Vec3 top = kCentre + Vec3{0, kRadius, 0};
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = 8;
+  red.hardness = 0.6;
+  std::vector<StrokeDab> stripe;
+  for (int k = -8; k <= 8; k += 2) stripe.push_back({top + Vec3{double(k), 0, 0}});
+  paintStroke(v, red, stripe, {});
+  const auto share = [&](const Volume& vol, std::size_t& n) {
+    std::size_t inStripe = 0;
+    n = 0;
+    forEachBandVoxel(vol, [&](Int3 p, float, Vec3 q) {
+      const Vec3 u = q - kCentre;
+      const double r = length(u);
+      if (u.y < 0.9 * r || std::fabs(u.z) * kRadius > 1.5 * r || std::fabs(u.x) * kRadius > 5 * r) return;
+      ++n;
+      inStripe += vol.texel(p).color() == kRed;
+    });
+    return n ? double(inStripe) / double(n) : 0.0;
+  };
+  std::size_t before = 0, after = 0;
+  CHECK(share(v, before) == 1.0);
+  ThreadPool pool(2);
+  dilate(v, 4, pool);
+  CHECK(share(v, after) == 1.0);
+  CHECK(before > 30);
+  CHECK(after > before);  // the region grew with the radius (20 -> 24 vu)
 }
