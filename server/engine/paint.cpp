@@ -133,7 +133,51 @@ std::shared_ptr<BrickPaint> paintBrick(const Volume& vol, Int3 b, const PaintSet
   return now;
 }
 
+// Sets every stored brick's weights to weight(w); `skip` tells a brick whose channels (null
+// when it has none) cannot change, without reading its texels.
+template <class Weight, class Skip>
+Edit mapMask(Volume& vol, Weight weight, Skip skip) {
+  Progress* const progress = Progress::current();
+  if (progress) progress->check();
+  const Texel base = texelOf(vol.baseColor());
+  Edit edit;
+  edit.region = vol.domain();
+  vol.forEachPresentBrick([&](Int3 b, const Brick&) {
+    const BrickPaint* old = vol.brickPaint(b);
+    if (skip(old)) return;
+    auto now = std::make_shared<BrickPaint>();
+    bool changed = false;
+    for (int i = 0; i < kBrickVoxels; ++i) {
+      Texel t = old ? old->t[i] : base;
+      const std::uint8_t w = weight(t.mask);
+      changed = changed || w != t.mask;
+      t.mask = w;
+      now->t[i] = t;
+    }
+    if (!changed) return;
+    BrickRef before = vol.brick(b);
+    BrickRef after = before;
+    after.paint = vol.canonicalPaint(std::move(now));
+    edit.changes.push_back({b, std::move(before), std::move(after)});
+  });
+  vol.publish(edit.changes, true);
+  if (progress) progress->advance(1);
+  return edit;
+}
+
 }  // namespace
+
+Edit maskClear(Volume& vol) {
+  return mapMask(vol, [](std::uint8_t) { return std::uint8_t(0); }, [](const BrickPaint* p) { return !p || !p->masked; });
+}
+
+Edit maskFill(Volume& vol) {
+  return mapMask(vol, [](std::uint8_t) { return std::uint8_t(255); }, [](const BrickPaint*) { return false; });
+}
+
+Edit maskInvert(Volume& vol) {
+  return mapMask(vol, [](std::uint8_t w) { return std::uint8_t(255 - w); }, [](const BrickPaint*) { return false; });
+}
 
 Texel tinted(Texel t, Rgb8 color, double e) {
   const double k = e * (1 - double(t.mask) / 255);

@@ -59,4 +59,12 @@ Edit paintStroke(Volume& vol, const PaintSettings& st, std::span<const StrokeDab
 // One dab at `center`, no memory.
 Edit paint(Volume& vol, const PaintSettings& st, Vec3 center, ThreadPool& pool = ThreadPool::serial());
 
+// The whole-volume mask operations, over every voxel of every stored brick (uniform bricks carry
+// no channel, channels.hpp); colours stay. Clear: every weight 0. Fill: every weight 255.
+// Invert: w -> 255 - w (an unpainted brick becomes fully masked). Each returns its changes
+// (region: the domain); one that changes nothing returns an empty Edit. Progress: one unit.
+Edit maskClear(Volume& vol);
+Edit maskFill(Volume& vol);
+Edit maskInvert(Volume& vol);
+
 }  // namespace marzipan

@@ -428,3 +428,69 @@ TEST_CASE("a painted stripe stretches under dilation: every voxel of its region 
   CHECK(before > 30);
   CHECK(after > before);  // the region grew with the radius (20 -> 24 vu)
 }
+
+// --- the whole-volume mask operations ----------------------------------------------------------
+
+TEST_CASE("mask fill, invert and clear set every stored voxel's weight and keep colours and distances", "[paint][mask]") {
+  Volume v = sphere();
+  const Volume plain = v;
+  const std::uint64_t unpainted = digest(v);
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = 10;
+  paint(v, red, kCentre + Vec3{kRadius, 0, 0});
+  // A partial mask: weight 100 on x < 32 (every stored brick's voxel).
+  test::paintBricks(v, [&](Int3 b, int i) {
+    Texel t = v.texel(Bricks::origin(b) + Bricks::local(i));
+    t.mask = Bricks::origin(b).x + Bricks::local(i).x < 32 ? 100 : 0;
+    return t;
+  });
+  const auto bits = distanceBits(v);
+  const auto colours = texels(v);
+  const Volume painted = v;
+  // Every voxel of every stored brick, against the texel it had: weight w' = rule(w), colour kept.
+  const auto check = [&](auto rule) {
+    std::size_t wrong = 0, seen = 0;
+    painted.forEachPresentBrick([&](Int3 b, const Brick&) {
+      for (int i = 0; i < kBrickVoxels; ++i) {
+        const Int3 p = Bricks::origin(b) + Bricks::local(i);
+        const Texel was = painted.texel(p), now = v.texel(p);
+        ++seen;
+        wrong += !(now.color() == was.color() && now.mask == rule(was.mask));
+      }
+    });
+    CHECK(seen == painted.presentBricks() * std::size_t(kBrickVoxels));
+    CHECK(wrong == 0);
+    CHECK(differing(distanceBits(v), bits) == 0);
+  };
+  SECTION("fill") {
+    CHECK(!maskFill(v).empty());
+    check([](int) { return 255; });
+    CHECK(maskFill(v).empty());
+  }
+  SECTION("invert, twice") {
+    const Edit e = maskInvert(v);
+    CHECK(e.changes.size() == painted.presentBricks());
+    check([](int w) { return 255 - w; });
+    maskInvert(v);
+    CHECK(digest(v) == digest(painted));
+    CHECK(differing(texels(v), colours) == 0);
+  }
+  SECTION("clear") {
+    CHECK(!maskClear(v).empty());
+    check([](int) { return 0; });
+    CHECK(maskClear(v).empty());
+  }
+  SECTION("undo") {
+    Edit e = maskFill(v);
+    v.publish(e.changes, false);
+    CHECK(digest(v) == digest(painted));
+  }
+  // On an unpainted volume: invert masks everything, invert again or clear stores nothing again.
+  Volume u = plain;
+  maskInvert(u);
+  CHECK(u.paintedBricks() == u.presentBricks());
+  maskClear(u);
+  CHECK(u.paintedBricks() == 0);
+  CHECK(digest(u) == unpainted);
+}
