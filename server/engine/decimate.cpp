@@ -173,7 +173,7 @@ DecimateResult decimateMesh(const Mesh& m, const Volume& vol, const DecimateOpti
     }
   }
   meshopt_optimizeVertexCache(indices.data(), indices.data(), indices.size(), vertices);
-  // Vertices in first-use order, unused ones dropped; normals follow their vertices.
+  // Vertices in first-use order, unused ones dropped; normals and colours follow their vertices.
   std::vector<unsigned> remap(vertices);
   const std::size_t kept = meshopt_optimizeVertexFetchRemap(remap.data(), indices.data(), indices.size(), vertices);
   r.mesh.indices.resize(indices.size());
@@ -183,6 +183,10 @@ DecimateResult decimateMesh(const Mesh& m, const Volume& vol, const DecimateOpti
   if (!m.normals.empty()) {
     r.mesh.normals.resize(3 * kept);
     meshopt_remapVertexBuffer(r.mesh.normals.data(), m.normals.data(), vertices, 3 * sizeof(float), remap.data());
+  }
+  if (!m.colors.empty()) {
+    r.mesh.colors.resize(3 * kept);
+    meshopt_remapVertexBuffer(r.mesh.colors.data(), m.colors.data(), vertices, 3, remap.data());
   }
   r.maxError = surfaceDeviation(r.mesh, vol, pool);
   return r;

@@ -4,7 +4,7 @@
 // surface.
 //
 // Conventions: positions and errors in vu. Simplification only collapses edges onto existing
-// vertices, so every kept vertex is a vertex of the source (with its normal); triangles keep
+// vertices, so every kept vertex is a vertex of the source (with its normal and colour); triangles keep
 // their counter-clockwise-from-outside orientation. Deterministic (no dependence on threads).
 #pragma once
 

@@ -65,15 +65,21 @@ std::vector<float> unitNormals(const Mesh& m) {
 
 }  // namespace
 
+float srgbToLinear(std::uint8_t c) {
+  const double v = c / 255.0;
+  return float(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
+}
+
 std::vector<std::uint8_t> exportGlb(const Mesh& m) {
   requireExportable(m);
   for (const float f : m.positions)
     if (!std::isfinite(f)) throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions must be finite");
   const std::size_t vertices = m.vertexCount(), indexCount = m.indices.size();
-  const bool hasNormals = !m.normals.empty();
+  const bool hasNormals = !m.normals.empty(), hasColors = !m.colors.empty();
   const std::size_t positionBytes = 12 * vertices, normalBytes = hasNormals ? positionBytes : 0;
+  const std::size_t colorBytes = hasColors ? positionBytes : 0;
   const std::size_t indexBytes = 4 * indexCount;
-  const std::size_t binBytes = positionBytes + normalBytes + indexBytes;  // each a multiple of 4
+  const std::size_t binBytes = positionBytes + normalBytes + colorBytes + indexBytes;  // each a multiple of 4
   if (binBytes > std::numeric_limits<std::uint32_t>::max() / 2)
     throw EngineError(ErrorKind::TooLarge, "mesh", "the mesh needs more than 2 GiB of glTF buffer");
 
@@ -90,15 +96,21 @@ std::vector<std::uint8_t> exportGlb(const Mesh& m) {
         lo[a] = std::min(lo[a], f), hi[a] = std::max(hi[a], f);
       }
     const std::string nv = std::to_string(vertices), ni = std::to_string(indexCount);
-    const int indexView = hasNormals ? 2 : 1;  // the index accessor and its view have the same number
+    // Accessor i reads buffer view i: positions, [normals], [colours], indices.
+    const int colorView = hasNormals ? 2 : 1;
+    const int indexView = colorView + (hasColors ? 1 : 0);
     json += R"("scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"name":"solid"}],)";
     json += R"("meshes":[{"name":"solid","primitives":[{"attributes":{"POSITION":0)";
     if (hasNormals) json += R"(,"NORMAL":1)";
+    if (hasColors) json += R"(,"COLOR_0":)" + std::to_string(colorView);
     json += R"(},"indices":)" + std::to_string(indexView) + R"(,"mode":4}]}],)";
     json += R"("accessors":[{"bufferView":0,"componentType":)" + std::to_string(kFloat) + R"(,"count":)" + nv +
             R"(,"type":"VEC3","min":)" + vec3(lo) + R"(,"max":)" + vec3(hi) + "}";
     if (hasNormals)
       json += R"(,{"bufferView":1,"componentType":)" + std::to_string(kFloat) +
+              R"(,"count":)" + nv + R"(,"type":"VEC3"})";
+    if (hasColors)
+      json += R"(,{"bufferView":)" + std::to_string(colorView) + R"(,"componentType":)" + std::to_string(kFloat) +
               R"(,"count":)" + nv + R"(,"type":"VEC3"})";
     json += R"(,{"bufferView":)" + std::to_string(indexView) + R"(,"componentType":)" + std::to_string(kUnsignedInt) +
             R"(,"count":)" + ni + R"(,"type":"SCALAR"}],)";
@@ -107,7 +119,11 @@ std::vector<std::uint8_t> exportGlb(const Mesh& m) {
     if (hasNormals)
       json += R"(,{"buffer":0,"byteOffset":)" + std::to_string(positionBytes) + R"(,"byteLength":)" +
               std::to_string(normalBytes) + R"(,"target":)" + std::to_string(kArrayBuffer) + "}";
-    json += R"(,{"buffer":0,"byteOffset":)" + std::to_string(positionBytes + normalBytes) + R"(,"byteLength":)" +
+    if (hasColors)
+      json += R"(,{"buffer":0,"byteOffset":)" + std::to_string(positionBytes + normalBytes) + R"(,"byteLength":)" +
+              std::to_string(colorBytes) + R"(,"target":)" + std::to_string(kArrayBuffer) + "}";
+    json += R"(,{"buffer":0,"byteOffset":)" + std::to_string(positionBytes + normalBytes + colorBytes) +
+            R"(,"byteLength":)" +
             std::to_string(indexBytes) + R"(,"target":)" + std::to_string(kElementArrayBuffer) + "}],";
     json += R"("buffers":[{"byteLength":)" + std::to_string(binBytes) + "}]}";
   }
@@ -129,6 +145,8 @@ std::vector<std::uint8_t> exportGlb(const Mesh& m) {
     for (const float f : m.positions) le::appendF32(out, f);
     if (hasNormals)
       for (const float f : unitNormals(m)) le::appendF32(out, f);
+    if (hasColors)
+      for (const std::uint8_t c : m.colors) le::appendF32(out, srgbToLinear(c));
     for (const std::uint32_t i : m.indices) le::append32(out, i);
   }
   return out;

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <limits>
 
 #include "brick.hpp"
@@ -430,7 +431,35 @@ Mesh extractMesh(const Volume& vol, ThreadPool& pool) {
       *dst++ = std::uint32_t(vertexBase[owner]) + outs[owner].planes[slot];
     }
   });
+  if (carriesColor(vol)) {
+    mesh.colors.resize(mesh.positions.size());
+    constexpr std::size_t kChunk = 4096;  // vertices per task
+    pool.parallelFor((mesh.vertexCount() + kChunk - 1) / kChunk, [&](std::size_t c) {
+      for (std::size_t v = c * kChunk; v < std::min(mesh.vertexCount(), (c + 1) * kChunk); ++v) {
+        const Rgb8 k = colorAt(vol, mesh.position(v));
+        mesh.colors[3 * v] = k.r, mesh.colors[3 * v + 1] = k.g, mesh.colors[3 * v + 2] = k.b;
+      }
+    });
+  }
   return mesh;
+}
+
+bool carriesColor(const Volume& vol) { return vol.paintedBricks() > 0 || !(vol.baseColor() == kClayColor); }
+
+Rgb8 colorAt(const Volume& vol, Vec3 p) {
+  const Vec3 f{std::floor(p.x), std::floor(p.y), std::floor(p.z)};
+  const Vec3 t = p - f;
+  const Int3 o{int(f.x), int(f.y), int(f.z)};
+  double sum[3] = {0, 0, 0};
+  for (int c = 0; c < 8; ++c) {
+    double w = 1;
+    for (int a = 0; a < 3; ++a) w *= (c >> a & 1) ? t[a] : 1 - t[a];
+    if (w == 0) continue;  // a vertex on a grid edge reads its two end voxels only
+    const Texel k = vol.texel(o + Int3{c & 1, c >> 1 & 1, c >> 2 & 1});
+    sum[0] += w * k.r, sum[1] += w * k.g, sum[2] += w * k.b;
+  }
+  auto byte = [](double v) { return std::uint8_t(std::clamp(std::lround(v), 0l, 255l)); };
+  return {byte(sum[0]), byte(sum[1]), byte(sum[2])};
 }
 
 double meshArea(const Mesh& m) {

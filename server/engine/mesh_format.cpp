@@ -20,6 +20,8 @@ void requireExportable(const Mesh& m) {
     throw EngineError(ErrorKind::InvalidArgument, "mesh", "positions and indices must come in threes");
   if (!m.normals.empty() && m.normals.size() != m.positions.size())
     throw EngineError(ErrorKind::InvalidArgument, "mesh", "normals must be empty or one per vertex");
+  if (!m.colors.empty() && m.colors.size() != m.positions.size())
+    throw EngineError(ErrorKind::InvalidArgument, "mesh", "colours must be empty or one per vertex");
   for (const std::uint32_t i : m.indices)
     if (i >= m.vertexCount()) throw EngineError(ErrorKind::InvalidArgument, "mesh", "vertex index out of range");
   if (m.triangleCount() > std::numeric_limits<std::uint32_t>::max())

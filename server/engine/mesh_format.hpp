@@ -29,7 +29,7 @@ std::optional<MeshFormat> meshFormatFromName(std::string_view name);
 inline constexpr std::size_t kMaxMeshTriangles = std::size_t(1) << 26;
 
 // Every exporter first checks that m is well formed (positions and indices in threes, normals
-// none or one per vertex, indices in range, at most 2^32 - 1 triangles) and throws
+// and colours none or one per vertex, indices in range, at most 2^32 - 1 triangles) and throws
 // EngineError(field "mesh") otherwise: a bad mesh is the caller's mistake, not a file's.
 void requireExportable(const Mesh& m);
 

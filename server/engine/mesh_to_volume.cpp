@@ -119,11 +119,15 @@ void requireImportable(const Mesh& m) {
     if (!std::isfinite(c)) formatError("coordinate is not finite");
   for (const std::uint32_t i : m.indices)
     if (i >= m.vertexCount()) formatError("vertex index " + std::to_string(i) + " out of range");
+  if (!m.colors.empty() && m.colors.size() != m.positions.size()) formatError("colours must be one per vertex");
 }
 
 // The mesh with vertices at identical positions merged and collapsed triangles dropped, checked
-// closed, manifold and consistently oriented, and turned outward if it was inside out.
-Mesh closedOutwardMesh(const Mesh& m) {
+// closed, manifold and consistently oriented, and turned outward if it was inside out. Welding
+// keeps the colours apart: a colour belongs to a corner of a triangle, as the file gave it (a
+// cube with a red top face may share its corners with blue sides), so they come out per kept
+// triangle and corner in `cornerColors` when m has colours.
+Mesh closedOutwardMesh(const Mesh& m, std::vector<Rgb8>& cornerColors) {
   Welder w;
   std::vector<std::uint32_t> remap(m.vertexCount());
   for (std::size_t v = 0; v < m.vertexCount(); ++v)
@@ -132,7 +136,10 @@ Mesh closedOutwardMesh(const Mesh& m) {
   mesh.positions = std::move(w.positions);
   for (std::size_t t = 0; t < m.triangleCount(); ++t) {
     const std::uint32_t a = remap[m.indices[3 * t]], b = remap[m.indices[3 * t + 1]], c = remap[m.indices[3 * t + 2]];
-    if (a != b && b != c && c != a) mesh.indices.insert(mesh.indices.end(), {a, b, c});
+    if (a == b || b == c || c == a) continue;
+    mesh.indices.insert(mesh.indices.end(), {a, b, c});
+    if (!m.colors.empty())
+      for (int k = 0; k < 3; ++k) cornerColors.push_back(m.color(m.indices[3 * t + std::size_t(k)]));
   }
   if (mesh.indices.empty()) formatError("mesh has only degenerate triangles");
   const EdgeCheck check = checkEdges(mesh);
@@ -145,7 +152,10 @@ Mesh closedOutwardMesh(const Mesh& m) {
     formatError("mesh is not consistently oriented: " + std::to_string(check.misoriented) +
                 " edges run the same way in both their triangles");
   if (meshVolume(mesh) < 0)
-    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) std::swap(mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]);
+    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
+      std::swap(mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]);
+      if (!cornerColors.empty()) std::swap(cornerColors[3 * t + 1], cornerColors[3 * t + 2]);
+    }
   return mesh;
 }
 
@@ -259,8 +269,9 @@ TriangleBins binTriangles(const std::vector<Triangle>& tris, Int3 grid, float ba
 }
 
 // The signed distance from p to the nearest of the candidate triangles, or NaN when none lies
-// within the band.
-float signedDistance(const SignedTriangles& st, const std::uint32_t* candidates, std::size_t n, Vec3 p, float band) {
+// within the band; then *nearest is that triangle's index and *foot its closest point to p.
+float signedDistance(const SignedTriangles& st, const std::uint32_t* candidates, std::size_t n, Vec3 p, float band,
+                     std::uint32_t* nearest, Vec3* foot) {
   double best = double(band) * band;
   const Triangle* bestTri = nullptr;
   Feature bestFeature = kFace;
@@ -273,22 +284,43 @@ float signedDistance(const SignedTriangles& st, const std::uint32_t* candidates,
     Feature f;
     const Vec3 q = closestPoint(tr, p, f);
     const double d2 = dot(p - q, p - q);
-    if (d2 < best) best = d2, bestTri = &tr, bestFeature = f, bestPoint = q;
+    if (d2 < best) best = d2, bestTri = &tr, bestFeature = f, bestPoint = q, *nearest = candidates[k];
   }
   if (!bestTri) return std::numeric_limits<float>::quiet_NaN();
+  *foot = bestPoint;
   const float d = float(std::sqrt(best));
   return dot(p - bestPoint, st.pseudonormal(*bestTri, bestFeature)) < 0 ? -d : d;
 }
 
+// The colour at q, a point of triangle t, from its corners' colours by barycentric weights
+// (of the sRGB bytes), each channel rounded.
+Rgb8 colorOnTriangle(const Triangle& t, const Rgb8* corners, Vec3 q) {
+  const Vec3 ab = t.b - t.a, ac = t.c - t.a, aq = q - t.a;
+  const double d00 = dot(ab, ab), d01 = dot(ab, ac), d11 = dot(ac, ac), d20 = dot(aq, ab), d21 = dot(aq, ac);
+  const double den = d00 * d11 - d01 * d01;
+  // Binned triangles have a normal, so den > 0; the clamp only absorbs rounding at the edges.
+  const double v = std::clamp((d11 * d20 - d01 * d21) / den, 0.0, 1.0);
+  const double w = std::clamp((d00 * d21 - d01 * d20) / den, 0.0, 1.0 - v);
+  const double u = 1 - v - w;
+  auto mix = [&](std::uint8_t Rgb8::*c) {
+    return std::uint8_t(std::clamp(std::lround(u * corners[0].*c + v * corners[1].*c + w * corners[2].*c), 0l, 255l));
+  };
+  return {mix(&Rgb8::r), mix(&Rgb8::g), mix(&Rgb8::b)};
+}
+
 // The bricks that have candidate triangles, in z, y, x order, with exact distances in their
-// band voxels and NaN in the others; voxels past the domain's edge hold +band.
+// band voxels and NaN in the others; voxels past the domain's edge hold +band. With corner
+// colours, each brick's channels too: a band voxel takes the colour of its nearest surface
+// point, every other voxel the base colour.
 struct NearBricks {
   std::vector<Int3> bricks;
   BrickGrid<std::int32_t> slot;  // index in bricks, -1 for a brick without candidates
   std::vector<std::shared_ptr<Brick>> data;
+  std::vector<std::shared_ptr<BrickPaint>> paint;  // empty without colours
 };
 
-NearBricks exactDistances(const SignedTriangles& st, const TriangleBins& bins, Int3 dims, float band, ThreadPool& pool) {
+NearBricks exactDistances(const SignedTriangles& st, const std::vector<Rgb8>& cornerColors, const TriangleBins& bins,
+                          Int3 dims, float band, Rgb8 base, ThreadPool& pool) {
   const Int3 grid = bins.count.grid();
   NearBricks near{{}, BrickGrid<std::int32_t>(grid, 0, -1), {}};
   for (int z = 0; z < grid.z; ++z)
@@ -299,17 +331,28 @@ NearBricks exactDistances(const SignedTriangles& st, const TriangleBins& bins, I
           near.bricks.push_back({x, y, z});
         }
   near.data.resize(near.bricks.size());
+  const bool colored = !cornerColors.empty();
+  if (colored) near.paint.resize(near.bricks.size());
   pool.parallelFor(near.bricks.size(), [&](std::size_t i) {
     auto br = std::make_shared<Brick>();
+    std::shared_ptr<BrickPaint> bp = colored ? std::make_shared<BrickPaint>() : nullptr;
     const Int3 b = near.bricks[i];
     const std::uint32_t* candidates = bins.triangles.data() + bins.first[b];
     for (int k = 0; k < kBrickVoxels; ++k) {
       const Int3 g = Bricks::origin(b) + Bricks::local(k);
-      br->v[k] = g.x >= dims.x || g.y >= dims.y || g.z >= dims.z
-                     ? band
-                     : signedDistance(st, candidates, bins.count[b], point(g), band);
+      if (g.x >= dims.x || g.y >= dims.y || g.z >= dims.z) {
+        br->v[k] = band;
+        if (bp) bp->t[k] = texelOf(base);
+        continue;
+      }
+      std::uint32_t nearest = 0;
+      Vec3 foot;
+      br->v[k] = signedDistance(st, candidates, bins.count[b], point(g), band, &nearest, &foot);
+      if (bp)
+        bp->t[k] = texelOf(std::isnan(br->v[k]) ? base : colorOnTriangle(st.tris[nearest], &cornerColors[3 * nearest], foot));
     }
     near.data[i] = std::move(br);
+    if (bp) near.paint[i] = std::move(bp);
   });
   return near;
 }
@@ -358,7 +401,8 @@ std::vector<BrickChange> settleFarVoxels(NearBricks& near, const std::vector<Tri
           float& v = br.v[k];
           if (std::isnan(v)) v = settle(o + Bricks::local(k)) ? -band : band;
         }
-        const BrickRef ref = vol.canonicalBrick(b, near.data[std::size_t(ni)]);
+        BrickRef ref = vol.canonicalBrick(b, near.data[std::size_t(ni)]);
+        if (ref.data && !near.paint.empty()) ref.paint = vol.canonicalPaint(std::move(near.paint[std::size_t(ni)]));
         if (ref.data || ref.inside) changes.push_back({b, {}, ref});
       }
   return changes;
@@ -369,10 +413,11 @@ std::vector<BrickChange> settleFarVoxels(NearBricks& near, const std::vector<Tri
 Volume importMesh(const Mesh& m, Int3 dims, float band, ThreadPool& pool) {
   Volume vol(dims, band);  // validates dims and band first
   requireImportable(m);
-  const Mesh mesh = closedOutwardMesh(m);
+  std::vector<Rgb8> cornerColors;
+  const Mesh mesh = closedOutwardMesh(m, cornerColors);
   const SignedTriangles st = prepareTriangles(mesh);
   const TriangleBins bins = binTriangles(st.tris, vol.brickDims(), band);
-  NearBricks near = exactDistances(st, bins, dims, band, pool);
+  NearBricks near = exactDistances(st, cornerColors, bins, dims, band, vol.baseColor(), pool);
   vol.publish(settleFarVoxels(near, st.tris, vol), true);
   return vol;
 }

@@ -23,6 +23,11 @@ Mesh fitMeshToDomain(const Mesh& m, Int3 dims, double margin);
 //   angle-weighted pseudonormal of the nearest feature (face, edge or vertex). Voxels beyond the
 //   band take the sign of a neighbour (no surface can pass between them); the first voxel of the
 //   domain, when it is beyond the band, asks the generalized winding number.
+// - Vertex colours (Mesh::colors, sRGB bytes), when the mesh has them, become the volume's
+//   colour channel: a band voxel takes the colour of its nearest surface point, the barycentric
+//   mix of its nearest triangle's corner colours (of the bytes, rounded); every other voxel keeps
+//   the base colour (kClayColor), and a colour change moving the surface later reaches them by
+//   extension (Volume::extendChannels). Without colours the volume carries no channel at all.
 // Throws EngineError(Format) for an empty, open, non-manifold or inconsistently oriented mesh,
 // indices out of range or non-finite coordinates. Identical for any thread count.
 Volume importMesh(const Mesh& m, Int3 dims, float band = Volume::kDefaultBand, ThreadPool& pool = ThreadPool::serial());

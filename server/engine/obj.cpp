@@ -1,6 +1,7 @@
 #include "obj.hpp"
 
 #include <charconv>
+#include <cmath>
 
 #include "mesh_reading.hpp"
 
@@ -13,6 +14,14 @@ namespace {
 void appendFloat(std::string& s, float f) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof buf, f, std::chars_format::general, 9);
+  s.append(buf, r.ptr);
+}
+
+// A colour byte c as c / 255 with 4 significant digits (1 and 0 bare), within 0.0004 of it:
+// reading it back times 255 rounds to c again.
+void appendChannel(std::string& s, std::uint8_t c) {
+  char buf[16];
+  const auto r = std::to_chars(buf, buf + sizeof buf, double(c) / 255.0, std::chars_format::general, 4);
   s.append(buf, r.ptr);
 }
 
@@ -37,7 +46,17 @@ std::string exportObj(const Mesh& m) {
     }
     s += '\n';
   };
-  for (std::size_t v = 0; v < m.vertexCount(); ++v) triple("v", m.positions, v);
+  const bool colors = !m.colors.empty();
+  for (std::size_t v = 0; v < m.vertexCount(); ++v) {
+    triple("v", m.positions, v);
+    if (!colors) continue;
+    s.pop_back();
+    for (int a = 0; a < 3; ++a) {
+      s += ' ';
+      appendChannel(s, m.colors[3 * v + std::size_t(a)]);
+    }
+    s += '\n';
+  }
   const bool normals = !m.normals.empty();
   if (normals)
     for (std::size_t v = 0; v < m.vertexCount(); ++v) triple("vn", m.normals, v);
@@ -62,6 +81,8 @@ Mesh parseObj(std::string_view text) {
   std::string_view line;
   Mesh m;
   std::vector<float> normals;
+  std::vector<std::uint8_t> colors;
+  bool allColored = true;
   // Raw (vertex, normal) references per face corner, resolved once all vertices are known.
   struct Corner {
     std::int64_t v, n;
@@ -90,6 +111,20 @@ Mesh parseObj(std::string_view text) {
         const std::string_view t = token(rest);
         if (t.empty()) lineError(lines.number, "expected three coordinates");
         dst.push_back(coordinate(t, lines.number));
+      }
+      if (kw == "vn") continue;
+      std::string_view more[4];
+      int extra = 0;
+      while (extra < 4 && !(more[extra] = token(rest)).empty()) ++extra;
+      if (extra != 3) {
+        allColored = false;  // "v x y z" or "v x y z w"
+        continue;
+      }
+      for (int a = 0; a < 3; ++a) {
+        float c;
+        if (!parseFloat(more[a], c) || !(c >= 0 && c <= 1))
+          lineError(lines.number, "a vertex colour must be three numbers in 0..1");
+        colors.push_back(std::uint8_t(std::lround(double(c) * 255.0)));
       }
     } else if (kw == "f") {
       std::uint32_t n = 0;
@@ -123,6 +158,7 @@ Mesh parseObj(std::string_view text) {
   }
   if (m.indices.empty()) formatError("OBJ has no faces");
   if (keepNormals) m.normals = std::move(normals);
+  if (allColored) m.colors = std::move(colors);
   return m;
 }
 

@@ -64,14 +64,17 @@ std::vector<std::uint8_t> exportPly(const Mesh& m) {
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment Marzipan mesh\nelement vertex " +
                        std::to_string(m.vertexCount()) + "\nproperty float x\nproperty float y\nproperty float z\n";
   if (normals) header += "property float nx\nproperty float ny\nproperty float nz\n";
+  const bool colors = !m.colors.empty();
+  if (colors) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   header +=
       "element face " + std::to_string(m.triangleCount()) + "\nproperty list uchar uint vertex_indices\nend_header\n";
   std::vector<std::uint8_t> out(header.begin(), header.end());
-  out.reserve(out.size() + m.vertexCount() * (normals ? 24 : 12) + m.triangleCount() * 13);
+  out.reserve(out.size() + m.vertexCount() * ((normals ? 24 : 12) + (colors ? 3 : 0)) + m.triangleCount() * 13);
   for (std::size_t v = 0; v < m.vertexCount(); ++v) {
     for (int a = 0; a < 3; ++a) appendF32(out, m.positions[3 * v + std::size_t(a)]);
     if (normals)
       for (int a = 0; a < 3; ++a) appendF32(out, m.normals[3 * v + std::size_t(a)]);
+    if (colors) out.insert(out.end(), m.colors.begin() + std::ptrdiff_t(3 * v), m.colors.begin() + std::ptrdiff_t(3 * v + 3));
   }
   for (std::size_t t = 0; t < m.triangleCount(); ++t) {
     out.push_back(3);
@@ -142,7 +145,7 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
   for (const PlyElement& e : elements) {
     const std::size_t left = std::size_t(stop - p);
     if (e.name == "vertex") {
-      int x = -1, y = -1, z = -1, nx = -1, ny = -1, nz = -1;
+      int x = -1, y = -1, z = -1, nx = -1, ny = -1, nz = -1, red = -1, green = -1, blue = -1;
       std::size_t stride = 0;
       std::vector<std::size_t> offset;
       for (std::size_t i = 0; i < e.props.size(); ++i) {
@@ -156,15 +159,20 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
                     : q.name == "nx" ? &nx
                     : q.name == "ny" ? &ny
                     : q.name == "nz" ? &nz
-                                     : nullptr;
+                    : q.name == "red"   ? &red
+                    : q.name == "green" ? &green
+                    : q.name == "blue"  ? &blue
+                                        : nullptr;
         if (slot) *slot = int(i);
       }
       if (x < 0 || y < 0 || z < 0) formatError("PLY vertices need x, y and z");
       if (stride == 0 || e.count > left / stride)
         formatError("PLY is truncated: " + std::to_string(e.count) + " vertices do not fit");
       const bool withNormals = nx >= 0 && ny >= 0 && nz >= 0;
+      const bool withColors = red >= 0 && green >= 0 && blue >= 0;
       m.positions.reserve(std::size_t(e.count) * 3);
       if (withNormals) m.normals.reserve(std::size_t(e.count) * 3);
+      if (withColors) m.colors.reserve(std::size_t(e.count) * 3);
       for (std::uint64_t v = 0; v < e.count; ++v, p += stride) {
         for (const int k : {x, y, z}) {
           const double c = readScalar(p + offset[std::size_t(k)], e.props[std::size_t(k)].type);
@@ -178,6 +186,14 @@ Mesh parsePly(std::span<const std::uint8_t> bytes) {
             if (!std::isfinite(c) || std::fabs(c) > std::numeric_limits<float>::max())
               formatError("vertex " + std::to_string(v) + ": normal is not finite");
             m.normals.push_back(float(c));
+          }
+        if (withColors)
+          for (const int k : {red, green, blue}) {
+            const PlyScalar type = e.props[std::size_t(k)].type;
+            const double c = readScalar(p + offset[std::size_t(k)], type) * (type.isFloat ? 255.0 : 1.0);
+            if (!(c >= 0 && c <= 255))
+              formatError("vertex " + std::to_string(v) + ": colour outside " + (type.isFloat ? "0..1" : "0..255"));
+            m.colors.push_back(std::uint8_t(std::lround(c)));
           }
       }
       sawVertices = true;

@@ -5,13 +5,16 @@
 // bring it to 0.088 vu (2026-11-24).
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <map>
 
 #include "engine/decimate.hpp"
 #include "engine/errors.hpp"
 #include "engine/marching_cubes.hpp"
 #include "engine/solids.hpp"
+#include "support.hpp"
 
 using namespace marzipan;
 
@@ -77,4 +80,26 @@ TEST_CASE("decimation options out of range are refused", "[decimate][errors]") {
   CHECK_THROWS_AS(decimateMesh(m, sphere, {std::nullopt, std::nan("")}), EngineError);
   CHECK(decimateMesh(m, sphere, {1, std::nullopt}).mesh.triangleCount() < m.triangleCount());
   CHECK(decimateMesh(Mesh{}, sphere, {10, std::nullopt}).mesh.triangleCount() == 0);
+}
+
+TEST_CASE("decimated vertices keep the colours they had in the source mesh", "[decimate][color]") {
+  Volume vol = makeSphere({64, 64, 64}, {31.3, 30.6, 32.2}, 20);
+  test::paintBricks(vol, [](Int3 b, int i) {
+    const Int3 p = Bricks::origin(b) + Bricks::local(i);
+    return Texel{std::uint8_t(4 * p.x), std::uint8_t(255 - 4 * p.y), 77, 0};
+  });
+  const Mesh m = extractMesh(vol);
+  const DecimateResult r = decimateMesh(m, vol, {std::size_t(2000), std::nullopt});
+  REQUIRE(r.mesh.triangleCount() <= 2000);
+  REQUIRE(r.mesh.colors.size() == r.mesh.positions.size());
+  // Kept vertices are source vertices: look each one up by its position.
+  std::map<std::array<float, 3>, Rgb8> source;
+  for (std::size_t v = 0; v < m.vertexCount(); ++v)
+    source.emplace(std::array<float, 3>{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]}, m.color(v));
+  std::size_t wrong = 0;
+  for (std::size_t v = 0; v < r.mesh.vertexCount(); ++v) {
+    const auto it = source.find({r.mesh.positions[3 * v], r.mesh.positions[3 * v + 1], r.mesh.positions[3 * v + 2]});
+    wrong += it != source.end() && it->second == r.mesh.color(v) ? 0 : 1;
+  }
+  CHECK(wrong == 0);
 }

@@ -76,3 +76,46 @@ TEST_CASE("a .glb without normals or triangles, and bad meshes", "[gltf][errors]
   CHECK_THROWS_AS(exportGlb(bad), EngineError);
   CHECK_THROWS_AS(parseMesh(glb, MeshFormat::Glb), EngineError);
 }
+
+namespace {
+
+// The sRGB encoding of a linear value (IEC 61966-2-1), as a byte: the inverse of what COLOR_0
+// holds, written out here apart from the exporter.
+int srgbByte(double linear) {
+  const double s = linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1 / 2.4) - 0.055;
+  return int(std::lround(255 * s));
+}
+
+}  // namespace
+
+TEST_CASE("a .glb's COLOR_0 holds the vertex colours in linear light, which encode back to the bytes", "[gltf][color]") {
+  for (int c = 0; c < 256; ++c) REQUIRE(srgbByte(srgbToLinear(std::uint8_t(c))) == c);
+  CHECK(srgbToLinear(0) == 0.0f);
+  CHECK(srgbToLinear(255) == 1.0f);
+  CHECK(srgbToLinear(10) == Approx(10 / 255.0 / 12.92).epsilon(1e-6));  // the linear toe
+  CHECK(srgbToLinear(128) == Approx(0.2158605).epsilon(1e-6));          // the curve's middle
+
+  Mesh m = extractMesh(makeSolid(SolidKind::Torus, {40, 40, 40}));
+  m.colors.resize(m.positions.size());
+  for (std::size_t i = 0; i < m.colors.size(); ++i) m.colors[i] = std::uint8_t(i * 37 % 256);
+  const auto glb = exportGlb(m);
+  const std::uint32_t jsonLength = le::get32(&glb[12]);
+  const std::string json(glb.begin() + 20, glb.begin() + 20 + jsonLength);
+  CHECK(json.find(R"("attributes":{"POSITION":0,"NORMAL":1,"COLOR_0":2},"indices":3)") != std::string::npos);
+  CHECK(json.find(R"({"bufferView":2,"componentType":5126,"count":)" + std::to_string(m.vertexCount()) +
+                  R"(,"type":"VEC3"})") != std::string::npos);
+  const std::size_t bin = 20 + jsonLength;
+  REQUIRE(le::get32(&glb[bin]) == 36 * m.vertexCount() + 4 * m.indices.size());
+  const std::uint8_t* p = &glb[bin + 8 + 24 * m.vertexCount()];
+  std::size_t wrong = 0;
+  for (std::size_t i = 0; i < m.colors.size(); ++i) wrong += srgbByte(le::getF32(p + 4 * i)) == m.colors[i] ? 0 : 1;
+  CHECK(wrong == 0);
+  p += 12 * m.vertexCount();
+  for (std::size_t i = 0; i < m.indices.size(); ++i) REQUIRE(le::get32(p + 4 * i) == m.indices[i]);
+
+  // Without normals the colours are accessor 1.
+  m.normals.clear();
+  const auto bare = exportGlb(m);
+  const std::string bareJson(bare.begin() + 20, bare.begin() + 20 + le::get32(&bare[12]));
+  CHECK(bareJson.find(R"("attributes":{"POSITION":0,"COLOR_0":1},"indices":2)") != std::string::npos);
+}

@@ -8,6 +8,7 @@
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
+#include "support.hpp"
 
 using namespace marzipan;
 
@@ -146,4 +147,47 @@ TEST_CASE("the mesh is identical for any thread count", "[mesh][mc]") {
   const Mesh parallel = extractMesh(vol, pool);
   CHECK(sameMesh(serial, parallel));
   CHECK(checkEdges(serial).closedManifold());
+}
+
+// Texels that are a linear function of the voxel (4x, 4y, 4z): their trilinear mix at a vertex
+// is 4 times its position, each channel rounded to the nearest byte.
+TEST_CASE("vertex colours are the trilinear mix of the voxels' colours at the vertex", "[marching_cubes][color]") {
+  Volume vol = makeSphere({64, 64, 64}, {31.3, 30.6, 32.2}, 20);
+  test::paintBricks(vol, [](Int3 b, int i) {
+    const Int3 p = Bricks::origin(b) + Bricks::local(i);
+    return Texel{std::uint8_t(4 * p.x), std::uint8_t(4 * p.y), std::uint8_t(4 * p.z), 0};
+  });
+  REQUIRE(vol.paintedBricks() > 0);
+  ThreadPool pool(2);
+  const Mesh m = extractMesh(vol, pool);
+  REQUIRE(m.colors.size() == m.positions.size());
+  std::size_t wrong = 0;
+  for (std::size_t v = 0; v < m.vertexCount(); ++v) {
+    const Vec3 p = m.position(v);
+    const Rgb8 want{std::uint8_t(std::lround(4 * p.x)), std::uint8_t(std::lround(4 * p.y)),
+                    std::uint8_t(std::lround(4 * p.z))};
+    wrong += m.color(v) == want ? 0 : 1;
+  }
+  CHECK(wrong == 0);
+  CHECK(extractMesh(vol).colors == m.colors);
+}
+
+TEST_CASE("a volume that carries no colour gives no vertex colours, a base colour gives it everywhere",
+          "[marching_cubes][color]") {
+  Volume vol = makeSphere({32, 32, 32}, {15.5, 16.2, 15.8}, 9);
+  CHECK_FALSE(carriesColor(vol));
+  CHECK(extractMesh(vol).colors.empty());
+
+  // Painted, then painted back to the base colour: nothing carried, as never painted.
+  test::paintBricks(vol, [](Int3, int) { return Texel{1, 2, 3, 0}; });
+  CHECK(carriesColor(vol));
+  test::paintBricks(vol, [](Int3, int) { return texelOf(kClayColor); });
+  CHECK_FALSE(carriesColor(vol));
+  CHECK(extractMesh(vol).colors.empty());
+
+  Volume blue = makeSphere({32, 32, 32}, {15.5, 16.2, 15.8}, 9);
+  blue.setBaseColor({10, 20, 250});
+  const Mesh m = extractMesh(blue);
+  REQUIRE(m.colors.size() == m.positions.size());
+  for (std::size_t v = 0; v < m.vertexCount(); ++v) REQUIRE(m.color(v) == Rgb8{10, 20, 250});
 }

@@ -6,10 +6,13 @@
 #include <fstream>
 #include <iterator>
 #include <random>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "engine/errors.hpp"
+#include "engine/little_endian.hpp"
 #include "engine/marching_cubes.hpp"
 #include "engine/measures.hpp"
 #include "engine/mesh_io.hpp"
@@ -258,4 +261,104 @@ TEST_CASE("PLY vertices of mixed scalar types, with properties after the normals
   CHECK(m.positions == std::vector<float>{0.5f, -1.5f, -300, 10.25f, 2, 7, 3, 12.75f, 32000});
   CHECK(m.normals == std::vector<float>{-1, 0, 0, -1, 1, 0.5f, -1, 2, 1});
   CHECK(m.indices == std::vector<std::uint32_t>{0, 1, 2});
+}
+
+namespace {
+
+std::uint64_t fnv1a(std::span<const std::uint8_t> bytes) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (const std::uint8_t b : bytes) h = (h ^ b) * 0x100000001b3ull;
+  return h;
+}
+
+}  // namespace
+
+// The hashes were taken from the files of commit e84f0fa, before meshes carried colour: a volume
+// never painted must keep giving those very bytes.
+TEST_CASE("a volume never painted exports the bytes it gave before meshes had colours", "[mesh][color]") {
+  const Volume vol = makeSphere({32, 32, 32}, {15.2, 16.7, 15.9}, 9);
+  const Mesh m = extractMesh(vol);
+  CHECK(fnv1a(exportMesh(m, MeshFormat::Stl)) == 0x59114b66ac139649ull);
+  CHECK(fnv1a(exportMesh(m, MeshFormat::Obj)) == 0xeb6b798455d5bde5ull);
+  CHECK(fnv1a(exportMesh(m, MeshFormat::Ply)) == 0x8b5b3d736735fbcaull);
+  CHECK(fnv1a(exportMesh(m, MeshFormat::Glb)) == 0x73dfbc045fdf6b47ull);
+}
+
+namespace {
+
+// The sphere with vertex colours that are a function of the vertex index.
+Mesh coloredSphere() {
+  Mesh m = extractMesh(makeSphere({32, 32, 32}, {15.2, 16.7, 15.9}, 9));
+  m.colors.resize(m.positions.size());
+  for (std::size_t i = 0; i < m.colors.size(); ++i) m.colors[i] = std::uint8_t(i * 37 % 256);
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("PLY and OBJ vertex colours are written as MeshLab reads them and parse back exactly", "[mesh][color]") {
+  const Mesh m = coloredSphere();
+  const auto ply = exportPly(m);
+  const std::string text(ply.begin(), ply.end());
+  CHECK(text.find("property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face") !=
+        std::string::npos);
+  const Mesh fromPly = parsePly(ply);
+  CHECK(fromPly.colors == m.colors);
+  CHECK(fromPly.positions == m.positions);
+
+  const std::string obj = exportObj(m);
+  // Vertex 1's colour: bytes 0, 37, 74 as 0, 37/255 and 74/255 in 4 digits.
+  std::string_view first(obj);
+  first.remove_prefix(obj.find("\nv ") + 1);
+  first = first.substr(0, first.find('\n'));
+  CHECK(first.substr(first.size() - 16) == " 0 0.1451 0.2902");
+  const Mesh fromObj = parseObj(obj);
+  CHECK(fromObj.colors == m.colors);
+  CHECK(fromObj.positions == m.positions);
+  for (const MeshFormat f : {MeshFormat::Obj, MeshFormat::Ply}) CHECK(parseMesh(exportMesh(m, f), f).colors == m.colors);
+}
+
+TEST_CASE("PLY colours of other types, OBJ vertices with and without colours, and bad colours", "[mesh][color][errors]") {
+  // Float colours in 0..1 and ushort ones in 0..255, with alpha and in another order.
+  std::string head =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "property float blue\nproperty ushort red\nproperty float green\nproperty uchar alpha\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::vector<std::uint8_t> ply(head.begin(), head.end());
+  auto f32 = [&](float f) { le::appendF32(ply, f); };
+  auto u16 = [&](std::uint16_t u) { ply.push_back(std::uint8_t(u)), ply.push_back(std::uint8_t(u >> 8)); };
+  const float blues[3] = {0, 0.5f, 1}, greens[3] = {1, 0.2f, 0.0039f};
+  const std::uint16_t reds[3] = {0, 128, 255};
+  for (int v = 0; v < 3; ++v) {
+    f32(float(v == 1)), f32(float(v == 2)), f32(0);
+    f32(blues[v]), u16(reds[v]), f32(greens[v]), ply.push_back(200);
+  }
+  ply.push_back(3);
+  for (std::uint32_t i : {0u, 1u, 2u}) le::append32(ply, i);
+  const Mesh m = parsePly(ply);
+  CHECK(m.colors == std::vector<std::uint8_t>{0, 255, 0, 128, 51, 128, 255, 1, 255});
+
+  auto withRed = [&](std::uint16_t red) {
+    std::vector<std::uint8_t> bad = ply;
+    const std::size_t at = head.size() + 16;  // vertex 0's red
+    bad[at] = std::uint8_t(red), bad[at + 1] = std::uint8_t(red >> 8);
+    return formatError([&] { parsePly(bad); });
+  };
+  CHECK(withRed(255).empty());
+  CHECK(withRed(256).find("vertex 0: colour outside 0..255") != std::string::npos);
+
+  const std::string colored = "v 0 0 0 1 0 0.5\nv 1 0 0 0 1 0\nv 0 1 0 0.2 0.2 1\nf 1 2 3\n";
+  CHECK(parseObj(colored).colors == std::vector<std::uint8_t>{255, 0, 128, 0, 255, 0, 51, 51, 255});
+  // One vertex without colour (or with a w): the file's colours are not all there, none are kept.
+  CHECK(parseObj("v 0 0 0 1 0 0.5\nv 1 0 0\nv 0 1 0 0.2 0.2 1\nf 1 2 3\n").colors.empty());
+  CHECK(parseObj("v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n").colors.empty());
+  CHECK(formatError([] { parseObj("v 0 0 0 1 0 1.5\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"); })
+            .find("line 1: a vertex colour must be three numbers in 0..1") != std::string::npos);
+  CHECK(formatError([] { parseObj("v 0 0 0 1 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"); })
+            .find("line 1: a vertex colour") != std::string::npos);
+
+  Mesh short3 = tetrahedron();
+  short3.colors = {1, 2, 3};
+  for (const MeshFormat f : {MeshFormat::Stl, MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Glb})
+    CHECK_THROWS_AS(exportMesh(short3, f), EngineError);
 }

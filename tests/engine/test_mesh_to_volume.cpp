@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -8,6 +9,7 @@
 #include "engine/measures.hpp"
 #include "engine/mesh_io.hpp"
 #include "engine/mesh_to_volume.hpp"
+#include "engine/paint.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -116,4 +118,124 @@ TEST_CASE("an imported solid that fills the domain's partial edge bricks stores 
   full.fill(true);
   CHECK(v.presentBricks() == 0);
   CHECK(digest(v) == digest(full));
+}
+
+namespace {
+
+// A box with a red top (z = hi.z) and a blue bottom, as 8 vertices of those colours: the sides
+// shade from blue to red, linearly in z on both of their triangles.
+Mesh twoColoredBox(Vec3 lo, Vec3 hi) {
+  Mesh m;
+  for (int c = 0; c < 8; ++c) {
+    m.positions.insert(m.positions.end(), {float(c & 1 ? hi.x : lo.x), float(c & 2 ? hi.y : lo.y), float(c & 4 ? hi.z : lo.z)});
+    m.colors.insert(m.colors.end(), {std::uint8_t(c & 4 ? 255 : 0), 0, std::uint8_t(c & 4 ? 0 : 255)});
+  }
+  m.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("an imported mesh's vertex colours colour the band by the nearest surface point", "[mesh][color]") {
+  const Vec3 lo{10.5, 11.25, 9.75}, hi{40.25, 38.5, 41.5};
+  const Mesh box = twoColoredBox(lo, hi);
+  REQUIRE(meshVolume(box) > 0);
+  ThreadPool pool(2);
+  const Volume vol = importMesh(box, {52, 52, 52}, Volume::kDefaultBand, pool);
+  REQUIRE(vol.paintedBricks() > 0);
+  CHECK(vol.baseColor() == kClayColor);
+  // The exact colour at a surface point of height z, before rounding.
+  auto redAt = [&](double z) { return 255 * std::clamp((z - lo.z) / (hi.z - lo.z), 0.0, 1.0); };
+  std::size_t band = 0, top = 0, bottom = 0, wrong = 0, ties = 0;
+  for (int z = 0; z < 52; ++z)
+    for (int y = 0; y < 52; ++y)
+      for (int x = 0; x < 52; ++x) {
+        const Vec3 p{double(x), double(y), double(z)};
+        const Texel t = vol.texel({x, y, z});
+        if (!(std::fabs(vol.at(x, y, z)) < vol.band())) {
+          wrong += t == texelOf(kClayColor) ? 0 : 1;
+          continue;
+        }
+        ++band;
+        // The nearest surface point: the clamped point outside; inside, the point on the
+        // nearest face (voxels as near to two faces as each other are left out).
+        Vec3 foot{std::clamp(p.x, lo.x, hi.x), std::clamp(p.y, lo.y, hi.y), std::clamp(p.z, lo.z, hi.z)};
+        if (foot == p) {
+          double best = 1e9, second = 1e9;
+          for (int a = 0; a < 3; ++a)
+            for (const double face : {lo[a], hi[a]}) {
+              const double d = std::fabs(p[a] - face);
+              if (d < best) {
+                second = best, best = d;
+                foot = p, foot[a] = face;
+              } else if (d < second) {
+                second = d;
+              }
+            }
+          if (second - best < 1e-9) {
+            ++ties;
+            continue;
+          }
+        }
+        const double red = redAt(foot.z);
+        top += red == 255 ? 1 : 0, bottom += red == 0 ? 1 : 0;
+        const bool exact = red == 0 || red == 255;  // a face of one colour, whatever the weights
+        const bool ok = t.g == 0 && t.mask == 0 && t.r + t.b == 255 &&
+                        (exact ? t.r == red : std::fabs(t.r - red) <= 0.5 + 1e-6);
+        wrong += ok ? 0 : 1;
+      }
+  INFO(band << " band voxels, " << top << " nearest to the red top, " << bottom << " to the blue bottom, " << ties
+            << " ties left out");
+  CHECK(top > 2000);
+  CHECK(bottom > 2000);
+  CHECK(wrong == 0);
+  // The same volume on one thread, and without colours no channel at all.
+  CHECK(importMesh(box, {52, 52, 52}).paintedBricks() == vol.paintedBricks());
+  Mesh plain = box;
+  plain.colors.clear();
+  CHECK(importMesh(plain, {52, 52, 52}).paintedBricks() == 0);
+  Mesh bad = box;
+  bad.colors.pop_back();
+  CHECK(formatError([&] { importMesh(bad, {52, 52, 52}); }).find("colours must be one per vertex") != std::string::npos);
+}
+
+// A sphere painted red over its upper half by the paint tool, written as .ply and .obj and read
+// back: how many band voxels of the read volume hold, within 8 on each channel, the colour the
+// painted volume holds there. Those that do not all lie in the dab's soft border: at 0.95 to 1
+// of its radius from the pole, heights 0 to 1.95 vu above the centre on the surface, where the
+// colour changes by up to 140 a vu and a foot point found another way (central differences
+// when painting, the nearest triangle when reading) lands on another shade.
+TEST_CASE("a half-painted sphere keeps its halves' colours through .ply and .obj", "[mesh][color]") {
+  const Int3 dims{64, 64, 64};
+  const Vec3 centre{31.6, 32.3, 31.9};
+  Volume vol = makeSphere(dims, centre, 20);
+  PaintSettings st;
+  st.color = {230, 20, 30};
+  st.radius = 20 * std::sqrt(2.0);  // the dab at the top pole reaches the equator
+  st.hardness = 0.95;
+  paint(vol, st, centre + Vec3{0, 0, 20});
+  REQUIRE(vol.paintedBricks() > 0);
+  const Mesh m = extractMesh(vol);
+  for (const MeshFormat f : {MeshFormat::Ply, MeshFormat::Obj}) {
+    const Volume back = importMesh(parseMesh(exportMesh(m, f), f), dims);
+    std::size_t band = 0, close = 0, red = 0, redBack = 0, farFromBorder = 0;
+    for (int z = 0; z < dims.z; ++z)
+      for (int y = 0; y < dims.y; ++y)
+        for (int x = 0; x < dims.x; ++x) {
+          if (!(std::fabs(back.at(x, y, z)) < back.band())) continue;
+          ++band;
+          const Texel a = vol.texel({x, y, z}), b = back.texel({x, y, z});
+          const bool ok = std::abs(a.r - b.r) <= 8 && std::abs(a.g - b.g) <= 8 && std::abs(a.b - b.b) <= 8;
+          close += ok ? 1 : 0;
+          farFromBorder += !ok && (z - centre.z < -0.5 || z - centre.z > 2.5) ? 1 : 0;
+          red += a.color() == st.color ? 1 : 0;
+          redBack += b.color() == st.color ? 1 : 0;
+        }
+    const double share = double(close) / double(band);
+    INFO((f == MeshFormat::Ply ? ".ply" : ".obj") << ": " << close << " of " << band << " band voxels within 8 ("
+                                                   << share << "), " << red << " red painted, " << redBack << " red read");
+    CHECK(red > band / 3);
+    CHECK(share > 0.99);
+    CHECK(farFromBorder == 0);
+  }
 }
