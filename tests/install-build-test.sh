@@ -37,7 +37,8 @@ if [ ! -f tests/browser/node_modules/.package-lock.json ] ||
 fi
 # ---- end of Web client --------------------------------------------------------------------------
 # ---- glTF validator (tests/gltf) -------------------------------------------------------------------
-# The Khronos glTF validator, pinned by tests/gltf/package-lock.json, reinstalled like the above.
+# The Khronos glTF validator and the glTF and PLY readers that check exported colours (glTF
+# Transform, loaders.gl), pinned by tests/gltf/package-lock.json, reinstalled like the above.
 if [ ! -f tests/gltf/node_modules/.package-lock.json ] ||
    [ tests/gltf/package-lock.json -nt tests/gltf/node_modules/.package-lock.json ]; then
   npm ci --prefix tests/gltf --no-audit --no-fund
