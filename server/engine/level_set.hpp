@@ -227,12 +227,15 @@ inline constexpr double kWarpAnchorTolerance = 0.25;
 Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
           ThreadPool& pool = ThreadPool::serial());
 
-// Snake hook: one small move of a path-dependent stroke: grab of vol itself (its own base) from
-// the surface point nearest the current anchor (within the band: the caller's anchor, carried
-// from move to move, drifts off the rounded tip) to `target`, with a falloff that is 1 up to
-// half the radius (the tip moves as a whole and keeps its thickness); the caller then takes
-// target as the next anchor. A drag is the composition of its moves, so a long one pulls out a
-// tentacle along the pointer's path.
+// Snake hook: one small move of a path-dependent stroke: grab of vol itself (its own base) by
+// d = target - a, a the surface point nearest the current anchor (within the band: the
+// caller's anchor, carried from move to move, drifts off the rounded tip), with a falloff that
+// is 1 up to half the radius (the tip moves as a whole and keeps its thickness). The grab
+// starts from the side of the tip that faces d: the surface point along d from half a radius
+// under a (a itself when the move is along the tip's normal), so that at a turn of the path
+// the tip is pulled out of its side, not sheared sideways. The caller then takes target as the
+// next anchor. A drag is the composition of its moves, so a long one pulls out a tentacle
+// along the pointer's path.
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());
 
 // Elastic grab: the anchor (a surface point) moved by d under a bi-scale regularized Kelvinlet
