@@ -4,9 +4,16 @@
 // - geometry_on_painted: an add-blob dab on clay painted all over, next to the same dab on the
 //   unpainted sphere (target: at most 1.25x);
 // - paint: a paint dab of the same radius next to the add-blob dab (target: at most 0.5x).
+// paint_geometry: what channels cost the other geometry tools, painted over unpainted (the
+// same sphere painted all over): a stroke of 16 add-blob dabs (radius 8, r/4 apart, target
+// at most 1.25x), a CSG union of a sphere (radius 12) at a surface point with and without a
+// colour, and one application of global smoothing (mean curvature flow).
+#include <optional>
 #include <random>
+#include <vector>
 
 #include "bench.hpp"
+#include "engine/csg.hpp"
 #include "engine/level_set.hpp"
 #include "engine/paint.hpp"
 #include "engine/solids.hpp"
@@ -59,6 +66,69 @@ MARZIPAN_BENCH("paint_dab") {
           {"ratio_to_add_blob", paintDab.median_ms / add.median_ms},
           {"cpu_ratio_to_add_blob", paintDab.cpu_median_ms / add.cpu_median_ms}});
   }
+}
+
+MARZIPAN_BENCH("paint_geometry") {
+  const Int3 dims = opt.quick ? Int3{80, 80, 80} : Int3{256, 256, 256};
+  const double half = opt.quick ? 40 : 128, radius = opt.quick ? 30 : 100;
+  const Vec3 centre{half, half, half};
+  ThreadPool pool(opt.threads);
+  const Volume plain = makeSphere(dims, centre, radius);
+  Volume painted = plain;
+  {
+    PaintSettings all;
+    all.color = {40, 90, 200};
+    all.radius = 2 * radius;
+    paint(painted, all, centre, pool);
+  }
+  // Each call on a fresh copy, at the same random surface points for both volumes.
+  const auto time = [&](const Volume& start, int reps, auto apply) {
+    std::mt19937 rng{33};
+    std::normal_distribution<double> gauss;
+    Volume work = start;
+    Vec3 dir;
+    return measure(
+        reps,
+        [&] {
+          dir = normalized({gauss(rng), gauss(rng), gauss(rng)});
+          work = start;
+        },
+        [&] { apply(work, dir); });
+  };
+  const auto row = [&](const char* what, const Timing& onPlain, const Timing& t, nlohmann::ordered_json extra) {
+    extra["case"] = what;
+    extra["unpainted_ms"] = onPlain.median_ms;
+    extra["ratio_to_unpainted"] = t.median_ms / onPlain.median_ms;
+    extra["cpu_ratio_to_unpainted"] = t.cpu_median_ms / onPlain.cpu_median_ms;
+    emit("paint_geometry", opt.threads, t, std::move(extra));
+  };
+  const int reps = opt.quick ? 5 : 51;
+  constexpr double r = 8;
+  const auto stroke = [&](Volume& v, Vec3 dir) {
+    const Vec3 along = normalized(cross(dir, Vec3{0.3, 0.5, 0.8}));
+    std::vector<StrokeDab> dabs;
+    for (int i = 0; i < 16; ++i) dabs.push_back({centre + dir * radius + along * (r / 4 * (i - 7.5)), 1.0, dir});
+    applyStroke(v, {Brush::AddBlob, r, 1}, dabs, {}, pool);
+  };
+  time(plain, reps, stroke);  // warms the scratch and the copies' pages
+  row("stroke16", time(plain, reps, stroke), time(painted, reps, stroke), {{"radius", r}, {"dabs", 16}});
+  const auto csg = [&](std::optional<Rgb8> color) {
+    return [&, color](Volume& v, Vec3 dir) {
+      CsgParams p;
+      p.center = centre + dir * radius;
+      p.radius = 12;
+      applyCsg(v, p, pool, color);
+    };
+  };
+  time(plain, reps, csg(std::nullopt));  // the same warm-up for the CSG tool's own scratch
+  const Timing csgPlain = time(plain, reps, csg(std::nullopt));
+  row("csg_add", csgPlain, time(painted, reps, csg(std::nullopt)), {{"radius", 12}});
+  row("csg_add_color_unpainted", csgPlain, time(plain, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
+  row("csg_add_color", csgPlain, time(painted, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
+  const auto smoothAll = [&](Volume& v, Vec3) { meanCurvatureFlow(v, 1, 1, pool); };
+  const int globalReps = opt.quick ? 3 : 7;
+  time(plain, 1, smoothAll);
+  row("global_smooth", time(plain, globalReps, smoothAll), time(painted, globalReps, smoothAll), {{"iterations", 1}});
 }
 
 }  // namespace marzipan::bench

@@ -241,3 +241,36 @@ TEST_CASE("an intersection keeps the colour of what it keeps and paints its cut 
   CHECK(blue.toolWrong == 0);
   CHECK(blue.solidWrong == 0);
 }
+
+// The mask's rule (volume.hpp, diff): a voxel of weight w moves by (1 - w/255) of what it would.
+// The combine does not read the mask, so the held result is the free one pulled back voxel by
+// voxel, in float as diff computes it; a brick that was uniform (no channel) moves freely.
+TEST_CASE("under a partial mask a CSG tool moves each voxel by (1 - w/255) of its free move", "[csg][mask]") {
+  const Int3 dims{64, 64, 64};
+  const Vec3 c{30, 32, 32};
+  constexpr int w = 51;
+  for (const CsgOp op : {CsgOp::Add, CsgOp::Subtract}) {
+    CsgParams p;
+    p.op = op;
+    p.center = {44, 33, 31};
+    p.radius = 7;
+    Volume held = makeSphere(dims, c, 15);
+    test::paintBricks(held, [](Int3, int) { return texelOf(kClayColor, w); });
+    const Volume before = held;
+    Volume free = makeSphere(dims, c, 15);
+    applyCsg(held, p);
+    applyCsg(free, p);
+    std::size_t moved = 0, wrong = 0;
+    for (int z = 0; z < dims.z; ++z)
+      for (int y = 0; y < dims.y; ++y)
+        for (int x = 0; x < dims.x; ++x) {
+          const float old = before.at(x, y, z), now = free.at(x, y, z);
+          const bool masked = before.brickPaint(Bricks::brickOf({x, y, z})) != nullptr;
+          const float want = masked ? old + (1.0f - float(w) / 255.0f) * (now - old) : now;
+          wrong += held.at(x, y, z) != want;
+          moved += masked && now != old;
+        }
+    CHECK(moved > 1000);
+    CHECK(wrong == 0);
+  }
+}
