@@ -497,11 +497,20 @@ void Volume::extendChannels(std::vector<BrickChange>& changes) const {
     if (!c.after.data) continue;
     const float* before = c.before.data ? c.before.data->v : nullptr;
     const float* after = c.after.data->v;
+    const Int3 o = Bricks::origin(c.brick);
+    // newAt, without the search for the neighbours within this brick (most of them).
+    const auto newNear = [&](Int3 q) -> float {
+      const Int3 l = q - o;
+      if (l.x < 0 || l.y < 0 || l.z < 0 || l.x >= kBrickSide || l.y >= kBrickSide || l.z >= kBrickSide ||
+          q.x >= dims_.x || q.y >= dims_.y || q.z >= dims_.z)
+        return newAt(q);
+      return after[Bricks::index(l)];
+    };
     std::shared_ptr<BrickPaint> now;
     for (int i = 0; i < kBrickVoxels; ++i) {
       if (!(std::fabs(after[i]) < band_) || (before && std::fabs(before[i]) < band_)) continue;
-      const Int3 p = Bricks::origin(c.brick) + Bricks::local(i);
-      const Vec3 g = GradStencil::around(p, newAt).gradient();
+      const Int3 p = o + Bricks::local(i);
+      const Vec3 g = GradStencil::around(p, newNear).gradient();
       const double len = length(g);
       const Vec3 n = len > 0 ? g * (1 / len) : Vec3{};
       Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * double(after[i]);
