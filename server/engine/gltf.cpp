@@ -8,6 +8,7 @@
 #include <limits>
 #include <string>
 
+#include "color_space.hpp"
 #include "errors.hpp"
 #include "little_endian.hpp"
 #include "mesh_io.hpp"
@@ -64,11 +65,6 @@ std::vector<float> unitNormals(const Mesh& m) {
 }
 
 }  // namespace
-
-float srgbToLinear(std::uint8_t c) {
-  const double v = c / 255.0;
-  return float(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
-}
 
 std::vector<std::uint8_t> exportGlb(const Mesh& m) {
   requireExportable(m);

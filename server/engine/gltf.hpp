@@ -7,7 +7,7 @@
 // normals, when the mesh has them, are written as unit vectors (a zero normal is replaced by
 // the area-weighted normal of the triangles around the vertex). Vertex colours, when the mesh
 // has them, are COLOR_0 as float VEC3: glTF defines COLOR_0 in linear light, so each sRGB byte
-// is decoded by the sRGB transfer function (IEC 61966-2-1) first; floats keep the dark shades
+// is decoded by the sRGB transfer function first (color_space.hpp); floats keep the dark shades
 // apart that 8 linear bits would merge, and encoding them back to sRGB and rounding gives the
 // bytes again. Little-endian whatever the host; every chunk is padded to 4 bytes (JSON with
 // spaces, binary with zeros).
@@ -23,8 +23,5 @@ namespace marzipan {
 // Throws EngineError(InvalidArgument) for positions/indices not in threes, normals not one per
 // vertex, indices out of range or non-finite positions; EngineError(TooLarge) past 4 GiB.
 std::vector<std::uint8_t> exportGlb(const Mesh& m);
-
-// The linear-light value in [0, 1] of an sRGB byte: what COLOR_0 holds for it.
-float srgbToLinear(std::uint8_t c);
 
 }  // namespace marzipan

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "engine/color_space.hpp"
 #include "engine/errors.hpp"
 #include "engine/gltf.hpp"
 #include "engine/little_endian.hpp"
@@ -89,7 +90,12 @@ int srgbByte(double linear) {
 }  // namespace
 
 TEST_CASE("a .glb's COLOR_0 holds the vertex colours in linear light, which encode back to the bytes", "[gltf][color]") {
-  for (int c = 0; c < 256; ++c) REQUIRE(srgbByte(srgbToLinear(std::uint8_t(c))) == c);
+  for (int c = 0; c < 256; ++c) {
+    REQUIRE(srgbByte(srgbToLinear(std::uint8_t(c))) == c);
+    REQUIRE(linearToSrgb(srgbToLinear(std::uint8_t(c))) == c);
+  }
+  CHECK(linearToSrgb(-0.5) == 0);
+  CHECK(linearToSrgb(7) == 255);
   CHECK(srgbToLinear(0) == 0.0f);
   CHECK(srgbToLinear(255) == 1.0f);
   CHECK(srgbToLinear(10) == Approx(10 / 255.0 / 12.92).epsilon(1e-6));  // the linear toe

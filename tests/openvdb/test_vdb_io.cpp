@@ -6,16 +6,20 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <sstream>
+#include <vector>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
 
+#include "engine/color_space.hpp"
 #include "engine/csg.hpp"
 #include "engine/errors.hpp"
 #include "engine/measures.hpp"
 #include "engine/openvdb/vdb_io.hpp"
 #include "engine/solids.hpp"
+#include "engine/support.hpp"
 
 using namespace marzipan;
 
@@ -199,4 +203,122 @@ TEST_CASE("a .vdb upload of several grids gives its first float grid, and later 
   std::string badEnd = two;
   putU32(badEnd, endAt, std::uint32_t(two.size() + 1));
   CHECK_THAT(refusal(badEnd), Catch::Contains("end offset lies outside the file"));
+}
+
+namespace {
+
+// The pig with colours that are a function of the voxel, some of them the base colour, and a
+// mask that the file does not keep.
+Volume paintedPig() {
+  Volume pig = makeSolid(SolidKind::Pig, {72, 64, 56});
+  test::paintBricks(pig, [](Int3 b, int i) {
+    const Int3 p = Bricks::origin(b) + Bricks::local(i);
+    if (p.z < 20) return texelOf(kClayColor);
+    return Texel{std::uint8_t(3 * p.x), std::uint8_t(255 - 3 * p.y), std::uint8_t(p.x * p.y % 256), 0};
+  });
+  return pig;
+}
+
+// Every voxel's channels.
+std::vector<Texel> texels(const Volume& v) {
+  std::vector<Texel> t(std::size_t(v.domain().voxels()));
+  v.gatherTexels(v.domain(), t.data());
+  return t;
+}
+
+}  // namespace
+
+TEST_CASE("a painted volume's .vdb holds a Vec3s colour grid in linear light, which OpenVDB reads and the loader takes back",
+          "[openvdb][color]") {
+  const Volume pig = paintedPig();
+  REQUIRE(pig.paintedBricks() > 0);
+  const std::string path = scratch("painted-pig.vdb");
+  saveVdb(pig, path);
+
+  openvdb::io::File file(path);
+  file.open();
+  auto color = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid("color"));
+  file.close();
+  REQUIRE(color);
+  CHECK(color->voxelSize()[0] == Approx(1.0));
+  CHECK(color->background() == openvdb::Vec3s(srgbToLinear(221), srgbToLinear(181), srgbToLinear(155)));
+  auto acc = color->getConstAccessor();
+  std::size_t wrong = 0, active = 0, painted = 0;
+  const Int3 d = pig.dims();
+  for (int z = 0; z < d.z; ++z)
+    for (int y = 0; y < d.y; ++y)
+      for (int x = 0; x < d.x; ++x) {
+        const Rgb8 c = pig.texel({x, y, z}).color();
+        const openvdb::Vec3s want(srgbToLinear(c.r), srgbToLinear(c.g), srgbToLinear(c.b));
+        wrong += acc.getValue(openvdb::Coord(x, y, z)) == want ? 0 : 1;
+        active += acc.isValueOn(openvdb::Coord(x, y, z)) ? 1 : 0;
+        painted += c == kClayColor ? 0 : 1;
+      }
+  INFO(painted << " voxels painted, " << active << " active colours");
+  CHECK(wrong == 0);
+  CHECK(active == painted);
+  CHECK(painted > 10000);
+
+  const Volume back = loadVdb(path, d);
+  CHECK(texels(back) == texels(pig));
+  CHECK(digest(back) == digest(pig));
+  std::filesystem::remove(path);
+
+  // Unpainted, no colour grid: the file is the level set alone, as before colour existed.
+  const Volume plain = makeSolid(SolidKind::Pig, {72, 64, 56});
+  saveVdb(plain, path);
+  openvdb::io::File again(path);
+  again.open();
+  CHECK_FALSE(again.hasGrid("color"));
+  again.close();
+  CHECK(loadVdb(path, d).paintedBricks() == 0);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("a .vdb upload takes its colour grid, after the float grid in a stream or anywhere with offsets", "[openvdb][color]") {
+  openvdb::initialize();
+  const Volume pig = paintedPig();
+  std::stringstream stream(std::ios::in | std::ios::out | std::ios::binary);
+  saveVdb(pig, stream);
+  const std::string bytes = stream.str();
+  const auto load = [&](const std::string& b) {
+    std::istringstream in(b, std::ios::binary);
+    return loadVdb(in, pig.dims());
+  };
+  const Volume back = load(bytes);
+  CHECK(texels(back) == texels(pig));
+  CHECK(digest(back) == digest(pig));
+
+  // The same grids from OpenVDB's own writers: with offsets, the colour grid first or between
+  // others; a stream with another grid between the two loads the surface without colours.
+  std::istringstream in(bytes, std::ios::binary);
+  openvdb::GridPtrVecPtr grids = openvdb::io::Stream(in, false).getGrids();
+  REQUIRE(grids->size() == 2);
+  const openvdb::GridBase::Ptr surface = (*grids)[0], color = (*grids)[1];
+  auto velocity = openvdb::Vec3SGrid::create();
+  velocity->setName("velocity");
+  velocity->tree().setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3s(1, 0, 0));
+  CHECK(texels(load(fileBytes({color, velocity, surface}, "color-first.vdb"))) == texels(pig));
+  CHECK(texels(load(fileBytes({surface, velocity, color}, "color-last.vdb"))) == texels(pig));
+  const Volume apart = load(streamBytes({surface, velocity, color}));
+  CHECK(apart.paintedBricks() == 0);
+  CHECK(digest(apart) == digest(makeSolid(SolidKind::Pig, {72, 64, 56})));
+
+  // A colour of NaN is refused with the place it was found; so is a prefix of the colour grid.
+  auto bad = openvdb::gridPtrCast<openvdb::Vec3SGrid>(color->deepCopyGrid());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const Int3 p = [&] {
+    for (int z = 20;; ++z)
+      if (std::fabs(pig.at(36, 32, z)) < pig.band()) return Int3{36, 32, z};
+  }();
+  bad->tree().setValue(openvdb::Coord(p.x, p.y, p.z), openvdb::Vec3s(nan, 0, 0));
+  std::istringstream nanIn(streamBytes({surface, bad}), std::ios::binary);
+  try {
+    loadVdb(nanIn, pig.dims());
+    FAIL("a NaN colour loaded");
+  } catch (const EngineError& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Contains("the colour at (36, 32, " + std::to_string(p.z) + ") is not finite"));
+  }
+  std::istringstream cut(bytes.substr(0, bytes.size() - 10), std::ios::binary);
+  CHECK_THROWS_AS(loadVdb(cut, pig.dims()), EngineError);
 }

@@ -5,6 +5,13 @@
 // (i, j, k) at the point (i, j, k), as in volume.hpp; background = the band half-width w;
 // active voxels are those with |d| < w; inactive values carry the sign (-w inside, +w
 // outside), as OpenVDB's level-set tools expect.
+// - Colour: a volume that carries colour (marching_cubes.hpp, carriesColor) also gets a Vec3SGrid
+//   named "color" after the level set, same transform: linear-light RGB in [0, 1] (the sRGB
+//   bytes decoded, color_space.hpp, as VFX tools work in linear light), background the base
+//   colour, active at every voxel of a painted brick whose colour is not the base colour. The
+//   mask weight is not written. Reading a file that has such a grid gives every voxel of the
+//   volume's stored bricks its colour there (encoded back to sRGB: a colour written here comes
+//   back exactly), weight 0; a file without one gives a volume with no channels.
 //
 // The stream forms serve clients (volume.save / volume.load over the API) without temporary
 // files; the path forms serve `marzipan batch`. Both write the same grid; a file written to a
@@ -20,6 +27,8 @@
 #include "engine/volume.hpp"
 
 namespace marzipan {
+
+inline constexpr const char* kColorGridName = "color";
 
 // Writes the volume as a .vdb file (replacing it). Throws EngineError(InvalidArgument, "path").
 void saveVdb(const Volume& vol, const std::string& path);
@@ -37,7 +46,9 @@ Volume loadVdb(const std::string& path, Int3 dims, float band = Volume::kDefault
 // trust before that grid's tree (names, metadata values, counts) is checked against the file's
 // length first, later grids are never parsed, and a read past the end throws at once. The first
 // float grid is found through the grid offsets of a file that has them (io::File writes them);
-// a file without them (a stream) must have it first. The caller bounds the stream's length:
+// a file without them (a stream) must have it first. Its colour grid is read the same way: with
+// grid offsets wherever it lies, without them only right after the float grid (where saveVdb
+// puts it). The caller bounds the stream's length:
 // OpenVDB builds the grid's tree before it can be checked, and a tree takes at most about 33
 // times the bytes that describe it (an internal node of 32 KiB per 1 KiB of masks), so the
 // memory of a read is bounded by that multiple of the upload.
@@ -47,7 +58,8 @@ Volume loadVdb(std::istream& in, Int3 dims, float band = Volume::kDefaultBand);
 // (Volume::memoryBytes, a session's max_volume_bytes): a grid's values become bricks one slab
 // of bricks at a time, and once they pass it the read stops with EngineError(TooLarge, "file").
 // A few hundred bytes (an empty tree whose background lies inside the band) would otherwise
-// make every brick of the domain data before anything could compare it with the limit.
+// make every brick of the domain data before anything could compare it with the limit. The
+// colours, once taken, count too (TooLarge when they pass it).
 Volume loadVdb(std::span<const std::uint8_t> file, Int3 dims, float band = Volume::kDefaultBand,
                std::size_t maxBytes = SIZE_MAX);
 
