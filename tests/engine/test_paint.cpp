@@ -494,3 +494,41 @@ TEST_CASE("mask fill, invert and clear set every stored voxel's weight and keep 
   CHECK(u.paintedBricks() == 0);
   CHECK(digest(u) == unpainted);
 }
+
+// The mask's rule for every geometry tool (channels.hpp): a voxel of weight w moves by (1 - w/255)
+// of what it would. With no voxel at 255 a level-set tool evolves as on free clay, and the write
+// back (Volume::diff) pulls each masked voxel back, in float: the held result is the free one so
+// pulled, voxel for voxel; a brick that was uniform (no channel) moves freely. Before, the speed
+// was scaled by (1 - w/255) as well, and a voxel moved by about (1 - w/255)^2.
+TEST_CASE("under a partial mask a level-set tool moves each voxel by (1 - w/255) of its free move", "[paint][mask]") {
+  constexpr int w = 51;
+  const Vec3 at = kCentre + Vec3{kRadius, 0, 0};
+  const auto check = [&](auto tool) {
+    Volume held = sphere();
+    test::paintBricks(held, [&](Int3, int) { return texelOf(kClayColor, std::uint8_t(w)); });
+    const Volume before = held;
+    Volume free = sphere();
+    tool(held);
+    tool(free);
+    std::size_t moved = 0, wrong = 0;
+    for (int z = 0; z < kDims.z; ++z)
+      for (int y = 0; y < kDims.y; ++y)
+        for (int x = 0; x < kDims.x; ++x) {
+          const float old = before.at(x, y, z), now = free.at(x, y, z);
+          const bool masked = before.brickPaint(Bricks::brickOf({x, y, z})) != nullptr;
+          const float want = masked ? old + (1.0f - float(w) / 255.0f) * (now - old) : now;
+          wrong += std::bit_cast<std::uint32_t>(held.at(x, y, z)) != std::bit_cast<std::uint32_t>(want);
+          moved += masked && now != old;
+        }
+    CHECK(moved > 100);
+    CHECK(wrong == 0);
+  };
+  ThreadPool pool(2);
+  SECTION("add blob") { check([&](Volume& v) { addBlob(v, {at, 8, 1}, pool); }); }
+  SECTION("stroke") {
+    const std::vector<StrokeDab> dabs{{at, 1, {1, 0, 0}}, {at + Vec3{0, 3, 0}, 1, {1, 0, 0}}};
+    check([&](Volume& v) { applyStroke(v, {Brush::Smooth, 8, 1}, dabs, {}, pool); });
+  }
+  SECTION("mean curvature flow") { check([&](Volume& v) { meanCurvatureFlow(v, 1, 1, pool); }); }
+  SECTION("dilate") { check([&](Volume& v) { dilate(v, 1, pool); }); }
+}

@@ -110,7 +110,7 @@ struct ToolScratch {
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
   // The mask weight (channels.hpp) of each voxel of `grid`, x fastest; empty when no brick the
-  // grid covers is masked (gatherMask). listMoved scales each listed voxel's speed by 1 - w/255.
+  // grid covers is masked (gatherMask). listMoved stops each listed voxel of weight 255.
   std::vector<std::uint8_t> mask;
 };
 // One per thread (inline: a single object across the folder's files).

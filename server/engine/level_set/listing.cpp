@@ -289,17 +289,18 @@ void gatherMask(const Volume& vol, const DenseGrid& g) {
 
 namespace {
 
-// The mask (channels.hpp): each listed voxel's speed (or window) scaled by 1 - w/255, 0 at 255.
+// The mask (channels.hpp): each listed voxel of weight 255 stands still (speed, window 0), so the
+// frozen surface does not move and nothing grows in the air beside it. A partial weight w is
+// left to the write back (Volume::diff), which moves the voxel by (1 - w/255) of its move: scaled
+// here as well, it would move by about (1 - w/255)^2.
 void holdMasked(MovedVoxels& moved, const std::vector<std::uint8_t>& mask) {
   for (const Run& r : moved.runs)
     for (std::uint32_t j = 0; j < r.count; ++j) {
-      const int w = mask[r.index + j];
-      if (w == 0) continue;
+      if (mask[r.index + j] != 255) continue;
       const std::size_t k = r.first + j;
-      const double keep = 1.0 - double(w) / 255.0;
-      if (!moved.window.empty()) moved.window[k] *= keep;
-      if (!moved.factor.empty()) moved.factor[k] *= keep;
-      if (!moved.step.empty()) moved.step[k] = float(double(moved.step[k]) * keep);
+      if (!moved.window.empty()) moved.window[k] *= 0.0;
+      if (!moved.factor.empty()) moved.factor[k] *= 0.0;
+      if (!moved.step.empty()) moved.step[k] = float(double(moved.step[k]) * 0.0);
     }
 }
 
