@@ -1,6 +1,6 @@
 // What every mesh file format shares: the format names, the limits and checks that apply to all
-// of them, and writing a file. One file per format: stl.hpp, obj.hpp, ply.hpp, gltf.hpp (written
-// only); mesh_io.hpp picks one by MeshFormat; mesh_to_volume.hpp turns a mesh into a solid.
+// of them, and writing a file. One file per format: stl.hpp, obj.hpp, ply.hpp, gltf.hpp;
+// mesh_io.hpp picks one by MeshFormat; mesh_to_volume.hpp turns a mesh into a solid.
 //
 // Conventions: mesh coordinates are vu, taken as they are (voxel (i,j,k) at the point (i,j,k));
 // triangles counter-clockwise seen from outside (see marching_cubes.hpp). Every byte layout is
@@ -22,7 +22,7 @@ namespace marzipan {
 
 enum class MeshFormat { Stl, Obj, Ply, Glb };
 
-// "stl", "obj", "ply", "glb" (glb is written only: gltf.hpp).
+// "stl", "obj", "ply", "glb".
 std::optional<MeshFormat> meshFormatFromName(std::string_view name);
 
 // Largest triangle count any parser accepts (a 3.4 GB binary STL).

@@ -33,7 +33,7 @@ Mesh parseMesh(std::span<const std::uint8_t> bytes, MeshFormat format) {
     case MeshFormat::Ply:
       return parsePly(bytes);
     case MeshFormat::Glb:
-      throw EngineError(ErrorKind::Format, "format", "glTF files are written, not read");
+      return parseGlb(bytes);
   }
   throw EngineError(ErrorKind::InvalidArgument, "format", "unknown mesh format");
 }

@@ -322,7 +322,7 @@ struct NearBricks {
 NearBricks exactDistances(const SignedTriangles& st, const std::vector<Rgb8>& cornerColors, const TriangleBins& bins,
                           Int3 dims, float band, Rgb8 base, ThreadPool& pool) {
   const Int3 grid = bins.count.grid();
-  NearBricks near{{}, BrickGrid<std::int32_t>(grid, 0, -1), {}};
+  NearBricks near{{}, BrickGrid<std::int32_t>(grid, 0, -1), {}, {}};
   for (int z = 0; z < grid.z; ++z)
     for (int y = 0; y < grid.y; ++y)
       for (int x = 0; x < grid.x; ++x)

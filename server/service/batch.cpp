@@ -278,8 +278,8 @@ Options parseOptions(const std::vector<std::string>& args) {
   if (o.opsPath.empty()) throw UsageError("missing the OPS file (a path, or - for standard input)");
   const std::string loadExt = lowerExtension(o.load);
   if (!o.load.empty()) {
-    if (loadExt != "mzv" && loadExt != "vdb" && (!meshFormatFromName(loadExt) || loadExt == "glb"))
-      throw UsageError("--load takes a .mzv, .vdb, .stl, .obj or .ply file, got \"" + o.load + "\"");
+    if (loadExt != "mzv" && loadExt != "vdb" && !meshFormatFromName(loadExt))
+      throw UsageError("--load takes a .mzv, .vdb, .stl, .obj, .ply or .glb file, got \"" + o.load + "\"");
     if (loadExt == "vdb") requireOpenVdb("--load", o.load);
     if (o.solid) throw UsageError("--solid and --load exclude each other");
     if (loadExt == "mzv" && o.size) throw UsageError("--size does not apply to a .mzv file, which has its own size");
@@ -510,7 +510,8 @@ Starting solid:
   --solid NAME          sphere|box|torus|cylinder|dumbbell|pig|empty (default sphere)
   --load FILE           a volume file (.mzv, keeps its own size), an OpenVDB level set
                         (.vdb: voxel x,y,z of the N^3 domain reads the grid's x,y,z) or a
-                        closed mesh (.stl, .obj, .ply) in vu, placed as it is in an N^3 domain
+                        closed mesh (.stl, .obj, .ply, .glb) in vu, placed as it is in an N^3
+                        domain (vertex colours of .obj, .ply and .glb become the clay's)
   --fit MARGIN          with a mesh: scale and centre it, MARGIN vu from the tightest sides
 
 Output:

@@ -154,7 +154,7 @@ TEST_CASE("garbage bytes never crash the parsers", "[mesh][errors]") {
       b.resize(84 + 50 * count);
       std::memcpy(b.data() + 80, &count, 4);
     }
-    for (const MeshFormat f : {MeshFormat::Stl, MeshFormat::Obj, MeshFormat::Ply}) {
+    for (const MeshFormat f : {MeshFormat::Stl, MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Glb}) {
       try {
         parseMesh(b, f);
       } catch (const EngineError& e) {

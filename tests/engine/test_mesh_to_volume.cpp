@@ -199,13 +199,13 @@ TEST_CASE("an imported mesh's vertex colours colour the band by the nearest surf
   CHECK(formatError([&] { importMesh(bad, {52, 52, 52}); }).find("colours must be one per vertex") != std::string::npos);
 }
 
-// A sphere painted red over its upper half by the paint tool, written as .ply and .obj and read
+// A sphere painted red over its upper half by the paint tool, written as .ply, .obj and .glb and read
 // back: how many band voxels of the read volume hold, within 8 on each channel, the colour the
 // painted volume holds there. Those that do not all lie in the dab's soft border: at 0.95 to 1
 // of its radius from the pole, heights 0 to 1.95 vu above the centre on the surface, where the
 // colour changes by up to 140 a vu and a foot point found another way (central differences
 // when painting, the nearest triangle when reading) lands on another shade.
-TEST_CASE("a half-painted sphere keeps its halves' colours through .ply and .obj", "[mesh][color]") {
+TEST_CASE("a half-painted sphere keeps its halves' colours through .ply, .obj and .glb", "[mesh][color]") {
   const Int3 dims{64, 64, 64};
   const Vec3 centre{31.6, 32.3, 31.9};
   Volume vol = makeSphere(dims, centre, 20);
@@ -216,7 +216,7 @@ TEST_CASE("a half-painted sphere keeps its halves' colours through .ply and .obj
   paint(vol, st, centre + Vec3{0, 0, 20});
   REQUIRE(vol.paintedBricks() > 0);
   const Mesh m = extractMesh(vol);
-  for (const MeshFormat f : {MeshFormat::Ply, MeshFormat::Obj}) {
+  for (const MeshFormat f : {MeshFormat::Ply, MeshFormat::Obj, MeshFormat::Glb}) {
     const Volume back = importMesh(parseMesh(exportMesh(m, f), f), dims);
     std::size_t band = 0, close = 0, red = 0, redBack = 0, farFromBorder = 0;
     for (int z = 0; z < dims.z; ++z)
@@ -232,7 +232,7 @@ TEST_CASE("a half-painted sphere keeps its halves' colours through .ply and .obj
           redBack += b.color() == st.color ? 1 : 0;
         }
     const double share = double(close) / double(band);
-    INFO((f == MeshFormat::Ply ? ".ply" : ".obj") << ": " << close << " of " << band << " band voxels within 8 ("
+    INFO((f == MeshFormat::Ply ? ".ply" : f == MeshFormat::Obj ? ".obj" : ".glb") << ": " << close << " of " << band << " band voxels within 8 ("
                                                    << share << "), " << red << " red painted, " << redBack << " red read");
     CHECK(red > band / 3);
     CHECK(share > 0.99);

@@ -2,7 +2,8 @@
 // @loaders.gl/ply for the PLY, glTF Transform (@gltf-transform/core) for the glb, whose document
 // the Khronos validator also checks (pinned by package-lock.json). The clay comes from a
 // two-coloured box this test writes as an OBJ (red top, blue bottom, sides shading between),
-// loaded with --load: the same files a painted session exports.
+// loaded with --load: the same files a painted session exports. A .glb written so is loaded
+// again (--load x.glb) and its .ply read the same way.
 // Run by ctest through run.sh, which refuses (never skips) without its packages or marzipan.
 import { test } from "node:test";
 import assert from "node:assert/strict";
@@ -37,10 +38,10 @@ writeFileSync(box, boxObj());
 const ops = join(work, "none.jsonl");
 writeFileSync(ops, "");
 
-// The file `marzipan batch --load box.obj --size 52 ...args --out name` writes.
-function exported(name, args = []) {
+// The file `marzipan batch --load from --size 52 ...args --out name` writes.
+function exported(name, args = [], from = box) {
   const out = join(work, name);
-  execFileSync(marzipan, ["batch", ops, "--load", box, "--size", "52", ...args, "--out", out], { stdio: ["ignore", "pipe", "inherit"] });
+  execFileSync(marzipan, ["batch", ops, "--load", from, "--size", "52", ...args, "--out", out], { stdio: ["ignore", "pipe", "inherit"] });
   return readFileSync(out);
 }
 
@@ -55,8 +56,8 @@ async function readPly(bytes) {
   return { positions: mesh.attributes.POSITION.value, colors: mesh.attributes.COLOR_0.value };
 }
 
-test("PLY vertex colours: red on the top face, blue on the bottom, red + blue = 255 and no green anywhere", async () => {
-  const { positions, colors } = await readPly(exported("box.ply"));
+// Red on the top face, blue on the bottom, red + blue = 255 and no green anywhere.
+function checkBoxColors({ positions, colors }) {
   assert.equal(colors.length, positions.length);  // red, green, blue per vertex
   let top = 0, bottom = 0;
   const inner = (v) => [0, 1].every((a) => positions[3 * v + a] > lo[a] + 3 && positions[3 * v + a] < hi[a] - 3);
@@ -69,6 +70,15 @@ test("PLY vertex colours: red on the top face, blue on the bottom, red + blue = 
     if (inner(v) && Math.abs(z - lo[2]) < 0.01) ++bottom, assert.deepEqual([r, g, b], [0, 0, 255], `bottom vertex ${v}`);
   }
   assert.ok(top > 200 && bottom > 200, `${top} top and ${bottom} bottom vertices`);
+}
+
+test("PLY vertex colours: red on the top face, blue on the bottom, red + blue = 255 and no green anywhere", async () => {
+  checkBoxColors(await readPly(exported("box.ply")));
+});
+
+test("a .glb loaded with --load keeps its colours: its .ply shows the same box", async () => {
+  writeFileSync(join(work, "box-loaded.glb"), exported("box-to-load.glb"));
+  checkBoxColors(await readPly(exported("box-from-glb.ply", [], join(work, "box-loaded.glb"))));
 });
 
 test("a .glb's COLOR_0 passes the validator and holds, in linear light, the PLY's colours", async () => {
