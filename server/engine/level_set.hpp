@@ -198,10 +198,10 @@ Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& po
 // Edit that takes vol (as it was) to the result.
 //
 // Channels (channels.hpp): on a painted volume a voxel takes the colour of the voxel nearest
-// X(x) (the colour moves with the clay) and keeps its own mask weight. The mask holds a voxel's
-// distance and colour by the largest weight on the clay's path from X(x) to x (its own voxel
-// left out) before the redistance, and its distance by its own weight against base's where
-// the result is written (Volume::diff): under a full mask nothing changes, bit for bit.
+// X(x) (the colour moves with the clay) and keeps its own mask weight w; it moves by
+// (1 - w / 255) of what it would (its distance where the result is written, Volume::diff,
+// against base). A voxel whose clay comes through a voxel of weight 255 on its path from X(x)
+// keeps base's distance and colour: under a full mask nothing changes, bit for bit.
 //
 // All calls: invalid parameters throw EngineError before anything changes; the calling thread's
 // Progress (progress.hpp) is checked per slice (a cancelled call throws Cancelled and changes

@@ -588,12 +588,12 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
 
   // Channels (../../channels.hpp), for a painted volume only: the colour is read back through
   // the same inverse map as the distance (the texel of the voxel nearest X(x)), so it moves
-  // with the clay; the mask weight stays with its voxel. The mask holds a voxel x of weight w
-  // where the result is written (Volume::diff, against base), and here the clay x receives is
-  // held by the largest weight w' on its way, from X(x) to x (x's own voxel left out): x's
-  // distance and colour move by (1 - w' / 255) of what they would before the redistance, by
-  // (1 - w / 255) of that after. So frozen clay stays, and clay behind it cannot pass through
-  // it (a grab's deep inside, which no mask reaches, is not carried out into the air).
+  // with the clay; the mask weight stays with its voxel. A voxel x of weight w moves by
+  // (1 - w / 255) of what it would: its colour here, its distance where the result is written
+  // (Volume::diff, against base). And clay does not pass through frozen clay: x keeps base's
+  // distance and colour when a voxel of weight 255 lies on the clay's way from X(x) to x (x's
+  // own left out), as a level-set tool stops the voxels of weight 255 (listing.cpp): a grab's
+  // deep inside, which no mask reaches, is not carried through a frozen band into the air.
   const bool painted = base.paintedBricks() != 0 || vol.paintedBricks() != 0;
   bool masked = false;
   if (painted) {
@@ -634,22 +634,19 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
           value = float(trilinear(s.base, q, band));
         }
         if (painted) {
-          int held = 0;
+          bool stopped = false;
           if (masked)
             v.visitPath(p, steps, q, [&](Vec3 on) {
               const std::ptrdiff_t j = texelIndex(on);
-              if (j >= 0 && std::size_t(j) != k) held = std::max(held, int(s.texels[std::size_t(j)].mask));
+              stopped = stopped || (j >= 0 && std::size_t(j) != k && s.texels[std::size_t(j)].mask == 255);
             });
-          const float old = s.base.v[k];
-          const float keep = 1.0f - float(held) / 255.0f;
-          if (held == 255) value = old;
-          else if (held != 0) value = old + keep * (value - old);
+          if (stopped) value = s.base.v[k];
           const std::ptrdiff_t from = texelIndex(q);
           const Texel own = s.texels[k];
           const Texel src = from >= 0 ? s.texels[std::size_t(from)] : texelOf(base.baseColor());
-          // The colour's share that moves: the path's hold and the voxel's own (the write-back
-          // holds only distances).
-          const float move = keep * (1.0f - float(own.mask) / 255.0f);
+          // The colour's share that moves: none when the path is stopped, else (1 - w / 255) of
+          // it (the write-back holds only distances).
+          const float move = stopped ? 0.0f : 1.0f - float(own.mask) / 255.0f;
           const auto mix = [&](std::uint8_t a, std::uint8_t b) {
             return move == 1.0f ? b : std::uint8_t(std::lround(float(a) + move * (float(b) - float(a))));
           };

@@ -591,3 +591,28 @@ TEST_CASE("paint elsewhere changes no warped distance, and a painted grab stroke
   }
 }
 
+
+TEST_CASE("a partial weight moves a warped voxel by (1 - w/255) of its free move", "[warp][paint][mask]") {
+  // Weight 51 on every stored voxel: each voxel of a masked brick ends at the free result pulled
+  // back by 1 - 51/255, bit for bit (Volume::diff's arithmetic), the others at the free result.
+  const Volume plain = sphere();
+  Volume masked = plain;
+  test::paintBricks(masked, [](Int3, int) { return texelOf(kClayColor, 51); });
+  const Volume base = masked;
+  const Vec3 a = surfacePoint();
+  Volume free = plain;
+  grab(free, plain, a, {3, 7, 2}, 10);
+  grab(masked, base, a, {3, 7, 2}, 10);
+  std::size_t wrong = 0, moved = 0;
+  for (int z = 0; z < 96; ++z)
+    for (int y = 0; y < 96; ++y)
+      for (int x = 0; x < 96; ++x) {
+        const float was = plain.at(x, y, z), now = free.at(x, y, z);
+        const bool held = base.texel({x, y, z}).mask == 51;
+        const float expected = held ? was + (1.0f - 51.0f / 255.0f) * (now - was) : now;
+        wrong += std::bit_cast<std::uint32_t>(masked.at(x, y, z)) != std::bit_cast<std::uint32_t>(expected);
+        moved += held && was != now;
+      }
+  CHECK(moved > 1000);
+  CHECK(wrong == 0);
+}
