@@ -175,9 +175,19 @@ struct Splat {
   friend bool operator==(const Splat&, const Splat&) = default;
 };
 
+// A splat's channels: the texel (server/engine/channels.hpp) of the voxel its foot point came
+// from; colour sRGB bytes, mask 0 (free) to 255 (frozen).
+struct SplatTexel {
+  std::uint8_t r = 0, g = 0, b = 0, mask = 0;
+  friend bool operator==(const SplatTexel&, const SplatTexel&) = default;
+};
+
 struct BrickSplats {
   Int3 brick;                 // brick coordinates: voxel / kSplatBrickSide
   std::vector<Splat> points;  // at most one per voxel of the brick
+  // Empty for a brick nothing painted (its points take the session's base colour, mask 0);
+  // else one per point, in the same order (a painted brick).
+  std::vector<SplatTexel> texels = {};
   friend bool operator==(const BrickSplats&, const BrickSplats&) = default;
 };
 

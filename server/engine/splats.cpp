@@ -271,6 +271,7 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   const std::uint32_t xBits = (1u << xs) - 1;
 
   Splat found[kBrickVoxels];
+  std::uint16_t voxelOf[kBrickVoxels];  // each splat's voxel, Bricks::index
   int count = 0;
   for (int z = 0; z < zs; ++z)
     for (int y = 0; y < ys; ++y)
@@ -283,6 +284,7 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
         const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
         const float len2 = gx * gx + gy * gy + gz * gz;
         const float px = float(o.x + x), py = float(o.y + y), pz = float(o.z + z);
+        voxelOf[count] = std::uint16_t(Bricks::index(x, y, z));
         Splat& sp = found[count++];
         sp = {px, py, pz, 0, 0, 1};
         if (len2 > 0) {
@@ -296,6 +298,15 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
         }
       }
   out.points.assign(found, found + count);
+  // The voxels of a brick without channels all read the base colour, weight 0: its points take
+  // the session's base colour on the client, and carry nothing.
+  if (const BrickPaint* paint = own && count > 0 ? vol.brickPaint(b) : nullptr) {
+    out.texels.resize(std::size_t(count));
+    for (int i = 0; i < count; ++i) {
+      const Texel& t = paint->t[voxelOf[i]];
+      out.texels[std::size_t(i)] = {t.r, t.g, t.b, t.mask};
+    }
+  }
   return out;
 }
 

@@ -10,6 +10,9 @@
 // bricks of -band next to bricks of +band) reach the clamp. Where g vanishes (a sheet thinner
 // than a voxel) the splat stays at p with normal +z. Splats of a brick come in voxel order
 // (x fastest, then y, then z), so extraction is deterministic and independent of threads.
+// Channels (channels.hpp): a brick that carries a BrickPaint gives each splat the texel of its
+// voxel p (BrickSplats::texels, one per point); a brick without one gives none, its points being
+// the volume's base colour with weight 0.
 //
 // The splat of voxel p reads p's six neighbours, so a changed brick alters the splats of those
 // face neighbours whose adjacent layer of it changed: bricksAroundChanges() lists what to

@@ -5,15 +5,20 @@
 // the changes, their splats, and the buffer of those whose encoding differs from what the
 // session's clients were sent (HeldSplats, service/hub/broadcast.hpp), on one thread (the hub's
 // broadcast extracts on its own thread); `bricks`/`bytes` is what was listed, `sent_bricks`/
-// `sent_bytes` what was sent.
+// `sent_bytes` what was sent. splats_paint_delta: the delta (format version 2) of one add-blob
+// stroke (12 dabs of radius 8, 2 vu apart along the equator) over the same sphere unpainted and
+// painted all over: `bytes_unpainted`, `bytes_painted` and their `ratio` (issue 30: at most the
+// colour's share of the point size, 12/8).
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <random>
 #include <vector>
 
 #include "bench.hpp"
 #include "engine/level_set.hpp"
+#include "engine/paint.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "protocol/cpp/splats.hpp"
@@ -96,6 +101,45 @@ MARZIPAN_BENCH("splats_delta") {
         {"bytes", bytes},
         {"sent_bricks", sentBricks},
         {"sent_bytes", sentBytes}});
+}
+
+MARZIPAN_BENCH("splats_paint_delta") {
+  const double radius = opt.quick ? 30 : 100;
+  const int side = opt.quick ? 80 : 256;
+  const int reps = opt.quick ? 1 : 5;
+  const double c = side / 2.0;
+  const Volume unpainted = makeSphere({side, side, side}, {c, c, c}, radius);
+  Volume painted = unpainted;
+  PaintSettings red;
+  red.color = {200, 20, 10};
+  red.radius = 1024;
+  red.hardness = 0.99;
+  paint(painted, red, {c, c, c});
+  std::vector<StrokeDab> dabs;
+  for (int i = 0; i < 12; ++i) {
+    const double a = 2.0 * i / radius;
+    dabs.emplace_back(Vec3{c + radius * std::cos(a), c + radius * std::sin(a), c});
+  }
+  std::size_t bytes[2] = {0, 0}, points = 0;
+  const Timing t = measure(reps, [&] {
+    for (int k = 0; k < 2; ++k) {
+      Volume v = k ? painted : unpainted;
+      const Edit e = applyStroke(v, StrokeSettings(Brush::AddBlob, 8, 1), dabs, {});
+      const auto delta = extractSplats(v, bricksAroundChanges(v, e.changes));
+      bytes[k] = encodeSplats(delta, kSplatFormatVersion).size();
+      points = 0;
+      for (const auto& b : delta) points += b.points.size();
+    }
+  });
+  emit("splats_paint_delta", 1, t,
+       {{"radius", radius},
+        {"side", side},
+        {"dab_radius", 8},
+        {"dabs", dabs.size()},
+        {"points", points},
+        {"bytes_unpainted", bytes[0]},
+        {"bytes_painted", bytes[1]},
+        {"ratio", double(bytes[1]) / double(bytes[0])}});
 }
 
 }  // namespace

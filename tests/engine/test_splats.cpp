@@ -1,5 +1,6 @@
 // Splats: foot points against analytic spheres and a brute-force reference, per-brick
-// re-extraction after edits, and the decoder against truncated and corrupted buffers.
+// re-extraction after edits, the texels of painted bricks, the codec's two versions byte for
+// byte, and the decoder against truncated and corrupted buffers.
 // Conventions as in engine/splats.hpp.
 #include <algorithm>
 #include <catch2/catch.hpp>
@@ -15,6 +16,7 @@
 
 #include "engine/errors.hpp"
 #include "engine/level_set.hpp"
+#include "engine/paint.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "engine/stencil.hpp"
@@ -425,7 +427,7 @@ TEST_CASE("truncated, padded and corrupted splat buffers are rejected cleanly", 
   CHECK(rejectedAsFormat(longer));
 
   auto badVersion = bytes;
-  badVersion[4] = 2;
+  badVersion[4] = 3;
   CHECK(rejectedAsFormat(badVersion));
 
   auto badMagic = bytes;
@@ -480,4 +482,210 @@ TEST_CASE("splat extraction refuses bricks outside the grid", "[splats][errors]"
   CHECK_THROWS_AS(extractSplats(v, {{0, 0, 0}, {0, -1, 0}}), EngineError);
   CHECK(extractAllSplats(v).empty());
   CHECK(extractBrickSplats(v, {4, 4, 4}).points.empty());
+}
+
+namespace {
+
+const Rgb8 kRed{200, 20, 10};
+
+// Red over the whole surface of v (one dab reaching past every voxel, hard to its edge).
+void paintAll(Volume& v, Rgb8 c) {
+  PaintSettings st;
+  st.color = c;
+  st.radius = 1024;
+  st.hardness = 0.99;
+  paint(v, st, Vec3{double(v.dims().x), double(v.dims().y), double(v.dims().z)} * 0.5);
+}
+
+// The bytes of a buffer with two bricks: (1, 2, 3) painted, its point at (9, 17, 25) facing +z
+// (codes X = Y = Z = 4096, U = V = 1024) in (200, 20, 10) under mask 255; (0, 0, 0) unpainted,
+// its point at (-2, -2, 4) facing -z (codes 0, 0, 8192, U = V = 2047). Written out by hand
+// from splats.hpp's table.
+const std::vector<std::uint8_t> kGoldenV2 = {
+    0x4d, 0x5a, 0x53, 0x50, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,  // header
+    0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x80,                                                  // N = 1 | painted
+    0x00, 0x10, 0x00, 0x04, 0x00, 0x01, 0x10, 0x80, 0xc8, 0x14, 0x0a, 0xff,                          // u64, r g b mask
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00,                                                  // N = 1
+    0x00, 0x00, 0x00, 0x00, 0x00, 0xfe, 0xff, 0xff};
+const std::vector<std::uint8_t> kGoldenV1 = {
+    0x4d, 0x5a, 0x53, 0x50, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+    0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x00, 0x00, 0x10, 0x00, 0x04, 0x00, 0x01, 0x10, 0x80,
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xfe, 0xff, 0xff};
+
+std::vector<BrickSplats> goldenBricks() {
+  return {{{1, 2, 3}, {{9, 17, 25, 0, 0, 1}}, {{200, 20, 10, 255}}}, {{0, 0, 0}, {{-2, -2, 4, 0, 0, -1}}, {}}};
+}
+
+}  // namespace
+
+TEST_CASE("splats of painted bricks carry the texel of their voxel, unpainted bricks none", "[splats][paint]") {
+  Volume v = makeSphere({48, 48, 48}, {23.7, 24.2, 24.1}, 15);
+  PaintSettings st;
+  st.color = kRed;
+  st.radius = 9;
+  paint(v, st, {23.7 + 15, 24.2, 24.1});
+  st.mode = PaintMode::MaskAdd;
+  st.radius = 6;
+  paint(v, st, {23.7, 24.2 + 15, 24.1});
+  REQUIRE(v.paintedBricks() > 0);
+  const auto bricks = extractAllSplats(v);
+  // The texels in the order of the points: the surface voxels in index order, brick by brick.
+  std::map<Key, std::vector<SplatTexel>> want;
+  forEachSurfaceVoxel(v, [&](Int3 p, float, Int3 b) {
+    const Texel t = v.texel(p);
+    want[key(b)].push_back({t.r, t.g, t.b, t.mask});
+  });
+  std::size_t painted = 0, red = 0, masked = 0;
+  for (const BrickSplats& b : bricks) {
+    INFO("brick " << b.brick.x << "," << b.brick.y << "," << b.brick.z);
+    if (!v.brickPaint(b.brick)) {
+      CHECK(b.texels.empty());
+      continue;
+    }
+    ++painted;
+    REQUIRE(b.texels == want[key(b.brick)]);
+    for (const SplatTexel& t : b.texels) {
+      red += t.r == kRed.r && t.g == kRed.g && t.b == kRed.b;
+      masked += t.mask == 255;
+    }
+  }
+  CHECK(painted > 4);
+  CHECK(red > 20);
+  CHECK(masked > 10);
+  // Version 2 keeps them exactly, version 1 drops them.
+  std::uint16_t version = 0;
+  const auto back = decodeSplats(encodeSplats(bricks), &version);
+  CHECK(version == 2);
+  REQUIRE(back.size() == bricks.size());
+  for (std::size_t i = 0; i < back.size(); ++i) CHECK(back[i].texels == bricks[i].texels);
+  for (const BrickSplats& b : decodeSplats(encodeSplats(bricks, 1), &version)) CHECK(b.texels.empty());
+  CHECK(version == 1);
+}
+
+TEST_CASE("splat buffers of versions 1 and 2, byte for byte", "[splats][paint]") {
+  const auto bricks = goldenBricks();
+  CHECK(encodeSplats(bricks) == kGoldenV2);
+  CHECK(encodeSplats(bricks, 2) == kGoldenV2);
+  CHECK(encodeSplats(bricks, 1) == kGoldenV1);
+  CHECK(encodedSplatsSize(bricks) == kGoldenV2.size());
+  CHECK(encodedSplatsSize(bricks, 1) == kGoldenV1.size());
+  CHECK(splatsAsVersion1(kGoldenV2) == kGoldenV1);
+  CHECK(splatsAsVersion1(kGoldenV1) == kGoldenV1);
+  // Positions at their codes exactly, normals within the octahedral quantization.
+  for (const auto* golden : {&kGoldenV2, &kGoldenV1}) {
+    const auto back = decodeSplats(*golden);
+    REQUIRE(back.size() == 2);
+    for (std::size_t i = 0; i < 2; ++i) {
+      CHECK(back[i].brick == bricks[i].brick);
+      REQUIRE(back[i].points.size() == 1);
+      const Splat &a = back[i].points[0], &b = bricks[i].points[0];
+      CHECK((a.x == b.x && a.y == b.y && a.z == b.z));
+      CHECK(degreesBetween(normal(a), normal(b)) < 0.05);
+      CHECK(back[i].texels == (golden == &kGoldenV2 ? bricks[i].texels : std::vector<SplatTexel>{}));
+    }
+  }
+  // Blocks joined in either version are those bytes too.
+  std::vector<std::vector<std::uint8_t>> blocks(2);
+  for (const std::uint16_t ver : {std::uint16_t(1), std::uint16_t(2)}) {
+    for (std::size_t i = 0; i < 2; ++i) encodeSplatBlock(bricks[i], blocks[i], ver);
+    CHECK(joinSplatBlocks({blocks[0], blocks[1]}, ver) == (ver == 1 ? kGoldenV1 : kGoldenV2));
+  }
+  // A version 2 block is not a version 1 block, nor the other way round.
+  encodeSplatBlock(bricks[0], blocks[0], 2);
+  CHECK_THROWS_AS(joinSplatBlocks({blocks[0]}, 1), EngineError);
+  encodeSplatBlock(bricks[0], blocks[0], 1);
+  blocks[0][7] = 0x80;  // painted, but 8-byte points
+  CHECK_THROWS_AS(joinSplatBlocks({blocks[0]}, 2), EngineError);
+  // Texels must be none or one per point; versions are 1 and 2.
+  auto wrong = bricks;
+  wrong[0].texels.push_back({1, 2, 3, 4});
+  CHECK_THROWS_AS(encodeSplats(wrong), EngineError);
+  CHECK_THROWS_AS(encodeSplats(bricks, 3), EngineError);
+  CHECK_THROWS_AS(encodeSplats(bricks, 0), EngineError);
+}
+
+TEST_CASE("inconsistent version 2 splat buffers are rejected cleanly", "[splats][paint][errors]") {
+  for (std::size_t n = 0; n < kGoldenV2.size(); ++n)
+    REQUIRE(rejectedAsFormat(std::span<const std::uint8_t>(kGoldenV2.data(), n)));
+  auto badVersion = kGoldenV2;
+  badVersion[4] = 3;
+  CHECK(rejectedAsFormat(badVersion));
+  // N's unused bits 10..14, each alone, in either block.
+  for (const std::size_t at : {std::size_t(16 + 7), std::size_t(16 + 20 + 7)})
+    for (int bit = 10; bit <= 14; ++bit) {
+      auto bad = kGoldenV2;
+      bad[at] = std::uint8_t(bad[at] | (1 << (bit - 8)));
+      INFO("byte " << at << " bit " << bit);
+      CHECK(rejectedAsFormat(bad));
+    }
+  // Painted without points.
+  const std::vector<std::uint8_t> emptyPainted = {0x4d, 0x5a, 0x53, 0x50, 0x02, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00,
+                                                  0x00, 0x00, 0x00, 0x00, 0x05, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x80};
+  CHECK(rejectedAsFormat(emptyPainted));
+  auto emptyPlain = emptyPainted;
+  emptyPlain[23] = 0;
+  CHECK(decodeSplats(emptyPlain).size() == 1);
+  // A count above 512 in bits 0..9 (513).
+  auto many = kGoldenV2;
+  many[16 + 6] = 0x01;
+  many[16 + 7] = 0x82;
+  CHECK(rejectedAsFormat(many));
+  // The painted flag cleared or set makes the lengths disagree.
+  auto unflagged = kGoldenV2;
+  unflagged[16 + 7] = 0;
+  CHECK(rejectedAsFormat(unflagged));
+  auto flagged = kGoldenV2;
+  flagged[16 + 20 + 7] = 0x80;
+  CHECK(rejectedAsFormat(flagged));
+  // Version 1 has no flag: its N = 0x8001 claims 32769 points.
+  auto v1Flag = kGoldenV1;
+  v1Flag[16 + 7] = 0x80;
+  CHECK(rejectedAsFormat(v1Flag));
+  // Random corruption of a painted sphere's buffer: a refusal or points that re-encode alike.
+  Volume v = makeSphere({24, 24, 24}, {11.7, 12.1, 12.4}, 5);
+  paintAll(v, kRed);
+  const auto bytes = encodeSplats(extractAllSplats(v));
+  REQUIRE(bytes.size() > 1000);
+  std::mt19937 rng(9);
+  int rejected = 0;
+  for (int t = 0; t < 3000; ++t) {
+    auto bad = bytes;
+    const int flips = 1 + int(rng() % 3);
+    for (int f = 0; f < flips; ++f) bad[rng() % bad.size()] ^= std::uint8_t(1 + rng() % 255);
+    try {
+      const auto out = decodeSplats(bad);
+      REQUIRE(encodedSplatsSize(out) == bad.size());
+    } catch (const EngineError& e) {
+      REQUIRE(e.kind() == ErrorKind::Format);
+      ++rejected;
+    }
+  }
+  CHECK(rejected > 0);
+}
+
+TEST_CASE("the delta of an add-blob stroke over clay painted all over is at most 1.5 times the unpainted one", "[splats][paint]") {
+  // The figures of a radius-100 sphere in 256^3 are bench_splats' splats_paint_delta.
+  const Volume base = makeSphere({80, 80, 80}, {40, 40, 40}, 30);
+  Volume painted = base;
+  paintAll(painted, kRed);
+  REQUIRE(painted.paintedBricks() > 100);
+  auto deltaBytes = [](Volume v) {
+    std::vector<StrokeDab> dabs;
+    for (int i = 0; i < 12; ++i) {
+      const double a = 0.07 * i;
+      dabs.emplace_back(Vec3{40 + 30 * std::cos(a), 40 + 30 * std::sin(a), 40});
+    }
+    const Edit e = applyStroke(v, StrokeSettings(Brush::AddBlob, 8, 1), dabs, {});
+    const auto bricks = extractSplats(v, bricksAroundChanges(v, e.changes));
+    std::size_t painted = 0;
+    for (const auto& b : bricks) painted += !b.texels.empty();
+    return std::pair{encodeSplats(bricks).size(), painted};
+  };
+  const auto [plain, plainPainted] = deltaBytes(base);
+  const auto [colour, colourPainted] = deltaBytes(painted);
+  INFO("unpainted " << plain << " bytes, painted " << colour << " bytes, ratio " << double(colour) / double(plain));
+  CHECK(plainPainted == 0);
+  CHECK(colourPainted > 10);
+  CHECK(colour > plain);
+  CHECK(double(colour) <= 1.5 * double(plain));
 }

@@ -1,6 +1,7 @@
-// Fuzz target: splat buffers (protocol/cpp/splats.hpp, decodeSplats). What decodes must hold
-// unit normals and positions inside each brick's encodable range, and encode again to a
-// buffer of the same size that decodes to the same points.
+// Fuzz target: splat buffers of both versions (protocol/cpp/splats.hpp, decodeSplats). What
+// decodes must hold unit normals and positions inside each brick's encodable range, texels none
+// or one per point (none in version 1), and encode again in its version to a buffer of the same
+// size that decodes to the same points; as version 1 it loses only the texels.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -18,8 +19,9 @@ constexpr int kMaxBricks = kMaxDomainSide / kBrickSide;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::vector<BrickSplats> bricks;
+  std::uint16_t version = 0;
   try {
-    bricks = decodeSplats(fuzz::bytesOf(data, size));
+    bricks = decodeSplats(fuzz::bytesOf(data, size), &version);
   } catch (const EngineError& e) {
     fuzz::expectFormatError(e);
     return 0;
@@ -27,6 +29,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (const BrickSplats& b : bricks) {
     const float o[3] = {float(b.brick.x * kBrickSide), float(b.brick.y * kBrickSide), float(b.brick.z * kBrickSide)};
     expect(b.points.size() <= std::size_t(kBrickVoxels), "at most one point per voxel of a brick");
+    expect(b.texels.empty() || (version == 2 && b.texels.size() == b.points.size()),
+           "texels are none or one per point, and only in version 2");
     // Brick coordinates go to 65535, far past the largest domain (128 bricks), where a float
     // is too coarse to keep the top of [o - 2, o + 10) open; there the interval closes.
     const bool inDomainRange[3] = {b.brick.x < kMaxBricks, b.brick.y < kMaxBricks, b.brick.z < kMaxBricks};
@@ -39,7 +43,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       expect(std::fabs(n2 - 1) < 1e-5f, "a normal is unit length");
     }
   }
-  expect(encodedSplatsSize(bricks) == size, "the decoded bricks encode to as many bytes");
-  expect(decodeSplats(encodeSplats(bricks)) == bricks, "decoded points are already quantized: they re-encode exactly");
+  expect(encodedSplatsSize(bricks, version) == size, "the decoded bricks encode to as many bytes");
+  expect(decodeSplats(encodeSplats(bricks, version)) == bricks,
+         "decoded points are already quantized: they re-encode exactly");
+  std::vector<BrickSplats> plain = decodeSplats(splatsAsVersion1(fuzz::bytesOf(data, size)));
+  for (BrickSplats& b : bricks) b.texels.clear();
+  expect(plain == bricks, "as version 1 the buffer keeps its points and loses its texels");
   return 0;
 }

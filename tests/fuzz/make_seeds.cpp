@@ -22,6 +22,7 @@
 #include "engine/little_endian.hpp"
 #include "engine/marching_cubes.hpp"
 #include "engine/mesh_io.hpp"
+#include "engine/paint.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "engine/volume_file.hpp"
@@ -105,9 +106,18 @@ void engineSeeds() {
   write("volume_file", "torus-12x9x17", saveVolume(torus));
   write("volume_file", "box-24", saveVolume(box));
 
-  write("splats", "empty", encodeSplats({}));
-  write("splats", "sphere-8", encodeSplats(extractAllSplats(sphere)));
-  write("splats", "torus-delta", encodeSplats(extractSplats(torus, {{0, 0, 0}, {1, 0, 1}})));
+  write("splats", "empty", encodeSplats({}, kSplatFormatVersionPlain));
+  write("splats", "sphere-8", encodeSplats(extractAllSplats(sphere), kSplatFormatVersionPlain));
+  write("splats", "torus-delta", encodeSplats(extractSplats(torus, {{0, 0, 0}, {1, 0, 1}}), kSplatFormatVersionPlain));
+  Volume painted = makeSolid(SolidKind::Sphere, {16, 16, 16});
+  PaintSettings red;
+  red.color = {200, 20, 10};
+  red.radius = 5;
+  paint(painted, red, {12, 8, 8});
+  red.mode = PaintMode::MaskAdd;
+  paint(painted, red, {8, 12, 8});
+  write("splats", "v2-empty", encodeSplats({}, 2));
+  write("splats", "v2-painted-sphere-16", encodeSplats(extractAllSplats(painted), 2));
 
   const Mesh tetra = tetrahedron();
   const Mesh ball = extractMesh(sphere);

@@ -130,7 +130,9 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   const std::size_t full = a.link->waitFor([](const auto& m) { return isFrame(m, protocol::FrameKind::SplatsFull); });
   const Bytes frame = std::get<Bytes>(a.link->at(full));
   CHECK(headerOf(frame).requestId == 0);
-  const auto decoded = decodeSplats(payloadOf(frame));
+  std::uint16_t version = 0;
+  const auto decoded = decodeSplats(payloadOf(frame), &version);
+  CHECK(version == 1);  // the client did not opt into colour (splats: 2)
   std::size_t points = 0;
   for (const auto& b : decoded) points += b.points.size();
   // A sphere of radius 0.35 * 64 = 22.4 has about 4 pi r^2 ~ 6300 surface voxels.

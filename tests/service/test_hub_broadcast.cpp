@@ -100,3 +100,20 @@ TEST_CASE("held splats: the record counts the memory its blocks keep, not only w
     CHECK(kept < 100 * (kSplatBrickHeaderBytes + 16 + HeldSplats::kEntryBytes));
   }
 }
+
+TEST_CASE("a splat frame for a client of version 1: the same frame, its colours dropped", "[hub][splats][paint]") {
+  std::vector<BrickSplats> bricks = {filled({1, 2, 3}, 5), filled({4, 0, 2}, 3), {{7, 7, 7}, {}}};
+  bricks[0].texels.assign(5, SplatTexel{200, 20, 10, 255});
+  const std::vector<std::uint8_t> v2 = encodeSplats(bricks, 2);
+  const SharedBytes frame = makeFrame(protocol::FrameKind::SplatsDelta, 17, 42, v2);
+  const SharedBytes plain = plainFrame(*frame);
+  const protocol::DecodedFrame f = *protocol::decodeFrameHeader(*plain).frame;
+  CHECK(f.header.kind == protocol::FrameKind::SplatsDelta);
+  CHECK(f.header.requestId == 17);
+  CHECK(f.header.revision == 42);
+  const std::vector<std::uint8_t> payload(f.payload.begin(), f.payload.end());
+  CHECK(payload == encodeSplats(bricks, 1));
+  CHECK(payload.size() == v2.size() - 5 * 4);
+  // A frame of version 1 already stays byte for byte.
+  CHECK(*plainFrame(*plain) == *plain);
+}

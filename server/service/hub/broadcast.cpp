@@ -51,10 +51,25 @@ void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view 
     return;
   }
   if (full) s.heldSplats.clear();
-  const SharedBytes splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr) : deltaFrame(s, bricks);
+  const SharedBytes splats = full ? fullSplatsFrame(ss.volume(), 0, ss.revision(), nullptr, nullptr, kSplatFormatVersion)
+                                  : deltaFrame(s, bricks);
+  // Clients that read version 1 get the same buffer without its colours, made once.
+  SharedBytes plain;
   const auto shared = std::make_shared<const std::string>(text);
-  for (const auto& c : members)
-    if (c->mode == ViewMode::Splats) c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
+  for (const auto& c : members) {
+    if (c->mode != ViewMode::Splats) continue;
+    if (c->splats == kSplatFormatVersion) {
+      c->link->sendTogether({{shared, nullptr}, {nullptr, splats}});
+      continue;
+    }
+    if (!plain) plain = plainFrame(*splats);
+    c->link->sendTogether({{shared, nullptr}, {nullptr, plain}});
+  }
+}
+
+SharedBytes plainFrame(const Bytes& frame) {
+  const protocol::DecodedFrame f = *protocol::decodeFrameHeader(frame).frame;  // a frame this server made
+  return makeFrame(f.header.kind, f.header.requestId, f.header.revision, splatsAsVersion1(f.payload));
 }
 
 std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol) {
@@ -108,18 +123,19 @@ void Broadcaster::clients(LiveSession& s, const HubClient* except, const json& l
 }
 
 SharedBytes Broadcaster::fullSplatsFrame(const Volume& vol, std::uint32_t requestId, std::uint64_t revision,
-                                         std::size_t* bricks, std::size_t* points) {
+                                         std::size_t* bricks, std::size_t* points, std::uint16_t version) {
   const std::vector<BrickSplats> all = extractAllSplats(vol, hub_.pool);
   if (bricks) *bricks = all.size();
   if (points) {
     *points = 0;
     for (const BrickSplats& b : all) *points += b.points.size();
   }
-  return makeFrame(protocol::FrameKind::SplatsFull, requestId, revision, encodeSplats(all));
+  return makeFrame(protocol::FrameKind::SplatsFull, requestId, revision, encodeSplats(all, version));
 }
 
 void Broadcaster::sendFullSplats(LiveSession& s, HubClient& c, std::uint32_t requestId) {
-  c.link->sendBinary(fullSplatsFrame(s.session->volume(), requestId, s.session->revision(), nullptr, nullptr), false);
+  c.link->sendBinary(
+      fullSplatsFrame(s.session->volume(), requestId, s.session->revision(), nullptr, nullptr, std::uint16_t(c.splats)), false);
 }
 
 void Broadcaster::requestFrame(LiveSession& s, const std::shared_ptr<HubClient>& c) {

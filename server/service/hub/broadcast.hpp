@@ -68,6 +68,8 @@ struct HeldSplats {
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload);
+// A frame of splats (full or delta, either version) with its payload as splat format version 1.
+SharedBytes plainFrame(const Bytes& frame);
 
 class Broadcaster {
  public:
@@ -82,9 +84,10 @@ class Broadcaster {
   // session.clients with `list` to every client of s but `except`.
   void clients(LiveSession& s, const HubClient* except, const nlohmann::json& list);
 
-  // Every splat of vol in one frame; counts its bricks and points when asked.
+  // Every splat of vol in one frame of splat format `version`; counts its bricks and points
+  // when asked.
   SharedBytes fullSplatsFrame(const Volume& vol, std::uint32_t requestId, std::uint64_t revision,
-                              std::size_t* bricks, std::size_t* points);
+                              std::size_t* bricks, std::size_t* points, std::uint16_t version);
   void sendFullSplats(LiveSession& s, HubClient& c, std::uint32_t requestId);
   // A pushed frame for a frames-mode client, latest wins.
   void requestFrame(LiveSession& s, const std::shared_ptr<HubClient>& c);

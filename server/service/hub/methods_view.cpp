@@ -2,6 +2,7 @@
 // sees of the session, pushed (view.set) or asked for (a frame, the full splat buffer).
 #include "engine/image_io.hpp"
 #include "engine/raycast.hpp"
+#include "protocol/cpp/splats.hpp"
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
 
@@ -42,11 +43,11 @@ void renderFrame(HubCore& hub, const Call& call) {
 
 void splatsGet(HubCore& hub, const Call& call) {
   protocol::parseNoParams(call.req.params, call.req.method);
-  hub.offStrand(call, [self = hub.shared_from_this(), frameId = call.req.frameId](const Volume& vol, std::uint64_t revision,
-                                                                                   Reply& r) {
-    // At most one point per voxel of a stored brick, 8 bytes each (uniform bricks yield points
+  hub.offStrand(call, [self = hub.shared_from_this(), frameId = call.req.frameId,
+                       version = std::uint16_t(call.client->splats)](const Volume& vol, std::uint64_t revision, Reply& r) {
+    // At most one point per voxel of a stored brick, 12 bytes each (uniform bricks yield points
     // only where a -band brick meets a +band one; max_volume_bytes bounds those).
-    const std::size_t estimate = vol.presentBricks() * (8 + 8 * std::size_t(kBrickVoxels));
+    const std::size_t estimate = vol.presentBricks() * (kSplatBrickHeaderBytes + kSplatPaintedPointBytes * std::size_t(kBrickVoxels));
     const std::size_t max = self->limits().maxOutputBytes;
     if (estimate > max)
       throw RpcException(RpcCode::LimitExceeded,
@@ -54,7 +55,7 @@ void splatsGet(HubCore& hub, const Call& call) {
                              std::to_string(max),
                          {{"limit", "max_output_bytes"}, {"value", estimate}, {"max", max}});
     std::size_t bricks = 0, points = 0;
-    r.frame = self->broadcast.fullSplatsFrame(vol, frameId, revision, &bricks, &points);
+    r.frame = self->broadcast.fullSplatsFrame(vol, frameId, revision, &bricks, &points, version);
     r.result = {{"revision", revision}, {"bricks", bricks}, {"points", points},
                 {"bytes", r.frame->size() - protocol::kFrameHeaderBytes}};
   }, [c = call.client](LiveSession& s, Reply& r) {

@@ -6,9 +6,11 @@ import assert from "node:assert/strict";
 import { FrameKind, decodeFrame } from "../../../protocol/js/frames.js";
 import {
   BRICK_SIDE,
+  CLAY_COLOR,
   POSITION_ERROR,
   SPLAT_BRICK_HEADER_BYTES,
   SPLAT_HEADER_BYTES,
+  SPLAT_PAINTED_POINT_BYTES,
   SPLAT_POINT_BYTES,
   SplatErrorCode,
   decodeSplats,
@@ -21,9 +23,17 @@ const NORMAL_ERROR_DEGREES = 0.125;
 
 // The encoder of splats.hpp: C = round((q - 8 * brick + 2) * 16384 / 12) clamped to [0, 16383];
 // n projected onto the octahedron, the lower half folded, (x + 1) * 2047 / 2 rounded and clamped.
+// Version 2: a brick with `texels` ([r, g, b, mask] per point) is painted, its points 12 bytes;
+// `word` overrides a block's N.
 function encodeSplats(bricks, { version = 1, reserved = 0, brickCount, pointCount } = {}) {
   const total = bricks.reduce((s, b) => s + b.points.length, 0);
-  const out = new Uint8Array(SPLAT_HEADER_BYTES + bricks.length * SPLAT_BRICK_HEADER_BYTES + total * SPLAT_POINT_BYTES);
+  const paintedPoints = bricks.reduce((s, b) => s + (b.texels ? b.points.length : 0), 0);
+  const out = new Uint8Array(
+    SPLAT_HEADER_BYTES +
+      bricks.length * SPLAT_BRICK_HEADER_BYTES +
+      total * SPLAT_POINT_BYTES +
+      paintedPoints * (SPLAT_PAINTED_POINT_BYTES - SPLAT_POINT_BYTES),
+  );
   const view = new DataView(out.buffer);
   out.set([0x4d, 0x5a, 0x53, 0x50]);
   view.setUint16(4, version, true);
@@ -35,11 +45,11 @@ function encodeSplats(bricks, { version = 1, reserved = 0, brickCount, pointCoun
     Math.min(16383, Math.max(0, Math.round((q - BRICK_SIDE * brick + 2) * (16384 / 12))));
   const octCode = (c) => Math.min(2047, Math.max(0, Math.round(((c + 1) * 2047) / 2)));
   let at = SPLAT_HEADER_BYTES;
-  for (const { brick, points, count } of bricks) {
+  for (const { brick, points, count, texels, word } of bricks) {
     brick.forEach((c, i) => view.setUint16(at + 2 * i, c, true));
-    view.setUint16(at + 6, count ?? points.length, true);
+    view.setUint16(at + 6, word ?? (count ?? points.length) | (texels ? 0x8000 : 0), true);
     at += SPLAT_BRICK_HEADER_BYTES;
-    for (const [x, y, z, nx, ny, nz] of points) {
+    for (const [k, [x, y, z, nx, ny, nz]] of points.entries()) {
       const l1 = Math.abs(nx) + Math.abs(ny) + Math.abs(nz);
       let u = nx / l1;
       let v = ny / l1;
@@ -52,6 +62,10 @@ function encodeSplats(bricks, { version = 1, reserved = 0, brickCount, pointCoun
       view.setUint32(at, (X | (Y << 14) | (Z << 28)) >>> 0, true);
       view.setUint32(at + 4, ((Z >>> 4) | (U << 10) | (V << 21)) >>> 0, true);
       at += SPLAT_POINT_BYTES;
+      if (texels) {
+        out.set(texels[k], at);
+        at += SPLAT_PAINTED_POINT_BYTES - SPLAT_POINT_BYTES;
+      }
     }
   }
   return out;
@@ -203,7 +217,7 @@ test("invalid splat buffers are refused with their error", () => {
     ["15 bytes", good.subarray(0, 15), SplatErrorCode.Truncated],
     ["magic MZSX", withByte(3, 0x58), SplatErrorCode.BadMagic],
     ["a frame header's magic", withByte(2, 0x50), SplatErrorCode.BadMagic],
-    ["version 2", withByte(4, 2), SplatErrorCode.BadVersion],
+    ["version 3", withByte(4, 3), SplatErrorCode.BadVersion],
     ["version 0", withByte(4, 0), SplatErrorCode.BadVersion],
     ["reserved 1", withByte(6, 1), SplatErrorCode.BadReserved],
     ["brick count 2^32-1", encodeSplats(two, { brickCount: 0xffffffff }), SplatErrorCode.CountsTooLarge],
@@ -253,4 +267,69 @@ test("random damage never throws", () => {
     else assert.ok(ERROR_CODES.has(r.code));
   }
   assert.throws(() => decodeSplats([1, 2, 3]), TypeError);
+});
+
+// The buffer of tests/engine/test_splats.cpp's kGoldenV2, which the C++ encoder writes: brick
+// (1, 2, 3) painted, its point at (9, 17, 25) facing +z in (200, 20, 10) under mask 255; brick
+// (0, 0, 0) unpainted, its point at (-2, -2, 4) facing -z.
+const GOLDEN_V2 = Uint8Array.of(
+  0x4d, 0x5a, 0x53, 0x50, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+  0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x80,
+  0x00, 0x10, 0x00, 0x04, 0x00, 0x01, 0x10, 0x80, 0xc8, 0x14, 0x0a, 0xff,
+  0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00,
+  0x00, 0x00, 0x00, 0x00, 0x00, 0xfe, 0xff, 0xff,
+);
+
+test("version 2: painted bricks carry their texels, unpainted ones the base colour", () => {
+  const r = decodeSplats(GOLDEN_V2, { baseColor: [10, 20, 30] });
+  assert.equal(r.ok, true, r.message);
+  assert.equal(r.version, 2);
+  assert.deepEqual(r.bricks.map((b) => b.painted), [true, false]);
+  assert.deepEqual(Array.from(r.positions), [9, 17, 25, -2, -2, 4]);
+  assert.deepEqual(Array.from(r.colors), [200, 20, 10, 255, 10, 20, 30, 0]);
+  assert.deepEqual(Array.from(r.bricks[1].colors), [10, 20, 30, 0]);
+  assert.ok(angleDegrees(r.normals.subarray(0, 3), [0, 0, 1]) < NORMAL_ERROR_DEGREES);
+  assert.ok(angleDegrees(r.normals.subarray(3, 6), [0, 0, -1]) < NORMAL_ERROR_DEGREES);
+  // The encoder written here from the description gives those bytes.
+  const again = encodeSplats(
+    [
+      { brick: [1, 2, 3], points: [[9, 17, 25, 0, 0, 1]], texels: [[200, 20, 10, 255]] },
+      { brick: [0, 0, 0], points: [[-2, -2, 4, 0, 0, -1]] },
+    ],
+    { version: 2 },
+  );
+  assert.deepEqual(again, GOLDEN_V2);
+  // Without a base colour: the clay; version 1 points take it too.
+  assert.deepEqual(Array.from(decodeSplats(GOLDEN_V2).bricks[1].colors), [...CLAY_COLOR, 0]);
+  const v1 = decodeSplats(encodeSplats([{ brick: [0, 0, 0], points: [[1, 2, 3, 0, 0, 1]] }]), { baseColor: [1, 2, 3] });
+  assert.deepEqual(Array.from(v1.colors), [1, 2, 3, 0]);
+  assert.equal(v1.bricks[0].painted, false);
+});
+
+test("version 2: inconsistent brick words and lengths are refused", () => {
+  const withByte = (offset, value) => {
+    const b = GOLDEN_V2.slice();
+    b[offset] = value;
+    return b;
+  };
+  for (let bit = 10; bit <= 14; ++bit) {
+    for (const block of [16, 36]) {
+      const b = GOLDEN_V2.slice();
+      b[block + 7] |= 1 << (bit - 8);
+      assert.equal(errorOf(b), SplatErrorCode.BadBrickWord, `block at ${block}, bit ${bit}`);
+    }
+  }
+  const paintedEmpty = encodeSplats([{ brick: [0, 0, 0], points: [], word: 0x8000 }], { version: 2 });
+  assert.equal(errorOf(paintedEmpty), SplatErrorCode.BadBrickWord);
+  assert.equal(errorOf(withByte(16 + 7, 0x82)), SplatErrorCode.BrickTooLarge); // 513 | painted
+  assert.equal(errorOf(withByte(16 + 7, 0x00)), SplatErrorCode.TrailingBytes); // 8-byte points: 4 bytes over
+  assert.equal(errorOf(withByte(36 + 7, 0x80)), SplatErrorCode.Truncated); // 12-byte points: 4 bytes short
+  // Version 1 has no flag: 0x8001 is 32769 points.
+  const v1 = GOLDEN_V2.slice();
+  v1[4] = 1;
+  assert.equal(errorOf(v1), SplatErrorCode.BrickTooLarge);
+  for (let n = 0; n < GOLDEN_V2.length; ++n) {
+    const code = errorOf(GOLDEN_V2.subarray(0, n));
+    assert.ok(code === SplatErrorCode.Truncated || code === SplatErrorCode.CountsTooLarge, `first ${n} bytes: ${code}`);
+  }
 });
