@@ -5,17 +5,23 @@ C++ decodeSplats in the same order and gives the same float32 values (each arith
 rounded to float32 as the C++ code rounds it).
 
 Conventions: integers little-endian; positions in vu of the session grid (voxel (i, j, k) at
-(i, j, k), y up); normals unit length, outward. Layout:
-  header, 16 bytes: "MZSP", u16 version = 1, u16 reserved = 0, u32 B bricks, u32 total points
-  B blocks: u16 brick x, y, z (voxel / 8), u16 N (0..512; 0 = the brick has no points), then
-  N u64 points: bits 0..13 X, 14..27 Y, 28..41 Z (position codes), 42..52 U, 53..63 V
-  (octahedral normal); nothing after the last block.
+(i, j, k), y up); normals unit length, outward; colours sRGB bytes, mask 0 (free) .. 255
+(frozen). Layout:
+  header, 16 bytes: "MZSP", u16 version (1 or 2), u16 reserved = 0, u32 B bricks, u32 total points
+  B blocks: u16 brick x, y, z (voxel / 8), u16 N, then the points. Version 1: N is the count
+  (0..512; 0 = the brick has no points), each point a u64. Version 2: N's bits 0..9 are the
+  count n, bit 15 is set for a painted brick (then n >= 1), bits 10..14 are 0; a painted
+  brick's points are 12 bytes (the u64, then u8 r, g, b, mask), an unpainted brick's the u64
+  alone, in the session's base_color with mask 0. Nothing after the last block.
+  The u64: bits 0..13 X, 14..27 Y, 28..41 Z (position codes), 42..52 U, 53..63 V (octahedral
+  normal).
   Position per axis: 8 * brick - 2 + C * 3 / 4096, i.e. [-2, 10) vu around the brick origin.
   Normal: u = (2U - 2047) / 2047, v = (2V - 2047) / 2047, z = 1 - |u| - |v|; where z < 0,
   (u, v) <- ((1 - |v|) sign(u), (1 - |u|) sign(v)) with sign(0) = +1; n = (u, v, z) / |(u, v, z)|.
 decode_splats takes untrusted bytes; for bad content it raises SplatError (a ValueError) only.
-Positions and normals come as array('f') of x, y, z per point, one pair for the whole buffer,
-with per-brick slices given as point ranges.
+Positions and normals come as array('f') of x, y, z per point, colours as array('B') of r, g,
+b, mask per point, one of each for the whole buffer, with per-brick slices given as point
+ranges.
 """
 
 from __future__ import annotations
@@ -29,7 +35,12 @@ from dataclasses import dataclass
 SPLAT_HEADER_BYTES = 16
 SPLAT_BRICK_HEADER_BYTES = 8
 SPLAT_POINT_BYTES = 8
-SPLAT_FORMAT_VERSION = 1
+SPLAT_PAINTED_POINT_BYTES = 12  # version 2, painted bricks
+SPLAT_FORMAT_VERSION = 2  # the newest, which a client opts into with `splats: 2`
+SPLAT_PAINTED_BIT = 0x8000  # version 2, in a block's N
+SPLAT_COUNT_MASK = 0x03FF  # version 2, in a block's N
+# The clay colour (server/engine/channels.hpp kClayColor): a session's base colour by default.
+CLAY_COLOR = (221, 181, 155)
 MAX_POINTS_PER_BRICK = 512
 BRICK_SIDE = 8
 # Position quantization: the step between codes and the largest error of a decoded coordinate.
@@ -46,10 +57,11 @@ _OCT_MAX = 2047
 class SplatErrorCode(str, enum.Enum):
     TRUNCATED = "truncated"  # the bytes end inside the header, a brick header or a brick's points
     BAD_MAGIC = "bad_magic"  # bytes 0-3 are not "MZSP"
-    BAD_VERSION = "bad_version"  # version other than 1
+    BAD_VERSION = "bad_version"  # version other than 1 and 2
     BAD_RESERVED = "bad_reserved"  # the reserved header field is not 0
     COUNTS_TOO_LARGE = "counts_too_large"  # B or the point total exceeds what the bytes can hold
     BRICK_TOO_LARGE = "brick_too_large"  # a brick claims more than 512 points
+    BAD_BRICK_WORD = "bad_brick_word"  # version 2: N's bits 10..14 set, or painted without points
     TRAILING_BYTES = "trailing_bytes"  # bytes after the last brick block
     POINT_COUNT_MISMATCH = "point_count_mismatch"  # the header's total differs from the blocks' sum
     REPEATED_BRICK = "repeated_brick"  # a brick listed twice
@@ -66,6 +78,7 @@ class BrickSplats:
     brick: tuple  # (x, y, z) in bricks (voxel / 8)
     first: int  # index of its first point in the buffer-wide arrays
     count: int  # 0: the brick has no points (a delta removes it)
+    painted: bool = False  # version 2: its points carried their own colours and masks
 
 
 @dataclass(frozen=True)
@@ -75,12 +88,16 @@ class SplatBuffer:
     positions: array  # 'f', x, y, z per point, vu
     normals: array  # 'f', x, y, z per point, unit length
     bricks: list  # BrickSplats in buffer order
+    colors: array  # 'B', r, g, b, mask per point (unpainted: the base colour, mask 0)
 
     def brick_positions(self, b: BrickSplats) -> array:
         return self.positions[3 * b.first : 3 * (b.first + b.count)]
 
     def brick_normals(self, b: BrickSplats) -> array:
         return self.normals[3 * b.first : 3 * (b.first + b.count)]
+
+    def brick_colors(self, b: BrickSplats) -> array:
+        return self.colors[4 * b.first : 4 * (b.first + b.count)]
 
 
 def _f32(values) -> list:
@@ -97,11 +114,23 @@ _SQUARE = _f32(x * x for x in _OCT)
 _FOLDED_SQUARE = _f32(x * x for x in _ONE_MINUS)
 
 
-def decode_splats(data) -> SplatBuffer:
-    """Decodes a whole splat buffer (bytes, bytearray or memoryview).
+def _read_count(word: int, version: int):
+    """A block's N in `version`: (n, painted, error code or None)."""
+    if version == 1:
+        return word, False, SplatErrorCode.BRICK_TOO_LARGE if word > MAX_POINTS_PER_BRICK else None
+    n = word & SPLAT_COUNT_MASK
+    painted = bool(word & SPLAT_PAINTED_BIT)
+    if word & ~(SPLAT_COUNT_MASK | SPLAT_PAINTED_BIT) or (painted and n == 0):
+        return n, painted, SplatErrorCode.BAD_BRICK_WORD
+    return n, painted, SplatErrorCode.BRICK_TOO_LARGE if n > MAX_POINTS_PER_BRICK else None
+
+
+def decode_splats(data, base_color=CLAY_COLOR) -> SplatBuffer:
+    """Decodes a whole splat buffer (bytes, bytearray or memoryview) of version 1 or 2; the
+    points of unpainted bricks (all of version 1) take `base_color` (the session's) with mask 0.
 
     Checks, in the order of the C++ decoder: header length, magic, version, reserved field,
-    counts against the byte length, then per block its header, N <= 512 and its points, then
+    counts against the byte length, then per block its header, its N and its points, then
     trailing bytes, the point total and repeated bricks.
     """
     view = memoryview(data).cast("B")
@@ -111,8 +140,8 @@ def decode_splats(data) -> SplatBuffer:
     if view[:4] != _MAGIC:
         raise SplatError(SplatErrorCode.BAD_MAGIC, "not a splat buffer (wrong magic bytes)")
     version, reserved, brick_count, point_count = _HEADER.unpack_from(view, 4)
-    if version != SPLAT_FORMAT_VERSION:
-        raise SplatError(SplatErrorCode.BAD_VERSION, f"unsupported version {version} (this decoder reads version 1)")
+    if version not in (1, 2):
+        raise SplatError(SplatErrorCode.BAD_VERSION, f"unsupported version {version} (this decoder reads versions 1 and 2)")
     if reserved != 0:
         raise SplatError(SplatErrorCode.BAD_RESERVED, "reserved header bytes must be 0")
     room = (size - SPLAT_HEADER_BYTES) // SPLAT_BRICK_HEADER_BYTES
@@ -131,14 +160,18 @@ def decode_splats(data) -> SplatBuffer:
     for i in range(brick_count):
         if size - at < SPLAT_BRICK_HEADER_BYTES:
             raise SplatError(SplatErrorCode.TRUNCATED, f"truncated in the header of brick block {i}")
-        bx, by, bz, n = _BRICK.unpack_from(view, at)
+        bx, by, bz, word = _BRICK.unpack_from(view, at)
+        n, painted, code = _read_count(word, version)
         at += SPLAT_BRICK_HEADER_BYTES
-        if n > MAX_POINTS_PER_BRICK:
-            raise SplatError(SplatErrorCode.BRICK_TOO_LARGE, f"brick block {i} claims {n} points (at most 512)")
-        if (size - at) // SPLAT_POINT_BYTES < n:
+        if code is SplatErrorCode.BRICK_TOO_LARGE:
+            raise SplatError(code, f"brick block {i} claims {n} points (at most 512)")
+        if code is not None:
+            raise SplatError(code, f"brick block {i} has N = {word} (bits 10..14 must be 0, a painted brick has points)")
+        point_bytes = SPLAT_PAINTED_POINT_BYTES if painted else SPLAT_POINT_BYTES
+        if (size - at) // point_bytes < n:
             raise SplatError(SplatErrorCode.TRUNCATED, f"truncated in the points of brick block {i}")
-        bricks.append((BrickSplats((bx, by, bz), points, n), at))
-        at += n * SPLAT_POINT_BYTES
+        bricks.append((BrickSplats((bx, by, bz), points, n, painted), at))
+        at += n * point_bytes
         points += n
         key = (bx, by, bz)
         repeated = repeated or key in seen
@@ -156,8 +189,18 @@ def decode_splats(data) -> SplatBuffer:
     # Pass 2: the points, one list per quantity, rounded to float32 after every operation.
     words = []
     origins = []
+    colors = array("B", bytes(4 * point_count))
+    base = bytes((base_color[0], base_color[1], base_color[2], 0))
     for b, offset in bricks:
-        words.extend(struct.unpack_from(f"<{b.count}Q", view, offset))
+        if b.painted:
+            stride = SPLAT_PAINTED_POINT_BYTES
+            words.extend(struct.unpack_from("<Q", view, offset + k * stride)[0] for k in range(b.count))
+            for k in range(b.count):
+                at = offset + k * stride + SPLAT_POINT_BYTES
+                colors[4 * (b.first + k) : 4 * (b.first + k + 1)] = array("B", view[at : at + 4])
+        else:
+            words.extend(struct.unpack_from(f"<{b.count}Q", view, offset))
+            colors[4 * b.first : 4 * (b.first + b.count)] = array("B", base * b.count)
         origin = (BRICK_SIDE * b.brick[0] - 2, BRICK_SIDE * b.brick[1] - 2, BRICK_SIDE * b.brick[2] - 2)
         origins.extend([origin] * b.count)
     # (8 * brick - 2) + C * 3/4096 is exact in double and rounds once, as the float sum does.
@@ -185,4 +228,4 @@ def decode_splats(data) -> SplatBuffer:
     normals[0::3] = array("f", [u * k for u, k in zip(folded_u, inv)])
     normals[1::3] = array("f", [v * k for v, k in zip(folded_v, inv)])
     normals[2::3] = array("f", [w * k for w, k in zip(ws, inv)])
-    return SplatBuffer(version, point_count, positions, normals, [b for b, _ in bricks])
+    return SplatBuffer(version, point_count, positions, normals, [b for b, _ in bricks], colors)

@@ -197,7 +197,7 @@ class Refusals(unittest.TestCase):
             ("15 bytes", good[:15], SplatErrorCode.TRUNCATED),
             ("magic MZSX", with_byte(3, 0x58), SplatErrorCode.BAD_MAGIC),
             ("a frame header's magic", with_byte(2, 0x50), SplatErrorCode.BAD_MAGIC),
-            ("version 2", with_byte(4, 2), SplatErrorCode.BAD_VERSION),
+            ("version 3", with_byte(4, 3), SplatErrorCode.BAD_VERSION),
             ("version 0", with_byte(4, 0), SplatErrorCode.BAD_VERSION),
             ("reserved 1", with_byte(6, 1), SplatErrorCode.BAD_RESERVED),
             ("brick count 2^32-1", encode_splats(self.TWO, brick_count=0xFFFFFFFF), SplatErrorCode.COUNTS_TOO_LARGE),
@@ -216,6 +216,46 @@ class Refusals(unittest.TestCase):
             self.assertEqual(self.code_of(data), code, name)
         distinct = encode_splats([((1, 2, 3), [], None), ((3, 2, 1), [], None), ((1, 3, 2), [], None)])
         self.assertEqual(len(decode_splats(distinct).bricks), 3)
+
+    # The buffer of tests/engine/test_splats.cpp's kGoldenV2 (the C++ encoder's bytes): brick
+    # (1, 2, 3) painted, its point at (9, 17, 25) facing +z in (200, 20, 10) under mask 255;
+    # brick (0, 0, 0) unpainted, its point at (-2, -2, 4) facing -z.
+    GOLDEN_V2 = bytes([
+        0x4D, 0x5A, 0x53, 0x50, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+        0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x80,
+        0x00, 0x10, 0x00, 0x04, 0x00, 0x01, 0x10, 0x80, 0xC8, 0x14, 0x0A, 0xFF,
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00,
+        0x00, 0x00, 0x00, 0x00, 0x00, 0xFE, 0xFF, 0xFF])
+
+    def test_version_2_painted_bricks_carry_texels_unpainted_the_base_colour(self):
+        buffer = decode_splats(self.GOLDEN_V2, base_color=(10, 20, 30))
+        self.assertEqual(buffer.version, 2)
+        self.assertEqual([b.painted for b in buffer.bricks], [True, False])
+        self.assertEqual(list(buffer.positions), [9, 17, 25, -2, -2, 4])
+        self.assertEqual(list(buffer.colors), [200, 20, 10, 255, 10, 20, 30, 0])
+        self.assertEqual(list(buffer.brick_colors(buffer.bricks[0])), [200, 20, 10, 255])
+        self.assertEqual(list(decode_splats(self.GOLDEN_V2).brick_colors(buffer.bricks[1])), [221, 181, 155, 0])
+        v1 = decode_splats(encode_splats(self.TWO), base_color=(1, 2, 3))
+        self.assertEqual(list(v1.colors), [1, 2, 3, 0] * v1.point_count)
+
+    def test_version_2_inconsistent_brick_words_are_refused(self):
+        def with_byte(offset, value):
+            data = bytearray(self.GOLDEN_V2)
+            data[offset] = value
+            return bytes(data)
+        for bit in range(10, 15):
+            for block in (16, 36):
+                data = bytearray(self.GOLDEN_V2)
+                data[block + 7] |= 1 << (bit - 8)
+                self.assertEqual(self.code_of(bytes(data)), SplatErrorCode.BAD_BRICK_WORD, (block, bit))
+        painted_empty = bytes(self.GOLDEN_V2[:8]) + struct.pack("<II", 1, 0) + struct.pack("<HHHH", 0, 0, 0, 0x8000)
+        self.assertEqual(self.code_of(painted_empty), SplatErrorCode.BAD_BRICK_WORD)
+        self.assertEqual(self.code_of(with_byte(16 + 7, 0x82)), SplatErrorCode.BRICK_TOO_LARGE)
+        self.assertEqual(self.code_of(with_byte(16 + 7, 0x00)), SplatErrorCode.TRAILING_BYTES)
+        self.assertEqual(self.code_of(with_byte(36 + 7, 0x80)), SplatErrorCode.TRUNCATED)
+        self.assertEqual(self.code_of(with_byte(4, 1)), SplatErrorCode.BRICK_TOO_LARGE)  # v1: 0x8001 points
+        for n in range(len(self.GOLDEN_V2)):
+            self.assertIn(self.code_of(self.GOLDEN_V2[:n]), (SplatErrorCode.TRUNCATED, SplatErrorCode.COUNTS_TOO_LARGE), n)
 
     def test_every_proper_prefix_is_refused(self):
         data = encode_splats([((0, 0, 0), [(1, 2, 3, 0, 0, 1), (2, 3, 4, 0, 1, 0)], None),
