@@ -677,9 +677,9 @@ TEST_CASE("the delta of an add-blob stroke over clay painted all over is at most
     }
     const Edit e = applyStroke(v, StrokeSettings(Brush::AddBlob, 8, 1), dabs, {});
     const auto bricks = extractSplats(v, bricksAroundChanges(v, e.changes));
-    std::size_t painted = 0;
-    for (const auto& b : bricks) painted += !b.texels.empty();
-    return std::pair{encodeSplats(bricks).size(), painted};
+    std::size_t withTexels = 0;
+    for (const auto& b : bricks) withTexels += !b.texels.empty();
+    return std::pair{encodeSplats(bricks).size(), withTexels};
   };
   const auto [plain, plainPainted] = deltaBytes(base);
   const auto [colour, colourPainted] = deltaBytes(painted);
