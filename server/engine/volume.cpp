@@ -474,6 +474,31 @@ std::vector<BrickChange> Volume::scatter(const Box& region, const float* src, co
   return changes;
 }
 
+Vec3 Volume::nearestOldSurface(Vec3 p, Vec3 otherwise) const {
+  constexpr double kReach = 32;
+  double best = kReach;
+  Vec3 found = otherwise;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (dx == 0 && dy == 0 && dz == 0) continue;
+        const Vec3 dir = normalized(Vec3{double(dx), double(dy), double(dz)});
+        // Sphere tracing: |d| is at most the distance to the surface, also where it is clamped.
+        for (double t = 0; t < best;) {
+          const Vec3 x = p + dir * t;
+          const double d0 = sample(x);
+          if (std::fabs(d0) < band_ - 0.5) {
+            const Vec3 g0 = gradient(x);
+            best = t;
+            found = length(g0) > 0 ? x - g0 * (d0 / length(g0)) : x;
+            break;
+          }
+          t += std::max(std::fabs(d0) - 0.5, 0.5);
+        }
+      }
+  return found;
+}
+
 void Volume::extendChannels(std::vector<BrickChange>& changes) const {
   if (paintedBricks_ == 0 || changes.empty()) return;
   // The new field: a changed brick's `after`, this volume elsewhere.
@@ -516,15 +541,20 @@ void Volume::extendChannels(std::vector<BrickChange>& changes) const {
       Vec3 q = Vec3{double(p.x), double(p.y), double(p.z)} - n * double(after[i]);
       // From the new surface back to the old one: along the new normal while the old field is
       // clamped there (a surface that grew by more than the band), then to the old foot point.
-      for (int step = 0; step < 16; ++step) {
+      bool reached = false;
+      for (int step = 0; step < 16 && !reached; ++step) {
         const double d0 = sample(q);
         if (std::fabs(d0) < band_ - 0.5 || n == Vec3{}) {
           const Vec3 g0 = gradient(q);
           if (length(g0) > 0) q = q - g0 * (d0 / length(g0));
-          break;
+          reached = true;
+        } else {
+          q = q - n * d0;
         }
-        q = q - n * d0;
       }
+      // The normal's line can miss the old surface (the upper side of a blob that overhangs
+      // it): then the old surface point nearest the voxel along one of 26 directions.
+      if (!reached) q = nearestOldSurface(Vec3{double(p.x), double(p.y), double(p.z)}, q);
       const Texel t = texel({int(std::floor(q.x + 0.5)), int(std::floor(q.y + 0.5)), int(std::floor(q.z + 0.5))});
       const Texel had = now ? now->t[i] : c.after.paint ? c.after.paint->t[i] : base;
       if (t == had) continue;

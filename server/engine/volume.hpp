@@ -154,7 +154,9 @@ class Volume {
   // voxel that enters the band (|d| >= band before, < band after) takes the texel this volume
   // holds at the voxel nearest the old surface point it came from: its foot point on the new
   // surface, p - d n (n the central-difference normal of the new field), carried back along -n
-  // while the old field is clamped there, then to its foot point on the old surface.
+  // while the old field is clamped there, then to its foot point on the old surface; when that
+  // line misses the old surface (16 steps without reaching its band: an overhang), the old
+  // surface point nearest p along one of the 26 neighbour directions.
   // Does nothing to a volume with no channels. scatter calls it; whoever publishes diff()'s
   // changes itself should too (chunked_pass.cpp does).
   void extendChannels(std::vector<BrickChange>& changes) const;
@@ -200,6 +202,10 @@ class Volume {
   // appending to out.
   void diffLayers(const Box& r, const Box& bricks, int bz0, int bz1, const float* src, const Box& srcBox,
                   std::vector<BrickChange>& out) const;
+  // The old surface point (this volume's) nearest p along the 26 directions of the grid's
+  // neighbours, within 32 vu; `otherwise` when none meets the band there. extendChannels's way
+  // back for a voxel whose normal line misses the old surface.
+  Vec3 nearestOldSurface(Vec3 p, Vec3 otherwise) const;
   std::size_t tileIndex(Int3 b) const;
   static int slotInTile(Int3 b);
 
