@@ -29,6 +29,7 @@
 #include <limits>
 #include <sstream>
 
+#include "color_space.hpp"
 #include "errors.hpp"
 #include "stencil.hpp"
 #include "thickness.hpp"
@@ -78,6 +79,16 @@ const std::array<std::uint8_t, 4097>& srgbTable() {
       const double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1 / 2.4) - 0.055;
       t[i] = std::uint8_t(std::lround(std::clamp(s, 0.0, 1.0) * 255));
     }
+    return t;
+  }();
+  return table;
+}
+
+// The albedo of each texel colour byte (color_space.hpp), looked up per corner of a hit's cell.
+const std::array<float, 256>& linearTable() {
+  static const std::array<float, 256> table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) t[i] = srgbToLinear(std::uint8_t(i));
     return t;
   }();
   return table;
@@ -629,7 +640,12 @@ struct Background {
   float bottom[3] = {0.018f, 0.020f, 0.024f};
 };
 
-// Clay lit from the camera's upper left, with a cool sky / warm ground hemisphere fill.
+// How much darker fully masked clay is drawn (weight 255: its albedo times 1 - this), as the
+// web client draws it (web-client/render/gl-program.js).
+constexpr float kMaskDarkening = 0.45f;
+
+// Clay lit from the camera's upper left, with a cool sky / warm ground hemisphere fill. The
+// albedo is kClayColor's (channels.hpp) in linear light; painted surfaces take their texels'.
 struct Material {
   F3 albedo{0.72f, 0.46f, 0.33f};
   F3 key{1.10f, 1.03f, 0.94f};
@@ -668,6 +684,9 @@ struct Shader {
   float height;
   const Volume& volume;
   double thicknessMin;
+  // Lit frames take the texels' colour (albedoAt) when the volume has channels or a base colour
+  // other than the clay, whose albedo Material holds.
+  bool coloured;
 
   F3 backgroundAt(float y) const {
     const float along = y / std::max(1.0f, height - 1);
@@ -677,6 +696,35 @@ struct Shader {
     if (shading == Shading::Lit || shading == Shading::Thickness) return c;
     for (float* ch : {&c.x, &c.y, &c.z}) *ch = float(srgbTable()[int(std::clamp(*ch, 0.0f, 1.0f) * 4096.0f + 0.5f)]) / 255.0f;
     return c;
+  }
+
+  // The albedo at surface point p of a volume with channels: the texels of the cell's eight
+  // corners in linear light, blended trilinearly (colour is constant along the normals through
+  // the band, paint.hpp, so the corners read the colour painted on the surface between them),
+  // darkened by the mask as the web client shows it (kMaskDarkening at weight 255).
+  F3 albedoAt(F3 p) const {
+    const Int3 dims = volume.dims();
+    const auto& lin = linearTable();
+    float c[3] = {std::clamp(p.x, 0.0f, float(dims.x - 1)), std::clamp(p.y, 0.0f, float(dims.y - 1)),
+                  std::clamp(p.z, 0.0f, float(dims.z - 1))};
+    int lo[3];
+    float f[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(int(c[a]), (a == 0 ? dims.x : a == 1 ? dims.y : dims.z) - 2);
+      lo[a] = std::max(lo[a], 0);
+      f[a] = std::clamp(c[a] - float(lo[a]), 0.0f, 1.0f);
+    }
+    F3 sum{};
+    float mask = 0;
+    for (int k = 0; k < 8; ++k) {
+      const int dx = k & 1, dy = (k >> 1) & 1, dz = k >> 2;
+      const float w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+      if (w == 0) continue;
+      const Texel t = volume.texel({lo[0] + dx, lo[1] + dy, lo[2] + dz});
+      sum = sum + F3{lin[t.r], lin[t.g], lin[t.b]} * w;
+      mask += w * float(t.mask);
+    }
+    return sum * (1.0f - kMaskDarkening * mask / 255.0f);
   }
 
   F3 normalAt(F3 p, F3 dir) const {
@@ -690,8 +738,13 @@ struct Shader {
     const F3 p = view.eye + dir * t;
     if (normal) *normal = normalAt(p, dir);
     switch (shading) {
-      case Shading::Lit:
-        return shadeLit(kernel, view, material, p, normal ? *normal : normalAt(p, dir), dir, still);
+      case Shading::Lit: {
+        const F3 n = normal ? *normal : normalAt(p, dir);
+        if (!coloured) return shadeLit(kernel, view, material, p, n, dir, still);
+        Material painted = material;
+        painted.albedo = albedoAt(p);
+        return shadeLit(kernel, view, painted, p, n, dir, still);
+      }
       case Shading::Normals: {
         const F3 n = normal ? *normal : normalAt(p, dir);
         return {0.5f * (n.x + 1), 0.5f * (n.y + 1), 0.5f * (n.z + 1)};
@@ -763,8 +816,10 @@ Frame render(const RaycastAccel& accel, const Camera& camera, Shading shading, T
   const Background background;
   const auto& srgb = srgbTable();
   const bool still = quality == FrameQuality::Still;
-  const Shader shader{kernel, view, material, background, shading, still, float(camera.height), accel.volume(),
-                      thicknessMinVu};
+  const Volume& vol = accel.volume();
+  const bool coloured = vol.paintedBricks() > 0 || !(vol.baseColor() == kClayColor);
+  const Shader shader{kernel, view, material, background, shading, still, float(camera.height), vol,
+                      thicknessMinVu, coloured};
 
   Frame frame;
   frame.width = camera.width;

@@ -2,6 +2,7 @@
 // ray from the camera convention documented in raycast.hpp (pixel centres, y down, vertical fov).
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -9,6 +10,7 @@
 #include <vector>
 
 #include "engine/errors.hpp"
+#include "engine/paint.hpp"
 #include "engine/raycast.hpp"
 #include "engine/shapes.hpp"
 #include "engine/solids.hpp"
@@ -450,6 +452,101 @@ TEST_CASE("thickness shading paints thin walls red and thick ones clay", "[rayca
   CHECK(std::equal(thick, thick + 3, px(lit, blockX, y)));  // three times the minimum and more: clay
   CHECK(f.depth == lit.depth);
   CHECK_THROWS_AS(render(v, cam, Shading::Thickness, pool, FrameQuality::Interactive, 0.0), EngineError);
+}
+
+namespace {
+double linear(std::uint8_t srgb) {
+  const double s = srgb / 255.0;
+  return s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4);
+}
+}  // namespace
+
+TEST_CASE("lit frames show the paint's colour, other shadings stay as they are", "[raycast][paint]") {
+  // A sphere of radius 20 seen from +z; its +x half (normals with x >= 0.19) painted red to the
+  // full, by one hard dab centred far out on +x.
+  const Volume clay = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
+  Volume red = clay;
+  PaintSettings st;
+  st.color = {200, 20, 10};
+  st.radius = 320;
+  st.hardness = 0.99;
+  paint(red, st, {32 + 320, 32, 32});
+  REQUIRE(red.paintedBricks() > 0);
+  const Camera cam{{32, 32, 150}, {32, 32, 32}, {0, 1, 0}, 30, 96, 96};
+  ThreadPool pool(2);
+  for (const FrameQuality q : {FrameQuality::Interactive, FrameQuality::Still, FrameQuality::Preview}) {
+    INFO("quality " << int(q));
+    const Frame painted = render(red, cam, Shading::Lit, pool, q);
+    const Frame plain = render(clay, cam, Shading::Lit, pool, q);
+    // (A preview traces the pixels where its lattice's colours disagree, and paint adds some.)
+    if (q != FrameQuality::Preview) CHECK(painted.depth == plain.depth);
+    int redPixels = 0, clayPixels = 0, worstClay = 0;
+    double worstRed = 1, worstOther = 0;
+    for (int y = 30; y < 66; ++y)
+      for (int x = 0; x < cam.width; ++x) {
+        const std::size_t i = index(painted, x, y);
+        if (!std::isfinite(painted.depth[i])) continue;
+        // Where the ray meets the sphere: x of its unit normal.
+        const Vec3 d = pixelRay(cam, x, y);
+        const double t = raySphere(cam.eye, d, {32, 32, 32}, 20);
+        const double ux = (cam.eye.x + t * d.x - 32) / 20;
+        const std::uint8_t* c = &painted.rgb[i * 3];
+        const std::uint8_t* o = &plain.rgb[i * 3];
+        if (ux > 0.35 && ux < 0.75) {  // away from the silhouette, which still frames blend with the backdrop
+          ++redPixels;
+          // In linear light the pixel is the clay's lit pixel with the albedo of the paint
+          // instead of the clay's, (0.58, 0.007, 0.003) for (0.72, 0.46, 0.33), plus the same
+          // white specular: red keeps most of its light, green and blue lose most of theirs.
+          const double ratio[3] = {linear(c[0]) / linear(o[0]), linear(c[1]) / linear(o[1]), linear(c[2]) / linear(o[2])};
+          worstRed = std::min(worstRed, ratio[0]);
+          worstOther = std::max({worstOther, ratio[1], ratio[2]});
+        } else if (ux < -0.15) {
+          ++clayPixels;
+          for (int ch = 0; ch < 3; ++ch) worstClay = std::max(worstClay, std::abs(int(c[ch]) - int(o[ch])));
+        }
+      }
+    INFO("painted / clay in linear light: red at least " << worstRed << ", green and blue at most " << worstOther);
+    CHECK(worstRed > (q == FrameQuality::Preview ? 0.7 : 0.75));
+    CHECK(worstOther < 0.03);
+    CHECK(redPixels > 300);
+    CHECK(clayPixels > 300);
+    // The clay's albedo from its sRGB bytes (221, 181, 155) against Material's (0.72, 0.46, 0.33):
+    // a byte or two, three where a preview interpolates.
+    CHECK(worstClay <= 3);
+  }
+  for (const Shading sh : {Shading::GradientError, Shading::Thickness, Shading::Normals})
+    CHECK(render(red, cam, sh, pool).rgb == render(clay, cam, sh, pool).rgb);
+}
+
+TEST_CASE("masked clay is drawn darker, by its weight", "[raycast][paint][mask]") {
+  const Volume clay = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
+  Volume masked = clay;
+  PaintSettings st;
+  st.mode = PaintMode::MaskAdd;
+  st.radius = 320;
+  st.hardness = 0.99;
+  paint(masked, st, {32 + 320, 32, 32});
+  const Camera cam{{32, 32, 150}, {32, 32, 32}, {0, 1, 0}, 30, 96, 96};
+  ThreadPool pool(2);
+  const Frame a = render(masked, cam, Shading::Lit, pool);
+  const Frame b = render(clay, cam, Shading::Lit, pool);
+  // At x of the normal 0.7 (fully masked) the lit clay is darker; at -0.5 it is as before.
+  const int y = 48;
+  auto column = [&](double ux) {
+    for (int x = 0; x < cam.width; ++x) {
+      const Vec3 d = pixelRay(cam, x, y);
+      const double t = raySphere(cam.eye, d, {32, 32, 32}, 20);
+      if (std::isfinite(t) && (cam.eye.x + t * d.x - 32) / 20 >= ux) return x;
+    }
+    return -1;
+  };
+  const int in = column(0.7), out = column(-0.5);
+  REQUIRE(in >= 0);
+  REQUIRE(out >= 0);
+  const std::uint8_t* m = &a.rgb[index(a, in, y) * 3];
+  const std::uint8_t* c = &b.rgb[index(b, in, y) * 3];
+  for (int ch = 0; ch < 3; ++ch) CHECK(int(m[ch]) < int(c[ch]) - 10);
+  for (int ch = 0; ch < 3; ++ch) CHECK(std::abs(int(a.rgb[index(a, out, y) * 3 + ch]) - int(b.rgb[index(b, out, y) * 3 + ch])) <= 2);
 }
 
 namespace {
