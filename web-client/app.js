@@ -7,7 +7,7 @@
 
 import { FRAME_HEADER_BYTES } from "/protocol/js/frames.js";
 import { volumeFormats } from "/protocol/js/rpc.js";
-import { decodeSplats } from "/protocol/js/splats.js";
+import { CLAY_COLOR, decodeSplats } from "/protocol/js/splats.js";
 import { gridBoxEdges, nearGridEdge } from "./math/grid-edge.js";
 import { OrbitCamera } from "./math/orbit-camera.js";
 import { scaleMesh } from "./math/mesh-scale.js";
@@ -33,7 +33,7 @@ import { installShortcuts } from "./ui/shortcuts.js";
 import { StartScreen } from "./ui/start-screen.js";
 import { StatusBar } from "./ui/status-bar.js";
 import { Timeline } from "./ui/timeline.js";
-import { GLOBAL_OPS } from "./ui/tools.js";
+import { GLOBAL_OPS, MASK_OPS } from "./ui/tools.js";
 
 const STATUS_REFRESH_MS = 500;
 const FRAME_TIME_FRAMES = 60;
@@ -96,6 +96,7 @@ export class App {
       leave: () => this.sculpt.leave(),
       sculptGestureAt: (x, y) => this.sculpt.sculptGestureAt(x, y),
       strokeStart: (x, y, p, modifier) => this.sculpt.strokeStart(x, y, p, modifier),
+      pickColor: (x, y) => this.sculpt.pickColor(x, y),
       strokeMove: (x, y, p) => this.sculpt.strokeMove(x, y, p),
       strokeEnd: () => this.sculpt.strokeEnd(),
       click: (x, y, modifier) => this.sculpt.click(x, y, modifier),
@@ -225,7 +226,8 @@ export class App {
   }
 
   #splats({ full, revision, payload }) {
-    const decoded = decodeSplats(payload);
+    // Points of unpainted bricks take the session's base colour (session.create/join's base_color).
+    const decoded = decodeSplats(payload, { baseColor: this.session.info?.base_color ?? CLAY_COLOR });
     if (!decoded.ok) {
       this.messages.error(new Error(`splat buffer refused (${decoded.code}): ${decoded.message}`));
       return;
@@ -432,6 +434,10 @@ export class App {
   }
 
   async #global(op, amount) {
+    if (MASK_OPS[op]) {
+      await this.#quietly(this.messages.during(`${MASK_OPS[op].label} the whole volume`, this.session.request(op, {})));
+      return;
+    }
     const spec = GLOBAL_OPS[op];
     if (!(amount >= spec.min && amount <= spec.max)) {
       this.messages.error(new Error(`${spec.amount} must be between ${spec.min} and ${spec.max}`));

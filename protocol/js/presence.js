@@ -37,14 +37,22 @@ function onlyKeys(object, allowed, what) {
     if (!allowed.includes(key)) throw new TypeError(`unknown key "${key}" in ${what} (allowed: ${allowed.join(", ")})`);
 }
 
+// An sRGB colour on the wire: [r, g, b], three integers 0..255.
+export function isRgb(value) {
+  return Array.isArray(value) && value.length === 3 && value.every((c) => Number.isInteger(c) && c >= 0 && c <= 255);
+}
+
 // The params of a `presence` message: {brush?, camera?}. brush = {tool, radius, point, normal,
-// active}; camera = {eye, target, up?, fov?} (as view.set's). Each presence replaces the
-// previous one as a whole: leave out `brush` when the pointer is off the model.
+// active, color?} (color: the paint colour [r, g, b], which the others draw the ring in);
+// camera = {eye, target, up?, fov?} (as view.set's). Each presence replaces the previous one as
+// a whole: leave out `brush` when the pointer is off the model.
 export function presenceParams({ brush, camera } = {}) {
   const params = {};
   if (brush !== undefined) {
-    if (!isObject(brush)) throw new TypeError("brush must be an object {tool, radius, point, normal, active}");
-    onlyKeys(brush, ["tool", "radius", "point", "normal", "active"], "a brush");
+    if (!isObject(brush)) throw new TypeError("brush must be an object {tool, radius, point, normal, active, color?}");
+    onlyKeys(brush, ["tool", "radius", "point", "normal", "active", "color"], "a brush");
+    if (brush.color !== undefined && !isRgb(brush.color))
+      throw new RangeError("brush.color must be [r, g, b], three integers in 0..255");
     if (!PRESENCE_TOOLS.includes(brush.tool)) throw new RangeError(`brush.tool must be one of ${PRESENCE_TOOLS.join(", ")}`);
     if (typeof brush.radius !== "number" || !(brush.radius >= RADIUS.minimum && brush.radius <= RADIUS.maximum))
       throw new RangeError(`brush.radius must be a number in [${RADIUS.minimum}, ${RADIUS.maximum}]`);
@@ -58,6 +66,7 @@ export function presenceParams({ brush, camera } = {}) {
       normal,
       active: brush.active,
     };
+    if (brush.color !== undefined) params.brush.color = [...brush.color];
   }
   if (camera !== undefined) {
     if (!isObject(camera)) throw new TypeError("camera must be an object {eye, target, up?, fov?}");

@@ -201,7 +201,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   // Layout); a phone gets a compact toolbar of tools and undo over the view.
   await page.setViewportSize({ width: 1280, height: 800 });
   const toolBefore = await page.evaluate(() => window.marzipan.controls.settings.tool);
-  for (const tool of ["add_blob", "csg_add"]) {
+  for (const tool of ["add_blob", "csg_add", "paint"]) {
     await page.evaluate((t) => window.marzipan.controls.setTool(t), tool);
     for (const id of ["tool-palette", "brush", "history", "view-controls"]) {
       const box = await page.locator(`#${id}`).boundingBox();

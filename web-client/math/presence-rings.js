@@ -1,9 +1,11 @@
 // What this page draws of the others (PROTOCOL.md "Presence"): each other sculptor's brush
-// ring on the model in their colour with their name beside it, and a brief mark, in the
-// author's colour, of the region another client's edit just changed.
+// ring on the model in their colour (a painting sculptor's in their paint colour, the brush's
+// `color`) with their name beside it, and a brief mark, in the author's colour, of the region
+// another client's edit just changed.
 // Conventions: world in vu, y up; screen positions in CSS pixels of the canvas, y down from its
 // top-left corner; colours "#rrggbb" on the wire, [r, g, b] in 0..1 here; times in ms of the
-// caller's clock. Rings are render/brush-cursor.js's ring objects. Pure: no DOM, no GL.
+// caller's clock; a brush's paint colour [r, g, b] in 0..255 on the wire. Rings are
+// render/brush-cursor.js's ring objects. Pure: no DOM, no GL.
 
 import { transformPoint } from "./mat4.js";
 import { addScaled, dot, sub } from "./vec3.js";
@@ -12,6 +14,13 @@ import { addScaled, dot, sub } from "./vec3.js";
 export const EDIT_MARK_MS = 1500;
 const RING_LINE_PIXELS = 2;
 const LABEL_GAP_PX = 4;
+
+// A brush's paint colour, [r, g, b] of integers in 0..255, as [r, g, b] in 0..1; null for
+// anything else.
+export function paintColor(value) {
+  const ok = Array.isArray(value) && value.length === 3 && value.every((c) => Number.isInteger(c) && c >= 0 && c <= 255);
+  return ok ? value.map((c) => c / 255) : null;
+}
 
 // "#rrggbb" as [r, g, b] in 0..1; null for anything else.
 export function hexColor(text) {
@@ -48,8 +57,9 @@ export function presenceRings(others, camera, width, height, now, staleMs) {
   const perPixelAtUnit = (2 * Math.tan(camera.fovY / 2)) / Math.max(1, height);
   for (const o of others) {
     const b = o.brush;
-    const color = hexColor(o.color);
-    if (!b || !color || now - o.seenAt > staleMs) continue;
+    const own = hexColor(o.color);
+    if (!b || !own || now - o.seenAt > staleMs) continue;
+    const color = paintColor(b.color) || own;
     const toEye = sub(eye, b.point);
     const depth = Math.max(1e-6, Math.sqrt(dot(toEye, toEye)));
     const facing = dot(toEye, b.normal) >= 0;

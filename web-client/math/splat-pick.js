@@ -4,14 +4,16 @@
 // waits for the GPU.
 // Conventions: vu, y up; a brick (bx, by, bz) holds points within [8b - 2, 8b + 10) per axis
 // (server/engine/splats.hpp); `bricks` is an iterable of {brick: [bx, by, bz], count,
-// positions, normals} with x, y, z per point in the Float32Arrays; `direction` unit length.
+// positions, normals, colors?} with x, y, z per point in the Float32Arrays and r, g, b, mask
+// per point in `colors` (protocol/js/splats.js); `direction` unit length.
 
 const BRICK = 8;
 const REACH_LO = -2; // the encodable range of a brick's points, relative to 8 * brick
 const REACH_HI = 10;
 
-// {t, point, normal} of the nearest front-facing disc of radius `discRadius` hit by the ray
-// origin + t direction (t >= 0), or null.
+// {t, point, normal, color} of the nearest front-facing disc of radius `discRadius` hit by the
+// ray origin + t direction (t >= 0), or null; color is the disc's [r, g, b] (sRGB bytes), null
+// when its brick has no colours.
 export function pickSplats(bricks, origin, direction, discRadius) {
   const [ox, oy, oz] = origin;
   const [dx, dy, dz] = direction;
@@ -44,11 +46,13 @@ export function pickSplats(bricks, origin, direction, discRadius) {
     }
   }
   if (!bestBrick) return null;
-  const n = bestBrick.normals;
+  const n = bestBrick.normals, c = bestBrick.colors;
+  const k = (bestIndex / 3) * 4;
   return {
     t: best,
     point: [ox + best * dx, oy + best * dy, oz + best * dz],
     normal: [n[bestIndex], n[bestIndex + 1], n[bestIndex + 2]],
+    color: c ? [c[k], c[k + 1], c[k + 2]] : null,
   };
 }
 

@@ -48,16 +48,25 @@ export function dabsOf(tool, tools = TOOLS) {
 // `accumulate`: every message adds again, paint-like. The other brushes (smooth, sharpen)
 // accumulate, since passing again is how one smooths more. A warp takes neither, nor symmetry
 // (the server refuses it); those that take a `direction` (twist, scale, pinch) get the one given
-// (the camera's screen-right axis: dragging right twists, grows or pinches).
-export function strokeBeginParams({ tool, radius, strength, symmetry, buildUp = false, direction = null }, tools = TOOLS) {
+// (the camera's screen-right axis: dragging right twists, grows or pinches). The paint tools
+// (paint, mask) stand like a height: a pass over the same spot again changes nothing unless
+// buildUp; paint takes `color` ([r, g, b]), mask `erase` (the inverting modifier held).
+export function strokeBeginParams(
+  { tool, radius, strength, symmetry, buildUp = false, direction = null, color = null, erase = false },
+  tools = TOOLS,
+) {
   const params = { tool, radius };
   if (takes(tool, "strength", tools)) params.strength = strength;
+  if (color && takes(tool, "color", tools)) params.color = [...color];
+  if (erase && takes(tool, "erase", tools)) params.erase = true;
   if (isWarp(tool, tools)) {
     if (direction && takes(tool, "direction", tools)) params.direction = direction;
     return params;
   }
   if (symmetry && symmetry.length) params.symmetry = symmetry;
-  if (takes(tool, "height", tools) && !buildUp) {
+  if (entry(tool, tools)?.kind === "paint") {
+    if (buildUp) params.accumulate = true;
+  } else if (takes(tool, "height", tools) && !buildUp) {
     // Rounded down to 1/1000 vu, so that it never exceeds half the radius.
     params.height = Math.max(0.001, Math.floor(1000 * strength * Math.min(HEIGHT_PER_RADIUS * radius, MAX_HEIGHT)) / 1000);
   } else {

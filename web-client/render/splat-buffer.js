@@ -10,7 +10,8 @@
 // with bit 30 set for a point and bit 31 set when its normal varies; a texel without bit 30
 // draws nothing. The second: the normal's gradient across the disc (math/splat-shading.js),
 // dn/du in x and dn/dv in y, each as three 10-bit fields round(511 g / MAX_GRADIENT) + 512
-// like the normal's; z and w are zero.
+// like the normal's; z the point's colour and mask, r | g << 8 | b << 16 | mask << 24 (sRGB
+// bytes, protocol/js/splats.js); w is zero.
 // Brick slots (in points) come from the store's allocator (render/slot-allocator.js). A
 // changed brick is one or two texSubImage2D calls over its slot; the texture grows by whole
 // rows, copying the old rows on the GPU (copyTexSubImage2D), never re-uploading from the CPU.
@@ -18,6 +19,7 @@
 // Ownership: the caller's GL context; `texture` changes when it grows.
 
 import { MAX_GRADIENT } from "../math/splat-shading.js";
+import { CLAY_COLOR } from "../../protocol/js/splats.js";
 
 export const TEXTURE_WIDTH = 2048;
 const TEXEL_BYTES = 16;
@@ -27,6 +29,8 @@ const MIN_ROWS = 8;
 const GROWTH = 1.5;
 const VALID = 1 << 30;
 const VARIES = 2 ** 31;
+// Points that came without colours (none of the store's: the decoder gives every point one).
+const CLAY_PACKED = CLAY_COLOR[0] | (CLAY_COLOR[1] << 8) | (CLAY_COLOR[2] << 16);
 
 export class SplatBuffer {
   constructor(gl) {
@@ -133,9 +137,11 @@ function fill(target, first, entry) {
   const words = 4 * POINT_TEXELS;
   const f32 = new Float32Array(target, first * POINT_BYTES, entry.count * words);
   const u32 = new Uint32Array(target, first * POINT_BYTES, entry.count * words);
-  const p = entry.positions, n = entry.normals, g = entry.gradients;
+  const p = entry.positions, n = entry.normals, g = entry.gradients, c = entry.colors;
   for (let k = 0, j = 0; k < entry.count; ++k, j += 3) {
     const o = words * k;
+    const i = 4 * k;
+    u32[o + 6] = c ? (c[i] | (c[i + 1] << 8) | (c[i + 2] << 16) | (c[i + 3] << 24)) >>> 0 : CLAY_PACKED;
     f32[o] = p[j];
     f32[o + 1] = p[j + 1];
     f32[o + 2] = p[j + 2];

@@ -19,10 +19,11 @@
 // disc within that depth of the nearest surface adds its normal weighted by (1 - r^2)^2 of its
 // radius r into a half-float target (depth test against pass 1, additive blending); (3) a
 // full-screen pass normalises the sum and shades it, so neighbouring discs blend into one
-// smooth surface. Without the
+// smooth surface; their albedos (each point's colour in linear light, darker where masked) are
+// summed alike into a second target and blended the same way. Without the
 // extension the discs are drawn opaque, as before.
 
-import { CLAY_GLSL, createProgram } from "./gl-program.js";
+import { CLAY_GLSL, PAINT_GLSL, createProgram } from "./gl-program.js";
 import { SplatBuffer, TEXTURE_WIDTH } from "./splat-buffer.js";
 import { DISC_RADIUS } from "./splat-store.js";
 import { MAX_GRADIENT } from "../math/splat-shading.js";
@@ -44,9 +45,11 @@ uniform float u_depthPush; // vu away from the eye along the view ray (the depth
 out vec3 v_normal;
 out vec3 v_toEye;
 out vec2 v_corner;
+out vec3 v_albedo;
 const float BACK_FACING = ${BACK_FACING.toFixed(3)};
 // An equilateral triangle around the unit circle: three vertices per disc, half of a quad's six.
 const vec2 CORNERS[3] = vec2[3](vec2(0.0, 2.0), vec2(-1.7320508, -1.0), vec2(1.7320508, -1.0));
+${PAINT_GLSL}
 vec3 unpack(uint packed) {
   return (vec3(packed & 1023u, (packed >> 10) & 1023u, (packed >> 20) & 1023u) - 512.0) / 511.0;
 }
@@ -68,11 +71,12 @@ void main() {
   vec3 t = normalize(cross(helper, n));
   vec3 b = cross(n, t);
   vec3 p = position + u_radius * (corner.x * t + corner.y * b);
+  uvec4 second = texelFetch(u_points, at + ivec2(1, 0), 0);
+  v_albedo = paintAlbedo(vec4((uvec4(second.z) >> uvec4(0u, 8u, 16u, 24u)) & 255u) / 255.0);
   // The normal varies linearly over the disc (math/splat-shading.js): its value at the corner,
   // interpolated, is exact everywhere on the flat disc.
   if ((packed & ${2 ** 31}u) != 0u) {
-    uvec4 gradient = texelFetch(u_points, at + ivec2(1, 0), 0);
-    n += u_radius * ${MAX_GRADIENT.toFixed(1)} * (corner.x * unpack(gradient.x) + corner.y * unpack(gradient.y));
+    n += u_radius * ${MAX_GRADIENT.toFixed(1)} * (corner.x * unpack(second.x) + corner.y * unpack(second.y));
   }
   v_normal = n;
   v_toEye = u_eye - p;
@@ -85,10 +89,12 @@ precision highp float;
 in vec3 v_normal;
 in vec3 v_toEye;
 in vec2 v_corner;
+in vec3 v_albedo;
 uniform vec3 u_light;
 uniform vec3 u_up;
-uniform int u_shading; // 0 clay, 1 normals, 2 the blended passes' weighted normal
-out vec4 outColor;
+uniform int u_shading; // 0 clay, 1 normals, 2 the blended passes' weighted normal and albedo
+layout(location = 0) out vec4 outColor;
+layout(location = 1) out vec4 outAlbedo; // the blended passes only
 ${CLAY_GLSL}
 void main() {
   float r2 = dot(v_corner, v_corner);
@@ -97,13 +103,15 @@ void main() {
   if (u_shading == 2) {
     float w = (1.0 - r2) * (1.0 - r2);
     outColor = vec4(w * n, w);
+    outAlbedo = vec4(w * v_albedo, w);
     return;
   }
+  outAlbedo = vec4(0.0);
   if (u_shading == 1) {
     outColor = vec4(0.5 * n + 0.5, 1.0);
     return;
   }
-  outColor = vec4(toSrgb(clay(n, normalize(v_toEye), u_light, u_up)), 1.0);
+  outColor = vec4(toSrgb(clay(n, normalize(v_toEye), u_light, u_up, v_albedo)), 1.0);
 }`;
 
 // The resolve pass: one triangle over the viewport; the pixel's summed normal, shaded.
@@ -116,6 +124,7 @@ void main() {
 const RESOLVE_FRAGMENT = `#version 300 es
 precision highp float;
 uniform sampler2D u_sum;
+uniform sampler2D u_albedo; // the weighted albedos, summed as the normals
 uniform vec2 u_size;      // viewport, pixels
 uniform vec2 u_tan;       // tan of the half field of view, horizontal and vertical
 uniform vec3 u_forward;
@@ -135,7 +144,8 @@ void main() {
   }
   vec2 s = (2.0 * gl_FragCoord.xy / u_size - 1.0) * u_tan;
   vec3 toEye = -normalize(u_forward + s.x * u_right + s.y * u_up);
-  outColor = vec4(toSrgb(clay(n, toEye, u_light, u_up)), 1.0);
+  vec4 albedo = texelFetch(u_albedo, ivec2(gl_FragCoord.xy), 0);
+  outColor = vec4(toSrgb(clay(n, toEye, u_light, u_up, albedo.rgb / albedo.w)), 1.0);
 }`;
 
 export class SplatRenderer {
@@ -152,35 +162,43 @@ export class SplatRenderer {
     // Blending needs a renderable half-float target; `blend` may be set false to draw opaque.
     this.canBlend = Boolean(gl.getExtension("EXT_color_buffer_float"));
     if (this.blend === undefined) this.blend = this.canBlend;
-    this.resolve = createProgram(gl, RESOLVE_VERTEX, RESOLVE_FRAGMENT, ["u_sum", "u_size", "u_tan", "u_forward", "u_right", "u_up", "u_light", "u_shading"]);
-    this.target = null; // {framebuffer, sum, depth, width, height} of the blended passes
+    this.resolve = createProgram(gl, RESOLVE_VERTEX, RESOLVE_FRAGMENT, ["u_sum", "u_albedo", "u_size", "u_tan", "u_forward", "u_right", "u_up", "u_light", "u_shading"]);
+    this.target = null; // {framebuffer, sum, albedo, depth, width, height} of the blended passes
   }
 
-  // The blended passes' framebuffer at the drawing buffer's size: a half-float colour texture
-  // for the sums and a depth buffer; made again when the size changes.
+  // The blended passes' framebuffer at the drawing buffer's size: two half-float colour
+  // textures for the sums (normals, albedos) and a depth buffer; made again when the size changes.
   #targetFor(width, height) {
     const gl = this.gl;
     if (this.target && this.target.width === width && this.target.height === height) return this.target;
     if (this.target) {
       gl.deleteFramebuffer(this.target.framebuffer);
       gl.deleteTexture(this.target.sum);
+      gl.deleteTexture(this.target.albedo);
       gl.deleteRenderbuffer(this.target.depth);
     }
-    const sum = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, sum);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA16F, width, height);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    const halfFloat = () => {
+      const t = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, t);
+      gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA16F, width, height);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      return t;
+    };
+    const sum = halfFloat();
+    const albedo = halfFloat();
     const depth = gl.createRenderbuffer();
     gl.bindRenderbuffer(gl.RENDERBUFFER, depth);
     gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT24, width, height);
     const framebuffer = gl.createFramebuffer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, framebuffer);
     gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, sum, 0);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT1, gl.TEXTURE_2D, albedo, 0);
+    gl.drawBuffers([gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1]);
     gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
     const complete = gl.checkFramebufferStatus(gl.FRAMEBUFFER) === gl.FRAMEBUFFER_COMPLETE;
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    this.target = { framebuffer, sum, depth, width, height };
+    this.target = { framebuffer, sum, albedo, depth, width, height };
     if (!complete) this.canBlend = this.blend = false;
     return this.target;
   }
@@ -253,6 +271,10 @@ export class SplatRenderer {
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D, target.sum);
     gl.uniform1i(r.uniforms.u_sum, 0);
+    gl.activeTexture(gl.TEXTURE1);
+    gl.bindTexture(gl.TEXTURE_2D, target.albedo);
+    gl.uniform1i(r.uniforms.u_albedo, 1);
+    gl.activeTexture(gl.TEXTURE0);
     gl.uniform2f(r.uniforms.u_size, width, height);
     const tanY = Math.tan(camera.fovY / 2);
     gl.uniform2f(r.uniforms.u_tan, tanY * (width / height), tanY);

@@ -1,6 +1,7 @@
 // The client's copy of the session's splats, brick by brick, and the record of what the GPU
 // buffer must change to match it.
-// Conventions: positions in vu, normals unit (render/../protocol/js/splats.js decodes them);
+// Conventions: positions in vu, normals unit, colours r, g, b, mask bytes per point (sRGB;
+// render/../protocol/js/splats.js decodes them);
 // a brick's key is x + 65536 (y + 65536 z) of its brick coordinates. A full buffer replaces
 // everything; a delta replaces the listed bricks and removes those with 0 points
 // (PROTOCOL.md, "Binary frames"). The store keeps the decoded arrays it is given (views into
@@ -29,7 +30,7 @@ export class SplatStore {
   constructor() {
     this.varyNormals = true; // false: one flat normal per disc, for comparisons
     this.allocator = new SlotAllocator();
-    this.bricks = new Map(); // key -> {brick, count, positions, normals, gradients, slot}
+    this.bricks = new Map(); // key -> {brick, count, positions, normals, colors, gradients, slot}
     this.pointCount = 0;
     this.revision = 0; // revision of the newest buffer applied (a Number)
     this.version = 0; // grows with every change, for views that cache derived data
@@ -44,7 +45,7 @@ export class SplatStore {
     this.pointCount = 0;
     for (const b of decoded.bricks) {
       if (b.count === 0) continue;
-      this.bricks.set(brickKey(b.brick), { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, gradients: null, slot: null });
+      this.bricks.set(brickKey(b.brick), { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, colors: b.colors, gradients: null, slot: null });
       this.pointCount += b.count;
     }
     for (const entry of this.bricks.values()) entry.gradients = this.#gradientsOf(entry);
@@ -68,7 +69,7 @@ export class SplatStore {
         this.bricks.delete(key);
         continue;
       }
-      const entry = { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, gradients: null, slot: null };
+      const entry = { brick: b.brick, count: b.count, positions: b.positions, normals: b.normals, colors: b.colors, gradients: null, slot: null };
       entry.slot = old && old.slot && this.allocator.fits(old.slot, b.count) ? old.slot : this.allocator.allocate(b.count, DELTA_HEADROOM);
       if (old) this.writes.delete(old);
       this.bricks.set(key, entry);

@@ -13,7 +13,7 @@
 // tools that take a height add with every message instead of standing at a height
 // (net/stroke-sender.js).
 
-import { GLOBAL_OPS, GROUPS, TOOLS, toolById } from "./tools.js";
+import { GLOBAL_OPS, GROUPS, MASK_OPS, TOOLS, toolById } from "./tools.js";
 
 // Shadings only the server's ray caster draws: choosing one switches to the frame view.
 const FRAMES_ONLY = new Set(["gradient_error", "thickness"]);
@@ -37,6 +37,7 @@ export class Controls {
       shading: "lit",
       lazy: 0,
       buildUp: false,
+      paintColor: [200, 40, 30], // the paint tool's colour, sRGB bytes
     };
     const $ = (id) => doc.getElementById(id);
     this.$ = $;
@@ -49,6 +50,8 @@ export class Controls {
     this.strength.addEventListener("input", () => this.setStrength(Number(this.strength.value)));
     $("shape").addEventListener("change", (e) => (this.settings.shape = e.target.value));
     $("build-up").addEventListener("change", (e) => (this.settings.buildUp = e.target.checked));
+    $("paint-color").value = hexOf(this.settings.paintColor);
+    $("paint-color").addEventListener("input", (e) => this.setPaintColor(rgbOf(e.target.value)));
     $("lazy").addEventListener("input", (e) => {
       this.settings.lazy = Number(e.target.value);
       this.#syncBrush();
@@ -61,6 +64,7 @@ export class Controls {
 
     const op = $("global-op");
     for (const [name, spec] of Object.entries(GLOBAL_OPS)) op.append(new Option(spec.menu, name));
+    for (const [name, spec] of Object.entries(MASK_OPS)) op.append(new Option(spec.menu, name));
     op.addEventListener("change", () => this.#globalOpChanged());
     $("global-apply").addEventListener("click", () => {
       const amount = Number($("global-amount").value);
@@ -159,6 +163,13 @@ export class Controls {
     this.handlers.onSettings();
   }
 
+  // The paint colour, [r, g, b] in 0..255 (the colour input, or Alt+click's pick).
+  setPaintColor(rgb) {
+    this.settings.paintColor = rgb.map((c) => Math.max(0, Math.min(255, Math.round(c))));
+    this.$("paint-color").value = hexOf(this.settings.paintColor);
+    this.handlers.onSettings();
+  }
+
   setRadius(r) {
     this.settings.radius = this.#clampRadius(Math.round(r * 2) / 2);
     this.#syncBrush();
@@ -226,11 +237,14 @@ export class Controls {
     // warps take no symmetry (the server refuses it); a tool without strength or blend no slider
     this.doc.querySelector(".symmetry").hidden = this.tool.kind !== "stroke" || Boolean(this.tool.warp);
     this.$("strength-label").hidden = this.$("strength-help").hidden = !this.tool.takes.has("strength") && !blend;
-    this.$("build-up-label").hidden = !this.tool.takes.has("height");
+    this.$("build-up-label").hidden = !this.tool.takes.has("height") && !this.tool.paint;
+    this.$("paint-color-row").hidden = !this.tool.takes.has("color");
   }
 
   #globalOpChanged() {
     const spec = GLOBAL_OPS[this.$("global-op").value];
+    this.$("global-amount-row").hidden = !spec;
+    if (!spec) return; // a mask operation: no amount
     const amount = this.$("global-amount");
     this.$("global-amount-name").textContent = spec.amount;
     amount.min = String(spec.min);
@@ -264,4 +278,12 @@ export class Controls {
     $("role-badge").hidden = !readOnly;
     this.doc.querySelector(".panel").removeAttribute("aria-disabled");
   }
+}
+
+function hexOf(rgb) {
+  return `#${rgb.map((c) => c.toString(16).padStart(2, "0")).join("")}`;
+}
+
+function rgbOf(hex) {
+  return [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
 }

@@ -1,6 +1,6 @@
 // Mouse, pen, touch and trackpad on the canvas, turned into camera moves and sculpting. Which
-// press starts which gesture is ui/gesture-map.js (sculpt on the model, with Ctrl/Alt to
-// invert and Shift to smooth; Space+drag or right drag orbits anywhere; middle drag pans;
+// press starts which gesture is ui/gesture-map.js (sculpt on the model, with Ctrl to
+// invert, Shift to smooth and Alt to pick the colour; Space+drag or right drag orbits anywhere; middle drag pans;
 // F+drag sizes the brush); an orbit turns around the surface point under the pointer where
 // the press began (or the last point the brush was on); a double press that orbits without
 // moving (a double right-click, Space+double-click, or a double-click beside the model)
@@ -119,6 +119,7 @@ export class PointerInput {
     }
     this.#setGesture(g);
     if (g.kind === "stroke") this.h.strokeStart(x, y, this.#pressure(e), g.modifier);
+    if (g.kind === "pick") this.h.pickColor(x, y);
     e.preventDefault();
   }
 

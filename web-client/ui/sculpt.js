@@ -94,7 +94,17 @@ export class Sculpt {
   get presenceBrush() {
     if (!this.hit || !this.editable) return null;
     const s = this.controls.settings;
-    return { tool: this.stroke ? this.stroke.tool : s.tool, radius: s.radius, point: this.hit.point, normal: this.hit.normal, active: Boolean(this.stroke) };
+    const tool = this.stroke ? this.stroke.tool : s.tool;
+    const brush = { tool, radius: s.radius, point: this.hit.point, normal: this.hit.normal, active: Boolean(this.stroke) };
+    // a painting sculptor's ring shows in the paint colour
+    if (toolById(tool).takes.has("color")) brush.color = [...s.paintColor];
+    return brush;
+  }
+
+  // Alt+click: the colour of the splat under (x, y) becomes the paint colour.
+  pickColor(x, y) {
+    const hit = this.pick(x, y);
+    if (hit && hit.color) this.controls.setPaintColor(hit.color);
   }
 
   // "stroke" or "click" when a press at (x, y) sculpts, "blocked" when it lands on the model
@@ -117,7 +127,12 @@ export class Sculpt {
       tool,
       // add / remove blob strokes have a height set by strength and radius (or build up, the
       // "Build up" option): net/stroke-sender.js strokeBeginParams
-      sender: new StrokeSender(this.session, { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, buildUp: s.buildUp }, maxDabs),
+      // paint takes the paint colour; a mask stroke with the inverting modifier erases
+      sender: new StrokeSender(
+        this.session,
+        { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, buildUp: s.buildUp, color: s.paintColor, erase: modifier === "invert" },
+        maxDabs,
+      ),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),
       lazy: new LazyMouse(s.lazy || 0),
       surface: [...this.store.bricks.values()], // the splats at the press, for picking its dabs

@@ -9,8 +9,10 @@
 // dabs: stroke.begin / dabs / end), "click" for one that does not (a click applies it once where
 // the pointer ray meets the surface: tool.apply with a ray, the CSG tools); `warp`, for a tool of
 // the registry's kind "warp", what its dabs are ("anchored": grab, twist ...; "path": snake
-// hook; math/warp-drag.js), else null; `radiusRange`, [min, max] of its radius in vu (null for a
-// tool without one). Global operations are in GLOBAL_OPS.
+// hook; math/warp-drag.js), else null; `paint`, true for a tool of the registry's kind "paint"
+// (paint and mask: they change colour or mask, never the clay); `radiusRange`, [min, max] of
+// its radius in vu (null for a tool without one). Global operations are in GLOBAL_OPS, the
+// whole-volume mask methods in MASK_OPS.
 // The registry is imported by a relative path, not "/protocol/js/...": the server serves this
 // file at /ui/tools.js and protocol/js/ at /protocol/js/, so the browser resolves it to the same
 // module as the other imports, and node's unit tests find it on disk.
@@ -33,6 +35,7 @@ export const TOOLS = Object.freeze(
       takes: new Set(t.params.map((p) => p.key)),
       kind: t.strokes ? "stroke" : "click",
       warp: t.kind === "warp" ? t.dabs : null,
+      paint: t.kind === "paint",
       radiusRange: rangeOf(t.params.find((p) => p.key === "radius")),
     }),
   ),
@@ -81,6 +84,14 @@ export const GLOBAL_OPS = Object.freeze(
     }),
   ),
 );
+
+// The whole-volume mask operations (PROTOCOL.md: RPC methods with params {}), by method, each
+// {menu, label} as GLOBAL_OPS has them; they take no amount.
+export const MASK_OPS = Object.freeze({
+  "mask.clear": Object.freeze({ menu: "Clear the mask", label: "Clearing the mask of" }),
+  "mask.invert": Object.freeze({ menu: "Invert the mask", label: "Inverting the mask of" }),
+  "mask.fill": Object.freeze({ menu: "Mask everything", label: "Masking" }),
+});
 
 // The tool a modifier turns `id` into: "invert" swaps a tool with its opposite (one without, like
 // CSG intersect, stays), "smooth" is the smoothing brush for strokes; null keeps the tool.

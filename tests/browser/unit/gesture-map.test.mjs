@@ -8,10 +8,13 @@ import { toolWithModifier } from "../../../web-client/ui/tools.js";
 
 const left = (extra = {}) => ({ button: 0, ...extra });
 
-test("a press on the model sculpts; Ctrl or Alt inverts, Shift smooths", () => {
+test("a press on the model sculpts; Ctrl inverts, Shift smooths, Alt picks the colour", () => {
   assert.deepEqual(pressGesture(left(), "stroke"), { kind: "stroke", modifier: null });
   assert.deepEqual(pressGesture(left({ ctrl: true }), "stroke"), { kind: "stroke", modifier: "invert" });
-  assert.deepEqual(pressGesture(left({ alt: true }), "stroke"), { kind: "stroke", modifier: "invert" });
+  assert.deepEqual(pressGesture(left({ alt: true }), "stroke"), { kind: "pick", modifier: null });
+  assert.deepEqual(pressGesture(left({ alt: true }), "click"), { kind: "pick", modifier: null });
+  assert.deepEqual(pressGesture(left({ alt: true, ctrl: true }), "stroke"), { kind: "stroke", modifier: "invert" });
+  assert.equal(pressGesture(left({ alt: true }), null).kind, "orbit", "beside the model Alt picks nothing");
   assert.deepEqual(pressGesture(left({ shift: true }), "stroke"), { kind: "stroke", modifier: "smooth" });
   assert.deepEqual(pressGesture(left({ ctrl: true }), "click"), { kind: "click", modifier: "invert" });
   assert.deepEqual(pressGesture(left({ shift: true }), "click"), { kind: "click", modifier: null });

@@ -46,6 +46,17 @@ test("a ring at the target: its label is centred above it, one radius up on scre
   assert.ok(Math.abs(label.y - (h / 2 - (10 / (200 * tan)) * (h / 2) - 4)) < 1e-3, `y ${label.y}`);
 });
 
+test("a painting client's ring is drawn in its paint colour, a malformed one in the client's", () => {
+  const [w, h] = [800, 600];
+  const c = cameraAt().update(w, h);
+  const brush = { tool: "paint", radius: 10, point: [...c.target], normal: c.backward, active: true, color: [255, 0, 51] };
+  const ring = (b) => presenceRings([{ client: 2, name: "Ada", color: "#e6194b", brush: b, seenAt: 0 }], c, w, h, 100, 6000).rings[0];
+  assert.deepEqual(ring(brush).color, [1, 0, 0.2]);
+  assert.deepEqual(ring({ ...brush, color: [256, 0, 0] }).color, hexColor("#e6194b"));
+  assert.deepEqual(ring({ ...brush, color: "#00ff00" }).color, hexColor("#e6194b"));
+  assert.deepEqual(ring({ ...brush, color: undefined }).color, hexColor("#e6194b"));
+});
+
 test("a sculpting client's ring is thicker, brighter and dotted; one facing away is faint; a stale one is gone", () => {
   const [w, h] = [640, 480];
   const c = cameraAt().update(w, h);

@@ -54,3 +54,15 @@ test("axis-parallel rays and empty bricks are handled", () => {
   assert.ok(hit && Math.abs(hit.point[2] - 10) < 0.5, JSON.stringify(hit));
   assert.equal(pickSplats([], [0, 0, 0], [0, 0, 1], 0.8), null);
 });
+
+test("a hit carries the colour of the disc it hit; bricks without colours give none", () => {
+  // Colour each point by the sign of its x: red on the +x half, green elsewhere.
+  const bricks = sphereBricks([40, 40, 40], 20).map((b) => {
+    const colors = new Uint8Array(4 * b.count);
+    for (let k = 0; k < b.count; ++k) colors.set(b.positions[3 * k] > 40 ? [200, 20, 10, 0] : [10, 200, 20, 255], 4 * k);
+    return { ...b, colors };
+  });
+  assert.deepEqual(pickSplats(bricks, [140, 40, 40], [-1, 0, 0], 0.8).color, [200, 20, 10]);
+  assert.deepEqual(pickSplats(bricks, [-60, 40, 40], [1, 0, 0], 0.8).color, [10, 200, 20]);
+  assert.equal(pickSplats(sphereBricks([40, 40, 40], 20), [140, 40, 40], [-1, 0, 0], 0.8).color, null);
+});

@@ -54,6 +54,36 @@ const WARPS = [
 ];
 const TOOLS_WITH_WARPS = [...TOOLS, ...WARPS];
 
+// The paint tools of the contract (PROTOCOL.md, stroke.begin): paint takes a colour, mask erase.
+const PAINTS = [
+  { name: "paint", kind: "paint", dabs: "swept", params: ["center", "radius", "strength", "color", "hardness"].map(param) },
+  { name: "mask", kind: "paint", dabs: "swept", params: ["center", "radius", "strength", "hardness", "erase"].map(param) },
+];
+const TOOLS_WITH_PAINTS = [...TOOLS, ...PAINTS];
+
+test("paint sends its colour, mask erase while inverted; both stand unless built up", () => {
+  const settings = { radius: 6, strength: 0.5, symmetry: ["x"], color: [200, 20, 10] };
+  assert.deepEqual(strokeBeginParams({ tool: "paint", ...settings }, TOOLS_WITH_PAINTS), {
+    tool: "paint",
+    radius: 6,
+    strength: 0.5,
+    color: [200, 20, 10],
+    symmetry: ["x"],
+  });
+  assert.deepEqual(strokeBeginParams({ tool: "paint", ...settings, buildUp: true }, TOOLS_WITH_PAINTS).accumulate, true);
+  assert.deepEqual(strokeBeginParams({ tool: "mask", ...settings }, TOOLS_WITH_PAINTS), { tool: "mask", radius: 6, strength: 0.5, symmetry: ["x"] });
+  assert.deepEqual(strokeBeginParams({ tool: "mask", ...settings, erase: true }, TOOLS_WITH_PAINTS), {
+    tool: "mask",
+    radius: 6,
+    strength: 0.5,
+    erase: true,
+    symmetry: ["x"],
+  });
+  // Other tools take neither.
+  const blob = strokeBeginParams({ tool: "add_blob", ...settings, erase: true }, TOOLS_WITH_PAINTS);
+  assert.equal("color" in blob || "erase" in blob, false);
+});
+
 class RecordingSession {
   constructor() {
     this.sent = []; // [method, params]

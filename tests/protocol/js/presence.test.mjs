@@ -26,11 +26,22 @@ test("presenceParams refuses what the server would", () => {
     { brush: { ...brush, normal: [0, 0, 0] } },
     { brush: { ...brush, active: 1 } },
     { brush: { ...brush, extra: 1 } },
+    { brush: { ...brush, color: [255, 0] } },
+    { brush: { ...brush, color: [256, 0, 0] } },
+    { brush: { ...brush, color: [1.5, 0, 0] } },
+    { brush: { ...brush, color: "#ff0000" } },
     { camera: { eye: [1, 2, 3], target: [1, 2, 3] } },
     { camera: { ...camera, fov: 200 } },
     { camera: { ...camera, width: 10 } },
   ];
   for (const params of bad) assert.throws(() => presenceParams(params), JSON.stringify(params));
+});
+
+test("a brush may carry the paint colour, [r, g, b] in 0..255", () => {
+  const painting = { ...brush, tool: "add_blob", color: [200, 20, 10] };
+  assert.deepEqual(presenceParams({ brush: painting }).brush.color, [200, 20, 10]);
+  assert.equal("color" in presenceParams({ brush }).brush, false);
+  assert.deepEqual(presenceParams({ brush: { ...brush, color: [0, 255, 0] } }).brush.color, [0, 255, 0]);
 });
 
 test("PresenceBoard keeps the others' newest presence and forgets those gone", () => {
