@@ -141,9 +141,12 @@ double numberParam(const json& obj, const NumberParam& p, const std::string& con
   const double d = finiteNumber(*v, p.key);
   const double most = p.maxPerRadius > 0 ? std::min(p.maximum, p.maxPerRadius * radius) : p.maximum;
   const bool aboveLow = p.exclusiveMinimum ? d > p.minimum : d >= p.minimum;
-  if (aboveLow && d <= most) return d;
-  std::string range = p.exclusiveMinimum ? "in (" + formatNumber(p.minimum) + ", " + formatNumber(most) + "]"
-                                         : "between " + formatNumber(p.minimum) + " and " + formatNumber(most);
+  const bool belowHigh = p.exclusiveMaximum ? d < most : d <= most;
+  if (aboveLow && belowHigh) return d;
+  std::string range = p.exclusiveMinimum || p.exclusiveMaximum
+                          ? std::string("in ") + (p.exclusiveMinimum ? "(" : "[") + formatNumber(p.minimum) + ", " +
+                                formatNumber(most) + (p.exclusiveMaximum ? ")" : "]")
+                          : "between " + formatNumber(p.minimum) + " and " + formatNumber(most);
   if (p.maxPerRadius > 0) {
     const std::string share = p.maxPerRadius == 0.5 ? "half the radius"
                               : p.maxPerRadius == 1 ? "the radius"
@@ -181,6 +184,37 @@ std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& co
   for (std::size_t i = 0; i < p.values.size(); ++i)
     if (p.values[i] == name) return i;
   fail(p.key, "must be one of " + listNames(p.values) + ", got " + inQuotes(name));
+}
+
+bool booleanParam(const json& obj, const BooleanParam& p) {
+  const json* v = find(obj, p.key);
+  return v ? booleanValue(*v, p.key) : p.defaultValue;
+}
+
+SrgbColor colorValue(const json& v, std::string_view key) {
+  if (!v.is_array() || v.size() != 3)
+    fail(key, "must be a colour [r, g, b] of three integers 0..255, got " +
+                  (v.is_array() ? "an array of " + std::to_string(v.size()) : describe(v)));
+  std::uint8_t c[3];
+  for (std::size_t a = 0; a < 3; ++a) {
+    const json& x = v[a];
+    const std::string element = inQuotes(key) + "[" + std::to_string(a) + "]";
+    const bool ok = x.is_number_unsigned() ? x.get<std::uint64_t>() <= 255
+                    : x.is_number_integer()  ? x.get<std::int64_t>() >= 0 && x.get<std::int64_t>() <= 255
+                                             : false;
+    if (!ok) throw OpError(std::string(key), element + " must be an integer from 0 to 255, got " + describe(x));
+    c[a] = std::uint8_t(x.get<std::uint64_t>());
+  }
+  return {c[0], c[1], c[2]};
+}
+
+std::optional<SrgbColor> colorParam(const json& obj, const ColorParam& p, const std::string& context) {
+  const json* v = find(obj, p.key);
+  if (!v) {
+    if (!p.optional) fail(p.key, "is missing (required for " + context + ")");
+    return std::nullopt;
+  }
+  return colorValue(*v, p.key);
 }
 
 namespace {

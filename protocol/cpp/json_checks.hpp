@@ -67,6 +67,12 @@ Vec3 pointParam(const json& obj, const PointParam& p, const std::string& context
 std::optional<Vec3> vectorParam(const json& obj, const VectorParam& p);
 // The index of the value in p.values.
 std::size_t enumParam(const json& obj, const EnumParam& p, const std::string& context);
+// Absent: its default; else a JSON boolean.
+bool booleanParam(const json& obj, const BooleanParam& p);
+// Absent: nullopt when optional, else "is missing"; else [r, g, b], three integers 0..255.
+std::optional<SrgbColor> colorParam(const json& obj, const ColorParam& p, const std::string& context);
+// A colour value: [r, g, b], three JSON integers 0..255 (2.0 is refused, as for integers).
+SrgbColor colorValue(const json& v, std::string_view key);
 
 // Arrays and objects parseJsonText reads nested (the outermost counts): far more levels than
 // any message has (a request's dab ray is 6 deep).

@@ -81,6 +81,15 @@ MorphOp parseMorph(const json& obj) {
   return op;
 }
 
+MaskOp parseMask(const json& obj) {
+  const std::string context = "op \"mask\"";
+  checkKeys(obj, {"op", "action"}, context);
+  const std::string action = stringValue(require(obj, "action", context), "action");
+  const auto a = fromWireName(kMaskActionNames, action);
+  if (!a) fail("action", "must be one of " + listNames(kMaskActionNames) + ", got " + inQuotes(action));
+  return MaskOp{*a};
+}
+
 Op parseTool(const json& obj, const std::string& name) {
   if (const auto brush = fromWireName(kBrushToolNames, name)) {
     const json* global = find(obj, "global");
@@ -105,7 +114,8 @@ Op parseOpName(const json& obj, const std::string& name) {
     return parseGlobalSmooth(obj, "op");
   }
   if (name == kOpMorph) return parseMorph(obj);
-  fail("op", "must be \"smooth\" or \"morph\", got " + inQuotes(name));
+  if (name == kOpMask) return parseMask(obj);
+  fail("op", "must be \"smooth\", \"morph\" or \"mask\", got " + inQuotes(name));
 }
 
 }  // namespace
@@ -142,11 +152,22 @@ json toJson(const Op& op) {
                     {"blend", o.params.blend}};
           if (o.params.shape == ToolShape::Cylinder) j["axis"] = kAxisValues[std::size_t(o.params.axis)];
           return j;
-        } else {
+        } else if constexpr (std::is_same_v<T, MorphOp>) {
           return {{"op", kOpMorph}, {"kind", nameOf(kMorphKindNames, o.kind)}, {"radius", o.radius}};
+        } else {
+          return {{"op", kOpMask}, {"action", nameOf(kMaskActionNames, o.action)}};
         }
       },
       op);
+}
+
+std::string_view maskMethodName(MaskAction action) {
+  switch (action) {
+    case MaskAction::Clear: return "mask.clear";
+    case MaskAction::Invert: return "mask.invert";
+    case MaskAction::Fill: return "mask.fill";
+  }
+  return "mask";
 }
 
 std::string_view opName(const Op& op) {
@@ -156,7 +177,8 @@ std::string_view opName(const Op& op) {
         if constexpr (std::is_same_v<T, BrushOp>) return nameOf(kBrushToolNames, o.tool);
         else if constexpr (std::is_same_v<T, GlobalSmoothOp>) return kOpSmooth;
         else if constexpr (std::is_same_v<T, CsgToolOp>) return nameOf(kCsgToolNames, o.params.op);
-        else return kOpMorph;
+        else if constexpr (std::is_same_v<T, MorphOp>) return kOpMorph;
+        else return maskMethodName(o.action);
       },
       op);
 }

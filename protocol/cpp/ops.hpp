@@ -61,7 +61,14 @@ struct MorphOp {
   friend bool operator==(const MorphOp&, const MorphOp&) = default;
 };
 
-using Op = std::variant<BrushOp, GlobalSmoothOp, CsgToolOp, MorphOp>;
+// The mask of the whole volume ({"op":"mask","action":"clear"|"invert"|"fill"}; the methods
+// mask.clear, mask.invert, mask.fill): every band voxel's weight to 0, 255 - w or 255.
+struct MaskOp {
+  MaskAction action = MaskAction::Clear;
+  friend bool operator==(const MaskOp&, const MaskOp&) = default;
+};
+
+using Op = std::variant<BrushOp, GlobalSmoothOp, CsgToolOp, MorphOp, MaskOp>;
 
 // A refused operation object. `field` is the offending key ("radius", "center", "tool"), or
 // empty when the object as a whole is wrong (not an object, not JSON); `message` is a whole
@@ -86,6 +93,7 @@ using NameOf = WireName<E>;
 // The "op" values: whole-volume operations.
 inline constexpr std::string_view kOpSmooth = "smooth";
 inline constexpr std::string_view kOpMorph = "morph";
+inline constexpr std::string_view kOpMask = "mask";
 
 // The name of `value`, or "" for a value without one (wireName says "unknown").
 template <class E, std::size_t N>
@@ -110,7 +118,11 @@ Op parseOpText(std::string_view text);
 // The canonical object, e.g. {"tool":"add_blob","center":[1,2,3],"radius":8,"strength":1}.
 nlohmann::json toJson(const Op& op);
 
-// The name the op is known by: its "tool" value, or "smooth" / "morph" for "op" objects.
+// The name the op is known by: its "tool" value, or "smooth" / "morph" for "op" objects, and
+// for a mask op the method's name ("mask.clear", "mask.invert", "mask.fill"), as history.list
+// names its step.
 std::string_view opName(const Op& op);
+// "mask.clear", "mask.invert", "mask.fill": the method of each mask action.
+std::string_view maskMethodName(MaskAction action);
 
 }  // namespace marzipan::protocol

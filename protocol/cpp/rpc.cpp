@@ -21,7 +21,12 @@ bool needsFrameId(Method m) {
 
 bool isEdit(Method m) {
   return m == Method::ToolApply || m == Method::StrokeBegin || m == Method::StrokeDabs || m == Method::StrokeEnd ||
-         m == Method::VolumeMorph || m == Method::HistoryUndo || m == Method::HistoryRedo || m == Method::VolumeLoad;
+         m == Method::VolumeMorph || m == Method::HistoryUndo || m == Method::HistoryRedo || m == Method::VolumeLoad ||
+         m == Method::MaskClear || m == Method::MaskInvert || m == Method::MaskFill;
+}
+
+MaskAction maskActionOf(Method m) {
+  return m == Method::MaskInvert ? MaskAction::Invert : m == Method::MaskFill ? MaskAction::Fill : MaskAction::Clear;
 }
 
 namespace {
@@ -138,6 +143,12 @@ std::optional<double> minVuValue(const json& params, Shading shading) {
 }
 
 std::string paramsContext(Method m) { return "params of " + std::string(nameOf(kMethodNames, m)); }
+
+// "splats" of session.create and session.join: the splat buffer version the client reads.
+int splatsVersionValue(const json& params) {
+  const json* s = find(params, "splats");
+  return s ? int(integerInRange(*s, "splats", 1, kSplatsVersionNewest)) : kSplatsVersionDefault;
+}
 
 }  // namespace
 
@@ -361,7 +372,7 @@ std::optional<PeekedId> peekRequestId(std::string_view text) {
 
 CreateParams parseCreateParams(const json& params) {
   const std::string context = paramsContext(Method::SessionCreate);
-  checkKeys(params, {"size", "solid", "session", "protocol", "view", "name"}, context);
+  checkKeys(params, {"size", "solid", "session", "protocol", "view", "name", "base_color", "splats"}, context);
   CreateParams p;
   const json& size = require(params, "size", context);
   if (!size.is_array() || size.size() != 3)
@@ -390,12 +401,14 @@ CreateParams parseCreateParams(const json& params) {
   p.protocol = protocolValue(params);
   if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
   if (const json* n = find(params, "name")) p.name = nameValue(*n);
+  if (const json* c = find(params, "base_color")) p.baseColor = colorValue(*c, "base_color");
+  p.splats = splatsVersionValue(params);
   return p;
 }
 
 JoinParams parseJoinParams(const json& params) {
   const std::string context = paramsContext(Method::SessionJoin);
-  checkKeys(params, {"session", "token", "protocol", "view", "name"}, context);
+  checkKeys(params, {"session", "token", "protocol", "view", "name", "splats"}, context);
   JoinParams p;
   p.session = stringValue(require(params, "session", context), "session");
   if (!isSessionId(p.session)) fail("session", "must be 1 to 64 characters of A-Z a-z 0-9 _ -, got " + inQuotes(p.session));
@@ -404,6 +417,7 @@ JoinParams parseJoinParams(const json& params) {
   p.protocol = protocolValue(params);
   if (const json* v = find(params, "view")) p.view = viewModeValue(*v, false);
   if (const json* n = find(params, "name")) p.name = nameValue(*n);
+  p.splats = splatsVersionValue(params);
   return p;
 }
 
@@ -433,7 +447,8 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
   const ToolSpec* spec = findTool(kTools, tool);
   const auto t = fromWireName(kBrushToolNames, tool);
   const auto warp = fromWireName(kWarpToolNames, tool);
-  if (!spec || !spec->strokes || !(t || warp)) {
+  const auto paint = fromWireName(kPaintToolNames, tool);
+  if (!spec || !spec->strokes || !(t || warp || paint)) {
     std::vector<std::string_view> strokes;
     for (const ToolSpec& s : kTools)
       if (s.strokes) strokes.push_back(s.name);
@@ -462,7 +477,16 @@ StrokeBeginParams parseStrokeBeginParams(const json& params) {
     p.strength = numberParam(params, kParamStrength, context);
     return p;
   }
-  p.tool = *t;
+  if (paint) {
+    PaintBeginParams pb;
+    pb.tool = *paint;
+    if (hasKey(spec->strokeKeys, kParamPaintColor.key)) pb.color = *colorParam(params, kParamPaintColor, context);
+    pb.hardness = numberParam(params, kParamHardness, context);
+    if (hasKey(spec->strokeKeys, kParamErase.key)) pb.erase = booleanParam(params, kParamErase);
+    p.paint = pb;
+  } else {
+    p.tool = *t;
+  }
   p.radius = numberParam(params, kParamRadius, context);
   p.strength = numberParam(params, kParamStrength, context);
   if (const json* sym = find(params, "symmetry")) {
@@ -753,10 +777,10 @@ PresenceParams parsePresenceParams(const json& params) {
   checkKeys(params, {"brush", "camera"}, context);
   PresenceParams p;
   if (const json* b = find(params, "brush")) {
-    if (!b->is_object()) fail("brush", "must be an object {tool, radius, point, normal, active}, got " + describe(*b));
+    if (!b->is_object()) fail("brush", "must be an object {tool, radius, point, normal, active, color?}, got " + describe(*b));
     try {
       const std::string what = "a brush";
-      checkKeys(*b, {"tool", "radius", "point", "normal", "active"}, what);
+      checkKeys(*b, {"tool", "radius", "point", "normal", "active", "color"}, what);
       BrushPresence brush;
       brush.tool = stringValue(require(*b, "tool", what), "tool");
       if (!findTool(kTools, brush.tool)) {
@@ -771,6 +795,7 @@ PresenceParams parsePresenceParams(const json& params) {
       if (!(length > 1e-12)) fail("normal", "must not be zero");
       brush.normal = {n.x / length, n.y / length, n.z / length};
       brush.active = booleanValue(require(*b, "active", what), "active");
+      if (const json* c = find(*b, "color")) brush.color = colorValue(*c, "color");
       p.brush = std::move(brush);
     } catch (const OpError& e) {
       throw OpError("brush", "\"brush\": " + e.message());
@@ -787,9 +812,13 @@ PresenceParams parsePresenceParams(const json& params) {
   return p;
 }
 
+json colorJson(SrgbColor c) { return json::array({c.r, c.g, c.b}); }
+
 json brushJson(const BrushPresence& b) {
-  return {{"tool", b.tool}, {"radius", b.radius}, {"point", vec3Json(b.point)}, {"normal", vec3Json(b.normal)},
-          {"active", b.active}};
+  json j{{"tool", b.tool}, {"radius", b.radius}, {"point", vec3Json(b.point)}, {"normal", vec3Json(b.normal)},
+         {"active", b.active}};
+  if (b.color) j["color"] = colorJson(*b.color);
+  return j;
 }
 
 json cameraJson(const Camera& c) {

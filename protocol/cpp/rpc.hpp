@@ -26,7 +26,7 @@
 
 namespace marzipan::protocol {
 
-inline constexpr int kProtocolMajor = 1, kProtocolMinor = 6;
+inline constexpr int kProtocolMajor = 1, kProtocolMinor = 7;
 
 // Every error code of PROTOCOL.md, section Errors.
 enum class RpcCode : int {
@@ -73,8 +73,9 @@ enum class Method {
   AnalysisThickness,
   OpCancel,
   HistoryList, SessionFork, Presence,
+  MaskClear, MaskInvert, MaskFill,
 };
-inline constexpr std::array<NameOf<Method>, 22> kMethodNames{{
+inline constexpr std::array<NameOf<Method>, 25> kMethodNames{{
     {Method::SessionCreate, "session.create"}, {Method::SessionJoin, "session.join"},
     {Method::SessionLeave, "session.leave"},   {Method::SessionStats, "session.stats"},
     {Method::ToolApply, "tool.apply"},         {Method::StrokeBegin, "stroke.begin"},
@@ -87,7 +88,11 @@ inline constexpr std::array<NameOf<Method>, 22> kMethodNames{{
     {Method::OpCancel, "op.cancel"},
     {Method::HistoryList, "history.list"},     {Method::SessionFork, "session.fork"},
     {Method::Presence, "presence"},
+    {Method::MaskClear, "mask.clear"},         {Method::MaskInvert, "mask.invert"},
+    {Method::MaskFill, "mask.fill"},
 }};
+// The mask action of mask.clear / mask.invert / mask.fill (a method without params).
+MaskAction maskActionOf(Method m);
 // Methods whose id travels in a binary header (answered by a frame, or naming an upload).
 bool needsFrameId(Method m);
 // Methods that change the volume or the history: refused for view tokens.
@@ -150,6 +155,10 @@ struct RayParam {
   Vec3 origin, direction;  // direction finite, not zero, any length
 };
 
+// The splat buffer versions a client may ask for (`splats`, since 1.7; PROTOCOL.md, splat
+// buffers): 1 drops the colour, 2 carries it.
+inline constexpr int kSplatsVersionDefault = 1, kSplatsVersionNewest = 2;
+
 struct CreateParams {
   Int3 size;
   SolidKind solid = SolidKind::Sphere;
@@ -157,12 +166,15 @@ struct CreateParams {
   std::optional<int> protocol;
   ViewMode view = ViewMode::Splats;
   std::optional<std::string> name;  // the display name, trimmed (since 1.2)
+  std::optional<SrgbColor> baseColor;  // the colour of unpainted clay (since 1.7; absent: the clay colour)
+  int splats = kSplatsVersionDefault;  // the splat buffer version this client reads (since 1.7)
 };
 struct JoinParams {
   std::string session, token;
   std::optional<int> protocol;
   ViewMode view = ViewMode::Splats;
   std::optional<std::string> name;
+  int splats = kSplatsVersionDefault;
 };
 struct ToolApplyParams {
   Op op;                       // a tool op; its centre is a placeholder when `ray` is set
@@ -175,9 +187,18 @@ struct WarpBeginParams {
   double volume = *kParamVolume.defaultValue;
   std::optional<Vec3> direction;
 };
+// The parameters of a paint or mask stroke (since 1.7; PROTOCOL.md, paint and mask strokes):
+// the colour for paint, erase for mask, hardness for both.
+struct PaintBeginParams {
+  PaintTool tool = PaintTool::Color;
+  SrgbColor color;
+  double hardness = *kParamHardness.defaultValue;
+  bool erase = false;
+};
 struct StrokeBeginParams {
-  BrushTool tool = BrushTool::AddBlob;  // unless warp is set
+  BrushTool tool = BrushTool::AddBlob;  // unless warp or paint is set
   std::optional<WarpBeginParams> warp;  // a warp tool: tool is then unused; no symmetry, no accumulate
+  std::optional<PaintBeginParams> paint;  // a paint tool: tool is then unused
   double radius = *kParamRadius.defaultValue, strength = *kParamStrength.defaultValue;
   bool mirrorX = false, mirrorY = false, mirrorZ = false;
   bool accumulate = false;  // every stroke.dabs adds (build-up), see PROTOCOL.md
@@ -225,6 +246,7 @@ struct BrushPresence {
   Vec3 point;   // within +-kMaxCoordinate vu
   Vec3 normal;  // unit length (the decoder normalizes any finite, non-zero vector)
   bool active = false;  // sculpting now (a stroke is open)
+  std::optional<SrgbColor> color;  // the paint colour (since 1.7): others draw the ring in it
 };
 struct PresenceParams {
   std::optional<BrushPresence> brush;
@@ -301,5 +323,7 @@ std::string notificationText(std::string_view method, const nlohmann::json& para
 // {"lo":[x,y,z],"hi":[x,y,z]}, or null for an empty box.
 nlohmann::json boxJson(const Box& b);
 nlohmann::json vec3Json(Vec3 v);
+// [r, g, b], as the wire writes a colour.
+nlohmann::json colorJson(SrgbColor c);
 
 }  // namespace marzipan::protocol

@@ -1,12 +1,13 @@
 // What the tool registry (protocol/registry/tools.json, docs/tools.md) says of each tool, as C++
 // types. The values are generated at build time from the registry into the build tree
 // (protocol/cpp/tools.generated.hpp, which ops.hpp includes): the name tables (kBrushToolNames,
-// kCsgToolNames, kMorphKindNames), one constant per parameter (kParamRadius, kParamHeight, ...)
+// kCsgToolNames, kWarpToolNames, kPaintToolNames, kMorphKindNames), one constant per parameter
+// (kParamRadius, kParamHeight, ...)
 // and kTools, the keys each tool takes. Parsers read ranges, defaults and allowed keys from
 // there, so that a tool's parameters are written down once.
 //
 // Conventions: lengths in vu (values.hpp); a parameter without a default is required; a range's
-// bounds are included unless exclusiveMinimum says otherwise.
+// bounds are included unless exclusiveMinimum / exclusiveMaximum say otherwise.
 #pragma once
 
 #include <array>
@@ -25,6 +26,7 @@ struct NumberParam {
   std::string_view key;    // the wire key
   double minimum, maximum;
   bool exclusiveMinimum;   // the minimum itself is refused
+  bool exclusiveMaximum;   // the maximum itself is refused
   double maxPerRadius;     // > 0: also at most this times the tool's radius
   std::optional<double> defaultValue;
 };
@@ -49,6 +51,14 @@ struct EnumParam {
 
 struct BooleanParam {
   std::string_view key;
+  bool defaultValue;
+};
+
+// A colour: [r, g, b], three integers 0..255, sRGB (values.hpp, SrgbColor). Without
+// `optional` the key is required.
+struct ColorParam {
+  std::string_view key;
+  bool optional;
 };
 
 // A direction: [x, y, z], finite and not all zero; its length does not matter.
@@ -57,21 +67,21 @@ struct VectorParam {
 };
 
 // How a tool changes the volume (the registry's "kind"): the shape of its operation object
-// (a warp has none: it strokes only).
-enum class ToolKind { SurfaceSpeed, Csg, Warp };
+// (a warp or a paint tool has none: it strokes only).
+enum class ToolKind { SurfaceSpeed, Csg, Warp, Paint };
 
 struct ToolSpec {
   std::string_view name;  // the wire "tool"
   ToolKind kind;
   bool strokes;           // stroke.begin takes it
-  std::span<const std::string_view> opKeys;      // every key of its operation object, "tool" first; none for a warp
+  std::span<const std::string_view> opKeys;      // every key of its operation object, "tool" first; none for a warp or paint
   std::span<const std::string_view> strokeKeys;  // its own keys in stroke.begin (radius, height, ...)
 };
 
-// "[0.5, 1024]", "(0, 1]": the range as an interval, without the radius's bound.
+// "[0.5, 1024]", "(0, 1]", "[0, 1)": the range as an interval, without the radius's bound.
 inline std::string rangeText(const NumberParam& p) {
   std::ostringstream s;
-  s << (p.exclusiveMinimum ? "(" : "[") << p.minimum << ", " << p.maximum << "]";
+  s << (p.exclusiveMinimum ? "(" : "[") << p.minimum << ", " << p.maximum << (p.exclusiveMaximum ? ")" : "]");
   return s.str();
 }
 

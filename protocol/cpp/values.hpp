@@ -82,6 +82,24 @@ struct CsgParams {
   double blend = 0;   // smooth-blend radius in [0, radius] vu; 0 = sharp crease
 };
 
+// ---- Colours and masks -----------------------------------------------------------------------
+
+// A colour as the wire carries it ([r, g, b], PROTOCOL.md): sRGB, 8 bits a channel, the bytes a
+// client draws (the engine's Rgb8, server/engine/channels.hpp).
+struct SrgbColor {
+  std::uint8_t r = 0, g = 0, b = 0;
+  friend bool operator==(const SrgbColor&, const SrgbColor&) = default;
+};
+
+// What mask.clear / mask.invert / mask.fill do to the mask weight w of every band voxel
+// (server/engine/paint.hpp, maskAll): w = 0, w = 255 - w, w = 255.
+enum class MaskAction { Clear, Invert, Fill };
+inline constexpr std::array<WireName<MaskAction>, 3> kMaskActionNames{{
+    {MaskAction::Clear, "clear"},
+    {MaskAction::Invert, "invert"},
+    {MaskAction::Fill, "fill"},
+}};
+
 // ---- Starting solids (server/engine/solids.hpp) ---------------------------------------------
 
 enum class SolidKind { Empty, Sphere, Box, Torus, Cylinder, Dumbbell, Pig };

@@ -9,7 +9,7 @@
 import { FrameKind } from "./frames.js";
 
 // The protocol version this module speaks ({major, minor} of PROTOCOL.md).
-export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 6 });
+export const PROTOCOL_VERSION = Object.freeze({ major: 1, minor: 7 });
 
 export const MAX_REQUEST_ID = 0xffffffff;
 
@@ -37,6 +37,9 @@ export const METHODS = Object.freeze([
   "history.list",
   "session.fork",
   "presence",
+  "mask.clear",
+  "mask.invert",
+  "mask.fill",
 ]);
 
 // The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

@@ -7,7 +7,7 @@
 // operations ({"op":"morph","kind":name} or global smoothing), each {name, label, kind,
 // description, params, browser: {doing, value}}. PARAMETERS: by id, each {id, key (its wire
 // name), type, in ("op": the operation object, "stroke": stroke.begin), description} with, as the
-// registry gives them, unit, minimum, exclusive_minimum, maximum, max_per_radius, default (absent:
+// registry gives them, unit, minimum, exclusive_minimum, maximum, exclusive_maximum, max_per_radius, default (absent:
 // required unless optional), optional, values, bound, role, only_with, not_with, since; the
 // params of tools and operations are these same objects. Lengths in vu. Everything is frozen.
 
@@ -31,6 +31,10 @@ export const GROUPS = frozen([
   {
     "name": "Surface",
     "description": "work the surface in place: smooth, sharpen, flatten or crease it",
+  },
+  {
+    "name": "Paint",
+    "description": "colour the clay, or mask it so that the other tools leave it as it is",
   },
   {
     "name": "Shapes",
@@ -178,6 +182,35 @@ export const PARAMETERS = frozen({
     "default": 0.5,
     "in": ["stroke"],
     "description": "Poisson-like ratio of the regularized Kelvinlet: 0.5 keeps the solid's volume under small drags, 0 lets it stretch",
+  },
+  "paint_color": {
+    "id": "paint_color",
+    "key": "color",
+    "type": "color",
+    "in": ["stroke"],
+    "since": "1.7",
+    "description": "the colour painted (the bytes a client draws)",
+  },
+  "hardness": {
+    "id": "hardness",
+    "key": "hardness",
+    "type": "number",
+    "minimum": 0,
+    "maximum": 1,
+    "exclusive_maximum": true,
+    "default": 0.5,
+    "in": ["stroke"],
+    "since": "1.7",
+    "description": "the share of the radius painted at full strength; beyond it the brush fades as (1 - t^2)^2 to nothing at the radius",
+  },
+  "erase": {
+    "id": "erase",
+    "key": "erase",
+    "type": "boolean",
+    "default": false,
+    "in": ["stroke"],
+    "since": "1.7",
+    "description": "lowers the mask instead of raising it (the browser sends true while Ctrl is held)",
   },
   "direction": {
     "id": "direction",
@@ -466,6 +499,50 @@ export const TOOLS = frozen([
     },
   },
   {
+    "name": "paint",
+    "label": "Paint",
+    "kind": "paint",
+    "group": "Paint",
+    "strokes": true,
+    "dabs": "swept",
+    "inverse": null,
+    "description": "blends the colour into the surface under the brush, strength at the centre, softly towards the radius; moves no geometry, and a voxel's mask keeps its colour as much as its shape",
+    "params": [
+      PARAMETERS["radius"],
+      PARAMETERS["strength"],
+      PARAMETERS["paint_color"],
+      PARAMETERS["hardness"],
+    ],
+    "browser": {
+      "key": "i",
+      "short": "Paint",
+      "icon": "✎",
+      "color": [0.98, 0.62, 0.78],
+    },
+  },
+  {
+    "name": "mask",
+    "label": "Mask",
+    "kind": "paint",
+    "group": "Paint",
+    "strokes": true,
+    "dabs": "swept",
+    "inverse": null,
+    "description": "raises the mask weight under the brush (with erase: lowers it); every geometry tool moves a voxel of weight w by (1 - w / 255) of what it would, so fully masked clay stays exactly as it is",
+    "params": [
+      PARAMETERS["radius"],
+      PARAMETERS["strength"],
+      PARAMETERS["hardness"],
+      PARAMETERS["erase"],
+    ],
+    "browser": {
+      "key": "m",
+      "short": "Mask",
+      "icon": "◐",
+      "color": [0.62, 0.62, 0.7],
+    },
+  },
+  {
     "name": "csg_add",
     "label": "CSG add",
     "kind": "csg",
@@ -528,7 +605,7 @@ export const TOOLS = frozen([
       PARAMETERS["axis"],
     ],
     "browser": {
-      "key": "i",
+      "key": "u",
       "short": "∩",
       "icon": "∩",
       "color": [0.76, 0.56, 0.96],

@@ -64,6 +64,14 @@ TOOL_KINDS = {
         "keys": {"radius", "strength", "volume", "direction"}, "strokes": True, "cpp": "Warp",
         "title": "warp", "op": False, "dabs": {"anchored", "path"},
     },
+    "paint": {
+        # StrokeBeginParams::paint (rpc.hpp) and the session's paint strokes (Session::paintDabs);
+        # the engine's PaintMode (server/engine/paint.hpp), applied by paintStroke (mask with
+        # erase: MaskErase). Strokes only: no operation object; swept dabs, as add_blob's.
+        "enum": "PaintTool", "defines_enum": True, "names": "kPaintToolNames", "engine_enum": "PaintMode",
+        "keys": {"radius", "strength", "hardness", "color", "erase"}, "strokes": True, "cpp": "Paint",
+        "title": "paint", "op": False, "dabs": {"swept"},
+    },
 }
 OPERATION_KINDS = {
     # {"op":"morph","kind":NAME,...} and volume.morph: MorphOp; the engine function by name.
@@ -71,8 +79,11 @@ OPERATION_KINDS = {
     # {"op":"smooth","global":true,...}: GlobalSmoothOp, named "smooth" (ops.hpp kOpSmooth).
     "surface_speed": {"keys": {"iterations", "strength"}},
 }
+# The actions of {"op":"mask","action":...} (protocol/cpp/values.hpp kMaskActionNames; not tools of
+# the registry: whole-volume operations of the channels, with their own methods).
+MASK_ACTIONS = ("clear", "invert", "fill")
 # Keys the grammar of messages uses: no parameter may take them.
-RESERVED_KEYS = {"tool", "op", "global", "kind", "ray", "symmetry", "accumulate", "stroke", "dabs", "pressure"}
+RESERVED_KEYS = {"tool", "op", "global", "kind", "action", "ray", "symmetry", "accumulate", "stroke", "dabs", "pressure"}
 # stroke.begin's keys that belong to no tool (PROTOCOL.md, stroke.begin).
 STROKE_FLAGS = ["symmetry", "accumulate"]
 
@@ -136,7 +147,7 @@ class Registry:
                     raise RegistryError(f"{where}: default {p['default']} is outside its range")
             if p["type"] == "enum" and "default" in p and p["default"] not in p["values"]:
                 raise RegistryError(f'{where}: default "{p["default"]}" is not one of its values')
-            if p["type"] in ("point", "vector") and "default" in p:
+            if p["type"] in ("point", "vector", "color") and "default" in p:
                 raise RegistryError(f"{where}: a {p['type']} has no default")
             for other, values in p.get("only_with", {}).items():
                 q = self.params.get(other)
@@ -224,7 +235,8 @@ class Registry:
 
 def in_range(p, v) -> bool:
     low_ok = v > p["minimum"] if p.get("exclusive_minimum") else v >= p["minimum"]
-    return low_ok and v <= p["maximum"]
+    high_ok = v < p["maximum"] if p.get("exclusive_maximum") else v <= p["maximum"]
+    return low_ok and high_ok
 
 
 def load(path=REGISTRY) -> Registry:
@@ -272,7 +284,8 @@ def cpp_param(p) -> str:
     if p["type"] == "number":
         default = cpp_number(p["default"]) if "default" in p else "std::nullopt"
         return (f"inline constexpr NumberParam {name}{{{key}, {cpp_number(p['minimum'])}, {cpp_number(p['maximum'])}, "
-                f"{cpp_number(bool(p.get('exclusive_minimum')))}, {cpp_number(p.get('max_per_radius', 0))}, {default}}};")
+                f"{cpp_number(bool(p.get('exclusive_minimum')))}, {cpp_number(bool(p.get('exclusive_maximum')))}, "
+                f"{cpp_number(p.get('max_per_radius', 0))}, {default}}};")
     if p["type"] == "integer":
         default = str(p["default"]) if "default" in p else "std::nullopt"
         return f"inline constexpr IntegerParam {name}{{{key}, {p['minimum']}, {p['maximum']}, {default}}};"
@@ -280,12 +293,14 @@ def cpp_param(p) -> str:
         return f"inline constexpr PointParam {name}{{{key}, {cpp_number(p['bound'])}}};"
     if p["type"] == "vector":
         return f"inline constexpr VectorParam {name}{{{key}}};"
+    if p["type"] == "color":
+        return f"inline constexpr ColorParam {name}{{{key}, {cpp_number(bool(p.get('optional')))}}};"
     if p["type"] == "enum":
         values = f"k{camel(p['id'])}Values"
         default = cpp_string(p["default"]) if "default" in p else "std::nullopt"
         return (f"inline constexpr std::array<std::string_view, {len(p['values'])}> {values}{cpp_strings(p['values'])};\n"
                 f"inline constexpr EnumParam {name}{{{key}, {values}, {default}}};")
-    return f"inline constexpr BooleanParam {name}{{{key}}};"
+    return f"inline constexpr BooleanParam {name}{{{key}, {cpp_number(bool(p.get('default', False)))}}};"
 
 
 def cpp_tools_header(reg: Registry) -> str:
@@ -374,6 +389,7 @@ def cpp_engine_header(reg: Registry) -> str:
            '#include "engine/edit.hpp"',
            '#include "engine/errors.hpp"',
            '#include "engine/level_set.hpp"',
+           '#include "engine/paint.hpp"',
            '#include "engine/thread_pool.hpp"',
            '#include "engine/volume.hpp"',
            '#include "protocol/cpp/tools.generated.hpp"', "",
@@ -434,6 +450,9 @@ def schema_of(p, in_tool_apply=False) -> dict:
         s = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3, "not": {"items": {"const": 0}},
              "description": "a direction: three finite numbers, not all zero; its length does not matter"}
         return s
+    if t == "color":
+        return {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 255}, "minItems": 3, "maxItems": 3,
+                "description": "a colour: [r, g, b], three integers 0..255, sRGB (the bytes a client draws)"}
     if t == "enum":
         s = {"enum": list(p["values"])}
     elif t == "boolean":
@@ -441,7 +460,7 @@ def schema_of(p, in_tool_apply=False) -> dict:
     else:
         s = {"type": t}
         s["exclusiveMinimum" if p.get("exclusive_minimum") else "minimum"] = p["minimum"]
-        s["maximum"] = p["maximum"]
+        s["exclusiveMaximum" if p.get("exclusive_maximum") else "maximum"] = p["maximum"]
     if "default" in p:
         s["default"] = p["default"]
     notes = []
@@ -571,8 +590,11 @@ def op_schema(reg: Registry) -> dict:
     props, required = morph_properties(reg)
     morph = {"type": "object", "additionalProperties": False, "properties": {"op": {"const": "morph"}, **props},
              "required": ["op"] + required, "description": "morphology"}
+    mask = {"type": "object", "additionalProperties": False,
+            "properties": {"op": {"const": "mask"}, "action": {"enum": list(MASK_ACTIONS)}},
+            "required": ["op", "action"], "description": "the mask of the whole volume (mask.clear, mask.invert, mask.fill)"}
     return schema_file("op.json", "An operation object (PROTOCOL.md, Operation objects; protocol/cpp/ops.hpp)",
-                       {"oneOf": surface + [by_tool, by_op] + others + [morph]})
+                       {"oneOf": surface + [by_tool, by_op] + others + [morph, mask]})
 
 
 def tool_apply_schema(reg: Registry) -> dict:
@@ -639,6 +661,11 @@ def stroke_begin_schema(reg: Registry) -> dict:
             conditions.append({"if": {"properties": {"tool": {"enum": others}}, "required": ["tool"]},
                                "then": {"not": {"required": [key]}}})
         for p in params:
+            if not optional(p):
+                # A stroke parameter without a default: the tools that take it need it (paint's colour).
+                conditions.append({"if": {"properties": {"tool": {"enum": [t["name"] for t in tools if p in t["param_specs"]]}},
+                                          "required": ["tool"]},
+                                   "then": {"required": [key]}})
             for flag in p.get("not_with", []):
                 conditions.append({"if": {"properties": {flag: {"const": True}}, "required": [flag]},
                                    "then": {"not": {"required": [p["key"]]}}})
@@ -745,7 +772,7 @@ def js_module(reg: Registry) -> str:
 // operations ({{"op":"morph","kind":name}} or global smoothing), each {{name, label, kind,
 // description, params, browser: {{doing, value}}}}. PARAMETERS: by id, each {{id, key (its wire
 // name), type, in ("op": the operation object, "stroke": stroke.begin), description}} with, as the
-// registry gives them, unit, minimum, exclusive_minimum, maximum, max_per_radius, default (absent:
+// registry gives them, unit, minimum, exclusive_minimum, maximum, exclusive_maximum, max_per_radius, default (absent:
 // required unless optional), optional, values, bound, role, only_with, not_with, since; the
 // params of tools and operations are these same objects. Lengths in vu. Everything is frozen.
 
@@ -779,7 +806,7 @@ GROUPS: the palette's groups, in order. TOOLS: the local tools in palette order,
 None), description, params, browser}}. OPERATIONS: the whole-volume operations ({{"op": "morph",
 "kind": name}} or global smoothing). PARAMETERS: by id, each a dict {{id, key (its wire name), type,
 in ("op": the operation object, "stroke": stroke.begin), description}} with, as the registry gives
-them, unit, minimum, exclusive_minimum, maximum, max_per_radius, default (absent: required unless
+them, unit, minimum, exclusive_minimum, maximum, exclusive_maximum, max_per_radius, default (absent: required unless
 optional), optional, values, bound, role, only_with, not_with, since; the params of tools and
 operations are these same dicts. Lengths in vu.
 """
@@ -821,8 +848,13 @@ def range_text(p) -> str:
         return " ".join(f"`{v}`" for v in p["values"])
     if t == "boolean":
         return "`true` or `false`"
+    if t == "color":
+        return "[r, g, b], three integers 0 … 255 (sRGB)"
     lo, hi = number_text(p["minimum"]), number_text(p["maximum"])
-    text = f"({lo}, {hi}]" if p.get("exclusive_minimum") else f"{lo} … {hi}"
+    if p.get("exclusive_minimum") or p.get("exclusive_maximum"):
+        text = ("(" if p.get("exclusive_minimum") else "[") + f"{lo}, {hi}" + (")" if p.get("exclusive_maximum") else "]")
+    else:
+        text = f"{lo} … {hi}"
     if "unit" in p:
         text += f" {p['unit']}"
     if "max_per_radius" in p:
@@ -894,17 +926,19 @@ def protocol_fields_table(reg: Registry) -> str:
     rows = ["| field | JSON type | valid values | default | used by |", "| --- | --- | --- | --- | --- |"]
     names = " ".join(f"`{t['name']}`" for t in reg.op_tools())
     rows.append(f"| `tool` | string | {names} | — | tools, global smoothing |")
-    rows.append("| `op` | string | `smooth` `morph` | — | global smoothing, morphology |")
+    rows.append("| `op` | string | `smooth` `morph` `mask` | — | global smoothing, morphology, the mask |")
     rows.append("| `global` | boolean | `true` selects global smoothing: only with `\"tool\":\"smooth\"` or `\"op\":\"smooth\"`; "
                 "`false` (surface speed tools only) is the same as leaving it out | `false` for tools, `true` for "
                 "`\"op\":\"smooth\"` | surface speed tools, global smoothing |")
     kinds = " ".join(f"`{o['name']}`" for o in reg.morphology())
     rows.append(f"| `kind` | string | {kinds} | — | morphology |")
+    rows.append("| `action` | string | " + " ".join(f"`{a}`" for a in MASK_ACTIONS) + ": every band voxel's mask weight "
+                "to 0, to 255 minus itself, or to 255 (the methods `mask.clear`, `mask.invert`, `mask.fill`) | — | the mask |")
     keys = {}
     for p in reg.params.values():
         keys.setdefault(p["key"], []).append(p)
     json_types = {"number": "number", "integer": "integer", "point": "array of 3 numbers", "enum": "string",
-                  "boolean": "boolean"}
+                  "boolean": "boolean", "color": "array of 3 integers"}
     for p in reg.params.values():
         if "op" not in p["in"]:
             continue
@@ -963,7 +997,9 @@ def readme_ops_table(reg: Registry) -> str:
         shown = "the same" if text == previous else text
         previous = text
         rows.append(f'| `{{"op":"morph","kind":"{o["name"]}", ...}}` | {shown} | {o["description"]} |')
-    # A warp has no operation object: a line holds a whole stroke (server/service/batch.cpp).
+    rows.append('| `{"op":"mask","action":"clear"}` | `action` ' + " ".join(f"`{a}`" for a in MASK_ACTIONS) +
+                ' | every band voxel\'s mask weight to 0 (`invert`: w to 255 - w, `fill`: to 255); colours stay |')
+    # A warp or a paint tool has no operation object: a line holds a whole stroke (server/service/batch.cpp).
     previous = None
     for t in reg.tools:
         if TOOL_KINDS[t["kind"]]["op"]:
@@ -971,8 +1007,9 @@ def readme_ops_table(reg: Registry) -> str:
         text = fields([p for p in t["param_specs"] if "stroke" in p["in"]])
         shown = "the same" if text == previous else text
         previous = text
-        rows.append(f'| `{{"stroke":{{"tool":"{t["name"]}", ...}},"dabs":[...]}}` | {shown}; `dabs`: the anchor on the '
-                    f'surface, then the pointer\'s points | {t["description"]} |')
+        dabs = ("the dabs' centres, swept as one stroke (`symmetry`, `accumulate` as in stroke.begin)" if t["dabs"] == "swept"
+                else "the anchor on the surface, then the pointer's points")
+        rows.append(f'| `{{"stroke":{{"tool":"{t["name"]}", ...}},"dabs":[...]}}` | {shown}; `dabs`: {dabs} | {t["description"]} |')
     return "\n".join(rows)
 
 

@@ -16,6 +16,7 @@
 #include "engine/csg.hpp"
 #include "engine/errors.hpp"
 #include "engine/level_set.hpp"
+#include "engine/paint.hpp"
 
 namespace marzipan::service {
 namespace {
@@ -40,6 +41,8 @@ Edit apply(Volume& vol, const GlobalSmoothOp& op, ThreadPool& pool) {
 Edit apply(Volume& vol, const CsgToolOp& op, ThreadPool& pool) { return applyCsg(vol, op.params, pool); }
 
 Edit apply(Volume& vol, const MorphOp& op, ThreadPool& pool) { return applyMorph(vol, op.kind, op.radius, pool); }
+
+Edit apply(Volume& vol, const MaskOp& op, ThreadPool& pool) { return maskAll(vol, op.action, pool); }
 
 // The voxels of a cube of half side `reach` around a point, clipped to the domain (the
 // centre is unknown before a pick, so the worst place is assumed).
@@ -70,6 +73,9 @@ OpCost cost(const Volume& vol, const CsgToolOp& op) {
   return {cubeVoxels(vol, op.params.radius + op.params.blend + vol.band() + 1), 1};
 }
 
+// Every stored brick's channels once, no distances.
+OpCost cost(const Volume& vol, const MaskOp&) { return {double(vol.presentBricks()) * kBrickVoxels, 1}; }
+
 OpCost cost(const Volume& vol, const MorphOp& op) {
   const bool twice = op.kind == MorphKind::Open || op.kind == MorphKind::Close;
   const double passes = morphPasses(op.radius) * (twice ? 2 : 1);
@@ -77,6 +83,22 @@ OpCost cost(const Volume& vol, const MorphOp& op) {
 }
 
 }  // namespace
+
+std::string_view paintToolName(PaintMode mode) {
+  return protocol::nameOf(protocol::kPaintToolNames,
+                          mode == PaintMode::Color ? protocol::PaintTool::Color : protocol::PaintTool::MaskAdd);
+}
+
+PaintSettings paintSettingsOf(const protocol::StrokeBeginParams& p) {
+  PaintSettings st;
+  st.mode = enginePaintMode(p.paint->tool);
+  if (st.mode == PaintMode::MaskAdd && p.paint->erase) st.mode = PaintMode::MaskErase;
+  st.color = Rgb8{p.paint->color.r, p.paint->color.g, p.paint->color.b};
+  st.radius = p.radius;
+  st.strength = p.strength;
+  st.hardness = p.paint->hardness;
+  return st;
+}
 
 double brushVoxels(const Volume& vol, double radius, int images) {
   return cubeVoxels(vol, radius + vol.band()) * images;

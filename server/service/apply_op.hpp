@@ -14,6 +14,7 @@
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/rpc.hpp"
 // engineBrush (the engine's Brush of a surface-speed tool), applyMorph, applyGlobalSmooth:
 // generated from the tool registry (protocol/registry/tools.json) at build time.
 #include "service/engine_tools.generated.hpp"
@@ -21,6 +22,13 @@
 namespace marzipan::service {
 
 Edit applyOp(Volume& vol, const protocol::Op& op, ThreadPool& pool);
+
+// The wire name of a paint stroke's tool (registry kind paint): "paint", or "mask" for both
+// mask modes (erasing is mask's `erase`).
+std::string_view paintToolName(PaintMode mode);
+// The engine's settings of a paint or mask stroke.begin (p.paint set): mask with erase is
+// MaskErase; the colour's bytes as they are.
+PaintSettings paintSettingsOf(const protocol::StrokeBeginParams& p);
 
 // What an op will cost before it runs, for the server's per-request budget and progress.
 // voxels: voxels processed, an upper estimate that goes with the time it takes: a local

@@ -84,29 +84,48 @@ struct WarpLine {
   std::vector<protocol::DabParam> dabs;
 };
 
+// A paint or mask stroke, one line: {"stroke": {stroke.begin's params}, "dabs": [[x,y,z] | {center
+// | ray, pressure?}, ...]}, applied as one message of a stroke (symmetry as in stroke.begin; rays
+// picked on the volume as the line began).
+struct PaintLine {
+  PaintSettings settings;
+  Symmetry symmetry;
+  std::vector<protocol::DabParam> dabs;
+};
+
 struct NumberedOp {
   int line;
-  std::variant<protocol::Op, WarpLine> op;
+  std::variant<protocol::Op, WarpLine, PaintLine> op;
 };
 
 // Dabs in one line: far more than a drag has, few enough to parse at once.
 constexpr std::size_t kMaxLineDabs = 1 << 16;
 
-WarpLine parseWarpLine(const nlohmann::json& obj) {
+std::variant<WarpLine, PaintLine> parseStrokeLine(const nlohmann::json& obj) {
   using protocol::OpError;
   for (const auto& item : obj.items())
     if (item.key() != "stroke" && item.key() != "dabs")
       throw OpError(item.key(), "a stroke line has \"stroke\" and \"dabs\" only, got \"" + item.key() + "\"");
   const protocol::StrokeBeginParams begin = protocol::parseStrokeBeginParams(obj.at("stroke"));
-  if (!begin.warp)
-    throw OpError("stroke", "a stroke line is for the warp tools (grab, snake_hook, ...): a brush's dabs are op lines");
+  if (!begin.warp && !begin.paint)
+    throw OpError("stroke", "a stroke line is for the warp tools (grab, snake_hook, ...) and paint and mask: a brush's "
+                            "dabs are op lines");
   const auto dabs = obj.find("dabs");
-  if (dabs == obj.end()) throw OpError("dabs", "\"dabs\" is missing: the anchor, then the pointer's points");
+  if (dabs == obj.end())
+    throw OpError("dabs", begin.warp ? "\"dabs\" is missing: the anchor, then the pointer's points"
+                                     : "\"dabs\" is missing: the centres the brush is swept over");
   nlohmann::json message{{"stroke", 1}, {"dabs", nlohmann::json::array()}};
   if (dabs->is_array())
     for (const nlohmann::json& d : *dabs) message["dabs"].push_back(d.is_array() ? nlohmann::json{{"center", d}} : d);
   else
     message["dabs"] = *dabs;
+  if (begin.paint) {
+    PaintLine line;
+    line.settings = paintSettingsOf(begin);
+    line.symmetry = Symmetry{begin.mirrorX, begin.mirrorY, begin.mirrorZ};
+    line.dabs = protocol::parseStrokeDabsParams(message, kMaxLineDabs).dabs;
+    return line;
+  }
   WarpLine line;
   line.settings.tool = begin.warp->tool;
   line.settings.radius = begin.radius;
@@ -118,6 +137,26 @@ WarpLine parseWarpLine(const nlohmann::json& obj) {
     if (!std::holds_alternative<Vec3>(line.dabs[i].at))
       throw OpError("dabs", "\"dabs\"[" + std::to_string(i) + "]: after the anchor a warp's dabs are the pointer's points");
   return line;
+}
+
+// A paint stroke line on vol: its dabs (rays picked on vol as it is) and their mirror images,
+// one application of paintStroke without memory.
+Edit applyPaintLine(Volume& vol, const PaintLine& line, ThreadPool& pool) {
+  std::vector<StrokeDab> images;
+  for (const protocol::DabParam& d : line.dabs) {
+    Vec3 centre;
+    if (const auto* c = std::get_if<Vec3>(&d.at)) {
+      centre = *c;
+    } else {
+      const auto& ray = std::get<protocol::RayParam>(d.at);
+      const std::optional<Vec3> hit = pickSurface(vol, ray.origin, ray.direction);
+      if (!hit) continue;  // a ray that misses paints nothing, as in a session's stroke
+      centre = *hit;
+    }
+    for (const StrokeDab& image : mirrorImages(StrokeDab{centre, d.pressure, Vec3{}}, line.symmetry, vol.dims()))
+      images.push_back(image);
+  }
+  return paintStroke(vol, line.settings, images, {}, pool);
 }
 
 // A warp stroke line on vol: the volume as the line began is its base.
@@ -317,8 +356,13 @@ std::vector<NumberedOp> readOps(const std::string& path, std::istream& in) {
     const auto last = line.find_last_not_of(" \t\r");
     try {
       const nlohmann::json obj = protocol::checks::parseJsonText(std::string_view(line).substr(first, last + 1 - first));
-      if (obj.is_object() && obj.contains("stroke")) ops.push_back({number, parseWarpLine(obj)});
-      else ops.push_back({number, protocol::parseOp(obj)});
+      if (obj.is_object() && obj.contains("stroke")) {
+        std::variant<WarpLine, PaintLine> stroke = parseStrokeLine(obj);
+        if (auto* w = std::get_if<WarpLine>(&stroke)) ops.push_back({number, std::move(*w)});
+        else ops.push_back({number, std::get<PaintLine>(std::move(stroke))});
+      } else {
+        ops.push_back({number, protocol::parseOp(obj)});
+      }
     } catch (const protocol::OpError& e) {
       throw InputError(path + ":" + std::to_string(number) + ": " + e.what());
     } catch (const protocol::RpcException& e) {  // a stroke line of more than kMaxLineDabs dabs
@@ -450,7 +494,8 @@ int run(const std::vector<std::string>& args, std::ostream& out) {
     const auto start = std::chrono::steady_clock::now();
     try {
       if (const auto* op = std::get_if<protocol::Op>(&item.op)) service::applyOp(vol, *op, pool);
-      else applyWarpLine(vol, std::get<WarpLine>(item.op), pool);
+      else if (const auto* w = std::get_if<WarpLine>(&item.op)) applyWarpLine(vol, *w, pool);
+      else applyPaintLine(vol, std::get<PaintLine>(item.op), pool);
     } catch (const EngineError& e) {
       const std::string path = o.opsPath == "-" ? "<stdin>" : o.opsPath;
       throw InputError(path + ":" + std::to_string(item.line) + ": " + e.what());

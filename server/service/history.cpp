@@ -161,7 +161,9 @@ std::uint64_t brickKey(Int3 b) {
 }  // namespace
 
 std::size_t PackedBricks::bytes() const {
-  return bricks.capacity() * sizeof(Int3) + kinds.capacity() + frame.capacity();
+  std::size_t channels = paints.capacity() * sizeof(std::shared_ptr<const BrickPaint>);
+  for (const auto& p : paints) channels += p ? sizeof(BrickPaint) : 0;
+  return bricks.capacity() * sizeof(Int3) + kinds.capacity() + frame.capacity() + channels;
 }
 
 PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const BrickRef*>& refs,
@@ -170,6 +172,10 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
   p.bricks = bricks;
   p.kinds.reserve(refs.size());
   p.against = fingerprint(against);
+  if (std::any_of(refs.begin(), refs.end(), [](const BrickRef* r) { return r->paint != nullptr; })) {
+    p.paints.reserve(refs.size());
+    for (const BrickRef* r : refs) p.paints.push_back(r->paint);
+  }
   std::size_t dataBricks = 0;
   for (const BrickRef* r : refs) dataBricks += r->data != nullptr;
   if (dataBricks == 0) {
@@ -225,6 +231,7 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
     } else {
       r.inside = p.kinds[i] == PackedBricks::kInside;
     }
+    if (!p.paints.empty()) r.paint = p.paints[i];
     out.push_back(std::move(r));
   }
   return out;
@@ -268,9 +275,12 @@ std::size_t History::Step::bytes() const {
   const std::size_t fixed =
       kStepBytes + heapBytes(info.author.id) + heapBytes(info.author.name) + heapBytes(info.tool);
   if (!edit) return fixed + (packed ? packed->bytes() : 0);
-  std::size_t buffers = 0;
-  for (const auto& c : edit->changes) buffers += (c.before.data != nullptr) + (c.after.data != nullptr);
-  return fixed + buffers * kBytesPerBrick + edit->changes.capacity() * sizeof(BrickChange);
+  std::size_t buffers = 0, channels = 0;
+  for (const auto& c : edit->changes) {
+    buffers += (c.before.data != nullptr) + (c.after.data != nullptr);
+    channels += (c.before.paint != nullptr) + (c.after.paint != nullptr);
+  }
+  return fixed + buffers * kBytesPerBrick + channels * sizeof(BrickPaint) + edit->changes.capacity() * sizeof(BrickChange);
 }
 
 Volume Rebuild::run() const {

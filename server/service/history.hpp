@@ -16,14 +16,17 @@
 //   outside, uniform inside, data) and one zstd frame (level 1) of the
 //   data bricks' voxels, each as its difference from the same voxel of the other side (the
 //   volume's when the step moves; a prediction along x where that brick is uniform), split
-//   into 4 byte planes (history.cpp). Packing is lossless: an unpacked brick holds the same
+//   into 4 byte planes (history.cpp); a brick's channels (BrickRef::paint, immutable and
+//   shared like its voxels) are kept as they are, beside the frame. Packing is lossless: an unpacked brick holds the same
 //   bits; about 4.5x smaller than the floats on the pig's strokes. A step is packed when a newer one is
 //   pushed (an open stroke's step when its stroke ends: seal()), and repacked with its other
 //   side when it moves between the lists.
 // - Memory: bytes() is what the stored steps hold: for the unpacked step kBytesPerBrick per
 //   brick buffer it references plus sizeof(BrickChange) per change (on the high side: its
 //   `after` buffers are also the volume's), for packed steps their compressed frame plus the
-//   coordinates and kinds (capacity, not size). Uniform (null) bricks cost no frame bytes.
+//   coordinates and kinds (capacity, not size), and sizeof(BrickPaint) per channels buffer a step
+//   references, packed or not (on the high side: the volume may share it). Uniform (null)
+//   bricks cost no frame bytes.
 //   Every step also counts what it holds whatever its bricks (kStepBytes: the step, its
 //   StepInfo and its slot in the list) and the heap bytes of its strings (author id and name,
 //   tool): a step of one uniform brick held ~13 counted bytes for ~400 real ones, so tiny
@@ -77,6 +80,7 @@ struct PackedBricks {
   std::vector<Int3> bricks;
   std::vector<std::uint8_t> kinds;     // per brick: kOutside, kInside or kData
   std::vector<unsigned char> frame;    // zstd frame of the kData bricks' byte planes, in order
+  std::vector<std::shared_ptr<const BrickPaint>> paints;  // per brick its channels; empty: none has any
   std::uint64_t against = 0;           // fingerprint of the references
   static constexpr std::uint8_t kOutside = 0, kInside = 1, kData = 2;
 
@@ -87,7 +91,8 @@ struct PackedBricks {
 // std::runtime_error only if zstd fails.
 PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const BrickRef*>& refs,
                         const std::vector<const BrickRef*>& against);
-// The refs packBricks() was given, as new buffers with the same bits, given the same references;
+// The refs packBricks() was given, as new buffers with the same bits (and the same channels
+// buffers), given the same references;
 // throws std::runtime_error for other references or a damaged frame.
 std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<const BrickRef*>& against);
 

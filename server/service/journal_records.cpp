@@ -59,6 +59,22 @@ WarpStroke warpOfRecord(const json& rec, protocol::WarpTool tool) {
   return w;
 }
 
+// A paint or mask stroke's settings from its stroke_begin record.
+PaintSettings paintOfRecord(const json& rec, protocol::PaintTool tool) {
+  PaintSettings st;
+  st.mode = enginePaintMode(tool);
+  if (st.mode == PaintMode::MaskAdd && rec.value("erase", false)) st.mode = PaintMode::MaskErase;
+  if (st.mode == PaintMode::Color) {
+    const json& c = rec.at("color");
+    if (!c.is_array() || c.size() != 3) throw std::runtime_error("bad colour in a paint stroke's record");
+    st.color = Rgb8{c[0].get<std::uint8_t>(), c[1].get<std::uint8_t>(), c[2].get<std::uint8_t>()};
+  }
+  st.radius = rec.at("radius").get<double>();
+  st.strength = rec.at("strength").get<double>();
+  st.hardness = rec.at("hardness").get<double>();
+  return st;
+}
+
 }  // namespace
 
 json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
@@ -66,10 +82,15 @@ json strokeBeginRecord(StrokeId id, const Session::StrokeParams& st) {
   const std::string symmetry =
       std::string(st.symmetry.x ? "x" : "") + (st.symmetry.y ? "y" : "") + (st.symmetry.z ? "z" : "");
   json record{{"stroke_begin", id},
-              {"tool", protocol::nameOf(protocol::kBrushToolNames, st.tool)},
+              {"tool", st.paint ? paintToolName(st.paint->mode) : protocol::nameOf(protocol::kBrushToolNames, st.tool)},
               {"radius", st.radius},
               {"strength", st.strength},
               {"symmetry", symmetry}};
+  if (st.paint) {
+    record["hardness"] = st.paint->hardness;
+    if (st.paint->mode == PaintMode::Color) record["color"] = {st.paint->color.r, st.paint->color.g, st.paint->color.b};
+    if (st.paint->mode == PaintMode::MaskErase) record["erase"] = true;
+  }
   if (st.accumulate) record["accumulate"] = true;
   if (st.height) record["height"] = *st.height;
   if (!st.by.id.empty() || !st.by.name.empty()) record["by"] = {{"id", st.by.id}, {"name", st.by.name}};
@@ -129,6 +150,8 @@ bool sameBricks(const std::vector<std::pair<Int3, BrickRef>>& a, const std::vect
     const BrickRef &x = a[i].second, &y = b[i].second;
     if (a[i].first != b[i].first || x.uniform() != y.uniform()) return false;
     if (x.uniform() ? x.inside != y.inside : std::memcmp(x.data->v, y.data->v, sizeof(Brick)) != 0) return false;
+    if (bool(x.paint) != bool(y.paint) || (x.paint && std::memcmp(x.paint->t, y.paint->t, sizeof(x.paint->t)) != 0))
+      return false;
   }
   return true;
 }
@@ -165,9 +188,11 @@ std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>
     put(std::uint32_t(brick.x));
     put(std::uint32_t(brick.y));
     put(std::uint32_t(brick.z));
-    b.push_back(ref.data ? 2 : ref.inside ? 1 : 0);
+    b.push_back(ref.data ? (ref.paint ? 3 : 2) : ref.inside ? 1 : 0);
     if (ref.data)
       for (const float v : ref.data->v) put(std::bit_cast<std::uint32_t>(v));
+    if (ref.data && ref.paint)
+      for (const Texel& t : ref.paint->t) b.insert(b.end(), {t.r, t.g, t.b, t.mask});
   }
   put(crc32Ieee(b));
   return b;
@@ -187,13 +212,26 @@ std::vector<std::pair<Int3, BrickRef>> decodeStep(std::span<const std::uint8_t> 
     const std::uint8_t kind = b[at + 12];
     at += 13;
     BrickRef ref;
-    if (kind == 2) {
+    if (kind > 3) throw fail();
+    if (kind >= 2) {
       if (at + sizeof(Brick) > b.size() - 4) throw fail();
       auto data = std::make_shared<Brick>();
       for (int v = 0; v < kBrickVoxels; ++v) data->v[v] = le::getF32(b.data() + at + 4 * std::size_t(v));
       at += sizeof(Brick);
       ref.data = std::move(data);
-    } else {
+    }
+    if (kind == 3) {
+      if (at + 4 * std::size_t(kBrickVoxels) > b.size() - 4) throw fail();
+      auto paint = std::make_shared<BrickPaint>();
+      for (int v = 0; v < kBrickVoxels; ++v) {
+        const std::uint8_t* t = b.data() + at + 4 * std::size_t(v);
+        paint->t[v] = Texel{t[0], t[1], t[2], t[3]};
+        paint->masked = paint->masked || t[3] > 0;
+      }
+      at += 4 * std::size_t(kBrickVoxels);
+      ref.paint = std::move(paint);
+    }
+    if (kind < 2) {
       ref.inside = kind == 1;
     }
     out.emplace_back(brick, std::move(ref));
@@ -226,14 +264,17 @@ void Replay::apply(const json& rec) {
       return;
     }
     const auto tool = fromWireName(protocol::kBrushToolNames, toolName);
-    if (!tool) throw std::runtime_error("unknown stroke tool");
+    const auto paint = fromWireName(protocol::kPaintToolNames, toolName);
+    if (!tool && !paint) throw std::runtime_error("unknown stroke tool");
     const std::string sym = rec.value("symmetry", "");
     const Symmetry symmetry{sym.find('x') != std::string::npos, sym.find('y') != std::string::npos,
                             sym.find('z') != std::string::npos};
     std::optional<double> height;
     if (const auto h = rec.find("height"); h != rec.end()) height = h->get<double>();
-    const StrokeId id = s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
-                                      rec.value("accumulate", false), authorOf(rec), height);
+    const StrokeId id =
+        paint ? s.beginPaint(paintOfRecord(rec, *paint), symmetry, rec.value("accumulate", false), authorOf(rec))
+              : s.beginStroke(*tool, rec.at("radius").get<double>(), rec.at("strength").get<double>(), symmetry,
+                              rec.value("accumulate", false), authorOf(rec), height);
     strokes_[rec["stroke_begin"].get<std::uint64_t>()] = id;
     if (const auto it = rec.find("applied"); it != rec.end()) {
       // What the stroke had applied before the snapshot: its next dabs add only the excess.

@@ -20,7 +20,9 @@
 namespace marzipan::service {
 
 // The record of a stroke's start: tool, radius, strength, symmetry, accumulate, height, and what it
-// applied so far (its memory), which recovery reads back; of a warp stroke: tool, radius,
+// applied so far (its memory), which recovery reads back; of a paint or mask stroke the same
+// without a height, with hardness, color ([r, g, b], paint) and erase (true for a mask stroke
+// that erases); of a warp stroke: tool, radius,
 // strength, volume, direction, and once it has an anchor "warp": its state (anchor, normal,
 // pointer, held, held_amount; apply_op.hpp WarpStroke), from which it goes on. The hub writes it at stroke.begin and
 // at the head of every new journal for the strokes still open.
@@ -36,7 +38,9 @@ void stampRecord(nlohmann::json& record, const StepAuthor& by, std::int64_t time
 nlohmann::json authorMoveRecord(bool undo, std::uint64_t revision, const std::string& file, const StepInfo& step);
 
 // The bricks an undo or redo put in place, as a step file: "MZBK", u32 count, per brick i32 x y
-// z, u8 0 outside / 1 inside / 2 data + 512 f32, then the CRC-32 of all before it; little-endian.
+// z, u8 0 outside / 1 inside / 2 data + 512 f32 / 3 data + 512 f32 + its channels, 512 texels of
+// u8 R, G, B, mask (index as the floats; a brick without channels is kind 2, so files of
+// unpainted sessions are what they were), then the CRC-32 of all before it; little-endian.
 std::vector<std::uint8_t> encodeStep(const std::vector<std::pair<Int3, BrickRef>>& bricks);
 // Throws std::runtime_error("unreadable step file NAME") when the bytes are not one.
 std::vector<std::pair<Int3, BrickRef>> decodeStep(std::span<const std::uint8_t> bytes, const std::string& name);

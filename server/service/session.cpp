@@ -59,7 +59,8 @@ Vec3 unitDirection(Vec3 d) {
   return normalized(d / m);
 }
 
-// A dab's mirror images with their normals (the normal mirrored alike).
+}  // namespace
+
 std::vector<StrokeDab> mirrorImages(const StrokeDab& dab, Symmetry s, Int3 dims) {
   std::vector<StrokeDab> out{dab};
   const bool on[3] = {s.x, s.y, s.z};
@@ -80,6 +81,8 @@ std::vector<StrokeDab> mirrorImages(const StrokeDab& dab, Symmetry s, Int3 dims)
       distinct.push_back(q);
   return distinct;
 }
+
+namespace {
 
 // The mirrors a symmetry enables, each a set of axes (bit a: mirrored across axis a), in the
 // order mirrorImages makes their images: the identity (0) first.
@@ -140,10 +143,18 @@ std::int64_t steadyMs() {
       .count();
 }
 
+bool samePaint(const BrickPaint* a, const BrickPaint* b) {
+  if (a == b) return true;
+  return a && b && std::memcmp(a->t, b->t, sizeof(a->t)) == 0;
+}
+
+// The same voxels and the same channels (two volumes of one base colour).
 bool sameBrick(const BrickRef& a, const BrickRef& b) {
   if (a == b) return true;
-  return a.data && b.data && std::memcmp(a.data->v, b.data->v, sizeof(a.data->v)) == 0;
+  return a.data && b.data && std::memcmp(a.data->v, b.data->v, sizeof(a.data->v)) == 0 &&
+         samePaint(a.paint.get(), b.paint.get());
 }
+
 
 }  // namespace
 
@@ -216,14 +227,15 @@ void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward)
     const std::uint64_t key = std::uint64_t(std::uint32_t(c.brick.x)) | std::uint64_t(std::uint32_t(c.brick.y)) << 21 |
                               std::uint64_t(std::uint32_t(c.brick.z)) << 42;
     const auto it = cachedTerms_.find(key);
-    const bool known = it != cachedTerms_.end() && from.data && it->second.data == from.data;
+    const bool known =
+        it != cachedTerms_.end() && from.data && it->second.data == from.data && it->second.paint == from.paint;
     digestTerms_ -= known ? it->second.term : brickDigestTerm(c.brick, from);
     const std::uint64_t term = brickDigestTerm(c.brick, to);
     digestTerms_ += term;
     if (it != cachedTerms_.end()) {
-      it->second = {to.data, term};
+      it->second = {to.data, to.paint, term};
     } else if (cachedTerms_.size() < kMaxCachedTerms) {
-      cachedTerms_.emplace(key, CachedTerm{to.data, term});
+      cachedTerms_.emplace(key, CachedTerm{to.data, to.paint, term});
     }
   }
 }
@@ -312,7 +324,87 @@ const Session::Stroke& Session::openStroke(StrokeId id) const {
 }
 
 std::string_view Session::toolName(const Stroke& s) {
+  if (s.paint) return paintToolName(s.paint->mode);
   return s.warp ? protocol::nameOf(protocol::kWarpToolNames, s.warp->tool) : protocol::nameOf(protocol::kBrushToolNames, s.tool);
+}
+
+StrokeId Session::beginPaint(const PaintSettings& st, Symmetry symmetry, bool accumulate, const StepAuthor& by) {
+  try {
+    checkPaintSettings(st);
+  } catch (const EngineError& e) {
+    rethrow(e, "");
+  }
+  if (strokes_.size() >= kMaxOpenStrokes)
+    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
+                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
+                           "); end one first");
+  const StrokeId id = nextStroke_++;
+  strokes_.emplace(id, Stroke{protocol::BrushTool::AddBlob, st.radius, st.strength, symmetry, accumulate, {}, 0, by,
+                              std::nullopt, volume_, strokeClock_(), 0, changedBricks_, std::nullopt, std::nullopt, 0, st});
+  return id;
+}
+
+ApplyResult Session::paintDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool) {
+  const Stroke& stroke = strokes_.at(id);
+  const PaintSettings settings = *stroke.paint;
+  // Rays pick on the surface as the stroke began (a load that changed the grid since: as it is).
+  const Volume& start = stroke.start.dims() == volume_.dims() ? stroke.start : volume_;
+  // A voxel's foot point lies within the band of it: a dab reaches this far (engine paintStroke).
+  const double reach = settings.radius + volume_.band() + 1;
+  ApplyResult result;
+  std::vector<StrokeDab> images;
+  for (std::size_t i = 0; i < dabs.size(); ++i) {
+    std::optional<Vec3> centre;
+    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
+      centre = *c;
+    } else {
+      const Ray& ray = std::get<Ray>(dabs[i].at);
+      centre = pickSurface(start, ray.origin, ray.direction);
+      if (!centre) ++result.missed;
+    }
+    result.hits.push_back(centre);
+    result.normals.push_back(Vec3{});
+    const double pressure = dabs[i].pressure.value_or(1.0);
+    if (!centre || pressure == 0) continue;
+    for (const StrokeDab& image : mirrorImages(StrokeDab{*centre, pressure, Vec3{}}, stroke.symmetry, volume_.dims())) {
+      if (boxAround(image.center, {reach, reach, reach}).intersect(volume_.domain()).empty())
+        throw ServiceError(protocol::RpcCode::EngineRefused, "dabs[" + std::to_string(i) + "].center",
+                           "dabs[" + std::to_string(i) + "].center: the tool's region lies outside the volume");
+      images.push_back(image);
+    }
+  }
+  Edit message;
+  try {
+    message = paintStroke(volume_, settings, images, stroke.memory, pool);
+  } catch (const EngineError& e) {
+    rethrow(e, "dabs");
+  }
+  foldMessage(id, message, images);
+  const ApplyResult done = finish(message);
+  result.revision = done.revision;
+  result.changed = done.changed;
+  result.roi = done.roi;
+  result.bricks = done.bricks;
+  return result;
+}
+
+void Session::foldMessage(StrokeId id, const Edit& message, const std::vector<StrokeDab>& images) {
+  Stroke& s = strokes_.at(id);
+  // An application that changed nothing is not journaled, so a recovered stroke never learns
+  // its dabs: remembered, they would hold back this stroke's later messages here but not there.
+  if (!s.accumulate && !message.empty()) {
+    s.memory.insert(s.memory.end(), images.begin(), images.end());
+    if (s.memory.size() > kMaxStrokeMemory) s.memory.erase(s.memory.begin(), s.memory.end() - std::ptrdiff_t(kMaxStrokeMemory));
+  }
+  if (message.empty()) return;
+  const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
+                                      : history_.fold(s.step, message, volume_, revision_ + 1);
+  if (!folded) {
+    // The stroke's earlier step grows no more: packed like any step under a newer one.
+    history_.seal(s.step);
+    s.step = history_.push(message, stepInfo(s.by, toolName(s)), [this, id](History::StepId st) { return growingStep(st, id); });
+  }
+  lastStroke_ = id;
 }
 
 StrokeId Session::beginWarp(WarpStroke w, const StepAuthor& by) {
@@ -459,6 +551,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
     else requireRay(std::get<Ray>(dabs[i].at), field + ".ray");
     if (const auto& p = dabs[i].pressure; p && !(*p >= 0 && *p <= 1)) invalid(field + ".pressure", "must be in [0, 1]");
   }
+  if (stroke.paint) return paintDabs(id, dabs, pool);
 
   ApplyResult result;
   StrokeSettings settings{engineBrush(stroke.tool), stroke.radius, stroke.strength, stroke.height};
@@ -537,27 +630,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   }
   strokes_.at(id).plane = plane;
   result.plane = plane;
-  // An application that changed nothing is not journaled, so a recovered stroke never learns
-  // its dabs: remembered, they would hold back this stroke's later messages here but not there.
-  if (!stroke.accumulate && !message.empty()) {
-    std::vector<StrokeDab>& memory = strokes_.at(id).memory;
-    memory.insert(memory.end(), images.begin(), images.end());
-    if (memory.size() > kMaxStrokeMemory)
-      memory.erase(memory.begin(), memory.end() - std::ptrdiff_t(kMaxStrokeMemory));
-  }
-
-  if (!message.empty()) {
-    Stroke& s = strokes_.at(id);
-    const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
-                                        : history_.fold(s.step, message, volume_, revision_ + 1);
-    if (!folded) {
-      // The stroke's earlier step grows no more: packed like any step under a newer one.
-      history_.seal(s.step);
-      s.step = history_.push(message, stepInfo(s.by, toolName(s)),
-                             [this, id](History::StepId st) { return growingStep(st, id); });
-    }
-    lastStroke_ = id;
-  }
+  foldMessage(id, message, images);
   const ApplyResult done = finish(message);
   result.revision = done.revision;
   result.changed = done.changed;
@@ -580,7 +653,7 @@ std::optional<Session::StrokeParams> Session::strokeSettings(StrokeId id) const 
   if (it == strokes_.end()) return std::nullopt;
   const Stroke& st = it->second;
   return StrokeParams{st.tool, st.radius, st.strength, st.symmetry, st.accumulate, {}, st.by, st.height, st.plane,
-                      st.warp};
+                      st.warp, st.paint};
 }
 
 std::span<const StrokeDab> Session::strokeMemory(StrokeId id) const {
@@ -761,7 +834,8 @@ HistoryResult Session::restore(const std::vector<std::pair<Int3, BrickRef>>& bri
 
 ApplyResult Session::load(Volume vol, const StepAuthor& by) {
   lastStroke_ = 0;
-  if (vol.dims() != volume_.dims() || vol.band() != volume_.band()) {
+  // Another base colour changes what every unpainted voxel means: no step of bricks can say it.
+  if (vol.dims() != volume_.dims() || vol.band() != volume_.band() || vol.baseColor() != volume_.baseColor()) {
     volume_ = std::move(vol);
     resetDigest();
     history_.clear();

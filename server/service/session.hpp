@@ -37,6 +37,7 @@
 #include "protocol/cpp/geometry.hpp"
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
+#include "engine/paint.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
 #include "protocol/cpp/ops.hpp"
@@ -86,6 +87,8 @@ std::optional<Vec3> pickSurface(const Volume& vol, Vec3 origin, Vec3 direction);
 struct Symmetry {
   bool x = false, y = false, z = false;
 };
+// A dab's distinct images under the symmetry (the dab first), its normal mirrored alike.
+std::vector<StrokeDab> mirrorImages(const StrokeDab& dab, Symmetry s, Int3 dims);
 
 struct Dab {
   Dab() = default;
@@ -216,6 +219,14 @@ class Session {
   // A w whose anchor is set (re-announced after a snapshot, journal_records.hpp) goes on from
   // the volume as it is. Its steps are recorded as by's.
   StrokeId beginWarp(WarpStroke w, const StepAuthor& by = {});
+  // Opens a paint or mask stroke (engine paintStroke, server/engine/paint.hpp; PROTOCOL.md,
+  // paint and mask strokes): st's mode, colour, radius, strength and hardness (checkPaintSettings;
+  // InvalidParams naming the field). Its messages are swept dabs as a brush's (strokeDabs: rays
+  // picked on the volume as the stroke began, pressure, mirror images, the stroke's memory
+  // unless it accumulates, one history step), each one application of paintStroke; they change
+  // channels only. A dab whose region misses the domain is refused (EngineRefused, field
+  // "dabs[i].center").
+  StrokeId beginPaint(const PaintSettings& st, Symmetry symmetry = {}, bool accumulate = false, const StepAuthor& by = {});
   // The work of a warp stroke's message (warpStrokeCost), for the caller's budget; nullopt when
   // the stroke is no open warp stroke.
   std::optional<OpCost> warpCost(StrokeId id, const std::vector<Dab>& dabs) const;
@@ -256,8 +267,8 @@ class Session {
   // Throws InvalidParams for a brick outside the grid; a change of nothing still counts.
   HistoryResult restore(const std::vector<std::pair<Int3, BrickRef>>& bricks);
 
-  // Replaces the field by `vol`'s (a `volume.load`). With the same dims and band it is one
-  // undoable step holding only the bricks that differ; otherwise the domain changes, the
+  // Replaces the field by `vol`'s (a `volume.load`). With the same dims, band and base colour it
+  // is one undoable step holding only the bricks that differ; otherwise the domain changes, the
   // history is cleared (steps of another grid cannot be replayed) and fullRefresh is set.
   // Open strokes stay open (their next dab starts a new step) and start over from the loaded
   // volume: their rays pick on it, their normals are read on it. The revision goes up by one
@@ -296,8 +307,12 @@ class Session {
   const Volume& volume() const { return volume_; }
   const History& history() const { return history_; }
   std::uint64_t revision() const { return revision_; }
-  // digest(volume()), kept up to date brick by brick (engine/measures.hpp) instead of read.
-  std::uint64_t digest() const { return digestFromTerms(volume_.dims(), volume_.band(), digestTerms_); }
+  // digest(volume()), kept up to date brick by brick (engine/measures.hpp) instead of read: the
+  // channels and a base colour other than the clay's count, an unpainted clay volume's digest is
+  // its distances' alone.
+  std::uint64_t digest() const {
+    return digestFromTerms(volume_.dims(), volume_.band(), digestTerms_, volume_.baseColor());
+  }
   bool canUndo() const { return history_.canUndo(); }
   bool canRedo() const { return history_.canRedo(); }
   std::size_t openStrokes() const { return strokes_.size(); }
@@ -313,6 +328,7 @@ class Session {
     std::optional<double> height{};
     std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
     std::optional<WarpStroke> warp{};  // a warp stroke (tool, symmetry, accumulate, memory unused)
+    std::optional<PaintSettings> paint{};  // a paint or mask stroke (tool and height unused)
   };
   // The open strokes and their parameters, by id.
   std::vector<std::pair<StrokeId, StrokeParams>> openStrokeList() const;
@@ -348,9 +364,14 @@ class Session {
     std::optional<Plane> plane{};  // see beginStroke, "The stroke's plane"
     std::optional<WarpStroke> warp;  // a warp stroke: its state; start is its base
     std::uint64_t warpRevision = 0;  // the session's revision after its begin or last message
+    std::optional<PaintSettings> paint{};  // a paint or mask stroke: its settings
   };
 
   ApplyResult warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  ApplyResult paintDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
+  // Remembers a brush's or paint stroke's applied images (unless it accumulates) and folds a
+  // message that changed something into the stroke's step (strokeDabs).
+  void foldMessage(StrokeId id, const Edit& message, const std::vector<StrokeDab>& images);
   // The wire name of the stroke's tool, for its steps.
   static std::string_view toolName(const Stroke& s);
 
@@ -381,6 +402,7 @@ class Session {
   // At most kMaxCachedTerms slots (about 1 MiB); further ones are hashed each time.
   struct CachedTerm {
     std::shared_ptr<const Brick> data;
+    std::shared_ptr<const BrickPaint> paint;  // a paint stroke changes this and keeps data
     std::uint64_t term = 0;
   };
   static constexpr std::size_t kMaxCachedTerms = std::size_t(1) << 14;

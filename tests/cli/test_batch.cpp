@@ -313,6 +313,54 @@ TEST_CASE("warp strokes in an ops file: a line is a stroke from its anchor, only
   CHECK_THAT(mirror.err, Catch::Contains("symmetry"));
 }
 
+TEST_CASE("paint and mask in an ops file: stroke lines colour, the mask op lines hold the clay", "[cli][paint]") {
+  const fs::path dir = scratch("paint");
+  // The 64^3 sphere's surface points on +x and -x; the paint mirrored across x reaches both.
+  writeText(dir / "paint.jsonl",
+            "{\"stroke\":{\"tool\":\"paint\",\"color\":[200,20,10],\"radius\":6,\"symmetry\":[\"x\"]},"
+            "\"dabs\":[[53.9,31.5,31.5],{\"center\":[53.9,34,31.5],\"pressure\":0.5}]}\n"
+            "{\"op\":\"mask\",\"action\":\"fill\"}\n"
+            "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5],\"radius\":8}\n"
+            "{\"op\":\"mask\",\"action\":\"invert\"}\n"
+            "{\"stroke\":{\"tool\":\"mask\",\"radius\":8,\"erase\":true},\"dabs\":[[9.1,31.5,31.5]]}\n"
+            "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5],\"radius\":8}\n");
+  const Run r = runCli(dir, "batch paint.jsonl --size 64 --stats-every 1 --out painted.mzv");
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  const std::vector<json> lines = statsLines(r.out);
+  REQUIRE(lines.size() == 6);
+  const Run plain = runCli(dir, "batch /dev/null --size 64 --stats");
+  REQUIRE(plain.status == 0);
+  const json start = statsLines(plain.out)[0];
+  // Paint moves no geometry: the same volume and area, another digest.
+  CHECK(lines[0]["digest"] != start["digest"]);
+  CHECK(lines[0]["inside_volume"] == start["inside_volume"]);
+  CHECK(lines[0]["surface_area"] == start["surface_area"]);
+  // Under the full mask the add_blob changes nothing.
+  CHECK(lines[1]["digest"] != lines[0]["digest"]);
+  CHECK(lines[2]["digest"] == lines[1]["digest"]);
+  // Inverted, the mask is gone (the paint stays): the blob grows the solid.
+  CHECK(lines[3]["digest"] == lines[0]["digest"]);
+  CHECK(lines[4]["digest"] == lines[3]["digest"]);  // erasing where nothing is masked: no change
+  CHECK(lines[5]["inside_volume"].get<double>() > lines[4]["inside_volume"].get<double>());
+  // A painted volume is written as .mzv version 2.
+  const std::string mzv = readText(dir / "painted.mzv");
+  REQUIRE(mzv.size() > 8);
+  CHECK(mzv.substr(0, 4) == "MZVF");
+  CHECK(std::uint8_t(mzv[4]) == 2);
+
+  writeText(dir / "bad.jsonl", "{\"op\":\"mask\",\"action\":\"fill\"}\n{\"op\":\"mask\",\"action\":\"blur\"}\n");
+  const Run bad = runCli(dir, "batch bad.jsonl --size 64");
+  CHECK(bad.status == 1);
+  CHECK_THAT(bad.err, Catch::Contains("bad.jsonl:2:"));
+  CHECK_THAT(bad.err, Catch::Contains("action"));
+  writeText(dir / "nocolour.jsonl", "{\"stroke\":{\"tool\":\"paint\"},\"dabs\":[[53.9,31.5,31.5]]}\n");
+  const Run nocolour = runCli(dir, "batch nocolour.jsonl --size 64");
+  CHECK(nocolour.status == 1);
+  CHECK_THAT(nocolour.err, Catch::Contains("nocolour.jsonl:1:"));
+  CHECK_THAT(nocolour.err, Catch::Contains("color"));
+}
+
 TEST_CASE("rendering (--render) writes a PNG or JPEG of the requested size", "[cli]") {
   const fs::path dir = scratch("render");
   writeText(dir / "ops.jsonl", "{\"tool\":\"add_blob\",\"center\":[53.9,31.5,31.5]}\n");

@@ -124,26 +124,33 @@ std::string strokeRefusedField(const json& params) {
 TEST_CASE("the generated tables name the registry's tools, in its order, with its keys", "[tools]") {
   const json& tools = registry()["tools"];
   REQUIRE(kTools.size() == tools.size());
-  std::vector<std::string> surface, csg, warp;
+  std::vector<std::string> surface, csg, warp, paint;
+  const auto kindOf = [](const json& t) {
+    return t["kind"] == "csg"     ? ToolKind::Csg
+           : t["kind"] == "warp"  ? ToolKind::Warp
+           : t["kind"] == "paint" ? ToolKind::Paint
+                                  : ToolKind::SurfaceSpeed;
+  };
+  // Warps and paint tools stroke only: no operation object.
+  const auto hasOp = [](const json& t) { return t["kind"] != "warp" && t["kind"] != "paint"; };
   std::set<std::string> strokeKeys{"tool", "symmetry", "accumulate"};
   for (std::size_t i = 0; i < tools.size(); ++i) {
     const json& t = tools[i];
     INFO(t["name"]);
     CHECK(kTools[i].name == t["name"].get<std::string>());
     CHECK(kTools[i].strokes == t["strokes"].get<bool>());
-    CHECK(kTools[i].kind == (t["kind"] == "csg" ? ToolKind::Csg : t["kind"] == "warp" ? ToolKind::Warp : ToolKind::SurfaceSpeed));
-    // A warp has no operation object.
+    CHECK(kTools[i].kind == kindOf(t));
     std::vector<std::string> opKeys;
-    if (t["kind"] != "warp") opKeys.push_back("tool");
+    if (hasOp(t)) opKeys.push_back("tool");
     if (t["kind"] == "surface_speed") opKeys.push_back("global");
-    if (t["kind"] != "warp")
+    if (hasOp(t))
       for (const json& p : paramsOf(t, "op")) opKeys.push_back(p["key"]);
     CHECK(strings(kTools[i].opKeys) == opKeys);
     std::vector<std::string> own;
     for (const json& p : paramsOf(t, "stroke")) own.push_back(p["key"]);
     CHECK(strings(kTools[i].strokeKeys) == own);
     strokeKeys.insert(own.begin(), own.end());
-    (t["kind"] == "csg" ? csg : t["kind"] == "warp" ? warp : surface).push_back(t["name"]);
+    (t["kind"] == "csg" ? csg : t["kind"] == "warp" ? warp : t["kind"] == "paint" ? paint : surface).push_back(t["name"]);
   }
   std::vector<std::string> names;
   for (const auto& n : kBrushToolNames) names.emplace_back(n.name);
@@ -154,6 +161,9 @@ TEST_CASE("the generated tables name the registry's tools, in its order, with it
   names.clear();
   for (const auto& n : kWarpToolNames) names.emplace_back(n.name);
   CHECK(names == warp);
+  names.clear();
+  for (const auto& n : kPaintToolNames) names.emplace_back(n.name);
+  CHECK(names == paint);
   std::vector<std::string> morph;
   for (const json& o : registry()["operations"])
     if (o["kind"] == "morphology") morph.push_back(o["name"]);
@@ -172,6 +182,7 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
     CHECK(c.minimum == p["minimum"].get<double>());
     CHECK(c.maximum == p["maximum"].get<double>());
     CHECK(c.exclusiveMinimum == p.value("exclusive_minimum", false));
+    CHECK(c.exclusiveMaximum == p.value("exclusive_maximum", false));
     CHECK(c.maxPerRadius == p.value("max_per_radius", 0.0));
     CHECK(c.defaultValue.has_value() == p.contains("default"));
     if (c.defaultValue) CHECK(*c.defaultValue == p["default"].get<double>());
@@ -185,6 +196,11 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
   same(kParamWarpRadius, "warp_radius");
   same(kParamElasticRadius, "elastic_radius");
   same(kParamVolume, "volume");
+  same(kParamHardness, "hardness");
+  CHECK(kParamPaintColor.key == param("paint_color")["key"].get<std::string>());
+  CHECK(kParamPaintColor.optional == param("paint_color").value("optional", false));
+  CHECK(kParamErase.key == param("erase")["key"].get<std::string>());
+  CHECK(kParamErase.defaultValue == param("erase")["default"].get<bool>());
   CHECK(kParamDirection.key == param("direction")["key"].get<std::string>());
   CHECK(kParamCenter.bound == param("center")["bound"].get<double>());
   CHECK(kMaxCoordinate == kParamCenter.bound);
@@ -197,7 +213,7 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
 
 TEST_CASE("every tool parses with its parameters at their bounds and is refused beyond them", "[tools]") {
   for (const json& tool : registry()["tools"]) {
-    if (tool["kind"] == "warp") {
+    if (tool["kind"] == "warp" || tool["kind"] == "paint") {
       // Strokes only: its name is no operation object.
       CHECK(refusedField(json{{"tool", tool["name"]}, {"center", {1, 2, 3}}}) == "tool");
       continue;
@@ -268,23 +284,48 @@ TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[
   CHECK(!keys.empty());
   for (const json& tool : registry()["tools"]) {
     INFO(tool["name"]);
-    const json begin = {{"tool", tool["name"]}, {"radius", 8}};
+    json begin = {{"tool", tool["name"]}, {"radius", 8}};
     if (!tool["strokes"].get<bool>()) {
       CHECK(strokeRefusedField(begin) == "tool");
       continue;
     }
-    CHECK(strokeRefusedField(begin) == "(accepted)");
     const auto own = paramsOf(tool, "stroke");
+    // A required colour is named when it is missing, and given in every case below.
+    for (const json& p : own)
+      if (p["type"] == "color" && !isOptional(p)) {
+        CHECK(strokeRefusedField(begin) == p["key"]);
+        begin[p["key"].get<std::string>()] = {0, 128, 255};
+      }
+    CHECK(strokeRefusedField(begin) == "(accepted)");
     for (const std::string& key : keys) {
       INFO(key);
       const auto mine = std::find_if(own.begin(), own.end(), [&](const json& p) { return p["key"] == key; });
       json params = begin;
       if (mine == own.end()) {
-        params[key] = key == "direction" ? json{1, 0, 0} : json(1.0);
+        params[key] = key == "direction" ? json{1, 0, 0} : key == "color" ? json{1, 2, 3} : key == "erase" ? json(true) : json(1.0);
         CHECK(strokeRefusedField(params) == key);
         continue;
       }
       const json& p = *mine;
+      if (p["type"] == "color") {
+        params[key] = {255, 0, 255};
+        CHECK(strokeRefusedField(params) == "(accepted)");
+        for (const json& bad : {json{256, 0, 0}, json{-1, 0, 0}, json{1.5, 0, 0}, json{1, 2}, json{1, 2, 3, 4}, json("red"),
+                                json{"1", 2, 3}, json{1.0, 2, 3}}) {
+          params[key] = bad;
+          CHECK(strokeRefusedField(params) == key);
+        }
+        continue;
+      }
+      if (p["type"] == "boolean") {
+        for (const bool v : {true, false}) {
+          params[key] = v;
+          CHECK(strokeRefusedField(params) == "(accepted)");
+        }
+        params[key] = 1;
+        CHECK(strokeRefusedField(params) == key);
+        continue;
+      }
       if (p["type"] == "vector") {
         params[key] = {0.5, -2, 1e300};
         CHECK(strokeRefusedField(params) == "(accepted)");
@@ -296,7 +337,13 @@ TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[
       }
       const double bound = key == "radius" ? 0 : 8;
       params[key] = key == "radius" ? most(p, 0) : most(p, bound);
-      CHECK(strokeRefusedField(params) == "(accepted)");
+      if (p.value("exclusive_maximum", false)) {
+        CHECK(strokeRefusedField(params) == key);
+        params[key] = std::nextafter(most(p, bound), -1e300);
+        CHECK(strokeRefusedField(params) == "(accepted)");
+      } else {
+        CHECK(strokeRefusedField(params) == "(accepted)");
+      }
       params[key] = std::nextafter(key == "radius" ? most(p, 0) : most(p, bound), 1e300);
       CHECK(strokeRefusedField(params) == key);
       params[key] = p.value("exclusive_minimum", false) ? p["minimum"].get<double>()
@@ -315,6 +362,52 @@ TEST_CASE("stroke.begin takes the tools that stroke, each with its own keys", "[
         params[flag] = flag == "symmetry" ? json{"x"} : json(true);
         CHECK(strokeRefusedField(params) == flag);
       }
+  }
+}
+
+TEST_CASE("paint and mask strokes carry their colour, hardness and erase, with symmetry and accumulate", "[tools]") {
+  const StrokeBeginParams paint = parseStrokeBeginParams(
+      {{"tool", "paint"}, {"color", {250, 0, 17}}, {"radius", 6}, {"strength", 0.5}, {"symmetry", {"x"}}, {"accumulate", true}});
+  REQUIRE(paint.paint);
+  CHECK_FALSE(paint.warp);
+  CHECK(paint.paint->tool == PaintTool::Color);
+  CHECK(paint.paint->color == SrgbColor{250, 0, 17});
+  CHECK(paint.paint->hardness == 0.5);
+  CHECK_FALSE(paint.paint->erase);
+  CHECK(paint.radius == 6);
+  CHECK(paint.strength == 0.5);
+  CHECK(paint.mirrorX);
+  CHECK(paint.accumulate);
+  const StrokeBeginParams mask = parseStrokeBeginParams({{"tool", "mask"}, {"erase", true}, {"hardness", 0}});
+  REQUIRE(mask.paint);
+  CHECK(mask.paint->tool == PaintTool::MaskAdd);
+  CHECK(mask.paint->erase);
+  CHECK(mask.paint->hardness == 0);
+  CHECK(mask.radius == *kParamRadius.defaultValue);
+  // What belongs to other tools or is malformed is refused, naming the key.
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, 3}}, {"height", 2}}) == "height");
+  CHECK(strokeRefusedField({{"tool", "mask"}, {"color", {1, 2, 3}}}) == "color");
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, 3}}, {"erase", true}}) == "erase");
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, 3}}, {"hardness", 1}}) == "hardness");
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, 3}}, {"radius", 1e9}}) == "radius");
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, 3}}, {"strength", std::nan("")}}) == "strength");
+  CHECK(strokeRefusedField({{"tool", "paint"}, {"color", {1, 2, std::nan("")}}}) == "color");
+  CHECK(strokeRefusedField({{"tool", "add_blob"}, {"hardness", 0.5}}) == "hardness");
+}
+
+TEST_CASE("presence carries a paint colour, [r, g, b] bytes, and refuses any other", "[tools]") {
+  json params = {{"brush", {{"tool", "paint"}, {"radius", 4}, {"point", {1, 2, 3}}, {"normal", {0, 1, 0}}, {"active", true},
+                            {"color", {12, 34, 255}}}}};
+  const PresenceParams p = parsePresenceParams(params);
+  REQUIRE(p.brush->color);
+  CHECK(*p.brush->color == SrgbColor{12, 34, 255});
+  CHECK(brushJson(*p.brush)["color"] == json{12, 34, 255});
+  params["brush"].erase("color");
+  CHECK_FALSE(parsePresenceParams(params).brush->color);
+  CHECK_FALSE(brushJson(*parsePresenceParams(params).brush).contains("color"));
+  for (const json& bad : {json{256, 0, 0}, json{0.5, 0, 0}, json{1, 2}, json("#ff0000")}) {
+    params["brush"]["color"] = bad;
+    CHECK_THROWS_AS(parsePresenceParams(params), OpError);
   }
 }
 

@@ -5,6 +5,7 @@
 // when it holds the undone step and from the step file when a snapshot cut it.
 #include <catch2/catch.hpp>
 
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -14,6 +15,7 @@
 
 #include "engine/measures.hpp"
 #include "engine/solids.hpp"
+#include "engine/volume_file.hpp"
 #include "protocol/cpp/ops.hpp"
 #include "service/journal_records.hpp"
 #include "service/session_store.hpp"
@@ -211,4 +213,35 @@ TEST_CASE("journal: a stroke message that adds nothing leaves the stroke's memor
     if (id == s) remembered = params.memory.size();
   CHECK(remembered == 2);  // the two dabs the journal holds
   fs::remove_all(dir);
+}
+
+TEST_CASE("journal: a step file keeps each brick's channels, and files without any are what they were", "[journal][paint]") {
+  auto data = std::make_shared<Brick>();
+  for (int i = 0; i < kBrickVoxels; ++i) data->v[i] = float(i % 7) - 3.0f;
+  auto paint = std::make_shared<BrickPaint>();
+  for (int i = 0; i < kBrickVoxels; ++i) paint->t[i] = Texel{std::uint8_t(i), std::uint8_t(255 - i % 256), 7, std::uint8_t(i % 3 ? 0 : 200)};
+  paint->masked = true;
+  std::vector<std::pair<Int3, BrickRef>> bricks{
+      {{1, 2, 3}, BrickRef{data, false, paint}}, {{4, 5, 6}, BrickRef{data, false}}, {{0, 0, 1}, BrickRef{nullptr, true}}};
+  const std::vector<std::uint8_t> bytes = encodeStep(bricks);
+  // 8 header bytes, three brick headers of 13, two bricks of floats, one of texels, the CRC.
+  CHECK(bytes.size() == 8 + 3 * 13 + 2 * sizeof(Brick) + 4 * std::size_t(kBrickVoxels) + 4);
+  const auto back = decodeStep(bytes, "test");
+  REQUIRE(back.size() == 3);
+  REQUIRE(back[0].second.paint);
+  CHECK(std::memcmp(back[0].second.paint->t, paint->t, sizeof(paint->t)) == 0);
+  CHECK(back[0].second.paint->masked);
+  CHECK(std::memcmp(back[0].second.data->v, data->v, sizeof(Brick)) == 0);
+  CHECK_FALSE(back[1].second.paint);
+  CHECK(back[2].second.inside);
+  // Without channels the file is version 1's, byte for byte: kind 2 bricks only.
+  const std::vector<std::uint8_t> plain = encodeStep({bricks[1], bricks[2]});
+  CHECK(plain.size() == 8 + 2 * 13 + sizeof(Brick) + 4);
+  CHECK(plain[8 + 12] == 2);
+  // A kind beyond 3 is refused.
+  std::vector<std::uint8_t> bad = plain;
+  bad[8 + 12] = 4;
+  const std::uint32_t crc = crc32Ieee({bad.data(), bad.size() - 4});
+  for (int k = 0; k < 4; ++k) bad[bad.size() - 4 + std::size_t(k)] = std::uint8_t(crc >> (8 * k));
+  CHECK_THROWS_AS(decodeStep(bad, "bad"), std::runtime_error);
 }

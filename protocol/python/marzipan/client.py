@@ -104,6 +104,14 @@ def _dab(value) -> dict:
     return {"center": _point(value, "dab centre")}
 
 
+def _color(value, what: str) -> list:
+    """[r, g, b] (three integers 0..255, which the server checks) as a list."""
+    seq = list(value)
+    if len(seq) != 3:
+        raise ValueError(f"{what} needs 3 channels [r, g, b], got {len(seq)}")
+    return seq
+
+
 def _without_none(**params) -> dict:
     return {k: v for k, v in params.items() if v is not None}
 
@@ -154,6 +162,7 @@ class Client:
         self.read_only = None
         self.limits = {}
         self.protocol = None
+        self.base_color = None  # [r, g, b] of unpainted clay, from session.create/join (protocol 1.7)
         self.revision = None  # the newest revision seen in a result, notification or frame
         # The other clients' newest presence by client id ({client, name, color, brush?,
         # camera?}), kept from `presence` notifications; a client is removed on its `gone`.
@@ -443,6 +452,7 @@ class Client:
         self.read_only = result.get("read_only")
         self.limits = result.get("limits", {})
         self.protocol = result.get("protocol")
+        self.base_color = result.get("base_color")
         self._see_revision(result.get("revision"))
         if "token" in result:
             self.token = result["token"]
@@ -450,14 +460,19 @@ class Client:
         self._route_used = True
 
     async def create_session(self, size, solid: str, *, session: str | None = None, view: str = "none",
-                             protocol: int | None = 1, name: str | None = None) -> dict:
+                             protocol: int | None = 1, name: str | None = None, base_color=None,
+                             splats: int | None = 2) -> dict:
         """session.create: a new session of `size` = [nx, ny, nz] voxels (or one int for a cube)
         holding `solid` (empty sphere box torus cylinder dumbbell pig). Proposes `session`, or
         the id this connection was opened with; outside a session, a connection whose id was
         used already reconnects under a new one first. `view` "none" (default here: updates
         carry notifications only) or "splats" (a full splat buffer follows, deltas after every
         change). `name`: the display name the others see (protocol 1.2; default "Sculptor N").
-        Returns the result: session, token, view_token, client, size, revision, clients, ..."""
+        `base_color`: [r, g, b] (0..255, sRGB), the colour of clay nothing has painted (protocol
+        1.7; default the clay colour [221, 181, 155]). `splats`: the splat buffer version this
+        client reads (2, with colour and mask, by default; None: the server's default, 1).
+        Returns the result: session, token, view_token, client, size, revision, base_color,
+        clients, ..."""
         if isinstance(size, int):
             size = [size, size, size]
         if self.session is None:
@@ -465,20 +480,22 @@ class Client:
             if wanted != self._route:
                 await self._reopen(wanted)
         params = _without_none(size=list(size), solid=solid, session=session or self._route,
-                               protocol=protocol, view=view, name=name)
+                               protocol=protocol, view=view, name=name,
+                               base_color=_color(base_color, "base_color") if base_color is not None else None,
+                               splats=splats)
         result = await self._result("session.create", params)
         self._remember_session(result)
         return result
 
     async def join(self, session: str, token: str, *, view: str = "none", protocol: int | None = 1,
-                   follow_owner: bool = False, name: str | None = None) -> dict:
+                   follow_owner: bool = False, name: str | None = None, splats: int | None = 2) -> dict:
         """session.join with the edit or the view token; reconnects under `session` first when
         this connection was opened for another id (the load balancer routes on it).
         `follow_owner`: on -32015 naming the owning server (servers sharing etcd), reconnect to
         it directly and join there once; only where clients can reach the servers themselves."""
         if self.session is None and session != self._route:
             await self._reopen(session)
-        params = _without_none(session=session, token=token, protocol=protocol, view=view, name=name)
+        params = _without_none(session=session, token=token, protocol=protocol, view=view, name=name, splats=splats)
         try:
             result = await self._result("session.join", params)
         except SessionHeldElsewhere as e:
@@ -524,12 +541,20 @@ class Client:
         return await self._result("tool.apply", params)
 
     async def apply_op(self, op: dict) -> dict:
-        """One operation object as `marzipan batch` reads it: "tool" objects go to tool.apply,
-        {"op": "morph", ...} to volume.morph and {"op": "smooth", ...} to tool.apply as
-        {"tool": "smooth", "global": true, ...}, which PROTOCOL.md defines as the same."""
+        """One line of an ops file as `marzipan batch` reads it: "tool" objects go to tool.apply,
+        {"op": "morph", ...} to volume.morph, {"op": "smooth", ...} to tool.apply as
+        {"tool": "smooth", "global": true, ...}, which PROTOCOL.md defines as the same,
+        {"op": "mask", "action": A} to mask.A, and a stroke line {"stroke": {stroke.begin's
+        params}, "dabs": [...]} (warp, paint and mask tools) is one whole stroke (stroke())."""
+        if "stroke" in op and "op" not in op and "tool" not in op:
+            # stroke.begin's params as the line gives them: the server checks (and names) them.
+            stroke = (await self._result("stroke.begin", op["stroke"]))["stroke"]
+            return await self._whole_stroke(stroke, op.get("dabs", []))
         if "op" not in op or "tool" in op:
             return await self.apply(op)
         rest = {k: v for k, v in op.items() if k != "op"}
+        if op["op"] == "mask" and set(rest) == {"action"} and rest["action"] in ("clear", "invert", "fill"):
+            return await self._result("mask." + rest["action"], {})
         if op["op"] == "morph":
             return await self._result("volume.morph", rest)
         if op["op"] == "smooth":
@@ -550,19 +575,43 @@ class Client:
 
     async def begin_stroke(self, tool: str, *, radius: float | None = None, strength: float | None = None,
                            symmetry=None, accumulate: bool | None = None, height: float | None = None,
-                           volume: float | None = None, direction=None) -> int:
+                           volume: float | None = None, direction=None, color=None, hardness: float | None = None,
+                           erase: bool | None = None) -> int:
         """stroke.begin of any tool that strokes (marzipan.tools: add_blob, inflate, clay, flatten,
         crease, grab, ...); accumulate=True makes every stroke.dabs add (build-up) instead of only
         what exceeds the stroke's earlier dabs (protocol 1.1). height (vu, protocol 1.4; the tools
         whose parameters list it: add_blob, remove_blob, inflate, clay; at most half the radius,
         not with accumulate): the stroke moves the surface by at most this, however often it
         passes. volume (elastic_grab, 0..0.5) and direction ([x, y, z]: twist, scale, pinch) are
-        the warp tools' (PROTOCOL.md, warp strokes; see warp())."""
+        the warp tools' (PROTOCOL.md, warp strokes; see warp()); color ([r, g, b] 0..255: paint),
+        hardness (0 to below 1: paint, mask) and erase (mask) the paint tools' (paint(), mask())."""
         result = await self._result("stroke.begin", _without_none(
             tool=tool, radius=radius, strength=strength, symmetry=list(symmetry) if symmetry else None,
             accumulate=accumulate, height=height, volume=volume,
-            direction=_point(direction, "direction") if direction is not None else None))
+            direction=_point(direction, "direction") if direction is not None else None,
+            color=_color(color, "color") if color is not None else None, hardness=hardness, erase=erase))
         return result["stroke"]
+
+    async def _whole_stroke(self, stroke: int, dabs) -> dict:
+        """The dabs of an open stroke in messages of at most max_dabs, then stroke.end."""
+        dabs = [_dab(d) for d in dabs]
+        per_message = int(self.limits.get("max_dabs", 256)) or 256
+        applied = 0
+        plane = None
+        try:
+            for start in range(0, len(dabs), per_message):
+                result = await self.stroke_dabs(stroke, dabs[start:start + per_message])
+                applied += result["applied"]
+                plane = result.get("plane", plane)
+        except (MarzipanError, ValueError):
+            # Close the step the applied dabs made, but report the first failure.
+            try:
+                await self.end_stroke(stroke)
+            except MarzipanError:
+                pass
+            raise
+        end = await self.end_stroke(stroke)
+        return {"stroke": stroke, "applied": applied, **end, **({"plane": plane} if plane else {})}
 
     async def stroke_dabs(self, stroke: int, dabs) -> dict:
         return await self._result("stroke.dabs", {"stroke": stroke, "dabs": [_dab(d) for d in dabs]})
@@ -572,32 +621,18 @@ class Client:
 
     async def stroke(self, tool: str, dabs, *, radius: float | None = None, strength: float | None = None,
                      symmetry=None, accumulate: bool | None = None, height: float | None = None,
-                     volume: float | None = None, direction=None) -> dict:
+                     volume: float | None = None, direction=None, color=None, hardness: float | None = None,
+                     erase: bool | None = None) -> dict:
         """A whole stroke, one undo step: stroke.begin, the dabs (centres [x, y, z] or dicts
         {center | ray, pressure?}) in messages of at most max_dabs, stroke.end. Returns
         {stroke, applied, revision, can_undo, can_redo}, and the stroke's `plane` ({point,
         normal}, fitted at its first dab: flatten, contrast, clay with a height) when it has one.
-        `volume` and `direction` are the warp tools' (warp())."""
-        dabs = [_dab(d) for d in dabs]
-        per_message = int(self.limits.get("max_dabs", 256)) or 256
+        `volume` and `direction` are the warp tools' (warp()), `color`, `hardness` and `erase`
+        the paint tools' (paint(), mask())."""
         stroke = await self.begin_stroke(tool, radius=radius, strength=strength, symmetry=symmetry,
-                                         accumulate=accumulate, height=height, volume=volume, direction=direction)
-        applied = 0
-        plane = None
-        try:
-            for start in range(0, len(dabs), per_message):
-                result = await self.stroke_dabs(stroke, dabs[start:start + per_message])
-                applied += result["applied"]
-                plane = result.get("plane", plane)
-        except MarzipanError:
-            # Close the step the applied dabs made, but report the first failure.
-            try:
-                await self.end_stroke(stroke)
-            except MarzipanError:
-                pass
-            raise
-        end = await self.end_stroke(stroke)
-        return {"stroke": stroke, "applied": applied, **end, **({"plane": plane} if plane else {})}
+                                         accumulate=accumulate, height=height, volume=volume, direction=direction,
+                                         color=color, hardness=hardness, erase=erase)
+        return await self._whole_stroke(stroke, dabs)
 
     async def warp(self, tool: str, anchor, points, *, radius: float | None = None, strength: float | None = None,
                    volume: float | None = None, direction=None) -> dict:
@@ -617,6 +652,37 @@ class Client:
         """Grabs the surface at `anchor` (a point on it) and moves it to `to`, the material within
         `radius` vu of the way following less and less: a grab stroke of two dabs (warp())."""
         return await self.warp("grab", anchor, [to], radius=radius, strength=strength)
+
+    async def paint(self, color, dabs, *, radius: float | None = None, strength: float | None = None,
+                    hardness: float | None = None, symmetry=None, accumulate: bool | None = None) -> dict:
+        """A paint stroke (protocol 1.7; PROTOCOL.md, paint and mask strokes), one undo step:
+        blends `color` ([r, g, b], 0..255 sRGB) into the surface under the brush swept over the
+        dabs (centres [x, y, z] or dicts {center | ray, pressure?}), `strength` at the centre,
+        fading from `hardness` (0 to below 1, default 0.5) of the radius to nothing at it. Moves no
+        geometry; a masked voxel keeps its colour too. Returns what stroke() returns."""
+        return await self.stroke("paint", dabs, radius=radius, strength=strength, symmetry=symmetry,
+                                 accumulate=accumulate, color=color, hardness=hardness)
+
+    async def mask(self, dabs, *, erase: bool = False, radius: float | None = None, strength: float | None = None,
+                   hardness: float | None = None, symmetry=None, accumulate: bool | None = None) -> dict:
+        """A mask stroke, one undo step: raises the mask weight under the brush (erase=True:
+        lowers it). Every geometry tool moves a voxel of weight w by (1 - w / 255) of what it
+        would: fully masked clay stays exactly as it is. Returns what stroke() returns."""
+        return await self.stroke("mask", dabs, radius=radius, strength=strength, symmetry=symmetry,
+                                 accumulate=accumulate, hardness=hardness, erase=erase or None)
+
+    async def mask_clear(self) -> dict:
+        """mask.clear: every band voxel's mask weight to 0, one undo step. Returns {revision, roi}
+        (roi null when nothing was masked)."""
+        return await self._result("mask.clear", {})
+
+    async def mask_invert(self) -> dict:
+        """mask.invert: every band voxel's mask weight w to 255 - w, one undo step."""
+        return await self._result("mask.invert", {})
+
+    async def mask_fill(self) -> dict:
+        """mask.fill: every band voxel's mask weight to 255 (all clay frozen), one undo step."""
+        return await self._result("mask.fill", {})
 
     # ------------------------------------------------------------------------------- presence
 

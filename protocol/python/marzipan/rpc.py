@@ -14,7 +14,7 @@ import json
 import re
 from dataclasses import dataclass, field
 
-PROTOCOL_VERSION = {"major": 1, "minor": 6}
+PROTOCOL_VERSION = {"major": 1, "minor": 7}
 MAX_REQUEST_ID = 0xFFFFFFFF
 
 METHODS = (
@@ -40,6 +40,9 @@ METHODS = (
     "history.list",
     "session.fork",
     "presence",
+    "mask.clear",
+    "mask.invert",
+    "mask.fill",
 )
 
 # The methods whose id travels in a binary frame header (an answer, or volume.load's upload).

@@ -136,9 +136,9 @@ class HubClient {
   bool readOnly = false;
   std::string name, color;  // display name and "#rrggbb" (since 1.2)
   protocol::ViewMode mode = protocol::ViewMode::None;
-  // The splat buffer version it reads (session.create/join `splats`; 1 unless it opted into 2,
-  // protocol/cpp/splats.hpp): 1 drops the colour.
-  int splats = 1;
+  // The splat buffer version it reads (session.create/join `splats`, since 1.7; protocol/cpp/splats.hpp): 1
+  // drops the colour; a fork keeps it.
+  int splats = protocol::kSplatsVersionDefault;
   Camera camera;
   Shading shading = Shading::Lit;
   double thicknessMinVu = 1;

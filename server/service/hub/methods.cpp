@@ -9,7 +9,7 @@ using protocol::Method;
 
 namespace {
 
-constexpr std::array<MethodEntry, 22> kMethods{{
+constexpr std::array<MethodEntry, 25> kMethods{{
     {Method::SessionCreate, Access::Anyone, sessionCreate, true},
     {Method::SessionJoin, Access::Anyone, sessionJoin, true},
     {Method::SessionLeave, Access::Member, sessionLeave},
@@ -34,6 +34,9 @@ constexpr std::array<MethodEntry, 22> kMethods{{
     // A view client may fork: it sees the whole volume already, and the fork is its own.
     {Method::SessionFork, Access::Member, sessionFork},
     {Method::Presence, Access::Member, presence},
+    {Method::MaskClear, Access::Editor, maskMethod},
+    {Method::MaskInvert, Access::Editor, maskMethod},
+    {Method::MaskFill, Access::Editor, maskMethod},
 }};
 
 }  // namespace

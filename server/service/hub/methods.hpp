@@ -56,6 +56,8 @@ StepAuthor authorOf(const HubClient& c);
 nlohmann::json stepJson(const StepInfo& step);
 void toolApply(HubCore&, const Call&);
 void volumeMorph(HubCore&, const Call&);
+// mask.clear, mask.invert, mask.fill: {"op":"mask","action":...} as one step (MaskOp).
+void maskMethod(HubCore&, const Call&);
 void strokeBegin(HubCore&, const Call&);
 void strokeDabs(HubCore&, const Call&);
 void strokeEnd(HubCore&, const Call&);

@@ -331,6 +331,32 @@ void volumeMorph(HubCore& hub, const Call& call) {
   });
 }
 
+void maskMethod(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  const protocol::Op op = protocol::MaskOp{protocol::maskActionOf(call.req.method)};
+  const auto running = hub.track(call.client, call.req.id);
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, op, running](LiveSession& s, Reply& r) {
+    const OpCost cost = estimateCost(s.session->volume(), op);
+    self->checkBudget(cost.voxels, "this mask operation");
+    running->progress->setTotal(cost.passes);
+    std::optional<Workers::LongTask> longTask;
+    if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
+    const Progress::Scope scope(*running->progress);
+    const StepAuthor by = authorOf(*c);
+    const ApplyResult a = s.session->apply(op, self->pool, by);
+    running->done();
+    r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
+    if (a.changed) {
+      r.record = [op, a, by, t = stepTime(*s.session)] {
+        json rec{{"r", a.revision}, {"op", protocol::toJson(op)}};
+        stampRecord(rec, by, t);
+        return rec;
+      };
+      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "mask", a.roi, a.bricks, a.fullRefresh); };
+    }
+  });
+}
+
 void strokeBegin(HubCore& hub, const Call& call) {
   const protocol::StrokeBeginParams p = protocol::parseStrokeBeginParams(call.req.params);
   hub.onStrand(call, false, [c = call.client, p](LiveSession& s, Reply& r) {
@@ -355,6 +381,9 @@ void strokeBegin(HubCore& hub, const Call& call) {
       w.direction = p.warp->direction;
       params.warp = w;
       c->stroke = s.session->beginWarp(*params.warp, params.by);
+    } else if (p.paint) {
+      params.paint = paintSettingsOf(p);
+      c->stroke = s.session->beginPaint(*params.paint, params.symmetry, params.accumulate, params.by);
     } else {
       c->stroke = s.session->beginStroke(params.tool, params.radius, params.strength, params.symmetry, params.accumulate,
                                          params.by, params.height);

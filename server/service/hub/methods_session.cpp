@@ -47,8 +47,9 @@ void sessionCreate(HubCore& hub, const Call& call) {
   // c->session is set only once admitted: a refused create leaves the connection as it was.
   hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
                [self = hub.shared_from_this(), c, s, view = p.view, dims = p.size, solid = p.solid,
-                name = p.name](LiveSession& ls, Reply& r) {
+                name = p.name, splats = p.splats](LiveSession& ls, Reply& r) {
                  self->registry.admit(ls, c, false, view, r, name);
+                 c->splats = splats;
                  c->session = s;
                  r.result["token"] = ls.secrets.token;
                  r.result["view_token"] = ls.secrets.viewToken;
@@ -140,8 +141,10 @@ void sessionJoin(HubCore& hub, const Call& call) {
   else throw RpcException(RpcCode::BadToken, "the token opens neither edit nor view rights of this session", {{"field", "token"}});
   // c->session is set only once admitted: a refused join (a full session) grants nothing.
   hub.onStrand(c, s, call.req.id, call.arrived, false, call.access,
-               [self = hub.shared_from_this(), c, s, view = p.view, readOnly, name = p.name](LiveSession& ls, Reply& r) {
+               [self = hub.shared_from_this(), c, s, view = p.view, readOnly, name = p.name,
+                splats = p.splats](LiveSession& ls, Reply& r) {
                  self->registry.admit(ls, c, readOnly, view, r, name);
+                 c->splats = splats;
                  // An editor may share a view link; a view client learns nothing more than it had.
                  if (!readOnly) r.result["view_token"] = ls.secrets.viewToken;
                  c->session = s;

@@ -17,6 +17,11 @@ using protocol::ViewMode;
 
 json sizeJson(Int3 d) { return json::array({d.x, d.y, d.z}); }
 
+json baseColorJson(const Volume& v) {
+  const Rgb8 c = v.baseColor();
+  return protocol::colorJson(SrgbColor{c.r, c.g, c.b});
+}
+
 namespace {
 
 json limitsJson(const HubLimits& l) {
@@ -115,8 +120,11 @@ void SessionRegistry::countCreate(HubClient& c) {
 std::shared_ptr<LiveSession> SessionRegistry::create(HubClient& c, const protocol::CreateParams& p) {
   const Int3 dims = p.size;
   const SolidKind solid = p.solid;
-  return create(c, p.session, [dims, solid](HubCore& hub) {
-    return makeSolid(solid, dims, Volume::kDefaultBand, hub.pool);
+  const std::optional<SrgbColor> base = p.baseColor;
+  return create(c, p.session, [dims, solid, base](HubCore& hub) {
+    Volume v = makeSolid(solid, dims, Volume::kDefaultBand, hub.pool);
+    if (base) v.setBaseColor(Rgb8{base->r, base->g, base->b});
+    return v;
   });
 }
 
@@ -274,6 +282,7 @@ void SessionRegistry::admit(LiveSession& s, const std::shared_ptr<HubClient>& c,
               {"size", sizeJson(ss.volume().dims())},
               {"revision", ss.revision()},
               {"digest", digestText(ss.digest())},
+              {"base_color", baseColorJson(ss.volume())},
               {"protocol", {{"major", protocol::kProtocolMajor}, {"minor", protocol::kProtocolMinor}}},
               {"limits", limitsJson(l)},
               {"can_undo", ss.canUndo()},

@@ -36,6 +36,8 @@ struct HubCore;
 
 // A grid size as the session's description gives it: [x, y, z] in voxels.
 nlohmann::json sizeJson(Int3 dims);
+// The session's base colour as the wire writes it: [r, g, b] (session.create/join/fork results).
+nlohmann::json baseColorJson(const Volume& vol);
 
 class SessionRegistry {
  public:

@@ -124,5 +124,5 @@ test("a presence: the brush only on the model of an editable session, the camera
   assert.equal(composePresence({ brush: { ...brush, radius: 2000 }, camera, readOnly: false }, presenceParams).brush.radius, 1024, "radius within the protocol's range");
   const far = { ...camera, eye: [64, 64, 2e5] };
   assert.deepEqual(composePresence({ brush, camera: far, readOnly: false }, presenceParams), { brush }, "an eye beyond 1e5 vu is left out");
-  assert.throws(() => composePresence({ brush: { ...brush, tool: "paint" }, camera, readOnly: false }, presenceParams), RangeError, "a programming error still throws");
+  assert.throws(() => composePresence({ brush: { ...brush, tool: "no_such_tool" }, camera, readOnly: false }, presenceParams), RangeError, "a programming error still throws");
 });

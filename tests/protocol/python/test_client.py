@@ -121,7 +121,7 @@ class WithFakeServer(unittest.TestCase):
         create, frame = server.requests
         self.assertEqual(create["method"], "session.create")
         self.assertEqual(create["params"], {"size": [64, 64, 64], "solid": "pig", "session": proposed,
-                                            "protocol": 1, "view": "none"})
+                                            "protocol": 1, "view": "none", "splats": 2})
         self.assertEqual((client.session, client.token, client.view_token), (proposed, "t0k", "v1ew"))
         self.assertEqual(result["revision"], 0)
         self.assertEqual(frame["method"], "render.frame")

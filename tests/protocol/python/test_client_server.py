@@ -61,7 +61,7 @@ class AgainstServer(ServerTestCase):
         self.assertNotEqual(r["token"], r["view_token"])
         self.assertEqual((r["client"], r["size"], r["revision"]), (1, [40, 32, 24], 0))
         self.assertRegex(r["digest"], HEX16)
-        self.assertEqual(r["protocol"], {"major": 1, "minor": 6})
+        self.assertEqual(r["protocol"], {"major": 1, "minor": 7})
         self.assertEqual(set(r["limits"]), LIMIT_KEYS)
         self.assertEqual((r["can_undo"], r["can_redo"], r["read_only"]), (False, False, False))
         self.assertEqual(r["clients"], [{"client": 1, "read_only": False, "name": "Sculptor 1", "color": "#e6194b"}])
@@ -161,7 +161,7 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(errors["outside"].field, "center")
         self.assertEqual(errors["op in tool.apply"].field, "op")
         self.assertEqual(errors["solid"].field, "solid")
-        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 6})
+        self.assertEqual(errors["protocol"].data.get("supported"), {"major": 1, "minor": 7})
         self.assertEqual(errors["exists"].code, -32014)
         self.assertEqual(errors["grid"].data.get("limit"), "max_grid_side")
         self.assertEqual(errors["frame side"].data.get("limit"), "max_frame_side")
@@ -471,6 +471,63 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(in_one["digest"], in_four["digest"])
         self.assertEqual(off.data.get("field"), "center")
         self.assertEqual(mirrored.data.get("field"), "symmetry")
+
+    def test_paint_and_mask_colour_and_protect_the_clay(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                created = await client.create_session(64, "sphere", base_color=[120, 130, 150])
+                start = await client.stats()
+                side = [31.5 + 22.4, 31.5, 31.5]  # the 64^3 sphere's surface point on +x
+                painted = await client.paint([200, 20, 10], [side, [side[0], 34, 31.5]], radius=6, symmetry=["x"])
+                after_paint = await client.stats()
+                filled = await client.mask_fill()
+                frozen = await client.stats()
+                blob = await client.stroke("add_blob", [side], radius=8)
+                after_blob = await client.stats()
+                inverted = await client.mask_invert()
+                erased = await client.mask([[9.1, 31.5, 31.5]], erase=True, radius=6)
+                cleared = await client.mask_clear()
+                steps = [s["tool"] for s in await client.history(limit=10)]
+                # The same through apply_op, as `marzipan batch`'s lines.
+                await client.apply_op({"op": "mask", "action": "fill"})
+                await client.apply_op({"stroke": {"tool": "paint", "color": [0, 0, 255], "radius": 4}, "dabs": [side]})
+                unchanged = await client.stats()
+                for _ in range(3):
+                    await client.undo()
+                with self.assertRaises(rpc.InvalidParams) as no_colour:
+                    await client.begin_stroke("paint")
+                with self.assertRaises(rpc.InvalidParams) as bad_colour:
+                    await client.paint([0, 300, 0], [side])
+                with self.assertRaises(rpc.InvalidParams) as height:
+                    await client.stroke("paint", [side], color=[1, 2, 3], height=2)
+                undone = await client.stats()
+                return (created, start, painted, after_paint, filled, frozen, blob, after_blob, inverted, erased,
+                        cleared, steps, unchanged, no_colour.exception, bad_colour.exception, height.exception, undone)
+
+        (created, start, painted, after_paint, filled, frozen, blob, after_blob, inverted, erased, cleared, steps,
+         unchanged, no_colour, bad_colour, height, undone) = run(go())
+        self.assertEqual(created["base_color"], [120, 130, 150])
+        # Paint moves no geometry: the same volume and area, another digest.
+        self.assertEqual(painted["revision"], 1)  # both dabs in one message: one application
+        self.assertNotEqual(after_paint["digest"], start["digest"])
+        self.assertEqual(after_paint["inside_volume"], start["inside_volume"])
+        self.assertEqual(after_paint["surface_area"], start["surface_area"])
+        self.assertEqual(filled["roi"]["lo"], [0, 0, 0])
+        # Under the full mask an add_blob stroke changes nothing.
+        self.assertEqual(blob["applied"], 0)
+        self.assertEqual(after_blob["digest"], frozen["digest"])
+        self.assertEqual(after_blob["revision"], frozen["revision"])
+        self.assertEqual(inverted["revision"], frozen["revision"] + 1)
+        self.assertIsNone(erased.get("plane"))
+        self.assertIsNone(cleared["roi"])  # inverted from full: nothing was masked any more
+        # Newest first; the erase (over nothing masked) and the clear (of nothing) made no step.
+        self.assertEqual(steps, ["mask.invert", "mask.fill", "paint"])
+        # The paint under the full mask changed nothing: the digest of the fill alone.
+        self.assertEqual(unchanged["digest"], frozen["digest"])
+        self.assertEqual(no_colour.data.get("field"), "color")
+        self.assertEqual(bad_colour.data.get("field"), "color")
+        self.assertEqual(height.data.get("field"), "height")
+        self.assertEqual(undone["digest"], after_paint["digest"])
 
     def test_two_clients_see_each_others_changes(self):
         async def go():
