@@ -64,6 +64,7 @@ CsgToolOp parseCsg(const json& obj, CsgOp csg) {
   if (find(obj, kParamAxis.key) && op.params.shape != ToolShape::Cylinder)
     fail(kParamAxis.key, "applies to shape \"cylinder\" only");
   op.params.axis = int(enumParam(obj, kParamAxis, context));
+  op.color = colorParam(obj, kParamCsgColor, context);
   return op;
 }
 
@@ -151,6 +152,7 @@ json toJson(const Op& op) {
                     {"radius", o.params.radius},
                     {"blend", o.params.blend}};
           if (o.params.shape == ToolShape::Cylinder) j["axis"] = kAxisValues[std::size_t(o.params.axis)];
+          if (o.color) j["color"] = json::array({o.color->r, o.color->g, o.color->b});
           return j;
         } else if constexpr (std::is_same_v<T, MorphOp>) {
           return {{"op", kOpMorph}, {"kind", nameOf(kMorphKindNames, o.kind)}, {"radius", o.radius}};

@@ -49,9 +49,13 @@ struct GlobalSmoothOp {
 
 struct CsgToolOp {
   CsgParams params;  // axis and blend default to y and 0
+  // The colour of what a union adds, or for subtract and intersect of the new walls cut (since
+  // 1.7, kParamCsgColor); absent: colour follows by extension (engine applyCsg).
+  std::optional<SrgbColor> color;
   friend bool operator==(const CsgToolOp& a, const CsgToolOp& b) {
     return a.params.op == b.params.op && a.params.shape == b.params.shape && a.params.center == b.params.center &&
-           a.params.radius == b.params.radius && a.params.axis == b.params.axis && a.params.blend == b.params.blend;
+           a.params.radius == b.params.radius && a.params.axis == b.params.axis && a.params.blend == b.params.blend &&
+           a.color == b.color;
   }
 };
 

@@ -92,7 +92,7 @@ struct SrgbColor {
 };
 
 // What mask.clear / mask.invert / mask.fill do to the mask weight w of every band voxel
-// (server/engine/paint.hpp, maskAll): w = 0, w = 255 - w, w = 255.
+// (server/engine/paint.hpp, maskClear, maskInvert, maskFill): w = 0, w = 255 - w, w = 255.
 enum class MaskAction { Clear, Invert, Fill };
 inline constexpr std::array<WireName<MaskAction>, 3> kMaskActionNames{{
     {MaskAction::Clear, "clear"},

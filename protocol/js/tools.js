@@ -132,6 +132,15 @@ export const PARAMETERS = frozen({
     "in": ["op"],
     "description": "the cylinder's axis",
   },
+  "csg_color": {
+    "id": "csg_color",
+    "key": "color",
+    "type": "color",
+    "optional": true,
+    "in": ["op"],
+    "since": "1.7",
+    "description": "the colour of what a union adds (subtract, intersect: of the new walls cut); absent: the colour follows the clay by extension",
+  },
   "iterations": {
     "id": "iterations",
     "key": "iterations",
@@ -557,6 +566,7 @@ export const TOOLS = frozen([
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "c",
@@ -580,6 +590,7 @@ export const TOOLS = frozen([
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "x",
@@ -603,6 +614,7 @@ export const TOOLS = frozen([
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "u",

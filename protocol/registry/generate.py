@@ -52,7 +52,7 @@ TOOL_KINDS = {
     "csg": {
         # CsgToolOp (CsgParams); CsgOp is values.hpp's, shared with the engine (applyCsg).
         "enum": "CsgOp", "defines_enum": False, "names": "kCsgToolNames", "engine_enum": "CsgOp",
-        "keys": {"shape", "center", "radius", "blend", "axis"}, "strokes": False, "cpp": "Csg",
+        "keys": {"shape", "center", "radius", "blend", "axis", "color"}, "strokes": False, "cpp": "Csg",
         "title": "CSG", "op": True, "dabs": {"swept"},
     },
     "warp": {

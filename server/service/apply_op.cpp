@@ -38,11 +38,22 @@ Edit apply(Volume& vol, const GlobalSmoothOp& op, ThreadPool& pool) {
   return applyGlobalSmooth(vol, op.iterations, op.strength, pool);
 }
 
-Edit apply(Volume& vol, const CsgToolOp& op, ThreadPool& pool) { return applyCsg(vol, op.params, pool); }
+Edit apply(Volume& vol, const CsgToolOp& op, ThreadPool& pool) {
+  std::optional<Rgb8> color;
+  if (op.color) color = Rgb8{op.color->r, op.color->g, op.color->b};
+  return applyCsg(vol, op.params, pool, color);
+}
 
 Edit apply(Volume& vol, const MorphOp& op, ThreadPool& pool) { return applyMorph(vol, op.kind, op.radius, pool); }
 
-Edit apply(Volume& vol, const MaskOp& op, ThreadPool& pool) { return maskAll(vol, op.action, pool); }
+Edit apply(Volume& vol, const MaskOp& op, ThreadPool&) {
+  switch (op.action) {
+    case MaskAction::Clear: return maskClear(vol);
+    case MaskAction::Invert: return maskInvert(vol);
+    case MaskAction::Fill: return maskFill(vol);
+  }
+  throw EngineError(ErrorKind::InvalidArgument, "action", "must be clear, invert or fill");
+}
 
 // The voxels of a cube of half side `reach` around a point, clipped to the domain (the
 // centre is unknown before a pick, so the worst place is assumed).

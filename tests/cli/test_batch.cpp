@@ -354,6 +354,16 @@ TEST_CASE("paint and mask in an ops file: stroke lines colour, the mask op lines
   CHECK(bad.status == 1);
   CHECK_THAT(bad.err, Catch::Contains("bad.jsonl:2:"));
   CHECK_THAT(bad.err, Catch::Contains("action"));
+  writeText(dir / "csg.jsonl", "{\"tool\":\"csg_add\",\"shape\":\"sphere\",\"center\":[57.9,31.5,31.5],\"radius\":4,"
+                               "\"color\":[20,40,220]}\n");
+  writeText(dir / "csg-plain.jsonl", "{\"tool\":\"csg_add\",\"shape\":\"sphere\",\"center\":[57.9,31.5,31.5],\"radius\":4}\n");
+  const Run coloured = runCli(dir, "batch csg.jsonl --size 64 --stats");
+  const Run uncoloured = runCli(dir, "batch csg-plain.jsonl --size 64 --stats");
+  REQUIRE(coloured.status == 0);
+  REQUIRE(uncoloured.status == 0);
+  // The same union, the colour only in the digest.
+  CHECK(statsLines(coloured.out)[0]["inside_volume"] == statsLines(uncoloured.out)[0]["inside_volume"]);
+  CHECK(statsLines(coloured.out)[0]["digest"] != statsLines(uncoloured.out)[0]["digest"]);
   writeText(dir / "nocolour.jsonl", "{\"stroke\":{\"tool\":\"paint\"},\"dabs\":[[53.9,31.5,31.5]]}\n");
   const Run nocolour = runCli(dir, "batch nocolour.jsonl --size 64");
   CHECK(nocolour.status == 1);

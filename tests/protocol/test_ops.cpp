@@ -183,7 +183,7 @@ TEST_CASE("numbers out of range, non-finite numbers and unknown names are named"
 
   requireRefused(with(kBrush, "tool", "add_blobs"), "tool", "must be one of");
   requireRefused(with(kBrush, "tool", ""), "tool", "must be one of");
-  requireRefused(json{{"op", "explode"}}, "op", "must be \"smooth\" or \"morph\"");
+  requireRefused(json{{"op", "explode"}}, "op", "must be \"smooth\", \"morph\" or \"mask\"");
 }
 
 TEST_CASE("unknown keys are refused, also keys that belong to another tool", "[ops]") {
@@ -262,6 +262,11 @@ TEST_CASE("opName gives the name an op is known by", "[ops]") {
   CHECK(opName(parseOp(kCsg)) == "csg_add");
   CHECK(opName(parseOp(kGlobal)) == "smooth");
   CHECK(opName(parseOp(kMorph)) == "morph");
+  // A mask op is named as its method, as history.list names its step.
+  CHECK(opName(parseOp(json{{"op", "mask"}, {"action", "clear"}})) == "mask.clear");
+  CHECK(opName(parseOp(json{{"op", "mask"}, {"action", "invert"}})) == "mask.invert");
+  CHECK(opName(parseOp(json{{"op", "mask"}, {"action", "fill"}})) == "mask.fill");
+  CHECK(std::get<MaskOp>(parseOp(json{{"op", "mask"}, {"action", "fill"}})).action == MaskAction::Fill);
 }
 
 TEST_CASE("messages stay short and valid UTF-8 whatever the input", "[ops]") {

@@ -80,6 +80,7 @@ json baseOp(const json& tool) {
   for (const json& p : ops) {
     const std::string key = p["key"];
     if (p["type"] == "point") op[key] = {1.5, 2, -3};
+    else if (p["type"] == "color") op[key] = {10, 200, 30};
     else if (p["type"] == "enum") {
       std::string value = p.value("default", p["values"][0].get<std::string>());
       for (const json& other : ops)
@@ -201,6 +202,8 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
   CHECK(kParamPaintColor.optional == param("paint_color").value("optional", false));
   CHECK(kParamErase.key == param("erase")["key"].get<std::string>());
   CHECK(kParamErase.defaultValue == param("erase")["default"].get<bool>());
+  CHECK(kParamCsgColor.key == param("csg_color")["key"].get<std::string>());
+  CHECK(kParamCsgColor.optional == param("csg_color").value("optional", false));
   CHECK(kParamDirection.key == param("direction")["key"].get<std::string>());
   CHECK(kParamCenter.bound == param("center")["bound"].get<double>());
   CHECK(kMaxCoordinate == kParamCenter.bound);
@@ -237,6 +240,13 @@ TEST_CASE("every tool parses with its parameters at their bounds and is refused 
       json bad = base;
       bad[key] = "not a value";
       if (p["type"] != "enum") CHECK(refusedField(bad) == key);
+      if (p["type"] == "color") {
+        CHECK(toJson(parseOp(base))[key] == base[key]);
+        for (const json& wrong : {json{256, 0, 0}, json{-1, 0, 0}, json{0.5, 0, 0}, json{1, 2}}) {
+          bad[key] = wrong;
+          CHECK(refusedField(bad) == key);
+        }
+      }
       if (p["type"] == "number" || p["type"] == "integer") {
         const bool integer = p["type"] == "integer";
         const double lo = p["minimum"], hi = most(p, key == "radius" ? 0 : radius);

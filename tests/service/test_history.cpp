@@ -109,7 +109,7 @@ TEST_CASE("history: steps of channels (paint, mask) and of distances over painte
   mask.radius = 6;
   h.push(paint(v, mask, {kC, kSurface, kC}));
   digests.push_back(digest(v));
-  h.push(maskAll(v, MaskAction::Invert, pool));
+  h.push(maskInvert(v));
   digests.push_back(digest(v));
   for (std::size_t i = 1; i < digests.size(); ++i) CHECK(digests[i] != digests[i - 1]);
   // Every step but the newest is packed now; two rounds move each through both packings.

@@ -122,7 +122,7 @@ TEST_CASE("session.create answers with ids, limits and the version, then a full 
   CHECK(r["size"] == json({64, 64, 64}));
   CHECK(r["revision"] == 0);
   CHECK(r["client"] == 1);
-  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 6}}));
+  CHECK(r["protocol"] == json({{"major", 1}, {"minor", 7}}));
   CHECK(r["limits"]["max_grid_side"] == 128);
   CHECK(r["limits"]["max_dabs"] == 256);
   CHECK(r["read_only"] == false);

@@ -52,7 +52,8 @@ std::uint64_t stroke(TestClient& c, const json& begin, const std::vector<json>& 
 
 std::vector<std::string> stepTools(TestClient& c) {
   std::vector<std::string> out;
-  for (const json& st : c.result("history.list")["steps"]) out.push_back(st["tool"]);
+  const json listed = c.result("history.list");
+  for (const json& st : listed["steps"]) out.push_back(st["tool"]);
   return out;
 }
 
@@ -80,7 +81,7 @@ TEST_CASE("hub paint: paint and mask strokes are steps that undo and redo to the
   stroke(a, {{"tool", "mask"}, {"radius", 8}, {"erase", true}}, {kOtherSide});
   // Erased where it was added: lower again (gone in the brush's core, where alpha is 1).
   CHECK(digestOf(a) != masked);
-  CHECK(stepTools(a) == std::vector<std::string>{"paint", "mask", "mask"});
+  CHECK(stepTools(a) == std::vector<std::string>{"mask", "mask", "paint"});  // newest first
   a.result("history.undo");
   CHECK(digestOf(a) == masked);
   a.result("history.undo");
@@ -116,7 +117,7 @@ TEST_CASE("hub paint: mask.fill, mask.invert and mask.clear are steps, view clie
   const json none = a.result("mask.clear");
   CHECK(none["revision"] == 4);
   CHECK(none["roi"].is_null());
-  CHECK(stepTools(a) == std::vector<std::string>{"mask.fill", "mask.invert", "mask.fill", "mask.clear"});
+  CHECK(stepTools(a) == std::vector<std::string>{"mask.clear", "mask.fill", "mask.invert", "mask.fill"});  // newest first
   CHECK(errorOf(a, "mask.fill", {{"weight", 255}})["code"] == -32602);
   a.result("history.undo");
   CHECK(digestOf(a) == full);
@@ -197,6 +198,7 @@ TEST_CASE("hub paint: the journal, cut by snapshots inside paint strokes, recove
     a.result("history.redo");
     stroke(a, {{"tool", "mask"}, {"radius", 6}, {"erase", true}, {"accumulate", true}}, {kSide, kSide});
     a.result("mask.invert");
+    a.result("tool.apply", {{"tool", "csg_add"}, {"shape", "box"}, {"center", {31.5, 53.9, 31.5}}, {"radius", 4}, {"color", {0, 255, 0}}});
     // A paint stroke left open over the last snapshots: recovery ends it where it was, its memory
     // cut by the snapshot and announced again at the head of the new journal.
     const std::uint64_t open = a.result("stroke.begin", {{"tool", "paint"}, {"color", {0, 0, 255}}, {"radius", 5}})["stroke"];

@@ -87,7 +87,7 @@ TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke
   };
   step(s.apply(blob(BrushTool::AddBlob, {kSurface, kC, kC}), pool));
   digests.push_back(digest(s.volume()));
-  step(s.apply(protocol::CsgToolOp{{CsgOp::Subtract, ToolShape::Sphere, {kC, kSurface, kC}, 5, 1, 0}}, pool));
+  step(s.apply(protocol::CsgToolOp{{CsgOp::Subtract, ToolShape::Sphere, {kC, kSurface, kC}, 5, 1, 0}, std::nullopt}, pool));
   digests.push_back(digest(s.volume()));
   step(s.apply(protocol::MorphOp{protocol::MorphKind::Dilate, 1}, pool));
   digests.push_back(digest(s.volume()));

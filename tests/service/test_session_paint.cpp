@@ -233,17 +233,17 @@ TEST_CASE("session paint: undo mine takes one author's paint away and leaves the
 TEST_CASE("session paint: the whole mask ops are one step each, named as their methods", "[session][paint][mask]") {
   Session s(sphere());
   const std::uint64_t start = s.digest();
-  CHECK(s.apply(protocol::MaskOp{protocol::MaskAction::Fill}, ThreadPool::serial()).changed);
+  CHECK(s.apply(protocol::MaskOp{MaskAction::Fill}, ThreadPool::serial()).changed);
   const std::uint64_t full = s.digest();
   CHECK(full != start);
-  CHECK(s.apply(protocol::MaskOp{protocol::MaskAction::Invert}, ThreadPool::serial()).changed);
+  CHECK(s.apply(protocol::MaskOp{MaskAction::Invert}, ThreadPool::serial()).changed);
   // Full inverted is empty: the start again, channels and all.
   CHECK(s.digest() == start);
   CHECK(s.volume().paintedBricks() == 0);
-  CHECK(s.apply(protocol::MaskOp{protocol::MaskAction::Fill}, ThreadPool::serial()).changed);
-  CHECK(s.apply(protocol::MaskOp{protocol::MaskAction::Clear}, ThreadPool::serial()).changed);
+  CHECK(s.apply(protocol::MaskOp{MaskAction::Fill}, ThreadPool::serial()).changed);
+  CHECK(s.apply(protocol::MaskOp{MaskAction::Clear}, ThreadPool::serial()).changed);
   // Clearing an empty mask changes nothing and makes no step.
-  CHECK_FALSE(s.apply(protocol::MaskOp{protocol::MaskAction::Clear}, ThreadPool::serial()).changed);
+  CHECK_FALSE(s.apply(protocol::MaskOp{MaskAction::Clear}, ThreadPool::serial()).changed);
   std::vector<std::string> names;
   for (const StepInfo& st : s.steps()) names.push_back(st.tool);
   CHECK(names == std::vector<std::string>{"mask.fill", "mask.invert", "mask.fill", "mask.clear"});
@@ -257,7 +257,7 @@ TEST_CASE("session paint: under a full mask add_blob, smooth and csg_add leave d
   const StrokeId p = s.beginPaint(red(8));
   s.strokeDabs(p, centres({kSide}), ThreadPool::serial());
   s.endStroke(p);
-  s.apply(protocol::MaskOp{protocol::MaskAction::Fill}, ThreadPool::serial());
+  s.apply(protocol::MaskOp{MaskAction::Fill}, ThreadPool::serial());
   const auto bits = distanceBits(s.volume());
   const auto colours = texels(s.volume());
   const std::uint64_t frozen = s.digest();
@@ -332,4 +332,33 @@ TEST_CASE("session paint: refusals name the field and change nothing", "[session
   CHECK(s.digest() == start);
   CHECK(s.revision() == 0);
   CHECK(s.steps().empty());
+}
+
+TEST_CASE("session paint: csg_add with a colour paints what it adds, and its op object keeps the colour", "[session][paint][csg]") {
+  protocol::CsgToolOp op;
+  op.params.op = CsgOp::Add;
+  op.params.center = kSide + Vec3{4, 0, 0};
+  op.params.radius = 4;
+  op.color = SrgbColor{20, 40, 220};
+  Session s(sphere());
+  REQUIRE(s.apply(op, ThreadPool::serial()).changed);
+  // The new bump's outermost surface voxel, 4 vu beyond the sphere: the union's colour.
+  const Int3 tip{int(std::lround(kC + kR + 8)), int(kC), int(kC)};
+  CHECK(std::fabs(s.volume().at(tip)) < s.volume().band());
+  CHECK(s.volume().texel(tip) == texelOf(Rgb8{20, 40, 220}));
+  // The far side keeps the clay.
+  CHECK(s.volume().texel({int(std::lround(kC - kR)), int(kC), int(kC)}) == texelOf(kClayColor));
+  // The op object round-trips with its colour (the journal replays it so), and without one the
+  // same union leaves another digest.
+  const protocol::Op parsed = protocol::parseOp(protocol::toJson(protocol::Op(op)));
+  CHECK(std::get<protocol::CsgToolOp>(parsed).color == op.color);
+  Session again(sphere());
+  again.apply(parsed, ThreadPool::serial());
+  CHECK(again.digest() == s.digest());
+  protocol::CsgToolOp plain = op;
+  plain.color.reset();
+  Session uncoloured(sphere());
+  uncoloured.apply(plain, ThreadPool::serial());
+  CHECK(uncoloured.digest() != s.digest());
+  CHECK(uncoloured.volume().paintedBricks() == 0);
 }

@@ -124,6 +124,15 @@ PARAMETERS = {
     "in": ["op"],
     "description": "the cylinder's axis",
   },
+  "csg_color": {
+    "id": "csg_color",
+    "key": "color",
+    "type": "color",
+    "optional": True,
+    "in": ["op"],
+    "since": "1.7",
+    "description": "the colour of what a union adds (subtract, intersect: of the new walls cut); absent: the colour follows the clay by extension",
+  },
   "iterations": {
     "id": "iterations",
     "key": "iterations",
@@ -549,6 +558,7 @@ TOOLS = [
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "c",
@@ -572,6 +582,7 @@ TOOLS = [
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "x",
@@ -595,6 +606,7 @@ TOOLS = [
       PARAMETERS["shape_radius"],
       PARAMETERS["blend"],
       PARAMETERS["axis"],
+      PARAMETERS["csg_color"],
     ],
     "browser": {
       "key": "u",
