@@ -4,7 +4,8 @@
 // Conventions: revisions are Numbers (they fit in 53 bits, PROTOCOL.md "Revisions"), the
 // digest is 16 hex digits. Streaming: create and join ask for `splats` (a full buffer, then
 // deltas after every change); so does a rejoin after a dropped connection, whose full buffer
-// resyncs the client (the frame view asks for its mode again on "joined" with rejoined).
+// resyncs the client (the frame view asks for its mode again on "joined" with rejoined). The
+// buffers are of splat format version 2 (`splats: 2`): points carry colour and mask.
 // Events (EventTarget, detail in event.detail):
 //   "connection" {state: connecting|connected|reconnecting|closed, because, attempt?, delayMs?}:
 //   `because` says why the connection of an open session dropped ("code 1006"), null while it holds
@@ -18,6 +19,7 @@
 
 import { FrameKind } from "/protocol/js/frames.js";
 import { PROTOCOL_VERSION, RpcErrorCode } from "/protocol/js/rpc.js";
+import { SPLAT_FORMAT_VERSION } from "/protocol/js/splats.js";
 import { Connection } from "./connection.js";
 import { RpcError } from "./rpc-error.js";
 import { newSessionId, socketUrl } from "./session-link.js";
@@ -70,6 +72,7 @@ export class SessionClient extends EventTarget {
           session,
           protocol: PROTOCOL_VERSION.major,
           view: "splats",
+          splats: SPLAT_FORMAT_VERSION, // colour and mask (splat format version 2)
           ...nameParam(name),
         });
         this.#credentials = { session: result.session, token: result.token, name };
@@ -94,6 +97,7 @@ export class SessionClient extends EventTarget {
         token,
         protocol: PROTOCOL_VERSION.major,
         view: "splats",
+        splats: SPLAT_FORMAT_VERSION,
         ...nameParam(name),
       });
       this.#credentials = { session, token, name };
@@ -315,6 +319,7 @@ export class SessionClient extends EventTarget {
         token: creds.token,
         protocol: PROTOCOL_VERSION.major,
         view: "splats",
+        splats: SPLAT_FORMAT_VERSION,
         ...nameParam(creds.name),
       });
       this.#joined(result, true);
