@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/solids.hpp"
+#include "engine/support.hpp"
 #include "engine/splats.hpp"
 #include "engine/volume_file.hpp"
 #include "protocol/cpp/frames.hpp"
@@ -467,6 +468,46 @@ TEST_CASE("outputs are sized from the band before they are built", "[hub]") {
   const json loaded = std::get<json>(a.link->at(a.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
   CHECK(loaded["error"]["data"]["limit"] == "max_volume_bytes");
   CHECK(a.result("session.stats")["revision"] == 0);
+}
+
+// A painted session's mesh files carry vertex colours (marching_cubes.hpp): the estimate counts
+// their bytes too.
+TEST_CASE("a painted session's mesh files are sized with their colours", "[hub][color]") {
+  Volume painted = makeSolid(SolidKind::Pig, {96, 96, 96});
+  test::paintBricks(painted, [](Int3 b, int i) {
+    const Int3 p = Bricks::origin(b) + Bricks::local(i);
+    return Texel{std::uint8_t(2 * p.x), std::uint8_t(2 * p.y), std::uint8_t(2 * p.z), 0};
+  });
+  const std::vector<std::uint8_t> file = saveVolume(painted);
+  auto load = [&](TestClient& c) {
+    const int id = c.nextId++;
+    c.hub.text(c.client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", "volume.load"}, {"params", {{"bytes", file.size()}}}}.dump());
+    c.hub.binary(c.client, protocol::encodeFrame(protocol::FrameKind::VolumeUpload, std::uint32_t(id), 0, file));
+    const json loaded = std::get<json>(c.link->at(c.link->waitFor([&](const auto& m) { return isResponse(m, id); })));
+    REQUIRE(loaded.contains("result"));
+  };
+  std::map<std::string, std::size_t> real;
+  {
+    Hub hub(smallOptions());
+    TestClient a(hub);
+    a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+    load(a);
+    for (const char* format : {"obj", "ply", "glb"}) real[format] = a.result("mesh.export", {{"format", format}})["bytes"];
+  }
+  HubOptions o = smallOptions();
+  o.limits.maxOutputBytes = 1;
+  Hub hub(o);
+  TestClient a(hub);
+  a.result("session.create", {{"size", {96, 96, 96}}, {"solid", "pig"}, {"view", "none"}});
+  load(a);
+  for (const auto& [format, bytes] : real) {
+    const json refused = a.call("mesh.export", {{"format", format}});
+    REQUIRE(refused["error"]["data"]["limit"] == "max_output_bytes");
+    const double ratio = refused["error"]["data"]["value"].get<double>() / double(bytes);
+    INFO(format << ": estimate " << refused["error"]["data"]["value"] << ", file " << bytes << ", ratio " << ratio);
+    CHECK(ratio > 0.9);
+    CHECK(ratio < 1.1);
+  }
 }
 
 TEST_CASE("the requester gets its response, then the notification, then the delta", "[hub]") {

@@ -51,9 +51,12 @@ std::size_t crossedEdges(const Volume& vol) {
 // Bytes of a mesh file per crossed edge (one vertex, two triangles): STL 2 x 50; OBJ a "v"
 // line and two "f" lines, PLY a vertex with its normal and two faces (140 and 55, measured on
 // the 96^3 pig 2026-11-24; tests/service/test_hub.cpp holds each within 0.8-1.3 of the file);
-// GLB a position and normal (24 bytes) and two triangles of 32-bit indices (24): 48.
-std::size_t meshBytesPerEdge(const std::string& format) {
-  return format == "stl" ? 100 : format == "obj" ? 140 : format == "glb" ? 48 : 55;
+// GLB a position and normal (24 bytes) and two triangles of 32-bit indices (24): 48. A vertex's
+// colour (marching_cubes.hpp, carriesColor) adds its bytes: OBJ " 0.8667 0.7098 0.6078" (21),
+// PLY three uchar, GLB three floats.
+std::size_t meshBytesPerEdge(const std::string& format, bool colored) {
+  const std::size_t plain = format == "stl" ? 100 : format == "obj" ? 140 : format == "glb" ? 48 : 55;
+  return plain + (!colored || format == "stl" ? 0 : format == "obj" ? 21 : format == "glb" ? 12 : 3);
 }
 
 protocol::FrameKind meshFrameKind(const std::string& format) {
@@ -138,7 +141,7 @@ void meshExport(HubCore& hub, const Call& call) {
   hub.offStrand(call, [self = hub.shared_from_this(), p, frameId = call.req.frameId](const Volume& vol,
                                                                                       std::uint64_t revision, Reply& r) {
     const std::string& format = p.format;
-    const std::size_t estimate = crossedEdges(vol) * meshBytesPerEdge(format);
+    const std::size_t estimate = crossedEdges(vol) * meshBytesPerEdge(format, carriesColor(vol));
     const std::size_t max = self->limits().maxOutputBytes;
     if (estimate > max)
       throw RpcException(RpcCode::LimitExceeded,
