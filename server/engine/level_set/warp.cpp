@@ -165,16 +165,16 @@ struct Velocity {
     if (kind == Kind::Capsule && segLength2 > 0) {
       ball(anchor + seg);
       // The cylinder between the end planes: for x = anchor.x + s, a(s) = a0 + s ax along the
-      // axis and the squared distance to its line A s^2 + B s + C + R^2.
+      // axis and the squared distance to its line qa s^2 + qb s + qc + R^2.
       const double length = std::sqrt(segLength2);
       const Vec3 axis = seg / length, r0{0, y - anchor.y, z - anchor.z};
       const double ax = axis.x, a0 = dot(r0, axis);
-      const double A = 1 - ax * ax, B = -2 * a0 * ax, C = dot(r0, r0) - a0 * a0 - R2;
+      const double qa = 1 - ax * ax, qb = -2 * a0 * ax, qc = dot(r0, r0) - a0 * a0 - R2;
       double s0 = -1e300, s1 = 1e300;
-      if (A > 1e-9) {
-        const double disc = B * B - 4 * A * C;
+      if (qa > 1e-9) {
+        const double disc = qb * qb - 4 * qa * qc;
         if (disc <= 0) s0 = 1e300;
-        else s0 = (-B - std::sqrt(disc)) / (2 * A), s1 = (-B + std::sqrt(disc)) / (2 * A);
+        else s0 = (-qb - std::sqrt(disc)) / (2 * qa), s1 = (-qb + std::sqrt(disc)) / (2 * qa);
       }
       if (std::fabs(ax) > 1e-9) {
         const double e0 = -a0 / ax, e1 = (length - a0) / ax;
