@@ -155,6 +155,15 @@ bool sameBrick(const BrickRef& a, const BrickRef& b) {
          samePaint(a.paint.get(), b.paint.get());
 }
 
+// A dab's centre: its point, or where its ray meets `start`'s surface (none, counted in
+// result.missed, when the ray misses it).
+std::optional<Vec3> dabCentre(const Volume& start, const Dab& dab, ApplyResult& result) {
+  if (const auto* c = std::get_if<Vec3>(&dab.at)) return *c;
+  const Ray& ray = std::get<Ray>(dab.at);
+  const std::optional<Vec3> hit = pickSurface(start, ray.origin, ray.direction);
+  if (!hit) ++result.missed;
+  return hit;
+}
 
 }  // namespace
 
@@ -354,14 +363,7 @@ ApplyResult Session::paintDabs(StrokeId id, const std::vector<Dab>& dabs, Thread
   ApplyResult result;
   std::vector<StrokeDab> images;
   for (std::size_t i = 0; i < dabs.size(); ++i) {
-    std::optional<Vec3> centre;
-    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
-      centre = *c;
-    } else {
-      const Ray& ray = std::get<Ray>(dabs[i].at);
-      centre = pickSurface(start, ray.origin, ray.direction);
-      if (!centre) ++result.missed;
-    }
+    const std::optional<Vec3> centre = dabCentre(start, dabs[i], result);
     result.hits.push_back(centre);
     result.normals.push_back(Vec3{});
     const double pressure = dabs[i].pressure.value_or(1.0);
@@ -564,14 +566,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   std::optional<Plane> plane = stroke.plane;
   std::vector<StrokeDab> images;
   for (std::size_t i = 0; i < dabs.size(); ++i) {
-    std::optional<Vec3> centre;
-    if (const auto* c = std::get_if<Vec3>(&dabs[i].at)) {
-      centre = *c;
-    } else {
-      const Ray& ray = std::get<Ray>(dabs[i].at);
-      centre = pickSurface(start, ray.origin, ray.direction);
-      if (!centre) ++result.missed;
-    }
+    const std::optional<Vec3> centre = dabCentre(start, dabs[i], result);
     result.hits.push_back(centre);
     const std::string field = "dabs[" + std::to_string(i) + "]";
     const double pressure = dabs[i].pressure.value_or(1.0);

@@ -306,38 +306,16 @@ void toolApply(HubCore& hub, const Call& call) {
   });
 }
 
-void volumeMorph(HubCore& hub, const Call& call) {
-  const protocol::MorphOp op = protocol::parseMorphParams(call.req.params);
-  const auto running = hub.track(call.client, call.req.id);
-  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, op, running](LiveSession& s, Reply& r) {
-    const OpCost cost = estimateCost(s.session->volume(), op);
-    self->checkBudget(cost.voxels, "this morphology");
-    running->progress->setTotal(cost.passes);
-    std::optional<Workers::LongTask> longTask;
-    if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
-    const Progress::Scope scope(*running->progress);
-    const StepAuthor by = authorOf(*c);
-    const ApplyResult a = s.session->apply(op, self->pool, by);
-    running->done();
-    r.result = {{"revision", a.revision}, {"roi", protocol::boxJson(a.changed ? a.roi : Box{})}};
-    if (a.changed) {
-      r.record = [op, a, by, t = stepTime(*s.session)] {
-        json rec{{"r", a.revision}, {"op", protocol::toJson(protocol::Op(op))}};
-        stampRecord(rec, by, t);
-        return rec;
-      };
-      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "morph", a.roi, a.bricks, a.fullRefresh); };
-    }
-  });
-}
+namespace {
 
-void maskMethod(HubCore& hub, const Call& call) {
-  protocol::parseNoParams(call.req.params, call.req.method);
-  const protocol::Op op = protocol::MaskOp{protocol::maskActionOf(call.req.method)};
+// A whole-volume step (morphology, a mask operation): costed against the voxel budget before
+// any work, a long task when it is large, one undo step and one journal record.
+// what: the budget error's words; kind: the session.changed notification's.
+void applyWholeVolume(HubCore& hub, const Call& call, const protocol::Op& op, const char* what, const char* kind) {
   const auto running = hub.track(call.client, call.req.id);
-  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, op, running](LiveSession& s, Reply& r) {
+  hub.onStrand(call, true, [self = hub.shared_from_this(), c = call.client, op, running, what, kind](LiveSession& s, Reply& r) {
     const OpCost cost = estimateCost(s.session->volume(), op);
-    self->checkBudget(cost.voxels, "this mask operation");
+    self->checkBudget(cost.voxels, what);
     running->progress->setTotal(cost.passes);
     std::optional<Workers::LongTask> longTask;
     if (cost.voxels > kLongOpVoxels) longTask.emplace(self->workers);
@@ -352,9 +330,21 @@ void maskMethod(HubCore& hub, const Call& call) {
         stampRecord(rec, by, t);
         return rec;
       };
-      r.after = [self, &s, c, a] { self->broadcast.changed(s, *c, "mask", a.roi, a.bricks, a.fullRefresh); };
+      r.after = [self, &s, c, a, kind] { self->broadcast.changed(s, *c, kind, a.roi, a.bricks, a.fullRefresh); };
     }
   });
+}
+
+}  // namespace
+
+void volumeMorph(HubCore& hub, const Call& call) {
+  const protocol::Op op = protocol::parseMorphParams(call.req.params);
+  applyWholeVolume(hub, call, op, "this morphology", "morph");
+}
+
+void maskMethod(HubCore& hub, const Call& call) {
+  protocol::parseNoParams(call.req.params, call.req.method);
+  applyWholeVolume(hub, call, protocol::MaskOp{protocol::maskActionOf(call.req.method)}, "this mask operation", "mask");
 }
 
 void strokeBegin(HubCore& hub, const Call& call) {
