@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include "brick.hpp"
 
@@ -47,5 +48,24 @@ struct BrickPaint {
   // BrickPaint passes through, so that geometry edits test one flag, not 512 weights.
   bool masked = false;
 };
+
+// Rewriting a stored brick's channels, copy on write: `now` is null until the first texel that
+// changes, then a copy of `was` (the brick's channels as published; null: every texel `base`).
+// The texel voxel i holds so far:
+inline Texel texelSoFar(const BrickPaint* now, const BrickPaint* was, Texel base, int i) {
+  return now ? now->t[i] : was ? was->t[i] : base;
+}
+// Sets voxel i's texel to t, making the copy first if there is none yet.
+inline void setTexel(std::shared_ptr<BrickPaint>& now, const BrickPaint* was, Texel base, int i, Texel t) {
+  if (!now) {
+    now = std::make_shared<BrickPaint>();
+    if (was) {
+      *now = *was;
+    } else {
+      for (Texel& x : now->t) x = base;
+    }
+  }
+  now->t[i] = t;
+}
 
 }  // namespace marzipan

@@ -29,18 +29,10 @@ void paintFromTool(const Volume& vol, std::vector<BrickChange>& changes, const B
       const Int3 r = p - region.lo;
       if (!fromTool[std::size_t(r.x) + std::size_t(rs.x) * (std::size_t(r.y) + std::size_t(rs.y) * std::size_t(r.z))])
         continue;
-      const Texel had = now ? now->t[i] : c.after.paint ? c.after.paint->t[i] : base;
+      const Texel had = texelSoFar(now.get(), c.after.paint.get(), base, i);
       const Texel t = tinted(had, color, 1);
       if (t == had) continue;
-      if (!now) {
-        now = std::make_shared<BrickPaint>();
-        if (c.after.paint) {
-          *now = *c.after.paint;
-        } else {
-          std::fill(std::begin(now->t), std::end(now->t), base);
-        }
-      }
-      now->t[i] = t;
+      setTexel(now, c.after.paint.get(), base, i, t);
     }
     if (now) c.after.paint = vol.canonicalPaint(std::move(now));
   }

@@ -117,18 +117,10 @@ std::shared_ptr<BrickPaint> paintBrick(const Volume& vol, Int3 b, const PaintSet
         for (const PaintDab* dab : remembered) m = std::max(m, falloff.alpha(q - dab->center, dab->weight));
         if (!(a > m)) continue;
         const int k = Bricks::index(x, y, z);
-        const Texel t = now ? now->t[k] : old ? old->t[k] : base;
+        const Texel t = texelSoFar(now.get(), old, base, k);
         const Texel n = painted(t, st, (a - m) / (1 - m));
         if (n == t) continue;
-        if (!now) {
-          now = std::make_shared<BrickPaint>();
-          if (old) {
-            *now = *old;
-          } else {
-            std::fill(std::begin(now->t), std::end(now->t), base);
-          }
-        }
-        now->t[k] = n;
+        setTexel(now, old, base, k, n);
       }
   return now;
 }

@@ -556,17 +556,9 @@ void Volume::extendChannels(std::vector<BrickChange>& changes) const {
       // it): then the old surface point nearest the voxel along one of 26 directions.
       if (!reached) q = nearestOldSurface(Vec3{double(p.x), double(p.y), double(p.z)}, q);
       const Texel t = texel({int(std::floor(q.x + 0.5)), int(std::floor(q.y + 0.5)), int(std::floor(q.z + 0.5))});
-      const Texel had = now ? now->t[i] : c.after.paint ? c.after.paint->t[i] : base;
+      const Texel had = texelSoFar(now.get(), c.after.paint.get(), base, i);
       if (t == had) continue;
-      if (!now) {
-        now = std::make_shared<BrickPaint>();
-        if (c.after.paint) {
-          *now = *c.after.paint;
-        } else {
-          std::fill(std::begin(now->t), std::end(now->t), base);
-        }
-      }
-      now->t[i] = t;
+      setTexel(now, c.after.paint.get(), base, i, t);
     }
     if (now) c.after.paint = canonicalPaint(std::move(now));
   }
