@@ -736,18 +736,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     options.resetBoxes = resetBoxes;
     options.movedBoxes = movedBoxes;
     options.normalizeKept = false;
-    options.progress = share.part(kRedistanceShare / 2);
+    options.progress = share.part(kRedistanceShare);
     redistanceRegion(s.warped, region, band, Outside::Source, options, pool);
-    // phi1 / |grad phi1| is a distance only to first order: where the map's stretch changes
-    // over a few voxels (the sides of a long grab) the kept values disagree with their
-    // neighbours. A second pass normalizes them by the central differences of the marched
-    // field, which are sound now (the whole-volume gradient error of a 3-radius grab fell from
-    // 0.293 / 0.0116 to 0.192 / 0.0054). A snake hook's move, one of many, skips it: at every
-    // move it shifts the zero set a little, and over a 200 vu drag the error rose (0.19 to 0.29).
-    if (&vol != &base) {
-      options.normalizeKept = true;
-      redistanceRegion(s.warped, region, band, Outside::Source, options, pool);
-    }
   }
   share.check();  // the last check: nothing below stops part way
 
