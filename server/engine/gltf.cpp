@@ -168,12 +168,15 @@ struct JsonValue {
   double number = 0;
   std::string text;
   std::vector<JsonValue> items;                           // Array
-  std::vector<std::pair<std::string, JsonValue>> members;  // Object
+  // Object: keys[i] names values[i] (two vectors: a pair holding the incomplete JsonValue does
+  // not compile with clang and libstdc++ 12).
+  std::vector<std::string> keys;
+  std::vector<JsonValue> values;
 
   const JsonValue* get(std::string_view key) const {
     if (kind != Object) return nullptr;
-    for (const auto& [k, v] : members)
-      if (k == key) return &v;
+    for (std::size_t i = 0; i < keys.size(); ++i)
+      if (keys[i] == key) return &values[i];
     return nullptr;
   }
 };
@@ -222,7 +225,8 @@ class JsonParser {
         space();
         std::string key = string();
         expect(':');
-        v.members.emplace_back(std::move(key), value(depth + 1));
+        v.keys.push_back(std::move(key));
+        v.values.push_back(value(depth + 1));
       } while (take(','));
       expect('}');
     } else if (c == '[') {
