@@ -314,14 +314,18 @@ StrokeId Session::beginStroke(protocol::BrushTool tool, double radius, double st
   } catch (const EngineError& e) {
     rethrow(e, "");
   }
-  if (strokes_.size() >= kMaxOpenStrokes)
-    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
-                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
-                           "); end one first");
+  checkStrokeRoom();
   const StrokeId id = nextStroke_++;
   strokes_.emplace(id, Stroke{tool, radius, strength, symmetry, accumulate, {}, 0, by, height, volume_, strokeClock_(), 0,
                               changedBricks_, std::nullopt, std::nullopt, 0});
   return id;
+}
+
+void Session::checkStrokeRoom() const {
+  if (strokes_.size() >= kMaxOpenStrokes)
+    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
+                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
+                           "); end one first");
 }
 
 const Session::Stroke& Session::openStroke(StrokeId id) const {
@@ -343,10 +347,7 @@ StrokeId Session::beginPaint(const PaintSettings& st, Symmetry symmetry, bool ac
   } catch (const EngineError& e) {
     rethrow(e, "");
   }
-  if (strokes_.size() >= kMaxOpenStrokes)
-    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
-                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
-                           "); end one first");
+  checkStrokeRoom();
   const StrokeId id = nextStroke_++;
   strokes_.emplace(id, Stroke{protocol::BrushTool::AddBlob, st.radius, st.strength, symmetry, accumulate, {}, 0, by,
                               std::nullopt, volume_, strokeClock_(), 0, changedBricks_, std::nullopt, std::nullopt, 0, st});
@@ -422,10 +423,7 @@ StrokeId Session::beginWarp(WarpStroke w, const StepAuthor& by) {
     if (p) requirePoint(*p, "anchor");
   if (!isFinite(w.normal) || !isFinite(w.heldD) || !std::isfinite(w.heldAmount))
     invalid("anchor", "the stroke's state must be finite");
-  if (strokes_.size() >= kMaxOpenStrokes)
-    throw ServiceError(protocol::RpcCode::LimitExceeded, "stroke",
-                       "too many open strokes in this session (at most " + std::to_string(kMaxOpenStrokes) +
-                           "); end one first");
+  checkStrokeRoom();
   const StrokeId id = nextStroke_++;
   strokes_.emplace(id, Stroke{protocol::BrushTool::AddBlob, w.radius, w.strength, {}, false, {}, 0, by, std::nullopt,
                               volume_, strokeClock_(), 0, changedBricks_, std::nullopt, std::move(w), revision_});

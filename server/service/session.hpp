@@ -386,6 +386,8 @@ class Session {
   HistoryResult authorMoved(const History::AuthorMove& m, bool forward);
   // The record of a step made now, by `by` with `tool`, at the next revision.
   StepInfo stepInfo(const StepAuthor& by, std::string_view tool) const;
+  // Throws LimitExceeded when kMaxOpenStrokes strokes are open: a new one must wait for an end.
+  void checkStrokeRoom() const;
   const Stroke& openStroke(StrokeId id) const;
   // For History::push: whether `step` is the step of an open stroke other than `except`, which
   // its next dabs will fold into (it stays unpacked until the stroke ends).
