@@ -385,9 +385,12 @@ struct Velocity {
 // off the domain the field is air).
 double trilinear(const DenseGrid& g, Vec3 p, float band) {
   const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
-  const double fx = std::floor(q.x), fy = std::floor(q.y), fz = std::floor(q.z);
-  const long ix = long(fx), iy = long(fy), iz = long(fz);
-  if (ix < 0 || iy < 0 || iz < 0 || ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z) return band;
+  // Truncation is the floor from 0 up, and cheaper (std::floor is a sequence of instructions
+  // without SSE4.1): below 0 (or NaN) the point is off the grid anyway.
+  if (!(q.x >= 0 && q.y >= 0 && q.z >= 0)) return band;
+  const long ix = long(q.x), iy = long(q.y), iz = long(q.z);
+  if (ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z) return band;
+  const double fx = double(ix), fy = double(iy), fz = double(iz);
   const double tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
   const float* c = g.v.data() + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
   const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
@@ -442,34 +445,137 @@ constexpr int kLatticeStep = 2;
 // integrated at the voxel: they hold the zero set (and the lattice's error, measured up to
 // 0.76 vu at the peak of a 3-radius grab, stays below the margin).
 constexpr float kExactNear = 2.0f;
+static_assert((kLatticeStep & (kLatticeStep - 1)) == 0, "InverseLattice::inverse multiplies by 1 / kLatticeStep");
+// The side of the blocks InverseLattice::findBlocks looks at the base in: a brick holds whole
+// ones.
+constexpr int kUniformBlock = std::min(4, Bricks::kSide);
+static_assert(Bricks::kSide % kUniformBlock == 0);
 
 struct InverseLattice {
   Int3 origin, nodes;
-  std::vector<Vec3> offset;  // X(node) - node, x fastest
+  std::vector<Vec3> offset;     // X(node) - node, x fastest
+  std::vector<Vec3> preimage;   // node + offset (up to rounding X(node)), for cellValue()
 
   void build(const Velocity& v, const Box& work, ThreadPool& pool, const ProgressShare& progress) {
     origin = work.lo;
     for (int a = 0; a < 3; ++a) nodes[a] = (work.size()[a] + kLatticeStep - 1) / kLatticeStep + 1;
     offset.assign(std::size_t(nodes.x) * nodes.y * nodes.z, Vec3{});
+    preimage.resize(offset.size());
     const int steps = v.substeps();
-      pool.parallelFor(std::size_t(nodes.z), [&](std::size_t k) {
+    pool.parallelFor(std::size_t(nodes.z), [&](std::size_t k) {
       progress.check();
       for (int j = 0; j < nodes.y; ++j)
         for (int i = 0; i < nodes.x; ++i) {
           const Vec3 p{double(origin.x + kLatticeStep * i), double(origin.y + kLatticeStep * j),
                        double(origin.z + kLatticeStep * int(k))};
-          if (v.moves(p)) offset[std::size_t(i) + std::size_t(nodes.x) * (std::size_t(j) + std::size_t(nodes.y) * k)] = v.flow(p, steps, -1) - p;
+          const std::size_t n = std::size_t(i) + std::size_t(nodes.x) * (std::size_t(j) + std::size_t(nodes.y) * k);
+          if (v.moves(p)) offset[n] = v.flow(p, steps, -1) - p;
+          preimage[n] = p + offset[n];
         }
       progress.advance(1.0 / nodes.z);
     });
+  }
+
+  // Where the lattice's cells read one value. A cell's voxels read the base inside the box of
+  // its corners' preimages (inverse() interpolates between them); where the base is one value
+  // there, at least kExactNear from 0, each of those reads is that value bit for bit and the
+  // exact flow is not wanted: deep inside and far outside the solid (most of a grab's support)
+  // the resample is then a comparison. findBlocks() notes the base's blocks of one value,
+  // cellValue() looks up a cell's.
+  std::vector<float> blockValue;
+  Int3 blockOrigin, blockCount;
+  Box gridBox;
+
+  void findBlocks(const Volume& vol, const DenseGrid& base, ThreadPool& pool) {
+    // vol's value per block of kUniformBlock^3 voxels (in volume coordinates, within bricks)
+    // over base's box, NaN where it varies, lies within kExactNear of 0 or leaves the domain:
+    // a brick stored uniform gives its blocks at once, the others are scanned.
+    constexpr int B = kUniformBlock, perBrick = Bricks::kSide / B;
+    const Int3 b0{blockOf(base.box.lo.x), blockOf(base.box.lo.y), blockOf(base.box.lo.z)};
+    const Int3 nb{blockOf(base.box.hi.x - 1) - b0.x + 1, blockOf(base.box.hi.y - 1) - b0.y + 1, blockOf(base.box.hi.z - 1) - b0.z + 1};
+    blockOrigin = b0, blockCount = nb, gridBox = base.box;
+    blockValue.assign(std::size_t(nb.x) * std::size_t(nb.y) * std::size_t(nb.z), std::numeric_limits<float>::quiet_NaN());
+    const Int3 dims = vol.dims();
+    pool.parallelFor(std::size_t(nb.z), [&](std::size_t kz) {
+      const int bz = b0.z + int(kz);
+      if (bz < 0 || (bz + 1) * B > dims.z) return;
+      for (int ky = 0; ky < nb.y; ++ky) {
+        const int by = b0.y + ky;
+        if (by < 0 || (by + 1) * B > dims.y) continue;
+        float* out = blockValue.data() + std::size_t(nb.x) * (std::size_t(ky) + std::size_t(nb.y) * kz);
+        for (int kx = 0; kx < nb.x; ++kx) {
+          const int bx = b0.x + kx;
+          if (bx < 0 || (bx + 1) * B > dims.x) continue;
+          const Int3 l{(bx % perBrick) * B, (by % perBrick) * B, (bz % perBrick) * B};
+          float u = 0;
+          const float* data = vol.brickData({bx / perBrick, by / perBrick, bz / perBrick}, &u);
+          bool same = true;
+          if (data) {
+            u = data[Bricks::index(l)];
+            for (int z = 0; z < B; ++z)
+              for (int y = 0; y < B; ++y) {
+                const float* row = data + Bricks::index(l.x, l.y + y, l.z + z);
+                for (int x = 0; x < B; ++x) same &= row[x] == u;
+              }
+          }
+          if (same && std::fabs(u) >= kExactNear) out[kx] = u;
+        }
+      }
+    });
+  }
+
+  // The value every voxel of cell (i, j, k) reads from the base, when findBlocks() found one
+  // block value over all it can read, else NaN.
+  float cellValue(int i, int j, int k) const {
+    const std::size_t sx = std::size_t(nodes.x), sxy = sx * std::size_t(nodes.y);
+    const Vec3* o = preimage.data() + std::size_t(i) + sx * std::size_t(j) + sxy * std::size_t(k);
+    // The box of the corners' preimages.
+    Vec3 lo = o[0], hi = o[0];
+    for (const std::size_t c : {std::size_t(1), sx, sx + 1, sxy, sxy + 1, sxy + sx, sxy + sx + 1}) {
+      const Vec3 q = o[c];
+      lo.x = std::min(lo.x, q.x), hi.x = std::max(hi.x, q.x);
+      lo.y = std::min(lo.y, q.y), hi.y = std::max(hi.y, q.y);
+      lo.z = std::min(lo.z, q.z), hi.z = std::max(hi.z, q.z);
+    }
+    // The blocks of the voxels trilinear() reads for points in [lo, hi], padded for the
+    // interpolation's rounding (a convex combination of the corners up to a few ulps), all
+    // within the grid (off it trilinear() reads +band). From the grid's corner up truncation is
+    // the floor (and std::floor a sequence of instructions without SSE4.1).
+    int b0[3], b1[3];
+    for (int a = 0; a < 3; ++a) {
+      const double from = lo[a] - 1e-6 - gridBox.lo[a], to = hi[a] + 1e-6 - gridBox.lo[a];
+      if (!(from >= 0) || !(to < gridBox.hi[a] - gridBox.lo[a] - 1)) return std::numeric_limits<float>::quiet_NaN();
+      b0[a] = blockOf(int(from) + gridBox.lo[a]), b1[a] = blockOf(int(to) + 1 + gridBox.lo[a]);
+    }
+    const float value = blockAt(b0[0], b0[1], b0[2]);
+    for (int bz = b0[2]; bz <= b1[2]; ++bz)
+      for (int by = b0[1]; by <= b1[1]; ++by)
+        for (int bx = b0[0]; bx <= b1[0]; ++bx)
+          if (!(blockAt(bx, by, bz) == value)) return std::numeric_limits<float>::quiet_NaN();
+    return value;
+  }
+
+  // The block of a voxel coordinate (rounding down, also below 0: the grid reaches past the
+  // domain by a few voxels).
+  static int blockOf(int c) {
+    constexpr int kBias = 1 << 12;
+    static_assert(kBias % kUniformBlock == 0);
+    return (c + kBias) / kUniformBlock - kBias / kUniformBlock;
+  }
+
+  float blockAt(int bx, int by, int bz) const {
+    return blockValue[std::size_t(bx - blockOrigin.x) +
+                      std::size_t(blockCount.x) * (std::size_t(by - blockOrigin.y) + std::size_t(blockCount.y) * std::size_t(bz - blockOrigin.z))];
   }
 
   Vec3 inverse(Vec3 p) const {
     double t[3];
     int c[3];
     for (int a = 0; a < 3; ++a) {
-      const double q = (p[a] - origin[a]) / kLatticeStep;
-      c[a] = std::clamp(int(std::floor(q)), 0, nodes[a] - 2);
+      // The step is a power of two (the product is exact); truncation gives floor's cell
+      // wherever the clamp lets it matter (q >= 0).
+      const double q = (p[a] - origin[a]) * (1.0 / kLatticeStep);
+      c[a] = std::clamp(int(q), 0, nodes[a] - 2);
       t[a] = q - c[a];
     }
     const std::size_t sx = std::size_t(nodes.x), sxy = sx * std::size_t(nodes.y);
@@ -608,65 +714,95 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     return s.base.box.contains(c) ? std::ptrdiff_t(s.base.index(c)) : -1;
   };
 
-  // Each slice z of `work` resamples its voxels and notes the box of those that changed, and
-  // of those whose channels changed.
+  // Only the distances of an unpainted volume can be read a cell at a time (the channels want
+  // each voxel's preimage).
+  if (!painted) s.lattice.findBlocks(base, s.base, pool);
+
+  // Each pair of slices z of `work` (a layer of the lattice's cells) resamples its voxels and
+  // notes, per slice, the box of those that changed, and of those whose channels changed.
   const int steps = v.substeps();
-  const int slices = work.size().z;
+  const int slices = work.size().z, layers = (slices + kLatticeStep - 1) / kLatticeStep;
   std::vector<Box> changed(std::size_t(std::max(0, slices))), recoloured(changed.size());
   const ProgressShare resample = share.part(kResampleShare);
-  pool.parallelFor(std::size_t(std::max(0, slices)), [&](std::size_t i) {
+  pool.parallelFor(std::size_t(std::max(0, layers)), [&](std::size_t layer) {
     resample.check();
-    const int z = work.lo.z + int(i);
-    Box c{{0, 0, 0}, {0, 0, 0}};
-    bool any = false;
-    Box tc{};
-    for (int y = work.lo.y; y < work.hi.y; ++y) {
-      const auto [x0, x1] = v.row(y, z, work);
-      for (int x = x0; x < x1; ++x) {
-        const Vec3 p{double(x), double(y), double(z)};
-        if (!v.moves(p)) continue;
-        const std::size_t k = s.warped.index({x, y, z});
-        Vec3 q = s.lattice.inverse(p);
-        float value = float(trilinear(s.base, q, band));
-        // Near the zero set the surface's place is read: there X is integrated at the voxel.
-        if (std::fabs(value) < kExactNear) {
-          q = v.flow(p, steps, -1);
-          value = float(trilinear(s.base, q, band));
-        }
-        if (painted) {
-          bool stopped = false;
-          if (masked)
-            v.visitPath(p, steps, q, [&](Vec3 on) {
-              const std::ptrdiff_t j = texelIndex(on);
-              stopped = stopped || (j >= 0 && std::size_t(j) != k && s.texels[std::size_t(j)].mask == 255);
-            });
-          if (stopped) value = s.base.v[k];
-          const std::ptrdiff_t from = texelIndex(q);
-          const Texel own = s.texels[k];
-          const Texel src = from >= 0 ? s.texels[std::size_t(from)] : texelOf(base.baseColor());
-          // The colour's share that moves: none when the path is stopped, else (1 - w / 255) of
-          // it (the write-back holds only distances).
-          const float move = stopped ? 0.0f : 1.0f - float(own.mask) / 255.0f;
-          const auto mix = [&](std::uint8_t a, std::uint8_t b) {
-            return move == 1.0f ? b : std::uint8_t(std::lround(float(a) + move * (float(b) - float(a))));
-          };
-          const Texel now{mix(own.r, src.r), mix(own.g, src.g), mix(own.b, src.b), own.mask};
-          if (!(now == own)) {
-            s.warpedTexels[k] = now;
-            tc = unite(tc, Box{{x, y, z}, {x + 1, y + 1, z + 1}});
-          }
-        }
-        if (value == s.base.v[k]) continue;
-        s.warped.v[k] = value;
+    // The layer's cells' values (cellValue()), found as its voxels first need them: unknown
+    // (infinity) until then.
+    const int cellsX = s.lattice.nodes.x - 1;
+    std::vector<float> cells;
+    for (int i = int(layer) * kLatticeStep; i < std::min(slices, int(layer + 1) * kLatticeStep); ++i) {
+      const int z = work.lo.z + i;
+      Box c{{0, 0, 0}, {0, 0, 0}};
+      bool any = false;
+      const auto note = [&](int x, int y) {
         if (!any) c = {{x, y, z}, {x + 1, y + 1, z + 1}};
         c.lo.x = std::min(c.lo.x, x), c.lo.y = std::min(c.lo.y, y);
         c.hi.x = std::max(c.hi.x, x + 1), c.hi.y = std::max(c.hi.y, y + 1);
         any = true;
+      };
+      Box tc{};
+      for (int y = work.lo.y; y < work.hi.y; ++y) {
+        const auto [x0, x1] = v.row(y, z, work);
+        const int cy = (y - work.lo.y) / kLatticeStep;
+        float* cellRow = nullptr;
+        if (!painted && x1 > x0) {
+          if (cells.empty()) cells.assign(std::size_t(cellsX) * std::size_t(s.lattice.nodes.y - 1), std::numeric_limits<float>::infinity());
+          cellRow = cells.data() + std::size_t(cellsX) * std::size_t(cy);
+        }
+        for (int x = x0; x < x1; ++x) {
+          const std::size_t k = s.warped.index({x, y, z});
+          if (cellRow) {
+            const int ci = (x - work.lo.x) / kLatticeStep;
+            float& u = cellRow[ci];
+            if (u == std::numeric_limits<float>::infinity()) u = s.lattice.cellValue(ci, cy, int(layer));
+            // A voxel that reads its own value stays, whether the flow moves it or not.
+            if (u == s.base.v[k]) continue;
+            if (u == u) {
+              if (v.moves({double(x), double(y), double(z)})) s.warped.v[k] = u, note(x, y);
+              continue;
+            }
+          }
+          const Vec3 p{double(x), double(y), double(z)};
+          if (!v.moves(p)) continue;
+          Vec3 q = s.lattice.inverse(p);
+          float value = float(trilinear(s.base, q, band));
+          // Near the zero set the surface's place is read: there X is integrated at the voxel.
+          if (std::fabs(value) < kExactNear) {
+            q = v.flow(p, steps, -1);
+            value = float(trilinear(s.base, q, band));
+          }
+          if (painted) {
+            bool stopped = false;
+            if (masked)
+              v.visitPath(p, steps, q, [&](Vec3 on) {
+                const std::ptrdiff_t j = texelIndex(on);
+                stopped = stopped || (j >= 0 && std::size_t(j) != k && s.texels[std::size_t(j)].mask == 255);
+              });
+            if (stopped) value = s.base.v[k];
+            const std::ptrdiff_t from = texelIndex(q);
+            const Texel own = s.texels[k];
+            const Texel src = from >= 0 ? s.texels[std::size_t(from)] : texelOf(base.baseColor());
+            // The colour's share that moves: none when the path is stopped, else (1 - w / 255) of
+            // it (the write-back holds only distances).
+            const float move = stopped ? 0.0f : 1.0f - float(own.mask) / 255.0f;
+            const auto mix = [&](std::uint8_t a, std::uint8_t b) {
+              return move == 1.0f ? b : std::uint8_t(std::lround(float(a) + move * (float(b) - float(a))));
+            };
+            const Texel now{mix(own.r, src.r), mix(own.g, src.g), mix(own.b, src.b), own.mask};
+            if (!(now == own)) {
+              s.warpedTexels[k] = now;
+              tc = unite(tc, Box{{x, y, z}, {x + 1, y + 1, z + 1}});
+            }
+          }
+          if (value == s.base.v[k]) continue;
+          s.warped.v[k] = value;
+          note(x, y);
+        }
       }
+      changed[std::size_t(i)] = any ? c : Box{};
+      recoloured[std::size_t(i)] = tc;
+      resample.advance(1.0 / slices);
     }
-    changed[i] = any ? c : Box{};
-    recoloured[i] = tc;
-    resample.advance(1.0 / slices);
   });
   Box moved{}, texelsMoved{};
   for (const Box& c : changed) moved = unite(moved, c);
@@ -687,14 +823,27 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     resample.check();
     const int z = moved.lo.z + int(i);
     auto& out = kept[i];
+    // Most voxels have no neighbour across the zero set: a row's are tested at once first (a
+    // loop the compiler vectorizes), the few others looked at one by one.
+    std::vector<int> across;
+    const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
     for (int y = moved.lo.y; y < moved.hi.y; ++y) {
       const auto [x0, x1] = v.row(y, z, moved);
+      if (x1 <= x0) continue;
+      const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
+      across.resize(std::size_t(x1 - x0));
+      for (std::ptrdiff_t x = 0; x < x1 - x0; ++x) {
+        const bool neg = w[x] < 0;
+        across[std::size_t(x)] = (w[x] == 0) | ((w[x - 1] < 0) != neg) | ((w[x + 1] < 0) != neg) | ((w[x - sx] < 0) != neg) |
+                                 ((w[x + sx] < 0) != neg) | ((w[x - sxy] < 0) != neg) | ((w[x + sxy] < 0) != neg);
+      }
       for (int x = x0; x < x1; ++x) {
-        const Vec3 p{double(x), double(y), double(z)};
-        if (!v.moves(p)) continue;
+        if (!across[std::size_t(x - x0)]) continue;
         const std::size_t k = s.warped.index({x, y, z});
         const float value = s.warped.v[k];
         const bool neg = value < 0;
+        const Vec3 p{double(x), double(y), double(z)};
+        if (!v.moves(p)) continue;
         double bound = 1;
         for (int a = 0; a < 3; ++a)
           for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
