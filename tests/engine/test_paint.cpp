@@ -192,6 +192,30 @@ TEST_CASE("painting gives the same channels on 1 and 2 threads", "[paint][determ
   CHECK(digest(one) == digest(two));
 }
 
+// A stroke whose region is small reads the distances once for all its bricks, a wide one brick
+// by brick (paint.cpp, kGatherOnce): dabs far apart in one stroke must paint what each paints
+// alone, whichever way their distances were read.
+TEST_CASE("far-apart dabs of one stroke paint what each dab paints alone", "[paint]") {
+  const Int3 dims{128, 128, 128};
+  const Vec3 centre{64, 64, 64};
+  PaintSettings st;
+  st.color = {30, 60, 220};
+  st.radius = 9;
+  st.hardness = 0.3;
+  const std::vector<StrokeDab> dabs{{centre + Vec3{-45, 0, 0}, 1}, {centre + Vec3{45, 0, 0}, 0.8},
+                                    {centre + Vec3{0, 32, 32}, 0.5}};
+  Volume stroke = makeSphere(dims, centre, 45), alone = makeSphere(dims, centre, 45);
+  const Edit e = paintStroke(stroke, st, dabs, {});
+  CHECK(e.region.voxels() > std::int64_t(64) * 64 * 64);
+  for (const StrokeDab& d : dabs) {
+    const Edit one = paintStroke(alone, st, {&d, 1}, {});
+    CHECK(one.region.voxels() < std::int64_t(64) * 64 * 64);
+  }
+  CHECK(stroke.paintedBricks() > 20);
+  CHECK(differing(texels(stroke), texels(alone)) == 0);
+  CHECK(digest(stroke) == digest(alone));
+}
+
 TEST_CASE("bad paint settings and dabs are refused and change nothing", "[paint][errors]") {
   Volume v = sphere();
   const std::uint64_t d = digest(v);
