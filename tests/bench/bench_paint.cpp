@@ -20,20 +20,36 @@
 
 namespace marzipan::bench {
 
-MARZIPAN_BENCH("paint_dab") {
-  const Int3 dims = opt.quick ? Int3{80, 80, 80} : Int3{256, 256, 256};
+namespace {
+
+// The sphere both scenarios start from, unpainted and painted all over (a colour per voxel in
+// every stored brick, no mask).
+struct Spheres {
+  Vec3 centre;
+  double radius;
+  Volume plain, painted;
+};
+
+Spheres spheres(const Options& opt, ThreadPool& pool) {
   const double half = opt.quick ? 40 : 128, radius = opt.quick ? 30 : 100;
   const Vec3 centre{half, half, half};
-  ThreadPool pool(opt.threads);
-  const Volume plain = makeSphere(dims, centre, radius);
-  // Painted all over: a colour per voxel in every stored brick, no mask.
+  Volume plain = makeSphere(opt.quick ? Int3{80, 80, 80} : Int3{256, 256, 256}, centre, radius);
   Volume painted = plain;
-  {
-    PaintSettings all;
-    all.color = {40, 90, 200};
-    all.radius = 2 * radius;
-    paint(painted, all, centre, pool);
-  }
+  PaintSettings all;
+  all.color = {40, 90, 200};
+  all.radius = 2 * radius;
+  paint(painted, all, centre, pool);
+  return {centre, radius, std::move(plain), std::move(painted)};
+}
+
+}  // namespace
+
+MARZIPAN_BENCH("paint_dab") {
+  ThreadPool pool(opt.threads);
+  const Spheres spheresAt = spheres(opt, pool);
+  const Vec3 centre = spheresAt.centre;
+  const double radius = spheresAt.radius;
+  const Volume &plain = spheresAt.plain, &painted = spheresAt.painted;
   const int reps = opt.quick ? 5 : 101;
   for (const double r : opt.quick ? std::vector<double>{8} : std::vector<double>{8, 15}) {
     const auto timeDab = [&](const Volume& start, auto apply) {
@@ -71,18 +87,11 @@ MARZIPAN_BENCH("paint_dab") {
 }
 
 MARZIPAN_BENCH("paint_geometry") {
-  const Int3 dims = opt.quick ? Int3{80, 80, 80} : Int3{256, 256, 256};
-  const double half = opt.quick ? 40 : 128, radius = opt.quick ? 30 : 100;
-  const Vec3 centre{half, half, half};
   ThreadPool pool(opt.threads);
-  const Volume plain = makeSphere(dims, centre, radius);
-  Volume painted = plain;
-  {
-    PaintSettings all;
-    all.color = {40, 90, 200};
-    all.radius = 2 * radius;
-    paint(painted, all, centre, pool);
-  }
+  const Spheres spheresAt = spheres(opt, pool);
+  const Vec3 centre = spheresAt.centre;
+  const double radius = spheresAt.radius;
+  const Volume &plain = spheresAt.plain, &painted = spheresAt.painted;
   // Each call on a fresh copy, at the same random surface points for both volumes.
   const auto time = [&](const Volume& start, int reps, auto apply) {
     std::mt19937 rng{33};
