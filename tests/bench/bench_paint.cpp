@@ -46,10 +46,7 @@ Spheres spheres(const Options& opt, ThreadPool& pool) {
 
 MARZIPAN_BENCH("paint_dab") {
   ThreadPool pool(opt.threads);
-  const Spheres spheresAt = spheres(opt, pool);
-  const Vec3 centre = spheresAt.centre;
-  const double radius = spheresAt.radius;
-  const Volume &plain = spheresAt.plain, &painted = spheresAt.painted;
+  const Spheres sp = spheres(opt, pool);
   const int reps = opt.quick ? 5 : 101;
   for (const double r : opt.quick ? std::vector<double>{8} : std::vector<double>{8, 15}) {
     const auto timeDab = [&](const Volume& start, auto apply) {
@@ -60,19 +57,19 @@ MARZIPAN_BENCH("paint_dab") {
       return measure(
           reps,
           [&] {
-            at = centre + normalized({gauss(rng), gauss(rng), gauss(rng)}) * radius;
+            at = sp.centre + normalized({gauss(rng), gauss(rng), gauss(rng)}) * sp.radius;
             work = start;
           },
           [&] { apply(work, at); });
     };
     const auto addBlobDab = [&](Volume& v, Vec3 at) { addBlob(v, {at, r, 1}, pool); };
-    timeDab(plain, addBlobDab);  // warms the scratch and the copies' pages
-    const Timing add = timeDab(plain, addBlobDab);
-    const Timing addPainted = timeDab(painted, addBlobDab);
+    timeDab(sp.plain, addBlobDab);  // warms the scratch and the copies' pages
+    const Timing add = timeDab(sp.plain, addBlobDab);
+    const Timing addPainted = timeDab(sp.painted, addBlobDab);
     PaintSettings st;
     st.color = {200, 30, 20};
     st.radius = r;
-    const Timing paintDab = timeDab(plain, [&](Volume& v, Vec3 at) { paint(v, st, at, pool); });
+    const Timing paintDab = timeDab(sp.plain, [&](Volume& v, Vec3 at) { paint(v, st, at, pool); });
     // Under instructions.py the add-blob dab's own count comes along ("add_blob_instructions").
     const auto row = [&](const char* what, const Timing& t) {
       nlohmann::ordered_json extra{{"case", what}, {"radius", r}, {"add_blob_ms", add.median_ms},
@@ -88,10 +85,7 @@ MARZIPAN_BENCH("paint_dab") {
 
 MARZIPAN_BENCH("paint_geometry") {
   ThreadPool pool(opt.threads);
-  const Spheres spheresAt = spheres(opt, pool);
-  const Vec3 centre = spheresAt.centre;
-  const double radius = spheresAt.radius;
-  const Volume &plain = spheresAt.plain, &painted = spheresAt.painted;
+  const Spheres sp = spheres(opt, pool);
   // Each call on a fresh copy, at the same random surface points for both volumes.
   const auto time = [&](const Volume& start, int reps, auto apply) {
     std::mt19937 rng{33};
@@ -119,28 +113,28 @@ MARZIPAN_BENCH("paint_geometry") {
   const auto stroke = [&](Volume& v, Vec3 dir) {
     const Vec3 along = normalized(cross(dir, Vec3{0.3, 0.5, 0.8}));
     std::vector<StrokeDab> dabs;
-    for (int i = 0; i < 16; ++i) dabs.push_back({centre + dir * radius + along * (r / 4 * (i - 7.5)), 1.0, dir});
+    for (int i = 0; i < 16; ++i) dabs.push_back({sp.centre + dir * sp.radius + along * (r / 4 * (i - 7.5)), 1.0, dir});
     applyStroke(v, {Brush::AddBlob, r, 1}, dabs, {}, pool);
   };
-  time(plain, reps, stroke);  // warms the scratch and the copies' pages
-  row("stroke16", time(plain, reps, stroke), time(painted, reps, stroke), {{"radius", r}, {"dabs", 16}});
+  time(sp.plain, reps, stroke);  // warms the scratch and the copies' pages
+  row("stroke16", time(sp.plain, reps, stroke), time(sp.painted, reps, stroke), {{"radius", r}, {"dabs", 16}});
   const auto csg = [&](std::optional<Rgb8> color) {
     return [&, color](Volume& v, Vec3 dir) {
       CsgParams p;
-      p.center = centre + dir * radius;
+      p.center = sp.centre + dir * sp.radius;
       p.radius = 12;
       applyCsg(v, p, pool, color);
     };
   };
-  time(plain, reps, csg(std::nullopt));  // the same warm-up for the CSG tool's own scratch
-  const Timing csgPlain = time(plain, reps, csg(std::nullopt));
-  row("csg_add", csgPlain, time(painted, reps, csg(std::nullopt)), {{"radius", 12}});
-  row("csg_add_color_unpainted", csgPlain, time(plain, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
-  row("csg_add_color", csgPlain, time(painted, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
+  time(sp.plain, reps, csg(std::nullopt));  // the same warm-up for the CSG tool's own scratch
+  const Timing csgPlain = time(sp.plain, reps, csg(std::nullopt));
+  row("csg_add", csgPlain, time(sp.painted, reps, csg(std::nullopt)), {{"radius", 12}});
+  row("csg_add_color_unpainted", csgPlain, time(sp.plain, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
+  row("csg_add_color", csgPlain, time(sp.painted, reps, csg(Rgb8{200, 30, 20})), {{"radius", 12}});
   const auto smoothAll = [&](Volume& v, Vec3) { meanCurvatureFlow(v, 1, 1, pool); };
   const int globalReps = opt.quick ? 3 : 7;
-  time(plain, 1, smoothAll);
-  row("global_smooth", time(plain, globalReps, smoothAll), time(painted, globalReps, smoothAll), {{"iterations", 1}});
+  time(sp.plain, 1, smoothAll);
+  row("global_smooth", time(sp.plain, globalReps, smoothAll), time(sp.painted, globalReps, smoothAll), {{"iterations", 1}});
 }
 
 }  // namespace marzipan::bench
