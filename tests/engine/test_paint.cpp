@@ -66,6 +66,21 @@ void forEachBandVoxel(const Volume& v, F fn) {
 }
 
 const Rgb8 kRed{200, 20, 10};
+const Vec3 kTop = kCentre + Vec3{0, kRadius, 0};
+
+// The sphere with a stripe along x over its top, red through and through within 4 vu of its
+// line (a paint stroke of radius 8, hardness 0.6, dabs 2 vu apart from x - 8 to x + 8).
+Volume stripedSphere() {
+  Volume v = sphere();
+  PaintSettings red;
+  red.color = kRed;
+  red.radius = 8;
+  red.hardness = 0.6;
+  std::vector<StrokeDab> stripe;
+  for (int k = -8; k <= 8; k += 2) stripe.push_back({kTop + Vec3{double(k), 0, 0}});
+  paintStroke(v, red, stripe, {});
+  return v;
+}
 
 }  // namespace
 
@@ -376,25 +391,16 @@ TEST_CASE("a half-masked sphere smoothed globally keeps its masked half bit for 
 // --- colour follows the surface (Volume::extendChannels) -------------------------------------
 
 TEST_CASE("a blob added over a painted stripe stretches it: no clay-coloured voxel in its band", "[paint][extend]") {
-  Volume v = sphere();
-  const Vec3 top = kCentre + Vec3{0, kRadius, 0};
-  // A stripe along x over the top, red through and through within 4 vu of its line.
-  PaintSettings red;
-  red.color = kRed;
-  red.radius = 8;
-  red.hardness = 0.6;
-  std::vector<StrokeDab> stripe;
-  for (int k = -8; k <= 8; k += 2) stripe.push_back({top + Vec3{double(k), 0, 0}});
-  paintStroke(v, red, stripe, {});
+  Volume v = stripedSphere();
   // A blob 4 vu high over the stripe's middle (four sub-steps, into bricks that were air).
-  const StrokeDab blob(top, 1, {0, 1, 0});
+  const StrokeDab blob(kTop, 1, {0, 1, 0});
   const Edit e = applyStroke(v, {Brush::AddBlob, 8, 1, 4.0}, {&blob, 1}, {});
   REQUIRE(!e.empty());
   // Over the whole band: every voxel whose foot point lies above the old top by 0.5 vu or more
   // (on the grown part) and within 2 vu of the stripe's plane z = 32 came from the stripe.
   std::size_t grown = 0, clay = 0;
   forEachBandVoxel(v, [&](Int3 p, float, Vec3 q) {
-    if (q.y < top.y + 0.5 || std::fabs(q.z - kCentre.z) > 2) return;
+    if (q.y < kTop.y + 0.5 || std::fabs(q.z - kCentre.z) > 2) return;
     ++grown;
     clay += v.texel(p).color() == kClayColor;
   });
@@ -423,15 +429,7 @@ TEST_CASE("colour follows the surface alike on 1 and 2 threads, and costs nothin
 // centre: within 1.5 vu of the plane z = 32 at the sphere's radius, within 5 vu of the y axis,
 // on top) that read the stripe's colour.
 TEST_CASE("a painted stripe stretches under dilation: every voxel of its region keeps the colour", "[paint][extend]") {
-  Volume v = sphere();
-  const Vec3 top = kCentre + Vec3{0, kRadius, 0};
-  PaintSettings red;
-  red.color = kRed;
-  red.radius = 8;
-  red.hardness = 0.6;
-  std::vector<StrokeDab> stripe;
-  for (int k = -8; k <= 8; k += 2) stripe.push_back({top + Vec3{double(k), 0, 0}});
-  paintStroke(v, red, stripe, {});
+  Volume v = stripedSphere();
   const auto share = [&](const Volume& vol, std::size_t& n) {
     std::size_t inStripe = 0;
     n = 0;
@@ -563,25 +561,17 @@ TEST_CASE("under a partial mask a level-set tool moves each voxel by (1 - w/255)
 // (Volume::extendChannels). Before that fallback, 186 of 599 voxels of the region at h = 4 were
 // clay (none at h = 0 or 2).
 TEST_CASE("a CSG blob over a painted stripe stretches it, also where it overhangs", "[paint][extend][csg]") {
-  Volume v = sphere();
-  const Vec3 top = kCentre + Vec3{0, kRadius, 0};
-  PaintSettings red;
-  red.color = kRed;
-  red.radius = 8;
-  red.hardness = 0.6;
-  std::vector<StrokeDab> stripe;
-  for (int k = -8; k <= 8; k += 2) stripe.push_back({top + Vec3{double(k), 0, 0}});
-  paintStroke(v, red, stripe, {});
+  Volume v = stripedSphere();
   const double h = GENERATE(0.0, 2.0, 4.0);
   CsgParams p;
-  p.center = top + Vec3{0, h, 0};
+  p.center = kTop + Vec3{0, h, 0};
   p.radius = 6;
   applyCsg(v, p);
   // Over the whole band: every voxel whose foot point lies above the old top by 0.5 vu or more
   // and within 2 vu of the stripe's plane z = 32 came from the stripe.
   std::size_t grown = 0, notRed = 0;
   forEachBandVoxel(v, [&](Int3 at, float, Vec3 q) {
-    if (q.y < top.y + 0.5 || std::fabs(q.z - kCentre.z) > 2) return;
+    if (q.y < kTop.y + 0.5 || std::fabs(q.z - kCentre.z) > 2) return;
     ++grown;
     notRed += !(v.texel(at).color() == kRed);
   });
