@@ -48,6 +48,9 @@ class WsSession::Link : public service::ClientLink {
   void sendTogether(std::vector<Message> messages) override {
     if (const auto ws = ws_.lock()) ws->sendTogether(std::move(messages));
   }
+  void sendAll(std::vector<Item> items) override {
+    if (const auto ws = ws_.lock()) ws->sendAll(std::move(items));
+  }
   void close(int code, std::string reason) override {
     if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));
   }
@@ -105,6 +108,29 @@ void WsSession::sendTransient(std::vector<service::ClientLink::Transient> texts)
     if (self->closing_) return;
     for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
     if (!self->writing_) self->doWrite();
+  });
+}
+
+void WsSession::sendAll(std::vector<service::ClientLink::Item> items) {
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), items = std::move(items)]() mutable {
+    std::size_t run = 0;  // the messages written corked together, as one hand-over
+    for (const auto& i : items) run += !i.transient && !i.latestWins;
+    std::size_t placed = 0;
+    bool transients = false;
+    for (auto& i : items) {
+      if (self->closing_) return;
+      if (i.transient) {
+        self->enqueueTransient(std::move(i.text), i.key);
+        transients = true;
+      } else if (i.latestWins) {
+        self->enqueue(std::move(i.text), std::move(i.binary), true);
+      } else {
+        ++placed;
+        const Run place = run == 1 ? Run::alone : placed < run ? Run::more : Run::last;
+        self->enqueue(std::move(i.text), std::move(i.binary), false, place);
+      }
+    }
+    if (transients && !self->closing_ && !self->writing_ && !self->queue_.empty()) self->doWrite();
   });
 }
 

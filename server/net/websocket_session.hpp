@@ -51,6 +51,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void sendTogether(std::vector<service::ClientLink::Message> messages);
   // Transient texts (ClientLink::sendTransient), handed over at once and written as one batch.
   void sendTransient(std::vector<service::ClientLink::Transient> texts);
+  // What one piece of the hub's work sent (ClientLink::sendAll), queued at once, in order: the
+  // messages neither transient nor latestWins are written corked, as sendTogether's are.
+  void sendAll(std::vector<service::ClientLink::Item> items);
   void close(websocket::close_code code, std::string reason);
 
  private:

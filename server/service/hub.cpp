@@ -17,6 +17,7 @@
 
 #include "service/hub/core.hpp"
 #include "service/hub/methods.hpp"
+#include "service/hub/outbox.hpp"
 #include "service/hub/secrets.hpp"
 #include "service/session_store.hpp"
 
@@ -90,6 +91,8 @@ void HubCore::enqueue(const std::shared_ptr<HubClient>& c, Incoming in) {
 }
 
 void HubCore::finish(const std::shared_ptr<HubClient>& c) {
+  // What the message's work sent goes ahead of anything its connection's next message sends.
+  Outbox::flush();
   switch (c->queue.finished()) {
     case ConnectionQueue::Next::Idle: return;
     case ConnectionQueue::Next::Closed: return cleanup(c);
@@ -231,7 +234,7 @@ Hub::~Hub() { shutdown(); }
 const HubLimits& Hub::limits() const { return impl_->limits(); }
 
 std::shared_ptr<HubClient> Hub::connect(std::shared_ptr<ClientLink> link, std::string peer) {
-  auto c = std::make_shared<HubClient>(std::move(link), std::move(peer));
+  auto c = std::make_shared<HubClient>(std::make_shared<HeldLink>(std::move(link)), std::move(peer));
   impl_->registry.scheduleLobbyCheck(c, std::chrono::duration_cast<std::chrono::milliseconds>(impl_->limits().lobby));
   return c;
 }

@@ -159,6 +159,26 @@ class ClientLink {
       else sendBinary(std::move(m.binary), false);
     }
   }
+  // What one piece of work sent this link, handed over as one (service/hub/outbox.hpp), in
+  // order: a text (`text` set), a binary frame (`binary`, latestWins as in sendBinary), or a
+  // transient text (`transient`, its `key` as in sendTransient). A link with a socket writes the
+  // texts and frames that are neither transient nor latestWins in one TCP push (a response,
+  // then its change's notification and splat delta: one wake-up of the reader, and one
+  // hand-over to the network thread instead of one per message).
+  struct Item {
+    std::shared_ptr<const std::string> text;
+    std::shared_ptr<const std::vector<std::uint8_t>> binary;
+    bool latestWins = false;
+    bool transient = false;
+    std::uint64_t key = 0;
+  };
+  virtual void sendAll(std::vector<Item> items) {
+    for (Item& i : items) {
+      if (i.transient) sendTransient({{std::move(i.text), i.key}});
+      else if (i.text) sendText(*i.text);
+      else sendBinary(std::move(i.binary), i.latestWins);
+    }
+  }
   // Close the WebSocket with this code and reason (<= 123 bytes).
   virtual void close(int code, std::string reason) = 0;
 };

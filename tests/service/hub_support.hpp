@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -52,7 +53,18 @@ struct CaptureLink : ClientLink {
   std::condition_variable cv;
   std::vector<std::variant<json, Bytes>> messages;
   std::vector<std::thread::id> senders;  // the thread that sent each message
+  // Per sendAll (one hand-over of what a piece of work sent, service/hub/outbox.hpp): the index
+  // of its first message and how many it carried.
+  std::vector<std::pair<std::size_t, std::size_t>> handOvers;
   int closeCode = 0;
+
+  void sendAll(std::vector<Item> items) override {
+    {
+      const std::lock_guard lock(mutex);
+      handOvers.emplace_back(messages.size(), items.size());
+    }
+    ClientLink::sendAll(std::move(items));
+  }
 
   void sendText(std::string text) override {
     const std::lock_guard lock(mutex);

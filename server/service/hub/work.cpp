@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "service/hub/core.hpp"
+#include "service/hub/outbox.hpp"
 
 namespace marzipan::service {
 
@@ -40,6 +41,8 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
                        Clock::time_point arrived, bool edit, Access access,
                        std::function<void(LiveSession&, Reply&)> fn) {
   s->strand->post([self = shared_from_this(), c, s, id, arrived, edit, access, fn = std::move(fn)] {
+    // The response, the change's notification and its delta leave as one hand-over per client.
+    const Outbox::Scope held;
     Reply r;
     try {
       if (s->unloaded || !s->session) {
@@ -202,6 +205,7 @@ std::shared_ptr<HubCore::RunningOp> HubCore::track(const std::shared_ptr<HubClie
   auto progress = std::make_shared<Progress>(
       [link = c->link, request = id.value_or(json(nullptr))](double fraction) {
         link->sendText(protocol::notificationText("op.progress", {{"request", request}, {"fraction", fraction}}));
+        Outbox::flush();  // now, not when the operation ends
       },
       kProgressInterval);
   auto op = std::make_shared<RunningOp>(RunningOp{shared_from_this(), c, progress});
