@@ -62,6 +62,8 @@ using Clock = std::chrono::steady_clock;
 
 constexpr double kSetupTimeoutS = 60, kDrainTimeoutS = 10, kCloseTimeoutS = 5;
 constexpr std::size_t kMaxMessageBytes = std::size_t(64) << 20;
+// The splat format version the browser asks for (SPLAT_FORMAT_VERSION, web-client/net/session-client.js).
+constexpr int kSplatsVersion = 2;
 
 double now() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
 Clock::time_point at(double seconds) {
@@ -158,7 +160,7 @@ class Client {
         if (shook) return fail("handshake: " + shook.message());
         read();
         if (creator_) {
-          const json params{{"size", {cfg_.size, cfg_.size, cfg_.size}}, {"solid", cfg_.solid}, {"session", session_.id}, {"view", "splats"}};
+          const json params{{"size", {cfg_.size, cfg_.size, cfg_.size}}, {"solid", cfg_.solid}, {"session", session_.id}, {"view", "splats"}, {"splats", kSplatsVersion}};
           send("session.create", params, [this](const json* result, const json* error) {
             if (!result) return fail("session.create: " + (error ? error->dump() : std::string("closed")));
             session_.token = (*result)["token"];
@@ -223,7 +225,7 @@ class Client {
   }
 
   void join() {
-    const json params{{"session", session_.id}, {"token", session_.token}, {"view", "splats"}};
+    const json params{{"session", session_.id}, {"token", session_.token}, {"view", "splats"}, {"splats", kSplatsVersion}};
     send("session.join", params, [this](const json* result, const json* error) {
       if (!result) return fail("session.join: " + (error ? error->dump() : std::string("closed")));
       ready = true;

@@ -72,6 +72,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "protocol" / "pytho
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from marzipan.client import new_session_id, session_url  # noqa: E402
 from marzipan.frames import FrameError, FrameKind, decode_frame  # noqa: E402
+from marzipan.splats import SPLAT_FORMAT_VERSION  # noqa: E402
 from ws_link import WsLink  # noqa: E402
 from web_client_model import DAB_SPACING, MIN_DAB_SPACING, DabSpacer, SplatSurface, StrokePicker  # noqa: E402
 
@@ -406,13 +407,14 @@ class LoadClient:
         if self.creator:
             size = self.args["size"]
             result = await self.call("session.create", {"size": [size] * 3, "solid": self.args["solid"],
-                                                        "session": self.session.id, "view": "splats"})
+                                                        "session": self.session.id, "view": "splats",
+                                                        "splats": SPLAT_FORMAT_VERSION})
             self.session.token = result["token"]
             self.session.created.set_result(None)
         else:
             await self.session.created
             await self.call("session.join", {"session": self.session.id, "token": self.session.token,
-                                             "view": "splats"})
+                                             "view": "splats", "splats": SPLAT_FORMAT_VERSION})
 
     async def sculpt(self, end: float):
         if self.args["mode"] == "web-client":

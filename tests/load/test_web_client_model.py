@@ -30,19 +30,25 @@ def encode_normal(n):
     return round((u * 2047 + 2047) / 2), round((v * 2047 + 2047) / 2)
 
 
-def splat_buffer(bricks):
-    """A splat buffer of {(bx, by, bz): [(point, normal), ...]} (an empty list: an empty brick)."""
+def splat_buffer(bricks, painted=None):
+    """A splat buffer of {(bx, by, bz): [(point, normal), ...]} (an empty list: an empty brick);
+    with `painted` (a set of brick keys) of version 2, those bricks' points each followed by
+    r, g, b, mask."""
     body = b""
     total = 0
     for key, points in bricks.items():
-        body += struct.pack("<HHHH", *key, len(points))
+        paint = painted is not None and key in painted and points
+        body += struct.pack("<HHHH", *key, len(points) | (0x8000 if paint else 0))
         for p, n in points:
             codes = [round((p[a] - (8 * key[a] - 2)) * 4096 / 3) for a in range(3)]
             assert all(0 <= c < 1 << 14 for c in codes), (p, key)
             cu, cv = encode_normal(n)
             body += struct.pack("<Q", codes[0] | codes[1] << 14 | codes[2] << 28 | cu << 42 | cv << 53)
+            if paint:
+                body += bytes((200, 40, 40, 255))
         total += len(points)
-    return b"MZSP" + struct.pack("<HHII", 1, 0, len(bricks), total) + body
+    version = 1 if painted is None else 2
+    return b"MZSP" + struct.pack("<HHII", version, 0, len(bricks), total) + body
 
 
 def sphere_bricks(centre, radius, spacing=0.7):
@@ -125,6 +131,17 @@ class SplatSurfaceTest(unittest.TestCase):
             # float32 against float64: within one float32 step of coordinates near 60 vu
             self.assertLess(np.abs(pos - positions[b.first:b.first + b.count]).max(), 1e-5)
             self.assertLess(np.abs(nrm - normals[b.first:b.first + b.count]).max(), 1e-6)
+
+    def test_version_2_painted_or_not_gives_the_points_of_version_1(self):
+        bricks = sphere_bricks((40.3, 41.7, 39.2), 12.5)
+        plain = SplatSurface()
+        plain.apply(splat_buffer(bricks), full=True)
+        painted = SplatSurface()
+        keys = sorted(bricks)
+        painted.apply(splat_buffer(bricks, painted=set(keys[::2])), full=True)
+        self.assertEqual(sorted(painted.bricks), keys)
+        for key in keys:
+            self.assertEqual(painted.bricks[key].words, plain.bricks[key].words)
 
     def test_a_delta_replaces_or_removes_only_the_bricks_it_lists(self):
         surface = SplatSurface()

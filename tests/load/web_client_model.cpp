@@ -94,9 +94,13 @@ double pyRound(double x, int digits) {
 }
 
 bool SplatSurface::apply(std::span<const std::uint8_t> payload, bool full) {
-  // "MZSP", u16 version, u16 flags, u32 bricks, u32 points; per brick u16 x, y, z, count and
-  // count u64 points.
+  // "MZSP", u16 version, u16 flags, u32 bricks, u32 points; per brick u16 x, y, z, N and the
+  // points: version 1, N u64 points; version 2 (what the browser asks for), N's low 10 bits
+  // count them, and bit 15 marks a painted brick, whose points are the u64 and 4 bytes of
+  // colour and mask.
   if (payload.size() < 16 || std::memcmp(payload.data(), "MZSP", 4) != 0) return false;
+  std::uint16_t version;
+  std::memcpy(&version, payload.data() + 4, 2);
   std::uint32_t count;
   std::memcpy(&count, payload.data() + 8, 4);
   if (full) bricks_.clear();
@@ -106,16 +110,18 @@ bool SplatSurface::apply(std::span<const std::uint8_t> payload, bool full) {
     std::uint16_t h[4];
     std::memcpy(h, payload.data() + at, 8);
     at += 8;
-    if (at + 8 * std::size_t(h[3]) > payload.size()) return false;
+    const std::size_t n = version == 2 ? h[3] & 0x3FFu : h[3];
+    const std::size_t size = version == 2 && (h[3] & 0x8000u) ? 12 : 8;
+    if (at + size * n > payload.size()) return false;
     const Key key{h[0], h[1], h[2]};
-    if (h[3] == 0) {
+    if (n == 0) {
       bricks_.erase(key);
     } else {
-      auto words = std::make_shared<std::vector<std::uint64_t>>(h[3]);
-      std::memcpy(words->data(), payload.data() + at, 8 * std::size_t(h[3]));
+      auto words = std::make_shared<std::vector<std::uint64_t>>(n);
+      for (std::size_t i = 0; i < n; ++i) std::memcpy(words->data() + i, payload.data() + at + size * i, 8);
       bricks_[key] = std::move(words);
     }
-    at += 8 * std::size_t(h[3]);
+    at += size * n;
   }
   return true;
 }

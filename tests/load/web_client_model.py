@@ -44,20 +44,27 @@ class SplatSurface:
 
     def apply(self, payload, full: bool):
         view = memoryview(payload).cast("B")
-        magic, _, _, count, _ = _HEADER.unpack_from(view, 0)
+        magic, version, _, count, _ = _HEADER.unpack_from(view, 0)
         if magic != b"MZSP":
             raise ValueError("not a splat buffer")
         if full:
             self.bricks = {}
         at = _HEADER.size
         for _ in range(count):
-            bx, by, bz, n = _BRICK_HEADER.unpack_from(view, at)
+            bx, by, bz, word = _BRICK_HEADER.unpack_from(view, at)
             at += _BRICK_HEADER.size
-            if n:
+            # Version 2 (what the browser asks for): N's low 10 bits count the points, bit 15
+            # marks a painted brick, whose points carry 4 bytes of colour and mask after each u64.
+            n, painted = (word & 0x3FF, word & 0x8000) if version == 2 else (word, 0)
+            size = 12 if painted else 8
+            if n and painted:
+                self.bricks[(bx, by, bz)] = _Brick((bx, by, bz), b"".join(
+                    view[at + size * i:at + size * i + 8] for i in range(n)))
+            elif n:
                 self.bricks[(bx, by, bz)] = _Brick((bx, by, bz), view[at:at + 8 * n])
             else:
                 self.bricks.pop((bx, by, bz), None)
-            at += 8 * n
+            at += size * n
 
     def snapshot(self) -> "SurfaceSnapshot":
         return SurfaceSnapshot(list(self.bricks.values()))
