@@ -61,6 +61,15 @@ struct RedistanceOptions {
   // +1 / -1: the values on the outside / inside are already exact distances (a union's
   // outside, an intersection's inside) and are kept; only the other side is marched.
   int exactSide = 0;
+  // The surface moved by at most kMaxDirectMotion vu since the region was a distance field, at
+  // a speed extended along the normals, so that the level sets near it moved with it (an
+  // advection: a brush's application, a sub-step of a stroke's height, one step of dilation or
+  // erosion). A far voxel to reset within 1.75 vu of the surface, whose neighbours all lie
+  // well inside the band and whose gradient is within 0.1 of unit length, then takes
+  // d / |grad d| (central differences) as a kept voxel does, and is a source of the march like
+  // them: the march covers only the rest of the band. Where the gradient is no unit vector (a
+  // kink: surfaces meeting or parting) the voxel is marched. docs/method.md §5.
+  bool direct = false;
   MarchOrder order = MarchOrder::Second;
   // When set: the band voxels of region grown by 1 (clipped to the grid), as collected
   // before the caller changed some of them (it may only have changed voxels of the list).
@@ -70,6 +79,9 @@ struct RedistanceOptions {
   // Cancelled and leaves the grid part-redistanced), advanced by its share as the call goes.
   ProgressShare progress;
 };
+
+// The largest motion of the surface (vu) for which RedistanceOptions::direct holds.
+constexpr double kMaxDirectMotion = 1.0;
 
 // Redistances `region` (clipped to grid.box) of the grid in place. A voxel is adjacent to
 // the zero set when it is 0 or one of its 6 neighbours has the other sign (0 counts as outside).

@@ -39,6 +39,7 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
     evolve(g, region, band, m, nullptr, voxels, inner);
     RedistanceOptions options;
     options.band = &voxels;
+    options.direct = level_set::movesBandTogether(m);
     redistanceRegion(g, region, band, Outside::Ignored, options, inner);
   });
   return e;

@@ -7,6 +7,7 @@
 // tools.cpp's; a stroke's window (its dabs and memory) is swept_window.hpp's.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -49,6 +50,15 @@ inline Motion advection(double speed) {
 
 inline Motion curvatureFlow(double scale, double limit = std::numeric_limits<double>::infinity(), int substeps = 1) {
   return {.kind = Motion::Kind::Curvature, .speed = scale, .dt = kCurvatureDt, .substeps = substeps, .curvatureLimit = limit};
+}
+
+// Whether the redistance after one application of m may take the far voxels near the surface
+// directly (redistance.hpp, RedistanceOptions::direct): m is an advection, whose speed every
+// voxel reads at its foot point (or which is the same everywhere), so that the level sets near
+// the surface move with it, and moves the surface by at most kMaxDirectMotion (speed times time;
+// a plane's |h| is at most 1). A curvature step moves each level set by its own curvature.
+inline bool movesBandTogether(const Motion& m) {
+  return m.kind == Motion::Kind::Advect && std::fabs(m.speed) * m.dt * m.substeps <= kMaxDirectMotion;
 }
 
 // Ghost voxels a stencil reads beyond the evolved region (second-order ENO needs 2).

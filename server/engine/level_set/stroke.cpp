@@ -185,6 +185,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       // height passes over its crest again and again with little or nothing left to add. Its
       // kept values come from moves of at most 1 vu and are left as they are.
       if (height != 0) options.normalizeKept = false;
+      options.direct = level_set::movesBandTogether(m);
       options.band = &scratch.band;
       options.progress = share.part(kRedistanceShare / steps);
       redistanceRegion(g, region, band, Outside::Source, options, pool);

@@ -110,6 +110,23 @@ TEST_CASE("a dumbbell pinches off at the handle before the spheres vanish, leavi
   CHECK(allAir(v, {{30, 20, 20}, {34, 44, 44}}));  // the handle is gone
 }
 
+TEST_CASE("erosion cuts a dumbbell's handle, leaving two balls and no stray voxels", "[level_set][morphology]") {
+  // Each step of 1 vu takes the voxels near the surface directly and marches the rest
+  // (redistance.hpp, RedistanceOptions::direct); where the handle's surfaces meet and vanish
+  // the gradient is no unit vector, and the march takes those voxels.
+  const Int3 dims{64, 64, 64};
+  Volume v = makeSolid(SolidKind::Dumbbell, dims);  // handle radius 3.84, balls 10.88
+  REQUIRE(countComponents(v) == 1);
+  erode(v, 2);
+  CHECK(countComponents(v) == 1);  // a handle of radius 1.84 is left
+  erode(v, 2);
+  CHECK(countComponents(v) == 2);
+  CHECK(test::strayBandVoxels(v) == 0);
+  CHECK(allAir(v, {{29, 24, 24}, {35, 40, 40}}));  // nothing of the handle, nor of its band
+  // Each ball: 10.88 - 4 (its centre 0.27 N = 17.3 vu from the volume's).
+  CHECK(std::cbrt(3 * insideVolume(v) / (8 * std::numbers::pi)) == Approx(10.88 - 4).margin(0.05));
+}
+
 TEST_CASE("dilation and erosion by k move a sphere's surface by k", "[level_set][morphology]") {
   const Int3 dims{64, 64, 64};
   const Vec3 c{31.6, 32.2, 31.9};

@@ -328,22 +328,27 @@ TEST_CASE("an inflate stroke with a height builds the same however it is grouped
   // A voxel's own normal tilts as the ridge rises around it, and nothing records where it
   // started, so a message boundary is not quite seamless as it is for clay's one normal:
   // 2330 / 2282 / 2201 vu^3 in 4 / 7 / 21 messages against 2378 in one (2026-11-29; clay:
-  // 1678 .. 1664). The web client sends about 12 dabs a message, 2 to 4 messages here.
+  // 1678 .. 1664; 2328 / 2283 / 2193 against 2377 since the direct redistance, 2026-11-29). The web client sends about 12 dabs a message, 2 to 4 messages here.
+  double four = 0;
   for (const std::size_t messages : {std::size_t(4), std::size_t(7)}) {
     const double a = added(line, messages).first;
     INFO(messages << " messages: " << a << " vu^3");
     CHECK(std::fabs(a - one) <= 0.05 * one);
+    if (messages == 4) four = a;
   }
   {
     const double a = added(line, 21).first;
     INFO("a message a dab: " << a << " vu^3");
     CHECK(std::fabs(a - one) <= 0.1 * one);
   }
+  // Back over the same line adds nothing: the same as the first four of these eight messages.
+  // (Against the one pass this read 1.99% with the march after every dab, 2.08% with the
+  // direct near voxels of redistance.hpp: the four messages' own grouping, 2330 / 2328 vu^3.)
   std::vector<StrokeDab> twice = line;
   twice.insert(twice.end(), line.rbegin(), line.rend());
   const double back = added(twice, 8).first;
-  INFO("there and back in 8 messages: " << back << " vu^3");
-  CHECK(std::fabs(back - one) <= 0.02 * one);
+  INFO("there and back in 8 messages: " << back << " vu^3, the way there in 4: " << four << " vu^3");
+  CHECK(std::fabs(back - four) <= 0.002 * one);
   CHECK(added(twice, 2, true).first > 1.5 * one);  // without a memory the second pass adds again
 }
 
