@@ -2,7 +2,10 @@
 // tests that limit the kernels' vector width, and the report of a test that cannot run here.
 #pragma once
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <iostream>
 #include <memory>
 #include <vector>
@@ -91,6 +94,30 @@ std::vector<BrickChange> paintBricks(Volume& vol, TexelAt texelAt) {
   });
   vol.publish(changes, true);
   return changes;
+}
+
+// Every voxel's distance as bits, and every voxel's texel, over the whole domain: what the
+// bit-for-bit checks compare.
+inline std::vector<std::uint32_t> distanceBits(const Volume& v) {
+  std::vector<float> d(std::size_t(v.domain().voxels()));
+  v.gather(v.domain(), d.data());
+  std::vector<std::uint32_t> bits(d.size());
+  for (std::size_t i = 0; i < d.size(); ++i) bits[i] = std::bit_cast<std::uint32_t>(d[i]);
+  return bits;
+}
+
+inline std::vector<Texel> allTexels(const Volume& v) {
+  std::vector<Texel> t(std::size_t(v.domain().voxels()));
+  v.gatherTexels(v.domain(), t.data());
+  return t;
+}
+
+// How many entries of two arrays of the same length differ (Catch would print every one).
+template <class T>
+std::size_t differing(const std::vector<T>& a, const std::vector<T>& b) {
+  std::size_t n = a.size() == b.size() ? 0 : std::max(a.size(), b.size());
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) n += !(a[i] == b[i]);
+  return n;
 }
 
 }  // namespace marzipan::test

@@ -26,29 +26,6 @@ constexpr double kRadius = 20;
 
 Volume sphere() { return makeSphere(kDims, kCentre, kRadius); }
 
-// Every voxel's distance, as bits.
-std::vector<std::uint32_t> distanceBits(const Volume& v) {
-  std::vector<float> d(std::size_t(v.domain().voxels()));
-  v.gather(v.domain(), d.data());
-  std::vector<std::uint32_t> bits(d.size());
-  for (std::size_t i = 0; i < d.size(); ++i) bits[i] = std::bit_cast<std::uint32_t>(d[i]);
-  return bits;
-}
-
-// How many entries of two arrays of the same length differ (Catch would print every one).
-template <class T>
-std::size_t differing(const std::vector<T>& a, const std::vector<T>& b) {
-  std::size_t n = a.size() == b.size() ? 0 : std::max(a.size(), b.size());
-  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) n += !(a[i] == b[i]);
-  return n;
-}
-
-std::vector<Texel> texels(const Volume& v) {
-  std::vector<Texel> t(std::size_t(v.domain().voxels()));
-  v.gatherTexels(v.domain(), t.data());
-  return t;
-}
-
 // Calls fn(p, d, foot point) for every band voxel of a stored brick.
 template <class F>
 void forEachBandVoxel(const Volume& v, F fn) {
@@ -86,7 +63,7 @@ Volume stripedSphere() {
 
 TEST_CASE("a paint dab colours the band by its foot points and moves no geometry", "[paint]") {
   Volume v = sphere();
-  const auto bits = distanceBits(v);
+  const auto bits = test::distanceBits(v);
   const Volume before = v;
   const Vec3 at = kCentre + Vec3{kRadius, 0, 0};
   PaintSettings st;
@@ -99,7 +76,7 @@ TEST_CASE("a paint dab colours the band by its foot points and moves no geometry
     REQUIRE(c.before.data == c.after.data);  // the very brick: not a bit of distance changed
     REQUIRE(c.after.paint);
   }
-  CHECK(differing(distanceBits(v), bits) == 0);
+  CHECK(test::differing(test::distanceBits(v), bits) == 0);
   // Inside the hard core: exactly the colour; beyond the radius: the clay; between: between.
   std::size_t core = 0, outside = 0, wrong = 0;
   forEachBandVoxel(v, [&](Int3 p, float, Vec3 q) {
@@ -149,7 +126,7 @@ TEST_CASE("a paint stroke over the same spot twice is once, and without memory i
   Volume pieces = sphere();
   for (std::size_t k = 0; k < dabs.size(); ++k)
     paintStroke(pieces, st, std::span<const StrokeDab>(dabs.data() + k, 1), std::span<const StrokeDab>(dabs.data(), k));
-  const auto a = texels(once), b = texels(pieces);
+  const auto a = test::allTexels(once), b = test::allTexels(pieces);
   int worst = 0;
   for (std::size_t i = 0; i < a.size(); ++i)
     worst = std::max({worst, std::abs(a[i].r - b[i].r), std::abs(a[i].g - b[i].g), std::abs(a[i].b - b[i].b)});
@@ -167,13 +144,13 @@ TEST_CASE("mask strokes add and erase the weight, and colour paint spares masked
   std::size_t frozen = 0;
   forEachBandVoxel(v, [&](Int3 p, float, Vec3 q) { frozen += length(q - at) <= 2.9 && v.texel(p).mask == 255; });
   CHECK(frozen > 50);
-  const auto maskBits = distanceBits(v);
+  const auto maskBits = test::distanceBits(v);
   PaintSettings red;
   red.color = kRed;
   red.radius = 12;
   red.hardness = 0.9;
   paint(v, red, at);
-  CHECK(differing(distanceBits(v), maskBits) == 0);
+  CHECK(test::differing(test::distanceBits(v), maskBits) == 0);
   std::size_t wrong = 0, reddened = 0;
   forEachBandVoxel(v, [&](Int3 p, float, Vec3) {
     const Texel t = v.texel(p);
@@ -227,7 +204,7 @@ TEST_CASE("far-apart dabs of one stroke paint what each dab paints alone", "[pai
     CHECK(one.region.voxels() < std::int64_t(64) * 64 * 64);
   }
   CHECK(stroke.paintedBricks() > 20);
-  CHECK(differing(texels(stroke), texels(alone)) == 0);
+  CHECK(test::differing(test::allTexels(stroke), test::allTexels(alone)) == 0);
   CHECK(digest(stroke) == digest(alone));
 }
 
@@ -272,8 +249,8 @@ TEST_CASE("under a full mask every geometry tool leaves distances and colours bi
   mask.radius = 200;
   paint(v, mask, kCentre);
   REQUIRE(v.paintedBricks() == v.presentBricks());
-  const auto bits = distanceBits(v);
-  const auto colours = texels(v);
+  const auto bits = test::distanceBits(v);
+  const auto colours = test::allTexels(v);
   const std::uint64_t frozen = digest(v);
   const Volume before = v;
   const Vec3 at = kCentre + Vec3{kRadius, 0, 0};
@@ -327,8 +304,8 @@ TEST_CASE("under a full mask every geometry tool leaves distances and colours bi
     for (int by = 0; by < nb.y; ++by)
       for (int bx = 0; bx < nb.x; ++bx) otherSlots += !(v.brick({bx, by, bz}) == before.brick({bx, by, bz}));
   CHECK(otherSlots == 0);
-  CHECK(differing(distanceBits(v), bits) == 0);
-  CHECK(differing(texels(v), colours) == 0);
+  CHECK(test::differing(test::distanceBits(v), bits) == 0);
+  CHECK(test::differing(test::allTexels(v), colours) == 0);
   CHECK(digest(v) == frozen);
 }
 
@@ -354,7 +331,7 @@ TEST_CASE("under a full mask a grab keeps every masked voxel bit for bit", "[pai
   });
   CHECK(held == before.presentBricks());
   CHECK(wrong == 0);
-  CHECK(differing(texels(v), texels(before)) == 0);
+  CHECK(test::differing(test::allTexels(v), test::allTexels(before)) == 0);
 }
 
 TEST_CASE("a half-masked sphere smoothed globally keeps its masked half bit for bit", "[paint][mask]") {
@@ -467,8 +444,8 @@ TEST_CASE("mask fill, invert and clear set every stored voxel's weight and keep 
     t.mask = Bricks::origin(b).x + Bricks::local(i).x < 32 ? 100 : 0;
     return t;
   });
-  const auto bits = distanceBits(v);
-  const auto colours = texels(v);
+  const auto bits = test::distanceBits(v);
+  const auto colours = test::allTexels(v);
   const Volume painted = v;
   // Every voxel of every stored brick, against the texel it had: weight w' = rule(w), colour kept.
   const auto check = [&](auto rule) {
@@ -483,7 +460,7 @@ TEST_CASE("mask fill, invert and clear set every stored voxel's weight and keep 
     });
     CHECK(seen == painted.presentBricks() * std::size_t(kBrickVoxels));
     CHECK(wrong == 0);
-    CHECK(differing(distanceBits(v), bits) == 0);
+    CHECK(test::differing(test::distanceBits(v), bits) == 0);
   };
   SECTION("fill") {
     CHECK(!maskFill(v).empty());
@@ -496,7 +473,7 @@ TEST_CASE("mask fill, invert and clear set every stored voxel's weight and keep 
     check([](int w) { return 255 - w; });
     maskInvert(v);
     CHECK(digest(v) == digest(painted));
-    CHECK(differing(texels(v), colours) == 0);
+    CHECK(test::differing(test::allTexels(v), colours) == 0);
   }
   SECTION("clear") {
     CHECK(!maskClear(v).empty());

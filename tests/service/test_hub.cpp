@@ -1115,7 +1115,7 @@ TEST_CASE("a text of max_text_bytes refused over the rate limit is answered Busy
     busy += r["error"]["code"] == -32005;
   }
   CHECK(busy >= 4);
-  for (const json id : {json("over"), json("end")}) {
+  for (const json& id : {json("over"), json("end")}) {
     const json r = responseTo(id);
     CHECK(r["error"]["code"] == -32005);
     CHECK(r["error"]["data"]["retry_after_ms"] == 100);

@@ -18,9 +18,11 @@
 #include "protocol/cpp/ops.hpp"
 #include "service/apply_op.hpp"
 #include "service/session.hpp"
+#include "session_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::requireError;
 using protocol::BrushTool;
 
 namespace {
@@ -54,17 +56,6 @@ std::optional<Vec3> analyticHit(Vec3 c, double r, Vec3 o, Vec3 d) {
   const double t = -b - std::sqrt(disc);
   if (t < 0) return std::nullopt;
   return o + d * t;
-}
-
-void requireError(const std::function<void()>& f, protocol::RpcCode code, const std::string& field) {
-  try {
-    f();
-    FAIL("no ServiceError thrown");
-  } catch (const ServiceError& e) {
-    INFO(e.what());
-    CHECK(e.code() == code);
-    CHECK(e.field() == field);
-  }
 }
 
 }  // namespace

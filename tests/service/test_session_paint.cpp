@@ -19,11 +19,14 @@
 #include "engine/measures.hpp"
 #include "engine/paint.hpp"
 #include "engine/solids.hpp"
+#include "engine/support.hpp"
 #include "service/apply_op.hpp"
 #include "service/session.hpp"
+#include "session_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::requireError;
 
 namespace {
 
@@ -59,39 +62,6 @@ std::vector<Dab> centres(const std::vector<Vec3>& points) {
   return out;
 }
 
-// Every voxel's distance as bits, and every voxel's texel.
-std::vector<std::uint32_t> distanceBits(const Volume& v) {
-  std::vector<float> d(std::size_t(v.domain().voxels()));
-  v.gather(v.domain(), d.data());
-  std::vector<std::uint32_t> bits(d.size());
-  for (std::size_t i = 0; i < d.size(); ++i) bits[i] = std::bit_cast<std::uint32_t>(d[i]);
-  return bits;
-}
-
-std::vector<Texel> texels(const Volume& v) {
-  std::vector<Texel> t(std::size_t(v.domain().voxels()));
-  v.gatherTexels(v.domain(), t.data());
-  return t;
-}
-
-template <class T>
-std::size_t differing(const std::vector<T>& a, const std::vector<T>& b) {
-  std::size_t n = a.size() == b.size() ? 0 : std::max(a.size(), b.size());
-  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) n += !(a[i] == b[i]);
-  return n;
-}
-
-void requireError(const std::function<void()>& f, protocol::RpcCode code, const std::string& field) {
-  try {
-    f();
-    FAIL("no ServiceError thrown");
-  } catch (const ServiceError& e) {
-    INFO(e.what());
-    CHECK(e.code() == code);
-    CHECK(e.field() == field);
-  }
-}
-
 }  // namespace
 
 TEST_CASE("session paint: a stroke is the engine's paintStroke of its dabs and moves no distance", "[session][paint]") {
@@ -112,8 +82,8 @@ TEST_CASE("session paint: a stroke is the engine's paintStroke of its dabs and m
     images.push_back(StrokeDab{Vec3{(kN - 1) - p.x, p.y, p.z}});
   }
   paintStroke(expected, red(), images, {});
-  CHECK(differing(texels(s.volume()), texels(expected)) == 0);
-  CHECK(differing(distanceBits(s.volume()), distanceBits(sphere())) == 0);
+  CHECK(test::differing(test::allTexels(s.volume()), test::allTexels(expected)) == 0);
+  CHECK(test::differing(test::distanceBits(s.volume()), test::distanceBits(sphere())) == 0);
   // The mirror image on -x is painted as the dab on +x.
   CHECK(s.volume().texel({int(std::lround(kC + kR)), int(kC), int(kC)}) == texelOf(kRed));
   CHECK(s.volume().texel({int(std::lround(kC - kR)), int(kC), int(kC)}) == texelOf(kRed));
@@ -170,7 +140,7 @@ TEST_CASE("session paint: one undo step gives the start back bit for bit, also p
   s.strokeDabs(id, centres({kSide + Vec3{0, 4, 0}}), ThreadPool::serial());
   s.endStroke(id);
   const std::uint64_t painted = s.digest();
-  const auto paintedTexels = texels(s.volume());
+  const auto paintedTexels = test::allTexels(s.volume());
   REQUIRE(s.steps().size() == 1);
 
   SECTION("the newest step") {
@@ -180,7 +150,7 @@ TEST_CASE("session paint: one undo step gives the start back bit for bit, also p
     CHECK(s.volume().paintedBricks() == 0);
     CHECK(s.redo().changed);
     CHECK(s.digest() == painted);
-    CHECK(differing(texels(s.volume()), paintedTexels) == 0);
+    CHECK(test::differing(test::allTexels(s.volume()), paintedTexels) == 0);
   }
   SECTION("packed under a newer step, then moved between the lists (packed again each time)") {
     // A mask stroke elsewhere packs the paint step (history.cpp); undoing both must give the
@@ -191,13 +161,13 @@ TEST_CASE("session paint: one undo step gives the start back bit for bit, also p
     const std::uint64_t masked = s.digest();
     CHECK(s.undo().changed);
     CHECK(s.digest() == painted);
-    CHECK(differing(texels(s.volume()), paintedTexels) == 0);
+    CHECK(test::differing(test::allTexels(s.volume()), paintedTexels) == 0);
     CHECK(s.undo().changed);
     CHECK(s.digest() == start);
     CHECK(s.volume().paintedBricks() == 0);
     CHECK(s.redo().changed);
     CHECK(s.digest() == painted);
-    CHECK(differing(texels(s.volume()), paintedTexels) == 0);
+    CHECK(test::differing(test::allTexels(s.volume()), paintedTexels) == 0);
     CHECK(s.redo().changed);
     CHECK(s.digest() == masked);
     CHECK(digest(s.volume()) == masked);
@@ -258,8 +228,8 @@ TEST_CASE("session paint: under a full mask add_blob, smooth and csg_add leave d
   s.strokeDabs(p, centres({kSide}), ThreadPool::serial());
   s.endStroke(p);
   s.apply(protocol::MaskOp{MaskAction::Fill}, ThreadPool::serial());
-  const auto bits = distanceBits(s.volume());
-  const auto colours = texels(s.volume());
+  const auto bits = test::distanceBits(s.volume());
+  const auto colours = test::allTexels(s.volume());
   const std::uint64_t frozen = s.digest();
   const std::uint64_t revision = s.revision();
   ThreadPool pool(2);
@@ -282,8 +252,8 @@ TEST_CASE("session paint: under a full mask add_blob, smooth and csg_add leave d
     CHECK_FALSE(s.apply(op, pool).changed);
   }
   CHECK(s.revision() == revision);
-  CHECK(differing(distanceBits(s.volume()), bits) == 0);
-  CHECK(differing(texels(s.volume()), colours) == 0);
+  CHECK(test::differing(test::distanceBits(s.volume()), bits) == 0);
+  CHECK(test::differing(test::allTexels(s.volume()), colours) == 0);
   CHECK(s.digest() == frozen);
 }
 

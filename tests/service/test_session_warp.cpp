@@ -18,9 +18,11 @@
 #include "engine/solids.hpp"
 #include "service/apply_op.hpp"
 #include "service/session.hpp"
+#include "session_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::requireError;
 using protocol::WarpTool;
 
 namespace {
@@ -57,17 +59,6 @@ std::vector<Vec3> drag(Vec3 from, Vec3 to, int n) {
   std::vector<Vec3> out{from};
   for (int i = 1; i <= n; ++i) out.push_back(from + (to - from) * (double(i) / n));
   return out;
-}
-
-void requireError(const std::function<void()>& f, protocol::RpcCode code, const std::string& field) {
-  try {
-    f();
-    FAIL("no ServiceError thrown");
-  } catch (const ServiceError& e) {
-    INFO(e.what());
-    CHECK(e.code() == code);
-    CHECK(e.field() == field);
-  }
 }
 
 }  // namespace

@@ -27,9 +27,11 @@
 #include "service/session.hpp"
 #include "service/session_store.hpp"
 #include "hub_support.hpp"
+#include "session_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::requireError;
 using namespace marzipan::service::testing;
 using nlohmann::json;
 using protocol::BrushTool;
@@ -75,17 +77,6 @@ double largestDifference(const Volume& a, const Volume& b) {
     for (int y = 0; y < kN; ++y)
       for (int x = 0; x < kN; ++x) worst = std::max(worst, double(std::fabs(a.at(x, y, z) - b.at(x, y, z))));
   return worst;
-}
-
-void requireError(const std::function<void()>& f, protocol::RpcCode code, const std::string& field) {
-  try {
-    f();
-    FAIL("no ServiceError thrown");
-  } catch (const ServiceError& e) {
-    INFO(e.what());
-    CHECK(e.code() == code);
-    CHECK(e.field() == field);
-  }
 }
 
 fs::path freshDir(const std::string& name) {

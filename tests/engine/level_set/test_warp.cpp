@@ -142,28 +142,7 @@ Volume sphere() { return makeSphere({96, 96, 96}, kCentre, kSphereRadius); }
 Vec3 surfacePoint() { return kCentre + normalized(Vec3{0.3, 1, 0.2}) * kSphereRadius; }
 
 // Every voxel's distance as bits, and every voxel's channels.
-std::vector<std::uint32_t> distanceBits(const Volume& v) {
-  std::vector<float> d(std::size_t(v.domain().voxels()));
-  v.gather(v.domain(), d.data());
-  std::vector<std::uint32_t> bits(d.size());
-  for (std::size_t i = 0; i < d.size(); ++i) bits[i] = std::bit_cast<std::uint32_t>(d[i]);
-  return bits;
-}
-
-std::vector<Texel> allTexels(const Volume& v) {
-  std::vector<Texel> t(std::size_t(v.domain().voxels()));
-  v.gatherTexels(v.domain(), t.data());
-  return t;
-}
-
 // How many entries of two arrays of the same length differ.
-template <class T>
-std::size_t differing(const std::vector<T>& a, const std::vector<T>& b) {
-  std::size_t n = a.size() == b.size() ? 0 : std::max(a.size(), b.size());
-  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) n += !(a[i] == b[i]);
-  return n;
-}
-
 Int3 nearestVoxel(Vec3 p) { return {int(std::lround(p.x)), int(std::lround(p.y)), int(std::lround(p.z))}; }
 
 const Rgb8 kRed{200, 20, 10};
@@ -485,7 +464,7 @@ TEST_CASE("a painted spot moves with the clay: grab, snake hook and twist carry 
     std::vector<Texel> was(std::size_t(far.voxels())), now(was.size());
     base.gatherTexels(far, was.data());
     v.gatherTexels(far, now.data());
-    CHECK(differing(was, now) == 0);
+    CHECK(test::differing(was, now) == 0);
   }
   SECTION("snake hook: the red tip follows the path") {
     Volume v = base;
@@ -521,8 +500,8 @@ TEST_CASE("under a full mask every warp leaves distances and colours bit for bit
   Volume v = paintedSphere(a, 8);
   maskAll(v);
   const Volume base = v;
-  const auto bits = distanceBits(base);
-  const auto channels = allTexels(base);
+  const auto bits = test::distanceBits(base);
+  const auto channels = test::allTexels(base);
   ThreadPool pool(2);
   // A grab of three radii reaches far past the band, into uniform bricks that no mask reaches:
   // the clay it would carry out comes through the frozen band and stays.
@@ -536,8 +515,8 @@ TEST_CASE("under a full mask every warp leaves distances and colours bit for bit
   SECTION("twist") { twist(v, base, a, n, 1.5, 12, pool); }
   SECTION("local scale") { localScale(v, base, a, 1.6, 12, pool); }
   SECTION("pinch") { pinch(v, base, a, n, 0.8, 12, pool); }
-  CHECK(differing(distanceBits(v), bits) == 0);
-  CHECK(differing(allTexels(v), channels) == 0);
+  CHECK(test::differing(test::distanceBits(v), bits) == 0);
+  CHECK(test::differing(test::allTexels(v), channels) == 0);
   CHECK(digest(v) == digest(base));
 }
 
@@ -564,7 +543,7 @@ TEST_CASE("a half-masked sphere grabbed keeps its masked half bit for bit", "[wa
       }
   CHECK(wrong == 0);
   CHECK(changedFree > 1000);
-  CHECK(differing(allTexels(v), allTexels(base)) == 0);  // one colour: nothing to move
+  CHECK(test::differing(test::allTexels(v), test::allTexels(base)) == 0);  // one colour: nothing to move
 }
 
 TEST_CASE("paint elsewhere changes no warped distance, and a painted grab stroke groups alike", "[warp][paint]") {
@@ -578,7 +557,7 @@ TEST_CASE("paint elsewhere changes no warped distance, and a painted grab stroke
       grab(painted, base, a, d, 10);
       grab(unpainted, plain, a, d, 10);
     }
-    CHECK(differing(distanceBits(painted), distanceBits(unpainted)) == 0);
+    CHECK(test::differing(test::distanceBits(painted), test::distanceBits(unpainted)) == 0);
     Volume once = base;
     grab(once, base, a, {3, 7, 2}, 10);
     CHECK(digest(once) == digest(painted));
