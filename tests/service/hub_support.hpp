@@ -144,12 +144,18 @@ struct TestClient {
     REQUIRE(r.contains("result"));
     return r["result"];
   }
-  int error(const std::string& method, const json& params = json::object()) {
+  // The error object of a call that must fail, and its code.
+  json errorObject(const std::string& method, const json& params = json::object()) {
     const json r = call(method, params);
     INFO(r.dump());
     REQUIRE(r.contains("error"));
-    return r["error"]["code"].get<int>();
+    return r["error"];
   }
+  int error(const std::string& method, const json& params = json::object()) {
+    return errorObject(method, params)["code"].get<int>();
+  }
+  // The session's digest, as session.stats gives it.
+  std::string digest() { return result("session.stats")["digest"]; }
   json rawResponse(const std::string& text, const json& id) {
     const std::size_t mark = link->size();
     hub.text(client, text);

@@ -30,15 +30,6 @@ const json kCreate = {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "non
 const json kSide = {53.9, 31.5, 31.5};
 const json kOtherSide = {9.1, 31.5, 31.5};
 
-std::string digestOf(TestClient& c) { return c.result("session.stats")["digest"]; }
-
-json errorOf(TestClient& c, const std::string& method, const json& params = json::object()) {
-  const json r = c.call(method, params);
-  INFO(r.dump());
-  REQUIRE(r.contains("error"));
-  return r["error"];
-}
-
 std::string fieldOf(const json& e) { return e["data"]["field"]; }
 
 // One stroke of `begin` over the dabs, one message each; returns the last revision.
@@ -64,10 +55,10 @@ TEST_CASE("hub paint: paint and mask strokes are steps that undo and redo to the
   TestClient a(hub);
   const json created = a.result("session.create", kCreate);
   CHECK(created["base_color"] == json{221, 181, 155});
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const json paint = {{"tool", "paint"}, {"color", {200, 20, 10}}, {"radius", 6}, {"symmetry", {"x"}}};
   CHECK(stroke(a, paint, {kSide, {53.9, 34.5, 31.5}}) == 2);
-  const std::string painted = digestOf(a);
+  const std::string painted = a.digest();
   CHECK(painted != start);
   // The same dabs again: remembered, nothing changes (revision 2 stays).
   const std::uint64_t again = a.result("stroke.begin", paint)["stroke"];
@@ -75,52 +66,52 @@ TEST_CASE("hub paint: paint and mask strokes are steps that undo and redo to the
   CHECK(a.result("stroke.dabs", {{"stroke", again}, {"dabs", {{{"center", kSide}}}}})["applied"] == 0);
   a.result("stroke.end", {{"stroke", again}});
   a.result("history.undo");
-  CHECK(digestOf(a) == painted);
+  CHECK(a.digest() == painted);
   stroke(a, {{"tool", "mask"}, {"radius", 8}}, {kOtherSide});
-  const std::string masked = digestOf(a);
+  const std::string masked = a.digest();
   stroke(a, {{"tool", "mask"}, {"radius", 8}, {"erase", true}}, {kOtherSide});
   // Erased where it was added: lower again (gone in the brush's core, where alpha is 1).
-  CHECK(digestOf(a) != masked);
+  CHECK(a.digest() != masked);
   CHECK(stepTools(a) == std::vector<std::string>{"mask", "mask", "paint"});  // newest first
   a.result("history.undo");
-  CHECK(digestOf(a) == masked);
+  CHECK(a.digest() == masked);
   a.result("history.undo");
   a.result("history.undo");
-  CHECK(digestOf(a) == start);
+  CHECK(a.digest() == start);
   a.result("history.redo");
-  CHECK(digestOf(a) == painted);
+  CHECK(a.digest() == painted);
 }
 
 TEST_CASE("hub paint: mask.fill, mask.invert and mask.clear are steps, view clients are refused", "[hub][paint][mask]") {
   Hub hub(twoWorkerOptions());
   TestClient a(hub), v(hub);
   const json created = a.result("session.create", kCreate);
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const json joined = v.result("session.join", {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
   CHECK(joined["base_color"] == json{221, 181, 155});
   for (const std::string m : {"mask.fill", "mask.invert", "mask.clear"}) {
-    const json e = errorOf(v, m);
+    const json e = v.errorObject(m);
     CHECK(e["code"] == -32007);
   }
-  CHECK(digestOf(a) == start);
+  CHECK(a.digest() == start);
   const json filled = a.result("mask.fill");
   CHECK(filled["revision"] == 1);
   CHECK(filled["roi"]["lo"] == json{0, 0, 0});
-  const std::string full = digestOf(a);
+  const std::string full = a.digest();
   CHECK(full != start);
   CHECK(a.result("mask.invert")["revision"] == 2);
-  CHECK(digestOf(a) == start);  // all 255 inverted: all 0, no channels
+  CHECK(a.digest() == start);  // all 255 inverted: all 0, no channels
   a.result("mask.fill");
   a.result("mask.clear");
-  CHECK(digestOf(a) == start);
+  CHECK(a.digest() == start);
   // Nothing left to clear: no change, no step.
   const json none = a.result("mask.clear");
   CHECK(none["revision"] == 4);
   CHECK(none["roi"].is_null());
   CHECK(stepTools(a) == std::vector<std::string>{"mask.clear", "mask.fill", "mask.invert", "mask.fill"});  // newest first
-  CHECK(errorOf(a, "mask.fill", {{"weight", 255}})["code"] == -32602);
+  CHECK(a.errorObject("mask.fill", {{"weight", 255}})["code"] == -32602);
   a.result("history.undo");
-  CHECK(digestOf(a) == full);
+  CHECK(a.digest() == full);
 }
 
 TEST_CASE("hub paint: a fully masked session keeps its bits under add_blob, smooth and csg_add", "[hub][paint][mask]") {
@@ -129,14 +120,14 @@ TEST_CASE("hub paint: a fully masked session keeps its bits under add_blob, smoo
   a.result("session.create", kCreate);
   stroke(a, {{"tool", "paint"}, {"color", {10, 200, 30}}, {"radius", 8}}, {kSide});
   a.result("mask.fill");
-  const std::string frozen = digestOf(a);
+  const std::string frozen = a.digest();
   const std::uint64_t revision = a.result("session.stats")["revision"];
   CHECK(stroke(a, {{"tool", "add_blob"}, {"radius", 8}}, {kSide, {53.9, 34.5, 31.5}}) == revision);
   CHECK(stroke(a, {{"tool", "smooth"}, {"radius", 8}}, {kSide}) == revision);
   const json csg = a.result("tool.apply", {{"tool", "csg_add"}, {"shape", "sphere"}, {"center", {50.9, 31.5, 31.5}}, {"radius", 2}});
   CHECK(csg["revision"] == revision);
   CHECK(csg["roi"].is_null());
-  CHECK(digestOf(a) == frozen);
+  CHECK(a.digest() == frozen);
 }
 
 TEST_CASE("hub paint: base_color makes the session's clay, join and fork carry it", "[hub][paint]") {
@@ -149,11 +140,11 @@ TEST_CASE("hub paint: base_color makes the session's clay, join and fork carry i
   CHECK(created["base_color"] == json{120, 130, 150});
   c.result("session.create", kCreate);
   // The same sphere in another clay: another digest.
-  CHECK(digestOf(a) != digestOf(c));
+  CHECK(a.digest() != c.digest());
   const json joined = b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"splats", 2}, {"view", "none"}});
   CHECK(joined["base_color"] == json{120, 130, 150});
   stroke(b, {{"tool", "paint"}, {"color", {1, 2, 3}}, {"radius", 5}}, {kSide});
-  const std::string live = digestOf(b);
+  const std::string live = b.digest();
   const json forked = b.result("session.fork");
   CHECK(forked["base_color"] == json{120, 130, 150});
   CHECK(forked["digest"] == live);
@@ -173,7 +164,7 @@ TEST_CASE("hub paint: presence relays the paint tool and its colour", "[hub][pai
   const json got = std::get<json>(b.link->at(at))["params"]["brush"];
   CHECK(got["tool"] == "paint");
   CHECK(got["color"] == json{250, 5, 80});
-  CHECK(errorOf(a, "presence", {{"brush", {{"tool", "paint"}, {"radius", 6}, {"point", kSide}, {"normal", {1, 0, 0}},
+  CHECK(a.errorObject("presence", {{"brush", {{"tool", "paint"}, {"radius", 6}, {"point", kSide}, {"normal", {1, 0, 0}},
                                            {"active", true}, {"color", {256, 0, 0}}}}})["code"] == -32602);
 }
 
@@ -204,7 +195,7 @@ TEST_CASE("hub paint: the journal, cut by snapshots inside paint strokes, recove
     const std::uint64_t open = a.result("stroke.begin", {{"tool", "paint"}, {"color", {0, 0, 255}}, {"radius", 5}})["stroke"];
     for (const json& p : {kOtherSide, json{9.1, 33.5, 31.5}, json{9.1, 35.5, 31.5}, json{9.1, 33.5, 31.5}})
       a.result("stroke.dabs", {{"stroke", open}, {"dabs", {{{"center", p}}}}});
-    live = digestOf(a);
+    live = a.digest();
     fs::copy(dir, crashed, fs::copy_options::recursive);
   }
   SessionStore store(crashed);
@@ -219,9 +210,9 @@ TEST_CASE("hub paint: hostile params are refused with their field and change not
   Hub hub(twoWorkerOptions());
   TestClient a(hub);
   a.result("session.create", kCreate);
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const auto refused = [&](const json& begin, const std::string& field) {
-    const json e = errorOf(a, "stroke.begin", begin);
+    const json e = a.errorObject("stroke.begin", begin);
     CHECK(e["code"] == -32602);
     CHECK(fieldOf(e) == field);
   };
@@ -238,18 +229,18 @@ TEST_CASE("hub paint: hostile params are refused with their field and change not
   // NaN cannot be written in JSON: a text that holds it is not JSON.
   const json nan = a.rawResponse(R"({"jsonrpc":"2.0","id":99,"method":"stroke.begin","params":{"tool":"paint","color":[1,2,3],"strength":NaN}})", nullptr);
   CHECK(nan["error"]["code"] == -32700);
-  json e = errorOf(a, "session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"base_color", {0, 0}}});
+  json e = a.errorObject("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"base_color", {0, 0}}});
   CHECK(e["code"] == -32602);
   CHECK(fieldOf(e) == "base_color");
-  e = errorOf(a, "tool.apply", {{"op", "mask"}, {"action", "fill"}});
+  e = a.errorObject("tool.apply", {{"op", "mask"}, {"action", "fill"}});
   CHECK(e["code"] == -32602);
-  e = errorOf(a, "mask.invert", {{"action", "invert"}});
+  e = a.errorObject("mask.invert", {{"action", "invert"}});
   CHECK(fieldOf(e) == "action");
   // A paint stroke's dab off the domain: refused, named, nothing changes.
   const std::uint64_t s = a.result("stroke.begin", {{"tool", "paint"}, {"color", {1, 2, 3}}, {"radius", 4}})["stroke"];
-  e = errorOf(a, "stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", kSide}}, {{"center", {900, 0, 0}}}}}});
+  e = a.errorObject("stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", kSide}}, {{"center", {900, 0, 0}}}}}});
   CHECK(e["code"] == -32006);
   CHECK(fieldOf(e) == "dabs[1].center");
-  CHECK(digestOf(a) == start);
+  CHECK(a.digest() == start);
   CHECK(a.result("history.list")["steps"].empty());
 }

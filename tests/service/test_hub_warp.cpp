@@ -39,15 +39,6 @@ std::vector<json> dragDabs(double dx, double dy, double dz, int n) {
   return out;
 }
 
-std::string digestOf(TestClient& c) { return c.result("session.stats")["digest"]; }
-
-json errorOf(TestClient& c, const std::string& method, const json& params) {
-  const json r = c.call(method, params);
-  INFO(r.dump());
-  REQUIRE(r.contains("error"));
-  return r["error"];
-}
-
 }  // namespace
 
 TEST_CASE("hub warp: a grab's volume does not depend on how its dabs are grouped into messages", "[hub][warp]") {
@@ -55,7 +46,7 @@ TEST_CASE("hub warp: a grab's volume does not depend on how its dabs are grouped
   TestClient a(hub), b(hub);
   a.result("session.create", kCreate);
   b.result("session.create", kCreate);
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const std::vector<json> pointer = dragDabs(7, 3, -2, 10);
 
   const std::uint64_t sa = a.result("stroke.begin", {{"tool", "grab"}, {"radius", 12}})["stroke"];
@@ -70,15 +61,15 @@ TEST_CASE("hub warp: a grab's volume does not depend on how its dabs are grouped
   for (const json& d : pointer) b.result("stroke.dabs", {{"stroke", sb}, {"dabs", {d}}});
   b.result("stroke.end", {{"stroke", sb}});
 
-  CHECK(digestOf(a) == digestOf(b));
-  CHECK(digestOf(a) != start);
+  CHECK(a.digest() == b.digest());
+  CHECK(a.digest() != start);
   // One step each, named grab; undo brings the start back.
   for (TestClient* c : {&a, &b}) {
     const json steps = c->result("history.list")["steps"];
     REQUIRE(steps.size() == 1);
     CHECK(steps[0]["tool"] == "grab");
     c->result("history.undo");
-    CHECK(digestOf(*c) == start);
+    CHECK(c->digest() == start);
   }
 }
 
@@ -107,7 +98,7 @@ TEST_CASE("hub warp: the journal, cut by snapshots inside warp strokes, recovers
     a.result("stroke.dabs", {{"stroke", open}, {"dabs", {{{"center", {31.5, 53.9, 31.5}}}}}});
     for (const json& d : {dab(31.5, 55, 31.5), dab(31.5, 57, 31.5), dab(31.5, 56, 31.5), dab(31.5, 58, 31.5)})
       a.result("stroke.dabs", {{"stroke", open}, {"dabs", {d}}});
-    live = digestOf(a);
+    live = a.digest();
     // The files as a crash would leave them (the hub saves a snapshot as it closes the session).
     fs::copy(dir, crashed, fs::copy_options::recursive);
   }
@@ -124,42 +115,42 @@ TEST_CASE("hub warp: refused requests name their field and change nothing", "[hu
   Hub hub(o);
   TestClient a(hub);
   a.result("session.create", kCreate);
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const auto field = [](const json& e) { return e["data"]["field"].get<std::string>(); };
 
-  json e = errorOf(a, "stroke.begin", {{"tool", "grab"}, {"symmetry", {"x"}}});
+  json e = a.errorObject("stroke.begin", {{"tool", "grab"}, {"symmetry", {"x"}}});
   CHECK(e["code"] == -32602);
   CHECK(field(e) == "symmetry");
-  e = errorOf(a, "stroke.begin", {{"tool", "snake_hook"}, {"accumulate", true}});
+  e = a.errorObject("stroke.begin", {{"tool", "snake_hook"}, {"accumulate", true}});
   CHECK(field(e) == "accumulate");
-  e = errorOf(a, "stroke.begin", {{"tool", "grab"}, {"radius", 500}});
+  e = a.errorObject("stroke.begin", {{"tool", "grab"}, {"radius", 500}});
   CHECK(e["code"] == -32602);
   CHECK(field(e) == "radius");
-  e = errorOf(a, "stroke.begin", {{"tool", "elastic_grab"}, {"radius", 30}});
+  e = a.errorObject("stroke.begin", {{"tool", "elastic_grab"}, {"radius", 30}});
   CHECK(field(e) == "radius");
-  e = errorOf(a, "stroke.begin", {{"tool", "grab"}, {"direction", {1, 0, 0}}});
+  e = a.errorObject("stroke.begin", {{"tool", "grab"}, {"direction", {1, 0, 0}}});
   CHECK(field(e) == "direction");
-  e = errorOf(a, "stroke.begin", {{"tool", "twist"}, {"direction", {0, 0, 0}}});
+  e = a.errorObject("stroke.begin", {{"tool", "twist"}, {"direction", {0, 0, 0}}});
   CHECK(field(e) == "direction");
-  e = errorOf(a, "tool.apply", {{"tool", "grab"}, {"center", kAnchor}});
+  e = a.errorObject("tool.apply", {{"tool", "grab"}, {"center", kAnchor}});
   CHECK(e["code"] == -32602);
   // stroke.dabs before any stroke.begin.
   CHECK(a.error("stroke.dabs", {{"stroke", 1}, {"dabs", {{{"center", kAnchor}}}}}) == -32011);
 
   const std::uint64_t s = a.result("stroke.begin", {{"tool", "grab"}, {"radius", 10}})["stroke"];
   // An anchor 4 vu off the surface.
-  e = errorOf(a, "stroke.dabs", {{"stroke", s}, {"dabs", {dab(57.9, 31.5, 31.5), dab(60, 31.5, 31.5)}}});
+  e = a.errorObject("stroke.dabs", {{"stroke", s}, {"dabs", {dab(57.9, 31.5, 31.5), dab(60, 31.5, 31.5)}}});
   CHECK(e["code"] == -32602);
   CHECK(field(e) == "center");
   // JSON has no NaN (the session refuses one, test_session_warp.cpp); a centre that is no point.
-  e = errorOf(a, "stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", {"x", 31.5, 31.5}}}}}});
+  e = a.errorObject("stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", {"x", 31.5, 31.5}}}}}});
   CHECK(e["code"] == -32602);
   CHECK(field(e) == "dabs");
   // Too many dabs in one message.
   json many = json::array();
   for (int i = 0; i < 17; ++i) many.push_back({{"center", kAnchor}});
   CHECK(a.error("stroke.dabs", {{"stroke", s}, {"dabs", many}}) == -32004);
-  CHECK(digestOf(a) == start);
+  CHECK(a.digest() == start);
   CHECK(a.result("session.stats")["revision"] == 0);
   // The stroke still takes its anchor afterwards.
   CHECK(a.result("stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", kAnchor}}, dab(56, 31.5, 31.5)}}})["revision"] == 1);
@@ -171,14 +162,14 @@ TEST_CASE("hub warp: a message over max_op_voxels is refused before any work", "
   Hub hub(o);
   TestClient a(hub);
   a.result("session.create", kCreate);
-  const std::string start = digestOf(a);
+  const std::string start = a.digest();
   const std::uint64_t s = a.result("stroke.begin", {{"tool", "grab"}, {"radius", 20}})["stroke"];
   // A short drag fits; a long one (its work grows with the drag) does not.
   CHECK(a.result("stroke.dabs", {{"stroke", s}, {"dabs", {{{"center", kAnchor}}, dab(54.9, 31.5, 31.5)}}})["revision"] == 1);
-  const std::string after = digestOf(a);
-  const json e = errorOf(a, "stroke.dabs", {{"stroke", s}, {"dabs", {dab(53.9, 31.5 - 60, 31.5 + 60)}}});
+  const std::string after = a.digest();
+  const json e = a.errorObject("stroke.dabs", {{"stroke", s}, {"dabs", {dab(53.9, 31.5 - 60, 31.5 + 60)}}});
   CHECK(e["code"] == -32004);
   CHECK(e["data"]["limit"] == "max_op_voxels");
-  CHECK(digestOf(a) == after);
+  CHECK(a.digest() == after);
   CHECK(after != start);
 }
