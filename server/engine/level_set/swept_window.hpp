@@ -174,15 +174,15 @@ class SweptWindow {
       std::size_t begin = 0, end = 0;   // the row's dabs: lanes [begin, end) of arrays
       std::size_t first = 0, last = 0;  // those whose ROI holds the voxel's x
       LaneArrays own;                   // the row's dabs when they are not consecutive
-      // The lanes of the row's dabs `row` (indices into dabs, increasing), `all` holding all of them.
-      void list(const std::vector<PreparedDab>& dabs, const std::vector<std::uint32_t>& row, const LaneArrays& all,
+      // The lanes of the row's dabs `row` (indices into prepared, increasing), `all` holding all of them.
+      void list(const std::vector<PreparedDab>& prepared, const std::vector<std::uint32_t>& row, const LaneArrays& all,
                 bool normals) {
         if (row.empty() || row.back() - row.front() + 1 == row.size()) {
           arrays = &all;
           begin = row.empty() ? 0 : row.front();
           end = begin + row.size();
         } else {
-          own.fill(dabs, row.data(), row.size(), normals);
+          own.fill(prepared, row.data(), row.size(), normals);
           arrays = &own;
           begin = 0;
           end = row.size();
