@@ -259,6 +259,14 @@ void Session::bump() {
   volume_.setRevision(revision_);
 }
 
+void Session::finishInto(ApplyResult& result, const Edit& message) {
+  const ApplyResult done = finish(message);
+  result.revision = done.revision;
+  result.changed = done.changed;
+  result.roi = done.roi;
+  result.bricks = done.bricks;
+}
+
 ApplyResult Session::finish(const Edit& edit) {
   ApplyResult r;
   r.roi = edit.region;
@@ -383,11 +391,7 @@ ApplyResult Session::paintDabs(StrokeId id, const std::vector<Dab>& dabs, Thread
     rethrow(e, "dabs");
   }
   foldMessage(id, message, images);
-  const ApplyResult done = finish(message);
-  result.revision = done.revision;
-  result.changed = done.changed;
-  result.roi = done.roi;
-  result.bricks = done.bricks;
+  finishInto(result, message);
   return result;
 }
 
@@ -399,6 +403,10 @@ void Session::foldMessage(StrokeId id, const Edit& message, const std::vector<St
     s.memory.insert(s.memory.end(), images.begin(), images.end());
     if (s.memory.size() > kMaxStrokeMemory) s.memory.erase(s.memory.begin(), s.memory.end() - std::ptrdiff_t(kMaxStrokeMemory));
   }
+  foldIntoStep(s, id, message);
+}
+
+void Session::foldIntoStep(Stroke& s, StrokeId id, const Edit& message) {
   if (message.empty()) return;
   const bool folded = s.by.id.empty() ? lastStroke_ == id && history_.amend(s.step, message, revision_ + 1)
                                       : history_.fold(s.step, message, volume_, revision_ + 1);
@@ -522,22 +530,9 @@ ApplyResult Session::warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadP
   if (first == 1) result.hits.push_back(anchorAt);
   for (const Vec3 p : points) result.hits.push_back(p);
   result.normals.assign(dabs.size(), Vec3{});
-  if (!message.empty()) {
-    const bool folded = stroke.by.id.empty() ? lastStroke_ == id && history_.amend(stroke.step, message, revision_ + 1)
-                                             : history_.fold(stroke.step, message, volume_, revision_ + 1);
-    if (!folded) {
-      history_.seal(stroke.step);
-      stroke.step = history_.push(message, stepInfo(stroke.by, toolName(stroke)),
-                                  [this, id](History::StepId st) { return growingStep(st, id); });
-    }
-    lastStroke_ = id;
-  }
-  const ApplyResult done = finish(message);
+  foldIntoStep(stroke, id, message);
+  finishInto(result, message);
   stroke.warpRevision = revision_;
-  result.revision = done.revision;
-  result.changed = done.changed;
-  result.roi = done.roi;
-  result.bricks = done.bricks;
   return result;
 }
 
@@ -624,11 +619,7 @@ ApplyResult Session::strokeDabs(StrokeId id, const std::vector<Dab>& dabs, Threa
   strokes_.at(id).plane = plane;
   result.plane = plane;
   foldMessage(id, message, images);
-  const ApplyResult done = finish(message);
-  result.revision = done.revision;
-  result.changed = done.changed;
-  result.roi = done.roi;
-  result.bricks = done.bricks;
+  finishInto(result, message);
   return result;
 }
 

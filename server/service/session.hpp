@@ -372,10 +372,15 @@ class Session {
   // Remembers a brush's or paint stroke's applied images (unless it accumulates) and folds a
   // message that changed something into the stroke's step (strokeDabs).
   void foldMessage(StrokeId id, const Edit& message, const std::vector<StrokeDab>& images);
+  // Folds a message that changed something into stroke s's step, or starts a new step when it
+  // cannot grow (foldMessage, warpDabs).
+  void foldIntoStep(Stroke& s, StrokeId id, const Edit& message);
   // The wire name of the stroke's tool, for its steps.
   static std::string_view toolName(const Stroke& s);
 
   ApplyResult finish(const Edit& edit);
+  // finish(), its revision, change, ROI and bricks written into a stroke message's result.
+  void finishInto(ApplyResult& result, const Edit& message);
   // Swaps the digest terms of bricks that went from `from` to what the volume now holds.
   void trackDigest(const std::vector<BrickChange>& changes, bool forward);
   // Forgets the cached terms (the volume was replaced without trackDigest).

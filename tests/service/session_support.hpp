@@ -1,11 +1,12 @@
 // Helpers shared by the Session tests (test_session*.cpp, test_surface_tools.cpp): the check that
-// a call is refused with a given JSON-RPC code and field.
+// a call is refused with a given JSON-RPC code and field, and dabs at given centres.
 #pragma once
 
 #include <catch2/catch.hpp>
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "protocol/cpp/rpc.hpp"
 #include "service/session.hpp"
@@ -22,6 +23,13 @@ inline void requireError(const std::function<void()>& f, protocol::RpcCode code,
     CHECK(e.code() == code);
     CHECK(e.field() == field);
   }
+}
+
+// One dab per point, each at that centre (no ray, weight 1).
+inline std::vector<Dab> centres(const std::vector<Vec3>& points) {
+  std::vector<Dab> out;
+  for (const Vec3 p : points) out.push_back(Dab{p});
+  return out;
 }
 
 }  // namespace marzipan::service::testing

@@ -26,6 +26,7 @@
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::centres;
 using marzipan::service::testing::requireError;
 
 namespace {
@@ -54,12 +55,6 @@ PaintSettings maskBrush(double radius, PaintMode mode = PaintMode::MaskAdd) {
   st.mode = mode;
   st.radius = radius;
   return st;
-}
-
-std::vector<Dab> centres(const std::vector<Vec3>& points) {
-  std::vector<Dab> out;
-  for (const Vec3 p : points) out.push_back(Dab{p});
-  return out;
 }
 
 }  // namespace

@@ -22,6 +22,7 @@
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::centres;
 using marzipan::service::testing::requireError;
 using protocol::WarpTool;
 
@@ -46,12 +47,6 @@ WarpStroke settings(WarpTool tool, double radius, std::optional<Vec3> direction 
   w.strength = strength;
   w.direction = direction;
   return w;
-}
-
-std::vector<Dab> centres(const std::vector<Vec3>& points) {
-  std::vector<Dab> out;
-  for (const Vec3 p : points) out.push_back(Dab{p});
-  return out;
 }
 
 // The pointer's way from the anchor to `to`, in n equal steps (the anchor first).
