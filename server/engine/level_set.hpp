@@ -174,7 +174,7 @@ Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& po
 
 // --- warps (level_set/warp.cpp) ----------------------------------------------------------
 // Warp tools (docs/method.md §3, Warps): grab, elastic grab, snake hook, twist, local scale,
-// pinch. Sign and units as in volume.hpp (vu; d < 0 inside).
+// pinch, pinch along a path. Sign and units as in volume.hpp (vu; d < 0 inside).
 //
 // A warp moves the solid by the flow of a stationary velocity field v for unit time. The new
 // field is the old one read back through the inverse map: phi1(x) = phi0(X(x)), X(x) the point
@@ -265,5 +265,23 @@ Edit localScale(Volume& vol, const Volume& base, Vec3 anchor, double factor, dou
 // spreads).
 Edit pinch(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double amount, double radius,
            ThreadPool& pool = ThreadPool::serial());
+
+// Pinch along a path: one move of a path-dependent stroke (vol is its own base, as for
+// snakeHook), the brush drawn from `from` to `to` along the surface, whose normal there is
+// `normal` (any length, either sign). The surface on both sides is drawn towards the plane
+// through the path along the normal, across it: with b = unit(normal x (to - from)) and
+// s = b . (x - from) the signed distance to that plane,
+//   v(x) = -amount / (16/15 radius) * I(x) * s * b,  I(x) = integral over the points p of the
+//   segment of W(|x - p| / radius) (vu), W(t) = (1 - t^2)^2 for t < 1,
+// which is the sum over the segment of a pinch dab's rate per vu of travel. A point that a long
+// straight stroke passes (its segments' I add up to 16/15 radius on the path's line) is drawn
+// towards the plane by the factor exp(-amount), by exp(-amount c^(5/2)) at the distance
+// h = radius sqrt(1 - c) from the line, and how finely the stroke is cut into moves changes
+// that only by the moves' non-commuting (tests/engine/level_set/test_warp.cpp says how much).
+// amount in [-1, 1] (negative spreads), |to - from| at most kMaxWarpTravelPerRadius radii, from
+// in the volume. The changed region is the capsule of `radius` around the segment; a path of
+// length 0, or along the normal, moves nothing.
+Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, double radius,
+                ThreadPool& pool = ThreadPool::serial());
 
 }  // namespace marzipan

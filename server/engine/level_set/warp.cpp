@@ -25,12 +25,16 @@ namespace {
 // The plateau (Velocity::falloff) of snake hook and of the affine warps.
 constexpr double kPlateau = 0.5;
 
+// The integral of the falloff W(t) = (1 - t^2)^2 along a line through its centre, in radii:
+// what a path pinch's I(x) is at a point of a long straight path (Velocity::pathIntegral()).
+constexpr double kPathPinchPass = 16.0 / 15;
+
 // Shares of a call's progress unit.
 constexpr double kGatherShare = 0.1, kLatticeShare = 0.2, kResampleShare = 0.3, kRedistanceShare = 0.3;
 
 // A stationary velocity field with bounded support.
 struct Velocity {
-  enum class Kind { Capsule, Affine, Elastic };
+  enum class Kind { Capsule, Affine, Elastic, PathPinch };
   Kind kind = Kind::Capsule;
   Vec3 anchor;
   double radius = 1;
@@ -45,6 +49,41 @@ struct Velocity {
   // cut off smoothly by the falloff at `radius` = kElasticCutoff * eps.
   Vec3 load;
   double eps = 1, nu = 0.5;
+  // PathPinch: -scale * I(y) * (across . (y - anchor)) * across, across a unit vector normal to
+  // seg and I(y) the falloff integrated along the segment (pathIntegral()).
+  Vec3 across;
+
+  // Whether the support is the capsule of `radius` around the segment anchor + [0, 1] * seg
+  // (else the ball of `radius` around anchor).
+  bool alongSegment() const { return kind == Kind::Capsule || kind == Kind::PathPinch; }
+
+  // I(y) = integral of (1 - |y - p|^2 / radius^2)^2 over the points p of the segment where it
+  // is positive (vu), and its gradient. With a the coordinate of y along the segment, h its
+  // distance to the segment's line and c = 1 - h^2 / radius^2, the integrand over u = p - a is
+  // K(u) = (c - u^2 / radius^2)^2 on |u| < radius sqrt(c): I = F(u1) - F(u0), F its
+  // antiderivative, u0 and u1 the ends of the segment clamped to that chord. K vanishes at the
+  // chord's ends, so the clamps add nothing to the derivatives: dI/da = K(u0) - K(u1),
+  // dI/dc = G(u1) - G(u0) with G = dF/dc.
+  double pathIntegral(Vec3 y, Vec3* grad) const {
+    if (grad) *grad = {};
+    if (!(segLength2 > 0)) return 0;
+    const double length = std::sqrt(segLength2), R2 = radius * radius;
+    const Vec3 axis = seg / length, r = y - anchor;
+    const double a = dot(r, axis);
+    const Vec3 off = r - axis * a;
+    const double c = 1 - dot(off, off) / R2;
+    if (!(c > 0)) return 0;
+    const double chord = radius * std::sqrt(c);
+    const double u0 = std::max(-a, -chord), u1 = std::min(length - a, chord);
+    if (!(u1 > u0)) return 0;
+    const auto F = [&](double u) { return u * (c * c - u * u * (2 * c / (3 * R2) - u * u / (5 * R2 * R2))); };
+    if (grad) {
+      const auto K = [&](double u) { return (c - u * u / R2) * (c - u * u / R2); };
+      const auto G = [&](double u) { return u * (2 * c - 2 * u * u / (3 * R2)); };
+      *grad = axis * (K(u0) - K(u1)) - off * (2 / R2 * (G(u1) - G(u0)));
+    }
+    return F(u1) - F(u0);
+  }
 
   // K_e(r) f = ((a - b) / re) f + (b / re^3) r (r . f) + (a e^2 / (2 re^3)) f, re = sqrt(r^2 + e^2),
   // with a = 1 (the brush is normalised, so the shear modulus drops out), b = 1 / (4 (1 - nu)).
@@ -97,6 +136,15 @@ struct Velocity {
       }
       return at(y);
     }
+    if (kind == Kind::PathPinch) {
+      // v = -scale I s across, s = across . (y - anchor): J = -scale across (I across + s grad I)^T.
+      Vec3 gi;
+      const double I = pathIntegral(y, &gi), s = dot(r, across);
+      const Vec3 g = (across * I + gi * s) * -scale;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) J[i][j] = across[i] * g[j];
+      return across * (-scale * I * s);
+    }
     if (kind == Kind::Capsule) {
       const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
       const Vec3 off = r - seg * t;
@@ -122,6 +170,7 @@ struct Velocity {
   Vec3 at(Vec3 y) const {
     const Vec3 r = y - anchor;
     const double R2 = radius * radius;
+    if (kind == Kind::PathPinch) return across * (-scale * pathIntegral(y, nullptr) * dot(r, across));
     if (kind == Kind::Capsule) {
       const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
       const Vec3 off = r - seg * t;
@@ -141,7 +190,7 @@ struct Velocity {
   // Whether y lies in the support's interior (elsewhere v = 0 and the flow leaves y alone).
   bool moves(Vec3 y) const {
     const Vec3 r = y - anchor;
-    if (kind == Kind::Capsule) {
+    if (alongSegment()) {
       const double t = segLength2 > 0 ? std::clamp(dot(r, seg) / segLength2, 0.0, 1.0) : 0.0;
       const Vec3 off = r - seg * t;
       return dot(off, off) < radius * radius;
@@ -162,7 +211,7 @@ struct Velocity {
       hi = std::max(hi, c.x + std::sqrt(rest));
     };
     ball(anchor);
-    if (kind == Kind::Capsule && segLength2 > 0) {
+    if (alongSegment() && segLength2 > 0) {
       ball(anchor + seg);
       // The cylinder between the end planes: for x = anchor.x + s, a(s) = a0 + s ax along the
       // axis and the squared distance to its line qa s^2 + qb s + qc + R^2.
@@ -194,6 +243,16 @@ struct Velocity {
   double lipschitz() const {
     constexpr double kMaxSlope = 8 / (3 * std::numbers::sqrt3);
     if (kind == Kind::Capsule) return scale * std::sqrt(segLength2) * kMaxSlope / ((1 - plateau) * radius);
+    // |grad (I s)| <= I + |s| |grad I|, |s| <= radius: I <= min(L, 16 radius / 15) (its value
+    // on a long path's line), |dI/da| <= min(1, L max |K'|) with max |K'| = kMaxSlope / radius,
+    // and the part of grad I across the line, (2 h / radius^2) |G(u1) - G(u0)|, is at most
+    // min(kMaxSlope L / radius, sqrt 3) (G' in [0, 2c] on the chord, h c <= 0.385 radius,
+    // h c^(3/2) <= 0.325 radius).
+    if (kind == Kind::PathPinch) {
+      const double L = std::sqrt(segLength2);
+      return std::fabs(scale) * (std::min(L, 16 * radius / 15) + std::min(radius, kMaxSlope * L) +
+                                 std::min(kMaxSlope * L, std::numbers::sqrt3 * radius));
+    }
     // The Kelvinlets' own slope is below |load| / eps^2 (their peak is about |load| / eps,
     // reached over eps), plus the cut-off's.
     if (kind == Kind::Elastic) {
@@ -210,7 +269,7 @@ struct Velocity {
 
   // The support's bounding box.
   Box support() const {
-    if (kind == Kind::Capsule) {
+    if (alongSegment()) {
       Box b = boxAround(anchor, {radius, radius, radius});
       const Box e = boxAround(anchor + seg, {radius, radius, radius});
       for (int a = 0; a < 3; ++a) {
@@ -235,11 +294,12 @@ struct Velocity {
 
   // Calls visit(point) at points along the backward flow from y (the path of the clay that
   // arrives at y), no two of them more than kPathSpacing vu apart, X(y) last: a capsule's
-  // paths are straight (capsuleFlow()), the others' are followed sub-step by sub-step.
+  // paths are straight (capsuleFlow()), and so are a path pinch's (its velocity is along
+  // `across` everywhere); the others' are followed sub-step by sub-step.
   static constexpr double kPathSpacing = 0.5;
   template <class Visit>
   void visitPath(Vec3 y, int n, Vec3 x, Visit visit) const {
-    if (kind == Kind::Capsule) {
+    if (alongSegment()) {
       const int k = std::max(1, int(std::ceil(length(x - y) / kPathSpacing)));
       for (int i = 0; i <= k; ++i) visit(y + (x - y) * (double(i) / k));
       return;
@@ -1091,6 +1151,32 @@ Edit pinch(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double amoun
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) v.A[i][j] = -amount * ((i == j ? 1 : 0) - n[i] * n[j]);
   return applyWarp(vol, base, v, pool);
+}
+
+Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, double radius, ThreadPool& pool) {
+  checkAnchor(vol, from);
+  if (!isFinite(to)) throw EngineError(ErrorKind::InvalidArgument, "to", "must be three finite numbers");
+  checkRadius(radius);
+  requireRange(amount, -1, 1, "amount");
+  if (!isFinite(normal) || !(length(normal) > 0))
+    throw EngineError(ErrorKind::InvalidArgument, "normal", "must be a finite non-zero vector");
+  const Vec3 d = to - from;
+  if (!(length(d) <= kMaxWarpTravelPerRadius * radius))
+    throw EngineError(ErrorKind::TooLarge, "to", "must be at most 8 radii from `from`");
+  const Vec3 across = cross(normalized(normal), d);
+  // A path along the normal has no side to draw in: nothing moves (as for a path of length 0).
+  Velocity v;
+  v.kind = Velocity::Kind::PathPinch;
+  v.anchor = from;
+  v.radius = radius;
+  if (length(across) > 1e-9 * length(d)) {
+    v.seg = d;
+    v.segLength2 = dot(d, d);
+    v.across = normalized(across);
+    v.scale = amount / (kPathPinchPass * radius);
+  }
+  // vol is its own base: applyWarp reads it before it writes the result.
+  return applyWarp(vol, vol, v, pool);
 }
 
 }  // namespace marzipan
