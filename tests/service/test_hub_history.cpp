@@ -17,6 +17,7 @@
 #include "service/hub.hpp"
 #include "service/session_store.hpp"
 #include "hub_support.hpp"
+#include "storage_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
@@ -26,27 +27,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path freshDir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("marzipan-hub-history-" + name);
-  fs::remove_all(d);
-  return d;
-}
-
 const json kCreate = {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}};
 // Two blobs on opposite sides of the sphere (radius ~ 19 around 23.5): no brick in common,
 // nor within the tools' margins.
 const json kLeftBlob = {{"tool", "add_blob"}, {"center", {6, 24, 24}}, {"radius", 4}};
 const json kRightBlob = {{"tool", "add_blob"}, {"center", {41, 24, 24}}, {"radius", 4}};
-
-// The session as a copy of the data directory recovers it (while the hub still runs).
-std::unique_ptr<Session> recoverCopy(const fs::path& dir, const std::string& name, const std::string& id) {
-  const fs::path copy = freshDir(name + "-copy");
-  fs::copy(dir, copy, fs::copy_options::recursive);
-  SessionStore store(copy);
-  Recovered r = store.recover(id, std::size_t(64) << 20, ThreadPool::serial());
-  fs::remove_all(copy);
-  return std::move(r.session);
-}
 
 std::string hexDigest(const Session& s) { return digestHex(s.volume()); }
 
@@ -97,7 +82,7 @@ TEST_CASE("each step is recorded with its client as author, and recovery keeps t
   b.result("stroke.end", {{"stroke", stroke["stroke"]}});
   a.result("volume.morph", {{"kind", "dilate"}, {"radius", 1}});
   std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the replay's clock is later
-  const std::unique_ptr<Session> rec = recoverCopy(dir, "authors", id);
+  const std::unique_ptr<Session> rec = recoverCopy(dir, id);
   const std::vector<StepInfo> steps = rec->steps();
   REQUIRE(steps.size() == 3);
   CHECK(steps[0].author.id == "1");
@@ -157,7 +142,7 @@ TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for
 
   // The journal replays the undo mine through the history: same digest, B's step still B's.
   {
-    const std::unique_ptr<Session> rec = recoverCopy(dir, "mine", id);
+    const std::unique_ptr<Session> rec = recoverCopy(dir, id);
     CHECK(hexDigest(*rec) == digest);
     CHECK(rec->revision() == 3);
     const std::vector<StepInfo> steps = rec->steps();
@@ -178,7 +163,7 @@ TEST_CASE("undo mine removes the caller's stroke and leaves the other's, bit for
   const std::string both = a.result("session.stats")["digest"];
   CHECK(both != onlyB);
   {
-    const std::unique_ptr<Session> rec = recoverCopy(dir, "mine2", id);
+    const std::unique_ptr<Session> rec = recoverCopy(dir, id);
     CHECK(hexDigest(*rec) == both);
   }
   fs::remove_all(dir);
@@ -360,7 +345,7 @@ TEST_CASE("session.fork starts a new session from the current volume or an earli
   CHECK(a.result("session.stats")["digest"] == atTwo);
   const std::string forkDigest = b.result("session.stats")["digest"];
   // Persisted like a created session: recovered from the data directory alone.
-  CHECK(hexDigest(*recoverCopy(dir, "fork", forkId)) == forkDigest);
+  CHECK(hexDigest(*recoverCopy(dir, forkId)) == forkDigest);
 
   // A view client may fork the current volume: it becomes the fork's editor.
   const json viewFork = v.result("session.fork");
@@ -493,6 +478,6 @@ TEST_CASE("redo mine refuses a step under another client's undone step that hold
   CHECK(b.error("history.redo", {{"scope", "mine"}}) == -32012);
   const json stats = a.result("session.stats");
   CHECK(stats["revision"] == 6);
-  CHECK(hexDigest(*recoverCopy(dir, "redo", id)) == stats["digest"].get<std::string>());
+  CHECK(hexDigest(*recoverCopy(dir, id)) == stats["digest"].get<std::string>());
   fs::remove_all(dir);
 }

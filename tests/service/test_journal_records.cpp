@@ -19,9 +19,11 @@
 #include "protocol/cpp/ops.hpp"
 #include "service/journal_records.hpp"
 #include "service/session_store.hpp"
+#include "storage_support.hpp"
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::freshDir;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
@@ -99,12 +101,6 @@ void checkRecovered(const fs::path& dir, const Writer& w, bool sameSteps) {
     CHECK(got[i].timeMs == want[i].timeMs);
     CHECK(got[i].undone == want[i].undone);
   }
-}
-
-fs::path freshDir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("marzipan-records-" + name);
-  fs::remove_all(d);
-  return d;
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 
 using namespace marzipan;
 using namespace marzipan::service;
+using marzipan::service::testing::freshDir;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
@@ -59,12 +60,6 @@ struct Driver {
     return r["result"];
   }
 };
-
-fs::path freshDir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("marzipan-store-" + name);
-  fs::remove_all(d);
-  return d;
-}
 
 std::string recoveredDigest(const fs::path& dataDir, const std::string& id, std::uint64_t* revision = nullptr) {
   SessionStore store(dataDir);

@@ -27,6 +27,7 @@
 #include "service/session.hpp"
 #include "service/session_store.hpp"
 #include "hub_support.hpp"
+#include "storage_support.hpp"
 #include "session_support.hpp"
 
 using namespace marzipan;
@@ -79,20 +80,9 @@ double largestDifference(const Volume& a, const Volume& b) {
   return worst;
 }
 
-fs::path freshDir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("marzipan-surface-" + name);
-  fs::remove_all(d);
-  return d;
-}
-
+// The digest of the session `id` as the data directory alone recovers it.
 std::string recoveredDigest(const fs::path& dir, const std::string& id) {
-  const fs::path copy = freshDir("copy");
-  fs::copy(dir, copy, fs::copy_options::recursive);
-  SessionStore store(copy);
-  Recovered r = store.recover(id, std::size_t(64) << 20, ThreadPool::serial());
-  const std::string digest = digestHex(r.session->volume());
-  fs::remove_all(copy);
-  return digest;
+  return digestHex(recoverCopy(dir, id)->volume());
 }
 
 }  // namespace
