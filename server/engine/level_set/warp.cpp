@@ -442,8 +442,8 @@ struct Velocity {
 };
 
 // Trilinear interpolation of g at p; +band off the grid (the grid reaches past the support, and
-// off the domain the field is air).
-double trilinear(const DenseGrid& g, Vec3 p, float band) {
+// off the domain the field is air). Inlined: a call per read cost a fifth of the read.
+[[gnu::always_inline]] inline double trilinear(const DenseGrid& g, Vec3 p, float band) {
   const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
   // Truncation is the floor from 0 up, and cheaper (std::floor is a sequence of instructions
   // without SSE4.1): below 0 (or NaN) the point is off the grid anyway.
@@ -802,7 +802,11 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
       };
       Box tc{};
       for (int y = work.lo.y; y < work.hi.y; ++y) {
-        const auto [x0, x1] = v.row(y, z, work);
+        // The row's voxels that the flow moves, one run (the support is convex): only they
+        // are resampled, and the others never ask for their cells' values.
+        auto [x0, x1] = v.row(y, z, work);
+        while (x0 < x1 && !v.moves({double(x0), double(y), double(z)})) ++x0;
+        while (x1 > x0 && !v.moves({double(x1 - 1), double(y), double(z)})) --x1;
         const int cy = (y - work.lo.y) / kLatticeStep;
         float* cellRow = nullptr;
         if (!painted && x1 > x0) {
@@ -818,12 +822,11 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             // A voxel that reads its own value stays, whether the flow moves it or not.
             if (u == s.base.v[k]) continue;
             if (u == u) {
-              if (v.moves({double(x), double(y), double(z)})) s.warped.v[k] = u, note(x, y);
+              s.warped.v[k] = u, note(x, y);
               continue;
             }
           }
           const Vec3 p{double(x), double(y), double(z)};
-          if (!v.moves(p)) continue;
           Vec3 q = s.lattice.inverse(p);
           float value = float(trilinear(s.base, q, band));
           // Near the zero set the surface's place is read: there X is integrated at the voxel.
