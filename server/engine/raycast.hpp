@@ -27,6 +27,10 @@
 
 namespace marzipan {
 
+namespace raycasting {
+struct RayKernel;  // raycast_kernel.hpp
+}
+
 // Interactive frames favour speed; still frames (shown once edits stop, render.frame, snapshots)
 // shade from a smooth normal field (the central-difference gradients at the hit cell's corners,
 // blended trilinearly: continuous across cells, so a smooth surface shows no voxel steps), take
@@ -63,7 +67,7 @@ class RaycastAccel {
   const Volume& volume() const { return volume_; }
 
  private:
-  friend struct RayKernel;
+  friend struct raycasting::RayKernel;
   struct BrickInfo {
     std::uint8_t reach;          // 0 for a brick with cells that may hold a zero; capped at 255
     std::uint8_t octant[8];      // the same among the bricks a ray can still enter, per octant
