@@ -151,8 +151,10 @@ void withSpeeds(MovedVoxels& moved, const Motion& m);
 // pieces, each voxel computed alone: thread-count independent. progress: checked per piece,
 // advanced per sub-step.
 void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressShare& progress);
-// The smallest box (volume coordinates) holding every voxel of the list; empty for none.
-Box listedBounds(const DenseGrid& g, const MovedVoxels& moved);
+// The smallest box (volume coordinates) holding every voxel of the list whose advection step
+// exceeds leastStep in magnitude (every listed voxel when leastStep is 0 or the list has no
+// steps); empty for none.
+Box listedBounds(const DenseGrid& g, const MovedVoxels& moved, float leastStep = 0);
 // Moves the band voxels of `region` (|phi| < band) by m, scaled by the window at each voxel's
 // foot point (none: W = 1): listMoved, then moveListed.
 void evolve(DenseGrid& g, const Box& region, float band, const Motion& m, const SweptWindow* window,

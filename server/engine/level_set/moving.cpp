@@ -8,6 +8,7 @@
 // pool, the cache, progress), they are arithmetic.
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <limits>
 #include <memory>
@@ -232,13 +233,21 @@ void moveListed(DenseGrid& g, const Motion& m, ThreadPool& pool, const ProgressS
   }
 }
 
-Box listedBounds(const DenseGrid& g, const MovedVoxels& moved) {
+Box listedBounds(const DenseGrid& g, const MovedVoxels& moved, float leastStep) {
   Box b{{std::numeric_limits<int>::max(), std::numeric_limits<int>::max(), std::numeric_limits<int>::max()},
         {std::numeric_limits<int>::min(), std::numeric_limits<int>::min(), std::numeric_limits<int>::min()}};
+  const bool all = !(leastStep > 0) || moved.step.empty();
   for (const Run& r : moved.runs) {
+    std::uint32_t lo = 0, hi = r.count;  // the run's voxels [lo, hi) that count
+    if (!all) {
+      const float* step = moved.step.data() + r.first;
+      while (lo < hi && !(std::fabs(step[lo]) > leastStep)) ++lo;
+      while (hi > lo && !(std::fabs(step[hi - 1]) > leastStep)) --hi;
+      if (lo == hi) continue;
+    }
     const Int3 first = g.point(r.index);  // a run lies in one row
-    b.lo = {std::min(b.lo.x, first.x), std::min(b.lo.y, first.y), std::min(b.lo.z, first.z)};
-    b.hi = {std::max(b.hi.x, first.x + int(r.count)), std::max(b.hi.y, first.y + 1), std::max(b.hi.z, first.z + 1)};
+    b.lo = {std::min(b.lo.x, first.x + int(lo)), std::min(b.lo.y, first.y), std::min(b.lo.z, first.z)};
+    b.hi = {std::max(b.hi.x, first.x + int(hi)), std::max(b.hi.y, first.y + 1), std::max(b.hi.z, first.z + 1)};
   }
   return b;
 }
