@@ -783,6 +783,12 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   const int steps = v.substeps();
   const int slices = work.size().z, layers = (slices + kLatticeStep - 1) / kLatticeStep;
   std::vector<Box> changed(std::size_t(std::max(0, slices))), recoloured(changed.size());
+  // Each row's run of voxels that the flow moves, (y, z) of work, for the pass after this one.
+  const Int3 workSize = work.size();
+  std::vector<std::pair<int, int>> runs(std::size_t(std::max(0, workSize.y)) * std::size_t(std::max(0, slices)));
+  const auto runOf = [&](int y, int z) -> std::pair<int, int>& {
+    return runs[std::size_t(y - work.lo.y) + std::size_t(workSize.y) * std::size_t(z - work.lo.z)];
+  };
   const ProgressShare resample = share.part(kResampleShare);
   pool.parallelFor(std::size_t(std::max(0, layers)), [&](std::size_t layer) {
     resample.check();
@@ -807,6 +813,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         auto [x0, x1] = v.row(y, z, work);
         while (x0 < x1 && !v.moves({double(x0), double(y), double(z)})) ++x0;
         while (x1 > x0 && !v.moves({double(x1 - 1), double(y), double(z)})) --x1;
+        runOf(y, z) = {x0, x1};
         const int cy = (y - work.lo.y) / kLatticeStep;
         float* cellRow = nullptr;
         if (!painted && x1 > x0) {
@@ -891,7 +898,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     std::vector<int> across;
     const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
     for (int y = moved.lo.y; y < moved.hi.y; ++y) {
-      const auto [x0, x1] = v.row(y, z, moved);
+      const auto [r0, r1] = runOf(y, z);
+      const int x0 = std::max(r0, moved.lo.x), x1 = std::min(r1, moved.hi.x);
       if (x1 <= x0) continue;
       const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
       across.resize(std::size_t(x1 - x0));
@@ -906,7 +914,6 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         const float value = s.warped.v[k];
         const bool neg = value < 0;
         const Vec3 p{double(x), double(y), double(z)};
-        if (!v.moves(p)) continue;
         double bound = 1;
         for (int a = 0; a < 3; ++a)
           for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
