@@ -113,8 +113,12 @@ TEST_CASE("the edit path's results are pinned: random tools give the digests the
   // voxels it moved by more than 0.01 vu (stroke.cpp, kLeastMove): the sphere's cap 0.02685 /
   // 0.000914 -> 0.02348 / 0.000919, the cube face's 800 edits 0.01193 / 0.000927 -> 0.01195 /
   // 0.001081, Fig. 7.13 mean 0.01256 -> 0.01253 (max 0.292893 both), the crease 0.289125 -> 0.295869.
-  const std::vector<std::string> pinned = {"84410352260bed54", "4ce8d4fc73aa9362", "674158f86f2d96e2",
-                                           "f5c6f98c17ae5b30", "a7b91e70e7fc2cad"};
+  // Re-pinned 2026-11-29 when an application that moved no voxel by more than that went back to
+  // the box of every voxel it listed (never redistanced, faint dabs let the band's inner edge
+  // drift: test_tools.cpp): the cube face's 800 edits 0.01195 / 0.001081 -> 0.01195 / 0.000928,
+  // the other figures unchanged.
+  const std::vector<std::string> pinned = {"92f2ecfc4b7b3688", "8d4dae1ab4f95b41", "1b31c69faf6f7046",
+                                           "f79e5be5e3dd20b5", "31bb556fdb3eb103"};
   ThreadPool one(1), two(2);
   CHECK(run(one) == pinned);
   CHECK(run(two) == pinned);
@@ -168,8 +172,8 @@ TEST_CASE("strokes along slanted lines, with memory and with heights, are pinned
   // -> 0.02119 / 0.000911, the crease 0.295769 both. Re-pinned 2026-11-29 with the direct near
   // voxels of the redistance (see the test above), and again with its box cut to the voxels
   // moved by more than 0.01 vu (the first pinned test).
-  const std::vector<std::string> pinned = {"26f87223f59839b4", "6b3f6917d9c8878e", "75787ec0969f6a24",
-                                           "25588eb3ae10631c"};
+  const std::vector<std::string> pinned = {"26f87223f59839b4", "907fafbdec0d1be9", "5e9f11af6320b2ea",
+                                           "0b42714408d1396b"};
   ThreadPool one(1), two(2);
   CHECK(run(one) == pinned);
   CHECK(run(two) == pinned);
@@ -182,7 +186,8 @@ TEST_CASE("the surface tools' strokes are pinned", "[level_set][determinism][pin
   // towards the plane fitted at their first dab. The same field
   // bit for bit on 1 and 2 threads, with AVX2 and SSE2, and in the scalar build. Re-pinned
   // 2026-11-29 with the direct near voxels of the redistance (see the first pinned test), and
-  // again with its box cut to the voxels an advection moved by more than 0.01 vu (the same).
+  // again with its box cut to the voxels an advection moved by more than 0.01 vu, and when no
+  // such voxel left the box as before (the same).
   auto run = [](ThreadPool& pool) {
     Volume v = makeSphere({72, 72, 72}, {36, 36, 36}, 24);
     std::mt19937 rng(31);
