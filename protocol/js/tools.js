@@ -508,6 +508,23 @@ export const TOOLS = frozen([
     },
   },
   {
+    "name": "pinch_path",
+    "label": "Pinch path",
+    "kind": "warp",
+    "group": "Surface",
+    "strokes": true,
+    "dabs": "surface_path",
+    "inverse": null,
+    "description": "draws the surface on both sides of the stroke's path towards it, across the path, to sharpen a ridge or a crease: where the whole brush passes by the factor e^-(strength * pressure), less beside the path, nothing beyond the radius",
+    "params": [PARAMETERS["warp_radius"], PARAMETERS["strength"]],
+    "browser": {
+      "key": "q",
+      "short": "PinchP",
+      "icon": "≍",
+      "color": [0.78, 0.52, 0.95],
+    },
+  },
+  {
     "name": "paint",
     "label": "Paint",
     "kind": "paint",

@@ -59,10 +59,11 @@ TOOL_KINDS = {
         # StrokeBeginParams::warp (rpc.hpp) and the service's WarpStroke (server/service/apply_op.hpp),
         # whose applyWarpStroke calls the engine function the registry's "engine" names
         # (server/engine/level_set.hpp, warps; enumerators: that name capitalised). Strokes only:
-        # no operation object (tool.apply refuses them); the dabs are anchored or a path.
+        # no operation object (tool.apply refuses them); the dabs are anchored, a path of the
+        # pointer's points, or a path of surface points.
         "enum": "WarpTool", "defines_enum": True, "names": "kWarpToolNames", "engine_enum": None,
         "keys": {"radius", "strength", "volume", "direction"}, "strokes": True, "cpp": "Warp",
-        "title": "warp", "op": False, "dabs": {"anchored", "path"},
+        "title": "warp", "op": False, "dabs": {"anchored", "path", "surface_path"},
     },
     "paint": {
         # StrokeBeginParams::paint (rpc.hpp) and the session's paint strokes (Session::paintDabs);
@@ -342,7 +343,8 @@ def cpp_tools_header(reg: Registry) -> str:
     warps = [t for t in reg.tools if t["kind"] == "warp"]
     if warps:
         out.append("// Each warp tool's radius parameter (the engine's range differs between them), and whether its")
-        out.append("// dabs are a path (snake hook: the anchor follows them) rather than anchored (only the last counts).")
+        out.append("// dabs are a path (snake hook: the anchor follows them; pinch path: surface points, a move from each to")
+        out.append("// the next) rather than anchored (only the last counts).")
         out.append("constexpr const NumberParam& radiusParamOf(WarpTool tool) {")
         out.append("  switch (tool) {")
         for t in warps:
@@ -354,7 +356,7 @@ def cpp_tools_header(reg: Registry) -> str:
         out.append("constexpr bool dabsArePath(WarpTool tool) {")
         out.append("  switch (tool) {")
         for t in warps:
-            out.append(f"    case WarpTool::{t['enumerator']}: return {cpp_number(t['dabs'] == 'path')};")
+            out.append(f"    case WarpTool::{t['enumerator']}: return {cpp_number(t['dabs'] in ('path', 'surface_path'))};")
         out.append("  }")
         out.append("  return false;")
         out.append("}")
@@ -1008,6 +1010,7 @@ def readme_ops_table(reg: Registry) -> str:
         shown = "the same" if text == previous else text
         previous = text
         dabs = ("the dabs' centres, swept as one stroke (`symmetry`, `accumulate` as in stroke.begin)" if t["dabs"] == "swept"
+                else "points on the surface along the path (the first starts it; `pressure` scales each move)" if t["dabs"] == "surface_path"
                 else "the anchor on the surface, then the pointer's points")
         rows.append(f'| `{{"stroke":{{"tool":"{t["name"]}", ...}},"dabs":[...]}}` | {shown}; `dabs`: {dabs} | {t["description"]} |')
     return "\n".join(rows)

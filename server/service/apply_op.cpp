@@ -179,7 +179,8 @@ double amountOf(const WarpStroke& w, Vec3 D) {
     case WarpTool::Pinch: return std::clamp(s / 2, -1.0, 1.0);
     case WarpTool::Grab:
     case WarpTool::ElasticGrab:
-    case WarpTool::SnakeHook: break;
+    case WarpTool::SnakeHook:
+    case WarpTool::PinchAlong: break;
   }
   return 0;
 }
@@ -233,11 +234,42 @@ double warpCallVoxels(const Volume& vol, const WarpStroke& w, const WarpCall& c)
     case WarpTool::Pinch:
       lipschitz = std::numbers::sqrt2 * std::abs(c.amount) * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
       break;
+    case WarpTool::PinchAlong: {
+      // The engine's bound (level_set.hpp, pinchAlong) for the move c.d at c.amount.
+      for (int a = 0; a < 3; ++a) half[a] += std::abs(c.d[a]) / 2;
+      const double L = length(c.d);
+      lipschitz = std::abs(c.amount) / (16 * r / 15) *
+                  (std::min(L, 16 * r / 15) + std::min(r, kMaxWarpSlope * L) + std::min(kMaxWarpSlope * L, std::numbers::sqrt3 * r));
+      break;
+    }
   }
   double box = 1;
   for (int a = 0; a < 3; ++a) box *= std::min(double(vol.dims()[a]), 2 * half[a] + 1);
   const double substeps = std::max(1.0, std::ceil(lipschitz / kWarpStretchPerStep));
   return box * (1 + kWarpStepVoxels * substeps);
+}
+
+// A pinch path's moves (PROTOCOL.md, warp strokes): from each point to the next, in pieces of
+// at most kMaxWarpTravelPerRadius radii (the engine's bound; a path's pinch barely depends on how
+// it is cut), each piece's amount strength times the pressure of the dab it leads to. Calls
+// move(from, to, amount) for each, and refuses (EngineError) a point outside the volume before
+// any.
+template <class Move>
+void pinchPathMoves(const Volume& vol, const WarpStroke& w, Vec3 at, std::span<const Vec3> points,
+                    std::span<const double> pressures, Move move) {
+  const Int3 n = vol.dims();
+  for (const Vec3 p : points)
+    for (int a = 0; a < 3; ++a)
+      if (!(p[a] >= 0 && p[a] <= n[a] - 1))
+        throw EngineError(ErrorKind::OutOfDomain, "center", "a pinch path's dabs must lie in the volume");
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3 p = points[i];
+    const double amount = w.strength * (i < pressures.size() ? pressures[i] : 1.0);
+    const int pieces = int(std::ceil(length(p - at) / maxTravel(w) * (1 + 1e-9)));
+    if (amount > 0)
+      for (int k = 0; k < pieces; ++k) move(at + (p - at) * (double(k) / pieces), at + (p - at) * (double(k + 1) / pieces), amount);
+    at = p;
+  }
 }
 
 }  // namespace
@@ -271,10 +303,25 @@ void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at) {
   w.normal = g / length(g);
 }
 
-Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool) {
+Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool,
+                     std::span<const double> pressures) {
   if (!w.anchor) throw EngineError(ErrorKind::InvalidArgument, "center", "the stroke has no anchor yet");
   Edit edit;
   if (points.empty()) return edit;
+  if (w.tool == WarpTool::PinchAlong) {
+    // Each move draws towards the plane through it along the surface's normal at its end (the
+    // volume as the stroke has made it; the last normal where the field there has no slope).
+    Vec3 normal = w.normal;
+    pinchPathMoves(vol, w, *w.anchor, points, pressures, [&](Vec3 from, Vec3 to, double amount) {
+      const Vec3 g = vol.gradient(to);
+      if (isFinite(g) && length(g) > 0.5 && std::abs(vol.sample(to)) < vol.band()) normal = g / length(g);
+      const Edit move = pinchAlong(vol, from, to, normal, amount, w.radius, pool);
+      edit.append(move.changes, move.region);
+    });
+    w.anchor = points.back();
+    w.normal = normal;
+    return edit;
+  }
   if (protocol::dabsArePath(w.tool)) {
     Vec3 at = *w.anchor;
     for (const Vec3 p : points) {
@@ -294,15 +341,34 @@ Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<c
     case WarpTool::Twist: edit = twist(vol, base, c.anchor, w.normal, c.amount, w.radius, pool); break;
     case WarpTool::LocalScale: edit = localScale(vol, base, c.anchor, std::exp2(c.amount), w.radius, pool); break;
     case WarpTool::Pinch: edit = pinch(vol, base, c.anchor, w.normal, c.amount, w.radius, pool); break;
-    case WarpTool::SnakeHook: break;  // a path, above
+    case WarpTool::SnakeHook:
+    case WarpTool::PinchAlong: break;  // paths, above
   }
   w.pointer = points.back();
   return edit;
 }
 
-OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points) {
+OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points,
+                      std::span<const double> pressures) {
   if (w.anchor) anchor = w.anchor;
   if (!anchor || points.empty()) return {0, 0};
+  if (w.tool == WarpTool::PinchAlong) {
+    // The anchor lies in the volume once it is taken (setWarpAnchor): one not known yet (a ray's
+    // far stand-in) costs as the volume's farthest point in its direction.
+    if (!isFinite(*anchor)) return {0, 0};
+    Vec3 start = *anchor;
+    for (int a = 0; a < 3; ++a) start[a] = std::clamp(start[a], 0.0, double(vol.dims()[a] - 1));
+    OpCost cost;
+    try {
+      pinchPathMoves(vol, w, start, points, pressures, [&](Vec3 from, Vec3 to, double amount) {
+        cost.voxels += warpCallVoxels(vol, w, WarpCall{from, to - from, amount});
+        cost.passes += 1;
+      });
+    } catch (const EngineError&) {
+      return {0, 0};  // refused before any work when applied
+    }
+    return cost;
+  }
   if (!protocol::dabsArePath(w.tool)) return {warpCallVoxels(vol, w, anchoredCall(w, *anchor, points.back())), 1};
   OpCost cost;
   Vec3 at = *anchor;

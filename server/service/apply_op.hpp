@@ -70,10 +70,14 @@ inline constexpr double kRememberedDabVoxels = 0.03;
 // u the unit direction (or unit(D) without one): twist by s * pi / 2 radians about the anchor's
 // outward normal, scale by the factor 2^s, pinch by s / 2 towards the normal's line. Snake
 // hook moves the current anchor to anchor + D, dab after dab, each move composed on the last.
+// Pinch path's dabs are points on the surface, and there is no drag: each later dab p is a move
+// of the engine's pinchAlong from the dab before to p (in pieces of at most
+// kMaxWarpTravelPerRadius radii), its amount strength times p's pressure (1 when not given), the
+// normal the volume's at p as the stroke has made it; a dab outside the volume is refused.
 // Every value is clamped to the engine's limits (level_set.hpp, warps): |d| to
 // kMaxWarpTravelPerRadius (elastic: kMaxElasticTravelPerRadius) radii, the angle to +-2 pi, the
 // factor to [0.25, 4], the pinch to [-1, 1]; past them the surface stays where the limit left it.
-// Pressure does not enter: the pointer's place is the drag. Units: vu and radians.
+// Pressure does not enter the others: the pointer's place is the drag. Units: vu and radians.
 struct WarpStroke {
   protocol::WarpTool tool = protocol::WarpTool::Grab;
   double radius = 8, strength = 1;
@@ -104,10 +108,12 @@ void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at);
 // One message's pointer points (the dabs after the anchor) on a stroke with its anchor set:
 // anchored tools write base warped by the last point into vol (which must be base or base
 // changed by this stroke's earlier calls, engine warps); snake hook moves the anchor through
-// each point in turn on vol. Returns the Edit from vol as it was, and sets w's pointer and
+// each point in turn on vol, pinch path along them (pressures: one per point, or none for 1).
+// Returns the Edit from vol as it was, and sets w's pointer and
 // anchor. A throw (EngineError, Cancelled) leaves w as it was and, for anchored tools, vol; a
-// snake hook's earlier moves of the message stay in vol: the caller puts vol back.
-Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool);
+// path's earlier moves of the message stay in vol: the caller puts vol back.
+Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<const Vec3> points, ThreadPool& pool,
+                     std::span<const double> pressures = {});
 // The work of that call (OpCost units, as estimateCost: voxels processed; passes: its engine
 // calls). `anchor` stands for w.anchor when that is not set yet (the message's first dab).
 // A warp resamples the box of its support (grown by the band) and integrates the flow of each
@@ -120,7 +126,8 @@ Edit applyWarpStroke(Volume& vol, const Volume& base, WarpStroke& w, std::span<c
 // the flow runs on the segment's one coordinate; 0.05 puts the estimate at 3.5e5 / 1.1e6, the
 // rate of the other tools (2.2-3.3e7 voxels/s quiet), and keeps the sub-steps' share for
 // the affine and elastic warps, whose flow is integrated per sub-step.
-OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points);
+OpCost warpStrokeCost(const Volume& vol, const WarpStroke& w, std::optional<Vec3> anchor, std::span<const Vec3> points,
+                      std::span<const double> pressures = {});
 inline constexpr double kWarpStepVoxels = 0.05;
 // After a change of the volume that was not the stroke's (or at a snapshot): the stroke goes on
 // from the volume as it is, which holds what it applied. Its base is then that volume (the

@@ -21,7 +21,7 @@
 //                                            state when re-announced after a snapshot, from whose
 //                                            volume it goes on (service/apply_op.hpp WarpStroke).
 //                                            Its "stroke" records hold its dabs as given (the
-//                                            anchor first; pressure p unused), and the record of
+//                                            anchor first; pressure p: pinch_path's), and the record of
 //                                            the message that took the anchor has the same R as
 //                                            the record before it when it changed nothing
 //   {"stroke_end":S}

@@ -444,18 +444,19 @@ std::optional<OpCost> Session::warpCost(StrokeId id, const std::vector<Dab>& dab
   const WarpStroke& w = *it->second.warp;
   std::optional<Vec3> anchor;
   std::vector<Vec3> points;
+  std::vector<double> pressures;
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     const auto* c = std::get_if<Vec3>(&dabs[i].at);
     // A ray can only be the anchor; its hit is not known before the pick: the anchor's worst
     // place is the farthest from the pointer, which the engine's travel bound caps anyway.
     if (i == 0 && !w.anchor) anchor = c ? *c : Vec3{};
-    else if (c) points.push_back(*c);
+    else if (c) points.push_back(*c), pressures.push_back(std::clamp(dabs[i].pressure.value_or(1.0), 0.0, 1.0));
   }
   if (!w.anchor && !std::holds_alternative<Vec3>(dabs[0].at) && !points.empty()) {
     const double far = 1e9;
     anchor = points.back() + Vec3{far, far, far};
   }
-  return warpStrokeCost(volume_, w, anchor, points);
+  return warpStrokeCost(volume_, w, anchor, points, pressures);
 }
 
 void Session::rebaseWarps() {
@@ -512,12 +513,14 @@ ApplyResult Session::warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadP
     first = 1;
   }
   std::vector<Vec3> points;
-  for (std::size_t i = first; i < dabs.size(); ++i) points.push_back(std::get<Vec3>(dabs[i].at));
+  std::vector<double> pressures;
+  for (std::size_t i = first; i < dabs.size(); ++i)
+    points.push_back(std::get<Vec3>(dabs[i].at)), pressures.push_back(dabs[i].pressure.value_or(1.0));
 
   Edit message;
   Volume before = volume_;
   try {
-    message = applyWarpStroke(volume_, base, w, points, pool);
+    message = applyWarpStroke(volume_, base, w, points, pool, pressures);
   } catch (const EngineError& e) {
     volume_ = std::move(before);
     rethrow(e, "dabs");

@@ -213,7 +213,8 @@ class Session {
   // becomes the base warped by the stroke (apply_op.hpp, applyWarpStroke), folded into the
   // stroke's step as a brush's messages are. The base is the volume as the stroke began, or,
   // when something else changed the session since the stroke's last message, the volume as it
-  // is then (rebaseWarp): a stroke never undoes others' changes. Pressure is ignored.
+  // is then (rebaseWarp): a stroke never undoes others' changes. Pressure scales a pinch
+  // path's moves; the other warps ignore it.
   ApplyResult strokeDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadPool& pool);
   // Opens a warp stroke with w's settings (checkWarpSettings; InvalidParams naming the field).
   // A w whose anchor is set (re-announced after a snapshot, journal_records.hpp) goes on from

@@ -1,6 +1,6 @@
 // Warp scenarios (engine/level_set.hpp, warps): a grab message on the 256^3 sphere at two drag lengths, the
-// same message through the service (a Session's warp stroke), and a snake hook move beside an add-blob dab
-// of the same radius.
+// same message through the service (a Session's warp stroke), and a snake hook move and a pinch path
+// move beside an add-blob dab of the same radius.
 #include <cmath>
 #include <optional>
 #include <random>
@@ -132,6 +132,33 @@ MARZIPAN_BENCH("snake_hook") {
       reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
   emit("snake_hook", opt.threads, hook,
        {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", hook.median_ms / dab.median_ms}});
+}
+
+// A pinch path move (pinchAlong) of 2 vu along the sphere's surface from a random point, amount
+// 1, against an add-blob dab there, both radius 8 (the browser's dabs are a quarter radius apart).
+MARZIPAN_BENCH("pinch_path") {
+  const WarpSphere s = warpSphere(opt);
+  ThreadPool pool(opt.threads);
+  const Volume sphere = makeSphere(s.dims, s.centre, s.radius);
+  std::mt19937 rng{11};
+  const double r = 8;
+  Volume v = sphere;
+  Vec3 from, to, n;
+  const int reps = opt.quick ? 5 : 101;
+  const Timing move = measure(
+      reps,
+      [&] {
+        n = randomUnit(rng);
+        from = s.centre + n * s.radius;
+        to = from + normalized(cross(n, randomUnit(rng))) * 2.0;
+      },
+      [&] { pinchAlong(v, from, to, n, 1, r, pool); });
+  v = sphere;
+  BrushParams p{{}, r, 1};
+  const Timing dab = measure(
+      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
+  emit("pinch_path", opt.threads, move,
+       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", move.median_ms / dab.median_ms}});
 }
 
 }  // namespace marzipan::bench

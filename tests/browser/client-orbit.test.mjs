@@ -3,8 +3,9 @@
 // the stabiliser lays a calmer path of dabs for a shaky drag; then, each with a page and
 // session of its own in the same browser (which saves a file's start-up): a grab takes a
 // sphere's side where the pointer points, 30 vu out, and back to within 0.5 vu; a snake hook
-// pulls the solid longer along the drag; flatten takes a bump down towards the plane the
-// server fitted, which the cursor shows.
+// pulls the solid longer along the drag; a pinch path's dabs go on the surface and the flanks
+// beside it sink; flatten takes a bump down towards the plane the server fitted, which the
+// cursor shows.
 // Conventions: pixel positions in CSS pixels of the page; screenshots, downloads and measures go
 // to MARZIPAN_BROWSER_ARTIFACTS (tests/browser/harness.mjs).
 
@@ -219,6 +220,43 @@ test("warps in the page: grab a sphere's side 30 vu out and back, a snake hook p
   assert.ok(extent1 >= tip - 1 && extent1 > extent0 + 20, `the solid got longer along the drag: ${extent0} -> ${extent1} (the pointer's last point ${tip})`);
   await shot(page, "18-snake-hook");
 
+  assert.deepEqual(errors, [], "no script errors");
+  await page.close();
+});
+
+test("a pinch path in the page: its dabs go on the surface with pressure, and the flanks beside the path sink", { timeout: 180000 }, async (t) => {
+  const errors = [];
+  const page = await env.browser.context.newPage();
+  collectErrors(page, errors);
+  const sent = [];
+  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  await createSession(page, 128, "sphere");
+  const radial = (points) => points.map((p) => norm(sub(p, CENTER)) - R0);
+  const before = radial(await splats(page));
+  // Pinch path (key Q): a drag across the sphere's front, left to right.
+  await page.keyboard.press("q");
+  assert.equal(await page.evaluate(() => window.marzipan.controls.settings.tool), "pinch_path", "Q selects pinch path");
+  await page.locator("#radius").fill("16");
+  const [ccx, ccy] = await pixelOf(page, CENTER);
+  const [rx] = await pixelOf(page, along(CENTER, R0, await page.evaluate(() => window.marzipan.camera.right)));
+  const half = 0.5 * (rx - ccx);
+  const out = await strokeOf(page, sent, [ccx - half, ccy], [ccx + half, ccy], 16);
+  assert.equal(out.begin.tool, "pinch_path");
+  assert.equal(out.begin.strength, 1, "a warp's own strength, 1, whatever the brushes' (0.5)");
+  for (const k of ["symmetry", "height", "accumulate", "direction"]) assert.ok(!(k in out.begin), `pinch path's stroke.begin has no ${k}: ${JSON.stringify(out.begin)}`);
+  const dabs = out.messages.flat();
+  assert.ok(dabs.length >= 8, `a path of spaced dabs: ${dabs.length}`);
+  const off = Math.max(...dabs.map((d) => Math.abs(norm(sub(d.center, CENTER)) - R0)));
+  assert.ok(off < 1, `every dab on the surface as the stroke began: within ${off.toFixed(2)} vu`);
+  assert.ok(dabs.slice(1).every((d) => typeof d.pressure === "number"), "with pressure");
+  // The surface beside the path is drawn towards it, across: on a sphere its flanks sink
+  // below the sphere, and nothing rises above it.
+  const after = radial(await splats(page));
+  const sunk = -Math.min(...after), rose = Math.max(...after) - Math.max(...before);
+  t.diagnostic(`pinch path: ${dabs.length} dabs in ${out.messages.length} messages; the flanks sank ${sunk.toFixed(2)} vu, the most a splat rose ${rose.toFixed(2)} vu`);
+  assert.ok(sunk > 0.3, `the flanks sank: ${sunk}`);
+  assert.ok(rose < 0.3, `nothing rose: ${rose}`);
+  await shot(page, "19-pinch-path");
   assert.deepEqual(errors, [], "no script errors");
   await page.close();
 });

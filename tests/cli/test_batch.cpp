@@ -280,20 +280,24 @@ TEST_CASE("warp strokes in an ops file: a line is a stroke from its anchor, only
             "{\"stroke\":{\"tool\":\"grab\",\"radius\":12},\"dabs\":[[53.9,31.5,31.5],[55,32,31.5],[57,33,31],[59.9,31.5,31.5]]}\n"
             "{\"stroke\":{\"tool\":\"twist\",\"radius\":10,\"direction\":[0,0,1]},\"dabs\":[[31.5,53.9,31.5],[31.5,54,38]]}\n"
             "{\"stroke\":{\"tool\":\"snake_hook\",\"radius\":6},\"dabs\":[{\"ray\":{\"origin\":[31.5,31.5,70],\"direction\":[0,0,-1]}},"
-            "[31.5,31.5,56],[31.5,33,58],[31.5,35,60]]}\n");
+            "[31.5,31.5,56],[31.5,33,58],[31.5,35,60]]}\n"
+            "{\"stroke\":{\"tool\":\"pinch_path\",\"radius\":6,\"strength\":0.8},\"dabs\":[[31.5,9.1,31.5],"
+            "{\"center\":[33.7,9.2,31.5],\"pressure\":0.5},[35.9,9.6,31.5]]}\n");
   writeText(dir / "last.jsonl", "{\"stroke\":{\"tool\":\"grab\",\"radius\":12},\"dabs\":[[53.9,31.5,31.5],[59.9,31.5,31.5]]}\n");
   const Run r = runCli(dir, "batch path.jsonl --size 64 --stats-every 1");
   REQUIRE(r.status == 0);
   const Run last = runCli(dir, "batch last.jsonl --size 64 --stats");
   REQUIRE(last.status == 0);
   const std::vector<json> lines = statsLines(r.out);
-  REQUIRE(lines.size() == 3);
+  REQUIRE(lines.size() == 4);
   CHECK(lines[0]["digest"] == statsLines(last.out)[0]["digest"]);
   // The anchor went 6 vu out along +x, to 59.9 (within 0.25 vu; bounds are whole voxels).
   CHECK(lines[0]["bounds"]["hi"][0].get<double>() == Approx(59.9).margin(1.25));
   CHECK(lines[1]["digest"] != lines[0]["digest"]);
   CHECK(lines[2]["digest"] != lines[1]["digest"]);
   CHECK(lines[2]["bounds"]["hi"][2].get<double>() > 58);
+  // A pinch path's line is its path on the surface, with pressures.
+  CHECK(lines[3]["digest"] != lines[2]["digest"]);
 
   writeText(dir / "bad.jsonl",
             "{\"stroke\":{\"tool\":\"grab\"},\"dabs\":[[53.9,31.5,31.5],[55,31.5,31.5]]}\n"

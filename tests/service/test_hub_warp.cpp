@@ -85,7 +85,7 @@ TEST_CASE("hub warp: the journal, cut by snapshots inside warp strokes, recovers
     Hub hub(o);
     TestClient a(hub);
     id = a.result("session.create", kCreate)["session"];
-    for (const std::string tool : {"grab", "twist", "snake_hook", "elastic_grab"}) {
+    for (const std::string tool : {"grab", "twist", "snake_hook", "elastic_grab", "pinch_path"}) {
       json begin = {{"tool", tool}, {"radius", 8}};
       if (tool == "twist") begin["direction"] = {0, 1, 0};
       const std::uint64_t s = a.result("stroke.begin", begin)["stroke"];

@@ -174,6 +174,59 @@ TEST_CASE("session warp: a snake hook composes its moves along the path", "[sess
   CHECK(s.steps()[0].tool == "snake_hook");
 }
 
+TEST_CASE("session warp: a pinch path is the engine's pinchAlong from dab to dab, pressure scaling each move",
+          "[session][warp][pinch_path]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  const double strength = 0.8;
+  const StrokeId id = s.beginWarp(settings(WarpTool::PinchAlong, 6, std::nullopt, strength));
+  // Along the sphere's equator from +x towards +y, 2.2 vu a dab, with pressures.
+  std::vector<Vec3> path;
+  for (int i = 0; i <= 6; ++i) path.push_back(kCentre + Vec3{std::cos(0.1 * i), std::sin(0.1 * i), 0} * kR);
+  const std::vector<double> pressure{1, 0.5, 1, 0.25, 1, 0.75, 1};
+  std::vector<Dab> dabs;
+  for (std::size_t i = 0; i < path.size(); ++i) dabs.push_back(Dab{path[i], pressure[i]});
+  s.strokeDabs(id, {dabs.begin(), dabs.begin() + 3}, pool);
+  s.strokeDabs(id, {dabs.begin() + 3, dabs.end()}, pool);
+  s.endStroke(id);
+  // The engine's moves one after the other, each at strength times its end's pressure, towards
+  // the plane along the normal of the volume (as the moves before left it) at the move's end.
+  Volume expected = sphere();
+  for (std::size_t i = 1; i < path.size(); ++i)
+    pinchAlong(expected, path[i - 1], path[i], normalized(expected.gradient(path[i])), strength * pressure[i], 6, pool);
+  CHECK(s.digest() == digest(expected));
+  CHECK(digest(expected) != digest(sphere()));
+  REQUIRE(s.steps().size() == 1);
+  CHECK(s.steps()[0].tool == "pinch_path");
+  // One undo step takes it all back.
+  s.undo();
+  CHECK(s.digest() == digest(sphere()));
+}
+
+TEST_CASE("session warp: a pinch path refuses a dab outside the volume, changing nothing, and costs each move",
+          "[session][warp][pinch_path]") {
+  ThreadPool pool(2);
+  Session s(sphere());
+  const StrokeId id = s.beginWarp(settings(WarpTool::PinchAlong, 6));
+  const std::uint64_t d0 = s.digest(), r0 = s.revision();
+  testing::requireError([&] { s.strokeDabs(id, centres({kAnchor, kAnchor + Vec3{0, 2, 0}, Vec3{kN + 1.0, kC, kC}}), pool); },
+                        protocol::RpcCode::EngineRefused, "dabs.center");
+  CHECK(s.digest() == d0);
+  CHECK(s.revision() == r0);
+  // Each move is a call; a move of 60 vu at radius 6 goes in ceil(60 / 48) = 2 pieces; a pressure
+  // of 0 moves nothing.
+  const Volume big(Int3{256, 256, 256});
+  const Vec3 a{128, 128, 128};
+  const WarpStroke w = settings(WarpTool::PinchAlong, 6);
+  const std::vector<Vec3> moves{a + Vec3{2, 0, 0}, a + Vec3{4, 0, 0}, a + Vec3{64, 0, 0}};
+  CHECK(warpStrokeCost(big, w, a, moves).passes == 4);
+  const std::vector<double> none{1, 0, 1};
+  CHECK(warpStrokeCost(big, w, a, moves, none).passes == 3);
+  // An anchor not known yet (a ray's far stand-in) costs as the volume's far corner, bounded.
+  const OpCost far = warpStrokeCost(big, w, Vec3{1e9, 1e9, 1e9}, std::vector<Vec3>{a});
+  CHECK(far.passes == std::ceil(std::sqrt(3.0) * 127 / 48));
+}
+
 TEST_CASE("session warp: another change during a stroke is kept, the stroke goes on from it", "[session][warp]") {
   ThreadPool pool(2);
   Session s(sphere());

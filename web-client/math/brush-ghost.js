@@ -87,7 +87,7 @@ export function arcSegments(center, n, r, from, angle) {
 }
 
 // The cursor of an open warp stroke: `name` the tool's wire name, `dabs` its registry dabs
-// ("anchored" | "path"); anchor, anchorNormal: the picked surface point and its normal; point:
+// ("anchored" | "path" | "surface_path": its ring alone); anchor, anchorNormal: the picked surface point and its normal; point:
 // the pointer's point on the plane through the anchor facing the camera (null before it
 // moved); path: a path tool's points so far, anchor first; direction: twist, scale and pinch's
 // stroke.begin direction; viewNormal: the camera's backward axis. The ring of the radius stays

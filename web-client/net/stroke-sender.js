@@ -10,7 +10,8 @@
 // few its dabs. Those whose dabs are "anchored" (grab, twist, ...: only the stroke's last point
 // counts) keep only the newest point waiting, behind the anchor while that has not gone yet,
 // and have one message in flight at a time, so the server always works on the pointer's newest
-// point. A "path" stroke (snake hook) sends every point, as a brush does.
+// point. A "path" stroke (snake hook) or a "surface_path" one (pinch path) sends every point,
+// as a brush does.
 // The server may return the plane a stroke works towards (flatten, contrast: `plane {point,
 // normal}`, in stroke.begin's result or in a stroke.dabs result): `plane` holds the first one,
 // and onPlane(plane) is called when it arrives.
@@ -36,8 +37,8 @@ const entry = (tool, tools) => tools.find((t) => t.name === tool);
 const takes = (tool, key, tools) => Boolean(entry(tool, tools)?.params.some((p) => p.key === key));
 const isWarp = (tool, tools) => entry(tool, tools)?.kind === "warp";
 
-// What a tool's stroke dabs are (the registry's `dabs`): "swept" for brushes, "anchored" or
-// "path" for warps.
+// What a tool's stroke dabs are (the registry's `dabs`): "swept" for brushes, "anchored",
+// "path" or "surface_path" for warps.
 export function dabsOf(tool, tools = TOOLS) {
   return entry(tool, tools)?.dabs || "swept";
 }

@@ -16,7 +16,9 @@
 // position as the point where the pointer's ray meets the plane through the anchor facing the
 // camera, so the anchor goes where the pointer points (no stabiliser for the anchored ones:
 // the grab follows the pointer itself); twist, scale and pinch send the camera's screen-right
-// axis as their `direction`, and no warp sends symmetry.
+// axis as their `direction`, and no warp sends symmetry. A warp whose dabs are a
+// "surface_path" (pinch path) strokes as a brush does: its dabs picked on the surface as the
+// stroke began, spaced and with pressure, the first starting the path; with the warp strength.
 
 import { DabSpacer } from "../math/dab-spacer.js";
 import { brushGhost, pinchFactor, planeGhost, scaleFactor, warpGhost } from "../math/brush-ghost.js";
@@ -122,7 +124,8 @@ export class Sculpt {
     const s = this.controls.settings;
     const maxDabs = (this.session.info.limits && this.session.info.limits.max_dabs) || 256;
     const tool = toolWithModifier(s.tool, modifier);
-    if (toolById(tool).warp) return this.#warpStart(x, y, toolById(tool), maxDabs);
+    const warp = toolById(tool).warp;
+    if (warp && warp !== "surface_path") return this.#warpStart(x, y, toolById(tool), maxDabs);
     this.stroke = {
       tool,
       // add / remove blob strokes have a height set by strength and radius (or build up, the
@@ -130,7 +133,7 @@ export class Sculpt {
       // paint takes the paint colour; a mask stroke with the inverting modifier erases
       sender: new StrokeSender(
         this.session,
-        { tool, radius: s.radius, strength: s.strength, symmetry: s.symmetry, buildUp: s.buildUp, color: s.paintColor, erase: modifier === "invert" },
+        { tool, radius: s.radius, strength: warp ? s.warpStrength : s.strength, symmetry: s.symmetry, buildUp: s.buildUp, color: s.paintColor, erase: modifier === "invert" },
         maxDabs,
       ),
       spacer: new DabSpacer(Math.max(0.25, DAB_SPACING * s.radius)),

@@ -9,7 +9,8 @@
 // dabs: stroke.begin / dabs / end), "click" for one that does not (a click applies it once where
 // the pointer ray meets the surface: tool.apply with a ray, the CSG tools); `warp`, for a tool of
 // the registry's kind "warp", what its dabs are ("anchored": grab, twist ...; "path": snake
-// hook; math/warp-drag.js), else null; `paint`, true for a tool of the registry's kind "paint"
+// hook; math/warp-drag.js; "surface_path": pinch path, picked on the surface as a brush's,
+// ui/sculpt.js), else null; `paint`, true for a tool of the registry's kind "paint"
 // (paint and mask: they change colour or mask, never the clay); `radiusRange`, [min, max] of
 // its radius in vu (null for a tool without one). Global operations are in GLOBAL_OPS, the
 // whole-volume mask methods in MASK_OPS.

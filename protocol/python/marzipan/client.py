@@ -636,13 +636,14 @@ class Client:
 
     async def warp(self, tool: str, anchor, points, *, radius: float | None = None, strength: float | None = None,
                    volume: float | None = None, direction=None) -> dict:
-        """A whole warp stroke (grab, elastic_grab, snake_hook, twist, scale, pinch; PROTOCOL.md,
+        """A whole warp stroke (grab, elastic_grab, snake_hook, twist, scale, pinch, pinch_path; PROTOCOL.md,
         warp strokes), one undo step: stroke.begin, the anchor (a point on the surface, [x, y, z],
         or a dict {center | ray}) and then the pointer's points, in messages of at most max_dabs,
         stroke.end. grab and elastic_grab move the anchor to the last point; snake_hook follows
         every point; twist, scale and pinch take their amount from the last point's way along
         `direction` (default: along the drag), in radii: a quarter turn, a factor 2, a pinch of
-        0.5 per radius. Returns {stroke, revision, can_undo, can_redo}."""
+        0.5 per radius; pinch_path takes the points as the path on the surface (pinch_path()).
+        Returns {stroke, revision, can_undo, can_redo}."""
         result = await self.stroke(tool, [anchor, *points], radius=radius, strength=strength, volume=volume,
                                    direction=direction)
         del result["applied"]
@@ -652,6 +653,13 @@ class Client:
         """Grabs the surface at `anchor` (a point on it) and moves it to `to`, the material within
         `radius` vu of the way following less and less: a grab stroke of two dabs (warp())."""
         return await self.warp("grab", anchor, [to], radius=radius, strength=strength)
+
+    async def pinch_path(self, path, radius: float, *, strength: float | None = None) -> dict:
+        """Pinches along `path`, points on the surface ([x, y, z], or dicts {center, pressure}),
+        the first starting it: the surface on both sides is drawn towards the path across it, by
+        e^-(strength * pressure) where the whole brush passes (PROTOCOL.md, warp strokes). A warp
+        stroke (warp()) of tool pinch_path, one undo step."""
+        return await self.warp("pinch_path", path[0], path[1:], radius=radius, strength=strength)
 
     async def paint(self, color, dabs, *, radius: float | None = None, strength: float | None = None,
                     hardness: float | None = None, symmetry=None, accumulate: bool | None = None) -> dict:

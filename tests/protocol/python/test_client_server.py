@@ -472,6 +472,30 @@ class AgainstServer(ServerTestCase):
         self.assertEqual(off.data.get("field"), "center")
         self.assertEqual(mirrored.data.get("field"), "symmetry")
 
+    def test_a_pinch_path_draws_the_surface_towards_it_in_one_undo_step(self):
+        async def go():
+            async with Client.connect(self.url) as client:
+                await client.create_session(64, "sphere")
+                start = await client.stats()
+                # Along the 64^3 sphere's equator over +x, with pressures.
+                path = [[31.5 + 22.4 * math.cos(0.1 * i), 31.5 + 22.4 * math.sin(0.1 * i), 31.5] for i in range(-3, 4)]
+                dabs = [path[0]] + [{"center": p, "pressure": 0.5 + 0.1 * k} for k, p in enumerate(path[1:])]
+                done = await client.pinch_path(dabs, 6, strength=0.8)
+                after = await client.stats()
+                listed = (await client.history(limit=1))[0]["tool"]
+                await client.undo()
+                undone = await client.stats()
+                with self.assertRaises(rpc.InvalidParams) as mirrored:
+                    await client.begin_stroke("pinch_path", symmetry=["x"])
+                return start, done, after, listed, undone, mirrored.exception
+
+        start, done, after, listed, undone, mirrored = run(go())
+        self.assertEqual((done["revision"], done["can_undo"]), (1, True))
+        self.assertNotEqual(after["digest"], start["digest"])
+        self.assertEqual(listed, "pinch_path")
+        self.assertEqual(undone["digest"], start["digest"])
+        self.assertEqual(mirrored.data.get("field"), "symmetry")
+
     def test_paint_and_mask_colour_and_protect_the_clay(self):
         async def go():
             async with Client.connect(self.url) as client:
