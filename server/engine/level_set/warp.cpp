@@ -67,22 +67,103 @@ struct Velocity {
   double pathIntegral(Vec3 y, Vec3* grad) const {
     if (grad) *grad = {};
     if (!(segLength2 > 0)) return 0;
-    const double length = std::sqrt(segLength2), R2 = radius * radius;
+    const double length = std::sqrt(segLength2);
     const Vec3 axis = seg / length, r = y - anchor;
     const double a = dot(r, axis);
     const Vec3 off = r - axis * a;
-    const double c = 1 - dot(off, off) / R2;
+    double da = 0, dh2 = 0;
+    const double I = pathIntegralAt(a, dot(off, off), length, grad ? &da : nullptr, &dh2);
+    if (grad) *grad = axis * da + off * (2 * dh2);
+    return I;
+  }
+
+  // I at the coordinate a along the segment (of length `length`) and the squared distance h2 to
+  // its line, and (when da is given) its partial derivatives in a and h2.
+  double pathIntegralAt(double a, double h2, double length, double* da, double* dh2) const {
+    if (da) *da = 0, *dh2 = 0;
+    const double R2 = radius * radius, c = 1 - h2 / R2;
     if (!(c > 0)) return 0;
     const double chord = radius * std::sqrt(c);
     const double u0 = std::max(-a, -chord), u1 = std::min(length - a, chord);
     if (!(u1 > u0)) return 0;
     const auto F = [&](double u) { return u * (c * c - u * u * (2 * c / (3 * R2) - u * u / (5 * R2 * R2))); };
-    if (grad) {
+    if (da) {
       const auto K = [&](double u) { return (c - u * u / R2) * (c - u * u / R2); };
       const auto G = [&](double u) { return u * (2 * c - 2 * u * u / (3 * R2)); };
-      *grad = axis * (K(u0) - K(u1)) - off * (2 / R2 * (G(u1) - G(u0)));
+      *da = K(u0) - K(u1);
+      *dh2 = -(G(u1) - G(u0)) / R2;
     }
     return F(u1) - F(u0);
+  }
+
+  // A path pinch's flow and inverse with its Jacobian (flow(), inverseWithJacobian()). Its
+  // velocity is along `across` everywhere, so a point moves on the line through it along
+  // `across`: its coordinate a along the segment and Q, its squared distance to the plane of
+  // the segment and `across`, stay put, and the midpoint rule (and the variational equation)
+  // runs on the one coordinate s = across . (y - anchor), with ds/dt = f(s) = -scale I(a, s^2 + Q) s.
+  struct PinchCoordinates {
+    double a = 0, s = 0, Q = 0, length = 0;
+    Vec3 axis, q;  // q: y - anchor less its parts along axis and across (|q|^2 = Q)
+  };
+  PinchCoordinates pinchCoordinates(Vec3 y) const {
+    PinchCoordinates p;
+    p.length = std::sqrt(segLength2);
+    p.axis = seg / p.length;
+    const Vec3 r = y - anchor;
+    p.a = dot(r, p.axis);
+    p.s = dot(r, across);
+    p.q = r - p.axis * p.a - across * p.s;
+    p.Q = dot(p.q, p.q);
+    return p;
+  }
+
+  Vec3 pinchFlow(Vec3 y, int n, double direction) const {
+    if (!(segLength2 > 0)) return y;
+    const PinchCoordinates p = pinchCoordinates(y);
+    const auto f = [&](double s) { return -scale * pathIntegralAt(p.a, s * s + p.Q, p.length, nullptr, nullptr) * s; };
+    const double dt = direction / n;
+    double s = p.s;
+    for (int i = 0; i < n; ++i) {
+      const double mid = s + 0.5 * dt * f(s);
+      s += dt * f(mid);
+    }
+    return y + across * (s - p.s);
+  }
+
+  // Backwards, with m = ds/ds0, wa = ds/da and wq = ds/dQ by the same midpoint rule (the
+  // general one restricted to this flow): X(y) = y + across (s - s0),
+  // DX = I + across (grad s - across)^T, grad s = m across + wa axis + 2 wq q.
+  Vec3 pinchInverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) X[i][j] = i == j ? 1 : 0;
+    if (!(segLength2 > 0)) return y;
+    const PinchCoordinates p = pinchCoordinates(y);
+    // f and its partial derivatives in s, a and Q at s.
+    struct Speed {
+      double f = 0, fs = 0, fa = 0, fq = 0;
+    };
+    const auto speedAt = [&](double s) {
+      double da = 0, dh2 = 0;
+      const double I = pathIntegralAt(p.a, s * s + p.Q, p.length, &da, &dh2);
+      return Speed{-scale * I * s, -scale * (I + 2 * s * s * dh2), -scale * s * da, -scale * s * dh2};
+    };
+    const double dt = 1.0 / n;
+    double s = p.s, m = 1, wa = 0, wq = 0;
+    for (int i = 0; i < n; ++i) {
+      const Speed v0 = speedAt(s);
+      const double mid = s - 0.5 * dt * v0.f;
+      const double mMid = m - 0.5 * dt * v0.fs * m;
+      const double waMid = wa - 0.5 * dt * (v0.fs * wa + v0.fa), wqMid = wq - 0.5 * dt * (v0.fs * wq + v0.fq);
+      const Speed v1 = speedAt(mid);
+      s -= dt * v1.f;
+      m -= dt * v1.fs * mMid;
+      wa -= dt * (v1.fs * waMid + v1.fa);
+      wq -= dt * (v1.fs * wqMid + v1.fq);
+    }
+    const Vec3 g = across * (m - 1) + p.axis * wa + p.q * (2 * wq);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) X[i][j] += across[i] * g[j];
+    return y + across * (s - p.s);
   }
 
   // K_e(r) f = ((a - b) / re) f + (b / re^3) r (r . f) + (a e^2 / (2 re^3)) f, re = sqrt(r^2 + e^2),
@@ -284,6 +365,7 @@ struct Velocity {
   // The flow for unit time from y, forward (+v) or backward (-v), in n midpoint sub-steps.
   Vec3 flow(Vec3 y, int n, double direction) const {
     if (kind == Kind::Capsule) return capsuleFlow(y, n, direction);
+    if (kind == Kind::PathPinch) return pinchFlow(y, n, direction);
     const double dt = direction / n;
     for (int i = 0; i < n; ++i) {
       const Vec3 mid = y + at(y) * (0.5 * dt);
@@ -421,6 +503,7 @@ struct Velocity {
   // dJ/dt = -grad v J, by the same midpoint rule).
   Vec3 inverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
     if (kind == Kind::Capsule) return capsuleInverseWithJacobian(y, n, X);
+    if (kind == Kind::PathPinch) return pinchInverseWithJacobian(y, n, X);
     const double dt = 1.0 / n;
     double J[3][3], Jm[3][3], M[3][3], G[3][3];
     for (int i = 0; i < 3; ++i)
