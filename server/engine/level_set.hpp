@@ -22,8 +22,10 @@
 // tool goes).
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <span>
+#include <utility>
 
 #include "edit.hpp"
 #include "geometry.hpp"
@@ -237,6 +239,26 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
 // next anchor. A drag is the composition of its moves, so a long one pulls out a tentacle
 // along the pointer's path.
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());
+
+// The map of one grab call or one snake hook move, for exact references (tests): the same
+// velocity, scaled as the call scales it, as a map of points. forward(p) is where the flow
+// carries the clay at p, inverse(p) where the clay at p comes from, each integrated with
+// kWarpMapRefinement times the call's sub-steps (the call itself integrates the inverse with
+// its own sub-steps). grabMap checks its parameters as grab does; snakeHookMap reads vol as
+// snakeHook(vol, anchor, target, radius) would before moving it.
+inline constexpr int kWarpMapRefinement = 16;
+class WarpMap {
+ public:
+  struct Field;
+  explicit WarpMap(std::shared_ptr<const Field> field) : field_(std::move(field)) {}
+  Vec3 forward(Vec3 p) const;
+  Vec3 inverse(Vec3 p) const;
+
+ private:
+  std::shared_ptr<const Field> field_;
+};
+WarpMap grabMap(Vec3 anchor, Vec3 d, double radius);
+WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius);
 
 // Elastic grab: the anchor (a surface point) moved by d under a bi-scale regularized Kelvinlet
 // (de Goes & James 2017; epsilons `radius` and 2 radius, Poisson ratio `volume` in [0, 0.5],

@@ -1118,9 +1118,10 @@ void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
     throw EngineError(ErrorKind::InvalidArgument, "d", "the anchor cannot be carried to its target");
 }
 
-Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double plateau, ThreadPool& pool) {
-  checkBase(vol, base);
-  checkAnchor(vol, anchor);
+// A grab's velocity (its parameters checked but the anchor's place, which the caller checks
+// against its volume).
+Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
+  if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
   checkRadius(radius);
   if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
   if (!(length(d) <= kMaxWarpTravelPerRadius * radius))
@@ -1133,16 +1134,18 @@ Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radiu
   v.plateau = plateau;
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
-  return applyWarp(vol, base, v, pool);
+  return v;
 }
 
-}  // namespace
-
-Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
-  return grabWith(vol, base, anchor, d, radius, 0, pool);
+Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double plateau, ThreadPool& pool) {
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  return applyWarp(vol, base, grabVelocity(anchor, d, radius, plateau), pool);
 }
 
-Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
+// The velocity of snakeHook(vol, anchor, target, radius): a grab of vol from the surface point
+// it starts from.
+Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
   checkAnchor(vol, anchor);
   // Each resample rounds the tip a little, so the surface drifts off the anchor the caller
@@ -1183,8 +1186,36 @@ Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool&
       }
     }
   }
+  checkAnchor(vol, from);
+  return grabVelocity(from, d, radius, kPlateau);
+}
+
+}  // namespace
+
+struct WarpMap::Field {
+  Velocity v;
+};
+
+Vec3 WarpMap::forward(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinement * field_->v.substeps(), 1); }
+
+Vec3 WarpMap::inverse(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinement * field_->v.substeps(), -1); }
+
+WarpMap grabMap(Vec3 anchor, Vec3 d, double radius) {
+  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0)}));
+}
+
+WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
+  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{snakeHookVelocity(vol, anchor, target, radius)}));
+}
+
+Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
+  return grabWith(vol, base, anchor, d, radius, 0, pool);
+}
+
+Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
+  const Velocity v = snakeHookVelocity(vol, anchor, target, radius);
   // vol is its own base: applyWarp reads it before it writes the result.
-  return grabWith(vol, vol, from, d, radius, kPlateau, pool);
+  return applyWarp(vol, vol, v, pool);
 }
 
 Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double volume, ThreadPool& pool) {

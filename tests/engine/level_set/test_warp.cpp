@@ -15,6 +15,7 @@
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "../support.hpp"
+#include "warp_reference.hpp"
 
 using namespace marzipan;
 using namespace marzipan::test;
@@ -119,6 +120,20 @@ void checkSoundSolid(const Volume& v, double maxError = 0.1, double meanError = 
   INFO("gradient error max " << e.max << " mean " << e.mean);
   CHECK(e.max <= maxError);
   CHECK(e.mean <= meanError);
+}
+
+// A warped sphere against the exact distance of the same shape (warp_reference.hpp): the
+// gradient error of each over the whole volume (the brushes' measure, on the voxels next to the
+// zero set), and |ours - exact| over the whole band.
+struct AgainstExact {
+  GradientError exact, ours;
+  test_warp::DistanceError distance;
+};
+
+AgainstExact againstExact(const Volume& ours, const test_warp::CarriedSphere& sphere) {
+  // The measures read the voxels next to the zero set and their neighbours, and the band.
+  const test_warp::ExactField e = test_warp::exactField(ours.dims(), sphere, ours.band() + 1.5);
+  return {gradientError(test_warp::exactVolume(ours, e)), gradientError(ours), test_warp::distanceError(ours, e)};
 }
 
 double sphereDistance(Vec3 p, Vec3 c, double r) { return length(p - c) - r; }
@@ -236,26 +251,53 @@ TEST_CASE("warps give the same bits on any number of threads", "[warp][threads]"
   }
 }
 
-TEST_CASE("a grab of one and of three radii leaves one sound solid", "[warp][grab][topology]") {
+TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exact distance of the grabbed sphere",
+          "[warp][grab][topology][exact]") {
   const Vec3 c{64, 44, 64};
   const Volume base = makeSphere({128, 128, 128}, c, 20);
   const double r = 12;
   const Vec3 a = c + Vec3{0, 20, 0}, dir = normalized(Vec3{0.2, 1, 0.1});
-  SECTION("one radius: within the brushes' limits") {
+  // The limits hold what was measured (2026-11-29), with a little room.
+  SECTION("one radius: within the brushes' limits, as the exact field is") {
     Volume v = base;
     grab(v, base, a, dir * r, r);
     CHECK(std::fabs(v.sample(a + dir * r)) <= 0.25);
     checkSoundSolid(v);
+    const AgainstExact m = againstExact(v, {c, 20, {grabMap(a, dir * r, r)}});
+    INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
+                                      << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
+                                      << m.distance.mean << " (" << m.distance.voxels << " voxels)");
+    // Measured: exact 0.0313 / 0.00108, ours 0.0402 / 0.00164; distance 0.125 / 0.00475.
+    CHECK(m.exact.max <= 0.05);
+    CHECK(m.ours.max <= m.exact.max + 0.02);
+    CHECK(m.ours.mean <= m.exact.mean + 0.001);
+    CHECK(m.distance.max <= 0.15);
+    CHECK(m.distance.mean <= 0.006);
   }
-  SECTION("three radii") {
+  SECTION("three radii: the exact field itself is past the brushes' max at the tip") {
     Volume v = base;
     grab(v, base, a, dir * (3 * r), r);
     INFO("value at a + d " << v.sample(a + dir * (3 * r)));
     CHECK(std::fabs(v.sample(a + dir * (3 * r))) <= 0.25);
-    // Not within the brushes' limits: the flow shears the pulled cone's sides into a ribbon
-    // about 3 vu thick, where the central differences of the measure straddle its middle
-    // (measured 2026-11-29: max 0.328, mean 0.0146). The limits hold what was measured.
-    checkSoundSolid(v, 0.35, 0.015);
+    checkSoundSolid(v, 1, 1);  // the gradient error: against the exact field's, below
+    const AgainstExact m = againstExact(v, {c, 20, {grabMap(a, dir * (3 * r), r)}});
+    INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
+                                      << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
+                                      << m.distance.mean << " (" << m.distance.voxels << " voxels)");
+    // The falloff (1 - t^2)^2 pulls the cap into a tip whose radius of curvature is about
+    // radius^2 / (4 |d|) = 1 vu: the central differences of its exact distance, sampled on the
+    // grid, straddle the tip's medial axis (as a cube's edges give 1 - 1 / sqrt 2). Measured:
+    // exact max 0.237 (at the tip) / mean 0.00175, so 0.1 cannot hold for any field of this
+    // shape; the mean can.
+    CHECK(m.exact.max > 0.2);
+    CHECK(m.exact.mean <= 0.005);
+    // Ours, measured: max 0.293 / mean 0.0116 (the sheared sides: the values next to the zero
+    // set there, phi1 / |grad phi1|, are 0.2-0.3 vu off where the map squeezes the band);
+    // |ours - exact| max 0.343, mean 0.0142.
+    CHECK(m.ours.max <= m.exact.max + 0.1);
+    CHECK(m.ours.mean <= m.exact.mean + 0.011);
+    CHECK(m.distance.max <= 0.36);
+    CHECK(m.distance.mean <= 0.015);
   }
 }
 
@@ -742,3 +784,4 @@ TEST_CASE("a partial weight moves a warped voxel by (1 - w/255) of its free move
   CHECK(moved > 1000);
   CHECK(wrong == 0);
 }
+
