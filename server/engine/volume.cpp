@@ -240,6 +240,14 @@ int Volume::slotInTile(Int3 b) {
   return (b.x % kTileSide) + kTileSide * ((b.y % kTileSide) + kTileSide * (b.z % kTileSide));
 }
 
+bool Volume::sharesTile(const Volume& other, Int3 b) const {
+  const std::size_t ti = tileIndex(b);
+  if (tiles_[ti] != other.tiles_[ti] || (!tiles_[ti] && tileInside_[ti] != other.tileInside_[ti])) return false;
+  const PaintTile* mine = paintTiles_.empty() ? nullptr : paintTiles_[ti].get();
+  const PaintTile* theirs = other.paintTiles_.empty() ? nullptr : other.paintTiles_[ti].get();
+  return mine == theirs;
+}
+
 BrickRef Volume::brick(Int3 b) const {
   const std::size_t ti = tileIndex(b);
   const Tile* t = tiles_[ti].get();

@@ -123,6 +123,14 @@ class Volume {
   // Bytes held by this version: bricks, tiles and the tile table, and the channels' bricks and tiles.
   std::size_t memoryBytes() const;
 
+  // Bricks are held in tiles of kTileSide^3 bricks, which a copy of the volume shares with it
+  // until either is edited there.
+  static constexpr int kTileSide = 8;
+  // Whether the tile holding brick b (within brickDims()) is the very one `other` (of the same
+  // dims) holds, channels included: then each of its bricks is the same in both, without
+  // looking at them (what changed since a copy lies in the tiles that are not shared).
+  bool sharesTile(const Volume& other, Int3 b) const;
+
   // --- editing -------------------------------------------------------------------------
   // Replaces the voxels of `region` (clipped to the domain) by those of src, an array over
   // srcBox (x fastest) that must contain the clipped region. Values are clamped to +-band.
@@ -177,7 +185,6 @@ class Volume {
   void publish(const std::vector<BrickChange>& changes, bool forward);
 
  private:
-  static constexpr int kTileSide = 8;  // bricks per tile side
   static constexpr int kTileBricks = kTileSide * kTileSide * kTileSide;
   struct Tile {
     std::shared_ptr<const Brick> bricks[kTileBricks];

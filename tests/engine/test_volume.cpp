@@ -9,6 +9,7 @@
 
 #include "engine/errors.hpp"
 #include "engine/measures.hpp"
+#include "engine/paint.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "support.hpp"
@@ -176,6 +177,44 @@ TEST_CASE("copies share bricks and keep their own version after an edit", "[volu
   CHECK(digest(v) == d0);
   v.publish(changes, true);
   CHECK(v.at(52, 32, 32) == -1.0f);
+}
+
+TEST_CASE("a copy shares every tile until an edit: then exactly the tiles of the changed bricks differ", "[volume][cow]") {
+  const Volume base = makeSphere({128, 128, 128}, {64, 64, 64}, 40);
+  const Int3 n = base.brickDims();
+  constexpr int T = Volume::kTileSide;
+  // The tiles (by their first brick) holding a brick of `changes`, against those sharesTile finds.
+  const auto check = [&](const Volume& v, const std::vector<BrickChange>& changes) {
+    int notShared = 0, changed = 0;
+    for (int z = 0; z < n.z; z += T)
+      for (int y = 0; y < n.y; y += T)
+        for (int x = 0; x < n.x; x += T) {
+          const bool holds = std::any_of(changes.begin(), changes.end(), [&](const BrickChange& c) {
+            return c.brick.x / T == x / T && c.brick.y / T == y / T && c.brick.z / T == z / T;
+          });
+          CHECK(v.sharesTile(base, {x, y, z}) == !holds);
+          CHECK(base.sharesTile(v, {x + T - 1, y, z + 1}) == !holds);
+          notShared += v.sharesTile(base, {x, y, z}) ? 0 : 1;
+          changed += holds ? 1 : 0;
+        }
+    CHECK(changed > 0);
+    CHECK(notShared == changed);
+  };
+  Volume v = base;
+  for (int z = 0; z < n.z; z += T)
+    for (int y = 0; y < n.y; y += T)
+      for (int x = 0; x < n.x; x += T) CHECK(v.sharesTile(base, {x, y, z}));
+  SECTION("distances") {
+    const Box b{{60, 60, 100}, {70, 70, 106}};
+    std::vector<float> src(std::size_t(b.voxels()), -1.0f);
+    check(v, v.scatter(b, src.data(), b));
+  }
+  SECTION("channels only") {
+    PaintSettings red;
+    red.color = {200, 20, 10};
+    red.radius = 6;
+    check(v, paint(v, red, {64, 64, 104}).changes);
+  }
 }
 
 TEST_CASE("trilinear sampling reproduces a linear field and its gradient exactly", "[volume][sampling]") {

@@ -545,15 +545,21 @@ struct Velocity {
 Box unite(const Box& a, const Box& b);
 
 // The box of the bricks where vol and base differ (empty when none): what earlier calls of the
-// stroke changed. Every brick of the volume is looked at, a layer of bricks per task: on a
-// grab message's critical path this scan was the longest serial part.
+// stroke changed. Only the bricks of the tiles vol does not share with base are looked at (the
+// others are base's: vol was a copy of it), a layer of bricks per task: on a grab message's
+// critical path this scan was the longest serial part.
 Box changedSinceBase(const Volume& vol, const Volume& base, ThreadPool& pool) {
   const Int3 n = vol.brickDims();
+  constexpr int T = Volume::kTileSide;
   std::vector<Box> layers(std::size_t(n.z));
   pool.parallelFor(std::size_t(n.z), [&](std::size_t z) {
     Box out{};
     for (int y = 0; y < n.y; ++y)
       for (int x = 0; x < n.x; ++x) {
+        if (x % T == 0 && vol.sharesTile(base, {x, y, int(z)})) {
+          x += T - 1;
+          continue;
+        }
         float uv = 0, ub = 0;
         const Int3 b{x, y, int(z)};
         const float* dv = vol.brickData(b, &uv);
