@@ -403,7 +403,9 @@ struct Velocity {
   // midpoint rule runs on the one coordinate a along seg. Between the segment's end planes the
   // velocity does not depend on a, and there a run of sub-steps is one move (what the midpoint
   // rule gives step by step, up to rounding): a point pays sub-steps only in the end caps.
-  Vec3 capsuleFlow(Vec3 y, int n, double direction) const {
+  // Inlined: once flow() also dispatched the path pinch, the compiler called it instead, 1.4%
+  // more instructions a snake hook move.
+  [[gnu::always_inline]] Vec3 capsuleFlow(Vec3 y, int n, double direction) const {
     if (!(segLength2 > 0)) return y;
     const double length = std::sqrt(segLength2), R2 = radius * radius;
     const Vec3 axis = seg / length;
