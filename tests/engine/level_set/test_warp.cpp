@@ -267,12 +267,14 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
                                       << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
                                       << m.distance.mean << " (" << m.distance.voxels << " voxels)");
-    // Measured: exact 0.0313 / 0.00108, ours 0.0402 / 0.00164; distance 0.125 / 0.00475.
+    // Measured: exact 0.0313 / 0.00108, ours 0.0405 / 0.00110; |ours - exact| 0.129 / 0.00439
+    // (ours 0.0402 / 0.00164 and 0.125 / 0.00475 before the foot points of the voxels next to
+    // the zero set, warp.cpp).
     CHECK(m.exact.max <= 0.05);
     CHECK(m.ours.max <= m.exact.max + 0.02);
-    CHECK(m.ours.mean <= m.exact.mean + 0.001);
+    CHECK(m.ours.mean <= m.exact.mean + 0.0005);
     CHECK(m.distance.max <= 0.15);
-    CHECK(m.distance.mean <= 0.006);
+    CHECK(m.distance.mean <= 0.005);
   }
   SECTION("three radii: the exact field itself is past the brushes' max at the tip") {
     Volume v = base;
@@ -291,13 +293,14 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     // shape; the mean can.
     CHECK(m.exact.max > 0.2);
     CHECK(m.exact.mean <= 0.005);
-    // Ours, measured: max 0.293 / mean 0.0116 (the sheared sides: the values next to the zero
-    // set there, phi1 / |grad phi1|, are 0.2-0.3 vu off where the map squeezes the band);
-    // |ours - exact| max 0.343, mean 0.0142.
-    CHECK(m.ours.max <= m.exact.max + 0.1);
-    CHECK(m.ours.mean <= m.exact.mean + 0.011);
-    CHECK(m.distance.max <= 0.36);
-    CHECK(m.distance.mean <= 0.015);
+    // Ours, measured: max 0.234 / mean 0.00223, |ours - exact| max 0.195 / mean 0.00513. Before
+    // the foot points (warp.cpp): 0.293 / 0.0116 and 0.343 / 0.0142, the sheared sides' voxels
+    // next to the zero set 0.1-0.3 vu off.
+    CHECK(m.ours.max <= m.exact.max + 0.02);
+    CHECK(m.ours.mean <= m.exact.mean + 0.001);
+    CHECK(m.ours.mean <= 0.005);
+    CHECK(m.distance.max <= 0.21);
+    CHECK(m.distance.mean <= 0.006);
   }
 }
 
@@ -784,4 +787,3 @@ TEST_CASE("a partial weight moves a warped voxel by (1 - w/255) of its free move
   CHECK(moved > 1000);
   CHECK(wrong == 0);
 }
-
