@@ -1033,10 +1033,12 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
           }
         if (bound == 1 && value != 0) continue;  // not next to the zero set
-        double mag;
-        if (!footPoints) {
+        // The gradient of phi1 at `at`, DX^T grad phi0(X), grad phi0 by central differences of
+        // the trilinear interpolant over +-kSlopeStep; and phi1 there when `phi` is given.
+        const auto slope = [&](Vec3 at, double* phi) {
           double DX[3][3];
-          const Vec3 q = v.inverseWithJacobian(p, steps, DX);
+          const Vec3 q = v.inverseWithJacobian(at, steps, DX);
+          if (phi) *phi = trilinear(s.base, q, band);
           Vec3 g0;
           for (int a = 0; a < 3; ++a) {
             Vec3 lo = q, hi = q;
@@ -1044,42 +1046,26 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             hi[a] += kSlopeStep;
             g0[a] = (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep);
           }
-          double g2 = 0;
-          for (int a = 0; a < 3; ++a) {
-            const double c = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
-            g2 += c * c;
-          }
-          const double len = std::sqrt(g2);
+          Vec3 g;
+          for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
+          return g;
+        };
+        double mag;
+        if (!footPoints) {
+          const double len = length(slope(p, nullptr));
           mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
         } else {
-          // phi1 at `at` and its gradient DX^T grad phi0(X), grad phi0 by central differences of
-          // the trilinear interpolant over +-kSlopeStep.
-          const auto slope = [&](Vec3 at, double& phi) {
-            double DX[3][3];
-            const Vec3 q = v.inverseWithJacobian(at, steps, DX);
-            phi = trilinear(s.base, q, band);
-            Vec3 g0;
-            for (int a = 0; a < 3; ++a) {
-              Vec3 lo = q, hi = q;
-              lo[a] -= kSlopeStep;
-              hi[a] += kSlopeStep;
-              g0[a] = (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep);
-            }
-            Vec3 g;
-            for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
-            return g;
-          };
           // Newton steps from `at` onto the zero set; false where phi1 is flat or they do not
           // converge.
           const auto project = [&](Vec3& at) {
             double phi = 0;
-            Vec3 g = slope(at, phi);
+            Vec3 g = slope(at, &phi);
             for (int step = 0; step < kFootSteps; ++step) {
               const double g2 = dot(g, g);
               if (!(g2 > 1e-12)) return false;
               if (step > 0 && phi * phi < kFootConverged * kFootConverged * g2) break;
               at = at - g * (phi / g2);
-              g = slope(at, phi);
+              g = slope(at, &phi);
             }
             return std::fabs(phi) < kFootResidual;
           };
@@ -1102,7 +1088,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             const Vec3 crossing = p + (other - p) * (0.5 * (lo + hi));
             foot = crossing;
             double phi = 0;
-            const Vec3 g = slope(crossing, phi);
+            const Vec3 g = slope(crossing, &phi);
             if (dot(g, g) > 1e-12) {
               const Vec3 n = normalized(g);
               Vec3 onPlane = p - n * dot(p - crossing, n);
