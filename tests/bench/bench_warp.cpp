@@ -93,72 +93,70 @@ MARZIPAN_BENCH("grab_message") {
   }
 }
 
-// A snake hook move of 2 vu from a random point of the sphere against an add-blob dab there,
-// both radius 8: the target is <= 2x the dab.
-MARZIPAN_BENCH("snake_hook") {
+namespace {
+
+// Scenarios `name`: a path-dependent warp's move against an add-blob dab of the same radius (8),
+// each `reps` times at random points of the sphere: draw(rng) picks a move, apply(v, pool) makes
+// it. Untimed, as many moves and dabs as timed run first, on copies freed before the timing, so
+// that the changed bricks' memory is recycled for both: without it the moves, timed first, grew
+// the heap and paid the first touch of their new bricks' pages, and the dabs after them reused
+// the freed moves' memory (one thread, the snake hook read 2.7-3.1x the dab timed first and 1.5x
+// timed after it; 2026-11-29, load ~6).
+template <class Draw, class Apply>
+void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw draw, Apply apply) {
   const WarpSphere s = warpSphere(opt);
   ThreadPool pool(opt.threads);
   const Volume sphere = makeSphere(s.dims, s.centre, s.radius);
-  std::mt19937 rng{9};
   const double r = 8;
   const int reps = opt.quick ? 5 : 101;
-  // Untimed, as many moves and dabs as timed, on copies freed before the timing: the changed
-  // bricks' memory is then recycled for both. Without it the moves, timed first, grew the heap
-  // and paid the first touch of their new bricks' pages, and the dabs after them reused the
-  // freed moves' memory: one thread, the ratio read 2.7-3.1 hook first and 1.5 dab first
-  // (2026-11-29, load ~6).
   {
-    std::mt19937 other{10};
+    std::mt19937 other{seed + 1};
     Volume warm = sphere, dabbed = sphere;
     for (int i = 0; i < reps; ++i) {
-      const Vec3 n = randomUnit(other), a = s.centre + n * s.radius;
-      snakeHook(warm, a, a + normalized(n + randomUnit(other) * 0.5) * 2.0, r, pool);
+      draw(other, s);
+      apply(warm, r, pool);
       addBlob(dabbed, BrushParams{s.centre + randomUnit(other) * s.radius, r, 1}, pool);
     }
   }
+  std::mt19937 rng{seed};
   Volume v = sphere;
+  const Timing move = measure(reps, [&] { draw(rng, s); }, [&] { apply(v, r, pool); });
+  v = sphere;
+  BrushParams p{{}, r, 1};
+  const Timing dab = measure(
+      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
+  emit(name, opt.threads, move,
+       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", move.median_ms / dab.median_ms}});
+}
+
+}  // namespace
+
+// A snake hook move of 2 vu from a random point of the sphere, roughly outwards: the target is
+// <= 2x the dab.
+MARZIPAN_BENCH("snake_hook") {
   Vec3 anchor, step;
-  const Timing hook = measure(
-      reps,
-      [&] {
+  moveAgainstDab(
+      opt, "snake_hook", 9,
+      [&](std::mt19937& rng, const WarpSphere& s) {
         const Vec3 n = randomUnit(rng);
         anchor = s.centre + n * s.radius;
         step = normalized(n + randomUnit(rng) * 0.5) * 2.0;
       },
-      [&] { snakeHook(v, anchor, anchor + step, r, pool); });
-  v = sphere;
-  BrushParams p{{}, r, 1};
-  const Timing dab = measure(
-      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
-  emit("snake_hook", opt.threads, hook,
-       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", hook.median_ms / dab.median_ms}});
+      [&](Volume& v, double r, ThreadPool& pool) { snakeHook(v, anchor, anchor + step, r, pool); });
 }
 
 // A pinch path move (pinchAlong) of 2 vu along the sphere's surface from a random point, amount
-// 1, against an add-blob dab there, both radius 8 (the browser's dabs are a quarter radius apart).
+// 1 (the browser's dabs are a quarter radius apart).
 MARZIPAN_BENCH("pinch_path") {
-  const WarpSphere s = warpSphere(opt);
-  ThreadPool pool(opt.threads);
-  const Volume sphere = makeSphere(s.dims, s.centre, s.radius);
-  std::mt19937 rng{11};
-  const double r = 8;
-  Volume v = sphere;
   Vec3 from, to, n;
-  const int reps = opt.quick ? 5 : 101;
-  const Timing move = measure(
-      reps,
-      [&] {
+  moveAgainstDab(
+      opt, "pinch_path", 11,
+      [&](std::mt19937& rng, const WarpSphere& s) {
         n = randomUnit(rng);
         from = s.centre + n * s.radius;
         to = from + normalized(cross(n, randomUnit(rng))) * 2.0;
       },
-      [&] { pinchAlong(v, from, to, n, 1, r, pool); });
-  v = sphere;
-  BrushParams p{{}, r, 1};
-  const Timing dab = measure(
-      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
-  emit("pinch_path", opt.threads, move,
-       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", move.median_ms / dab.median_ms}});
+      [&](Volume& v, double r, ThreadPool& pool) { pinchAlong(v, from, to, n, 1, r, pool); });
 }
 
 }  // namespace marzipan::bench
