@@ -12,19 +12,14 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 
-import { canvasCenter, collectErrors, createSession, drag, env, shot, text, useServerAndBrowser } from "./client-page.mjs";
+import { canvasCenter, drag, sessionPage, shot, text, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 
 useServerAndBrowser({ hintDismissed: true });
 
 test("Space+drag orbits around the point under the press; the stabiliser calms a shaky drag", { timeout: 180000 }, async (t) => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  const { page, errors, sent } = await sessionPage(128, "sphere");
   const sentSince = (from, method) => sent.slice(from).filter((m) => m.method === method);
-  await createSession(page, 128, "sphere");
   const [cx, cy] = await canvasCenter(page);
   await page.click('label:has(input[value="add_blob"])');
   const yaw = () => page.evaluate(() => window.marzipan.camera.yaw);
@@ -132,12 +127,7 @@ async function strokeOf(page, sent, from, to, steps, beforeRelease = async () =>
 }
 
 test("warps in the page: grab a sphere's side 30 vu out and back, a snake hook pulls it longer", { timeout: 300000 }, async (t) => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
-  await createSession(page, 128, "sphere");
+  const { page, errors, sent } = await sessionPage(128, "sphere");
   const before = await splats(page);
   const deviation = (points) => Math.max(...points.map((p) => Math.abs(norm(sub(p, CENTER)) - R0)));
   const dev0 = deviation(before);
@@ -225,12 +215,7 @@ test("warps in the page: grab a sphere's side 30 vu out and back, a snake hook p
 });
 
 test("a pinch path in the page: its dabs go on the surface with pressure, and the flanks beside the path sink", { timeout: 180000 }, async (t) => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
-  await createSession(page, 128, "sphere");
+  const { page, errors, sent } = await sessionPage(128, "sphere");
   const radial = (points) => points.map((p) => norm(sub(p, CENTER)) - R0);
   const before = radial(await splats(page));
   // Pinch path (key Q): a drag across the sphere's front, left to right.
@@ -262,12 +247,7 @@ test("a pinch path in the page: its dabs go on the surface with pressure, and th
 });
 
 test("flatten in the page takes a bump down, towards the plane the server fitted, which the cursor shows", { timeout: 240000 }, async (t) => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
-  await createSession(page, 128, "sphere");
+  const { page, errors, sent } = await sessionPage(128, "sphere");
   const right = await page.evaluate(() => window.marzipan.camera.right);
   const [ccx, ccy] = await pixelOf(page, CENTER);
   const [rx] = await pixelOf(page, along(CENTER, R0, right));

@@ -91,6 +91,18 @@ export async function createSession(page, size, solid) {
   await settled(page, 60000);
 }
 
+// A new page on a new session (createSession), with its script errors collected into `errors`
+// and every JSON message it sends over the WebSocket, parsed, into `sent` (in order).
+export async function sessionPage(size, solid) {
+  const errors = [];
+  const page = await env.browser.context.newPage();
+  collectErrors(page, errors);
+  const sent = [];
+  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
+  await createSession(page, size, solid);
+  return { page, errors, sent };
+}
+
 export function collectErrors(page, into) {
   page.on("pageerror", (e) => into.push(`page error: ${e.message}`));
   page.on("console", (m) => {

@@ -8,7 +8,7 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 
-import { canvasCenter, collectErrors, createSession, drag, env, shot, useServerAndBrowser } from "./client-page.mjs";
+import { canvasCenter, collectErrors, createSession, drag, env, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 
 useServerAndBrowser({ hintDismissed: true });
@@ -33,12 +33,7 @@ async function changed(page, before) {
 }
 
 test("a paint stroke colours the clay under it, a mask keeps an area as it was, Alt+click picks the colour", { timeout: 300000 }, async () => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
-  await createSession(page, 96, "sphere");
+  const { page, errors, sent } = await sessionPage(96, "sphere");
   const canvas = await page.locator("#view").boundingBox();
   const [cx, cy] = await canvasCenter(page); // page coordinates
   const local = ([x, y]) => [x - canvas.x, y - canvas.y];

@@ -10,19 +10,14 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, canvasCenter, collectErrors, createSession, data, drag, env, reach, RIM_LIMIT, roughness, scrub, shot, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, canvasCenter, data, drag, reach, RIM_LIMIT, roughness, scrub, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 import { backdropPixels, rimRoughness } from "./rim.mjs";
 
 useServerAndBrowser({ hintDismissed: true });
 
 test("a stroke's dabs land on the surface as it was at the press, and it stands at its height however often it passes", { timeout: 540000 }, async (t) => {
-  const errors = [];
-  const page = await env.browser.context.newPage();
-  collectErrors(page, errors);
-  const sent = [];
-  page.on("websocket", (ws) => ws.on("framesent", (f) => typeof f.payload === "string" && sent.push(JSON.parse(f.payload))));
-  await createSession(page, 128, "sphere"); // radius 0.35 * 128 = 44.8 vu about the grid's middle
+  const { page, errors, sent } = await sessionPage(128, "sphere"); // radius 0.35 * 128 = 44.8 vu about the grid's middle
   const center = [63.5, 63.5, 63.5];
   const r0 = await reach(page, center);
   assert.ok(Math.abs(r0 - 44.8) < 1, `the sphere's splats reach ${r0} vu`);
