@@ -306,4 +306,19 @@ Edit pinch(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double amoun
 Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, double radius,
                 ThreadPool& pool = ThreadPool::serial());
 
+// Upper bounds of |grad v| of the warps' velocity fields, from the arguments of the call of the
+// same name: a call integrates its flow in ceil(bound / kWarpStretchPerStep) sub-steps (the
+// engine's own use), and a caller estimating a call's work reads them here. travel is the
+// move's length: |d| (snake hook: |target - anchor|, pinch along: |to - from|). Grab, snake
+// hook and elastic grab scale their field by the factor that lands the anchor on its target
+// (a 1-D search from 1, kWarpAnchorTolerance): these are their bounds at factor 1, the call's
+// are these times that factor.
+double grabSlopeBound(double travel, double radius);
+double snakeHookSlopeBound(double travel, double radius);
+double elasticGrabSlopeBound(double travel, double radius, double volume);
+double twistSlopeBound(double angle);
+double localScaleSlopeBound(double factor);
+double pinchSlopeBound(double amount);
+double pinchAlongSlopeBound(double travel, double amount, double radius);
+
 }  // namespace marzipan

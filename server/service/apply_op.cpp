@@ -148,11 +148,6 @@ namespace {
 
 using protocol::WarpTool;
 
-// The largest |W'| of the warps' falloff W(t) = (1 - t^2)^2 (engine/level_set/warp.cpp).
-const double kMaxWarpSlope = 8 / (3 * std::numbers::sqrt3);
-// The plateau of snake hook's and the affine warps' falloff (engine warp.cpp, kPlateau).
-constexpr double kWarpPlateau = 0.5;
-
 double maxTravel(const WarpStroke& w) {
   return (w.tool == WarpTool::ElasticGrab ? kMaxElasticTravelPerRadius : kMaxWarpTravelPerRadius) * w.radius;
 }
@@ -206,42 +201,29 @@ WarpCall anchoredCall(const WarpStroke& w, Vec3 anchor, Vec3 p) {
 }
 
 // One engine call's work (warpStrokeCost): its support's box grown by the resampler's margin,
-// and its sub-steps from the engine's bound of |grad v| (warp.cpp, Velocity::lipschitz).
+// and its sub-steps from the engine's bound of |grad v| (level_set.hpp, grabSlopeBound and the
+// others; a grab's landing factor, near 1, taken as 1).
 double warpCallVoxels(const Volume& vol, const WarpStroke& w, const WarpCall& c) {
   const double margin = vol.band() + 3, r = w.radius;
   Vec3 half{r + margin, r + margin, r + margin};
   double lipschitz = 0;
   switch (w.tool) {
     case WarpTool::Grab:
-    case WarpTool::SnakeHook: {
+    case WarpTool::SnakeHook:
       for (int a = 0; a < 3; ++a) half[a] += std::abs(c.d[a]) / 2;
-      const double plateau = w.tool == WarpTool::SnakeHook ? kWarpPlateau : 0;
-      lipschitz = length(c.d) * kMaxWarpSlope / ((1 - plateau) * r);
+      lipschitz = w.tool == WarpTool::Grab ? grabSlopeBound(length(c.d), r) : snakeHookSlopeBound(length(c.d), r);
       break;
-    }
-    case WarpTool::ElasticGrab: {
+    case WarpTool::ElasticGrab:
       half = half + Vec3{2 * r, 2 * r, 2 * r};
-      const double load = length(c.d) * 2 * r / (1.5 - 1 / (4 * (1 - w.volume)));
-      lipschitz = load / (r * r) + load / r * kMaxWarpSlope / ((1 - kWarpPlateau) * kElasticCutoff * r);
+      lipschitz = elasticGrabSlopeBound(length(c.d), r, w.volume);
       break;
-    }
-    case WarpTool::Twist:
-      lipschitz = std::numbers::sqrt2 * std::abs(c.amount) * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
-      break;
-    case WarpTool::LocalScale:
-      lipschitz = std::numbers::sqrt3 * std::abs(c.amount) * std::numbers::ln2 * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
-      break;
-    case WarpTool::Pinch:
-      lipschitz = std::numbers::sqrt2 * std::abs(c.amount) * (1 + kMaxWarpSlope / (1 - kWarpPlateau));
-      break;
-    case WarpTool::PinchAlong: {
-      // The engine's bound (level_set.hpp, pinchAlong) for the move c.d at c.amount.
+    case WarpTool::Twist: lipschitz = twistSlopeBound(c.amount); break;
+    case WarpTool::LocalScale: lipschitz = localScaleSlopeBound(std::exp2(c.amount)); break;
+    case WarpTool::Pinch: lipschitz = pinchSlopeBound(c.amount); break;
+    case WarpTool::PinchAlong:
       for (int a = 0; a < 3; ++a) half[a] += std::abs(c.d[a]) / 2;
-      const double L = length(c.d);
-      lipschitz = std::abs(c.amount) / (16 * r / 15) *
-                  (std::min(L, 16 * r / 15) + std::min(r, kMaxWarpSlope * L) + std::min(kMaxWarpSlope * L, std::numbers::sqrt3 * r));
+      lipschitz = pinchAlongSlopeBound(length(c.d), c.amount, r);
       break;
-    }
   }
   double box = 1;
   for (int a = 0; a < 3; ++a) box *= std::min(double(vol.dims()[a]), 2 * half[a] + 1);

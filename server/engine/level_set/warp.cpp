@@ -29,6 +29,27 @@ constexpr double kPlateau = 0.5;
 // what a path pinch's I(x) is at a point of a long straight path (Velocity::pathIntegral()).
 constexpr double kPathPinchPass = 16.0 / 15;
 
+// The largest |W'| of the falloff W(t) = (1 - t^2)^2, which the bounds of |grad v| scale.
+constexpr double kMaxFalloffSlope = 8 / (3 * std::numbers::sqrt3);
+
+// The bounds of |grad v| (../level_set.hpp, grabSlopeBound and the others) in the fields' own
+// terms. A capsule (grab, snake hook) moving `travel` vu whose falloff has the plateau
+// `plateau`: |W'| over the falloff's outer part, (1 - plateau) radius wide.
+double capsuleSlope(double travel, double radius, double plateau) {
+  return travel * kMaxFalloffSlope / ((1 - plateau) * radius);
+}
+// An elastic grab's load per vu of travel: at the centre the bi-scale Kelvinlet is
+// (3/2 - b) (1 / eps - 1 / (2 eps)) load, b = 1 / (4 (1 - nu)), so that this load moves it by d.
+double elasticLoadPerTravel(double eps, double nu) { return 2 * eps / (1.5 - 1 / (4 * (1 - nu))); }
+// An elastic grab under a load of length `load`: the Kelvinlets' own slope is below
+// |load| / eps^2 (their peak is about |load| / eps, reached over eps), plus the cut-off's (at
+// kElasticCutoff eps, plateau kPlateau).
+double elasticSlope(double load, double eps) {
+  return load / (eps * eps) + load / eps * kMaxFalloffSlope / ((1 - kPlateau) * (kElasticCutoff * eps));
+}
+// An affine warp whose A has the Frobenius norm `norm`: |grad (P A r)| <= |A| (P + |P'| |r|).
+double affineSlope(double norm) { return norm * (1 + kMaxFalloffSlope / (1 - kPlateau)); }
+
 // Shares of a call's progress unit.
 constexpr double kGatherShare = 0.1, kLatticeShare = 0.2, kResampleShare = 0.3, kRedistanceShare = 0.3;
 
@@ -50,8 +71,12 @@ struct Velocity {
   Vec3 load;
   double eps = 1, nu = 0.5;
   // PathPinch: -scale * I(y) * (across . (y - anchor)) * across, across a unit vector normal to
-  // seg and I(y) the falloff integrated along the segment (pathIntegral()).
+  // seg and I(y) the falloff integrated along the segment (pathIntegral()); scale is the call's
+  // amount / (kPathPinchPass radius).
   Vec3 across;
+  double amount = 0;
+  // Affine: the bound of |grad v| of the call that made it (twistSlopeBound and the others).
+  double affineBound = 0;
 
   // Whether the support is the capsule of `radius` around the segment anchor + [0, 1] * seg
   // (else the ball of `radius` around anchor).
@@ -320,30 +345,16 @@ struct Velocity {
     return {x0, std::max(x0, x1)};
   }
 
-  // An upper bound of |grad v| (max |W'| = 8 / (3 sqrt 3) for W(t) = (1 - t^2)^2).
+  // An upper bound of |grad v|: the bound of the call that made the field
+  // (../level_set.hpp, grabSlopeBound and the others) at its scale.
   double lipschitz() const {
-    constexpr double kMaxSlope = 8 / (3 * std::numbers::sqrt3);
-    if (kind == Kind::Capsule) return scale * std::sqrt(segLength2) * kMaxSlope / ((1 - plateau) * radius);
-    // |grad (I s)| <= I + |s| |grad I|, |s| <= radius: I <= min(L, 16 radius / 15) (its value
-    // on a long path's line), |dI/da| <= min(1, L max |K'|) with max |K'| = kMaxSlope / radius,
-    // and the part of grad I across the line, (2 h / radius^2) |G(u1) - G(u0)|, is at most
-    // min(kMaxSlope L / radius, sqrt 3) (G' in [0, 2c] on the chord, h c <= 0.385 radius,
-    // h c^(3/2) <= 0.325 radius).
-    if (kind == Kind::PathPinch) {
-      const double L = std::sqrt(segLength2);
-      return std::fabs(scale) * (std::min(L, 16 * radius / 15) + std::min(radius, kMaxSlope * L) +
-                                 std::min(kMaxSlope * L, std::numbers::sqrt3 * radius));
+    switch (kind) {
+      case Kind::Capsule: return capsuleSlope(scale * std::sqrt(segLength2), radius, plateau);
+      case Kind::PathPinch: return pinchAlongSlopeBound(std::sqrt(segLength2), amount, radius);
+      case Kind::Elastic: return elasticSlope(scale * length(load), eps);
+      case Kind::Affine: break;
     }
-    // The Kelvinlets' own slope is below |load| / eps^2 (their peak is about |load| / eps,
-    // reached over eps), plus the cut-off's.
-    if (kind == Kind::Elastic) {
-      const double l = scale * length(load);
-      return l / (eps * eps) + l / eps * kMaxSlope / ((1 - plateau) * radius);
-    }
-    double frobenius = 0;
-    for (const auto& row : A)
-      for (const double a : row) frobenius += a * a;
-    return std::sqrt(frobenius) * (1 + kMaxSlope / (1 - plateau));
+    return affineBound;
   }
 
   int substeps() const { return std::max(1, int(std::ceil(lipschitz() / kWarpStretchPerStep))); }
@@ -1308,9 +1319,8 @@ Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double ra
   v.nu = volume;
   v.radius = kElasticCutoff * radius;
   v.plateau = kPlateau;
-  // At the centre the bi-scale Kelvinlet is (3/2 - b) (1 / eps - 1 / (2 eps)) load: this load
-  // gives d there, before the flow's search.
-  v.load = d * (2 * radius / (1.5 - 1 / (4 * (1 - volume))));
+  // The load that moves the centre by d, before the flow's search.
+  v.load = d * elasticLoadPerTravel(radius, volume);
   v.seg = d;
   landAnchor(v, anchor, d);
   return applyWarp(vol, base, v, pool);
@@ -1327,6 +1337,7 @@ Edit twist(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double angle
   const double m[3][3] = {{0, -n.z, n.y}, {n.z, 0, -n.x}, {-n.y, n.x, 0}};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) v.A[i][j] = angle * m[i][j];
+  v.affineBound = twistSlopeBound(angle);
   return applyWarp(vol, base, v, pool);
 }
 
@@ -1337,6 +1348,7 @@ Edit localScale(Volume& vol, const Volume& base, Vec3 anchor, double factor, dou
   requireRange(factor, 0.25, 4, "factor");
   Velocity v = affine(anchor, radius);
   for (int i = 0; i < 3; ++i) v.A[i][i] = std::log(factor);
+  v.affineBound = localScaleSlopeBound(factor);
   return applyWarp(vol, base, v, pool);
 }
 
@@ -1349,6 +1361,7 @@ Edit pinch(Volume& vol, const Volume& base, Vec3 anchor, Vec3 axis, double amoun
   Velocity v = affine(anchor, radius);
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) v.A[i][j] = -amount * ((i == j ? 1 : 0) - n[i] * n[j]);
+  v.affineBound = pinchSlopeBound(amount);
   return applyWarp(vol, base, v, pool);
 }
 
@@ -1368,6 +1381,7 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
   v.kind = Velocity::Kind::PathPinch;
   v.anchor = from;
   v.radius = radius;
+  v.amount = amount;
   if (length(across) > 1e-9 * length(d)) {
     v.seg = d;
     v.segLength2 = dot(d, d);
@@ -1376,6 +1390,34 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
   }
   // vol is its own base: applyWarp reads it before it writes the result.
   return applyWarp(vol, vol, v, pool);
+}
+
+double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0); }
+
+double snakeHookSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, kPlateau); }
+
+double elasticGrabSlopeBound(double travel, double radius, double volume) {
+  return elasticSlope(travel * elasticLoadPerTravel(radius, volume), radius);
+}
+
+// |angle [axis]x| = sqrt 2 |angle|, |ln(factor) I| = sqrt 3 |ln factor|, |amount (I - axis axis^T)|
+// = sqrt 2 |amount| (Frobenius norms, axis a unit vector).
+double twistSlopeBound(double angle) { return affineSlope(std::numbers::sqrt2 * std::fabs(angle)); }
+
+double localScaleSlopeBound(double factor) { return affineSlope(std::numbers::sqrt3 * std::fabs(std::log(factor))); }
+
+double pinchSlopeBound(double amount) { return affineSlope(std::numbers::sqrt2 * std::fabs(amount)); }
+
+// v = -scale I s across, scale = amount / (kPathPinchPass radius): |grad (I s)| <= I + |s| |grad I|,
+// |s| <= radius. I <= min(L, 16 radius / 15) (its value on a long path's line), |dI/da| <=
+// min(1, L max |K'|) with max |K'| = kMaxFalloffSlope / radius, and the part of grad I across the
+// line, (2 h / radius^2) |G(u1) - G(u0)|, is at most min(kMaxFalloffSlope L / radius, sqrt 3)
+// (G' in [0, 2c] on the chord, h c <= 0.385 radius, h c^(3/2) <= 0.325 radius).
+double pinchAlongSlopeBound(double travel, double amount, double radius) {
+  const double L = travel;
+  return std::fabs(amount / (kPathPinchPass * radius)) *
+         (std::min(L, 16 * radius / 15) + std::min(radius, kMaxFalloffSlope * L) +
+          std::min(kMaxFalloffSlope * L, std::numbers::sqrt3 * radius));
 }
 
 }  // namespace marzipan
