@@ -409,6 +409,16 @@ Vec3 Volume::gradient(Vec3 p) const {
   return g;
 }
 
+Vec3 Volume::towardSurface(Vec3 p, int steps) const {
+  for (int i = 0; i < steps; ++i) {
+    const double d = sample(p);
+    const Vec3 g = gradient(p);
+    if (d == 0 || !(std::fabs(d) < band()) || !(length(g) > 0.5)) break;
+    p = p - normalized(g) * (d / length(g));
+  }
+  return p;
+}
+
 Vec3 Volume::voxelGradient(Int3 p) const {
   return GradStencil::around(p, [this](Int3 q) { return at(q); }).gradient();
 }

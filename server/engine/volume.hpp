@@ -98,6 +98,11 @@ class Volume {
   Vec3 gradient(Vec3 p) const;
   // Central-difference gradient at a voxel.
   Vec3 voxelGradient(Int3 p) const;
+  // p carried up to `steps` Newton steps towards the zero set along the gradient,
+  // p - n d(p) / |grad d(p)| with n the unit gradient; it stops where d(p) is 0 or no longer in
+  // the band, or where the slope falls under 0.5 (clamped or flat values give no direction).
+  // The surface point nearest p when p lies near a smooth part of the surface.
+  Vec3 towardSurface(Vec3 p, int steps) const;
 
   // The brick's channels, or null (base colour, weight 0); b must be within brickDims().
   const BrickPaint* brickPaint(Int3 b) const;

@@ -270,7 +270,16 @@ void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at) {
   for (int a = 0; a < 3; ++a)
     if (!(at[a] >= 0 && at[a] <= n[a] - 1))
       throw EngineError(ErrorKind::OutOfDomain, "center", "the anchor (the stroke's first dab) must lie in the volume");
-  const double distance = std::abs(base.sample(at));
+  double distance = std::abs(base.sample(at));
+  if (!(distance <= kMaxWarpAnchorDistance) && distance < base.band()) {
+    // Another sculptor's edit moved the surface under the splats the client picked on: take the
+    // surface point nearest the pick, which is no farther than the pick's distance.
+    const Vec3 foot = base.towardSurface(at, kAnchorSnapSteps);
+    if (std::abs(base.sample(foot)) <= kWarpAnchorTolerance && length(foot - at) <= base.band()) {
+      at = foot;
+      distance = std::abs(base.sample(at));
+    }
+  }
   if (!(distance <= kMaxWarpAnchorDistance)) {
     std::ostringstream what;
     what << "the anchor (the stroke's first dab) must lie on the surface, within " << kMaxWarpAnchorDistance

@@ -95,15 +95,20 @@ struct WarpStroke {
   double heldAmount = 0;
 };
 
-// The farthest a warp's anchor may lie from the base's surface (|distance| in vu).
+// The farthest a warp's anchor is taken as given from the base's surface (|distance| in vu).
 inline constexpr double kMaxWarpAnchorDistance = 2;
+// Newton steps that carry an anchor farther than that, but within the band, to the surface.
+inline constexpr int kAnchorSnapSteps = 8;
 
 // Checks a warp stroke's settings as the engine will (radius: the tool's range; volume,
 // direction); throws EngineError naming the field.
 void checkWarpSettings(const WarpStroke& w);
-// Takes `at` as the anchor on `base`: throws EngineError (field "center") when it lies
-// outside the domain, farther than kMaxWarpAnchorDistance from base's surface, or where base's
-// field has no slope to give a normal.
+// Takes `at` as the anchor on `base` (w.anchor, w.normal). A point within
+// kMaxWarpAnchorDistance of base's surface is taken as given; one farther but within the band
+// (a client's pick on splats that another sculptor's edit has since moved) is taken at the
+// surface point nearest it (Volume::towardSurface, within kWarpAnchorTolerance of the zero
+// set). Throws EngineError (field "center") when it lies outside the domain, cannot be carried
+// to the surface so, or where base's field has no slope to give a normal.
 void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at);
 // One message's pointer points (the dabs after the anchor) on a stroke with its anchor set:
 // anchored tools write base warped by the last point into vol (which must be base or base

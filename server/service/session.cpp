@@ -490,7 +490,7 @@ ApplyResult Session::warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadP
 
   ApplyResult result;
   std::size_t first = 0;
-  Vec3 anchorAt;  // the anchor this message took (a ray's hit), for the journal
+  Vec3 anchorAt;  // the anchor this message took (a ray's hit, or the point carried to the surface), for the journal
   if (!w.anchor) {
     std::optional<Vec3> at;
     if (const auto* c = std::get_if<Vec3>(&dabs[0].at)) at = *c;
@@ -509,7 +509,7 @@ ApplyResult Session::warpDabs(StrokeId id, const std::vector<Dab>& dabs, ThreadP
       rethrow(e, "");
     }
     result.anchored = true;
-    anchorAt = *at;
+    anchorAt = *w.anchor;
     first = 1;
   }
   std::vector<Vec3> points;

@@ -244,6 +244,41 @@ TEST_CASE("session warp: another change during a stroke is kept, the stroke goes
   CHECK(std::abs(hit->x - (kAnchor.x + 4)) <= 2 * kWarpAnchorTolerance);
 }
 
+TEST_CASE("session warp: an anchor picked where the surface was is taken at the surface point nearest it",
+          "[session][warp]") {
+  // A client picks on splats another sculptor's edit has since moved: 2.5 vu off the sphere
+  // (past the 2 vu taken as given, within the band of 3).
+  ThreadPool pool(2);
+  const Vec3 stale = kAnchor + normalized(Vec3{1, 0.3, 0}) * 2.5;
+  const Vec3 pointer = stale + Vec3{0, 5, 0};
+  Session s(sphere());
+  const StrokeId id = s.beginWarp(settings(WarpTool::Grab, 10));
+  const ApplyResult a = s.strokeDabs(id, centres({stale, pointer}), pool);
+  REQUIRE(a.anchored);
+  REQUIRE(a.changed);
+  // The anchor taken (the journal's first dab) is on the sphere, on the stale point's radius.
+  REQUIRE(a.hits.size() == 2);
+  REQUIRE(a.hits[0]);
+  const Vec3 taken = *a.hits[0];
+  CHECK(std::abs(length(taken - kCentre) - kR) <= 0.05);
+  CHECK(length(normalized(taken - kCentre) - normalized(stale - kCentre)) <= 1e-3);
+  // Exactly the engine's grab from that point to the pointer, and a stroke anchored there
+  // (a replay of the journal) gives the same bits.
+  Volume expected = sphere();
+  grab(expected, sphere(), taken, pointer - taken, 10, pool);
+  CHECK(s.digest() == digest(expected));
+  Session replay(sphere());
+  const StrokeId r = replay.beginWarp(settings(WarpTool::Grab, 10));
+  replay.strokeDabs(r, centres({taken, pointer}), pool);
+  CHECK(replay.digest() == s.digest());
+  // A point as far as the band, or farther, is still refused: nothing says where its surface went.
+  Session far(sphere());
+  const StrokeId f = far.beginWarp(settings(WarpTool::Grab, 10));
+  requireError([&] { far.strokeDabs(f, centres({kAnchor + Vec3{3, 0, 0}, pointer}), pool); }, protocol::RpcCode::InvalidParams,
+               "center");
+  CHECK(far.digest() == digest(sphere()));
+}
+
 TEST_CASE("session warp: refusals name the field and change nothing", "[session][warp]") {
   ThreadPool pool(2);
   using C = protocol::RpcCode;

@@ -1237,13 +1237,7 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
   // Each resample rounds the tip a little, so the surface drifts off the anchor the caller
   // carries from move to move (1.5 vu over 97 moves of a 200 vu drag): the move starts from the
   // surface point nearest the anchor (two Newton steps along the gradient, within the band).
-  Vec3 from = anchor;
-  for (int i = 0; i < 2; ++i) {
-    const double d = vol.sample(from);
-    const Vec3 g = vol.gradient(from);
-    if (!(std::fabs(d) < vol.band()) || !(length(g) > 0.5)) break;
-    from = from - normalized(g) * (d / length(g));
-  }
+  Vec3 from = vol.towardSurface(anchor, 2);
   // The move starts from the side of the tip that faces it: the surface point along the move's
   // direction from the tip's inside, the plateau's radius under `from`. At a turn of the path
   // the tip is then pulled out of its side, a tentacle along its own axis again, instead of
