@@ -431,6 +431,8 @@ struct Velocity {
       const double rho2 = perp2 + e * e;
       return rho2 < R2 ? speed * falloff(rho2 / R2) : 0.0;
     };
+    // Where the speed is zero (beyond the end caps) every sub-step stays put.
+    if (velocity(a0) == 0) return y;
     const double dt = direction / n, step = dt * speed * falloff(perp2 / R2);
     double a = a0;
     for (int i = 0; i < n;) {
