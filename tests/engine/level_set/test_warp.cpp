@@ -267,14 +267,15 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
                                       << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
                                       << m.distance.mean << " (" << m.distance.voxels << " voxels)");
-    // Measured: exact 0.0313 / 0.00108, ours 0.0405 / 0.00110; |ours - exact| 0.129 / 0.00439
-    // (ours 0.0402 / 0.00164 and 0.125 / 0.00475 before the foot points of the voxels next to
-    // the zero set, warp.cpp).
+    // Measured: exact 0.0314 / 0.00087, ours 0.0410 / 0.00110; |ours - exact| 0.130 / 0.00216
+    // (ours 0.0402 / 0.00164 before the foot points of the voxels next to the zero set,
+    // warp.cpp; the exact means 0.00108 and 0.00439 against the coarser reference of then,
+    // whose chords lay up to 0.005 vu inside the surface).
     CHECK(m.exact.max <= 0.05);
     CHECK(m.ours.max <= m.exact.max + 0.02);
     CHECK(m.ours.mean <= m.exact.mean + 0.0005);
     CHECK(m.distance.max <= 0.15);
-    CHECK(m.distance.mean <= 0.005);
+    CHECK(m.distance.mean <= 0.003);
   }
   SECTION("three radii: the exact field itself is past the brushes' max at the tip") {
     Volume v = base;
@@ -289,18 +290,18 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     // The falloff (1 - t^2)^2 pulls the cap into a tip whose radius of curvature is about
     // radius^2 / (4 |d|) = 1 vu: the central differences of its exact distance, sampled on the
     // grid, straddle the tip's medial axis (as a cube's edges give 1 - 1 / sqrt 2). Measured:
-    // exact max 0.237 (at the tip) / mean 0.00175, so 0.1 cannot hold for any field of this
+    // exact max 0.236 (at the tip) / mean 0.00157, so 0.1 cannot hold for any field of this
     // shape; the mean can.
     CHECK(m.exact.max > 0.2);
     CHECK(m.exact.mean <= 0.005);
-    // Ours, measured: max 0.234 / mean 0.00223, |ours - exact| max 0.195 / mean 0.00513. Before
-    // the foot points (warp.cpp): 0.293 / 0.0116 and 0.343 / 0.0142, the sheared sides' voxels
-    // next to the zero set 0.1-0.3 vu off.
+    // Ours, measured: max 0.233 / mean 0.00223, |ours - exact| max 0.196 / mean 0.0032 (0.0051
+    // against the coarser reference). Before the foot points (warp.cpp): 0.293 / 0.0116 and
+    // 0.343 / 0.0142, the sheared sides' voxels next to the zero set 0.1-0.3 vu off.
     CHECK(m.ours.max <= m.exact.max + 0.02);
     CHECK(m.ours.mean <= m.exact.mean + 0.001);
     CHECK(m.ours.mean <= 0.005);
     CHECK(m.distance.max <= 0.21);
-    CHECK(m.distance.mean <= 0.006);
+    CHECK(m.distance.mean <= 0.004);
   }
 }
 
@@ -324,6 +325,42 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   // Not within the brushes' gradient error (0.1 / 0.005): measured 2026-11-29 max 0.216 at the
   // tip, mean 0.00544 after 97 resamples.
   checkSoundSolid(v, 0.25, 0.006);
+}
+
+TEST_CASE("a snake hook's first moves near the exact distance of the carried sphere", "[warp][snake_hook][exact]") {
+  // The first 8 moves of the 200 vu path above (16 vu): the exact shape is the sphere carried
+  // by the moves' own flows, each from the anchor the engine picks on the volume as it was
+  // before that move. The whole path cannot be carried in a test's time: its refined
+  // triangulation takes minutes (warp_reference.hpp).
+  const Vec3 c{48, 40, 48};
+  Volume v = makeSphere({96, 128, 96}, c, 20);
+  const double r = 8;
+  Vec3 at = c + Vec3{0, 20, 0};
+  std::vector<WarpMap> maps;
+  for (int i = 0; i < 8; ++i) {
+    const Vec3 next = at + Vec3{0.5, 2, 0};
+    maps.push_back(snakeHookMap(v, at, next, r));
+    snakeHook(v, at, next, r);
+    at = next;
+  }
+  checkSoundSolid(v, 1, 1);  // the gradient error: against the exact field's, below
+  const AgainstExact m = againstExact(v, {c, 20, maps});
+  INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
+                                    << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
+                                    << m.distance.mean << " (" << m.distance.voxels << " voxels)");
+  // The plateau carries a ball of half the radius around the tip whole, and the falloff's
+  // second derivative jumps at its edge, the same clay at each move: the tip is a flat cap
+  // whose rim sharpens with every move (its radius of curvature about 2 vu / moves), past the
+  // brushes' max for any field of this shape. Measured (2026-11-29): exact 0.167 / 0.00173,
+  // ours 0.141 / 0.00222; |ours - exact| 0.297 / 0.0074. The largest of all three are at the
+  // tip (a third of each sum is in its top 4 vu).
+  CHECK(m.exact.max > 0.1);
+  CHECK(m.exact.mean <= 0.005);
+  CHECK(m.ours.max <= m.exact.max + 0.02);
+  CHECK(m.ours.mean <= m.exact.mean + 0.001);
+  CHECK(m.ours.mean <= 0.005);
+  CHECK(m.distance.max <= 0.35);
+  CHECK(m.distance.mean <= 0.0085);
 }
 
 TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[warp][snake_hook][topology]") {
