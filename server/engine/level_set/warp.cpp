@@ -62,6 +62,10 @@ struct Velocity {
   // Capsule: the segment anchor + [0, 1] * seg, velocity scale * seg * W(rho / radius).
   Vec3 seg;
   double segLength2 = 0;
+  // Capsule: |seg| and seg / |seg| (set with seg, not per point: their root and divisions were
+  // a tenth of the latency of a flow's integration).
+  double segLength = 0;
+  Vec3 segAxis;
   double scale = 1;
   // Affine: A (row-major), inner part of the radius where P = 1.
   double A[3][3] = {};
@@ -206,21 +210,29 @@ struct Velocity {
   // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
   // tentacle was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
+  // plateau is 0 or kPlateau, whose outer part's width 1 - kPlateau is 1/2: u is (t - plateau)
+  // times 2, and d falloff / d t2 = -4 u (1 - u^2) / t, what the divisions by 1 - plateau give
+  // bit for bit without their latency (a snake hook move integrates the flow at a thousand
+  // points, four sub-steps of two falloffs each).
   double plateau = 0;
+  static_assert(kPlateau == 0.5, "falloff() and falloffSlope() divide by 1 - kPlateau = 1/2 as a product");
   double falloff(double t2) const {
     if (plateau == 0) return (1 - t2) * (1 - t2);
     if (t2 <= plateau * plateau) return 1;
-    const double u = (std::sqrt(t2) - plateau) / (1 - plateau);
+    const double u = (std::sqrt(t2) - plateau) * 2;
     return (1 - u * u) * (1 - u * u);
   }
 
   // d falloff / d t2.
-  double falloffSlope(double t2) const {
-    if (plateau == 0) return -2 * (1 - t2);
-    if (t2 <= plateau * plateau) return 0;
+  double falloffSlope(double t2) const { return falloffWithSlope(t2).second; }
+
+  // falloff(t2) and falloffSlope(t2), sharing the root.
+  std::pair<double, double> falloffWithSlope(double t2) const {
+    if (plateau == 0) return {(1 - t2) * (1 - t2), -2 * (1 - t2)};
+    if (t2 <= plateau * plateau) return {1, 0};
     const double t = std::sqrt(t2);
-    const double u = (t - plateau) / (1 - plateau);
-    return -4 * u * (1 - u * u) / ((1 - plateau) * 2 * t);
+    const double u = (t - plateau) * 2;
+    return {(1 - u * u) * (1 - u * u), -4 * u * (1 - u * u) / t};
   }
 
   // v(y) and its Jacobian J (J[i][j] = d v_i / d y_j).
@@ -418,8 +430,8 @@ struct Velocity {
   // more instructions a snake hook move.
   [[gnu::always_inline]] Vec3 capsuleFlow(Vec3 y, int n, double direction) const {
     if (!(segLength2 > 0)) return y;
-    const double length = std::sqrt(segLength2), R2 = radius * radius;
-    const Vec3 axis = seg / length;
+    const double length = segLength, R2 = radius * radius;
+    const Vec3 axis = segAxis;
     const Vec3 r = y - anchor;
     const double a0 = dot(r, axis);
     const Vec3 off = r - axis * a0;
@@ -462,8 +474,8 @@ struct Velocity {
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) X[i][j] = i == j ? 1 : 0;
     if (!(segLength2 > 0)) return y;
-    const double length = std::sqrt(segLength2), R2 = radius * radius;
-    const Vec3 axis = seg / length;
+    const double length = segLength, R2 = radius * radius;
+    const Vec3 axis = segAxis;
     const Vec3 r = y - anchor;
     const double a0 = dot(r, axis);
     const Vec3 off = r - axis * a0;
@@ -479,8 +491,9 @@ struct Velocity {
       const double rho2 = q + e * e;
       Speed out;
       if (rho2 >= R2) return out;
-      const double slope = speed * falloffSlope(rho2 / R2) / R2;
-      out.f = speed * falloff(rho2 / R2);
+      const auto [fall, fallSlope] = falloffWithSlope(rho2 / R2);
+      const double slope = speed * fallSlope / R2;
+      out.f = speed * fall;
       out.fa = slope * 2 * (a < 0 ? a : e);
       out.fq = slope;
       return out;
@@ -541,13 +554,17 @@ struct Velocity {
 
 // Trilinear interpolation of g at p; +band off the grid (the grid reaches past the support, and
 // off the domain the field is air). Inlined: a call per read cost a fifth of the read.
+// kInGrid: the caller knows p lies in the grid, at least a voxel below its upper faces (a read
+// of the resample's: see applyWarp's inGrid), and the tests are left out (a tenth of a snake
+// hook move's instructions went to them).
+template <bool kInGrid = false>
 [[gnu::always_inline]] inline double trilinear(const DenseGrid& g, Vec3 p, float band) {
   const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
   // Truncation is the floor from 0 up, and cheaper (std::floor is a sequence of instructions
   // without SSE4.1): below 0 (or NaN) the point is off the grid anyway.
-  if (!(q.x >= 0 && q.y >= 0 && q.z >= 0)) return band;
+  if (!kInGrid && !(q.x >= 0 && q.y >= 0 && q.z >= 0)) return band;
   const long ix = long(q.x), iy = long(q.y), iz = long(q.z);
-  if (ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z) return band;
+  if (!kInGrid && (ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z)) return band;
   const double fx = double(ix), fy = double(iy), fz = double(iz);
   const double tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
   const float* c = g.v.data() + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
@@ -610,10 +627,20 @@ constexpr int kLatticeStep = 2;
 // 0.76 vu at the peak of a 3-radius grab, stays below the margin).
 constexpr float kExactNear = 2.0f;
 static_assert((kLatticeStep & (kLatticeStep - 1)) == 0, "InverseLattice::inverse multiplies by 1 / kLatticeStep");
+// The redistance's moved boxes are the boxes of the changed voxels of slabs of this many
+// slices. With one box of them all, grown by a voxel (before 2026-11-29), a snake hook move of
+// 2 vu at radius 8 took 5.07M instructions; with slabs of 1, 2, 4 or 8 slices 4.83M, 4.76M,
+// 4.74M, 4.75M, with one box not grown 4.76M (its march and classification the smaller).
+constexpr int kMovedSlab = 4;
 // The side of the blocks InverseLattice::findBlocks looks at the base in: a brick holds whole
 // ones.
 constexpr int kUniformBlock = std::min(4, Bricks::kSide);
 static_assert(Bricks::kSide % kUniformBlock == 0);
+// The blocks findBlocks looks at cover the support's box grown by this: the lattice's cells
+// read within it (their corners' preimages lie in the support or are nodes at most a voxel past
+// it, and trilinear() reads the next voxel up); a cell that would read past it is read voxel
+// by voxel (cellValue() says NaN).
+constexpr int kBlockReach = 2;
 
 struct InverseLattice {
   Int3 origin, nodes;
@@ -650,13 +677,14 @@ struct InverseLattice {
   Int3 blockOrigin, blockCount;
   Box gridBox;
 
-  void findBlocks(const Volume& vol, const DenseGrid& base, ThreadPool& pool) {
+  void findBlocks(const Volume& vol, const DenseGrid& base, const Box& within, ThreadPool& pool) {
     // vol's value per block of kUniformBlock^3 voxels (in volume coordinates, within bricks)
     // over base's box, NaN where it varies, lies within kExactNear of 0 or leaves the domain:
     // a brick stored uniform gives its blocks at once, the others are scanned.
     constexpr int B = kUniformBlock, perBrick = Bricks::kSide / B;
-    const Int3 b0{blockOf(base.box.lo.x), blockOf(base.box.lo.y), blockOf(base.box.lo.z)};
-    const Int3 nb{blockOf(base.box.hi.x - 1) - b0.x + 1, blockOf(base.box.hi.y - 1) - b0.y + 1, blockOf(base.box.hi.z - 1) - b0.z + 1};
+    const Box box = within.intersect(base.box);
+    const Int3 b0{blockOf(box.lo.x), blockOf(box.lo.y), blockOf(box.lo.z)};
+    const Int3 nb{blockOf(box.hi.x - 1) - b0.x + 1, blockOf(box.hi.y - 1) - b0.y + 1, blockOf(box.hi.z - 1) - b0.z + 1};
     blockOrigin = b0, blockCount = nb, gridBox = base.box;
     blockValue.assign(std::size_t(nb.x) * std::size_t(nb.y) * std::size_t(nb.z), std::numeric_limits<float>::quiet_NaN());
     const Int3 dims = vol.dims();
@@ -710,6 +738,7 @@ struct InverseLattice {
       const double from = lo[a] - 1e-6 - gridBox.lo[a], to = hi[a] + 1e-6 - gridBox.lo[a];
       if (!(from >= 0) || !(to < gridBox.hi[a] - gridBox.lo[a] - 1)) return std::numeric_limits<float>::quiet_NaN();
       b0[a] = blockOf(int(from) + gridBox.lo[a]), b1[a] = blockOf(int(to) + 1 + gridBox.lo[a]);
+      if (b0[a] < blockOrigin[a] || b1[a] >= blockOrigin[a] + blockCount[a]) return std::numeric_limits<float>::quiet_NaN();
     }
     const float value = blockAt(b0[0], b0[1], b0[2]);
     for (int bz = b0[2]; bz <= b1[2]; ++bz)
@@ -880,7 +909,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
 
   // Only the distances of an unpainted volume can be read a cell at a time (the channels want
   // each voxel's preimage).
-  if (!painted) s.lattice.findBlocks(base, s.base, pool);
+  if (!painted) s.lattice.findBlocks(base, s.base, work.grown(kBlockReach), pool);
 
   // Each pair of slices z of `work` (a layer of the lattice's cells) resamples its voxels and
   // notes, per slice, the box of those that changed, and of those whose channels changed.
@@ -894,6 +923,14 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     return runs[std::size_t(y - work.lo.y) + std::size_t(workSize.y) * std::size_t(z - work.lo.z)];
   };
   const ProgressShare resample = share.part(kResampleShare);
+  // The resample's reads, and the kept voxels' below (but the foot points'), lie within the
+  // support grown by two voxels: its points' preimages stay in it (v vanishes on its boundary),
+  // the lattice's nodes reach a voxel past it, and the slopes read half a voxel to each side.
+  // When the grid holds that with a voxel to spare (a support within the domain: the margin is
+  // wider), they are read without trilinear()'s tests.
+  const Box readBox = v.support().grown(3);
+  const bool inGrid = readBox.intersect(s.base.box) == readBox;
+  const auto read = [&](Vec3 at) { return inGrid ? trilinear<true>(s.base, at, band) : trilinear(s.base, at, band); };
   pool.parallelFor(std::size_t(std::max(0, layers)), [&](std::size_t layer) {
     resample.check();
     // The layer's cells' values (cellValue()), found as its voxels first need them: unknown
@@ -939,11 +976,11 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
           }
           const Vec3 p{double(x), double(y), double(z)};
           Vec3 q = s.lattice.inverse(p);
-          float value = float(trilinear(s.base, q, band));
+          float value = float(read(q));
           // Near the zero set the surface's place is read: there X is integrated at the voxel.
           if (std::fabs(value) < kExactNear) {
             q = v.flow(p, steps, -1);
-            value = float(trilinear(s.base, q, band));
+            value = float(read(q));
           }
           if (painted) {
             bool stopped = false;
@@ -1057,7 +1094,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             Vec3 lo = q, hi = q;
             lo[a] -= kSlopeStep;
             hi[a] += kSlopeStep;
-            g0[a] = (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep);
+            g0[a] = footPoints ? (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep)
+                               : (read(hi) - read(lo)) / (2 * kSlopeStep);
           }
           Vec3 g;
           for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
@@ -1114,14 +1152,34 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
       }
     }
   });
-  for (const auto& slice : kept)
-    for (const auto& [k, value] : slice) s.warped.v[k] = value;
+  // The kept voxels' values, and the boxes of the voxels that changed, per slab of kMovedSlab
+  // slices: the redistance's moved boxes (the surface moved only through the cells touching
+  // them), its region those grown by the reach.
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const int z = moved.lo.z + int(i);
+    for (const auto& [k, value] : kept[i]) {
+      s.warped.v[k] = value;
+      if (value == s.base.v[k]) continue;
+      const std::size_t rest = k - std::size_t(z - s.warped.box.lo.z) * s.warped.sxy;
+      const int y = s.warped.box.lo.y + int(rest / s.warped.sx), x = s.warped.box.lo.x + int(rest % s.warped.sx);
+      Box& c = changed[std::size_t(z - work.lo.z)];
+      if (c.empty()) c = {{x, y, z}, {x + 1, y + 1, z + 1}};
+      c.lo.x = std::min(c.lo.x, x), c.lo.y = std::min(c.lo.y, y);
+      c.hi.x = std::max(c.hi.x, x + 1), c.hi.y = std::max(c.hi.y, y + 1);
+    }
+  }
+  std::vector<Box> movedBoxes;
+  Box changedBox{};
+  for (int i = 0; i < slices; i += kMovedSlab) {
+    Box b{};
+    for (int j = i; j < std::min(slices, i + kMovedSlab); ++j) b = unite(b, changed[std::size_t(j)]);
+    if (!b.empty()) movedBoxes.push_back(b), changedBox = unite(changedBox, b);
+  }
 
   Box region{};
-  if (!moved.empty()) {
-    region = moved.grown(reach).intersect(vol.domain());
+  if (!changedBox.empty()) {
+    region = changedBox.grown(reach).intersect(vol.domain());
     const Box resetBoxes[] = {region};
-    const Box movedBoxes[] = {moved};
     RedistanceOptions options;
     options.resetBoxes = resetBoxes;
     options.movedBoxes = movedBoxes;
@@ -1219,6 +1277,8 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
   v.radius = radius;
   v.seg = d;
   v.segLength2 = dot(d, d);
+  v.segLength = std::sqrt(v.segLength2);
+  if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.plateau = plateau;
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
