@@ -267,7 +267,7 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
                                       << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
                                       << m.distance.mean << " (" << m.distance.voxels << " voxels)");
-    // Measured: exact 0.0314 / 0.00087, ours 0.0410 / 0.00110; |ours - exact| 0.130 / 0.00216
+    // Measured: exact 0.0314 / 0.00087, ours 0.0410 / 0.00109; |ours - exact| 0.130 / 0.00211
     // (ours 0.0402 / 0.00164 before the foot points of the voxels next to the zero set,
     // warp.cpp; the exact means 0.00108 and 0.00439 against the coarser reference of then,
     // whose chords lay up to 0.005 vu inside the surface).
@@ -294,7 +294,7 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     // shape; the mean can.
     CHECK(m.exact.max > 0.2);
     CHECK(m.exact.mean <= 0.005);
-    // Ours, measured: max 0.233 / mean 0.00223, |ours - exact| max 0.196 / mean 0.0032 (0.0051
+    // Ours, measured: max 0.233 / mean 0.00222, |ours - exact| max 0.196 / mean 0.0031 (0.0051
     // against the coarser reference). Before the foot points (warp.cpp): 0.293 / 0.0116 and
     // 0.343 / 0.0142, the sheared sides' voxels next to the zero set 0.1-0.3 vu off.
     CHECK(m.ours.max <= m.exact.max + 0.02);
@@ -352,7 +352,7 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   // second derivative jumps at its edge, the same clay at each move: the tip is a flat cap
   // whose rim sharpens with every move (its radius of curvature about 2 vu / moves), past the
   // brushes' max for any field of this shape. Measured (2026-11-29): exact 0.167 / 0.00173,
-  // ours 0.141 / 0.00222; |ours - exact| 0.297 / 0.0074. The largest of all three are at the
+  // ours 0.141 / 0.00221; |ours - exact| 0.296 / 0.0073. The largest of all three are at the
   // tip (a third of each sum is in its top 4 vu).
   CHECK(m.exact.max > 0.1);
   CHECK(m.exact.mean <= 0.005);
