@@ -10,10 +10,10 @@
 // newer one; a connection whose undelivered non-droppable bytes exceed the hub's
 // maxQueuedBytes is closed with 1008 "too far behind" (one message counts at most half the
 // bound: the bound is for backlog, a single big answer always goes out). Transient texts
-// (presence) wait behind everything else, the newest per key only, and a batch of them is
-// written with the socket corked so that it leaves in one TCP push; so are messages handed
-// over together (a change's notification and splat delta, ClientLink::sendTogether); anything
-// else is written uncorked. Text over maxTextBytes closes with 1009,
+// (presence) wait behind everything else, the newest per key only. What is queued when the
+// socket is free leaves as one gathered write of whole frames (ws_socket.hpp), so a batch of
+// transients, or messages handed over together (a change's response, notification and splat
+// delta, ClientLink::sendAll), leave in one TCP push. Text over maxTextBytes closes with 1009,
 // invalid UTF-8 with 1007, an unreadable binary frame or one of another kind than 9 with 1008.
 // Pings every ping period; no answer within two closes the connection.
 //

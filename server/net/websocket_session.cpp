@@ -6,10 +6,6 @@
 #include <boost/beast/core/stream_traits.hpp>
 #include <boost/beast/websocket.hpp>
 
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <sys/socket.h>
-
 #include <algorithm>
 #include <chrono>
 #include <exception>
@@ -30,6 +26,10 @@ constexpr std::size_t kMaxVolumeLoadBytes = 4 * 1024;
 // Transient texts wait at the back of the queue, at most one per key (the newest) and at most
 // kMaxTransients in all (the oldest goes), so a congested client never has a backlog of them.
 constexpr std::size_t kMaxTransients = 64;
+
+// The most messages one gathered write takes: two buffers each (header, payload), within the 64
+// that one sendmsg of Asio's takes.
+constexpr std::size_t kMaxBatch = 32;
 
 }  // namespace
 
@@ -90,16 +90,16 @@ void WsSession::run(http::request<http::string_body> req) {
 void WsSession::send(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
                      bool latestWins) {
   asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
-                                      latestWins] { self->enqueue(text, binary, latestWins); });
+                                      latestWins] {
+    self->enqueue(text, binary, latestWins);
+    self->write();
+  });
 }
 
 void WsSession::sendTogether(std::vector<service::ClientLink::Message> messages) {
   asio::dispatch(ws_.get_executor(), [self = shared_from_this(), messages = std::move(messages)]() mutable {
-    for (std::size_t i = 0; i < messages.size(); ++i) {
-      const Run run = messages.size() == 1 ? Run::alone : i + 1 < messages.size() ? Run::more : Run::last;
-      self->enqueue(std::move(messages[i].text), std::move(messages[i].binary), false, run);
-      if (self->closing_) return;
-    }
+    for (auto& m : messages) self->enqueue(std::move(m.text), std::move(m.binary), false);
+    self->write();
   });
 }
 
@@ -107,30 +107,18 @@ void WsSession::sendTransient(std::vector<service::ClientLink::Transient> texts)
   asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
     if (self->closing_) return;
     for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
-    if (!self->writing_) self->doWrite();
+    self->write();
   });
 }
 
 void WsSession::sendAll(std::vector<service::ClientLink::Item> items) {
   asio::dispatch(ws_.get_executor(), [self = shared_from_this(), items = std::move(items)]() mutable {
-    std::size_t run = 0;  // the messages written corked together, as one hand-over
-    for (const auto& i : items) run += !i.transient && !i.latestWins;
-    std::size_t placed = 0;
-    bool transients = false;
     for (auto& i : items) {
       if (self->closing_) return;
-      if (i.transient) {
-        self->enqueueTransient(std::move(i.text), i.key);
-        transients = true;
-      } else if (i.latestWins) {
-        self->enqueue(std::move(i.text), std::move(i.binary), true);
-      } else {
-        ++placed;
-        const Run place = run == 1 ? Run::alone : placed < run ? Run::more : Run::last;
-        self->enqueue(std::move(i.text), std::move(i.binary), false, place);
-      }
+      if (i.transient) self->enqueueTransient(std::move(i.text), i.key);
+      else self->enqueue(std::move(i.text), std::move(i.binary), i.latestWins);
     }
-    if (transients && !self->closing_ && !self->writing_ && !self->queue_.empty()) self->doWrite();
+    self->write();
   });
 }
 
@@ -200,13 +188,12 @@ std::uint64_t WsSession::announcedUpload(const std::string& text, const service:
 }
 
 void WsSession::enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
-                        bool latestWins, Run run) {
+                        bool latestWins) {
   if (closing_) return;
   Out out{std::move(text), std::move(binary), latestWins};
-  out.run = run;
   if (latestWins) {
-    // Replace a pushed image still waiting (never the one being written).
-    for (std::size_t i = writing_ ? 1 : 0; i < queue_.size(); ++i) {
+    // Replace a pushed image still waiting (never one being written).
+    for (std::size_t i = 0; i < queue_.size(); ++i) {
       if (queue_[i].latestWins) {
         queue_[i] = std::move(out);
         return;
@@ -224,18 +211,15 @@ void WsSession::enqueue(std::shared_ptr<const std::string> text, std::shared_ptr
   // Waiting transient texts stay at the back: everything else goes ahead of them (a
   // hand-over's messages stay next to each other).
   auto at = queue_.end();
-  while (at != queue_.begin() + (writing_ ? 1 : 0) && std::prev(at)->transient) --at;
+  while (at != queue_.begin() && std::prev(at)->transient) --at;
   queue_.insert(at, std::move(out));
-  // A hand-over is written once all of it is queued.
-  if (!writing_ && run != Run::more) doWrite();
 }
 
 // Replaces a waiting transient of the same key, else appends (see kMaxTransients). The caller
 // starts the write.
 void WsSession::enqueueTransient(std::shared_ptr<const std::string> text, std::uint64_t key) {
-  const std::size_t first = writing_ ? 1 : 0;
   std::size_t waiting = 0, oldest = queue_.size();
-  for (std::size_t i = first; i < queue_.size(); ++i) {
+  for (std::size_t i = 0; i < queue_.size(); ++i) {
     if (!queue_[i].transient) continue;
     if (queue_[i].key == key) {
       queue_[i].text = std::move(text);
@@ -250,50 +234,41 @@ void WsSession::enqueueTransient(std::shared_ptr<const std::string> text, std::u
   queue_.push_back(std::move(out));
 }
 
-// A batch of transient texts (a presence flush: one from each other client) leaves in one TCP
-// push instead of one per message: the socket is corked while a transient with more behind it
-// is written and uncorked when the queue runs dry. Anything else is written uncorked, so it
-// goes out at once with the transients before it and never waits for those after it.
-void WsSession::cork(bool on) {
-#ifdef TCP_CORK
-  if (corked_ == on) return;
-  corked_ = on;
-  const int value = on ? 1 : 0;
-  ::setsockopt(beast::get_lowest_layer(ws_).socket().native_handle(), IPPROTO_TCP, TCP_CORK, &value, sizeof value);
-#else
-  (void)on;
-#endif
+void WsSession::write() {
+  if (writing_.empty() && !closing_ && !queue_.empty()) doWrite();
 }
 
+// Everything waiting (up to kMaxBatch messages) in one gathered write: one sendmsg, one TCP push
+// for a hand-over or a batch of transients, where a write per message needed the socket corked.
 void WsSession::doWrite() {
-  writing_ = true;
-  const Out& out = queue_.front();
-  if (out.run == Run::more) cork(true);
-  else if (out.run == Run::last) {
-    // Corked by the hand-over's first message: onWrite uncorks once this one is written.
-  } else if (!out.transient) {
-    cork(false);
-  } else if (queue_.size() > 1) {
-    cork(true);
+  const std::size_t n = std::min(queue_.size(), kMaxBatch);
+  writing_.clear();
+  writing_.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) writing_.push_back(std::move(queue_[i]));
+  queue_.erase(queue_.begin(), queue_.begin() + std::ptrdiff_t(n));
+  std::vector<asio::const_buffer> buffers;
+  buffers.reserve(2 * n);
+  for (Out& out : writing_) {
+    const std::size_t headerBytes = encodeWsFrameHeader(out.text != nullptr, out.size(), out.header);
+    buffers.emplace_back(out.header.data(), headerBytes);
+    if (out.text) buffers.emplace_back(asio::buffer(*out.text));
+    else buffers.emplace_back(asio::buffer(*out.binary));
   }
-  ws_.text(out.text != nullptr);
-  if (out.text) {
-    ws_.async_write(asio::buffer(*out.text), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
-  } else {
-    ws_.async_write(asio::buffer(*out.binary), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
-  }
+  ws_.next_layer().writeFrames(std::move(buffers), beast::bind_front_handler(&WsSession::onWrite, shared_from_this()));
 }
 
-void WsSession::onWrite(beast::error_code ec, std::size_t bytes) {
-  state_->metrics.addBytesSent(bytes);
-  writing_ = false;
+void WsSession::onWrite(beast::error_code ec, std::size_t) {
+  std::size_t payload = 0, charges = 0;
+  for (const Out& out : writing_) {
+    payload += out.size();
+    charges += out.charge;
+  }
+  writing_.clear();
   if (ec) return fail(ec, "write");
-  queuedBytes_ -= queue_.front().charge;
-  const bool endsRun = queue_.front().run == Run::last;
-  queue_.pop_front();
-  if (queue_.empty() || endsRun) cork(false);
+  state_->metrics.addBytesSent(payload);  // message bytes, as Beast counted them
+  queuedBytes_ -= charges;
   if (closeAfterWrite_) return doClose();
-  if (!queue_.empty() && !closing_) doWrite();
+  if (!closing_) write();
 }
 
 void WsSession::startClose(websocket::close_code code, std::string reason) {
@@ -302,7 +277,7 @@ void WsSession::startClose(websocket::close_code code, std::string reason) {
   closeReason_ = websocket::close_reason(code, beast::string_view(reason.data(), std::min<std::size_t>(reason.size(), 123)));
   closeReasonText_ = std::move(reason);
   if (client_) state_->options.hub->disconnect(client_);
-  if (writing_) {
+  if (!writing_.empty()) {
     closeAfterWrite_ = true;
     return;
   }
@@ -311,7 +286,6 @@ void WsSession::startClose(websocket::close_code code, std::string reason) {
 
 void WsSession::doClose() {
   closeAfterWrite_ = false;
-  cork(false);
   queue_.clear();
   state_->log("ws: closing " + peer_ + " with " + std::to_string(int(closeReason_.code)) + " " + closeReasonText_);
   ws_.async_close(closeReason_, [self = shared_from_this()](beast::error_code) {});

@@ -9,6 +9,11 @@
 // state is touched on the connection's strand only: send, sendTogether, sendTransient and close
 // may be called from any thread and dispatch onto the strand; the rest runs on it.
 //
+// Writes: what is queued when the socket is free leaves as one gathered write of whole frames
+// (WsSession frames its data messages itself, ws_socket.hpp), at most kMaxBatch messages: a
+// hand-over's messages (sendTogether, sendAll) are queued together and so leave in one TCP push,
+// as does a batch of transients, and nothing waits for what comes after it.
+//
 // Separate from the HTTP session because it is the other half of the Beast code: the WebSocket
 // stream's operations are instantiated in websocket_session.cpp alone; http_session.cpp (which
 // makes it) and http_server.cpp (which closes it at shutdown) only parse this header.
@@ -20,6 +25,7 @@
 #include <boost/beast/http/string_body.hpp>
 #include <boost/beast/websocket/stream.hpp>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -30,6 +36,7 @@
 
 #include "net/beast.hpp"
 #include "net/shared_state.hpp"
+#include "net/ws_socket.hpp"
 #include "service/hub.hpp"
 
 namespace marzipan::net {
@@ -46,22 +53,18 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   // From any thread: queue a message (see the write conventions in http_server.hpp).
   void send(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
             bool latestWins);
-  // Messages handed over together (ClientLink::sendTogether): queued at once, in order, and
-  // written corked so that they leave in one TCP push.
+  // Messages handed over together (ClientLink::sendTogether): queued at once, in order, so
+  // that they leave in one TCP push.
   void sendTogether(std::vector<service::ClientLink::Message> messages);
   // Transient texts (ClientLink::sendTransient), handed over at once and written as one batch.
   void sendTransient(std::vector<service::ClientLink::Transient> texts);
-  // What one piece of the hub's work sent (ClientLink::sendAll), queued at once, in order: the
-  // messages neither transient nor latestWins are written corked, as sendTogether's are.
+  // What one piece of the hub's work sent (ClientLink::sendAll), queued at once, in order.
   void sendAll(std::vector<service::ClientLink::Item> items);
   void close(websocket::close_code code, std::string reason);
 
  private:
   class Link;  // the hub's view of this connection
 
-  // A message's place in a hand-over of several (sendTogether): the socket is corked from the
-  // first and uncorked once the last is written.
-  enum class Run : std::uint8_t { alone, more, last };
   struct Out {
     std::shared_ptr<const std::string> text;
     std::shared_ptr<const std::vector<std::uint8_t>> binary;
@@ -69,7 +72,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::size_t charge = 0;  // what it counts against maxQueuedBytes (non-droppable only)
     bool transient = false;  // presence: replaced by its key, overtaken by everything else
     std::uint64_t key = 0;
-    Run run = Run::alone;
+    std::array<std::uint8_t, 10> header{};  // its frame header, made when it is written
     std::size_t size() const { return text ? text->size() : binary->size(); }
   };
 
@@ -77,27 +80,28 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void doRead();
   void onRead(beast::error_code ec, std::size_t bytes);
   std::uint64_t announcedUpload(const std::string& text, const service::HubLimits& limits) const;
+  // Queue a message; the caller starts the write (write()) once its hand-over is queued.
   void enqueue(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
-               bool latestWins, Run run = Run::alone);
+               bool latestWins);
   void enqueueTransient(std::shared_ptr<const std::string> text, std::uint64_t key);
-  void cork(bool on);
+  void write();  // starts a write of what is queued, unless one is in flight
   void doWrite();
   void onWrite(beast::error_code ec, std::size_t bytes);
   void startClose(websocket::close_code code, std::string reason);
   void doClose();
   void fail(beast::error_code ec, std::string_view what);
 
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<WsSocket> ws_;
   beast::flat_buffer buffer_;
   std::shared_ptr<SharedState> state_;
   std::string peer_;
   std::shared_ptr<void> slot_;  // this connection's place under the connection bounds
   std::size_t nextReadMax_ = 0;  // the largest next message: max_text_bytes, or an announced upload
   std::shared_ptr<service::HubClient> client_;
-  std::deque<Out> queue_;
-  std::size_t queuedBytes_ = 0;  // the charges of what is queued, the one in flight included
-  bool writing_ = false, closing_ = false, closeAfterWrite_ = false, joined_ = false;
-  bool corked_ = false;  // TCP_CORK is set on the socket (see cork())
+  std::deque<Out> queue_;        // waiting to be written
+  std::vector<Out> writing_;     // in flight: one gathered write (unchanged until it completes)
+  std::size_t queuedBytes_ = 0;  // the charges of what is queued, those in flight included
+  bool closing_ = false, closeAfterWrite_ = false, joined_ = false;
   websocket::close_reason closeReason_;
   std::string closeReasonText_;
 };
