@@ -733,6 +733,8 @@ void redistanceVolume(Volume& vol, ThreadPool& pool) {
   chunkedPass(vol, margin, pool, [&](DenseGrid& g, const Box&, ThreadPool&) {
     redistanceRegion(g, g.box.grown(-1), band, Outside::Ignored);
   });
+  // Every voxel is a distance again, but those the mask held (channels.hpp), which keep theirs.
+  if (vol.paintedBricks() == 0) vol.clearBrickDrift();
 }
 
 }  // namespace marzipan

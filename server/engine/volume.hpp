@@ -22,6 +22,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -59,6 +60,19 @@ struct BrickRef {
 struct BrickChange {
   Int3 brick;  // brick coordinates (Bricks::brickOf(voxel))
   BrickRef before, after;
+};
+
+// What a local tool's redistance left out in one brick (level_set/stroke.cpp; docs/method.md
+// §5, "The box of what moved"): each voxel of `box` (volume coordinates, within the brick) has
+// moved by at most `move` vu since it was last redistanced, every other voxel of the brick by
+// nothing; an empty box: nothing is left. A bound the tools keep, not part of the field: no
+// digest, file, journal, BrickChange or undo holds it.
+struct BrickDrift {
+  float move = 0;
+  Box box;
+
+  bool none() const { return box.empty(); }
+  friend bool operator==(const BrickDrift& a, const BrickDrift& b) = default;
 };
 
 class Volume {
@@ -189,6 +203,29 @@ class Volume {
   // Re-publishes recorded changes: forward sets `after` (redo), backward sets `before` (undo).
   void publish(const std::vector<BrickChange>& changes, bool forward);
 
+  // --- drift (BrickDrift) ----------------------------------------------------------------
+  // Kept in tiles of their own, copied on write and shared by copies as the bricks are: a copy
+  // (a reader's, a failed stroke's way back) has the drift of its field. A new volume, and so a
+  // loaded one, has none: a saved field's voxels may carry up to a tool's threshold
+  // (stroke.cpp, kLeastMove) not yet redistanced, forgotten once per load. Nothing that
+  // rewrites the field changes it but a local tool: what CSG, a warp or a global pass changes
+  // is redistanced (less drift than the table says: at worst a later tool redistances a brick
+  // sooner than it had to). Undo and redo leave it too: after an undone application a brick
+  // that application redistanced reads less than its restored voxels may carry, by at most the
+  // threshold, once per undo.
+  // b must be within brickDims().
+  BrickDrift brickDrift(Int3 b) const;
+  // The drift of every brick of `bricks` (a box of brick coordinates within brickDims()), x
+  // fastest, into out.
+  void brickDrifts(const Box& bricks, BrickDrift* out) const;
+  // Sets each listed brick's drift (within brickDims(); an empty box clears it), copying each
+  // tile it touches once.
+  void setBrickDrift(std::span<const std::pair<Int3, BrickDrift>> drifts);
+  // Forgets every brick's drift: the whole field was redistanced.
+  void clearBrickDrift() { driftTiles_.clear(); }
+  // Bricks with drift (for tests).
+  std::size_t driftedBricks() const;
+
  private:
   static constexpr int kTileBricks = kTileSide * kTileSide * kTileSide;
   struct Tile {
@@ -234,6 +271,18 @@ class Volume {
   std::vector<std::shared_ptr<const PaintTile>> paintTiles_;
   std::uint32_t paintedBricks_ = 0;
   Rgb8 base_ = kClayColor;
+  // BrickDrift in 12 bytes: its box relative to the brick's origin (hi[0] = 0: none).
+  struct DriftSlot {
+    float move = 0;
+    std::uint8_t lo[3] = {}, hi[3] = {};
+  };
+  static BrickDrift driftOf(const DriftSlot& d, Int3 b);
+  struct DriftTile {
+    DriftSlot slots[kTileBricks];
+    int present = 0;
+  };
+  // Empty until a tool leaves drift; then one per tile, null for a tile without any.
+  std::vector<std::shared_ptr<const DriftTile>> driftTiles_;
 };
 
 template <class F>

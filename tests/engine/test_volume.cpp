@@ -10,6 +10,7 @@
 #include "engine/errors.hpp"
 #include "engine/measures.hpp"
 #include "engine/paint.hpp"
+#include "engine/redistance.hpp"
 #include "engine/solids.hpp"
 #include "engine/thread_pool.hpp"
 #include "support.hpp"
@@ -177,6 +178,47 @@ TEST_CASE("copies share bricks and keep their own version after an edit", "[volu
   CHECK(digest(v) == d0);
   v.publish(changes, true);
   CHECK(v.at(52, 32, 32) == -1.0f);
+}
+
+TEST_CASE("brick drift: set, read, copied on write, cleared, and no part of the field", "[volume][drift]") {
+  Volume v = makeSphere({80, 64, 64}, {40, 32, 32}, 20);
+  const std::uint64_t d0 = digest(v);
+  const std::size_t bytes = v.memoryBytes();
+  CHECK(v.brickDrift({2, 3, 4}).none());
+  CHECK(v.driftedBricks() == 0);
+  // Two bricks of one tile and one of the next (tiles are 8 bricks a side); a box reaching out
+  // of its brick is cut to it.
+  const BrickDrift a{0.04f, {{17, 25, 33}, {20, 26, 40}}}, b{0.5f, {{64, 0, 0}, {72, 8, 8}}};
+  const std::pair<Int3, BrickDrift> set[] = {{{2, 3, 4}, a}, {{3, 3, 4}, {0.02f, {{24, 24, 32}, {40, 40, 40}}}}, {{8, 0, 0}, b}};
+  v.setBrickDrift(set);
+  CHECK(v.brickDrift({2, 3, 4}) == a);
+  CHECK(v.brickDrift({3, 3, 4}) == BrickDrift{0.02f, {{24, 24, 32}, {32, 32, 40}}});
+  CHECK(v.brickDrift({8, 0, 0}) == b);
+  CHECK(v.brickDrift({2, 3, 5}).none());
+  CHECK(v.driftedBricks() == 3);
+  std::vector<BrickDrift> row(3);
+  v.brickDrifts({{1, 3, 4}, {4, 4, 5}}, row.data());
+  CHECK(row[0].none());
+  CHECK(row[1] == a);
+  CHECK(row[2] == v.brickDrift({3, 3, 4}));
+  CHECK(digest(v) == d0);
+  CHECK(v.memoryBytes() > bytes);
+  // A copy keeps its own drift as the original's changes.
+  const Volume copy = v;
+  const std::pair<Int3, BrickDrift> clear[] = {{{2, 3, 4}, {}}};
+  v.setBrickDrift(clear);
+  CHECK(v.brickDrift({2, 3, 4}).none());
+  CHECK(v.driftedBricks() == 2);
+  CHECK(copy.brickDrift({2, 3, 4}) == a);
+  CHECK(copy.driftedBricks() == 3);
+  // A whole-volume redistance leaves none, nor does a fill.
+  Volume again = copy;
+  redistanceVolume(again, ThreadPool::serial());
+  CHECK(again.driftedBricks() == 0);
+  CHECK(copy.driftedBricks() == 3);
+  v.fill(false);
+  CHECK(v.driftedBricks() == 0);
+  CHECK(v.brickDrift({8, 0, 0}).none());
 }
 
 TEST_CASE("a copy shares every tile until an edit: then exactly the tiles of the changed bricks differ", "[volume][cow]") {

@@ -42,6 +42,9 @@ Edit applyGlobal(Volume& vol, const Motion& m, ThreadPool& pool) {
     options.direct = level_set::movesBandTogether(m);
     redistanceRegion(g, region, band, Outside::Ignored, options, inner);
   });
+  // Every voxel was redistanced but those the mask held (channels.hpp): no drift is left
+  // (Volume::brickDrift) unless something is painted.
+  if (vol.paintedBricks() == 0) vol.clearBrickDrift();
   return e;
 }
 

@@ -8,7 +8,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
+#include <span>
+#include <utility>
 #include <vector>
 
 #include "engine/errors.hpp"
@@ -25,7 +28,9 @@ using level_set::listedBounds;
 using level_set::listMoved;
 using level_set::Motion;
 using level_set::moveListed;
+using level_set::MovedVoxels;
 using level_set::PreparedDab;
+using level_set::Run;
 using level_set::strokeMotion;
 using level_set::SweptWindow;
 using level_set::ToolScratch;
@@ -51,6 +56,161 @@ constexpr double kGatherShare = 0.1, kCollectShare = 0.05, kEvolveShare = 0.15, 
 // whole-volume redistance's 0.286 + 0.01 (test_tools.cpp). Curvature flow moves each voxel by
 // its own curvature, which its factor does not bound: its box is that of every voxel it lists.
 constexpr double kLeastMove = 0.01;
+
+// The moves an advection leaves out of its box, brick by brick (DriftBook): a brick whose
+// voxels left out may have moved by more than this since they were last redistanced has them
+// taken into the box. Left out each time, the wide rim of a faint dab moves by less than
+// kLeastMove but by as much as any other part over many (200 add blobs of radius 24 and
+// strength 0.03 at one point: 0.8 vu), and the band beyond it drifted as the faint dabs' did
+// (0.63 vu from a whole-volume redistance of the same zero set). Measured on those 200 dabs
+// (2026-11-29, test_tools.cpp): 0.1 leaves the far band 0.054 from it, the near band 0.099 and a
+// gradient error of 0.021; 0.01 as far but 0.16 and 0.068 near the surface, where a rim's kept
+// voxels normalized over and over in the corners of its window step away from the rest (the
+// 0.42 of redistancing every listed voxel each time, in part); 0.4 0.087 far.
+constexpr double kDriftLimit = 0.1;
+
+// The smallest box holding a and b (either may be empty).
+Box hull(const Box& a, const Box& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  return {{std::min(a.lo.x, b.lo.x), std::min(a.lo.y, b.lo.y), std::min(a.lo.z, b.lo.z)},
+          {std::max(a.hi.x, b.hi.x), std::max(a.hi.y, b.hi.y), std::max(a.hi.z, b.hi.z)}};
+}
+
+// Whether every voxel of b lies in one of boxes.
+bool covered(const Box& b, std::span<const Box> boxes) {
+  for (const Box& n : boxes)
+    if (b.intersect(n) == b) return true;
+  // A box that several meet (a stroke's ROIs): voxel by voxel, at most a brick's.
+  for (int z = b.lo.z; z < b.hi.z; ++z)
+    for (int y = b.lo.y; y < b.hi.y; ++y)
+      for (int x = b.lo.x; x < b.hi.x; ++x)
+        if (std::none_of(boxes.begin(), boxes.end(), [&](const Box& n) { return n.contains({x, y, z}); }))
+          return false;
+  return true;
+}
+
+// The volume's drift (Volume::brickDrift) of a group's region as its steps change it: each
+// step's moves left out of its box add up per brick, a brick's are taken into the box once they
+// pass kDriftLimit, and a drift whose box was redistanced is gone. Per brick, not per voxel: a
+// sum and a box (12 bytes a brick) where a float per voxel would double the field.
+struct DriftBook {
+  Box bricks;                   // the bricks of the group's region
+  std::vector<BrickDrift> was;  // per brick of `bricks` (x fastest): the volume's
+  std::vector<BrickDrift> now;  // and as the steps leave it
+  std::vector<float> step;      // this step's largest |step| of the brick's voxels left out
+  std::vector<Box> left;        // and their box
+
+  void start(const Volume& vol, const Box& region) {
+    bricks = Bricks::bricksOf(region);
+    was.resize(std::size_t(bricks.voxels()));
+    vol.brickDrifts(bricks, was.data());
+    now = was;
+    step.resize(was.size());
+    left.resize(was.size());
+  }
+  std::size_t slot(Int3 p) const {  // the brick of voxel p, which lies in the region
+    const Int3 b = Bricks::brickOf(p), size = bricks.size();
+    return std::size_t(b.x - bricks.lo.x) +
+           std::size_t(size.x) * (std::size_t(b.y - bricks.lo.y) + std::size_t(size.y) * std::size_t(b.z - bricks.lo.z));
+  }
+  // Each brick's listed voxels outside `box` (all when it is empty): their largest step and box.
+  void leaveOut(const DenseGrid& g, const MovedVoxels& moved, const Box& box) {
+    std::fill(step.begin(), step.end(), 0.0f);
+    std::fill(left.begin(), left.end(), Box{});
+    // The runs come in index order, about one to a row: the next row is counted on, another
+    // found by division, and a run inside the box, most of them, costs two compares.
+    const int rowX = g.box.lo.x;  // x at a row's first index
+    const bool boxHasX = box.lo.x < box.hi.x;
+    const std::size_t loX = boxHasX ? std::size_t(std::clamp(box.lo.x - rowX, 0, g.size.x)) : 0;
+    const std::size_t hiX = boxHasX ? std::size_t(std::clamp(box.hi.x - rowX, 0, g.size.x)) : 0;
+    std::size_t rowStart = 0, rowEnd = 0, insideLo = 0, insideHi = 0;  // grid indices: the row, its part in box
+    int y = 0, z = 0;
+    bool known = false;
+    for (const Run& r : moved.runs) {
+      if (r.index >= insideLo && r.index + r.count <= insideHi) continue;
+      if (r.index >= rowEnd) {
+        if (known && r.index < rowEnd + g.sx) {
+          rowStart = rowEnd;
+          if (++y == g.box.hi.y) y = g.box.lo.y, ++z;
+        } else {
+          const std::size_t row = r.index / g.sx;
+          rowStart = row * g.sx;
+          y = g.box.lo.y + int(row % std::size_t(g.size.y));
+          z = g.box.lo.z + int(row / std::size_t(g.size.y));
+          known = true;
+        }
+        rowEnd = rowStart + g.sx;
+        insideLo = insideHi = 0;
+        if (y >= box.lo.y && y < box.hi.y && z >= box.lo.z && z < box.hi.z) {
+          insideLo = rowStart + loX;
+          insideHi = rowStart + hiX;
+          if (r.index >= insideLo && r.index + r.count <= insideHi) continue;
+        }
+      }
+      const int x0 = rowX + int(r.index - rowStart), count = int(r.count);
+      // The run's voxels [in0, in1) inside box.
+      const int in0 = std::clamp(int(std::int64_t(insideLo) - std::int64_t(r.index)), 0, count);
+      const int in1 = std::clamp(int(std::int64_t(insideHi) - std::int64_t(r.index)), in0, count);
+      const float* const steps = moved.step.data() + r.first;
+      for (const auto& [begin, end] : {std::pair{0, in0}, std::pair{in1, count}})
+        for (int j = begin; j < end;) {
+          const int stop = std::min(end, j + kBrickSide - Bricks::localOf(x0 + j));
+          float most = 0;
+          for (int i = j; i < stop; ++i) most = std::max(most, std::fabs(steps[i]));
+          if (most > 0) {
+            const std::size_t k = slot({x0 + j, y, z});
+            step[k] = std::max(step[k], most);
+            left[k] = hull(left[k], Box{{x0 + j, y, z}, {x0 + stop, y + 1, z + 1}});
+          }
+          j = stop;
+        }
+    }
+  }
+  // Widens `listed` by the voxels left out and the drift of each brick whose moves pass
+  // kDriftLimit with this step's; whether any did.
+  bool take(Box& listed, const Box& region, int substeps) const {
+    bool taken = false;
+    for (std::size_t k = 0; k < now.size(); ++k) {
+      if (!(step[k] > 0) || !(double(now[k].move) + double(step[k]) * substeps > kDriftLimit)) continue;
+      listed = hull(hull(listed, left[k]), now[k].box.intersect(region));
+      taken = true;
+    }
+    return taken;
+  }
+  // After this step's redistance of `boxes`: a drift whose box they cover is gone, and the
+  // moves left out add.
+  void settle(std::span<const Box> boxes, int substeps) {
+    for (std::size_t k = 0; k < now.size(); ++k) {
+      BrickDrift& d = now[k];
+      if (d.none() && !(step[k] > 0)) continue;
+      const float move = float(double(step[k]) * substeps);
+      if (d.none() || covered(d.box, boxes)) {
+        d = {move, left[k]};
+      } else {
+        d = {d.move + move, hull(d.box, left[k])};
+      }
+    }
+  }
+  // The bricks whose drift changed, to the volume.
+  void publish(Volume& vol) {
+    changed.clear();
+    std::size_t k = 0;
+    for (int z = bricks.lo.z; z < bricks.hi.z; ++z)
+      for (int y = bricks.lo.y; y < bricks.hi.y; ++y)
+        for (int x = bricks.lo.x; x < bricks.hi.x; ++x, ++k)
+          if (!(now[k] == was[k])) changed.push_back({{x, y, z}, now[k]});
+    vol.setBrickDrift(changed);
+  }
+
+ private:
+  std::vector<std::pair<Int3, BrickDrift>> changed;
+};
+
+DriftBook& driftBook() {
+  thread_local DriftBook book;
+  return book;
+}
 
 void checkStroke(const Volume& vol, const StrokeSettings& st, std::span<const StrokeDab> dabs) {
   checkStrokeSettings(st);
@@ -165,6 +325,10 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       m = advection(height / steps);
       withSpeeds(scratch.moved, m);
     }
+    // An advection's moves left out of its box are kept per brick (DriftBook); a curvature
+    // step's box holds every voxel it lists and leaves the drift as it was.
+    DriftBook* const drift = m.kind == Motion::Kind::Advect ? &driftBook() : nullptr;
+    if (drift) drift->start(vol, region);
     for (int step = 0; step < steps; ++step) {
       if (step == 0 && height != 0) {
         moveListed(g, m, pool, share.part(kEvolveShare / steps));
@@ -186,6 +350,11 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       // clamped -band and move too little, would drift: 200 add blobs of strength 0.005 at one
       // centre left it 0.99 vu from a whole-volume redistance (0.51 with the march each time).
       if (listed.empty() && least > 0) listed = listedBounds(g, scratch.moved);
+      // Every listed voxel lies in a ROI, so those in `listed` are in the boxes below.
+      if (drift) {
+        drift->leaveOut(g, scratch.moved, listed);
+        if (drift->take(listed, region, m.substeps)) drift->leaveOut(g, scratch.moved, listed);
+      }
       scratch.resetBoxes.clear();
       scratch.normalizeBoxes.clear();
       for (const Box& roi : rois)
@@ -193,6 +362,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
           scratch.normalizeBoxes.push_back(b);
           scratch.resetBoxes.push_back(b.grown(reach).intersect(vol.domain()));
         }
+      if (drift) drift->settle(scratch.normalizeBoxes, m.substeps);
       if (scratch.normalizeBoxes.empty()) {  // nothing moved: the field stands
         share.advance(kRedistanceShare / steps);
         continue;
@@ -213,6 +383,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
     }
     share.check();  // the last check: nothing below stops part way
     total.append(vol.scatter(region, g.v.data(), g.box, pool), region);
+    if (drift) drift->publish(vol);
     share.advance(1 - kGatherShare - kCollectShare - kEvolveShare - kRedistanceShare);
   };
   // A huge ROI's scratch is not worth keeping for the next dab (also when this one throws).
