@@ -206,20 +206,20 @@ class Volume {
   // --- drift (BrickDrift) ----------------------------------------------------------------
   // Kept in tiles of their own, copied on write and shared by copies as the bricks are: a copy
   // (a reader's, a failed stroke's way back) has the drift of its field. A new volume, and so a
-  // loaded one, has none: a saved field's voxels may carry up to a tool's threshold
-  // (stroke.cpp, kLeastMove) not yet redistanced, forgotten once per load. Nothing that
-  // rewrites the field changes it but a local tool: what CSG, a warp or a global pass changes
-  // is redistanced (less drift than the table says: at worst a later tool redistances a brick
-  // sooner than it had to). Undo and redo leave it too: after an undone application a brick
-  // that application redistanced reads less than its restored voxels may carry, by at most the
-  // threshold, once per undo.
+  // loaded one, has none: a saved field's voxels may carry up to the tools' limit (stroke.cpp,
+  // kDriftLimit) not yet redistanced, forgotten once per load. A whole-volume redistance and
+  // a global pass clear it (but where something is painted: the mask may hold voxels back), so
+  // does fill. CSG and warps leave it: what they change they redistance, so it says more than
+  // is left there (at worst a later tool redistances a brick sooner than it had to). Undo and
+  // redo leave it too: after an undone application a brick that application redistanced reads
+  // less than its restored voxels may carry, by at most the limit, once per undo.
   // b must be within brickDims().
   BrickDrift brickDrift(Int3 b) const;
   // The drift of every brick of `bricks` (a box of brick coordinates within brickDims()), x
   // fastest, into out.
   void brickDrifts(const Box& bricks, BrickDrift* out) const;
-  // Sets each listed brick's drift (within brickDims(); an empty box clears it), copying each
-  // tile it touches once.
+  // Sets each listed brick's drift (within brickDims(); an empty box clears it), copying the
+  // tiles it touches (copies keep theirs).
   void setBrickDrift(std::span<const std::pair<Int3, BrickDrift>> drifts);
   // Forgets every brick's drift: the whole field was redistanced.
   void clearBrickDrift() { driftTiles_.clear(); }
