@@ -54,10 +54,36 @@ class WsSession::Link : public service::ClientLink {
   void close(int code, std::string reason) override {
     if (const auto ws = ws_.lock()) ws->close(websocket::close_code(code), std::move(reason));
   }
+  Carrier* carrier() override;
+  std::shared_ptr<WsSession> session() const { return ws_.lock(); }
 
  private:
   std::weak_ptr<WsSession> ws_;
 };
+
+// What one piece of the hub's work sent several connections, in one post to the network thread:
+// onto the first live connection's strand, where each connection is handed its items (its own
+// at once, the others' posted onto their strands from the network thread, which wakes no one).
+class WsSession::Carrier final : public service::ClientLink::Carrier {
+ public:
+  void carry(std::vector<service::ClientLink::Delivery> deliveries) override {
+    std::vector<std::pair<std::shared_ptr<WsSession>, std::vector<service::ClientLink::Item>>> live;
+    live.reserve(deliveries.size());
+    for (auto& d : deliveries)
+      if (auto ws = static_cast<const Link&>(*d.link).session()) live.emplace_back(std::move(ws), std::move(d.items));
+    if (live.empty()) return;
+    const auto executor = live.front().first->ws_.get_executor();
+    asio::post(executor, [live = std::move(live)]() mutable {
+      for (auto& [ws, items] : live) ws->sendAll(std::move(items));
+    });
+  }
+};
+
+// Every connection's link has the one carrier (it holds nothing of its own).
+service::ClientLink::Carrier* WsSession::Link::carrier() {
+  static WsSession::Carrier shared;
+  return &shared;
+}
 
 WsSession::WsSession(beast::tcp_stream&& stream, std::shared_ptr<SharedState> state, std::string peer,
                      std::shared_ptr<void> slot)

@@ -63,7 +63,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void close(websocket::close_code code, std::string reason);
 
  private:
-  class Link;  // the hub's view of this connection
+  class Link;     // the hub's view of this connection
+  class Carrier;  // hands several connections their messages in one post (ClientLink::Carrier)
 
   struct Out {
     std::shared_ptr<const std::string> text;

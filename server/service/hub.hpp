@@ -179,6 +179,23 @@ class ClientLink {
       else sendBinary(std::move(i.binary), i.latestWins);
     }
   }
+  // What one piece of work sent several links that share a carrier (carrier()), handed to it
+  // in one call: the network's carrier takes them to the network thread in one hand-over, where
+  // one per link was a wake-up of that thread each (a change goes to every client of its
+  // session at once).
+  struct Delivery {
+    std::shared_ptr<ClientLink> link;
+    std::vector<Item> items;
+  };
+  class Carrier {
+   public:
+    virtual ~Carrier() = default;
+    // Each delivery's items to its link as its sendAll would take them; deliveries to
+    // different links have no order between them.
+    virtual void carry(std::vector<Delivery> deliveries) = 0;
+  };
+  // This link's carrier, shared with other links; null: its sendAll is called alone.
+  virtual Carrier* carrier() { return nullptr; }
   // Close the WebSocket with this code and reason (<= 123 bytes).
   virtual void close(int code, std::string reason) = 0;
 };

@@ -22,6 +22,7 @@ namespace {
 // Every call a link gets, in order: "text:T", "binary:N" (bytes), "transient:T/K", "all:N",
 // "close:C".
 struct CallLog : ClientLink {
+  std::string name;
   std::vector<std::string> calls;
   void sendText(std::string text) override { calls.push_back("text:" + text); }
   void sendBinary(std::shared_ptr<const std::vector<std::uint8_t>> frame, bool latestWins) override {
@@ -80,6 +81,50 @@ TEST_CASE("outbox: within a scope each link gets what it was sent as one sendAll
   // Closed: at once again.
   one.sendText("x");
   CHECK(log1->calls.back() == "text:x");
+}
+
+namespace {
+
+// Links of one carrier: each carry() call logged as the links it carried and their item counts.
+struct LogCarrier : ClientLink::Carrier {
+  std::vector<std::string> calls;
+  void carry(std::vector<ClientLink::Delivery> deliveries) override {
+    std::string call = "carry";
+    for (auto& d : deliveries) {
+      call += " " + static_cast<CallLog&>(*d.link).name + ":" + std::to_string(d.items.size());
+      d.link->sendAll(std::move(d.items));
+    }
+    calls.push_back(call);
+  }
+};
+struct CarriedLog : CallLog {
+  CarriedLog(std::string n, LogCarrier* c) : carrierOf(c) { name = std::move(n); }
+  Carrier* carrier() override { return carrierOf; }
+  LogCarrier* carrierOf;
+};
+
+}  // namespace
+
+TEST_CASE("outbox: links that share a carrier are handed theirs in one carry, the others alone", "[hub][outbox]") {
+  LogCarrier carrier, other;
+  auto a = std::make_shared<CarriedLog>("a", &carrier), b = std::make_shared<CarriedLog>("b", &carrier);
+  auto c = std::make_shared<CarriedLog>("c", &other);
+  auto alone = std::make_shared<CallLog>();
+  HeldLink la(a), lb(b), lc(c), lAlone(alone);
+  {
+    const Outbox::Scope held;
+    la.sendText("r");
+    lAlone.sendText("x");
+    lb.sendTogether({{std::make_shared<const std::string>("n"), nullptr}, {nullptr, bytes(5)}});
+    lc.sendText("y");
+    la.sendTogether({{std::make_shared<const std::string>("n"), nullptr}, {nullptr, bytes(5)}});
+    CHECK(carrier.calls.empty());
+  }
+  CHECK(carrier.calls == std::vector<std::string>{"carry a:3 b:2"});
+  CHECK(other.calls == std::vector<std::string>{"carry c:1"});
+  CHECK(a->calls == std::vector<std::string>{"all:3", "text:r", "text:n", "binary:5"});
+  CHECK(b->calls == std::vector<std::string>{"all:2", "text:n", "binary:5"});
+  CHECK(alone->calls == std::vector<std::string>{"all:1", "text:x"});
 }
 
 TEST_CASE("outbox: a flush hands over what is held, a close goes after what was sent before it", "[hub][outbox]") {

@@ -1,6 +1,8 @@
 // Outbox and HeldLink (see outbox.hpp).
 #include "service/hub/outbox.hpp"
 
+#include <algorithm>
+
 namespace marzipan::service {
 
 namespace {
@@ -46,7 +48,19 @@ void Outbox::flush() {
   // Taken first: a link may send again from inside (a test's link, say), into a fresh list.
   auto links = std::move(tHeld.links);
   tHeld.links.clear();
-  for (auto& [link, items] : links) link->sendAll(std::move(items));
+  // Links that share a carrier are handed theirs in one call of it.
+  std::vector<std::pair<ClientLink::Carrier*, std::vector<ClientLink::Delivery>>> carried;
+  for (auto& [link, items] : links) {
+    ClientLink::Carrier* const carrier = link->carrier();
+    if (!carrier) {
+      link->sendAll(std::move(items));
+      continue;
+    }
+    auto at = std::find_if(carried.begin(), carried.end(), [&](const auto& c) { return c.first == carrier; });
+    if (at == carried.end()) at = carried.insert(carried.end(), {carrier, {}});
+    at->second.push_back({link, std::move(items)});
+  }
+  for (auto& [carrier, deliveries] : carried) carrier->carry(std::move(deliveries));
 }
 
 void HeldLink::sendText(std::string text) {

@@ -2,9 +2,10 @@
 // (ClientLink::sendAll) when the work lets its connection go on, instead of message by message.
 // A stroke's application sends its requester the response and then, like every client of the
 // session, the change's notification and splat delta: held, that is one hand-over per client
-// (one post to the network thread, one TCP push) where it was two or three. Pinned to one core,
-// each hand-over to the network thread was a wake-up and a switch between the threads, about a
-// fifth of the server's CPU under load (docs/benchmark-log.md, capacity).
+// (one TCP push) where it was two or three, and the clients' hand-overs go to the network thread
+// together (one post through the links' ClientLink::Carrier, not one per client). Pinned to one
+// core, each post to the network thread was a wake-up and a switch between the threads
+// (docs/benchmark-log.md, capacity).
 //
 // Conventions:
 // - Threads: an Outbox::Scope holds the sends of the thread it was opened on (thread-local; a
@@ -13,7 +14,8 @@
 // - What sends from a strand task holds is flushed before the task lets the connection's next
 //   message start (HubCore::finish) and when the scope closes, so a connection's answers still
 //   come in request order; a close, and a long operation's op.progress, flush first.
-// - Flushing calls the links with nothing of the hub's locked.
+// - Flushing calls the links with nothing of the hub's locked: each link's sendAll, or, for links
+//   that share a carrier (ClientLink::carrier), one carry() with all of theirs.
 #pragma once
 
 #include <memory>
