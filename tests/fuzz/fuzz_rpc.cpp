@@ -54,11 +54,31 @@ void decodeParams(const Request& r) {
       expect(bytes >= 52 && bytes <= kMaxUploadBytes, "an upload size is within [52, max_binary_bytes - 24]");
       break;
     }
+    case Method::HistoryUndo:
+    case Method::HistoryRedo: (void)parseHistoryParams(p, r.method); break;
+    case Method::HistoryList: {
+      const HistoryListParams h = parseHistoryListParams(p);
+      expect(h.limit >= 1 && h.limit <= kMaxHistoryListLimit, "a history.list limit is within [1, max]");
+      break;
+    }
+    case Method::SessionFork: (void)parseForkParams(p); break;
+    case Method::Presence: {
+      const PresenceParams q = parsePresenceParams(p);
+      // What the server forwards must be writable whatever was read.
+      if (q.brush) (void)brushJson(*q.brush).dump();
+      if (q.camera) (void)cameraJson(*q.camera).dump();
+      break;
+    }
+    case Method::MaskClear:
+    case Method::MaskInvert:
+    case Method::MaskFill:
+      (void)maskActionOf(r.method);
+      parseNoParams(p, r.method);
+      break;
     case Method::SessionLeave:
     case Method::SessionStats:
-    case Method::HistoryUndo:
-    case Method::HistoryRedo:
-    case Method::SplatsGet: parseNoParams(p, r.method); break;
+    case Method::SplatsGet:
+    case Method::OpCancel: parseNoParams(p, r.method); break;
     case Method::VolumeSave: (void)parseVolumeSaveParams(p); break;
   }
 }
