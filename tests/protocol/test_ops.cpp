@@ -292,7 +292,7 @@ TEST_CASE("a JSON syntax error quotes only an excerpt of the token it stopped in
   const std::string unterminated = R"({"tool":"add_blob","center":[1,2,3],"x":")" + std::string(100000, 'x');
   const std::string badUtf8 = R"({"tool":"add_blob","x":")" + std::string(10, '\xFF') + R"("})";
   const std::string longNumber = R"({"tool":"add_blob","center":[1,2,3],"radius":)" + std::string(5000, '9') + "}";
-  const std::string badLiteral = "[" + std::string(1000, 't') + "]";
+  const std::string badLiteral = std::string("[").append(1000, 't').append("]");
   const std::string quoteInToken = R"({"a":"x'; expected ':')" + std::string(500, '\xC3');
   for (const std::string& text : {unterminated, badUtf8, longNumber, badLiteral, quoteInToken}) {
     INFO(text.substr(0, 60));
