@@ -267,15 +267,23 @@ void checkWarpSettings(const WarpStroke& w) {
 
 void setWarpAnchor(WarpStroke& w, const Volume& base, Vec3 at) {
   const Int3 n = base.dims();
-  for (int a = 0; a < 3; ++a)
-    if (!(at[a] >= 0 && at[a] <= n[a] - 1))
-      throw EngineError(ErrorKind::OutOfDomain, "center", "the anchor (the stroke's first dab) must lie in the volume");
+  // Also the carried point's test: the anchor is the journal's first dab, and a replay calls
+  // this function with it, so a point this refuses must never be taken.
+  const auto inDomain = [n](Vec3 p) {
+    for (int a = 0; a < 3; ++a)
+      if (!(p[a] >= 0 && p[a] <= n[a] - 1)) return false;
+    return true;
+  };
+  if (!inDomain(at))
+    throw EngineError(ErrorKind::OutOfDomain, "center", "the anchor (the stroke's first dab) must lie in the volume");
   double distance = std::abs(base.sample(at));
   if (!(distance <= kMaxWarpAnchorDistance) && distance < base.band()) {
     // Another sculptor's edit moved the surface under the splats the client picked on: take the
-    // surface point nearest the pick, which is no farther than the pick's distance.
+    // surface point nearest the pick, which is no farther than the pick's distance. Where a
+    // solid meets a face of the grid, the zero set between the last voxel and the +band read
+    // beyond it lies outside the domain: such a point is not taken.
     const Vec3 foot = base.towardSurface(at, kAnchorSnapSteps);
-    if (std::abs(base.sample(foot)) <= kWarpAnchorTolerance && length(foot - at) <= base.band()) {
+    if (inDomain(foot) && std::abs(base.sample(foot)) <= kWarpAnchorTolerance && length(foot - at) <= base.band()) {
       at = foot;
       distance = std::abs(base.sample(at));
     }

@@ -279,6 +279,28 @@ TEST_CASE("session warp: an anchor picked where the surface was is taken at the 
   CHECK(far.digest() == digest(sphere()));
 }
 
+TEST_CASE("session warp: an anchor is never carried out of the grid, so its journal replays", "[session][warp]") {
+  // A sphere whose surface crosses x = -0.5, just outside the grid: voxel 0 reads -0.5, and the
+  // voxels beyond the face read +band, so the zero set of the samples lies at x = -1/7. A pick
+  // at x = 1.8 (-2.3) was carried there and taken; the journal's replay of that anchor was then
+  // refused as outside the domain (a session that could no longer be loaded).
+  ThreadPool pool(2);
+  const Vec3 c{12, 16, 16};
+  const Volume cut = makeSphere({32, 32, 32}, c, 12.5);
+  const Vec3 pick{1.8, 16, 16};
+  REQUIRE(cut.sample(pick) < -kMaxWarpAnchorDistance);
+  REQUIRE(cut.towardSurface(pick, kAnchorSnapSteps).x < 0);
+  Session s(cut);
+  const StrokeId id = s.beginWarp(settings(WarpTool::Grab, 6));
+  requireError([&] { s.strokeDabs(id, centres({pick, pick + Vec3{0, 4, 0}}), pool); }, protocol::RpcCode::InvalidParams,
+               "center");
+  CHECK(s.digest() == digest(cut));
+  // The surface point inside the grid is taken as given.
+  const ApplyResult a = s.strokeDabs(id, centres({Vec3{0, 16, 16}, Vec3{0, 20, 16}}), pool);
+  CHECK(a.anchored);
+  CHECK(a.changed);
+}
+
 TEST_CASE("session warp: refusals name the field and change nothing", "[session][warp]") {
   ThreadPool pool(2);
   using C = protocol::RpcCode;
