@@ -235,7 +235,9 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
 // is 1 up to half the radius (the tip moves as a whole and keeps its thickness). The grab
 // starts from the side of the tip that faces d: the surface point along d from half a radius
 // under a (a itself when the move is along the tip's normal), so that at a turn of the path
-// the tip is pulled out of its side, not sheared sideways. The caller then takes target as the
+// the tip is pulled out of its side, not sheared sideways; the plateau's ball sinks behind that
+// point, up to its radius where the tip is thinner than the support, so that the tip is the
+// ball's round front (warp.cpp, snakeHookVelocity). The caller then takes target as the
 // next anchor. A drag is the composition of its moves, so a long one pulls out a tentacle
 // along the pointer's path.
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());

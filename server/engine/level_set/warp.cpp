@@ -1291,8 +1291,26 @@ Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radiu
   return applyWarp(vol, base, grabVelocity(anchor, d, radius, plateau), pool);
 }
 
+// How far a snake hook's plateau ball sinks into the tip (snakeHookVelocity()), as a share of
+// its radius: with the ball sunk whole, its centre at `centre`, the clay's least distance at
+// eight points a radius from the centre across the move (`along`, a unit vector), over
+// kSinkClearance radii (at most the band, where distances stop), clamped to [0, 1]. The tip of
+// a tentacle thinner than the support's radius sinks the ball whole; a body wider than that
+// (the sphere a tentacle starts from, the tentacle's own side at a turn) keeps it at the surface.
+constexpr double kSinkClearance = 0.25;
+double sinkShare(const Volume& vol, Vec3 centre, Vec3 along, double radius) {
+  const Vec3 e1 = normalized(cross(along, std::fabs(along.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0}));
+  const Vec3 e2 = cross(along, e1);
+  double nearest = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 8; ++k) {
+    const double angle = k * std::numbers::pi / 4;
+    nearest = std::min(nearest, vol.sample(centre + (e1 * std::cos(angle) + e2 * std::sin(angle)) * radius));
+  }
+  return std::clamp(nearest / std::min(kSinkClearance * radius, double(vol.band())), 0.0, 1.0);
+}
+
 // The velocity of snakeHook(vol, anchor, target, radius): a grab of vol from the surface point
-// it starts from.
+// it starts from, its segment sunk into the tip (sinkShare()).
 Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
   checkAnchor(vol, anchor);
@@ -1329,6 +1347,20 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
     }
   }
   checkAnchor(vol, from);
+  // The plateau's ball sinks into the tip, up to its own radius, so that from is on its front:
+  // the ball then lies in the clay, and the clay in front of it lags behind (the falloff is
+  // below 1 there) until it lies on the ball. The tip becomes the ball's front half, a round
+  // cap that keeps the tentacle's thickness. With the ball's centre on the surface (before
+  // 2026-11-30) the plateau carried the clay it first held, a flat cap, whole at every move, and
+  // the clay just beyond its edge lagged more at every move: the rim sharpened with each move
+  // (radius of curvature about 2 vu / moves) and the 200 vu tentacle's tip read gradient error
+  // 0.19-0.22 (tests/engine/level_set/test_warp.cpp). The ball sinks only as far as the clay
+  // clears the support's side: a ball sunk into the body, or into the tentacle's side at a
+  // turn of the path, carried a slab of it sideways, sheared against the clay behind.
+  if (length(d) > 0) {
+    const Vec3 along = normalized(d);
+    from = from - along * (kPlateau * radius * sinkShare(vol, from - along * (kPlateau * radius), along, radius));
+  }
   return grabVelocity(from, d, radius, kPlateau);
 }
 

@@ -323,9 +323,27 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
   INFO("largest value along the path " << worst);
   CHECK(worst <= 0.25);
-  // Not within the brushes' gradient error (0.1 / 0.005): measured 2026-11-29 max 0.216 at the
-  // tip, mean 0.00544 after 97 resamples.
-  checkSoundSolid(v, 0.25, 0.006);
+  // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
+  // of a slice across y, a slice of the slanting tentacle a little longer than its section)
+  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 3.52 and 4.07 vu
+  // (the plateau's radius is 4), against 3.29 and 3.91 with the plateau's ball on the surface.
+  const auto sectionRadius = [&](int y) {
+    std::size_t in = 0;
+    for (int z = 0; z < v.dims().z; ++z)
+      for (int x = 0; x < v.dims().x; ++x) in += v.at(x, y, z) < 0;
+    return std::sqrt(double(in) / std::numbers::pi);
+  };
+  INFO("section radius 30 vu under the tip " << sectionRadius(230) << ", at the middle " << sectionRadius(160));
+  CHECK(sectionRadius(230) >= 3.25);
+  CHECK(sectionRadius(160) >= 3.75);
+  // The mean within the brushes' 0.005, the max not within their 0.1: measured 2026-11-30 max
+  // 0.120 at the tip, mean 0.00449 after 97 resamples (before the plateau's ball sank into the
+  // tip, warp.cpp's snakeHookVelocity: 0.193-0.216 / 0.0050-0.0054, the flat cap's rim). The
+  // tip is round now (the exact field of its first moves reads 0.062 there: the test below),
+  // but the falloff outside the plateau draws the clay onto the ball slowly (its lag is
+  // quadratic in the distance), and what lies on the ball's rim at the end was resampled there
+  // move after move: 0.086 after 8 moves, 0.106 after 20, 0.109 after 48.
+  checkSoundSolid(v, 0.13, 0.005);
 }
 
 TEST_CASE("a snake hook's first moves near the exact distance of the carried sphere", "[warp][snake_hook][exact]") {
@@ -346,15 +364,17 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   }
   checkSoundSolid(v, 1, 1);  // the gradient error: against the exact field's, below
   const AgainstExact m = againstExact(v, {c, 20, maps});
-  // The plateau carries a ball of half the radius around the tip whole, and the falloff's
-  // second derivative jumps at its edge, the same clay at each move: the tip is a flat cap
-  // whose rim sharpens with every move (its radius of curvature about 2 vu / moves), past the
-  // brushes' max for any field of this shape. Measured (2026-11-29): exact 0.167 / 0.00173,
-  // ours 0.141 / 0.00221; |ours - exact| 0.296 / 0.0073. The largest of all three are at the
-  // tip (a third of each sum is in its top 4 vu).
+  // The plateau's ball sinks into the tip once the tentacle is thinner than the support (from
+  // the third move here), and the tip becomes its round front: the exact field reads 0.062 at
+  // the tip (slices y 72-80). Its max is at the tentacle's foot on the sphere (y 56-60), the
+  // concave fold the first moves made before the ball sank, past the brushes' 0.1 for any field
+  // of this shape. Measured (2026-11-30): exact 0.126 / 0.00145, ours 0.117 / 0.00219, both at
+  // the foot; |ours - exact| 0.208 / 0.0054. With the ball on the surface (2026-11-29) the tip
+  // was a flat cap whose rim sharpened with every move: exact 0.167 / 0.00173 at the tip, ours
+  // 0.141 / 0.00221, |ours - exact| 0.296 / 0.0073.
   CHECK(m.exact.max > 0.1);
   CHECK(m.exact.mean <= 0.005);
-  checkNearExact(m, 0.001, 0.35, 0.0085);
+  checkNearExact(m, 0.001, 0.25, 0.006);
 }
 
 TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[warp][snake_hook][topology]") {
@@ -362,7 +382,14 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
   // Before each move started from the side of the tip that faces it, the tip was dragged
   // sideways at each turn and the bend sheared into a sheet thinner than a voxel: 3 components
   // with 1 vu moves, 4 with 4 vu moves, 10 with 8 vu moves at radius 6.
-  for (const auto& [step, r] : {std::pair{1.0, 8.0}, std::pair{4.0, 8.0}, std::pair{8.0, 6.0}}) {
+  // The gradient error is not within the brushes' limits: the largest at the turns, where the
+  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.241 / 0.0083, 0.251 /
+  // 0.0111, 0.531 / 0.0315 (2026-11-29, before the plateau's ball sank into the tip: 0.30 /
+  // 0.0111, 0.23 / 0.0123, 0.47 / 0.038).
+  struct Case {
+    double step, r, maxError, meanError;
+  };
+  for (const auto& [step, r, maxError, meanError] : {Case{1, 8, 0.28, 0.0095}, Case{4, 8, 0.29, 0.0125}, Case{8, 6, 0.6, 0.035}}) {
     const Vec3 c{64, 40, 64};
     Volume v = makeSphere({128, 128, 128}, c, 16);
     Vec3 at = c + Vec3{0, 16, 0};
@@ -379,9 +406,7 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
     for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
     INFO("largest value along the path " << worst);
     CHECK(worst <= 0.25);
-    // The gradient error is not within the brushes' limits (measured 2026-11-29: max 0.30 /
-    // 0.23 / 0.47, mean 0.011 / 0.012 / 0.038, the largest at the turns).
-    checkSoundSolid(v, 0.5, 0.04);
+    checkSoundSolid(v, maxError, meanError);
   }
 }
 
@@ -654,14 +679,25 @@ TEST_CASE("a painted spot moves with the clay: grab, snake hook and twist carry 
   // radius 8 (its tip), and the clay a grab's tip is stretched from.
   const Volume base = paintedSphere(a, 14);
   REQUIRE(base.texel(nearestVoxel(a)).color() == kRed);
-  // Band voxels whose foot point lies within `within` of `at`: how many, and how many not red.
+  // The voxels at the ends of the grid edges the surface crosses (the colours a mesh's vertices
+  // read: marching_cubes.cpp, colorAt) whose foot point lies within `within` of `at`: how many,
+  // and how many not red. (Air a voxel and more off the surface shows no colour: after the
+  // snake hook's plateau ball sank into the tip, 2026-11-30, one air voxel 1.4 vu off the tip's
+  // side held the clay colour of the unpainted air it came from.)
   const auto notRedNear = [](const Volume& v, Vec3 at, double within) {
     std::size_t near = 0, other = 0;
     v.forEachPresentBrick([&](Int3 b, const Brick& br) {
       for (int i = 0; i < kBrickVoxels; ++i) {
         const Int3 p = Bricks::origin(b) + Bricks::local(i);
         const float d = br.v[i];
-        if (!(std::fabs(d) < 1.5f)) continue;
+        bool crossed = false;
+        for (int axis = 0; axis < 3; ++axis)
+          for (const int side : {-1, 1}) {
+            Int3 q = p;
+            q[axis] += side;
+            crossed = crossed || (v.at(q) < 0) != (d < 0);
+          }
+        if (!crossed) continue;
         const Vec3 g = v.voxelGradient(p);
         const Vec3 foot = Vec3{double(p.x), double(p.y), double(p.z)} - g * (double(d) / std::max(length(g), 1e-9));
         if (length(foot - at) > within) continue;
