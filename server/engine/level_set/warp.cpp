@@ -210,16 +210,17 @@ struct Velocity {
   // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
   // tentacle was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
-  // plateau is 0 or kPlateau, whose outer part's width 1 - kPlateau is 1/2: u is (t - plateau)
-  // times 2, and d falloff / d t2 = -4 u (1 - u^2) / t, what the divisions by 1 - plateau give
-  // bit for bit without their latency (a snake hook move integrates the flow at a thousand
-  // points, four sub-steps of two falloffs each).
+  // plateau is 0, kPlateau, or a snake hook's ball fitted to a narrower tip
+  // (snakeHookVelocity()): u is (t - plateau) times outerScale = 1 / (1 - plateau), and
+  // d falloff / d t2 = -2 outerScale u (1 - u^2) / t, set once instead of divided per point
+  // (a snake hook move integrates the flow at a thousand points, four sub-steps of two
+  // falloffs each); for kPlateau it is 2, the same bits as the division.
   double plateau = 0;
-  static_assert(kPlateau == 0.5, "falloff() and falloffSlope() divide by 1 - kPlateau = 1/2 as a product");
+  double outerScale = 1 / (1 - kPlateau);
   double falloff(double t2) const {
     if (plateau == 0) return (1 - t2) * (1 - t2);
     if (t2 <= plateau * plateau) return 1;
-    const double u = (std::sqrt(t2) - plateau) * 2;
+    const double u = (std::sqrt(t2) - plateau) * outerScale;
     return (1 - u * u) * (1 - u * u);
   }
 
@@ -231,8 +232,8 @@ struct Velocity {
     if (plateau == 0) return {(1 - t2) * (1 - t2), -2 * (1 - t2)};
     if (t2 <= plateau * plateau) return {1, 0};
     const double t = std::sqrt(t2);
-    const double u = (t - plateau) * 2;
-    return {(1 - u * u) * (1 - u * u), -4 * u * (1 - u * u) / t};
+    const double u = (t - plateau) * outerScale;
+    return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
   }
 
   // v(y) and its Jacobian J (J[i][j] = d v_i / d y_j).
@@ -1280,6 +1281,7 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.plateau = plateau;
+  if (plateau > 0) v.outerScale = 1 / (1 - plateau);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
@@ -1298,6 +1300,9 @@ Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radiu
 // a tentacle thinner than the support's radius sinks the ball whole; a body wider than that
 // (the sphere a tentacle starts from, the tentacle's own side at a turn) keeps it at the surface.
 constexpr double kSinkClearance = 0.25;
+// The sunk ball's radius is the tip's (tipRadius()), at most the plateau's and at least this
+// share of it (a tentacle pinched thin elsewhere keeps the ball from shrinking with it).
+constexpr double kLeastBall = 0.5;
 double sinkShare(const Volume& vol, Vec3 centre, Vec3 along, double radius) {
   const Vec3 e1 = normalized(cross(along, std::fabs(along.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0}));
   const Vec3 e2 = cross(along, e1);
@@ -1307,6 +1312,34 @@ double sinkShare(const Volume& vol, Vec3 centre, Vec3 along, double radius) {
     nearest = std::min(nearest, vol.sample(centre + (e1 * std::cos(angle) + e2 * std::sin(angle)) * radius));
   }
   return std::clamp(nearest / std::min(kSinkClearance * radius, double(vol.band())), 0.0, 1.0);
+}
+
+// The tip's least radius across the move (`along`, a unit vector) at `centre` (inside the clay):
+// the distance to the surface along eight rays across the move, at most `most`.
+double tipRadius(const Volume& vol, Vec3 centre, Vec3 along, double most) {
+  const Vec3 e1 = normalized(cross(along, std::fabs(along.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0}));
+  const Vec3 e2 = cross(along, e1);
+  double least = most;
+  for (int k = 0; k < 8; ++k) {
+    const double angle = k * std::numbers::pi / 4;
+    const Vec3 ray = e1 * std::cos(angle) + e2 * std::sin(angle);
+    // Steps of half a voxel to the first point outside, then halvings to 1/8192 vu.
+    double in = 0, out = -1;
+    for (double t = 0.5; t < least + 0.5; t += 0.5) {
+      if (vol.sample(centre + ray * t) >= 0) {
+        out = t;
+        break;
+      }
+      in = t;
+    }
+    if (out < 0) continue;
+    for (int i = 0; i < 12; ++i) {
+      const double mid = 0.5 * (in + out);
+      (vol.sample(centre + ray * mid) < 0 ? in : out) = mid;
+    }
+    least = std::min(least, 0.5 * (in + out));
+  }
+  return least;
 }
 
 // The velocity of snakeHook(vol, anchor, target, radius): a grab of vol from the surface point
@@ -1356,12 +1389,21 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
   // (radius of curvature about 2 vu / moves) and the 200 vu tentacle's tip read gradient error
   // 0.19-0.22 (tests/engine/level_set/test_warp.cpp). The ball sinks only as far as the clay
   // clears the support's side: a ball sunk into the body, or into the tentacle's side at a
-  // turn of the path, carried a slab of it sideways, sheared against the clay behind.
+  // turn of the path, carried a slab of it sideways, sheared against the clay behind. A sunk
+  // ball is as wide as the tip (tipRadius()): clay inside the ball never moves against it, so
+  // a tip narrower than the plateau kept its flat cap in the ball, and read gradient error
+  // 0.120 there after the 200 vu path (0.099 with the ball fitted).
+  double ball = kPlateau * radius;
   if (length(d) > 0) {
     const Vec3 along = normalized(d);
-    from = from - along * (kPlateau * radius * sinkShare(vol, from - along * (kPlateau * radius), along, radius));
+    const Vec3 sunk = from - along * ball;
+    const double share = sinkShare(vol, sunk, along, radius);
+    if (share > 0) {
+      ball = std::max(kLeastBall * ball, tipRadius(vol, sunk, along, ball));
+      from = from - along * (ball * share);
+    }
   }
-  return grabVelocity(from, d, radius, kPlateau);
+  return grabVelocity(from, d, radius, ball / radius);
 }
 
 }  // namespace
@@ -1482,6 +1524,8 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
 
 double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0); }
 
+// The widest plateau a move has: a sunk ball fitted to a narrower tip has a wider outer part,
+// and a smaller bound.
 double snakeHookSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, kPlateau); }
 
 double elasticGrabSlopeBound(double travel, double radius, double volume) {

@@ -325,8 +325,9 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   CHECK(worst <= 0.25);
   // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
   // of a slice across y, a slice of the slanting tentacle a little longer than its section)
-  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 3.52 and 4.07 vu
-  // (the plateau's radius is 4), against 3.29 and 3.91 with the plateau's ball on the surface.
+  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 3.61 and 4.18 vu
+  // (the plateau's radius is 4), against 3.29 and 3.91 before the plateau's ball sank into the
+  // tip (warp.cpp, snakeHookVelocity).
   const auto sectionRadius = [&](int y) {
     std::size_t in = 0;
     for (int z = 0; z < v.dims().z; ++z)
@@ -334,16 +335,21 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
     return std::sqrt(double(in) / std::numbers::pi);
   };
   INFO("section radius 30 vu under the tip " << sectionRadius(230) << ", at the middle " << sectionRadius(160));
-  CHECK(sectionRadius(230) >= 3.25);
-  CHECK(sectionRadius(160) >= 3.75);
-  // The mean within the brushes' 0.005, the max not within their 0.1: measured 2026-11-30 max
-  // 0.120 at the tip, mean 0.00449 after 97 resamples (before the plateau's ball sank into the
-  // tip, warp.cpp's snakeHookVelocity: 0.193-0.216 / 0.0050-0.0054, the flat cap's rim). The
-  // tip is round now (the exact field of its first moves reads 0.062 there: the test below),
-  // but the falloff outside the plateau draws the clay onto the ball slowly (its lag is
-  // quadratic in the distance), and what lies on the ball's rim at the end was resampled there
-  // move after move: 0.086 after 8 moves, 0.106 after 20, 0.109 after 48.
-  checkSoundSolid(v, 0.13, 0.005);
+  CHECK(sectionRadius(230) >= 3.4);
+  CHECK(sectionRadius(160) >= 3.9);
+  // The tentacle above its foot (y >= 68; the sphere's top is at 60) within the brushes' max,
+  // 0.1: measured 2026-11-30 0.0994, at the tip (0.193 there before the ball sank, the flat
+  // cap's sharpening rim; 0.120 with the ball sunk but not fitted to the tip's width).
+  const GradientError above = gradientError(v, Box{{0, 68, 0}, v.dims()});
+  // (Its mean, 0.0073, is not held to the brushes' 0.005, which is over the whole volume.)
+  INFO("gradient error above the foot: max " << above.max << " mean " << above.mean);
+  CHECK(above.max <= 0.1);
+  // The whole volume within the brushes' mean, 0.005, not within their max: measured
+  // 2026-11-30 max 0.117 / mean 0.00444 (before: 0.193-0.216 / 0.0050-0.0054). The max is at the
+  // foot, the concave fold the first moves draw out of the sphere before the tentacle is thin
+  // enough for the ball to sink (y 56-64; the exact field of the first 8 moves reads 0.126
+  // there: the test below), whose curvature the falloff's edge sets.
+  checkSoundSolid(v, 0.12, 0.005);
 }
 
 TEST_CASE("a snake hook's first moves near the exact distance of the carried sphere", "[warp][snake_hook][exact]") {
@@ -383,8 +389,8 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
   // sideways at each turn and the bend sheared into a sheet thinner than a voxel: 3 components
   // with 1 vu moves, 4 with 4 vu moves, 10 with 8 vu moves at radius 6.
   // The gradient error is not within the brushes' limits: the largest at the turns, where the
-  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.241 / 0.0083, 0.251 /
-  // 0.0111, 0.531 / 0.0315 (2026-11-29, before the plateau's ball sank into the tip: 0.30 /
+  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.240 / 0.0082, 0.244 /
+  // 0.0111, 0.532 / 0.0316 (2026-11-29, before the plateau's ball sank into the tip: 0.30 /
   // 0.0111, 0.23 / 0.0123, 0.47 / 0.038).
   struct Case {
     double step, r, maxError, meanError;
