@@ -230,22 +230,22 @@ StepInfo Session::stepInfo(const StepAuthor& by, std::string_view tool) const {
 
 void Session::trackDigest(const std::vector<BrickChange>& changes, bool forward) {
   changedBricks_ += changes.size();
+  const Int3 n = volume_.brickDims();
+  if (cachedTerms_.empty())
+    cachedTerms_.resize(std::min(std::size_t(n.x) * std::size_t(n.y) * std::size_t(n.z), kMaxCachedTerms));
   for (const BrickChange& c : changes) {
     const BrickRef& from = forward ? c.before : c.after;
     const BrickRef& to = forward ? c.after : c.before;
     const std::uint64_t key = std::uint64_t(std::uint32_t(c.brick.x)) | std::uint64_t(std::uint32_t(c.brick.y)) << 21 |
                               std::uint64_t(std::uint32_t(c.brick.z)) << 42;
-    const auto it = cachedTerms_.find(key);
-    const bool known =
-        it != cachedTerms_.end() && from.data && it->second.data == from.data && it->second.paint == from.paint;
-    digestTerms_ -= known ? it->second.term : brickDigestTerm(c.brick, from);
+    const std::size_t index =
+        std::size_t(c.brick.x) + std::size_t(n.x) * (std::size_t(c.brick.y) + std::size_t(n.y) * std::size_t(c.brick.z));
+    CachedTerm& slot = cachedTerms_[index % cachedTerms_.size()];
+    const bool known = slot.key == key && from.data && slot.data == from.data && slot.paint == from.paint;
+    digestTerms_ -= known ? slot.term : brickDigestTerm(c.brick, from);
     const std::uint64_t term = brickDigestTerm(c.brick, to);
     digestTerms_ += term;
-    if (it != cachedTerms_.end()) {
-      it->second = {to.data, to.paint, term};
-    } else if (cachedTerms_.size() < kMaxCachedTerms) {
-      cachedTerms_.emplace(key, CachedTerm{to.data, to.paint, term});
-    }
+    slot = {key, to.data, to.paint, term};
   }
 }
 

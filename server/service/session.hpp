@@ -30,7 +30,6 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 #include <variant>
 #include <vector>
 
@@ -403,18 +402,25 @@ class Session {
   History history_;
   std::uint64_t revision_;
   std::uint64_t digestTerms_;  // sum of brickDigestTerm over the live volume
-  // The term of the buffer each brick slot got from its last change, with that buffer: a
-  // stroke replaces the same bricks message after message, and the replaced brick's term is
-  // then known instead of hashed again. Holding the buffer keeps its address from naming
-  // another brick; it is the volume's own (resetDigest() drops them when it is replaced).
-  // At most kMaxCachedTerms slots (about 1 MiB); further ones are hashed each time.
+  // The term of the buffer a brick got from its last change, with that buffer: a stroke
+  // replaces the same bricks message after message, and the replaced brick's term is then
+  // known instead of hashed again. Holding the buffer keeps its address from naming another
+  // brick; it is the volume's own (resetDigest() drops them when it is replaced).
+  // Direct-mapped: brick (x, y, z) has slot (x + nx (y + ny z)) mod the slot count, which is
+  // the volume's brick count up to kMaxCachedTerms (about 0.75 MiB), made on the first change.
+  // A slot names the brick it holds (key): a brick that shares it replaces it, and one not found
+  // is hashed. A flat array, not a hash map: the lookups came after the engine's work had
+  // evicted the map's nodes from the caches, and cost ~1% of the server's CPU
+  // (docs/benchmark-log.md, capacity).
   struct CachedTerm {
+    std::uint64_t key = kNoBrick;
     std::shared_ptr<const Brick> data;
     std::shared_ptr<const BrickPaint> paint;  // a paint stroke changes this and keeps data
     std::uint64_t term = 0;
   };
+  static constexpr std::uint64_t kNoBrick = ~std::uint64_t(0);
   static constexpr std::size_t kMaxCachedTerms = std::size_t(1) << 14;
-  std::unordered_map<std::uint64_t, CachedTerm> cachedTerms_;
+  std::vector<CachedTerm> cachedTerms_;
   std::map<StrokeId, Stroke> strokes_;
   StrokeId nextStroke_ = 1;
   // The stroke whose step is the newest change of the session (0: none); only its dabs may

@@ -57,6 +57,46 @@ TEST_CASE("held splats: a delta lists the bricks whose blocks changed, in the or
   CHECK(held.delta(next, v) == encodeSplats({next[5]}));
 }
 
+TEST_CASE("held blocks: each brick's block found again, through growth and clearing", "[hub][splats]") {
+  HeldBlocks blocks;
+  CHECK(blocks.empty());
+  // Bricks of a 40 x 40 x 3 domain, the keys a delta uses: the array grows many times over.
+  std::vector<std::uint64_t> keys;
+  for (int z = 0; z < 3; ++z)
+    for (int y = 0; y < 40; ++y)
+      for (int x = 0; x < 40; ++x) keys.push_back(splatBrickKey({x, y, z}));
+  std::vector<const std::uint8_t*> data;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto [block, added] = blocks.findOrAdd(keys[i]);
+    REQUIRE(added);
+    REQUIRE(block->empty());
+    *block = {std::uint8_t(i), std::uint8_t(i >> 8), std::uint8_t(i >> 16)};
+    data.push_back(block->data());
+  }
+  CHECK(blocks.size() == keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto [block, added] = blocks.findOrAdd(keys[i]);
+    CHECK_FALSE(added);
+    CHECK(*block == std::vector<std::uint8_t>{std::uint8_t(i), std::uint8_t(i >> 8), std::uint8_t(i >> 16)});
+    CHECK(block->data() == data[i]);  // the bytes stayed where they were as the array grew
+  }
+  CHECK(blocks.size() == keys.size());
+  std::size_t visited = 0;
+  blocks.forEach([&](std::uint64_t key, const std::vector<std::uint8_t>& block) {
+    const std::size_t i = std::size_t(block[0]) | std::size_t(block[1]) << 8 | std::size_t(block[2]) << 16;
+    REQUIRE(i < keys.size());
+    CHECK(keys[i] == key);
+    ++visited;
+  });
+  CHECK(visited == keys.size());
+  blocks.clear();
+  CHECK(blocks.empty());
+  const auto [block, added] = blocks.findOrAdd(keys[7]);
+  CHECK(added);
+  CHECK(block->empty());
+  CHECK(blocks.size() == 1);
+}
+
 TEST_CASE("held splats: past half the volume's memory the record starts afresh", "[hub][splats]") {
   const Volume small = makeSolid(SolidKind::Sphere, {16, 16, 16});
   REQUIRE(small.memoryBytes() / 2 < HeldSplats::kCheckBytes);
@@ -95,7 +135,9 @@ TEST_CASE("held splats: the record counts the memory its blocks keep, not only w
     held.delta(full, small);
     held.delta(empty, small);
     std::size_t kept = 0;
-    for (const auto& [key, block] : held.blocks) kept += block.capacity() + HeldSplats::kEntryBytes;
+    held.blocks.forEach([&](std::uint64_t, const std::vector<std::uint8_t>& block) {
+      kept += block.capacity() + HeldSplats::kEntryBytes;
+    });
     CHECK(held.bytes == kept);
     CHECK(kept < 100 * (kSplatBrickHeaderBytes + 16 + HeldSplats::kEntryBytes));
   }

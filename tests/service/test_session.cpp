@@ -60,6 +60,38 @@ std::optional<Vec3> analyticHit(Vec3 c, double r, Vec3 o, Vec3 d) {
 
 }  // namespace
 
+// The digest's cache of brick terms (Session::trackDigest) has kMaxCachedTerms slots: on a volume
+// of more bricks, bricks (x, y, 0) and (x, y, 1) of a 128 x 128 x 2 brick domain share a slot,
+// and each change of one replaces the other's entry. The digest followed through such changes,
+// undone and redone, is still the one read from the whole volume.
+TEST_CASE("session: the digest follows changes of bricks that share a slot of its cache", "[session]") {
+  ThreadPool pool(2);
+  const Vec3 c{100, 100, 7.5};
+  Session s(makeSphere({1024, 1024, 16}, c, 6));
+  REQUIRE(s.volume().brickDims() == Int3{128, 128, 2});
+  const std::uint64_t d0 = digest(s.volume());
+  REQUIRE(s.digest() == d0);
+  // Dabs on the sphere's top, bottom and sides: each changes bricks of both layers.
+  const std::vector<Vec3> at{{100, 100, 13.5}, {100, 100, 1.5}, {106, 100, 7.5}, {100, 94, 7.5}, {100, 100, 13.5}};
+  std::vector<std::uint64_t> digests{d0};
+  for (std::size_t i = 0; i < at.size(); ++i) {
+    const ApplyResult r = s.apply(blob(i % 2 ? BrushTool::RemoveBlob : BrushTool::AddBlob, at[i], 3), pool);
+    REQUIRE(r.changed);
+    CHECK(s.digest() == digest(s.volume()));
+    digests.push_back(s.digest());
+  }
+  CHECK(digests.back() != d0);
+  for (std::size_t i = at.size(); i > 0; --i) {
+    REQUIRE(s.undo().changed);
+    CHECK(s.digest() == digest(s.volume()));
+    CHECK(s.digest() == digests[i - 1]);
+  }
+  for (std::size_t i = 1; i <= at.size(); ++i) {
+    REQUIRE(s.redo().changed);
+    CHECK(s.digest() == digests[i]);
+  }
+}
+
 TEST_CASE("session: undo and redo restore digests across ops and a 20-dab stroke", "[session]") {
   ThreadPool pool(2);
   Session s(sphere());

@@ -1,6 +1,7 @@
 #include "service/hub/broadcast.hpp"
 
 #include <algorithm>
+#include <bit>
 
 #include "engine/image_io.hpp"
 #include "engine/raycast.hpp"
@@ -16,6 +17,35 @@ using protocol::ViewMode;
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload) {
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
+}
+
+std::pair<std::vector<std::uint8_t>*, bool> HeldBlocks::findOrAdd(std::uint64_t key) {
+  if (2 * (size_ + 1) > entries_.size()) {
+    std::vector<Entry> old = std::move(entries_);
+    entries_ = std::vector<Entry>(std::max<std::size_t>(64, 2 * old.size()));
+    shift_ = 64 - std::countr_zero(entries_.size());
+    const std::size_t mask = entries_.size() - 1;
+    for (Entry& e : old) {
+      if (e.key == kNone) continue;
+      std::size_t i = slotOf(e.key);
+      while (entries_[i].key != kNone) i = (i + 1) & mask;
+      entries_[i] = std::move(e);
+    }
+  }
+  const std::size_t mask = entries_.size() - 1;
+  std::size_t i = slotOf(key);
+  while (entries_[i].key != kNone && entries_[i].key != key) i = (i + 1) & mask;
+  Entry& e = entries_[i];
+  if (e.key == key) return {&e.block, false};
+  e.key = key;
+  ++size_;
+  return {&e.block, true};
+}
+
+void HeldBlocks::clear() {
+  std::vector<Entry>().swap(entries_);
+  shift_ = 64;
+  size_ = 0;
 }
 
 void HeldSplats::clear() {
@@ -78,13 +108,13 @@ std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fres
   std::vector<std::uint8_t> block;
   for (const BrickSplats& b : fresh) {
     encodeSplatBlock(b, block);
-    auto [at, added] = blocks.try_emplace(splatBrickKey(b.brick));
-    if (!added && at->second == block) continue;
+    auto [held, added] = blocks.findOrAdd(splatBrickKey(b.brick));
+    if (!added && *held == block) continue;
     // A block of its own size: a brick the surface left keeps a few bytes, not its old 4 KiB.
     std::vector<std::uint8_t> kept(block.begin(), block.end());
-    bytes = bytes - at->second.capacity() + kept.capacity() + (added ? kEntryBytes : 0);
-    at->second = std::move(kept);
-    changed.emplace_back(at->second);
+    bytes = bytes - held->capacity() + kept.capacity() + (added ? kEntryBytes : 0);
+    *held = std::move(kept);
+    changed.emplace_back(*held);
   }
   std::vector<std::uint8_t> buffer = joinSplatBlocks(changed);
   if (bytes > kMaxBytes || (bytes > kCheckBytes && bytes > vol.memoryBytes() / 2)) {

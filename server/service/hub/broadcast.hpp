@@ -18,7 +18,7 @@
 #include <memory>
 #include <span>
 #include <string_view>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -32,6 +32,38 @@ namespace marzipan::service {
 struct HubCore;
 struct LiveSession;
 class Session;
+
+// HeldSplats' blocks by brick (splatBrickKey): open addressing with linear probing in one array
+// kept at most half full, not a map of nodes. A delta looks up some 25 bricks right after the
+// engine's work has evicted such nodes from the caches: as a std::unordered_map those lookups
+// were ~1% of the server's CPU under load (docs/benchmark-log.md, capacity). Entries are only
+// added and replaced, and cleared all at once. A block's bytes stay where they are when the
+// array grows (its vector is moved), so spans of them outlive later additions.
+class HeldBlocks {
+ public:
+  struct Entry {
+    std::uint64_t key = kNone;
+    std::vector<std::uint8_t> block;
+  };
+  static constexpr std::uint64_t kNone = ~std::uint64_t(0);  // no splatBrickKey is this
+
+  // key's block, added empty when it had none (added).
+  std::pair<std::vector<std::uint8_t>*, bool> findOrAdd(std::uint64_t key);
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  void clear();  // the array too
+  template <class F>
+  void forEach(F f) const {
+    for (const Entry& e : entries_)
+      if (e.key != kNone) f(e.key, e.block);
+  }
+
+ private:
+  std::size_t slotOf(std::uint64_t key) const { return std::size_t((key * 0x9e3779b97f4a7c15ull) >> shift_); }
+  std::vector<Entry> entries_;  // a power of two of them, or none
+  int shift_ = 64;              // 64 - log2(entries_.size())
+  std::size_t size_ = 0;
+};
 
 // What every splats-mode client of a session holds of the bricks deltas listed: per brick, its
 // block as encoded (protocol/cpp/splats.hpp). A delta leaves out a brick whose block comes out
@@ -49,7 +81,7 @@ class Session;
 struct HeldSplats {
   const Session* of = nullptr;
   std::uint64_t revision = 0;
-  std::unordered_map<std::uint64_t, std::vector<std::uint8_t>> blocks;  // key: splatBrickKey
+  HeldBlocks blocks;
   std::size_t bytes = 0;  // the blocks' capacities plus kEntryBytes each
   int buffersInFlight = 0;  // splats.get buffers of splats-mode clients not yet queued (not cleared)
   // Past half the volume's own memory, or kMaxBytes, the record starts afresh (its bricks are
@@ -58,7 +90,8 @@ struct HeldSplats {
   // The volume's memory is read only past kCheckBytes.
   static constexpr std::size_t kMaxBytes = std::size_t(32) << 20;
   static constexpr std::size_t kCheckBytes = std::size_t(1) << 20;
-  static constexpr std::size_t kEntryBytes = 96;  // a map node and its vector (measured ~88)
+  // An entry's share of HeldBlocks' array: 32 bytes, the array between a quarter and half full.
+  static constexpr std::size_t kEntryBytes = 96;
   void clear();
   // The splat buffer (protocol/cpp/splats.hpp) of the bricks of `fresh` whose blocks differ from
   // the recorded ones (or are not recorded), which it records; then the bound, for a record of
