@@ -64,17 +64,27 @@ class WsSession::Link : public service::ClientLink {
 // What one piece of the hub's work sent several connections, in one post to the network thread:
 // onto the first live connection's strand, where each connection is handed its items (its own
 // at once, the others' posted onto their strands from the network thread, which wakes no one).
+// Each connection's items take its ticket here, so they keep their place among what else it is
+// handed (the Order convention of websocket_session.hpp).
 class WsSession::Carrier final : public service::ClientLink::Carrier {
  public:
   void carry(std::vector<service::ClientLink::Delivery> deliveries) override {
-    std::vector<std::pair<std::shared_ptr<WsSession>, std::vector<service::ClientLink::Item>>> live;
+    struct Handed {
+      std::shared_ptr<WsSession> ws;
+      std::uint64_t ticket;
+      std::vector<service::ClientLink::Item> items;
+    };
+    std::vector<Handed> live;
     live.reserve(deliveries.size());
     for (auto& d : deliveries)
-      if (auto ws = static_cast<const Link&>(*d.link).session()) live.emplace_back(std::move(ws), std::move(d.items));
+      if (auto ws = static_cast<const Link&>(*d.link).session()) {
+        const std::uint64_t ticket = ws->takeTicket();
+        live.push_back({std::move(ws), ticket, std::move(d.items)});
+      }
     if (live.empty()) return;
-    const auto executor = live.front().first->ws_.get_executor();
+    const auto executor = live.front().ws->ws_.get_executor();
     asio::post(executor, [live = std::move(live)]() mutable {
-      for (auto& [ws, items] : live) ws->sendAll(std::move(items));
+      for (Handed& h : live) h.ws->deliver(h.ticket, std::move(h.items));
     });
   }
 };
@@ -113,44 +123,78 @@ void WsSession::run(http::request<http::string_body> req) {
   ws_.async_accept(req, beast::bind_front_handler(&WsSession::onAccept, shared_from_this()));
 }
 
+// In turn, `apply` runs at once (no copy of it is made); early, it waits in early_, which holds
+// no reference to the session: it runs from a later hand-over of the same session, or never.
+// The turn moves on before a hand-over is applied, so one that throws (out of memory) does not
+// hold back those after it.
+template <class Apply>
+void WsSession::inTurn(std::uint64_t ticket, Apply&& apply) {
+  if (ticket == turn_) {
+    ++turn_;
+    apply();
+  } else {
+    early_.emplace(ticket, std::forward<Apply>(apply));
+  }
+  if (!early_.empty()) runEarly();
+}
+
+void WsSession::runEarly() {
+  while (!early_.empty() && early_.begin()->first == turn_) {
+    const std::function<void()> waiting = std::move(early_.begin()->second);
+    early_.erase(early_.begin());
+    ++turn_;
+    waiting();
+  }
+}
+
 void WsSession::send(std::shared_ptr<const std::string> text, std::shared_ptr<const std::vector<std::uint8_t>> binary,
                      bool latestWins) {
-  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), text = std::move(text), binary = std::move(binary),
-                                      latestWins] {
-    self->enqueue(text, binary, latestWins);
-    self->write();
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), ticket = takeTicket(), text = std::move(text),
+                                      binary = std::move(binary), latestWins] {
+    self->inTurn(ticket, [s = self.get(), text, binary, latestWins] {
+      s->enqueue(text, binary, latestWins);
+      s->write();
+    });
   });
 }
 
 void WsSession::sendTogether(std::vector<service::ClientLink::Message> messages) {
-  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), messages = std::move(messages)]() mutable {
-    for (auto& m : messages) self->enqueue(std::move(m.text), std::move(m.binary), false);
-    self->write();
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), ticket = takeTicket(), messages = std::move(messages)]() mutable {
+    self->inTurn(ticket, [s = self.get(), messages = std::move(messages)]() mutable {
+      for (auto& m : messages) s->enqueue(std::move(m.text), std::move(m.binary), false);
+      s->write();
+    });
   });
 }
 
 void WsSession::sendTransient(std::vector<service::ClientLink::Transient> texts) {
-  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), texts = std::move(texts)]() mutable {
-    if (self->closing_) return;
-    for (auto& t : texts) self->enqueueTransient(std::move(t.text), t.key);
-    self->write();
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), ticket = takeTicket(), texts = std::move(texts)]() mutable {
+    self->inTurn(ticket, [s = self.get(), texts = std::move(texts)]() mutable {
+      if (s->closing_) return;
+      for (auto& t : texts) s->enqueueTransient(std::move(t.text), t.key);
+      s->write();
+    });
   });
 }
 
-void WsSession::sendAll(std::vector<service::ClientLink::Item> items) {
-  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), items = std::move(items)]() mutable {
-    for (auto& i : items) {
-      if (self->closing_) return;
-      if (i.transient) self->enqueueTransient(std::move(i.text), i.key);
-      else self->enqueue(std::move(i.text), std::move(i.binary), i.latestWins);
-    }
-    self->write();
+void WsSession::sendAll(std::vector<service::ClientLink::Item> items) { deliver(takeTicket(), std::move(items)); }
+
+void WsSession::deliver(std::uint64_t ticket, std::vector<service::ClientLink::Item> items) {
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), ticket, items = std::move(items)]() mutable {
+    self->inTurn(ticket, [s = self.get(), items = std::move(items)]() mutable {
+      for (auto& i : items) {
+        if (s->closing_) return;
+        if (i.transient) s->enqueueTransient(std::move(i.text), i.key);
+        else s->enqueue(std::move(i.text), std::move(i.binary), i.latestWins);
+      }
+      s->write();
+    });
   });
 }
 
 void WsSession::close(websocket::close_code code, std::string reason) {
-  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), code, reason = std::move(reason)] {
-    self->startClose(code, reason);
+  asio::dispatch(ws_.get_executor(), [self = shared_from_this(), ticket = takeTicket(), code, reason = std::move(reason)] {
+    self->inTurn(ticket, [s = self.get(), code, reason] { s->startClose(code, reason); });
   });
 }
 

@@ -14,6 +14,13 @@
 // hand-over's messages (sendTogether, sendAll) are queued together and so leave in one TCP push,
 // as does a batch of transients, and nothing waits for what comes after it.
 //
+// Order: whatever the hub hands one connection reaches its strand by one of two ways, its own
+// dispatch or a carrier's post onto another connection's strand and from there onward, so two
+// hand-overs could arrive in the other order than they were made (another sculptor's revision
+// r + 1 before r). Each hand-over (send, sendTogether, sendTransient, sendAll, close, a carry)
+// takes a ticket where it is made, and the strand applies them in ticket order: one that comes
+// early waits, with its items, until those before it have come.
+//
 // Separate from the HTTP session because it is the other half of the Beast code: the WebSocket
 // stream's operations are instantiated in websocket_session.cpp alone; http_session.cpp (which
 // makes it) and http_server.cpp (which closes it at shutdown) only parse this header.
@@ -26,9 +33,12 @@
 #include <boost/beast/websocket/stream.hpp>
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -63,6 +73,15 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void close(websocket::close_code code, std::string reason);
 
  private:
+  // The next ticket (see Order above): taken in the caller's thread, in the order of the calls.
+  std::uint64_t takeTicket() { return tickets_.fetch_add(1, std::memory_order_relaxed); }
+  // On the strand: runs `apply` in its ticket's turn, now or once the tickets before it came.
+  template <class Apply>
+  void inTurn(std::uint64_t ticket, Apply&& apply);
+  void runEarly();  // what waited for the turns now reached
+  // sendAll with its ticket already taken (a carrier takes it when it is handed the items).
+  void deliver(std::uint64_t ticket, std::vector<service::ClientLink::Item> items);
+
   class Link;     // the hub's view of this connection
   class Carrier;  // hands several connections their messages in one post (ClientLink::Carrier)
 
@@ -102,6 +121,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::deque<Out> queue_;        // waiting to be written
   std::vector<Out> writing_;     // in flight: one gathered write (unchanged until it completes)
   std::size_t queuedBytes_ = 0;  // the charges of what is queued, those in flight included
+  std::atomic<std::uint64_t> tickets_{0};
+  std::uint64_t turn_ = 0;                                 // on the strand: the ticket applied next
+  std::map<std::uint64_t, std::function<void()>> early_;   // on the strand: hand-overs before their turn
   bool closing_ = false, closeAfterWrite_ = false, joined_ = false;
   websocket::close_reason closeReason_;
   std::string closeReasonText_;

@@ -440,6 +440,71 @@ TEST_CASE("ws: a change's notification and splat delta leave in one TCP push", "
   CHECK(segments <= std::uint32_t(kChanges + 2));
 }
 
+TEST_CASE("ws: two editors of one session each get every change in revision order", "[net][ws]") {
+  // Each piece of the hub's work hands its connections their messages in one post (Outbox,
+  // WsSession::Carrier) onto the requester's strand, which passes the others theirs. A's edit
+  // reaches X through A's strand, X's own edit through X's: unless each connection applies
+  // what it is handed in the order it was sent, X could get revision r + 1 before r.
+  Server s("ws-order");
+  Client a(s.server->port()), x(s.server->port());
+  const json created = a.call(1, "session.create", {{"size", {48, 48, 48}}, {"solid", "sphere"}, {"view", "none"}});
+  REQUIRE(created.contains("result"));
+  REQUIRE(x.call(1, "session.join", {{"session", created["result"]["session"]},
+                                     {"token", created["result"]["token"]}, {"view", "none"}})
+              .contains("result"));
+  constexpr int kEdits = 120, kWindow = 8;
+  // Each editor keeps kWindow requests in flight (below the hub's max_pending_messages) and
+  // reads as it goes, noting the revision of each session.changed it is sent, until it has its
+  // answers; then both read on until the last revision. Every edit changes the volume: add and
+  // remove blobs in turn on the sphere's surface (radius 0.35 of the side, on x at 7.0 and 40.0).
+  struct Seen {
+    std::vector<std::int64_t> changes;
+    std::int64_t lastAnswered = 0;
+  };
+  const auto readOne = [](Client& c, Seen& seen) {
+    const auto m = c.read();
+    if (!m) return false;
+    if (!m->text) return true;
+    const json j = json::parse(m->data);
+    if (j.contains("id")) seen.lastAnswered = std::max(seen.lastAnswered, j["result"]["revision"].get<std::int64_t>());
+    else if (j.value("method", "") == "session.changed") seen.changes.push_back(j["params"]["revision"].get<std::int64_t>());
+    return true;
+  };
+  const auto edit = [&](Client& c, double x0, Seen& seen) {
+    int answers = 0;
+    for (int i = 0; i < kEdits; ++i) {
+      c.sendText(json{{"jsonrpc", "2.0"},
+                      {"id", 100 + i},
+                      {"method", "tool.apply"},
+                      {"params", {{"tool", i % 2 ? "remove_blob" : "add_blob"}, {"center", {x0, 24, 24}}, {"radius", 2}}}}
+                     .dump());
+      for (; answers + kWindow <= i; ++answers) {
+        const std::int64_t before = seen.lastAnswered;
+        while (seen.lastAnswered == before)
+          if (!readOne(c, seen)) return;
+      }
+    }
+    for (; answers < kEdits; ++answers) {
+      const std::int64_t before = seen.lastAnswered;
+      while (seen.lastAnswered == before)
+        if (!readOne(c, seen)) return;
+    }
+  };
+  Seen forA, forX;
+  std::thread fromA([&] { edit(a, 7.0, forA); });
+  edit(x, 40.0, forX);
+  fromA.join();
+  const std::int64_t last = std::max(forA.lastAnswered, forX.lastAnswered);
+  for (auto [c, seen] : {std::pair{&a, &forA}, std::pair{&x, &forX}}) {
+    while (std::find(seen->changes.begin(), seen->changes.end(), last) == seen->changes.end())
+      if (!readOne(*c, *seen)) break;
+    CHECK(seen->changes.size() == std::size_t(2 * kEdits));
+    std::size_t outOfOrder = 0;
+    for (std::size_t i = 1; i < seen->changes.size(); ++i) outOfOrder += seen->changes[i] <= seen->changes[i - 1];
+    CHECK(outOfOrder == 0);
+  }
+}
+
 TEST_CASE("ws: one answer larger than the queue bound reaches a client that reads", "[net][ws]") {
   HubOptions o;
   o.limits.maxQueuedBytes = std::size_t(64) << 10;
