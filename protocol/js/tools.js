@@ -169,7 +169,18 @@ export const PARAMETERS = frozen({
     "maximum": 64,
     "default": 8,
     "in": ["stroke"],
-    "description": "radius of the warp: nothing farther than this from the anchor (grab, snake hook: from the drag's segment) moves",
+    "description": "radius of the warp: nothing farther than this from the anchor (grab: from the drag's segment) moves",
+  },
+  "snake_radius": {
+    "id": "snake_radius",
+    "key": "radius",
+    "type": "number",
+    "unit": "vu",
+    "minimum": 5,
+    "maximum": 64,
+    "default": 8,
+    "in": ["stroke"],
+    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick, and a thinner one than a radius of 5 gives is lost to the resampling within a few moves",
   },
   "elastic_radius": {
     "id": "elastic_radius",
@@ -363,7 +374,7 @@ export const TOOLS = frozen([
     "dabs": "path",
     "inverse": null,
     "description": "the anchor follows the dabs, each a small grab from where the last left it: a long drag pulls out a tentacle along its path",
-    "params": [PARAMETERS["warp_radius"], PARAMETERS["strength"]],
+    "params": [PARAMETERS["snake_radius"], PARAMETERS["strength"]],
     "browser": {
       "key": "k",
       "short": "Snake",

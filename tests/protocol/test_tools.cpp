@@ -196,6 +196,7 @@ TEST_CASE("the parameter constants the parsers name are the registry's", "[tools
   same(kParamMorphRadius, "morph_radius");
   same(kParamWarpRadius, "warp_radius");
   same(kParamElasticRadius, "elastic_radius");
+  same(kParamSnakeRadius, "snake_radius");
   same(kParamVolume, "volume");
   same(kParamHardness, "hardness");
   CHECK(kParamPaintColor.key == param("paint_color")["key"].get<std::string>());

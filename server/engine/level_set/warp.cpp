@@ -1346,6 +1346,7 @@ double tipRadius(const Volume& vol, Vec3 centre, Vec3 along, double most) {
 // it starts from, its segment sunk into the tip (sinkShare()).
 Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
   if (!isFinite(target)) throw EngineError(ErrorKind::InvalidArgument, "target", "must be three finite numbers");
+  requireRange(radius, kMinSnakeHookRadius, kMaxWarpRadius, "radius");
   checkAnchor(vol, anchor);
   // Each resample rounds the tip a little, so the surface drifts off the anchor the caller
   // carries from move to move (1.5 vu over 97 moves of a 200 vu drag): the move starts from the
