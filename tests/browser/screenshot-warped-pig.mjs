@@ -12,7 +12,7 @@ import { shootPig } from "./pig-shot.mjs";
 
 const plan = [
   ["grab", 8, [[0.436, 0.27], [0.47, 0.15]]],
-  ["snake_hook", 4, [[0.652, 0.293], [0.72, 0.27], [0.77, 0.2], [0.75, 0.13]]],
+  ["snake_hook", 5, [[0.652, 0.293], [0.72, 0.27], [0.77, 0.2], [0.75, 0.13]]],
   ["twist", 12, [[0.242, 0.55], [0.3, 0.55]]],
 ];
 await shootPig(process.argv[2] || join(repoRoot, "web-client/images/warped-pig.png"), async ({ stroke }) => {
