@@ -180,7 +180,7 @@ export const PARAMETERS = frozen({
     "maximum": 64,
     "default": 8,
     "in": ["stroke"],
-    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick, and a thinner one than a radius of 5 gives is lost to the resampling within a few moves",
+    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick; a thinner one loses its tip to the resampling within 20-30 moves",
   },
   "elastic_radius": {
     "id": "elastic_radius",
