@@ -122,6 +122,17 @@ void checkSoundSolid(const Volume& v, double maxError = 0.1, double meanError = 
   CHECK(e.mean <= meanError);
 }
 
+// A snake hook's tentacle along the pointer's path (the first anchor first): the tip on the
+// path's last point, and every point of the path inside the clay, each within 0.25 vu.
+void checkFollowsPath(const Volume& v, const std::vector<Vec3>& path) {
+  INFO("value at the end " << v.sample(path.back()));
+  CHECK(std::fabs(v.sample(path.back())) <= 0.25);
+  double worst = -1e9;
+  for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
+  INFO("largest value along the path " << worst);
+  CHECK(worst <= 0.25);
+}
+
 // A warped sphere against the exact distance of the same shape (warp_reference.hpp): the
 // gradient error of each over the whole volume (the brushes' measure, on the voxels next to the
 // zero set), and |ours - exact| over the whole band.
@@ -316,13 +327,7 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   for (std::size_t i = 1; i < path.size(); ++i) snakeHook(v, path[i - 1], path[i], r);
   // Each move starts from the surface point nearest the anchor, so the tip stays on the pointer
   // (without that it drifted 1.5 vu off over these moves).
-  INFO("value at the end " << v.sample(path.back()));
-  CHECK(std::fabs(v.sample(path.back())) <= 0.25);
-  // The tentacle holds the whole path.
-  double worst = -1e9;
-  for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
-  INFO("largest value along the path " << worst);
-  CHECK(worst <= 0.25);
+  checkFollowsPath(v, path);
   // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
   // of a slice across y, a slice of the slanting tentacle a little longer than its section)
   // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 3.61 and 4.18 vu
@@ -406,12 +411,8 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
         at = at + dir * step;
         path.push_back(at);
       }
-    INFO("moves of " << step << " vu, radius " << r << ": value at the end " << v.sample(at));
-    CHECK(std::fabs(v.sample(at)) <= 0.25);
-    double worst = -1e9;
-    for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
-    INFO("largest value along the path " << worst);
-    CHECK(worst <= 0.25);
+    INFO("moves of " << step << " vu, radius " << r);
+    checkFollowsPath(v, path);
     checkSoundSolid(v, maxError, meanError);
   }
 }
@@ -890,12 +891,8 @@ TEST_CASE("a snake hook of the smallest radius pulls out a thin tentacle along t
         at = next;
         path.push_back(at);
       }
-      INFO("path " << which << ", moves of " << step << " vu: value at the end " << v.sample(at));
-      CHECK(std::fabs(v.sample(at)) <= 0.25);
-      double worst = -1e9;
-      for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
-      INFO("largest value along the path " << worst);
-      CHECK(worst <= 0.25);
+      INFO("path " << which << ", moves of " << step << " vu");
+      checkFollowsPath(v, path);
       // The gradient error past the brushes' limits, largest at the turns (as with the right
       // angles above): measured max / mean 0.136 / 0.0064 and 0.140 / 0.0077 slanting, 0.275 /
       // 0.0058 and 0.278 / 0.0073 on the helix, 0.677 / 0.0172 and 0.779 / 0.0207 along the
