@@ -592,35 +592,121 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
   CHECK(afterAnswer >= 1);
 }
 
+namespace {
+
+// Holds the worker that answers request `gate` at its binary frame, then at its result, until
+// the test lets each go (opened), so that edits can run on the strand in between. A strand task
+// sends its responses from inside itself (HubCore::finish flushes them before the connection's
+// next message is taken): holding a response sent there holds the session's strand. With
+// `order`, records the id of every response it is sent, in one list shared by several links:
+// the order of the strand's tasks when each of them answered on the strand.
+struct SendOrder {
+  std::mutex mutex;
+  std::vector<std::pair<const void*, json>> sent;  // (link, response id)
+};
+
+struct GateLink : CaptureLink {
+  std::mutex gateMutex;
+  std::condition_variable gateCv;
+  std::atomic<int> gate{-1};
+  bool atFrame = false, atResult = false, frameOpen = false, resultOpen = false;
+  std::shared_ptr<SendOrder> order;
+
+  // Called on the hub's threads: no Catch assertions here (Catch is not thread-safe).
+  void sendBinary(std::shared_ptr<const Bytes> frame, bool droppable) override {
+    if (const auto d = protocol::decodeFrameHeader(*frame); d && int(d.frame->header.requestId) == gate)
+      hold(atFrame, frameOpen);
+    CaptureLink::sendBinary(frame, droppable);
+  }
+  void sendText(std::string text) override {
+    const json j = json::parse(text);
+    if (order && j.contains("id")) {
+      const std::lock_guard lock(order->mutex);
+      order->sent.emplace_back(this, j["id"]);
+    }
+    if (j.contains("id") && j["id"] == gate.load()) hold(atResult, resultOpen);
+    CaptureLink::sendText(std::move(text));
+  }
+  void hold(bool& at, bool& open) {
+    std::unique_lock lock(gateMutex);
+    at = true;
+    gateCv.notify_all();
+    gateCv.wait(lock, [&] { return open; });
+  }
+  void waitUntil(bool& flag) {
+    std::unique_lock lock(gateMutex);
+    gateCv.wait(lock, [&] { return flag; });
+  }
+  void set(bool& flag) {
+    const std::lock_guard lock(gateMutex);
+    flag = true;
+    gateCv.notify_all();
+  }
+  // Holds the next answer to `id` anew.
+  void gateAt(int id) {
+    const std::lock_guard lock(gateMutex);
+    atFrame = atResult = frameOpen = resultOpen = false;
+    gate = id;
+  }
+};
+
+}  // namespace
+
 TEST_CASE("a client's stream of stroke.begin does not hold back another client's edit", "[hub]") {
   // Every message takes its turn on the session's strand behind those already waiting there,
   // whatever its method: a client sending stroke.begin after stroke.begin without waiting for the
-  // answers (each ends the stroke before it, a journal record each) gets a turn or two before
-  // another client's edit, not all of them. Thirty begins take ~1 ms after the edit is answered;
-  // one round in five must see the edit answered first (a loaded machine may stall this thread).
+  // answers (each ends the stroke before it, a journal record each) gets one turn before another
+  // client's edit waiting behind its first, not all of them. No timing decides it: b's own
+  // stroke.begin holds the strand (its answer is held, see GateLink) while a's first begin and
+  // b's edit are handed over; the order is read from the answers as the strand sent them.
   Hub hub(smallOptions());
-  TestClient a(hub), b(hub);
-  const json created = a.result("session.create", kCreate64);
-  b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}});
+  TestClient a0(hub);
+  const json created = a0.result("session.create", kCreate64);
+  const auto order = std::make_shared<SendOrder>();
+  const auto joined = [&](const std::string& peer) {
+    auto link = std::make_shared<GateLink>();
+    link->order = order;
+    const auto client = hub.connect(link, peer);
+    hub.text(client, json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "session.join"},
+                          {"params", {{"session", created["session"]}, {"token", created["token"]}, {"view", "none"}}}}
+                         .dump());
+    link->waitFor([](const auto& m) { return isResponse(m, 1); });
+    return std::pair{link, client};
+  };
+  const auto [aLink, a] = joined("a");
+  const auto [bLink, b] = joined("b");
+  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
+    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+  };
+  const json begin = {{"tool", "add_blob"}, {"radius", 4}, {"strength", 0.5}};
   constexpr int kBegins = 30;
-  int editFirst = 0;
   for (int round = 0; round < 5; ++round) {
-    const int first = 1000 + 100 * round;
-    const std::size_t mark = a.link->size();
-    for (int i = 0; i < kBegins; ++i)
-      hub.text(a.client, json{{"jsonrpc", "2.0"},
-                              {"id", first + i},
-                              {"method", "stroke.begin"},
-                              {"params", {{"tool", "add_blob"}, {"radius", 4}, {"strength", 0.5}}}}
-                             .dump());
-    const json edit = b.call("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
-    REQUIRE(edit.contains("result"));
-    bool lastAnswered = false;
-    for (std::size_t i = mark; i < a.link->size(); ++i) lastAnswered = lastAnswered || isResponse(a.link->at(i), first + kBegins - 1);
-    editFirst += lastAnswered ? 0 : 1;
-    a.link->waitFor([&](const auto& m) { return isResponse(m, first + kBegins - 1); }, mark);
+    const int first = 1000 + 100 * round, hold = 10 + 2 * round, edit = hold + 1;
+    bLink->gateAt(hold);
+    send(b, hold, "stroke.begin", begin);
+    bLink->waitUntil(bLink->atResult);
+    {
+      const std::lock_guard lock(order->mutex);
+      order->sent.clear();
+    }
+    for (int i = 0; i < kBegins; ++i) send(a, first + i, "stroke.begin", begin);
+    send(b, edit, "tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    bLink->set(bLink->resultOpen);
+    const std::size_t answered = bLink->waitFor([&](const auto& m) { return isResponse(m, edit); });
+    CHECK(std::get<json>(bLink->at(answered)).contains("result"));
+    aLink->waitFor([&](const auto& m) { return isResponse(m, first + kBegins - 1); });
+    const std::lock_guard lock(order->mutex);
+    std::vector<std::pair<const void*, json>> answers;
+    for (const auto& s : order->sent)
+      if (s.second != hold) answers.push_back(s);
+    REQUIRE(answers.size() == kBegins + 1);
+    INFO("round " << round);
+    CHECK(answers[0] == std::pair<const void*, json>(aLink.get(), first));
+    CHECK(answers[1] == std::pair<const void*, json>(bLink.get(), edit));
+    for (int i = 1; i < kBegins; ++i) CHECK(answers[std::size_t(i + 1)] == std::pair<const void*, json>(aLink.get(), first + i));
   }
-  CHECK(editFirst >= 1);
+  hub.disconnect(a);
+  hub.disconnect(b);
 }
 
 TEST_CASE("undo and redo restore exact digests, splat deltas add up to a fresh full buffer", "[hub]") {
@@ -719,44 +805,6 @@ TEST_CASE("after a splats-mode client's splats.get the next delta sends every br
   CHECK(listed[0] < listed[1]);
 }
 
-namespace {
-
-// Holds the worker that answers request `gate` at its binary frame, then at its result, until
-// the test lets each go (opened), so that edits can run on the strand in between.
-struct GateLink : CaptureLink {
-  std::mutex gateMutex;
-  std::condition_variable gateCv;
-  std::atomic<int> gate{-1};
-  bool atFrame = false, atResult = false, frameOpen = false, resultOpen = false;
-
-  // Called on the hub's threads: no Catch assertions here (Catch is not thread-safe).
-  void sendBinary(std::shared_ptr<const Bytes> frame, bool droppable) override {
-    if (const auto d = protocol::decodeFrameHeader(*frame); d && int(d.frame->header.requestId) == gate)
-      hold(atFrame, frameOpen);
-    CaptureLink::sendBinary(frame, droppable);
-  }
-  void sendText(std::string text) override {
-    if (const json j = json::parse(text); j.contains("id") && j["id"] == gate.load()) hold(atResult, resultOpen);
-    CaptureLink::sendText(std::move(text));
-  }
-  void hold(bool& at, bool& open) {
-    std::unique_lock lock(gateMutex);
-    at = true;
-    gateCv.notify_all();
-    gateCv.wait(lock, [&] { return open; });
-  }
-  void waitUntil(bool& flag) {
-    std::unique_lock lock(gateMutex);
-    gateCv.wait(lock, [&] { return flag; });
-  }
-  void set(bool& flag) {
-    const std::lock_guard lock(gateMutex);
-    flag = true;
-    gateCv.notify_all();
-  }
-};
-
-}  // namespace
 
 TEST_CASE("edits while a splats-mode client's splats.get buffer is on its way leave it with the session's splats",
           "[hub]") {
