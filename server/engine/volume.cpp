@@ -726,62 +726,6 @@ void Volume::setSlots(std::size_t n, SlotAt slotAt) {
   }
 }
 
-BrickDrift Volume::driftOf(const DriftSlot& d, Int3 b) {
-  if (d.hi[0] == 0) return {};
-  const Int3 o = Bricks::origin(b);
-  return {d.move, {{o.x + d.lo[0], o.y + d.lo[1], o.z + d.lo[2]}, {o.x + d.hi[0], o.y + d.hi[1], o.z + d.hi[2]}}};
-}
-
-BrickDrift Volume::brickDrift(Int3 b) const {
-  if (driftTiles_.empty()) return {};
-  const DriftTile* t = driftTiles_[tileIndex(b)].get();
-  return t ? driftOf(t->slots[slotInTile(b)], b) : BrickDrift{};
-}
-
-void Volume::brickDrifts(const Box& bricks, BrickDrift* out) const {
-  const std::size_t n = std::size_t(bricks.voxels());
-  std::fill(out, out + n, BrickDrift{});
-  if (driftTiles_.empty()) return;
-  std::size_t k = 0;
-  for (int z = bricks.lo.z; z < bricks.hi.z; ++z)
-    for (int y = bricks.lo.y; y < bricks.hi.y; ++y)
-      for (int x = bricks.lo.x; x < bricks.hi.x; ++x, ++k)
-        if (const DriftTile* t = driftTiles_[tileIndex({x, y, z})].get()) out[k] = driftOf(t->slots[slotInTile({x, y, z})], {x, y, z});
-}
-
-void Volume::setBrickDrift(std::span<const std::pair<Int3, BrickDrift>> drifts) {
-  if (drifts.empty()) return;
-  if (driftTiles_.empty()) driftTiles_.assign(tiles_.size(), nullptr);
-  // Tile by tile in the given order: each run of one tile's bricks copies it once.
-  std::size_t i = 0;
-  while (i < drifts.size()) {
-    const std::size_t ti = tileIndex(drifts[i].first);
-    auto t = driftTiles_[ti] ? std::make_shared<DriftTile>(*driftTiles_[ti]) : std::make_shared<DriftTile>();
-    for (; i < drifts.size() && tileIndex(drifts[i].first) == ti; ++i) {
-      const auto& [b, drift] = drifts[i];
-      DriftSlot& d = t->slots[slotInTile(b)];
-      t->present -= d.hi[0] != 0 ? 1 : 0;
-      d = {};
-      const Box in = drift.box.intersect(Bricks::box(b));
-      if (in.empty()) continue;
-      const Int3 o = Bricks::origin(b);
-      d.move = drift.move;
-      for (int a = 0; a < 3; ++a) {
-        d.lo[a] = std::uint8_t(in.lo[a] - o[a]);
-        d.hi[a] = std::uint8_t(in.hi[a] - o[a]);
-      }
-      ++t->present;
-    }
-    driftTiles_[ti] = t->present != 0 ? std::move(t) : nullptr;
-  }
-}
-
-std::size_t Volume::driftedBricks() const {
-  std::size_t n = 0;
-  for (const auto& t : driftTiles_) n += t ? std::size_t(t->present) : 0;
-  return n;
-}
-
 std::vector<BrickChange> Volume::fill(bool inside) {
   std::vector<BrickChange> changes;
   for (int bz = 0; bz < brickDims_.z; ++bz)
