@@ -525,73 +525,6 @@ TEST_CASE("the requester gets its response, then the notification, then the delt
   CHECK(note < delta);
 }
 
-TEST_CASE("an edit reaches its session's strand from the thread that takes it, never through the workers' queue",
-          "[hub]") {
-  // Under load every task in the workers' queue waits behind each busy session's turn: a hop
-  // there before the strand doubled a message's wait. HubEvents::request runs in the dispatch,
-  // on the thread that hands the request to its handler.
-  std::mutex mutex;
-  std::vector<std::pair<std::string, std::thread::id>> dispatched;
-  HubOptions o = smallOptions();
-  o.events.request = [&](std::string_view method) {
-    const std::lock_guard lock(mutex);
-    dispatched.emplace_back(std::string(method), std::this_thread::get_id());
-  };
-  const auto dispatcherOf = [&](std::size_t k) {
-    const std::lock_guard lock(mutex);
-    REQUIRE(k < dispatched.size());
-    CHECK(dispatched[k].first == "tool.apply");
-    return dispatched[k].second;
-  };
-  const auto count = [&] {
-    const std::lock_guard lock(mutex);
-    return dispatched.size();
-  };
-  Hub hub(o);
-  TestClient a(hub);
-  a.result("session.create", kCreate64);
-  // On an idle connection: by the thread that hands the message over (the network's). The
-  // worker lets the connection go a moment after its answer, so the test waits before sending,
-  // and a loaded machine may still be slower than that now and then: one round in five must.
-  int onCaller = 0;
-  for (int round = 0; round < 5; ++round) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    const std::size_t k = count();
-    a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 3}});
-    onCaller += dispatcherOf(k) == std::this_thread::get_id();
-  }
-  CHECK(onCaller >= 1);
-  // Queued behind an edit: by the worker that answered that edit, right after answering.
-  int afterAnswer = 0;
-  for (int round = 0; round < 5; ++round) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    const std::size_t k = count(), mark = a.link->size();
-    const int first = 100 + 2 * round, second = first + 1;
-    const auto send = [&](int id, double x) {
-      hub.text(a.client, json{{"jsonrpc", "2.0"},
-                              {"id", id},
-                              {"method", "tool.apply"},
-                              {"params", {{"tool", "smooth"}, {"center", {x, 54, 32}}, {"radius", 10}}}}
-                             .dump());
-    };
-    send(first, 28);
-    send(second, 36);
-    const std::size_t answered = a.link->waitFor([&](const auto& m) { return isResponse(m, first); }, mark);
-    a.link->waitFor([&](const auto& m) { return isResponse(m, second); }, mark);
-    std::thread::id answerer;
-    {
-      const std::lock_guard lock(a.link->mutex);
-      answerer = a.link->senders[answered];
-    }
-    // Or by the test's thread, when the first was done before the second arrived (a loaded
-    // machine); never by another worker.
-    const std::thread::id d = dispatcherOf(k + 1);
-    CHECK((d == answerer || d == std::this_thread::get_id()));
-    afterAnswer += d == answerer;
-  }
-  CHECK(afterAnswer >= 1);
-}
-
 namespace {
 
 // Holds the worker that answers request `gate` at its binary frame, then at its result, until
@@ -648,9 +581,120 @@ struct GateLink : CaptureLink {
     atFrame = atResult = frameOpen = resultOpen = false;
     gate = id;
   }
+  // Lets everything go and holds nothing more: a failed check must not leave the hub's worker
+  // held when the hub shuts down.
+  void openAll() {
+    const std::lock_guard lock(gateMutex);
+    gate = -1;
+    frameOpen = resultOpen = true;
+    gateCv.notify_all();
+  }
+};
+
+// Opens the links' gates when the test leaves, by a failed REQUIRE too (declare after the hub).
+struct OpenOnExit {
+  std::vector<std::shared_ptr<GateLink>> links;
+  ~OpenOnExit() {
+    for (const auto& l : links) l->openAll();
+  }
 };
 
 }  // namespace
+
+TEST_CASE("an edit reaches its session's strand from the thread that takes it, never through the workers' queue",
+          "[hub]") {
+  // Under load every task in the workers' queue waits behind each busy session's turn: a hop
+  // there before the strand doubled a message's wait. HubEvents::request runs in the dispatch,
+  // on the thread that hands the request to its handler. One worker, so that its queue is one
+  // line: a task posted there runs only after the one it is running now has returned. No timing
+  // decides what is checked: the order of that line, and GateLink's holds, do.
+  std::mutex mutex;
+  std::vector<std::thread::id> dispatched;
+  HubOptions o = smallOptions();
+  o.workers = 1;
+  o.events.request = [&](std::string_view) {
+    const std::lock_guard lock(mutex);
+    dispatched.push_back(std::this_thread::get_id());
+  };
+  const auto count = [&] {
+    const std::lock_guard lock(mutex);
+    return dispatched.size();
+  };
+  const auto dispatcherOf = [&](std::size_t k) {
+    const std::lock_guard lock(mutex);
+    REQUIRE(k < dispatched.size());
+    return dispatched[k];
+  };
+  Hub hub(o);
+  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
+    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+  };
+  const auto answer = [&](GateLink& link, int id) {
+    const json r = std::get<json>(link.at(link.waitFor([&](const auto& m) { return isResponse(m, id); })));
+    INFO(r.dump());
+    CHECK(r.contains("result"));
+  };
+  // a edits its session; b, in another, puts its strand's task in the worker's queue.
+  json create = kCreate64;
+  create["view"] = "none";
+  const auto aLink = std::make_shared<GateLink>(), bLink = std::make_shared<GateLink>();
+  const OpenOnExit open{{aLink, bLink}};
+  const auto a = hub.connect(aLink, "a"), b = hub.connect(bLink, "b");
+  send(a, 1, "session.create", create);
+  answer(*aLink, 1);
+  send(b, 1, "session.create", create);
+  answer(*bLink, 1);
+  const json blob = {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 3}};
+
+  // On an idle connection: by the thread that hands the message over (the network's). The
+  // worker lets a's connection go just after sending its answer, in the same task: b's edit,
+  // posted to the worker's queue once that answer is here, is answered after a's connection is
+  // idle again.
+  for (int round = 0; round < 5; ++round) {
+    send(b, 10 + round, "tool.apply", blob);
+    answer(*bLink, 10 + round);
+    const std::size_t k = count();
+    send(a, 10 + round, "tool.apply", blob);
+    answer(*aLink, 10 + round);
+    INFO("round " << round);
+    CHECK(dispatcherOf(k) == std::this_thread::get_id());
+  }
+
+  // Queued behind an edit: by the worker that answered that edit, right after answering, before
+  // it takes the next task of its queue. a's first edit is held at its answer (in its strand
+  // task, see GateLink) while a's second is queued behind it and b's edit is posted to the
+  // worker's queue with its own answer held; when b's answer is reached, a's second must have
+  // been dispatched, by the worker that answered a's first.
+  for (int round = 0; round < 5; ++round) {
+    const int first = 100 + 2 * round, second = first + 1, other = 100 + round;
+    aLink->gateAt(first);
+    bLink->gateAt(other);
+    send(a, first, "tool.apply", blob);
+    aLink->waitUntil(aLink->atResult);
+    send(a, second, "tool.apply", blob);
+    const std::size_t k = count();
+    send(b, other, "tool.apply", blob);
+    REQUIRE(count() == k + 1);  // b's edit, dispatched by this thread on its idle connection
+    aLink->set(aLink->resultOpen);
+    bLink->waitUntil(bLink->atResult);
+    const std::size_t dispatchedBeforeB = count();
+    bLink->set(bLink->resultOpen);
+    const std::size_t answered = aLink->waitFor([&](const auto& m) { return isResponse(m, first); });
+    answer(*aLink, second);
+    answer(*bLink, other);
+    std::thread::id answerer;
+    {
+      const std::lock_guard lock(aLink->mutex);
+      answerer = aLink->senders[answered];
+    }
+    INFO("round " << round);
+    REQUIRE(dispatchedBeforeB == k + 2);
+    CHECK(dispatcherOf(k + 1) == answerer);
+    CHECK(answerer != std::this_thread::get_id());
+  }
+  hub.disconnect(a);
+  hub.disconnect(b);
+}
 
 TEST_CASE("a client's stream of stroke.begin does not hold back another client's edit", "[hub]") {
   // Every message takes its turn on the session's strand behind those already waiting there,
