@@ -163,23 +163,18 @@ struct ListPiece {
   std::size_t nearCount = 0;
 };
 
-// One piece (z-slab) of the flags pass: for the current z-slice, the two bytes of every
-// voxel position (flags = pos, or pos ^ flip where the value is negative), one row of them per
-// band of rows that the same boxes hold, then copied out to the whole slice (slicePos,
-// sliceFlip: a slice is then one run of 16-voxel blocks, where a tool's short rows spent more on
-// their ends than on their voxels); rebuilt only when the boxes holding a slice change.
+// One piece (z-slab) of the flags pass: for the current z-slice, how many reset and how many
+// marked boxes hold each voxel position of it (x fastest), kept as the slices go up (a box adds
+// its rectangle where it begins and takes it away where it ends), and the interior bit of an
+// inner slice's positions; from those the two bytes of each position (flags = pos, or pos ^ flip
+// where the value is negative), in the rows of the boxes that began or ended there, then each
+// slice's flags 16 voxels at a time. (Rebuilt slice by slice from the boxes' merged runs, the
+// pass cost a stroke's slanted line of boxes 0.49M instructions a message, 6% of it: the boxes
+// holding a slice changed at almost every slice, and the runs at almost every row. Now 0.23M.)
 struct FlagPiece {
-  std::vector<std::uint8_t> pos, flip, slicePos, sliceFlip;
-  std::vector<int> bands;  // the first row of each band, then the number of rows
-  std::vector<int> ys;
-  std::vector<std::pair<int, int>> runs, lastRuns;  // a band's: whether inner, reset runs, marker, marked runs
-  std::vector<std::uint32_t> slice, last;  // whether a slice is inner, the reset and marked boxes holding it
-  // The reset and marked boxes holding the slice, grid-local, in increasing x0: a stroke's
-  // slanted line of boxes changes them at almost every slice, and each band of rows tests them all.
-  struct Span {
-    int y0, y1, x0, x1;
-  };
-  std::vector<Span> resetSpans, markedSpans;
+  std::vector<std::uint16_t> resetCount, markedCount;
+  std::vector<std::uint8_t> interior;
+  std::vector<std::uint8_t> pos, flip;  // the slice's two bytes per position (signFlags), as the counts leave them
 };
 
 struct Scratch {
@@ -214,6 +209,45 @@ struct FlagLayout {
   int exactSide;
 };
 
+// Adds delta to the counts of box b's positions in a slice (b grid-local, x fastest).
+void countBox(std::uint16_t* count, std::size_t sx, const Box& b, std::uint16_t delta) {
+  for (int y = b.lo.y; y < b.hi.y; ++y) {
+    std::uint16_t* row = count + std::size_t(y) * sx;
+    for (int x = b.lo.x; x < b.hi.x; ++x) row[x] = std::uint16_t(row[x] + delta);
+  }
+}
+
+// The two bytes of n voxel positions (flags = pos, or pos ^ flip where the value is negative)
+// from the boxes' counts and the interior bits (null: none), as FlagLayout puts them.
+void flagPattern(std::size_t n, const std::uint16_t* reset, const std::uint16_t* marked, const std::uint8_t* interior,
+                 std::uint8_t base, std::uint8_t resetPos, std::uint8_t resetFlip, std::uint8_t* pos, std::uint8_t* flip) {
+  std::size_t x = 0;
+#if defined(MARZIPAN_SSE2)
+  const __m128i zero = _mm_setzero_si128(), baseV = _mm_set1_epi8(char(base));
+  const __m128i resetPosV = _mm_set1_epi8(char(resetPos)), resetFlipV = _mm_set1_epi8(char(resetFlip));
+  const __m128i negV = _mm_set1_epi8(char(kNeg)), markedV = _mm_set1_epi8(char(kMarked));
+  auto none = [&](const std::uint16_t* c) __attribute__((always_inline)) {  // 0xff where no box holds it
+    const __m128i a = _mm_cmpeq_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(c + x)), zero);
+    const __m128i b = _mm_cmpeq_epi16(_mm_loadu_si128(reinterpret_cast<const __m128i*>(c + x + 8)), zero);
+    return _mm_packs_epi16(a, b);
+  };
+  for (; x + 16 <= n; x += 16) {
+    const __m128i outside = none(reset), unmarked = none(marked);
+    __m128i p = _mm_or_si128(_mm_andnot_si128(outside, resetPosV), _mm_and_si128(outside, baseV));
+    p = _mm_or_si128(p, _mm_andnot_si128(unmarked, markedV));
+    if (interior) p = _mm_or_si128(p, _mm_loadu_si128(reinterpret_cast<const __m128i*>(interior + x)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(pos + x), p);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(flip + x),
+                     _mm_or_si128(_mm_andnot_si128(outside, resetFlipV), _mm_and_si128(outside, negV)));
+  }
+#endif
+  for (; x < n; ++x) {
+    const bool inReset = reset[x] != 0;
+    pos[x] = std::uint8_t((inReset ? resetPos : base) | (interior ? interior[x] : 0) | (marked[x] != 0 ? kMarked : 0));
+    flip[x] = inReset ? resetFlip : kNeg;
+  }
+}
+
 // The flags of z-slices [z0, z1) of g. Each voxel's byte depends only on its position and the
 // sign of its value, so any split into slabs gives the same bytes.
 void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layout, int z0, int z1, FlagPiece& fp,
@@ -223,100 +257,45 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
   const int yLo = std::min(2, sy), yHi = std::max(yLo, sy - 2);
   const std::uint8_t resetPos = std::uint8_t(kReset | (layout.exactSide > 0 ? kKnown | kFrozen : 0));
   const std::uint8_t resetFlip = std::uint8_t(kNeg | (layout.exactSide != 0 ? kKnown | kFrozen : 0));
-  constexpr std::uint32_t kSeparator = ~std::uint32_t(0);
-  const float* v = g.v.data();
-  bool built = false;
-  // The x-runs (grid-local, merged) of the spans holding row y.
-  auto runs = [&](const std::vector<FlagPiece::Span>& spans, int y) {
-    bool open = false;
-    int lo = 0, hi = 0;
-    for (const FlagPiece::Span& b : spans) {
-      if (y < b.y0 || y >= b.y1) continue;
-      if (open && b.x0 <= hi) {
-        hi = std::max(hi, b.x1);
-        continue;
-      }
-      if (open) fp.runs.push_back({lo, hi});
-      open = true, lo = b.x0, hi = b.x1;
-    }
-    if (open) fp.runs.push_back({lo, hi});
+  const std::size_t n = g.sxy;
+  fp.resetCount.assign(n, 0);
+  fp.markedCount.assign(n, 0);
+  fp.interior.assign(n, 0);
+  for (int y = yLo; y < yHi; ++y)
+    std::fill_n(fp.interior.begin() + std::ptrdiff_t(std::size_t(y) * g.sx + std::size_t(xLo)), xHi - xLo, kInterior);
+  // Box b grid-local as its slices' rectangles, and whether it holds slice vz (an empty box none).
+  auto local = [&](const Box& b) {
+    return Box{{b.lo.x - g.box.lo.x, b.lo.y - g.box.lo.y, 0}, {b.hi.x - g.box.lo.x, b.hi.y - g.box.lo.y, 1}};
   };
+  auto holds = [](const Box& b, int vz) { return vz >= b.lo.z && vz < b.hi.z && b.lo.x < b.hi.x && b.lo.y < b.hi.y; };
+  fp.pos.resize(n);
+  fp.flip.resize(n);
+  const float* v = g.v.data();
+  bool lastInner = false;
   for (int z = z0; z < z1; ++z) {
     progress.check();
     const int vz = g.box.lo.z + z;
     const bool innerZ = z >= 2 && z + 2 < sz;
-    auto holds = [&](const Box& b) { return vz >= b.lo.z && vz < b.hi.z && b.lo.x < b.hi.x && b.lo.y < b.hi.y; };
-    fp.slice.clear();
-    fp.slice.push_back(innerZ ? 1 : 0);
-    for (std::size_t k = 0; k < layout.reset.size(); ++k)
-      if (holds(layout.reset[k])) fp.slice.push_back(std::uint32_t(k));
-    const std::size_t separator = fp.slice.size();
-    fp.slice.push_back(kSeparator);
-    for (std::size_t k = 0; k < layout.marked.size(); ++k)
-      if (holds(layout.marked[k])) fp.slice.push_back(std::uint32_t(k));
-    if (!built || fp.slice != fp.last) {
-      built = true;
-      fp.last = fp.slice;
-      fp.ys.assign({0, yLo, yHi, sy});
-      fp.resetSpans.clear();
-      fp.markedSpans.clear();
-      for (std::size_t j = 1; j < fp.slice.size(); ++j) {
-        if (j == separator) continue;
-        const Box& b = j < separator ? layout.reset[fp.slice[j]] : layout.marked[fp.slice[j]];
-        (j < separator ? fp.resetSpans : fp.markedSpans)
-            .push_back({b.lo.y - g.box.lo.y, b.hi.y - g.box.lo.y, b.lo.x - g.box.lo.x, b.hi.x - g.box.lo.x});
-        fp.ys.push_back(std::clamp(b.lo.y - g.box.lo.y, 0, sy));
-        fp.ys.push_back(std::clamp(b.hi.y - g.box.lo.y, 0, sy));
+    // The rows whose pattern changes: those of the boxes that begin or end here, or all.
+    int y0 = z == z0 || innerZ != lastInner ? 0 : sy, y1 = z == z0 || innerZ != lastInner ? sy : 0;
+    lastInner = innerZ;
+    for (const auto& [boxes, count] : {std::pair{layout.reset, fp.resetCount.data()}, std::pair{layout.marked, fp.markedCount.data()}})
+      for (const Box& b : boxes) {
+        const bool now = holds(b, vz), before = z > z0 && holds(b, vz - 1);
+        if (now == before) continue;
+        const Box l = local(b);
+        countBox(count, g.sx, l, std::uint16_t(now ? 1 : 0xffff));
+        y0 = std::min(y0, l.lo.y);
+        y1 = std::max(y1, l.hi.y);
       }
-      std::sort(fp.ys.begin(), fp.ys.end());
-      fp.ys.erase(std::unique(fp.ys.begin(), fp.ys.end()), fp.ys.end());
-      fp.bands.clear();
-      // Rows whose runs are those of the row before (a box that starts or ends inside the
-      // union of the others changes nothing) stay in its band.
-      for (std::size_t j = 0; j + 1 < fp.ys.size(); ++j) {
-        const int y0 = fp.ys[j];
-        const bool inner = innerZ && y0 >= yLo && y0 < yHi;
-        fp.runs.clear();
-        fp.runs.push_back({inner ? 1 : 0, 0});
-        runs(fp.resetSpans, y0);
-        fp.runs.push_back({-1, -1});
-        runs(fp.markedSpans, y0);
-        if (!fp.bands.empty() && fp.runs == fp.lastRuns) continue;
-        std::swap(fp.runs, fp.lastRuns);
-        const std::size_t o = fp.bands.size() * std::size_t(sx);
-        fp.bands.push_back(y0);
-        if (fp.pos.size() < o + std::size_t(sx)) fp.pos.resize(o + std::size_t(sx)), fp.flip.resize(o + std::size_t(sx));
-        std::uint8_t* const pos = fp.pos.data() + o;
-        std::uint8_t* const flip = fp.flip.data() + o;
-        const std::uint8_t interior = inner ? kInterior : 0;
-        // The bytes of [lo, hi) in the reset boxes (or not), by the interior columns.
-        auto fill = [&](int lo, int hi, std::uint8_t p, std::uint8_t fl) {
-          const int a = std::clamp(xLo, lo, hi), b = std::clamp(xHi, lo, hi);
-          for (int x = lo; x < hi; ++x) flip[x] = fl;
-          for (int x = lo; x < a; ++x) pos[x] = p;
-          for (int x = a; x < b; ++x) pos[x] = std::uint8_t(p | interior);
-          for (int x = b; x < hi; ++x) pos[x] = p;
-        };
-        fill(0, sx, layout.base, kNeg);
-        std::size_t k = 1;
-        for (; fp.lastRuns[k].first >= 0; ++k) fill(fp.lastRuns[k].first, fp.lastRuns[k].second, resetPos, resetFlip);
-        for (++k; k < fp.lastRuns.size(); ++k) {
-          const int lo = fp.lastRuns[k].first, hi = fp.lastRuns[k].second;
-          for (int x = lo; x < hi; ++x) pos[x] |= kMarked;
-        }
-      }
-      fp.bands.push_back(sy);
-      if (fp.slicePos.size() < g.sxy) fp.slicePos.resize(g.sxy), fp.sliceFlip.resize(g.sxy);
-      std::size_t band = 0;
-      for (int y = 0; y < sy; ++y) {
-        while (y >= fp.bands[band + 1]) ++band;
-        const std::size_t row = std::size_t(y) * g.sx, t = band * std::size_t(sx);
-        std::copy_n(fp.pos.data() + t, sx, fp.slicePos.data() + row);
-        std::copy_n(fp.flip.data() + t, sx, fp.sliceFlip.data() + row);
-      }
+    if (y0 < y1) {
+      const std::size_t from = std::size_t(y0) * g.sx;
+      flagPattern(std::size_t(y1 - y0) * g.sx, fp.resetCount.data() + from, fp.markedCount.data() + from,
+                  innerZ ? fp.interior.data() + from : nullptr, layout.base, resetPos, resetFlip, fp.pos.data() + from,
+                  fp.flip.data() + from);
     }
-    const std::size_t slice = std::size_t(z) * g.sxy;
-    signFlags(v + slice, flags + slice, g.sxy, fp.slicePos.data(), fp.sliceFlip.data());
+    const std::size_t slice = std::size_t(z) * n;
+    signFlags(v + slice, flags + slice, n, fp.pos.data(), fp.flip.data());
   }
 }
 
@@ -469,7 +448,7 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Vol
 std::size_t redistanceScratchBytes() {
   const Scratch& s = scratch();
   std::size_t bytes = s.flags.capacity() + 16 * s.band.index.capacity();
-  for (const FlagPiece& p : s.flagPieces) bytes += p.slicePos.capacity() + p.sliceFlip.capacity();
+  for (const FlagPiece& p : s.flagPieces) bytes += 2 * (p.resetCount.capacity() + p.markedCount.capacity()) + p.interior.capacity() + p.pos.capacity() + p.flip.capacity();
   return bytes + marchScratchBytes();
 }
 
