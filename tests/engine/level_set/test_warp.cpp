@@ -147,14 +147,15 @@ AgainstExact againstExact(const Volume& ours, const test_warp::CarriedSphere& sp
   return {gradientError(test_warp::exactVolume(ours, e)), gradientError(ours), test_warp::distanceError(ours, e)};
 }
 
-// Ours against the exact field: the gradient error's max within 0.02 of the exact field's,
+// Ours against the exact field: the gradient error's max within maxMargin of the exact field's,
 // its mean within meanMargin of the exact field's and within the brushes' 0.005, and
 // |ours - exact| over the band within the given max and mean.
-void checkNearExact(const AgainstExact& m, double meanMargin, double distanceMax, double distanceMean) {
+void checkNearExact(const AgainstExact& m, double meanMargin, double distanceMax, double distanceMean,
+                    double maxMargin = 0.02) {
   INFO("gradient error: exact max " << m.exact.max << " mean " << m.exact.mean << "; ours max " << m.ours.max << " mean "
                                     << m.ours.mean << "; |ours - exact| over the band max " << m.distance.max << " mean "
                                     << m.distance.mean << " (" << m.distance.voxels << " voxels)");
-  CHECK(m.ours.max <= m.exact.max + 0.02);
+  CHECK(m.ours.max <= m.exact.max + maxMargin);
   CHECK(m.ours.mean <= m.exact.mean + meanMargin);
   CHECK(m.ours.mean <= 0.005);
   CHECK(m.distance.max <= distanceMax);
@@ -289,12 +290,14 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     CHECK(std::fabs(v.sample(a + dir * r)) <= 0.25);
     checkSoundSolid(v);
     const AgainstExact m = againstExact(v, {c, 20, {grabMap(a, dir * r, r)}});
-    // Measured: exact 0.0314 / 0.00087, ours 0.0410 / 0.00109; |ours - exact| 0.130 / 0.00211
-    // (ours 0.0402 / 0.00164 before the foot points of the voxels next to the zero set,
+    // Measured: exact 0.0314 / 0.00087, ours 0.0429 / 0.00102; |ours - exact| 0.121 / 0.00165
+    // (2026-11-30, the cubic read next to the zero set: warp.cpp, tricubic(); with the trilinear
+    // one 0.0410 / 0.00109 and 0.130 / 0.00211; ours 0.0402 / 0.00164 before the foot points of
+    // the voxels next to the zero set,
     // warp.cpp; the exact means 0.00108 and 0.00439 against the coarser reference of then,
     // whose chords lay up to 0.005 vu inside the surface).
     CHECK(m.exact.max <= 0.05);
-    checkNearExact(m, 0.0005, 0.15, 0.003);
+    checkNearExact(m, 0.0005, 0.125, 0.0019);
   }
   SECTION("three radii: the exact field itself is past the brushes' max at the tip") {
     Volume v = base;
@@ -310,10 +313,14 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     // shape; the mean can.
     CHECK(m.exact.max > 0.2);
     CHECK(m.exact.mean <= 0.005);
-    // Ours, measured: max 0.233 / mean 0.00222, |ours - exact| max 0.196 / mean 0.0031 (0.0051
-    // against the coarser reference). Before the foot points (warp.cpp): 0.293 / 0.0116 and
-    // 0.343 / 0.0142, the sheared sides' voxels next to the zero set 0.1-0.3 vu off.
-    checkNearExact(m, 0.001, 0.21, 0.004);
+    // Ours, measured 2026-11-30 with the cubic read next to the zero set (warp.cpp, tricubic()):
+    // max 0.264 / mean 0.00220, |ours - exact| max 0.186 / mean 0.00285. With the trilinear read,
+    // whose bias rounded the sharp tip off a little, 0.233 / 0.00222 and 0.196 / 0.0031 (0.0051
+    // against the coarser reference): nearer the exact field, with a gradient error's max 0.028
+    // above the exact field's at a tip whose radius of curvature is about a voxel. Before the
+    // foot points (warp.cpp): 0.293 / 0.0116 and 0.343 / 0.0142, the sheared sides' voxels next
+    // to the zero set 0.1-0.3 vu off.
+    checkNearExact(m, 0.001, 0.2, 0.003, 0.035);
   }
 }
 
@@ -330,9 +337,10 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   checkFollowsPath(v, path);
   // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
   // of a slice across y, a slice of the slanting tentacle a little longer than its section)
-  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 3.61 and 4.18 vu
-  // (the plateau's radius is 4), against 3.29 and 3.91 before the plateau's ball sank into the
-  // tip (warp.cpp, snakeHookVelocity).
+  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 4.58 and 4.72 vu
+  // (the plateau's radius is 4) with the cubic read next to the zero set (warp.cpp, tricubic());
+  // with the trilinear one, whose bias ate into the tentacle at every move, 3.61 and 4.18, and
+  // 3.29 and 3.91 before the plateau's ball sank into the tip (warp.cpp, snakeHookVelocity).
   const auto sectionRadius = [&](int y) {
     std::size_t in = 0;
     for (int z = 0; z < v.dims().z; ++z)
@@ -340,21 +348,27 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
     return std::sqrt(double(in) / std::numbers::pi);
   };
   INFO("section radius 30 vu under the tip " << sectionRadius(230) << ", at the middle " << sectionRadius(160));
-  CHECK(sectionRadius(230) >= 3.4);
-  CHECK(sectionRadius(160) >= 3.9);
-  // The tentacle above its foot (y >= 68; the sphere's top is at 60) within the brushes' max,
-  // 0.1: measured 2026-11-30 0.0994, at the tip (0.193 there before the ball sank, the flat
-  // cap's sharpening rim; 0.120 with the ball sunk but not fitted to the tip's width).
+  CHECK(sectionRadius(230) >= 4.4);
+  CHECK(sectionRadius(160) >= 4.5);
+  // The tentacle above its foot (y >= 68; the sphere's top is at 60): measured 2026-11-30 0.187,
+  // on the tentacle's side at y 152-161, a ridge the falloff behind the tip draws along the
+  // tentacle in moves 52-55; near the tip it grows from 0.08 after 10 moves to 0.14-0.18 after
+  // 50 and stays there. With the trilinear read next to the zero set (warp.cpp, tricubic()),
+  // whose bias ate into convex parts at every move, the tentacle thinned and such ridges and the
+  // tip were rounded off: 0.0994, at the tip (0.193 there before the ball sank, the flat cap's
+  // sharpening rim; 0.120 with the ball sunk but not fitted to the tip's width). A ball fitted to
+  // the thicker tip (up to 0.75 radius) made the tip worse, 0.21.
   const GradientError above = gradientError(v, Box{{0, 68, 0}, v.dims()});
   // (Its mean, 0.0073, is not held to the brushes' 0.005, which is over the whole volume.)
   INFO("gradient error above the foot: max " << above.max << " mean " << above.mean);
-  CHECK(above.max <= 0.1);
+  CHECK(above.max <= 0.2);
   // The whole volume within the brushes' mean, 0.005, not within their max: measured
-  // 2026-11-30 max 0.117 / mean 0.00444 (before: 0.193-0.216 / 0.0050-0.0054). The max is at the
-  // foot, the concave fold the first moves draw out of the sphere before the tentacle is thin
-  // enough for the ball to sink (y 56-64; the exact field of the first 8 moves reads 0.126
-  // there: the test below), whose curvature the falloff's edge sets.
-  checkSoundSolid(v, 0.12, 0.005);
+  // 2026-11-30 max 0.187 / mean 0.00455, the max above (with the trilinear read 0.117 / 0.00444,
+  // the max at the foot; before the ball sank 0.193-0.216 / 0.0050-0.0054). At the foot, the
+  // concave fold the first moves draw out of the sphere before the tentacle is thin enough for
+  // the ball to sink (y 56-64; the exact field of the first 8 moves reads 0.126 there: the test
+  // below), whose curvature the falloff's edge sets, 0.129.
+  checkSoundSolid(v, 0.2, 0.005);
 }
 
 TEST_CASE("a snake hook's first moves near the exact distance of the carried sphere", "[warp][snake_hook][exact]") {
@@ -379,13 +393,15 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   // the third move here), and the tip becomes its round front: the exact field reads 0.062 at
   // the tip (slices y 72-80). Its max is at the tentacle's foot on the sphere (y 56-60), the
   // concave fold the first moves made before the ball sank, past the brushes' 0.1 for any field
-  // of this shape. Measured (2026-11-30): exact 0.126 / 0.00145, ours 0.117 / 0.00219, both at
-  // the foot; |ours - exact| 0.208 / 0.0054. With the ball on the surface (2026-11-29) the tip
+  // of this shape. Measured (2026-11-30): exact 0.126 / 0.00145, ours 0.129 / 0.00220, both at
+  // the foot; |ours - exact| 0.214 / 0.0041 with the cubic read next to the zero set (warp.cpp,
+  // tricubic()), 0.208 / 0.0054 with the trilinear one (ours 0.117 / 0.00219). With the ball on
+  // the surface (2026-11-29) the tip
   // was a flat cap whose rim sharpened with every move: exact 0.167 / 0.00173 at the tip, ours
   // 0.141 / 0.00221, |ours - exact| 0.296 / 0.0073.
   CHECK(m.exact.max > 0.1);
   CHECK(m.exact.mean <= 0.005);
-  checkNearExact(m, 0.001, 0.25, 0.006);
+  checkNearExact(m, 0.001, 0.25, 0.0047);
 }
 
 TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[warp][snake_hook][topology]") {
@@ -394,13 +410,14 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
   // sideways at each turn and the bend sheared into a sheet thinner than a voxel: 3 components
   // with 1 vu moves, 4 with 4 vu moves, 10 with 8 vu moves at radius 6.
   // The gradient error is not within the brushes' limits: the largest at the turns, where the
-  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.240 / 0.0082, 0.244 /
-  // 0.0111, 0.532 / 0.0316 (2026-11-29, before the plateau's ball sank into the tip: 0.30 /
-  // 0.0111, 0.23 / 0.0123, 0.47 / 0.038).
+  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.253 / 0.0096, 0.247 /
+  // 0.0113, 0.525 / 0.0316 with the cubic read next to the zero set (warp.cpp, tricubic());
+  // 0.240 / 0.0082, 0.244 / 0.0111, 0.532 / 0.0316 with the trilinear one (2026-11-29, before
+  // the plateau's ball sank into the tip: 0.30 / 0.0111, 0.23 / 0.0123, 0.47 / 0.038).
   struct Case {
     double step, r, maxError, meanError;
   };
-  for (const auto& [step, r, maxError, meanError] : {Case{1, 8, 0.28, 0.0095}, Case{4, 8, 0.29, 0.0125}, Case{8, 6, 0.6, 0.035}}) {
+  for (const auto& [step, r, maxError, meanError] : {Case{1, 8, 0.28, 0.0105}, Case{4, 8, 0.29, 0.0125}, Case{8, 6, 0.6, 0.035}}) {
     const Vec3 c{64, 40, 64};
     Volume v = makeSphere({128, 128, 128}, c, 16);
     Vec3 at = c + Vec3{0, 16, 0};
@@ -900,4 +917,54 @@ TEST_CASE("a snake hook of the smallest radius pulls out a thin tentacle along t
       if (which < 2) checkSoundSolid(v, 0.3, 0.008);
       else checkSoundSolid(v, 0.8, 0.022);
     }
+}
+
+TEST_CASE("a snake hook keeps its tip over 70 vu of 1 vu moves and a helix path inside the clay",
+          "[warp][snake_hook][topology]") {
+  // 70 vu from a sphere of radius 12, slanting with a turn and along a helix whose radius of
+  // curvature is 14 vu. Each move resamples the tip; with the trilinear interpolant there the zero
+  // set sank h^2 kappa / 8 a move into the tip, and the loss added up (warp.cpp, tricubic()).
+  // Measured 2026-11-30: the tip's largest |value| after a move 0.035 and 0.043 at radius 5
+  // (slant, helix), 0.026 and 0.016 at radius 8 (moves of 1 and 2 vu); the path within 0.022 vu of the clay at radius
+  // 8. Before the cubic read: at radius 5 the helix's tip left the clay at move 41 (3 vu off, the
+  // band); at radius 8 the helix's tip held but the tentacle cut inside the curve, path points
+  // 2.89 vu (moves of 1 vu) and 2.72 vu (2 vu) outside the clay.
+  const auto slant = [](double t) { return Vec3{t < 35 ? 0.25 : -0.25, 1, 0.1}; };
+  const auto helix = [](double t) { return normalized(Vec3{std::cos(t / 10), 1, std::sin(t / 10)}); };
+  struct Case {
+    double r, step;
+    bool helix;
+  };
+  for (const auto& [r, step, onHelix] : {Case{kMinSnakeHookRadius, 1, false}, Case{kMinSnakeHookRadius, 1, true},
+                                          Case{8, 1, true}, Case{8, 2, true}}) {
+    const Vec3 c{64, 24, 64};
+    Volume v = makeSphere({128, 128, 128}, c, 12);
+    Vec3 at = c + Vec3{0, 12, 0};
+    std::vector<Vec3> path{at};
+    double worstTip = 0;
+    for (double t = 0; t < 70; t += step) {
+      const Vec3 next = at + (onHelix ? helix(t) : slant(t)) * step;
+      snakeHook(v, at, next, r);
+      at = next;
+      path.push_back(at);
+      worstTip = std::max(worstTip, std::fabs(v.sample(at)));
+    }
+    INFO("radius " << r << ", moves of " << step << " vu, " << (onHelix ? "helix" : "slant"));
+    INFO("largest |value| at the tip after a move " << worstTip);
+    CHECK(worstTip <= 0.25);
+    // At radius 5 the thin tentacle (about 1.3 vu thick about the path) cuts a little inside the
+    // helix's curve, which the later moves' falloff drags towards the chord: measured 0.27 vu
+    // outside the clay at most, 25 vu before the tip.
+    if (r > kMinSnakeHookRadius) {
+      checkFollowsPath(v, path);
+    } else {
+      double worst = -1e9;
+      for (const Vec3& p : path) worst = std::max(worst, v.sample(p));
+      INFO("largest value along the path " << worst);
+      CHECK(worst <= 0.35);
+    }
+    CHECK(countComponents(v) == 1);
+    CHECK(eulerOfInside(v) == 1);
+    CHECK(enclosedOutside(v) == 0);
+  }
 }
