@@ -1,13 +1,17 @@
 // Drives the hub without sockets: a CaptureLink records what the hub sends to one connection,
-// a TestClient sends requests and waits for their answers. Every wait times out (20 s) so a
-// hang fails the test instead of the run.
+// a TestClient sends requests and waits for their answers, a GateLink holds the thread that
+// answers a chosen request until the test lets it go, so that tests decide the order of the
+// hub's threads instead of racing them. Every wait times out (20 s) so a hang fails the test
+// instead of the run.
 #pragma once
 
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <utility>
@@ -160,6 +164,90 @@ struct TestClient {
     const std::size_t mark = link->size();
     hub.text(client, text);
     return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
+  }
+};
+
+// Holds the worker that answers request `gate` at its binary frame, then at its result, until
+// the test lets each go (opened), so that edits can run on the strand in between. A strand task
+// sends its responses from inside itself (HubCore::finish flushes them before the connection's
+// next message is taken): holding a response sent there holds the session's strand. With
+// `order`, records the id of every response it is sent, in one list shared by several links:
+// the order of the strand's tasks when each of them answered on the strand.
+struct SendOrder {
+  std::mutex mutex;
+  std::vector<std::pair<const void*, json>> sent;  // (link, response id)
+};
+
+struct GateLink : CaptureLink {
+  std::mutex gateMutex;
+  std::condition_variable gateCv;
+  std::atomic<int> gate{-1};
+  std::atomic<bool> gateProgress{false};
+  bool atFrame = false, atResult = false, frameOpen = false, resultOpen = false;
+  std::shared_ptr<SendOrder> order;
+
+  // Called on the hub's threads: no Catch assertions here (Catch is not thread-safe).
+  void sendBinary(std::shared_ptr<const Bytes> frame, bool droppable) override {
+    if (const auto d = protocol::decodeFrameHeader(*frame); d && int(d.frame->header.requestId) == gate)
+      hold(atFrame, frameOpen);
+    CaptureLink::sendBinary(frame, droppable);
+  }
+  void sendText(std::string text) override {
+    const json j = json::parse(text);
+    if (order && j.contains("id")) {
+      const std::lock_guard lock(order->mutex);
+      order->sent.emplace_back(this, j["id"]);
+    }
+    if (j.contains("id") ? j["id"] == gate.load() : j.value("method", "") == "op.progress" && gateProgress.exchange(false))
+      hold(atResult, resultOpen);
+    CaptureLink::sendText(std::move(text));
+  }
+  void hold(bool& at, bool& open) {
+    std::unique_lock lock(gateMutex);
+    at = true;
+    gateCv.notify_all();
+    gateCv.wait(lock, [&] { return open; });
+  }
+  // On the test's thread.
+  void waitUntil(bool& flag) {
+    std::unique_lock lock(gateMutex);
+    if (!gateCv.wait_for(lock, kWait, [&] { return flag; })) FAIL("timed out waiting at a gate");
+  }
+  void set(bool& flag) {
+    const std::lock_guard lock(gateMutex);
+    flag = true;
+    gateCv.notify_all();
+  }
+  // Holds the next answer to `id` anew.
+  void gateAt(int id) {
+    const std::lock_guard lock(gateMutex);
+    atFrame = atResult = frameOpen = resultOpen = false;
+    gate = id;
+  }
+  // Holds the thread that sends the next op.progress (a long operation's, mid-way), as an
+  // answer (atResult, resultOpen).
+  void gateAtProgress() {
+    const std::lock_guard lock(gateMutex);
+    atFrame = atResult = frameOpen = resultOpen = false;
+    gate = -1;
+    gateProgress = true;
+  }
+  // Lets everything go and holds nothing more: a failed check must not leave the hub's worker
+  // held when the hub shuts down.
+  void openAll() {
+    const std::lock_guard lock(gateMutex);
+    gate = -1;
+    gateProgress = false;
+    frameOpen = resultOpen = true;
+    gateCv.notify_all();
+  }
+};
+
+// Opens the links' gates when the test leaves, by a failed REQUIRE too (declare after the hub).
+struct OpenOnExit {
+  std::vector<std::shared_ptr<GateLink>> links;
+  ~OpenOnExit() {
+    for (const auto& l : links) l->openAll();
   }
 };
 

@@ -525,82 +525,6 @@ TEST_CASE("the requester gets its response, then the notification, then the delt
   CHECK(note < delta);
 }
 
-namespace {
-
-// Holds the worker that answers request `gate` at its binary frame, then at its result, until
-// the test lets each go (opened), so that edits can run on the strand in between. A strand task
-// sends its responses from inside itself (HubCore::finish flushes them before the connection's
-// next message is taken): holding a response sent there holds the session's strand. With
-// `order`, records the id of every response it is sent, in one list shared by several links:
-// the order of the strand's tasks when each of them answered on the strand.
-struct SendOrder {
-  std::mutex mutex;
-  std::vector<std::pair<const void*, json>> sent;  // (link, response id)
-};
-
-struct GateLink : CaptureLink {
-  std::mutex gateMutex;
-  std::condition_variable gateCv;
-  std::atomic<int> gate{-1};
-  bool atFrame = false, atResult = false, frameOpen = false, resultOpen = false;
-  std::shared_ptr<SendOrder> order;
-
-  // Called on the hub's threads: no Catch assertions here (Catch is not thread-safe).
-  void sendBinary(std::shared_ptr<const Bytes> frame, bool droppable) override {
-    if (const auto d = protocol::decodeFrameHeader(*frame); d && int(d.frame->header.requestId) == gate)
-      hold(atFrame, frameOpen);
-    CaptureLink::sendBinary(frame, droppable);
-  }
-  void sendText(std::string text) override {
-    const json j = json::parse(text);
-    if (order && j.contains("id")) {
-      const std::lock_guard lock(order->mutex);
-      order->sent.emplace_back(this, j["id"]);
-    }
-    if (j.contains("id") && j["id"] == gate.load()) hold(atResult, resultOpen);
-    CaptureLink::sendText(std::move(text));
-  }
-  void hold(bool& at, bool& open) {
-    std::unique_lock lock(gateMutex);
-    at = true;
-    gateCv.notify_all();
-    gateCv.wait(lock, [&] { return open; });
-  }
-  void waitUntil(bool& flag) {
-    std::unique_lock lock(gateMutex);
-    gateCv.wait(lock, [&] { return flag; });
-  }
-  void set(bool& flag) {
-    const std::lock_guard lock(gateMutex);
-    flag = true;
-    gateCv.notify_all();
-  }
-  // Holds the next answer to `id` anew.
-  void gateAt(int id) {
-    const std::lock_guard lock(gateMutex);
-    atFrame = atResult = frameOpen = resultOpen = false;
-    gate = id;
-  }
-  // Lets everything go and holds nothing more: a failed check must not leave the hub's worker
-  // held when the hub shuts down.
-  void openAll() {
-    const std::lock_guard lock(gateMutex);
-    gate = -1;
-    frameOpen = resultOpen = true;
-    gateCv.notify_all();
-  }
-};
-
-// Opens the links' gates when the test leaves, by a failed REQUIRE too (declare after the hub).
-struct OpenOnExit {
-  std::vector<std::shared_ptr<GateLink>> links;
-  ~OpenOnExit() {
-    for (const auto& l : links) l->openAll();
-  }
-};
-
-}  // namespace
-
 TEST_CASE("an edit reaches its session's strand from the thread that takes it, never through the workers' queue",
           "[hub]") {
   // Under load every task in the workers' queue waits behind each busy session's turn: a hop
@@ -719,6 +643,7 @@ TEST_CASE("a client's stream of stroke.begin does not hold back another client's
   };
   const auto [aLink, a] = joined("a");
   const auto [bLink, b] = joined("b");
+  const OpenOnExit open{{aLink, bLink}};
   const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
     hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
   };

@@ -224,7 +224,12 @@ TEST_CASE("many presence updates reach the others at most every 50 ms, the newes
 // Presence is handled by the thread that hands it over when its connection is idle (no hop to
 // a worker); a message that only names "presence" is handed to the workers once parsed.
 TEST_CASE("a presence on an idle connection is handled at once by the thread that hands it over", "[hub][presence]") {
-  Hub hub(presenceOptions());
+  // One worker, so that a is idle when the presence is sent: the worker lets a's connection go
+  // just after sending the answer to session.create, in the same task, and b's join, handed to
+  // the worker's queue once that answer is here, runs after that task.
+  HubOptions o = presenceOptions();
+  o.workers = 1;
+  Hub hub(o);
   TestClient a(hub), b(hub);
   const json created = a.result("session.create", kCreate);
   b.result("session.join", {{"session", created["session"]}, {"token", created["token"]}});
