@@ -6,9 +6,13 @@ An editor makes a 192^3 sphere and eight whole-volume steps (volume.morph), so t
 revision 1 is rebuilt by unpacking every later step. Eight view clients then loop `render.frame
 {revision: 1, width: 1, height: 1}` while the editor makes small `tool.apply` edits one after the
 other; the case prints the editor's round-trip latency (p50, p90, max, ms) and how many frames
-the view clients got, and fails when p90 is over --max-p90-ms. Issue 31 measured p90 1588 ms
-before the fix; a second part checks that `session.fork {revision}` is counted against
-max_creates_per_minute before its revision is looked up or rebuilt.
+the view clients got, and fails when a request fails or no frame came, and, given --max-p90-ms,
+when p90 is over it. Issue 31 measured p90 1588 ms before the fix. The p90 is a speed figure,
+which a loaded machine decides: ctest does not bound it. That the editor is answered while an
+old revision is rebuilt is checked by order, not speed, in tests/service/test_hub_history.cpp
+("an editor's edits are answered while an earlier revision is rebuilt for a view client"). A
+second part checks that `session.fork {revision}` is counted against max_creates_per_minute
+before its revision is looked up or rebuilt.
 
 Usage: view_clients_stall.py --marzipan BIN [--max-p90-ms MS]. Exit status 0 when it holds, 1
 otherwise. Debian's /usr/bin/python3 (python3-websockets).
@@ -55,7 +59,7 @@ async def viewer(url: str, created: dict, stop: asyncio.Event, frames: list[int]
     await c.ws.close()
 
 
-async def stalled_edits(binary: str, max_p90_ms: float) -> bool:
+async def stalled_edits(binary: str, max_p90_ms: float | None) -> bool:
     with Server(binary, []) as server:
         editor = await Client.open(server.url)
         created = await make_history(editor)
@@ -78,7 +82,7 @@ async def stalled_edits(binary: str, max_p90_ms: float) -> bool:
         print(f"editor latency with {VIEWERS} view clients looping render.frame at revision 1 of a 192^3 session "
               f"({STEPS} whole-volume steps later): p50 {p50:.0f} ms, p90 {p90:.0f} ms, max {latencies[-1]:.0f} ms; "
               f"frames {sum(frames)}")
-        ok = not errors and p90 <= max_p90_ms and sum(frames) > 0
+        ok = not errors and (max_p90_ms is None or p90 <= max_p90_ms) and sum(frames) > 0
         if errors:
             print(f"a view client's render.frame failed: {errors[0]}")
         await editor.ws.close()
@@ -108,7 +112,7 @@ async def fork_counted_first(binary: str) -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--marzipan", required=True)
-    parser.add_argument("--max-p90-ms", type=float, default=400)
+    parser.add_argument("--max-p90-ms", type=float, default=None, help="fail when the editor's p90 is over this")
     parser.add_argument("--only", choices=["stall", "fork"])
     args = parser.parse_args()
     ok = True

@@ -481,3 +481,57 @@ TEST_CASE("redo mine refuses a step under another client's undone step that hold
   CHECK(hexDigest(*recoverCopy(dir, id)) == stats["digest"].get<std::string>());
   fs::remove_all(dir);
 }
+
+
+TEST_CASE("an editor's edits are answered while an earlier revision is rebuilt for a view client", "[hub][history]") {
+  // Issue 31 item 2: a view client asking for an old revision held the editors' edits while it
+  // was rebuilt on the session's strand. The rebuild runs on a worker and reports its progress
+  // to the requester (op.progress) at its first step done once kProgressInterval (250 ms) has
+  // passed since the request was taken: the strand is held (a's edit, held at its answer) for
+  // longer than that after the render.frame is taken, so that the rebuild reports at its first
+  // step, where the view client's link holds it (GateLink). The editor's edits must be answered
+  // meanwhile. The sleep is a lower bound only: a longer one changes nothing.
+  Hub hub(twoWorkerOptions());
+  const auto aLink = std::make_shared<GateLink>(), vLink = std::make_shared<GateLink>();
+  const OpenOnExit open{{aLink, vLink}};
+  const auto a = hub.connect(aLink, "a"), v = hub.connect(vLink, "v");
+  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
+    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+  };
+  const auto answer = [&](GateLink& link, int id) {
+    const json r = std::get<json>(link.at(link.waitFor([&](const auto& m) { return isResponse(m, id); })));
+    INFO(r.dump());
+    REQUIRE(r.contains("result"));
+    return r["result"];
+  };
+  send(a, 1, "session.create", kCreate);
+  const json created = answer(*aLink, 1);
+  send(v, 1, "session.join", {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
+  answer(*vLink, 1);
+  // Revision 1, then steps that a rebuild of revision 1 unpacks one by one.
+  send(a, 2, "tool.apply", kLeftBlob);
+  answer(*aLink, 2);
+  for (int id = 3; id < 7; ++id) {
+    send(a, id, "volume.morph", {{"kind", id % 2 ? "dilate" : "erode"}, {"radius", 1}});
+    answer(*aLink, id);
+  }
+  aLink->gateAt(7);
+  send(a, 7, "tool.apply", kRightBlob);
+  aLink->waitUntil(aLink->atResult);
+  send(v, 2, "render.frame",
+       {{"camera", {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}}}, {"width", 8}, {"height", 8}, {"format", "png"},
+        {"revision", 1}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  vLink->gateAtProgress();
+  aLink->set(aLink->resultOpen);
+  answer(*aLink, 7);
+  vLink->waitUntil(vLink->atResult);
+  for (int id = 8; id < 11; ++id) {
+    send(a, id, "tool.apply", {{"tool", "add_blob"}, {"center", {24, 42, 24}}, {"radius", 2 + id % 2}});
+    CHECK(answer(*aLink, id)["revision"] == id - 1);
+  }
+  vLink->set(vLink->resultOpen);
+  CHECK(answer(*vLink, 2)["revision"] == 1);
+  hub.disconnect(a);
+  hub.disconnect(v);
+}
