@@ -24,7 +24,12 @@ TEST_CASE("an open stroke idle for stroke_idle is ended at the next change, jour
   const fs::path dir = fs::temp_directory_path() / "marzipan-hub-open-strokes";
   fs::remove_all(dir);
   HubOptions o = twoWorkerOptions(dir);
-  o.limits.strokeIdle = std::chrono::seconds(1);
+  // The hub's stroke clock is the steady clock (a test cannot set it through the hub), so the
+  // sleeps decide which stroke is idle at B's second dabs: A's for at least 3.1 s (the two
+  // sleeps), more than stroke_idle whatever the load. What the load may lengthen has 1.4 s to
+  // spare: A's idle time at B's first dabs (1.5 s and the answers' time), and B's between its
+  // two dabs (1.6 s and the answers' time), each less than stroke_idle (3 s).
+  o.limits.strokeIdle = std::chrono::seconds(3);
   std::string id;
   {
     Hub hub(o);
@@ -34,10 +39,10 @@ TEST_CASE("an open stroke idle for stroke_idle is ended at the next change, jour
     b.result("session.join", {{"session", id}, {"token", created["token"]}, {"view", "none"}});
     const std::uint64_t idle = a.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}})["stroke"];
     const std::uint64_t busy = b.result("stroke.begin", {{"tool", "add_blob"}, {"radius", 4}})["stroke"];
-    std::this_thread::sleep_for(std::chrono::milliseconds(700));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
     b.result("stroke.dabs", {{"stroke", busy}, {"dabs", {{{"center", {40, 24, 24}}}}}});
-    std::this_thread::sleep_for(std::chrono::milliseconds(700));
-    // A's stroke had no message for 1.4 s, B's for 0.7 s: B's next change ends A's only.
+    std::this_thread::sleep_for(std::chrono::milliseconds(1600));
+    // A's stroke had no message for 3.1 s, B's for 1.6 s: B's next change ends A's only.
     b.result("stroke.dabs", {{"stroke", busy}, {"dabs", {{{"center", {40, 26, 24}}}}}});
     const json refused = a.call("stroke.dabs", {{"stroke", idle}, {"dabs", {{{"center", {8, 24, 24}}}}}});
     INFO(refused.dump());
