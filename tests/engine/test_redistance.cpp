@@ -449,6 +449,48 @@ TEST_CASE("the setup before the march classifies every voxel as described, for a
   CHECK(shellChanged >= 6);
 }
 
+TEST_CASE("the setup before the march classifies every voxel as described for a stroke's slanted line of boxes",
+          "[redistance]") {
+  // A stroke's boxes (stroke.cpp): a moved box per dab, 2 vu apart along a slanted line, each
+  // reset box that grown by 3, so that boxes begin and end at almost every slice and row and up
+  // to a dozen hold a voxel: the flags pass keeps how many hold each position as they begin and
+  // end (redistance.cpp, FlagPiece), which the plain reference reads off the boxes themselves.
+  ThreadPool two(2);
+  int changed = 0;
+  for (const Vec3 dir : {Vec3{0.7, 0.5, 0.51}, Vec3{-0.3, 0.9, 0.3}, Vec3{0.2, -0.3, 0.93}, Vec3{1, 0, 0}}) {
+    const Vec3 along = normalized(dir);
+    const Box gridBox{{0, 0, 0}, {64, 64, 64}};
+    DenseGrid before(gridBox);
+    const Vec3 c{32.3, 31.6, 32.2 + 60};
+    for (std::size_t i = 0; i < before.v.size(); ++i) {
+      const Int3 p = before.point(i);
+      const double d = length(Vec3{double(p.x), double(p.y), double(p.z)} - c) - 60;
+      const double slope = 1.0 + 0.3 * std::sin(0.4 * p.x) * std::cos(0.3 * p.y);
+      before.v[i] = float(std::clamp(d * slope, -double(kBand), double(kBand)));
+    }
+    std::vector<Box> movedBoxes, resetBoxes;
+    for (int k = 0; k < 16; ++k) {
+      const Vec3 centre = Vec3{32, 32, 32} + along * (2.0 * (k - 7.5));
+      movedBoxes.push_back(boxAround(centre, {8, 8, 8}).intersect(gridBox.grown(-4)));
+      resetBoxes.push_back(movedBoxes.back().grown(3));
+    }
+    RedistanceOptions options;
+    options.resetBoxes = resetBoxes;
+    options.movedBoxes = movedBoxes;
+    options.direct = false;
+    const Box region = gridBox.grown(-1);
+    DenseGrid expected = before, one = before, both = before;
+    referenceRedistance(expected, region, kBand, Outside::Source, options);
+    redistanceRegion(one, region, kBand, Outside::Source, options);
+    redistanceRegion(both, region, kBand, Outside::Source, options, two);
+    INFO("direction " << dir.x << " " << dir.y << " " << dir.z);
+    CHECK(one.v == expected.v);
+    CHECK(both.v == expected.v);
+    changed += one.v != before.v;
+  }
+  CHECK(changed == 4);
+}
+
 TEST_CASE("the band list of rows of any length is every voxel not at +-band, in index order", "[redistance]") {
   // Rows of 1 to 40 voxels starting anywhere in the grid, runs of whole rows, an empty box, and
   // one reaching the grid's last voxel (a short row there cannot be read past its end). One list
