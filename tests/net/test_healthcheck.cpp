@@ -167,14 +167,15 @@ TEST_CASE("healthcheck: no server, a silent server, a stopped server", "[net][he
   CHECK_FALSE(refused.healthy);
   CHECK(refused.detail.find("refused") != std::string::npos);
 
-  // Accepted by the kernel's backlog, never answered: the check gives up after its 2 s.
+  // Accepted by the kernel's backlog, never answered: the check gives up after its 2 s (the
+  // upper bound leaves room for a loaded machine; the message names the 2 s).
   Listener silent;
   const auto start = std::chrono::steady_clock::now();
   std::string err;
   CHECK(run({"--url", "http://127.0.0.1:" + std::to_string(silent.port()) + "/healthz"}, &err) == 1);
   const auto elapsed = std::chrono::steady_clock::now() - start;
   CHECK(elapsed >= std::chrono::milliseconds(1900));
-  CHECK(elapsed < std::chrono::milliseconds(4000));
+  CHECK(elapsed < std::chrono::milliseconds(10000));
   CHECK(err.find("within 2000 ms") != std::string::npos);
 
   Server s("healthcheck-stopped");

@@ -99,9 +99,10 @@ TEST_CASE("http server: healthz, metrics, static files, refusals, methods", "[ne
     CHECK(metrics.body.find(name) != std::string::npos);
   }
 
+  // Promptly, with room for a loaded machine: nothing is open.
   const auto start = std::chrono::steady_clock::now();
   f.server->stop();
-  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(2));
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(10));
   const std::lock_guard lock(f.mutex);
   CHECK(f.log.size() >= 2);
   CHECK(f.log.front().rfind("http: accept 127.0.0.1:", 0) == 0);
@@ -142,9 +143,11 @@ TEST_CASE("http server: stop() closes idle keep-alive connections and returns pr
   Connection idle(f.port);
   idle.send("GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n");
   REQUIRE(idle.receive().body == "ok");
+  // Promptly: not after the idle connection's timeout (idleTimeout, 30 s), with room for a loaded
+  // machine.
   const auto start = std::chrono::steady_clock::now();
   f.server->stop();
-  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(2));
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(10));
   CHECK(idle.closedByPeer());
   f.server->stop();  // idempotent
   CHECK_THROWS(Connection(f.port));

@@ -355,7 +355,9 @@ TEST_CASE("ws: a congested client gets only the newest presence of a sender, aft
 // (websocket_session.cpp, WsSession::doWrite): nothing of it may wait for a later write (as a
 // TCP_CORK left on would hold it for the kernel's 200 ms). Each round, three clients send presence (as requests, so it is handled when
 // answered) and the fourth waits for all three; a round takes at most the 50 ms flush spacing
-// and the flush, so the median over 20 rounds is far below 200 ms unless batches stall.
+// and the flush, and a held batch 200 ms or more. The fastest of 20 rounds is checked, not the
+// median: a loaded machine stalls some rounds past 150 ms (the test's thread or the server's)
+// and would have to stall all twenty to fail it, while a held batch holds every round.
 TEST_CASE("ws: a batch of presence leaves at once and whole", "[net][ws][presence]") {
   Server s("ws-presence-batch");
   Client receiver(s.server->port());
@@ -388,7 +390,7 @@ TEST_CASE("ws: a batch of presence leaves at once and whole", "[net][ws][presenc
   }
   std::sort(roundMs.begin(), roundMs.end());
   INFO("round times (ms), sorted: " << json(roundMs).dump());
-  CHECK(roundMs[roundMs.size() / 2] < 150);
+  CHECK(roundMs.front() < 150);
   // And the connection still answers at once after the batches.
   CHECK(receiver.call(2, "session.stats").contains("result"));
 }
@@ -653,9 +655,10 @@ TEST_CASE("ws: connections are bounded per client address, and one outside a ses
   CHECK_THROWS(Client(s.server->port()));
   CHECK_THROWS(marzipan::test::request(s.server->port(), "GET", "/healthz"));
   a.reset();
-  // The slot comes back once the server has seen the close.
+  // The slot comes back once the server has seen the close (waited for up to 20 s: a loaded
+  // machine may take long to run the server's handler of the close).
   bool reconnected = false;
-  for (int i = 0; i < 100 && !reconnected; ++i) {
+  for (int i = 0; i < 400 && !reconnected; ++i) {
     try {
       Client again(s.server->port());
       reconnected = true;
@@ -664,11 +667,12 @@ TEST_CASE("ws: connections are bounded per client address, and one outside a ses
     }
   }
   CHECK(reconnected);
-  // b never joins: closed after the lobby time; c joins and stays.
+  // b never joins: closed after the lobby time (1 s here, 60 s by default); c joins and stays.
+  // The bound tells the two apart with room for a loaded machine.
   REQUIRE(c.call(1, "session.create", kCreate).contains("result"));
   const auto start = std::chrono::steady_clock::now();
   CHECK(b.closeCode() == 1008);
-  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(5));
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(15));
   CHECK(c.call(2, "session.stats").contains("result"));
 }
 
