@@ -209,9 +209,10 @@ async def lobby_deadline(binary):
     with Server(binary, ["--lobby-seconds", "1"]) as s:
         c = await Client.open(s.url)
         start = time.monotonic()
-        code = await c.closed_code(10)
+        code = await c.closed_code(TIMEOUT)
         took = time.monotonic() - start
-        expect(code == 1008 and took < 5, f"close {code} after {took:.1f} s")
+        # Within 15 s: the 1 s asked for, not the default 60 s, with room for a loaded machine.
+        expect(code == 1008 and took < 15, f"close {code} after {took:.1f} s")
         return f"closed with 1008 after {took:.1f} s"
 
 
@@ -232,7 +233,8 @@ async def flooding_reader(binary):
         start = time.monotonic()
         await other.result("session.create", CREATE)
         took = time.monotonic() - start
-        expect(s.alive() and took < 5, f"another client waited {took:.1f} s")
+        # A server held by the flooder never answers (TIMEOUT); 15 s leaves room for a loaded machine.
+        expect(s.alive() and took < 15, f"another client waited {took:.1f} s")
         return f"another client answered in {took * 1000:.0f} ms"
 
 
@@ -320,13 +322,22 @@ async def long_operation_progress_cancel(binary):
     with Server(binary, []) as s:
         a = await Client.open(s.url)
         created = await a.result("session.create", {"size": [192, 192, 192], "solid": "pig", "view": "none"})
-        m = await asyncio.wait_for(a.call("tool.apply", {"tool": "smooth", "global": True, "iterations": 100000}), 1)
+        # At once: run, it would take hours; 10 s leaves room for a loaded machine.
+        m = await asyncio.wait_for(a.call("tool.apply", {"tool": "smooth", "global": True, "iterations": 100000}), 10)
         expect(error_code(m) == -32004 and m["error"]["data"]["limit"] == "max_op_voxels", f"answer {m}")
         rid = await a.send("tool.apply", {"tool": "smooth", "global": True, "iterations": 200})
         other = await Client.open(s.url)
         start = time.monotonic()
         await other.result("session.create", CREATE)
-        expect(time.monotonic() - start < 2, "another session waited behind the long operation")
+        took = time.monotonic() - start
+        # Decided by order, not by a time a loaded machine may pass: the long operation (several
+        # seconds of work, then cancelled below) has not answered when the other session's create
+        # has. Held behind it, the create would be answered after it.
+        try:
+            m = await asyncio.wait_for(a.answer(rid), 0.05)
+            raise AssertionError(f"the long operation answered before another session's create ({took:.1f} s): {m}")
+        except asyncio.TimeoutError:
+            pass
         try:
             m = await asyncio.wait_for(a.answer(rid), 2)
             raise AssertionError(f"200 iterations on 192^3 answered within 2 s: {m}")
