@@ -9,6 +9,8 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <mutex>
+#include <string>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -33,6 +35,38 @@ std::filesystem::path scratch(const std::string& name) {
   std::filesystem::remove_all(dir);
   return dir;
 }
+
+// The hub's failed snapshots, from its log: how many, and when the back-off the last one
+// announced ("next try in N s", whole seconds) has passed, on the test's clock read after the
+// hub's, so never earlier than the hub's own time for it.
+struct SnapshotFailures {
+  std::mutex mutex;
+  int count = 0;
+  std::chrono::steady_clock::time_point nextTry{};
+
+  void log(const std::string& line) {
+    const std::size_t at = line.find("next try in ");
+    if (line.find("snapshot failed") == std::string::npos || at == std::string::npos) return;
+    const auto due = std::chrono::steady_clock::now() + std::chrono::seconds(std::stoi(line.substr(at + 12)));
+    const std::lock_guard lock(mutex);
+    ++count;
+    nextTry = std::max(nextTry, due);
+  }
+  int failures() {
+    const std::lock_guard lock(mutex);
+    return count;
+  }
+  // Until the next change may try a snapshot again, however many failed before (a loaded
+  // machine makes the edits slower, so more of them fail and the back-off grows).
+  void waitOutBackoff() {
+    std::chrono::steady_clock::time_point until;
+    {
+      const std::lock_guard lock(mutex);
+      until = nextTry;
+    }
+    std::this_thread::sleep_until(until + std::chrono::milliseconds(50));
+  }
+};
 
 HubOptions optionsFor(std::shared_ptr<SessionStorage> storage, std::size_t snapshotEvery = 2000) {
   HubOptions o;
@@ -220,7 +254,7 @@ TEST_CASE("etcd storage: a late lease keeps its sessions: renewed, appended to, 
   // its TTL says on waking, before its keep-alive thread has run. The hub closes the session.
   CHECK_FALSE(store.holds("s"));
   kv.stallKeepAlives = false;
-  for (int k = 0; k < 300 && !store.owner().leaseHeld(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int k = 0; k < 2000 && !store.owner().leaseHeld(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   REQUIRE(store.owner().leaseHeld());
   CHECK(store.holds("s"));
   // Joined again, the session is loaded through the journal it had: every change is there.
@@ -418,9 +452,9 @@ TEST_CASE("etcd storage: a failed snapshot deletes its file and is not tried aga
   EtcdOptions opt;
   opt.maxChangeBytes = 5000;
   auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
-  std::atomic<int> failures{0};
+  SnapshotFailures failed;
   HubOptions o = optionsFor(store, 5);
-  o.events.log = [&](const std::string& line) { failures += line.find("snapshot failed") != std::string::npos; };
+  o.events.log = [&](const std::string& line) { failed.log(line); };
   Hub hub(o);
   TestClient a(hub);
   const json created = a.result("session.create", kCreate);
@@ -431,12 +465,13 @@ TEST_CASE("etcd storage: a failed snapshot deletes its file and is not tried aga
   for (int k = 0; k < 20; ++k) revision = a.result("tool.apply", blob(14 + k))["revision"];
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   CHECK(snapshotFiles(dir, id) == 1);  // the session's first
-  INFO("snapshots tried and failed: " << failures.load() << " in " << seconds << " s of edits");
+  const int failures = failed.failures();
+  INFO("snapshots tried and failed: " << failures << " in " << seconds << " s of edits");
   CHECK(failures >= 1);
   CHECK(failures <= 2 + int(seconds));  // one at once, then after 1 s, 2 s, 4 s...
   // Once the stroke has ended, the next snapshot (after the back-off) goes through.
   s.client.result("stroke.end", {{"stroke", s.stroke}});
-  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  failed.waitOutBackoff();
   a.result("tool.apply", blob(36));
   CHECK(store->owner().read(id).current->revision >= revision);
   CHECK(snapshotFiles(dir, id) == 2);
@@ -456,7 +491,10 @@ TEST_CASE("etcd storage: an edit past what a session may hold in etcd gets -3200
   opt.maxChangeBytes = 5000;
   opt.maxSessionBytes = 40'000;
   auto store = std::make_shared<EtcdStorage>(kv, dir, "server-a", opt);
-  Hub hub(optionsFor(store));
+  SnapshotFailures failed;
+  HubOptions o = optionsFor(store);
+  o.events.log = [&](const std::string& line) { failed.log(line); };
+  Hub hub(o);
   TestClient a(hub);
   const json created = a.result("session.create", kCreate);
   const std::string id = created["session"];
@@ -489,7 +527,7 @@ TEST_CASE("etcd storage: an edit past what a session may hold in etcd gets -3200
   CHECK(heldInEtcd(kv, id).second <= 40'000);
   CHECK(s.client.error("stroke.dabs", {{"stroke", s.stroke}, {"dabs", surfaceDabs(1)}}) == -32011);
 
-  std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // the back-off of the failed snapshots
+  failed.waitOutBackoff();
   json accepted;
   for (int k = 0; k < 3 && !accepted.contains("result"); ++k) accepted = a.call("tool.apply", edit(k));
   INFO(accepted.dump());

@@ -218,11 +218,11 @@ TEST_CASE("etcd store: a lost lease is reported, refuses appends at once, and a 
   auto& [kv, lost, a] = owner;
   auto c = a.claim("s");
   kv.expire(leaseOf(kv, a, "s"));
-  for (int i = 0; i < 40 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 400 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   CHECK(lost == 1);
   CHECK_THROWS_AS(c.journal->append(change(1)), Fenced);
   // The keep-alive thread grants a fresh lease: the server may own sessions again.
-  for (int i = 0; i < 40 && !a.leaseHeld(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 400 && !a.leaseHeld(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   REQUIRE(a.leaseHeld());
   auto again = a.claim("s");
   REQUIRE(again.journal);
@@ -236,7 +236,7 @@ TEST_CASE("etcd store: after an outage past the lease's TTL the next claim waits
   auto& [kv, lost, a] = owner;
   auto c = a.claim("s");
   kv.down = true;
-  for (int i = 0; i < 60 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 400 && lost == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   REQUIRE(lost == 1);
   CHECK_FALSE(a.leaseHeld());
   // Still down: the claim waits its bounded time, then says etcd is out of reach.
