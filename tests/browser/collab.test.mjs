@@ -88,7 +88,7 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   const sentA = recordSent(a);
   const { link } = await createSession(a, "Ada");
   const b = await openNamed(link, "Bea");
-  for (const p of [a, b]) await p.waitForFunction(() => document.getElementById("clients").dataset.count === "2", null, { timeout: 10000 });
+  for (const p of [a, b]) await p.waitForFunction(() => document.getElementById("clients").dataset.count === "2", null, { timeout: 30000 });
   const [idA, idB] = [await clientId(a), await clientId(b)];
   assert.notEqual(idA, idB);
   const d0 = await digest(a);
@@ -148,13 +148,13 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   const errorsBefore = (await errorsShown(a)).length;
   await a.focus("#view");
   await a.keyboard.press("Control+z");
-  await a.waitForFunction((n) => window.marzipan.messages.history.filter((m) => m.kind === "error").length > n, errorsBefore, { timeout: 10000 });
+  await a.waitForFunction((n) => window.marzipan.messages.history.filter((m) => m.kind === "error").length > n, errorsBefore, { timeout: 30000 });
   const said = (await errorsShown(a)).at(-1);
   assert.equal(
     said,
     `Cannot undo your step at revision ${rA2}: Bea (client #${idB}) changed the same place at revision ${rB2}. Nothing changed; ask them to undo theirs first, or fork from the timeline.`,
   );
-  await a.waitForSelector(`.message.error >> text=Bea (client #${idB}) changed the same place at revision ${rB2}`, { timeout: 5000 });
+  await a.waitForSelector(`.message.error >> text=Bea (client #${idB}) changed the same place at revision ${rB2}`, { timeout: 30000 });
   writeFileSync(join(artifacts, "undo-conflict.png"), await a.screenshot());
   assert.equal(await revision(a), rB2, "the refused undo changed nothing");
   assert.equal(await digest(a), dConflict);
@@ -163,7 +163,7 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   // out and put back by undo and redo mine, now comes after B's); hovering A's second stroke
   // previews the volume right after it.
   await a.click("#timeline-panel summary");
-  await a.waitForFunction((r) => document.getElementById("timeline").dataset.revision === String(r), rB2, { timeout: 10000 });
+  await a.waitForFunction((r) => document.getElementById("timeline").dataset.revision === String(r), rB2, { timeout: 30000 });
   const rows = await a.$$eval("#timeline li", (lis) => lis.map((li) => [Number(li.dataset.revision), li.dataset.author]));
   assert.deepEqual(rows, [[rB2, "Bea"], [rA2, "you"], [rA, "you"], [rB, "Bea"]], "newest first, with the authors' names");
   const row = a.locator(`#timeline li[data-revision="${rA2}"]`);
@@ -186,7 +186,7 @@ test("two sculptors: undo mine leaves the other's stroke, a conflict is named, t
   assert.equal(await revision(a), rA2, "the fork starts at the chosen revision");
   assert.equal(await digest(a), dA2, "with the volume the session had at that revision");
   assert.ok(fork.hash.startsWith(`#session=${fork.info.session}&token=${fork.info.token}`), `the page's link is the fork's: ${fork.hash}`);
-  await b.waitForFunction(() => document.getElementById("clients").dataset.count === "1", null, { timeout: 10000 });
+  await b.waitForFunction(() => document.getElementById("clients").dataset.count === "1", null, { timeout: 30000 });
   assert.equal(await digest(b), dConflict, "the old session is unchanged");
   // Alone in the fork, the page's undo is the session's again: nothing to undo in a fresh history.
   assert.equal(await a.evaluate(() => window.marzipan.session.undoScope), "session");
@@ -210,7 +210,7 @@ async function ringAt(page, client, point, active) {
       ({ client, point, active }) =>
         window.marzipan.presence.shown.some((r) => r.client === client && r.active === active && r.center.every((v, k) => Math.abs(v - point[k]) < 1e-9)),
       { client, point, active },
-      { timeout: 10000 },
+      { timeout: 30000 },
     )
     .catch(async (e) => {
       throw new Error(`no ring of client ${client} at ${JSON.stringify(point)} (active ${active}); rings drawn ${JSON.stringify(await ringsOn(page))} (${e.message})`);
@@ -228,7 +228,7 @@ async function sameCamera(follower, leader) {
         return near(c.eye, want.eye) && near(c.target, want.target) && c.fov === want.fov;
       },
       want,
-      { timeout: 10000 },
+      { timeout: 30000 },
     )
     .catch(async (e) => {
       throw new Error(`camera ${JSON.stringify(await cameraOf(follower))} is not the leader's ${JSON.stringify(want)} (${e.message})`);
@@ -251,7 +251,7 @@ test("presence: rings move while a sculptor drags, the people list, following a 
   const { link, viewLink } = await createSession(a, "Ada");
   const b = await openNamed(link, "Bea");
   const c = await openNamed(viewLink, "Cy");
-  for (const p of [a, b, c]) await p.waitForFunction(() => document.getElementById("clients").dataset.count === "3", null, { timeout: 10000 });
+  for (const p of [a, b, c]) await p.waitForFunction(() => document.getElementById("clients").dataset.count === "3", null, { timeout: 30000 });
   const [idA, idB, idC] = [await clientId(a), await clientId(b), await clientId(c)];
   const colourA = await a.evaluate(() => window.marzipan.session.clients.find((c) => c.client === window.marzipan.session.info.client).color);
 
@@ -276,7 +276,7 @@ test("presence: rings move while a sculptor drags, the people list, following a 
   await ringAt(b, idA, p2, false);
   await ringAt(c, idA, p2, false);
   assert.equal(await revision(b), r0, "the ring moved without any edit");
-  await b.waitForFunction((id) => document.querySelector(`#people-list li[data-client="${id}"]`).dataset.doing === "add blob", idA, { timeout: 5000 });
+  await b.waitForFunction((id) => document.querySelector(`#people-list li[data-client="${id}"]`).dataset.doing === "add blob", idA, { timeout: 30000 });
   const presenceSent = sentA.filter((m) => m.method === "presence");
   assert.ok(presenceSent.length >= 2 && presenceSent.every((m) => m.id === undefined && m.params.camera), "presence goes out as notifications with the camera");
 
@@ -285,7 +285,7 @@ test("presence: rings move while a sculptor drags, the people list, following a 
   for (let i = 1; i <= 4; ++i) await a.mouse.move(cx - 20, cy - 40 + 5 * i);
   const p3 = await hitOf(a);
   await ringAt(b, idA, p3, true);
-  await b.waitForFunction((id) => document.querySelector(`#people-list li[data-client="${id}"]`).dataset.doing === "add blob · sculpting", idA, { timeout: 5000 });
+  await b.waitForFunction((id) => document.querySelector(`#people-list li[data-client="${id}"]`).dataset.doing === "add blob · sculpting", idA, { timeout: 30000 });
   for (let i = 1; i <= 4; ++i) await a.mouse.move(cx - 20, cy - 20 + 5 * i);
   const p4 = await hitOf(a);
   assert.notDeepEqual(p3, p4);
@@ -304,7 +304,7 @@ test("presence: rings move while a sculptor drags, the people list, following a 
   const boxB = await b.locator("#view").boundingBox();
   await b.mouse.move(boxB.x + boxB.width / 2 + 80, boxB.y + boxB.height / 2 + 30);
   await ringAt(c, idB, await hitOf(b), false);
-  await c.waitForFunction(() => document.getElementById("view").dataset.rings === "2", null, { timeout: 10000 });
+  await c.waitForFunction(() => document.getElementById("view").dataset.rings === "2", null, { timeout: 30000 });
   const labels = await c.$$eval(".presence-label:not([hidden])", (els) => els.map((e) => e.textContent).sort());
   assert.deepEqual(labels, ["Ada", "Bea"]);
   assert.equal(await c.evaluate(() => window.marzipan.sculpt.presenceBrush), null, "a viewer has no brush to show");
@@ -339,11 +339,11 @@ test("presence: rings move while a sculptor drags, the people list, following a 
 
   // A leaves: its ring and its row go, and the viewer's following stops.
   await a.close();
-  for (const p of [b, c]) await p.waitForFunction(() => document.getElementById("view").dataset.rings !== undefined && !window.marzipan.presence.shown.some((r) => r.client !== window.marzipan.session.info.client && window.marzipan.session.clients.every((c) => c.client !== r.client)), null, { timeout: 10000 });
-  await c.waitForFunction((id) => !document.querySelector(`#people-list li[data-client="${id}"]`), idA, { timeout: 10000 });
+  for (const p of [b, c]) await p.waitForFunction(() => document.getElementById("view").dataset.rings !== undefined && !window.marzipan.presence.shown.some((r) => r.client !== window.marzipan.session.info.client && window.marzipan.session.clients.every((c) => c.client !== r.client)), null, { timeout: 30000 });
+  await c.waitForFunction((id) => !document.querySelector(`#people-list li[data-client="${id}"]`), idA, { timeout: 30000 });
   // The rings shown are those of the last frame drawn: under SwiftShader the next one may come
   // a while after the list changed.
-  await c.waitForFunction((id) => !window.marzipan.presence.shown.some((r) => r.client === id), idA, { timeout: 10000 });
+  await c.waitForFunction((id) => !window.marzipan.presence.shown.some((r) => r.client === id), idA, { timeout: 30000 });
   assert.ok(!(await ringsOn(c)).some((r) => r.client === idA), "A's ring is gone");
   await c.waitForSelector("#follow-note >> text=Stopped following: they left the session.");
   assert.deepEqual(await errorsShown(b), [], "B saw no error");
