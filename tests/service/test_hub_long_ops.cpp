@@ -167,16 +167,16 @@ TEST_CASE("other sessions are served while long operations run in as many sessio
   sendLong(c, 9, "volume.morph", {{"kind", "close"}, {"radius", 60}});
   waitProgress(a, 9);
   waitProgress(c, 9);
-  // Renders use the same engine pool as the smoothing; edits of b run on its own strand.
+  // Renders use the same engine pool as the smoothing; edits of b run on its own strand. The
+  // long operations take hours unless cancelled, and are cancelled only after b's rounds: each
+  // of b's answers (waited for kWait at most) comes while both still run, whatever the
+  // machine's load, and never if they held b up (no time is bounded: that is speed).
   for (int i = 0; i < 3; ++i) {
-    const auto start = Clock::now();
     b.result("render.frame", {{"camera", {{"eye", {64, 80, 300}}, {"target", {64, 64, 64}}}}, {"width", 256}, {"height", 256}, {"format", "png"}});
     b.result("tool.apply", kBlob);
     b.result("volume.morph", {{"kind", "dilate"}, {"radius", 1}});
-    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    INFO("round " << i << ": " << seconds << " s");
-    CHECK(seconds < 10);
   }
+  // Still running: each answers only now, to its cancel.
   CHECK(a.result("op.cancel")["cancelled"] == true);
   CHECK(c.result("op.cancel")["cancelled"] == true);
   CHECK(responseTo(a, 9)["error"]["code"] == -32016);
@@ -199,7 +199,9 @@ TEST_CASE("shutdown cancels a long operation and returns within seconds, keeping
     const auto start = Clock::now();
     hub.shutdown();
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    CHECK(seconds < 6);
+    // The hub waits 2 s for running edits, as long again for the snapshots (hub.cpp,
+    // kShutdownWait): 10 s is the server's promise for SIGTERM, and room for a loaded machine.
+    CHECK(seconds < 10);
     const json answer = responseTo(a, 11);
     CHECK(answer["error"]["code"] == -32016);
   }
@@ -238,7 +240,7 @@ TEST_CASE("with --fsync-ms, records an append did not sync are synced by a timer
   const auto dir = scratch("fsync");
   HubOptions o = longOptions();
   o.dataDir = dir;
-  o.fsyncInterval = std::chrono::milliseconds(150);
+  o.fsyncInterval = std::chrono::milliseconds(1000);
   std::mutex mutex;
   std::condition_variable cv;
   int synced = 0;
@@ -251,11 +253,16 @@ TEST_CASE("with --fsync-ms, records an append did not sync are synced by a timer
     Hub hub(o);
     TestClient a(hub);
     a.result("session.create", {{"size", {64, 64, 64}}, {"solid", "sphere"}, {"view", "none"}});
-    // Two edits in a row: the second comes within the interval of the first's sync, so only the
-    // timer can sync it.
-    for (int i = 0; i < 2; ++i) a.result("tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}});
+    // Four edits sent at once: their appends follow one another on the session's strand, each
+    // within the interval of the sync before unless every one of them waited over a second for
+    // a worker, and only the timer syncs such an append. (One edit after another's answer, as
+    // here before, came later than a 150 ms interval on a loaded machine: synced at once, so
+    // the timer had nothing to do, 4 of 15 runs beside three busy loops.)
+    for (int i = 0; i < 4; ++i) sendLong(a, 20 + i, "tool.apply", {{"tool", "add_blob"}, {"center", {24 + 4 * i, 54, 32}}});
+    for (int i = 0; i < 4; ++i) REQUIRE(responseTo(a, 20 + i).contains("result"));
     std::unique_lock lock(mutex);
-    CHECK(cv.wait_for(lock, std::chrono::seconds(2), [&] { return synced > 0; }));
+    // The timer's first run after the interval; kWait: a loaded machine may run it late.
+    CHECK(cv.wait_for(lock, kWait, [&] { return synced > 0; }));
   }
   std::filesystem::remove_all(dir);
 }
