@@ -215,12 +215,11 @@ Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& po
 inline constexpr double kMinWarpRadius = 1;
 inline constexpr double kMaxWarpRadius = 64;
 // A snake hook's radius is at least this (the registry's snake_radius): its tentacle is about
-// half the radius thick, and each move's resample loses a little of a convex tip, more the
-// thinner it is (radius 3: the tip's width fell by about 0.07 vu a move and the tip was 3 vu
-// off the path after 26 moves of 1 vu, where the same drag scaled by 2 held; radius 4: a helix
-// left the path 0.35 vu outside the clay). This delays the loss, it does not remove it: at 5,
-// about 40 moves of 1 vu (docs/method.md §3, Warps).
-inline constexpr double kMinSnakeHookRadius = 5;
+// half the radius thick, and the grid loses a thinner one. Measured 2026-11-30 with the
+// resample's cubic read next to the zero set (level_set/warp.cpp): at radius 4 the tip held on
+// every path tried, 30 and 70 vu in moves of 1 and 2 vu; at radius 3 it was lost after 13-59
+// moves of a 70 vu drag (docs/method.md §3, Warps).
+inline constexpr double kMinSnakeHookRadius = 4;
 // A grab's |d| is at most this many radii (the work grows with |d|^2 * radius).
 inline constexpr double kMaxWarpTravelPerRadius = 8;
 // The largest |grad v| * dt of one integration sub-step.

@@ -168,11 +168,11 @@ PARAMETERS = {
     "key": "radius",
     "type": "number",
     "unit": "vu",
-    "minimum": 5,
+    "minimum": 4,
     "maximum": 64,
     "default": 8,
     "in": ["stroke"],
-    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick; a thinner one loses its tip to the resampling within 20-30 moves",
+    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick, and a thinner one is lost to the grid",
   },
   "elastic_radius": {
     "id": "elastic_radius",
