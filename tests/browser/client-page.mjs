@@ -35,6 +35,14 @@ export const data = (page, id, key) => page.evaluate(([i, k]) => document.getEle
 // the shot, since the checks below read the model and the backdrop from its pixels.
 const CANVAS_ONLY = ".people, .presence-labels { visibility: hidden !important; }";
 
+// Resolves once the page has drawn a frame begun after this call: the renderer draws in a
+// requestAnimationFrame callback, so a redraw requested before this has run by the time the
+// second of two such callbacks runs, however late a loaded machine makes the frames. After a
+// fixed wait, it makes sure that the picture taken next is the one asked for.
+export async function drawn(page) {
+  await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
+}
+
 export async function shot(page, name) {
   const png = await page.locator("#view").screenshot({ style: CANVAS_ONLY });
   writeFileSync(join(artifacts, `${name}.png`), png);

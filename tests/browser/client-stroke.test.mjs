@@ -10,7 +10,7 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, canvasCenter, data, drag, reach, RIM_LIMIT, roughness, scrub, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, canvasCenter, data, drag, drawn, reach, RIM_LIMIT, roughness, scrub, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 import { backdropPixels, rimRoughness } from "./rim.mjs";
 
@@ -73,6 +73,7 @@ test("a stroke's dabs land on the surface as it was at the press, and it stands 
   await page.mouse.wheel(0, -800); // zoom in towards it, to 0.3 of the distance
   await page.mouse.move(5, 5); // no brush cursor in the pictures
   await page.waitForTimeout(400);
+  await drawn(page);
   const closeBlended = await shot(page, "15-groove-close-blended");
   // The same with one flat normal per disc, as before the normals varied across them.
   await page.evaluate(() => {
@@ -80,6 +81,7 @@ test("a stroke's dabs land on the surface as it was at the press, and it stands 
     window.marzipan.renderer.requestRedraw();
   });
   await page.waitForTimeout(400);
+  await drawn(page);
   const closeFlat = await shot(page, "15-groove-close-flat-normals");
   await page.evaluate(() => {
     window.marzipan.store.setVaryNormals(true);
@@ -87,6 +89,7 @@ test("a stroke's dabs land on the surface as it was at the press, and it stands 
     window.marzipan.renderer.requestRedraw();
   });
   await page.waitForTimeout(400);
+  await drawn(page);
   const closeOpaque = await shot(page, "15-groove-close-opaque");
   await page.evaluate(() => {
     window.marzipan.renderer.splats.blend = true;

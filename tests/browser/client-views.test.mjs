@@ -9,7 +9,7 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, changedPixels, collectErrors, createSession, data, env, modelFraction, RIPPLE_LIMIT, shot, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, changedPixels, collectErrors, createSession, data, drawn, env, modelFraction, RIPPLE_LIMIT, shot, useServerAndBrowser } from "./client-page.mjs";
 import { revision } from "./harness.mjs";
 import { backdropPixels, rimRipple } from "./rim.mjs";
 
@@ -46,6 +46,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   assert.equal(await page.locator("#orthographic").isChecked(), true);
   assert.equal(await page.evaluate(() => window.marzipan.camera.toProtocol().fov), 1.2);
   await page.waitForTimeout(300);
+  await drawn(page);
   const ortho = await shot(page, "13-pig-front-orthographic");
   // The same with the discs drawn opaque, as before blending: scales on the body, beads on rims.
   await page.evaluate(() => {
@@ -53,6 +54,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
     window.marzipan.renderer.requestRedraw();
   });
   await page.waitForTimeout(400);
+  await drawn(page);
   await shot(page, "13-pig-front-orthographic-opaque");
   // Blended with one flat normal per disc, as before the normals varied: beads on the rims.
   await page.evaluate(() => {
@@ -61,6 +63,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
     window.marzipan.renderer.requestRedraw();
   });
   await page.waitForTimeout(400);
+  await drawn(page);
   await shot(page, "13-pig-front-orthographic-flat-normals");
   await page.evaluate(() => {
     window.marzipan.store.setVaryNormals(true);
@@ -73,6 +76,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   await page.click('label:has(input[value="frames"])');
   await page.waitForFunction(() => Number(document.getElementById("stat-frame").dataset.received || 0) > 0, null, { timeout: 30000 });
   await page.waitForTimeout(600);
+  await drawn(page);
   const frame = await shot(page, "14-pig-front-orthographic-frame");
   assert.ok(Math.abs(modelFraction(frame) / of - 1) < 0.1, `the server's frame frames it alike (${modelFraction(frame)} vs ${of})`);
 
@@ -106,6 +110,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
     window.marzipan.renderer.requestRedraw();
   });
   await page.waitForTimeout(400);
+  await drawn(page);
   const snoutFlat = await shot(page, "16-snout-close-flat-normals");
   await page.evaluate(() => {
     window.marzipan.store.setVaryNormals(true);
@@ -114,6 +119,7 @@ test("a whole-volume smoothing fills the progress bar and Cancel stops it, chang
   await page.click('label:has(input[value="frames"])');
   await page.waitForFunction((n) => Number(document.getElementById("stat-frame").dataset.received || 0) > n, Number(await data(page, "stat-frame", "received")));
   await page.waitForTimeout(2000);
+  await drawn(page);
   const snoutFrame = await shot(page, "16-snout-close-frame");
   const ripple = { varying: rimRipple(snoutVarying, centre, radius), flat: rimRipple(snoutFlat, centre, radius), frame: rimRipple(snoutFrame, centre, radius) };
   t.diagnostic(`snout rim ripple (RMS luminance about its mean over 7.5 degrees either side): ${JSON.stringify(ripple)}`);
