@@ -263,10 +263,10 @@ TEST_CASE("ws: a client that stops reading neither stalls the others nor grows m
   // Large changes: each undo or redo of a big CSG sphere re-sends thousands of points.
   const json added = fast.call(2, "tool.apply", {{"tool", "csg_add"}, {"shape", "sphere"}, {"center", {64, 64, 64}}, {"radius", 55}});
   REQUIRE(added.contains("result"));
-  const auto start = std::chrono::steady_clock::now();
+  // Not stalled: every answer comes (each read waits 20 s at most, SO_RCVTIMEO) while the slow
+  // client reads nothing; a hub held by its full socket would answer none. How long the sixty
+  // take is speed, which a loaded machine decides: not bounded.
   for (int i = 0; i < 60; ++i) REQUIRE(fast.call(10 + i, i % 2 ? "history.redo" : "history.undo").contains("result"));
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  CHECK(seconds < 30);
   // The slow client was dropped once its queue passed the bound.
   CHECK(slow.closeCode() == 1008);
   CHECK(fast.call(100, "session.stats")["result"]["clients"].size() == 1);
