@@ -51,7 +51,10 @@ def free_port():
         return s.getsockname()[1]
 
 
-def wait_until(what, predicate, timeout=10.0):
+# Waits for something the servers or HAProxy do on their own timers (health checks every 2 s,
+# --idle-session-seconds 1): 30 s, so that a loaded machine running them late does not fail a
+# wait that normally ends within a few seconds.
+def wait_until(what, predicate, timeout=30.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         result = predicate()
@@ -250,7 +253,7 @@ def check_failover_routing(t, owner):
     def as_before():
         return all(t.get(f"/index.html?session={sid}")[2] == s for sid, s in owner.items())
 
-    wait_until(f"{stopped} to serve its sessions again", as_before, timeout=20)
+    wait_until(f"{stopped} to serve its sessions again", as_before, timeout=40)
     print(f"ok: {stopped} restarted serves its {len(moved)} sessions again, the others kept theirs")
 
 
