@@ -1087,9 +1087,20 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // 3-radius grab the voxels next to the zero set were 0.1-0.3 vu off on those sides (exact
   // 0.6-0.8): whole-volume gradient error 0.293 / 0.0116 against the exact field's 0.237 /
   // 0.00175, 0.234 / 0.00223 with foot points (tests/engine/level_set/test_warp.cpp). Not for
-  // the other warps: a snake hook resamples its tip, a few voxels thick, at every move, and
-  // exact distances there moved its zero set inwards move after move (the 200 vu tentacle's
-  // path read 0.44 vu outside its surface); the path pinch's surface moved 0.24 vu.
+  // the path pinch, whose surface moved 0.24 vu.
+  //
+  // A snake hook's kept voxels take foot points around its tip only: within kTipFeetReach of
+  // the plateau's capsule (the ball, sunk into the tip, swept along the move), and only when
+  // the ball, the tip's radius, is at least kTipFeetBall. There phi1 / |grad phi1| left the
+  // tip sharper than the exact field's (the 200 vu tentacle's gradient error 0.187 above its
+  // foot, the exact tip's 0.036-0.050) and foot points hold it (0.077). Elsewhere they cost the
+  // path: on a thin tip (the ball 2.5 vu at radius 5) the tentacle cut inside a helix's curve
+  // 0.75 vu outside the path with foot points on the plateau alone (0.27 without), 1.28 vu
+  // with them on every kept voxel; and in the falloff's outer part (2 vu past the plateau, or
+  // everywhere) the radius 8 helix in moves of 2 vu left its path 0.31-0.32 vu (0.01 without).
+  // With the trilinear read (before 2026-11-30) exact distances at the tip moved its zero set
+  // inwards move after move (the 200 vu tentacle's path read 0.44 vu outside its surface).
+  constexpr double kTipFeetReach = 1, kTipFeetBall = 3;
   constexpr double kSlopeStep = 0.5;
   // Newton steps to a foot point (at most: they stop once the next would be shorter than
   // kFootConverged vu; a 3-radius grab's figures moved by under 1% with 5 or 8), the residual
@@ -1098,6 +1109,17 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   constexpr double kFootResidual = 0.05, kFootConverged = 1e-3;
   constexpr int kCrossingBisections = 12;
   const bool footPoints = v.kind == Velocity::Kind::Capsule && v.plateau == 0;
+  const double tipBall = v.kind == Velocity::Kind::Capsule ? v.plateau * v.radius : 0;
+  const bool tipFeet = tipBall >= kTipFeetBall;
+  // Whether the kept voxel at p takes its foot point.
+  const auto feetAt = [&](Vec3 p) {
+    if (footPoints) return true;
+    if (!tipFeet) return false;
+    const Vec3 r = p - v.anchor;
+    const double t = v.segLength2 > 0 ? std::clamp(dot(r, v.seg) / v.segLength2, 0.0, 1.0) : 0.0;
+    const Vec3 off = r - v.seg * t;
+    return dot(off, off) <= (tipBall + kTipFeetReach) * (tipBall + kTipFeetReach);
+  };
   // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
   // them: every voxel the flow moves within a voxel of the changed ones is looked at.
   if (!moved.empty()) moved = moved.grown(1).intersect(work);
@@ -1135,6 +1157,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
           }
         if (bound == 1 && value != 0) continue;  // not next to the zero set
+        const bool feet = feetAt(p);
         // The gradient of phi1 at `at`, DX^T grad phi0(X), grad phi0 by central differences of
         // the trilinear interpolant over +-kSlopeStep; and phi1 there when `phi` is given.
         const auto slope = [&](Vec3 at, double* phi) {
@@ -1146,15 +1169,15 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             Vec3 lo = q, hi = q;
             lo[a] -= kSlopeStep;
             hi[a] += kSlopeStep;
-            g0[a] = footPoints ? (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep)
-                               : (read(hi) - read(lo)) / (2 * kSlopeStep);
+            g0[a] = feet ? (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep)
+                         : (read(hi) - read(lo)) / (2 * kSlopeStep);
           }
           Vec3 g;
           for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
           return g;
         };
         double mag;
-        if (!footPoints) {
+        if (!feet) {
           const double len = length(slope(p, nullptr));
           mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
         } else {
