@@ -14,7 +14,7 @@ import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, canvasCenter, changedPixels, checkStl, collectErrors, createSession, data, drag, env, modelFraction, shot, text, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, canvasCenter, changedPixels, checkStl, collectErrors, createSession, data, drag, drawn, env, modelFraction, shot, text, useServerAndBrowser } from "./client-page.mjs";
 import { digest, revision, settled } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
 
@@ -228,6 +228,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   await page.click('label:has(input[value="frames"])');
   await page.waitForFunction(() => Number(document.getElementById("stat-frame").dataset.received || 0) > 0, null, { timeout: 30000 });
   await page.waitForTimeout(600); // the still frame follows the interactive one
+  await drawn(page);
   const frame = await shot(page, "06-frame-view");
   assert.ok(modelFraction(frame, [0.4, 0.4, 0.6, 0.6]) > 0.9, "the frame shows the model in the middle");
   assert.equal(modelFraction(frame, [0, 0, 0.1, 0.1]), 0, "and the backdrop in the corner");
@@ -241,7 +242,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   await page.waitForFunction(
     () => Number(document.getElementById("stat-points").dataset.revision) >= Number(document.getElementById("revision").dataset.revision),
     null,
-    { timeout: 15000 },
+    { timeout: 30000 },
   );
   assert.notEqual(Number(await data(page, "stat-points", "points")), pointsBefore, "the splats picked on are the new ones");
   await page.click('label:has(input[value="csg_subtract"])');
@@ -256,6 +257,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
     { timeout: 30000 },
   );
   await page.waitForTimeout(200);
+  await drawn(page);
   const gradient = await shot(page, "07-gradient-error");
   assert.ok(changedPixels(frame, gradient) > 1000, "gradient-error shading differs from clay");
   await page.selectOption("#shading", "lit");
