@@ -14,9 +14,9 @@
 // voxel p (BrickSplats::texels, one per point); a brick without one gives none, its points being
 // the volume's base colour with weight 0.
 //
-// The splat of voxel p reads p's six neighbours, so a changed brick alters the splats of those
-// face neighbours whose adjacent layer of it changed: bricksAroundChanges() lists what to
-// re-extract after an edit.
+// The splat of voxel p reads d(p), p's six neighbours and p's texel, so after an edit only a
+// surface voxel (in the state before or after it) that reads a changed value can change a splat,
+// in its changed brick or in a face neighbour: bricksAroundChanges() lists what to re-extract.
 //
 // The wire encoding of splats is protocol/cpp/splats.hpp.
 #pragma once
@@ -46,9 +46,13 @@ std::vector<BrickSplats> extractSplats(const Volume& vol, const std::vector<Int3
 // Every brick that has splats, in z, y, x order (a full picture).
 std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool = ThreadPool::serial());
 
-// The bricks whose splats may differ after `changes`: each changed brick, and each of its six
-// face neighbours within vol.brickDims() whose layer of the changed brick next to it differs
-// (bit for bit) between before and after; sorted z, y, x and without duplicates.
+// The bricks whose splats may differ after `changes` (vol holding either side of them: the list is
+// the same after the edit and after its undo): of each changed brick and its six face neighbours
+// within vol.brickDims(), those with a voxel p in the domain that is next to the surface before
+// or after and of which p or a 6-neighbour changed bit for bit, and changed bricks whose channels'
+// buffer (BrickRef::paint) changed. Every brick left out extracts the same block in both states.
+// Sorted z, y, x and without duplicates. A list naming a brick twice gets the changed bricks and
+// all their face neighbours.
 std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<BrickChange>& changes);
 
 }  // namespace marzipan

@@ -262,7 +262,7 @@ TEST_CASE("re-extracting the bricks around an edit matches a fresh extraction", 
       const Edit e = (round++ % 2 == 0) ? addBlob(v, brush, pool) : removeBlob(v, brush, pool);
       REQUIRE(!e.empty());
       const auto around = bricksAroundChanges(v, e.changes);
-      CHECK(around.size() >= e.changes.size());
+      CHECK(!around.empty());
       // The delta goes through the wire format: empty blocks clear bricks that lost their points.
       const auto delta = decodeSplats(encodeSplats(extractSplats(v, around, pool)));
       REQUIRE(delta.size() == around.size());
@@ -283,10 +283,11 @@ TEST_CASE("re-extracting the bricks around an edit matches a fresh extraction", 
   }
 }
 
-TEST_CASE("the bricks around a change leave out neighbours whose adjacent layer of it did not change", "[splats]") {
+TEST_CASE("the bricks around a change are those with a changed value next to a surface voxel", "[splats]") {
   const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
-  // A stored brick well inside the grid (the sphere's surface crosses it).
+  // A stored brick well inside the grid (the sphere's surface crosses it, near x = 51.5).
   const Int3 b = Bricks::brickOf(Int3{51, 32, 30});
+  const Int3 o = Bricks::origin(b);
   const BrickRef before = v.brick(b);
   REQUIRE(before.data);
   auto changedAt = [&](Int3 local) {
@@ -294,42 +295,61 @@ TEST_CASE("the bricks around a change leave out neighbours whose adjacent layer 
     data->v[Bricks::index(local)] += 0.25f;
     return std::vector<BrickChange>{{b, before, BrickRef{data, false}}};
   };
-  // An interior voxel: no neighbour reads it.
-  CHECK(bricksAroundChanges(v, changedAt({3, 4, 5})) == std::vector<Int3>{b});
-  // A voxel on the low x face: only the neighbour on that side reads it.
-  CHECK(bricksAroundChanges(v, changedAt({0, 4, 5})) == std::vector<Int3>{b - Int3{1, 0, 0}, b});
-  // A corner voxel: three neighbours, in z, y, x order.
-  CHECK(bricksAroundChanges(v, changedAt({7, 7, 7})) ==
-        std::vector<Int3>{b, b + Int3{1, 0, 0}, b + Int3{0, 1, 0}, b + Int3{0, 0, 1}});
-  // A uniform brick turning to the other side changes every layer.
+  // A voxel of the low y face next to the surface, and its neighbour across the face too: this
+  // brick and that neighbour, in z, y, x order.
+  REQUIRE(std::fabs(v.at(o + Int3{3, 0, 5})) < kSurfaceNear);
+  REQUIRE(std::fabs(v.at(o + Int3{3, -1, 5})) < kSurfaceNear);
+  CHECK(bricksAroundChanges(v, changedAt({3, 0, 5})) == std::vector<Int3>{b - Int3{0, 1, 0}, b});
+  // A voxel of the high x face 3.9 vu outside, no neighbour of it near the surface: none.
+  REQUIRE(v.at(o + Int3{7, 4, 5}) > 3 * kSurfaceNear);
+  CHECK(bricksAroundChanges(v, changedAt({7, 4, 5})).empty());
+  // The same voxels, its channels a new buffer: the brick (its texels), not the neighbours.
+  const BrickRef repainted{before.data, false, std::make_shared<BrickPaint>()};
+  CHECK(bricksAroundChanges(v, {{b, before, repainted}}) == std::vector<Int3>{b});
+  // A uniform brick turning to the other side puts the surface on its faces and its neighbours'.
   const Int3 inside = Bricks::brickOf(Int3{32, 32, 30});
   REQUIRE(!v.brick(inside).data);
   REQUIRE(v.brick(inside).inside);
   CHECK(bricksAroundChanges(v, {{inside, v.brick(inside), BrickRef{nullptr, false}}}).size() == 7);
 }
 
-TEST_CASE("the bricks around a one-voxel change are those whose face holds the voxel, for every voxel", "[splats]") {
-  const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+namespace {
+
+// Checks bricksAroundChanges against extraction in the two states `was` and `now` (now = was
+// with `changes`): every brick of `check` whose block differs between them is listed; the list
+// is sorted z, y, x without duplicates, and the same with the volume in either state and with
+// the changes reversed (an undo). Returns the list.
+std::vector<Int3> checkAround(const Volume& was, const Volume& now, const std::vector<BrickChange>& changes,
+                const std::vector<Int3>& check) {
   auto zyx = [](Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); };
-  auto expected = [&](Int3 b, Int3 l) {
-    std::vector<Int3> want{b};
-    for (int a = 0; a < 3; ++a) {
-      Int3 e{0, 0, 0};
-      e[a] = 1;
-      if (l[a] == 0) want.push_back(b - e);
-      if (l[a] == kBrickSide - 1) want.push_back(b + e);
+  const std::vector<Int3> listed = bricksAroundChanges(now, changes);
+  REQUIRE(std::is_sorted(listed.begin(), listed.end(), zyx));
+  REQUIRE(std::adjacent_find(listed.begin(), listed.end()) == listed.end());
+  CHECK(bricksAroundChanges(was, changes) == listed);
+  std::vector<BrickChange> undo;
+  for (const BrickChange& c : changes) undo.push_back({c.brick, c.after, c.before});
+  CHECK(bricksAroundChanges(was, undo) == listed);
+  CHECK(bricksAroundChanges(now, undo) == listed);
+  for (const Int3 b : check) {
+    if (extractBrickSplats(was, b) != extractBrickSplats(now, b)) {
+      INFO("brick " << b.x << "," << b.y << "," << b.z << " changed its splats");
+      REQUIRE(std::binary_search(listed.begin(), listed.end(), b, zyx));
     }
-    std::sort(want.begin(), want.end(), zyx);
-    return want;
-  };
-  // A stored brick becoming another stored brick, and a uniform outside brick becoming stored
-  // (the layers compared against the uniform value).
+  }
+  return listed;
+}
+
+}  // namespace
+
+TEST_CASE("the bricks around a one-voxel change list every brick whose splats change, for every voxel", "[splats]") {
+  const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
+  // A stored brick becoming another stored brick, and a uniform outside brick becoming stored.
   const Int3 stored = Bricks::brickOf(Int3{51, 32, 30});
   const Int3 air{1, 1, 1};
   REQUIRE(v.brick(stored).data);
   REQUIRE(!v.brick(air).data);
   REQUIRE(!v.brick(air).inside);
-  int checked = 0;
+  int checked = 0, leftOut = 0;
   for (const Int3 b : {stored, air}) {
     const BrickRef before = v.brick(b);
     Brick base;
@@ -338,15 +358,85 @@ TEST_CASE("the bricks around a one-voxel change are those whose face holds the v
     } else {
       std::fill(std::begin(base.v), std::end(base.v), v.band());
     }
+    // The brick and its face neighbours: no other brick reads its voxels.
+    std::vector<Int3> around{b};
+    for (int a = 0; a < 3; ++a)
+      for (int s = -1; s <= 1; s += 2) {
+        Int3 nb = b;
+        nb[a] += s;
+        around.push_back(nb);
+      }
     for (int i = 0; i < kBrickVoxels; ++i, ++checked) {
       auto data = std::make_shared<Brick>(base);
       data->v[i] = data->v[i] > 0 ? data->v[i] - 0.5f : data->v[i] + 0.5f;
       const Int3 l = Bricks::local(i);
       INFO("brick " << b.x << "," << b.y << "," << b.z << " voxel " << l.x << "," << l.y << "," << l.z);
-      REQUIRE(bricksAroundChanges(v, {{b, before, BrickRef{data, false}}}) == expected(b, l));
+      const std::vector<BrickChange> changes{{b, before, BrickRef{data, false}}};
+      Volume now = v;
+      now.publish(changes, true);
+      leftOut += int(around.size() - checkAround(v, now, changes, around).size());
     }
   }
   CHECK(checked == 2 * kBrickVoxels);
+  // Most voxels of the two bricks are away from the surface (air: all of them, 0.5 off band).
+  CHECK(leftOut > 7 * kBrickVoxels);
+}
+
+TEST_CASE("the bricks around random edits list every brick whose splats change, in both directions", "[splats]") {
+  // A domain of no multiple of 8 (bricks cut by its far edge), a sphere cut by its far z face,
+  // painted over part of it.
+  const Vec3 c{38.3, 31.1, 28.4};
+  Volume v = makeSphere({61, 53, 47}, c, 20);
+  PaintSettings red;
+  red.color = {200, 20, 10};
+  red.radius = 14;
+  paint(v, red, {45, 27, 26});
+  std::vector<Int3> all;
+  const Int3 n = v.brickDims();
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y)
+      for (int x = 0; x < n.x; ++x) all.push_back({x, y, z});
+  std::mt19937 rng{32};
+  std::uniform_real_distribution<double> unit(-1, 1);
+  int edits = 0, changedBricks = 0, changedLeftOut = 0;
+  for (int round = 0; round < 48; ++round) {
+    Vec3 dir{unit(rng), unit(rng), unit(rng)};
+    // Every third edit towards the far edges (the cut bricks).
+    if (round % 3 == 2) dir = {std::fabs(dir.x), std::fabs(dir.y), std::fabs(dir.z)};
+    dir = normalized(dir);
+    // On the surface, within the domain.
+    Vec3 at = c + dir * 20;
+    at = {std::min(at.x, 59.5), std::min(at.y, 51.5), std::min(at.z, 45.5)};
+    const BrushParams brush{at, 3 + 3 * std::fabs(unit(rng)), 1};
+    const Volume was = v;
+    Edit e;
+    switch (round % 5) {
+      case 0: e = addBlob(v, brush); break;
+      case 1: e = removeBlob(v, brush); break;
+      case 2: e = smooth(v, brush); break;
+      case 3: {
+        PaintSettings blue;
+        blue.color = {10, 30, 220};
+        blue.radius = brush.radius;
+        e = paint(v, blue, at);
+        break;
+      }
+      default: {
+        const StrokeDab dabs[] = {StrokeDab(at), StrokeDab(at + Vec3{2, 1, 0}), StrokeDab(at + Vec3{4, 1, 1})};
+        e = applyStroke(v, StrokeSettings(Brush::AddBlob, brush.radius, 1), dabs, {});
+      }
+    }
+    if (e.empty()) continue;
+    ++edits;
+    changedBricks += int(e.changes.size());
+    INFO("round " << round);
+    const std::vector<Int3> listed = checkAround(was, v, e.changes, all);
+    for (const BrickChange& ch : e.changes) changedLeftOut += !std::count(listed.begin(), listed.end(), ch.brick);
+  }
+  CHECK(edits > 40);
+  // Changed bricks whose splats came out the same: a tenth at least (the changes of a dab
+  // reach past the surface, into the band).
+  CHECK(changedLeftOut * 10 > changedBricks);
 }
 
 TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
