@@ -793,6 +793,7 @@ TEST_CASE("edits while a splats-mode client's splats.get buffer is on its way le
   const json created = x.result("session.create", kCreate64);
   auto link = std::make_shared<GateLink>();
   const auto y = hub.connect(link, "y");
+  const OpenOnExit open{{link}};  // a failed wait must not leave y's worker held at shutdown
   hub.text(y, json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "session.join"},
                    {"params", {{"session", created["session"]}, {"token", created["token"]}}}}
                   .dump());

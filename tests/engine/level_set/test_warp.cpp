@@ -274,6 +274,19 @@ TEST_CASE("warps give the same bits on any number of threads", "[warp][threads]"
     twist(serial, base, surfacePoint(), {0.3, 1, 0.2}, 1.0, 12);
     twist(parallel, base, surfacePoint(), {0.3, 1, 0.2}, 1.0, 12, *pool);
     CHECK(sameField(serial, parallel));
+    // A snake hook long enough for its ball to sink into the tip at radius 8 (the tip's voxels
+    // then take foot points: warp.cpp, kTipFeetBall), and a pinch along a path.
+    Vec3 at = surfacePoint();
+    for (int i = 0; i < 12; ++i) {
+      const Vec3 next = at + Vec3{0.5, 2, 0.25};
+      snakeHook(serial, at, next, 8);
+      snakeHook(parallel, at, next, 8, *pool);
+      at = next;
+    }
+    CHECK(sameField(serial, parallel));
+    pinchAlong(serial, surfacePoint() + Vec3{-6, 0, 0}, surfacePoint() + Vec3{6, 0, 0}, normalized(Vec3{0.3, 1, 0.2}), 0.5, 6);
+    pinchAlong(parallel, surfacePoint() + Vec3{-6, 0, 0}, surfacePoint() + Vec3{6, 0, 0}, normalized(Vec3{0.3, 1, 0.2}), 0.5, 6, *pool);
+    CHECK(sameField(serial, parallel));
   }
 }
 
