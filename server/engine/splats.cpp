@@ -199,24 +199,33 @@ std::uint32_t packBytes(const std::uint8_t* p) {
 #endif
 }
 
+#if defined(MARZIPAN_SSE2)
+// Sixteen floats from v as bytes: all ones where v < 0 (inBytes) and where |v| < kSurfaceNear
+// (nearBytes), zero elsewhere; the comparisons' all-ones lanes narrowed by saturating packs (-1
+// stays -1).
+inline void classify16(const float* v, __m128i& inBytes, __m128i& nearBytes) {
+  const __m128 zero = _mm_setzero_ps(), nearBound = _mm_set1_ps(kSurfaceNear);
+  const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  __m128i in[4], nr[4];
+  for (int k = 0; k < 4; ++k) {
+    const __m128 x = _mm_loadu_ps(v + 4 * k);
+    in[k] = _mm_castps_si128(_mm_cmplt_ps(x, zero));
+    nr[k] = _mm_castps_si128(_mm_cmplt_ps(_mm_and_ps(x, magnitude), nearBound));
+  }
+  inBytes = _mm_packs_epi16(_mm_packs_epi32(in[0], in[1]), _mm_packs_epi32(in[2], in[3]));
+  nearBytes = _mm_packs_epi16(_mm_packs_epi32(nr[0], nr[1]), _mm_packs_epi32(nr[2], nr[3]));
+}
+#endif
+
 // The bytes over the padded array: inside[i] = g[i] < 0, near[i] = |g[i]| < kSurfaceNear, 0 or 1.
 void classify(const float* g, std::uint8_t* inside, std::uint8_t* near) {
   int i = 0;
 #if defined(MARZIPAN_SSE2)
-  // Sixteen at a time: the comparisons' all-ones lanes narrowed by saturating packs (-1 stays
-  // -1), then masked to 1.
-  const __m128 zero = _mm_setzero_ps(), nearBound = _mm_set1_ps(kSurfaceNear);
-  const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  // Sixteen at a time, the bytes masked to 1.
   const __m128i one = _mm_set1_epi8(1);
   for (; i + 16 <= kPadVoxels; i += 16) {
-    __m128i in[4], nr[4];
-    for (int k = 0; k < 4; ++k) {
-      const __m128 v = _mm_loadu_ps(g + i + 4 * k);
-      in[k] = _mm_castps_si128(_mm_cmplt_ps(v, zero));
-      nr[k] = _mm_castps_si128(_mm_cmplt_ps(_mm_and_ps(v, magnitude), nearBound));
-    }
-    const __m128i inBytes = _mm_packs_epi16(_mm_packs_epi32(in[0], in[1]), _mm_packs_epi32(in[2], in[3]));
-    const __m128i nearBytes = _mm_packs_epi16(_mm_packs_epi32(nr[0], nr[1]), _mm_packs_epi32(nr[2], nr[3]));
+    __m128i inBytes, nearBytes;
+    classify16(g + i, inBytes, nearBytes);
     _mm_storeu_si128(reinterpret_cast<__m128i*>(inside + i), _mm_and_si128(inBytes, one));
     _mm_storeu_si128(reinterpret_cast<__m128i*>(near + i), _mm_and_si128(nearBytes, one));
   }
@@ -397,18 +406,9 @@ std::uint64_t domainSlice(const Volume& vol, Int3 b, int z) {
 void sliceBits(const float* v, std::uint64_t& inside, std::uint64_t& near) {
   std::uint64_t in = 0, nr = 0;
 #if defined(MARZIPAN_SSE2)
-  const __m128 zero = _mm_setzero_ps(), nearBound = _mm_set1_ps(kSurfaceNear);
-  const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  // Sixteen at a time: the comparisons' all-ones lanes narrowed to bytes by saturating packs.
   for (int i = 0; i < kBrickSide * kBrickSide; i += 16) {
-    __m128i a[4], c[4];
-    for (int k = 0; k < 4; ++k) {
-      const __m128 x = _mm_loadu_ps(v + i + 4 * k);
-      a[k] = _mm_castps_si128(_mm_cmplt_ps(x, zero));
-      c[k] = _mm_castps_si128(_mm_cmplt_ps(_mm_and_ps(x, magnitude), nearBound));
-    }
-    const __m128i inBytes = _mm_packs_epi16(_mm_packs_epi32(a[0], a[1]), _mm_packs_epi32(a[2], a[3]));
-    const __m128i nearBytes = _mm_packs_epi16(_mm_packs_epi32(c[0], c[1]), _mm_packs_epi32(c[2], c[3]));
+    __m128i inBytes, nearBytes;
+    classify16(v + i, inBytes, nearBytes);
     in |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(inBytes))) << i;
     nr |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(nearBytes))) << i;
   }
