@@ -5,6 +5,7 @@
 #include "engine/level_set.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <iterator>
@@ -1377,26 +1378,30 @@ constexpr double kSinkClearance = 0.25;
 // The sunk ball's radius is the tip's (tipRadius()), at most the plateau's and at least this
 // share of it (a tentacle pinched thin elsewhere keeps the ball from shrinking with it).
 constexpr double kLeastBall = 0.5;
-double sinkShare(const Volume& vol, Vec3 centre, Vec3 along, double radius) {
+// The eight unit directions across a move (`along`, a unit vector), 45 degrees apart: where the
+// tip's section is sampled.
+std::array<Vec3, 8> raysAcross(Vec3 along) {
   const Vec3 e1 = normalized(cross(along, std::fabs(along.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0}));
   const Vec3 e2 = cross(along, e1);
-  double nearest = std::numeric_limits<double>::infinity();
+  std::array<Vec3, 8> rays;
   for (int k = 0; k < 8; ++k) {
     const double angle = k * std::numbers::pi / 4;
-    nearest = std::min(nearest, vol.sample(centre + (e1 * std::cos(angle) + e2 * std::sin(angle)) * radius));
+    rays[std::size_t(k)] = e1 * std::cos(angle) + e2 * std::sin(angle);
   }
+  return rays;
+}
+
+double sinkShare(const Volume& vol, Vec3 centre, Vec3 along, double radius) {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Vec3& ray : raysAcross(along)) nearest = std::min(nearest, vol.sample(centre + ray * radius));
   return std::clamp(nearest / std::min(kSinkClearance * radius, double(vol.band())), 0.0, 1.0);
 }
 
 // The tip's least radius across the move (`along`, a unit vector) at `centre` (inside the clay):
 // the distance to the surface along eight rays across the move, at most `most`.
 double tipRadius(const Volume& vol, Vec3 centre, Vec3 along, double most) {
-  const Vec3 e1 = normalized(cross(along, std::fabs(along.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0}));
-  const Vec3 e2 = cross(along, e1);
   double least = most;
-  for (int k = 0; k < 8; ++k) {
-    const double angle = k * std::numbers::pi / 4;
-    const Vec3 ray = e1 * std::cos(angle) + e2 * std::sin(angle);
+  for (const Vec3& ray : raysAcross(along)) {
     // Steps of half a voxel to the first point outside, then halvings to 1/8192 vu.
     double in = 0, out = -1;
     for (double t = 0.5; t < least + 0.5; t += 0.5) {
