@@ -125,6 +125,12 @@ inline bool isNotification(const std::variant<json, Bytes>& m, const std::string
   return j && !j->contains("id") && j->value("method", "") == method;
 }
 
+// Sends a request on c's connection without waiting for its answer (TestClient::call waits).
+inline void sendRequest(Hub& hub, const std::shared_ptr<HubClient>& c, int id, const std::string& method,
+                        const json& params = json::object()) {
+  hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+}
+
 struct TestClient {
   Hub& hub;
   std::shared_ptr<CaptureLink> link = std::make_shared<CaptureLink>();
@@ -139,7 +145,7 @@ struct TestClient {
   json call(const std::string& method, const json& params = json::object()) {
     const int id = nextId++;
     const std::size_t mark = link->size();
-    hub.text(client, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
+    sendRequest(hub, client, id, method, params);
     return std::get<json>(link->at(link->waitFor([&](const auto& m) { return isResponse(m, id); }, mark)));
   }
   json result(const std::string& method, const json& params = json::object()) {

@@ -550,9 +550,6 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
     return dispatched[k];
   };
   Hub hub(o);
-  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
-    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
-  };
   const auto answer = [&](GateLink& link, int id) {
     const json r = std::get<json>(link.at(link.waitFor([&](const auto& m) { return isResponse(m, id); })));
     INFO(r.dump());
@@ -564,9 +561,9 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
   const auto aLink = std::make_shared<GateLink>(), bLink = std::make_shared<GateLink>();
   const OpenOnExit open{{aLink, bLink}};
   const auto a = hub.connect(aLink, "a"), b = hub.connect(bLink, "b");
-  send(a, 1, "session.create", create);
+  sendRequest(hub, a, 1, "session.create", create);
   answer(*aLink, 1);
-  send(b, 1, "session.create", create);
+  sendRequest(hub, b, 1, "session.create", create);
   answer(*bLink, 1);
   const json blob = {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 3}};
 
@@ -575,10 +572,10 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
   // posted to the worker's queue once that answer is here, is answered after a's connection is
   // idle again.
   for (int round = 0; round < 5; ++round) {
-    send(b, 10 + round, "tool.apply", blob);
+    sendRequest(hub, b, 10 + round, "tool.apply", blob);
     answer(*bLink, 10 + round);
     const std::size_t k = count();
-    send(a, 10 + round, "tool.apply", blob);
+    sendRequest(hub, a, 10 + round, "tool.apply", blob);
     answer(*aLink, 10 + round);
     INFO("round " << round);
     CHECK(dispatcherOf(k) == std::this_thread::get_id());
@@ -593,11 +590,11 @@ TEST_CASE("an edit reaches its session's strand from the thread that takes it, n
     const int first = 100 + 2 * round, second = first + 1, other = 100 + round;
     aLink->gateAt(first);
     bLink->gateAt(other);
-    send(a, first, "tool.apply", blob);
+    sendRequest(hub, a, first, "tool.apply", blob);
     aLink->waitUntil(aLink->atResult);
-    send(a, second, "tool.apply", blob);
+    sendRequest(hub, a, second, "tool.apply", blob);
     const std::size_t k = count();
-    send(b, other, "tool.apply", blob);
+    sendRequest(hub, b, other, "tool.apply", blob);
     REQUIRE(count() == k + 1);  // b's edit, dispatched by this thread on its idle connection
     aLink->set(aLink->resultOpen);
     bLink->waitUntil(bLink->atResult);
@@ -644,22 +641,19 @@ TEST_CASE("a client's stream of stroke.begin does not hold back another client's
   const auto [aLink, a] = joined("a");
   const auto [bLink, b] = joined("b");
   const OpenOnExit open{{aLink, bLink}};
-  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
-    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
-  };
   const json begin = {{"tool", "add_blob"}, {"radius", 4}, {"strength", 0.5}};
   constexpr int kBegins = 30;
   for (int round = 0; round < 5; ++round) {
     const int first = 1000 + 100 * round, hold = 10 + 2 * round, edit = hold + 1;
     bLink->gateAt(hold);
-    send(b, hold, "stroke.begin", begin);
+    sendRequest(hub, b, hold, "stroke.begin", begin);
     bLink->waitUntil(bLink->atResult);
     {
       const std::lock_guard lock(order->mutex);
       order->sent.clear();
     }
-    for (int i = 0; i < kBegins; ++i) send(a, first + i, "stroke.begin", begin);
-    send(b, edit, "tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
+    for (int i = 0; i < kBegins; ++i) sendRequest(hub, a, first + i, "stroke.begin", begin);
+    sendRequest(hub, b, edit, "tool.apply", {{"tool", "add_blob"}, {"center", {32, 54, 32}}, {"radius", 6}});
     bLink->set(bLink->resultOpen);
     const std::size_t answered = bLink->waitFor([&](const auto& m) { return isResponse(m, edit); });
     CHECK(std::get<json>(bLink->at(answered)).contains("result"));

@@ -495,30 +495,28 @@ TEST_CASE("an editor's edits are answered while an earlier revision is rebuilt f
   const auto aLink = std::make_shared<GateLink>(), vLink = std::make_shared<GateLink>();
   const OpenOnExit open{{aLink, vLink}};
   const auto a = hub.connect(aLink, "a"), v = hub.connect(vLink, "v");
-  const auto send = [&](const std::shared_ptr<HubClient>& c, int id, const std::string& method, const json& params) {
-    hub.text(c, json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump());
-  };
   const auto answer = [&](GateLink& link, int id) {
     const json r = std::get<json>(link.at(link.waitFor([&](const auto& m) { return isResponse(m, id); })));
     INFO(r.dump());
     REQUIRE(r.contains("result"));
     return r["result"];
   };
-  send(a, 1, "session.create", kCreate);
+  sendRequest(hub, a, 1, "session.create", kCreate);
   const json created = answer(*aLink, 1);
-  send(v, 1, "session.join", {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
+  sendRequest(hub, v, 1, "session.join",
+              {{"session", created["session"]}, {"token", created["view_token"]}, {"view", "none"}});
   answer(*vLink, 1);
   // Revision 1, then steps that a rebuild of revision 1 unpacks one by one.
-  send(a, 2, "tool.apply", kLeftBlob);
+  sendRequest(hub, a, 2, "tool.apply", kLeftBlob);
   answer(*aLink, 2);
   for (int id = 3; id < 7; ++id) {
-    send(a, id, "volume.morph", {{"kind", id % 2 ? "dilate" : "erode"}, {"radius", 1}});
+    sendRequest(hub, a, id, "volume.morph", {{"kind", id % 2 ? "dilate" : "erode"}, {"radius", 1}});
     answer(*aLink, id);
   }
   aLink->gateAt(7);
-  send(a, 7, "tool.apply", kRightBlob);
+  sendRequest(hub, a, 7, "tool.apply", kRightBlob);
   aLink->waitUntil(aLink->atResult);
-  send(v, 2, "render.frame",
+  sendRequest(hub, v, 2, "render.frame",
        {{"camera", {{"eye", {24, 30, 120}}, {"target", {24, 24, 24}}}}, {"width", 8}, {"height", 8}, {"format", "png"},
         {"revision", 1}});
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -527,7 +525,7 @@ TEST_CASE("an editor's edits are answered while an earlier revision is rebuilt f
   answer(*aLink, 7);
   vLink->waitUntil(vLink->atResult);
   for (int id = 8; id < 11; ++id) {
-    send(a, id, "tool.apply", {{"tool", "add_blob"}, {"center", {24, 42, 24}}, {"radius", 2 + id % 2}});
+    sendRequest(hub, a, id, "tool.apply", {{"tool", "add_blob"}, {"center", {24, 42, 24}}, {"radius", 2 + id % 2}});
     CHECK(answer(*aLink, id)["revision"] == id - 1);
   }
   vLink->set(vLink->resultOpen);
