@@ -226,7 +226,8 @@ inline constexpr double kMaxWarpTravelPerRadius = 8;
 inline constexpr double kWarpStretchPerStep = 0.25;
 
 // Grab: moves `anchor` (a point on the surface of base, picked by the caller) by d. The velocity
-// is d * W(rho / radius), W(t) = (1 - t^2)^2 for t < 1, rho the distance to the segment from
+// is d * W(rho / radius), W(t) = 1 - (6t^5 - 15t^4 + 10t^3) for t < 1 (flat at both ends: no tip
+// at the centre, no fold at the rim; level_set/warp.cpp, Falloff), rho the distance to the segment from
 // anchor to anchor + d: the anchor travels along that segment at speed d and lands on
 // anchor + d (checked; the velocity would be scaled by a 1-D search if it did not land within
 // kWarpAnchorTolerance). A point beside the anchor at distance rho moves by W(rho / radius) d,

@@ -26,18 +26,29 @@ namespace {
 // The plateau (Velocity::falloff) of snake hook and of the affine warps.
 constexpr double kPlateau = 0.5;
 
-// The integral of the falloff W(t) = (1 - t^2)^2 along a line through its centre, in radii:
-// what a path pinch's I(x) is at a point of a long straight path (Velocity::pathIntegral()).
+// The falloffs W(u) of the fields (Velocity::falloff), u going from 0 (full speed, the edge of
+// the plateau) to 1 (the support's edge), and the largest |W'| of each, which the bounds of
+// |grad v| scale:
+// - quartic, (1 - u^2)^2: max |W'| 8 / (3 sqrt 3) = 1.54 at u = 1 / sqrt 3; its line integral
+//   through the centre, 16/15 radius, is a path pinch's pass (kPathPinchPass, whose kernel is
+//   this falloff in closed form). Snake hook, elastic grab, twist, local scale, pinch.
+// - quintic, 1 - (6u^5 - 15u^4 + 10u^3): max |W'| 15/8 at u = 1/2 (22% more sub-steps for
+//   the same travel), line integral 1 radius. Grab. With W' and W'' zero at both ends it
+//   neither draws a tip at the centre nor a fold at the rim: the quartic's W''(0) = -4 and
+//   W''(1) = 8 pulled a 3-radius grab's cap into a tip whose radius of curvature was about a
+//   voxel, where even the exact field's gradient error read 0.236 (0.098 with the quintic;
+//   tests/engine/level_set/test_warp.cpp). Not for the snake hook: its tentacle's foot and tip
+//   came out sharper (the exact field of the first 8 moves 0.126 -> 0.148; docs/method.md).
+enum class Falloff { Quartic, Quintic };
+constexpr double kQuarticMaxSlope = 8 / (3 * std::numbers::sqrt3), kQuinticMaxSlope = 15.0 / 8;
+constexpr double maxFalloffSlope(Falloff f) { return f == Falloff::Quintic ? kQuinticMaxSlope : kQuarticMaxSlope; }
 constexpr double kPathPinchPass = 16.0 / 15;
 
-// The largest |W'| of the falloff W(t) = (1 - t^2)^2, which the bounds of |grad v| scale.
-constexpr double kMaxFalloffSlope = 8 / (3 * std::numbers::sqrt3);
-
 // The bounds of |grad v| (../level_set.hpp, grabSlopeBound and the others) in the fields' own
-// terms. A capsule (grab, snake hook) moving `travel` vu whose falloff has the plateau
+// terms. A capsule (grab, snake hook) moving `travel` vu whose falloff `f` has the plateau
 // `plateau`: |W'| over the falloff's outer part, (1 - plateau) radius wide.
-double capsuleSlope(double travel, double radius, double plateau) {
-  return travel * kMaxFalloffSlope / ((1 - plateau) * radius);
+double capsuleSlope(double travel, double radius, double plateau, Falloff f) {
+  return travel * maxFalloffSlope(f) / ((1 - plateau) * radius);
 }
 // An elastic grab's load per vu of travel: at the centre the bi-scale Kelvinlet is
 // (3/2 - b) (1 / eps - 1 / (2 eps)) load, b = 1 / (4 (1 - nu)), so that this load moves it by d.
@@ -46,10 +57,10 @@ double elasticLoadPerTravel(double eps, double nu) { return 2 * eps / (1.5 - 1 /
 // |load| / eps^2 (their peak is about |load| / eps, reached over eps), plus the cut-off's (at
 // kElasticCutoff eps, plateau kPlateau).
 double elasticSlope(double load, double eps) {
-  return load / (eps * eps) + load / eps * kMaxFalloffSlope / ((1 - kPlateau) * (kElasticCutoff * eps));
+  return load / (eps * eps) + load / eps * kQuarticMaxSlope / ((1 - kPlateau) * (kElasticCutoff * eps));
 }
 // An affine warp whose A has the Frobenius norm `norm`: |grad (P A r)| <= |A| (P + |P'| |r|).
-double affineSlope(double norm) { return norm * (1 + kMaxFalloffSlope / (1 - kPlateau)); }
+double affineSlope(double norm) { return norm * (1 + kQuarticMaxSlope / (1 - kPlateau)); }
 
 // Shares of a call's progress unit.
 constexpr double kGatherShare = 0.1, kLatticeShare = 0.2, kResampleShare = 0.3, kRedistanceShare = 0.3;
@@ -206,22 +217,23 @@ struct Velocity {
   Vec3 elastic(Vec3 r) const {
     return (kelvinlet(r, load, eps, nu) - kelvinlet(r, load, 2 * eps, nu)) * scale;
   }
-  // The falloff P(t) = 1 for t <= plateau, (1 - u^2)^2 from there to t = 1, u going from 0
-  // to 1. Inside the plateau the field moves as a whole: an affine warp is exact there, and a
+  // The falloff P(t) = 1 for t <= plateau, W(u) (`falloffShape`) from there to t = 1, u going
+  // from 0 to 1. Inside the plateau the field moves as a whole: an affine warp is exact there, and a
   // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
   // tentacle was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
   // plateau is 0, kPlateau, or a snake hook's ball fitted to a narrower tip
   // (snakeHookVelocity()): u is (t - plateau) times outerScale = 1 / (1 - plateau), and
-  // d falloff / d t2 = -2 outerScale u (1 - u^2) / t, set once instead of divided per point
+  // d falloff / d t2 = W'(u) outerScale / (2 t), set once instead of divided per point
   // (a snake hook move integrates the flow at a thousand points, four sub-steps of two
   // falloffs each); for kPlateau it is 2, the same bits as the division.
   double plateau = 0;
   double outerScale = 1 / (1 - kPlateau);
+  Falloff falloffShape = Falloff::Quartic;
   double falloff(double t2) const {
-    if (plateau == 0) return (1 - t2) * (1 - t2);
     if (t2 <= plateau * plateau) return 1;
     const double u = (std::sqrt(t2) - plateau) * outerScale;
+    if (falloffShape == Falloff::Quintic) return 1 - u * u * u * (10 - u * (15 - 6 * u));
     return (1 - u * u) * (1 - u * u);
   }
 
@@ -230,10 +242,13 @@ struct Velocity {
 
   // falloff(t2) and falloffSlope(t2), sharing the root.
   std::pair<double, double> falloffWithSlope(double t2) const {
-    if (plateau == 0) return {(1 - t2) * (1 - t2), -2 * (1 - t2)};
     if (t2 <= plateau * plateau) return {1, 0};
     const double t = std::sqrt(t2);
     const double u = (t - plateau) * outerScale;
+    if (falloffShape == Falloff::Quintic) {
+      const double w = u * (1 - u);
+      return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * outerScale * w * w / t};
+    }
     return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
   }
 
@@ -363,7 +378,7 @@ struct Velocity {
   // (../level_set.hpp, grabSlopeBound and the others) at its scale.
   double lipschitz() const {
     switch (kind) {
-      case Kind::Capsule: return capsuleSlope(scale * std::sqrt(segLength2), radius, plateau);
+      case Kind::Capsule: return capsuleSlope(scale * std::sqrt(segLength2), radius, plateau, falloffShape);
       case Kind::PathPinch: return pinchAlongSlopeBound(std::sqrt(segLength2), amount, radius);
       case Kind::Elastic: return elasticSlope(scale * length(load), eps);
       case Kind::Affine: break;
@@ -1342,7 +1357,7 @@ void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
 
 // A grab's velocity (its parameters checked but the anchor's place, which the caller checks
 // against its volume).
-Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
+Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, Falloff falloff) {
   if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
   checkRadius(radius);
   if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
@@ -1356,16 +1371,11 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.plateau = plateau;
-  if (plateau > 0) v.outerScale = 1 / (1 - plateau);
+  v.outerScale = 1 / (1 - plateau);
+  v.falloffShape = falloff;
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
-}
-
-Edit grabWith(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, double plateau, ThreadPool& pool) {
-  checkBase(vol, base);
-  checkAnchor(vol, anchor);
-  return applyWarp(vol, base, grabVelocity(anchor, d, radius, plateau), pool);
 }
 
 // How far a snake hook's plateau ball sinks into the tip (snakeHookVelocity()), as a share of
@@ -1483,7 +1493,7 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
       from = from - along * (ball * share);
     }
   }
-  return grabVelocity(from, d, radius, ball / radius);
+  return grabVelocity(from, d, radius, ball / radius, Falloff::Quartic);
 }
 
 }  // namespace
@@ -1497,7 +1507,7 @@ Vec3 WarpMap::forward(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinemen
 Vec3 WarpMap::inverse(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinement * field_->v.substeps(), -1); }
 
 WarpMap grabMap(Vec3 anchor, Vec3 d, double radius) {
-  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0)}));
+  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0, Falloff::Quintic)}));
 }
 
 WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
@@ -1505,7 +1515,9 @@ WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius)
 }
 
 Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
-  return grabWith(vol, base, anchor, d, radius, 0, pool);
+  checkBase(vol, base);
+  checkAnchor(vol, anchor);
+  return applyWarp(vol, base, grabVelocity(anchor, d, radius, 0, Falloff::Quintic), pool);
 }
 
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
@@ -1602,11 +1614,13 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
   return applyWarp(vol, vol, v, pool);
 }
 
-double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0); }
+double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0, Falloff::Quintic); }
 
 // The widest plateau a move has: a sunk ball fitted to a narrower tip has a wider outer part,
 // and a smaller bound.
-double snakeHookSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, kPlateau); }
+double snakeHookSlopeBound(double travel, double radius) {
+  return capsuleSlope(travel, radius, kPlateau, Falloff::Quartic);
+}
 
 double elasticGrabSlopeBound(double travel, double radius, double volume) {
   return elasticSlope(travel * elasticLoadPerTravel(radius, volume), radius);
@@ -1622,14 +1636,14 @@ double pinchSlopeBound(double amount) { return affineSlope(std::numbers::sqrt2 *
 
 // v = -scale I s across, scale = amount / (kPathPinchPass radius): |grad (I s)| <= I + |s| |grad I|,
 // |s| <= radius. I <= min(L, 16 radius / 15) (its value on a long path's line), |dI/da| <=
-// min(1, L max |K'|) with max |K'| = kMaxFalloffSlope / radius, and the part of grad I across the
-// line, (2 h / radius^2) |G(u1) - G(u0)|, is at most min(kMaxFalloffSlope L / radius, sqrt 3)
+// min(1, L max |K'|) with max |K'| = kQuarticMaxSlope / radius, and the part of grad I across the
+// line, (2 h / radius^2) |G(u1) - G(u0)|, is at most min(kQuarticMaxSlope L / radius, sqrt 3)
 // (G' in [0, 2c] on the chord, h c <= 0.385 radius, h c^(3/2) <= 0.325 radius).
 double pinchAlongSlopeBound(double travel, double amount, double radius) {
   const double L = travel;
   return std::fabs(amount / (kPathPinchPass * radius)) *
-         (std::min(L, 16 * radius / 15) + std::min(radius, kMaxFalloffSlope * L) +
-          std::min(kMaxFalloffSlope * L, std::numbers::sqrt3 * radius));
+         (std::min(L, 16 * radius / 15) + std::min(radius, kQuarticMaxSlope * L) +
+          std::min(kQuarticMaxSlope * L, std::numbers::sqrt3 * radius));
 }
 
 }  // namespace marzipan
