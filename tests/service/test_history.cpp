@@ -130,7 +130,7 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
   std::mt19937 rng(7);
   std::vector<Int3> coords;
   std::vector<BrickRef> refs;
-  for (int i = 0; i < 6; ++i) {
+  for (int i = 0; i < 8; ++i) {
     coords.push_back({i, 2 * i, 3});
     BrickRef r;
     if (i == 1) {
@@ -147,20 +147,32 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     }
     refs.push_back(std::move(r));
   }
-  // The other side: brick 0 and 5 against a changed copy of themselves, the rest against
-  // uniform bricks (the prediction along x).
+  // The other side: brick 0 and 5 against a changed copy of themselves (a third of the voxels
+  // differ), 6 against an identical copy (none differ), 7 against other random bits (every
+  // voxel differs), the rest against uniform bricks (the prediction along x).
   std::vector<BrickRef> others(refs.size());
-  for (const std::size_t i : {0, 5}) {
+  for (const std::size_t i : {0, 5, 6}) {
     auto b = std::make_shared<Brick>(*refs[i].data);
-    for (int k = 0; k < kBrickVoxels; k += 3) b->v[k] = -b->v[k];
+    if (i != 6)
+      for (int k = 0; k < kBrickVoxels; k += 3) b->v[k] = -b->v[k];
     others[i].data = std::move(b);
+  }
+  {
+    auto b = std::make_shared<Brick>();
+    for (int k = 0; k < kBrickVoxels; ++k) {
+      const std::uint32_t bits = rng() | 1u;
+      std::memcpy(&b->v[k], &bits, 4);
+    }
+    for (int k = 0; k < kBrickVoxels; ++k)
+      if (std::memcmp(&b->v[k], &refs[7].data->v[k], 4) == 0) b->v[k] = -b->v[k];
+    others[7].data = std::move(b);
   }
   others[2].inside = true;
   std::vector<const BrickRef*> ptrs, against;
   for (const auto& r : refs) ptrs.push_back(&r);
   for (const auto& r : others) against.push_back(&r);
   const service::PackedBricks p = service::packBricks(coords, ptrs, against);
-  CHECK(p.bricks.size() == 6);
+  CHECK(p.bricks.size() == 8);
   const std::vector<BrickRef> back = service::unpackBricks(p, against);
   REQUIRE(back.size() == refs.size());
   for (std::size_t i = 0; i < refs.size(); ++i) {
