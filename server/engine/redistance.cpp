@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -351,6 +352,16 @@ template <bool RowRun>
   }
 }
 
+// BandVoxels::collect with parts: the parts clipped to the box, and a slice's x range per row.
+struct PartsScratch {
+  std::vector<Box> parts;
+  std::vector<int> xLo, xHi;
+};
+PartsScratch& partsScratch() {
+  thread_local PartsScratch s;
+  return s;
+}
+
 // Makes room in out for n + count voxels. The arrays keep the last list's length between calls
 // and grow by an eighth when short: what they hold past n is written before it is read, but a
 // resize writes every element it adds (the vectors' own growth keeps reallocations few).
@@ -396,6 +407,55 @@ void BandVoxels::collect(const DenseGrid& g, const Box& b, float band, const Pro
     for (int y = box.lo.y; y < box.hi.y; ++y) {
       reserveRow(*this, n, width);
       collectRun<false>(g, g.index({box.lo.x, y, z}), width, box.lo.x, y, z, band, *this, n, unused);
+    }
+  }
+  index.resize(n);
+  point.resize(n);
+  progress.advance(1);
+}
+
+void BandVoxels::collect(const DenseGrid& g, const Box& b, std::span<const Box> parts, float band,
+                         const ProgressShare& progress) {
+  const Box whole = b.intersect(g.box);
+  if (whole.empty()) return collect(g, b, band, progress);
+  PartsScratch& s = partsScratch();
+  s.parts.clear();
+  for (const Box& p : parts)
+    if (const Box c = p.intersect(whole); !c.empty()) {
+      if (c == whole) return collect(g, b, band, progress);
+      s.parts.push_back(c);
+    }
+  box = whole;
+  std::size_t n = 0;
+  RowCursor unused{};
+  // Per z-slice, each row's x range from the first to the last x of the parts holding it: along
+  // a stroke the parts holding a row overlap, so that is their union. Kept per row of the box
+  // (y - box.lo.y), each part widening the rows it holds.
+  const std::size_t rows = std::size_t(box.hi.y - box.lo.y);
+  s.xLo.resize(rows);
+  s.xHi.resize(rows);
+  for (int z = box.lo.z; z < box.hi.z; ++z) {
+    progress.check();
+    std::fill(s.xLo.begin(), s.xLo.end(), box.hi.x);
+    std::fill(s.xHi.begin(), s.xHi.end(), box.lo.x);
+    int yFrom = box.hi.y, yTo = box.lo.y;
+    for (const Box& p : s.parts) {
+      if (z < p.lo.z || z >= p.hi.z) continue;
+      // Copies, which no store to the rows can alias: the loop is then vectorized.
+      const int pLo = p.lo.x, pHi = p.hi.x, y0 = p.lo.y - box.lo.y, y1 = p.hi.y - box.lo.y;
+      int* const lo = s.xLo.data();
+      int* const hi = s.xHi.data();
+      for (int y = y0; y < y1; ++y) lo[y] = std::min(lo[y], pLo), hi[y] = std::max(hi[y], pHi);
+      yFrom = std::min(yFrom, p.lo.y), yTo = std::max(yTo, p.hi.y);
+    }
+    if (yFrom >= yTo) continue;
+    // Room for the whole rectangle of the slice's rows once, rather than row by row.
+    reserveRow(*this, n, std::size_t(yTo - yFrom) * std::size_t(box.hi.x - box.lo.x));
+    std::size_t row = g.index({g.box.lo.x, yFrom, z});  // the grid index of the row's x = g.box.lo.x
+    for (int y = yFrom; y < yTo; ++y, row += g.sx) {
+      const int lo = s.xLo[std::size_t(y - box.lo.y)], hi = s.xHi[std::size_t(y - box.lo.y)];
+      if (lo >= hi) continue;
+      collectRun<false>(g, row + std::size_t(lo - g.box.lo.x), std::size_t(hi - lo), lo, y, z, band, *this, n, unused);
     }
   }
   index.resize(n);

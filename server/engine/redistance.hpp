@@ -28,6 +28,13 @@ struct BandVoxels {
 
   // progress: checked per z-slice, advanced by its whole share at the end.
   void collect(const DenseGrid& grid, const Box& box, float band, const ProgressShare& progress = {});
+  // The band voxels of box that lie in one of `parts` (boxes; clipped to box), in index order,
+  // and those between two parts holding the same row: a slanted stroke's box is mostly far from
+  // its ROIs, whose union holds all the band its tool can move or reset, and along a stroke the
+  // parts holding a row overlap. One part that covers the box (a dab's) lists what collect
+  // above lists. `box` is still b clipped to the grid.
+  void collect(const DenseGrid& grid, const Box& box, std::span<const Box> parts, float band,
+               const ProgressShare& progress = {});
   // The same list, when the grid holds vol's values as gathered (DenseGrid::gatherFrom): the
   // bricks vol does not store read exactly +-band there, so only the stored ones are scanned.
   // A whole-volume pass's chunk is mostly such bricks.
@@ -73,7 +80,9 @@ struct RedistanceOptions {
   MarchOrder order = MarchOrder::Second;
   // When set: the band voxels of region grown by 1 (clipped to the grid), as collected
   // before the caller changed some of them (it may only have changed voxels of the list).
-  // Saves the scan of the box.
+  // Saves the scan of the box. It may leave out voxels that lie outside every reset box grown
+  // by 1 (BandVoxels::collect with parts): those are neither reset nor next to a reset voxel,
+  // so the classification and the march's seeds pass them over anyway.
   const BandVoxels* band = nullptr;
   // The caller's progress (progress.hpp): checked throughout (a cancelled call throws
   // Cancelled and leaves the grid part-redistanced), advanced by its share as the call goes.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
@@ -525,4 +526,56 @@ TEST_CASE("the band list of rows of any length is every voxel not at +-band, in 
       CHECK(reused.point == point);
     }
   }
+}
+
+TEST_CASE("the band list of a stroke's parts is every voxel not at +-band between the parts holding its row",
+          "[redistance]") {
+  // Parts along slanted lines (as a stroke's ROIs grown by the shell's reach), apart and
+  // overlapping, clipped by the box, one empty, one covering the box (the plain list), and
+  // parts out of x order, in boxes inside and outside the grid; the list reused for every scan,
+  // as a tool's scratch is. Each row
+  // lists its voxels from the first to the last x of the parts holding it.
+  std::mt19937 rng(5);
+  DenseGrid g({{-3, 2, 1}, {41, 37, 30}}, kBand);
+  for (float& x : g.v)
+    if (rng() % 3 == 0) x = (rng() % 2 ? -1.0f : 1.0f) * float(rng() % 300) / 100.0f;
+  auto line = [](Int3 from, Int3 step, int count, int side) {
+    std::vector<Box> parts;
+    for (int k = 0; k < count; ++k) {
+      const Int3 c = from + Int3{step.x * k, step.y * k, step.z * k};
+      parts.push_back(Box{c, c + Int3{side, side, side}});
+    }
+    return parts;
+  };
+  std::vector<std::vector<Box>> cases = {line({-6, 0, -2}, {2, 2, 2}, 16, 14), line({0, 30, 3}, {3, -2, 1}, 9, 10),
+                                         line({5, 5, 5}, {9, 0, 0}, 3, 6), {Box{{10, 10, 10}, {10, 20, 20}}},
+                                         {g.box.grown(2)}, {}};
+  std::vector<Box> reversed = cases[0];
+  std::reverse(reversed.begin(), reversed.end());
+  cases.push_back(reversed);
+  BandVoxels reused;
+  for (const Box& scan : {g.box, Box{g.box.lo + Int3{2, 1, 3}, g.box.hi - Int3{1, 4, 2}}, Box{{50, 0, 0}, {60, 9, 9}}})
+    for (const std::vector<Box>& parts : cases) {
+      std::vector<std::uint32_t> index;
+      std::vector<Int3> point;
+      const Box b = scan.intersect(g.box);
+      for (int z = b.lo.z; z < b.hi.z; ++z)
+        for (int y = b.lo.y; y < b.hi.y; ++y) {
+          int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
+          for (const Box& p : parts) {
+            const Box c = p.intersect(b);
+            if (c.empty() || z < c.lo.z || z >= c.hi.z || y < c.lo.y || y >= c.hi.y) continue;
+            lo = std::min(lo, c.lo.x), hi = std::max(hi, c.hi.x);
+          }
+          for (int x = lo; x < hi; ++x)
+            if (std::fabs(g.v[g.index({x, y, z})]) != kBand) {
+              index.push_back(std::uint32_t(g.index({x, y, z})));
+              point.push_back({x, y, z});
+            }
+        }
+      reused.collect(g, scan, parts, kBand);
+      CHECK(reused.box == b);
+      CHECK(reused.index == index);
+      CHECK(reused.point == point);
+    }
 }

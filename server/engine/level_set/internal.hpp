@@ -119,6 +119,7 @@ struct ToolScratch {
   std::vector<float> next;               // a sub-step's values, in list order
   std::vector<float, UninitializedAllocator<float>> other;  // evolve's second copy of the grid
   std::vector<Box> resetBoxes, normalizeBoxes;
+  std::vector<Box> bandParts;  // a stroke's band list's parts (stroke.cpp)
   // The mask weight (channels.hpp) of each voxel of `grid`, x fastest; empty when no brick the
   // grid covers is masked (gatherMask). listMoved stops each listed voxel of weight 255.
   std::vector<std::uint8_t> mask;
@@ -135,7 +136,8 @@ class SweptWindow;  // swept_window.hpp
 // Lists the band voxels of `region` (|phi| < band) that m moves in toolScratch().moved, with
 // their speeds: m scaled by the window at each voxel's foot point (none: W = 1); m null: with
 // their windows instead (withSpeeds adds the speeds). `voxels` lists the band of a box holding
-// region; region must lie kStencilReach inside the grid. Built in fixed pieces on the pool,
+// region, or at least of its part around the windows' ROIs (BandVoxels::collect with parts: a
+// voxel outside them has no window); region must lie kStencilReach inside the grid. Built in fixed pieces on the pool,
 // joined in order: thread-count independent. progress: checked per piece.
 void listMoved(const DenseGrid& g, const Box& region, float band, const Motion* m, const SweptWindow* window,
                const BandVoxels& voxels, ThreadPool& pool, const ProgressShare& progress);

@@ -305,7 +305,13 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
       for (const PreparedDab& d : mine) b.push_back(d.roi);
       return b;
     }();
-    scratch.band.collect(g, region.grown(1), band, share.part(kCollectShare));
+    // Only the band the application may move (its ROIs) or redistance (its reset boxes lie in
+    // the ROIs grown by reach, and its march's seeds next to them): along a slanted stroke much
+    // of the box lies further from every ROI (redistance.hpp, RedistanceOptions::band).
+    std::vector<Box>& bandParts = scratch.bandParts;
+    bandParts.clear();
+    for (const Box& roi : rois) bandParts.push_back(roi.grown(reach + 1));
+    scratch.band.collect(g, region.grown(1), bandParts, band, share.part(kCollectShare));
     const SweptWindow window(level_set::windowRadius(st), std::move(mine), std::move(remembered), height);
     // A height moves the surface up to |height| * the largest window: sub-steps of <= 1 vu.
     int steps = 1;
@@ -334,7 +340,7 @@ Edit applyStroke(Volume& vol, const StrokeSettings& st, std::span<const StrokeDa
         moveListed(g, m, pool, share.part(kEvolveShare / steps));
       } else {
         // The previous sub-step's march changed the band: list it again (counted in the first).
-        if (step > 0) scratch.band.collect(g, region.grown(1), band, share.part(0));
+        if (step > 0) scratch.band.collect(g, region.grown(1), bandParts, band, share.part(0));
         evolve(g, group.box, band, m, &window, scratch.band, pool, share.part(kEvolveShare / steps));
       }
       // Evolve changed only the voxels it listed: inside the ROIs, and with a memory only where
