@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <iterator>
 #include <limits>
 #include <numbers>
@@ -569,14 +570,25 @@ struct Velocity {
   }
 };
 
+// A grid as its reads see it: the origin converted to double once (each read converted it), the
+// data and strides at hand.
+struct GridReads {
+  const float* v;
+  Int3 size;
+  std::size_t sx, sxy;
+  Vec3 lo;
+  explicit GridReads(const DenseGrid& g)
+      : v(g.v.data()), size(g.size), sx(g.sx), sxy(g.sxy), lo{double(g.box.lo.x), double(g.box.lo.y), double(g.box.lo.z)} {}
+};
+
 // Trilinear interpolation of g at p; +band off the grid (the grid reaches past the support, and
 // off the domain the field is air). Inlined: a call per read cost a fifth of the read.
 // kInGrid: the caller knows p lies in the grid, at least a voxel below its upper faces (a read
 // of the resample's: see applyWarp's inGrid), and the tests are left out (a tenth of a snake
 // hook move's instructions went to them).
 template <bool kInGrid = false>
-[[gnu::always_inline]] inline double trilinear(const DenseGrid& g, Vec3 p, float band) {
-  const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
+[[gnu::always_inline]] inline double trilinear(const GridReads& g, Vec3 p, float band) {
+  const Vec3 q{p.x - g.lo.x, p.y - g.lo.y, p.z - g.lo.z};
   // Truncation is the floor from 0 up, and cheaper (std::floor is a sequence of instructions
   // without SSE4.1): below 0 (or NaN) the point is off the grid anyway.
   if (!kInGrid && !(q.x >= 0 && q.y >= 0 && q.z >= 0)) return band;
@@ -584,7 +596,7 @@ template <bool kInGrid = false>
   if (!kInGrid && (ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z)) return band;
   const double fx = double(ix), fy = double(iy), fz = double(iz);
   const double tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
-  const float* c = g.v.data() + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
+  const float* c = g.v + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
   const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
   const double c00 = lerp(c[0], c[1], tx), c10 = lerp(c[g.sx], c[g.sx + 1], tx);
   const double c01 = lerp(c[g.sxy], c[g.sxy + 1], tx), c11 = lerp(c[g.sxy + g.sx], c[g.sxy + g.sx + 1], tx);
@@ -601,14 +613,14 @@ template <bool kInGrid = false>
 // trilinear read where any tap read the clamp lost thin tips again (measured 2026-11-30, 70 vu
 // from a sphere: at radius 5 a helix path 1.03 vu outside the clay against 0.27 vu; at radius
 // 4 the tip of a slant 0.2 vu off against 0.01).
-inline bool tricubic(const DenseGrid& g, Vec3 p, double& out) {
-  const Vec3 q{p.x - g.box.lo.x, p.y - g.box.lo.y, p.z - g.box.lo.z};
+inline bool tricubic(const GridReads& g, Vec3 p, double& out) {
+  const Vec3 q{p.x - g.lo.x, p.y - g.lo.y, p.z - g.lo.z};
   // As in trilinear(): truncation is the floor from 1 up, and below 1 a tap is off the grid.
   if (!(q.x >= 1 && q.y >= 1 && q.z >= 1)) return false;
   const long ix = long(q.x), iy = long(q.y), iz = long(q.z);
   if (ix + 2 >= g.size.x || iy + 2 >= g.size.y || iz + 2 >= g.size.z) return false;
-  // The taps are summed in float, a row of four at a time along x (vectorized), as the voxels
-  // are stored: the weights are at most 1.5 and the values at most the band.
+  // The taps are summed in float, a row of four at a time along x, as the voxels are stored:
+  // the weights are at most 1.5 and the values at most the band.
   float w[3][4];
   const double f[3] = {q.x - double(ix), q.y - double(iy), q.z - double(iz)};
   for (int a = 0; a < 3; ++a) {
@@ -618,14 +630,21 @@ inline bool tricubic(const DenseGrid& g, Vec3 p, double& out) {
     w[a][2] = float(0.5 * (-3 * t3 + 4 * t2 + t));
     w[a][3] = float(0.5 * (t3 - t2));
   }
-  const float* c = g.v.data() + std::size_t(ix - 1) + g.sx * std::size_t(iy - 1) + g.sxy * std::size_t(iz - 1);
-  float column[4] = {0, 0, 0, 0};
-  for (int k = 0; k < 4; ++k)
+  const float* c = g.v + std::size_t(ix - 1) + g.sx * std::size_t(iy - 1) + g.sxy * std::size_t(iz - 1);
+  // A slice's four row weights w[1][j] w[2][k] in one product, each row's four taps in one:
+  // the same floats as one by one, and 3.4% fewer instructions a snake hook move than the
+  // loops over plain arrays the compiler was left to vectorize.
+  using Four = float __attribute__((vector_size(16)));
+  Four wy, column = {0, 0, 0, 0};
+  std::memcpy(&wy, w[1], sizeof wy);
+  for (int k = 0; k < 4; ++k) {
+    const Four wjk = wy * w[2][k];
     for (int j = 0; j < 4; ++j) {
-      const float* r = c + g.sx * std::size_t(j) + g.sxy * std::size_t(k);
-      const float wjk = w[1][j] * w[2][k];
-      for (int i = 0; i < 4; ++i) column[i] += wjk * r[i];
+      Four r;
+      std::memcpy(&r, c + g.sx * std::size_t(j) + g.sxy * std::size_t(k), sizeof r);
+      column += Four{wjk[j], wjk[j], wjk[j], wjk[j]} * r;
     }
+  }
   const double sum = double(w[0][0] * column[0] + w[0][1] * column[1]) + double(w[0][2] * column[2] + w[0][3] * column[3]);
   out = sum;
   return true;
@@ -987,17 +1006,20 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // wider), they are read without trilinear()'s tests.
   const Box readBox = v.support().grown(3);
   const bool inGrid = readBox.intersect(s.base.box) == readBox;
-  const auto read = [&](Vec3 at) { return inGrid ? trilinear<true>(s.base, at, band) : trilinear(s.base, at, band); };
+  const GridReads reads(s.base);
+  const auto read = [&](Vec3 at) __attribute__((always_inline)) {
+    return inGrid ? trilinear<true>(reads, at, band) : trilinear(reads, at, band);
+  };
   // Next to the zero set, where the surface's place is read, the cubic interpolant (tricubic()):
   // the value trilinear() gives there lies h^2 kappa / 8 above a convex distance.
   const auto readNear = [&](Vec3 at) {
     double out;
-    return tricubic(s.base, at, out) ? out : read(at);
+    return tricubic(reads, at, out) ? out : read(at);
   };
   // The same where the point may lie anywhere (the foot points below).
   const auto readNearAnywhere = [&](Vec3 at) {
     double out;
-    return tricubic(s.base, at, out) ? out : trilinear(s.base, at, band);
+    return tricubic(reads, at, out) ? out : trilinear(reads, at, band);
   };
   pool.parallelFor(std::size_t(std::max(0, layers)), [&](std::size_t layer) {
     resample.check();
@@ -1185,7 +1207,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             Vec3 lo = q, hi = q;
             lo[a] -= kSlopeStep;
             hi[a] += kSlopeStep;
-            g0[a] = feet ? (trilinear(s.base, hi, band) - trilinear(s.base, lo, band)) / (2 * kSlopeStep)
+            g0[a] = feet ? (trilinear(reads, hi, band) - trilinear(reads, lo, band)) / (2 * kSlopeStep)
                          : (read(hi) - read(lo)) / (2 * kSlopeStep);
           }
           Vec3 g;
