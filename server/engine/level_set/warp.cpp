@@ -32,24 +32,26 @@ constexpr double kPlateau = 0.5;
 // |grad v| scale:
 // - quartic, (1 - u^2)^2: max |W'| 8 / (3 sqrt 3) = 1.54 at u = 1 / sqrt 3; its line integral
 //   through the centre, 16/15 radius, is a path pinch's pass (kPathPinchPass, whose kernel is
-//   this falloff in closed form). Snake hook, elastic grab, twist, local scale, pinch.
+//   this falloff in closed form). The fields with a plateau: snake hook, elastic grab, twist,
+//   local scale, pinch.
 // - quintic, 1 - (6u^5 - 15u^4 + 10u^3): max |W'| 15/8 at u = 1/2 (22% more sub-steps for
-//   the same travel), line integral 1 radius. Grab. With W' and W'' zero at both ends it
-//   neither draws a tip at the centre nor a fold at the rim: the quartic's W''(0) = -4 and
-//   W''(1) = 8 pulled a 3-radius grab's cap into a tip whose radius of curvature was about a
+//   the same travel), line integral 1 radius. The field without one: grab. With W' and W''
+//   zero at both ends it neither draws a tip at the centre nor a fold at the rim: the
+//   quartic's W''(0) = -4 and W''(1) = 8 pulled a 3-radius grab's cap into a tip whose radius of curvature was about a
 //   voxel, where even the exact field's gradient error read 0.236 (0.098 with the quintic;
 //   tests/engine/level_set/test_warp.cpp). Not for the snake hook: its tentacle's foot and tip
 //   came out sharper (the exact field of the first 8 moves 0.126 -> 0.148; docs/method.md).
 enum class Falloff { Quartic, Quintic };
 constexpr double kQuarticMaxSlope = 8 / (3 * std::numbers::sqrt3), kQuinticMaxSlope = 15.0 / 8;
+constexpr Falloff falloffOf(double plateau) { return plateau == 0 ? Falloff::Quintic : Falloff::Quartic; }
 constexpr double maxFalloffSlope(Falloff f) { return f == Falloff::Quintic ? kQuinticMaxSlope : kQuarticMaxSlope; }
 constexpr double kPathPinchPass = 16.0 / 15;
 
 // The bounds of |grad v| (../level_set.hpp, grabSlopeBound and the others) in the fields' own
-// terms. A capsule (grab, snake hook) moving `travel` vu whose falloff `f` has the plateau
+// terms. A capsule (grab, snake hook) moving `travel` vu whose falloff has the plateau
 // `plateau`: |W'| over the falloff's outer part, (1 - plateau) radius wide.
-double capsuleSlope(double travel, double radius, double plateau, Falloff f) {
-  return travel * maxFalloffSlope(f) / ((1 - plateau) * radius);
+double capsuleSlope(double travel, double radius, double plateau) {
+  return travel * maxFalloffSlope(falloffOf(plateau)) / ((1 - plateau) * radius);
 }
 // An elastic grab's load per vu of travel: at the centre the bi-scale Kelvinlet is
 // (3/2 - b) (1 / eps - 1 / (2 eps)) load, b = 1 / (4 (1 - nu)), so that this load moves it by d.
@@ -218,10 +220,11 @@ struct Velocity {
   Vec3 elastic(Vec3 r) const {
     return (kelvinlet(r, load, eps, nu) - kelvinlet(r, load, 2 * eps, nu)) * scale;
   }
-  // The falloff P(t) = 1 for t <= plateau, W(u) (`falloffShape`) from there to t = 1, u going
-  // from 0 to 1. Inside the plateau the field moves as a whole: an affine warp is exact there, and a
-  // snake hook's tip keeps its thickness (with no plateau every move thinned it until the
-  // tentacle was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
+  // The falloff P(t) = 1 for t <= plateau, W(u) (Falloff: without a plateau the quintic, else
+  // the quartic) from there to t = 1, u going from 0 to 1.
+  // Inside the plateau the field moves as a whole: an affine warp is exact there, and a snake
+  // hook's tip keeps its thickness (with no plateau every move thinned it until the tentacle
+  // was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
   // plateau is 0, kPlateau, or a snake hook's ball fitted to a narrower tip
   // (snakeHookVelocity()): u is (t - plateau) times outerScale = 1 / (1 - plateau), and
@@ -230,6 +233,8 @@ struct Velocity {
   // falloffs each); for kPlateau it is 2, the same bits as the division.
   double plateau = 0;
   double outerScale = 1 / (1 - kPlateau);
+  // falloffOf(plateau), set with it (a test of the plateau here, before the plateau's own, cost
+  // a snake hook move 1.7% more instructions).
   Falloff falloffShape = Falloff::Quartic;
   double falloff(double t2) const {
     if (t2 <= plateau * plateau) return 1;
@@ -379,7 +384,7 @@ struct Velocity {
   // (../level_set.hpp, grabSlopeBound and the others) at its scale.
   double lipschitz() const {
     switch (kind) {
-      case Kind::Capsule: return capsuleSlope(scale * std::sqrt(segLength2), radius, plateau, falloffShape);
+      case Kind::Capsule: return capsuleSlope(scale * std::sqrt(segLength2), radius, plateau);
       case Kind::PathPinch: return pinchAlongSlopeBound(std::sqrt(segLength2), amount, radius);
       case Kind::Elastic: return elasticSlope(scale * length(load), eps);
       case Kind::Affine: break;
@@ -586,21 +591,52 @@ struct GridReads {
 // kInGrid: the caller knows p lies in the grid, at least a voxel below its upper faces (a read
 // of the resample's: see applyWarp's inGrid), and the tests are left out (a tenth of a snake
 // hook move's instructions went to them).
+// One axis of a trilinear read at the coordinate p, the grid's origin lo along it: the cell and
+// the fraction in it, or off the grid. Truncation is the floor from 0 up, and cheaper (std::floor
+// is a sequence of instructions without SSE4.1): below 0 (or NaN) the point is off the grid
+// anyway.
+struct ReadAxis {
+  long cell;
+  double t;
+  bool in;
+};
+template <bool kInGrid>
+[[gnu::always_inline]] inline ReadAxis readAxis(double p, double lo, int size) {
+  const double q = p - lo;
+  if (!kInGrid && !(q >= 0)) return {0, 0, false};
+  const long i = long(q);
+  if (!kInGrid && i + 1 >= size) return {0, 0, false};
+  return {i, q - double(i), true};
+}
+template <bool kInGrid>
+[[gnu::always_inline]] inline double trilinearAt(const GridReads& g, const ReadAxis& x, const ReadAxis& y, const ReadAxis& z,
+                                                  float band) {
+  if (!kInGrid && !(x.in && y.in && z.in)) return band;
+  const float* c = g.v + std::size_t(x.cell) + g.sx * std::size_t(y.cell) + g.sxy * std::size_t(z.cell);
+  const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
+  const double c00 = lerp(c[0], c[1], x.t), c10 = lerp(c[g.sx], c[g.sx + 1], x.t);
+  const double c01 = lerp(c[g.sxy], c[g.sxy + 1], x.t), c11 = lerp(c[g.sxy + g.sx], c[g.sxy + g.sx + 1], x.t);
+  return lerp(lerp(c00, c10, y.t), lerp(c01, c11, y.t), z.t);
+}
 template <bool kInGrid = false>
 [[gnu::always_inline]] inline double trilinear(const GridReads& g, Vec3 p, float band) {
-  const Vec3 q{p.x - g.lo.x, p.y - g.lo.y, p.z - g.lo.z};
-  // Truncation is the floor from 0 up, and cheaper (std::floor is a sequence of instructions
-  // without SSE4.1): below 0 (or NaN) the point is off the grid anyway.
-  if (!kInGrid && !(q.x >= 0 && q.y >= 0 && q.z >= 0)) return band;
-  const long ix = long(q.x), iy = long(q.y), iz = long(q.z);
-  if (!kInGrid && (ix + 1 >= g.size.x || iy + 1 >= g.size.y || iz + 1 >= g.size.z)) return band;
-  const double fx = double(ix), fy = double(iy), fz = double(iz);
-  const double tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
-  const float* c = g.v + std::size_t(ix) + g.sx * std::size_t(iy) + g.sxy * std::size_t(iz);
-  const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
-  const double c00 = lerp(c[0], c[1], tx), c10 = lerp(c[g.sx], c[g.sx + 1], tx);
-  const double c01 = lerp(c[g.sxy], c[g.sxy + 1], tx), c11 = lerp(c[g.sxy + g.sx], c[g.sxy + g.sx + 1], tx);
-  return lerp(lerp(c00, c10, ty), lerp(c01, c11, ty), tz);
+  return trilinearAt<kInGrid>(g, readAxis<kInGrid>(p.x, g.lo.x, g.size.x), readAxis<kInGrid>(p.y, g.lo.y, g.size.y),
+                              readAxis<kInGrid>(p.z, g.lo.z, g.size.z), band);
+}
+
+// The central differences of trilinear() over +-h along each axis at p, (read(p + h e_a) -
+// read(p - h e_a)) / (2 h), each axis's cells found once for the six reads (the same bits).
+template <bool kInGrid>
+[[gnu::always_inline]] inline Vec3 centralDifferences(const GridReads& g, Vec3 p, double h, float band) {
+  ReadAxis at[3], below[3], above[3];
+  for (int a = 0; a < 3; ++a) {
+    at[a] = readAxis<kInGrid>(p[a], g.lo[a], g.size[a]);
+    below[a] = readAxis<kInGrid>(p[a] - h, g.lo[a], g.size[a]);
+    above[a] = readAxis<kInGrid>(p[a] + h, g.lo[a], g.size[a]);
+  }
+  return {(trilinearAt<kInGrid>(g, above[0], at[1], at[2], band) - trilinearAt<kInGrid>(g, below[0], at[1], at[2], band)) / (2 * h),
+          (trilinearAt<kInGrid>(g, at[0], above[1], at[2], band) - trilinearAt<kInGrid>(g, at[0], below[1], at[2], band)) / (2 * h),
+          (trilinearAt<kInGrid>(g, at[0], at[1], above[2], band) - trilinearAt<kInGrid>(g, at[0], at[1], below[2], band)) / (2 * h)};
 }
 
 // Catmull-Rom (cubic convolution) interpolation of g at p over the 4x4x4 voxels around it, into
@@ -1202,14 +1238,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
           double DX[3][3];
           const Vec3 q = v.inverseWithJacobian(at, steps, DX);
           if (phi) *phi = readNearAnywhere(q);
-          Vec3 g0;
-          for (int a = 0; a < 3; ++a) {
-            Vec3 lo = q, hi = q;
-            lo[a] -= kSlopeStep;
-            hi[a] += kSlopeStep;
-            g0[a] = feet ? (trilinear(reads, hi, band) - trilinear(reads, lo, band)) / (2 * kSlopeStep)
-                         : (read(hi) - read(lo)) / (2 * kSlopeStep);
-          }
+          const Vec3 g0 = inGrid && !feet ? centralDifferences<true>(reads, q, kSlopeStep, band)
+                                          : centralDifferences<false>(reads, q, kSlopeStep, band);
           Vec3 g;
           for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
           return g;
@@ -1379,7 +1409,7 @@ void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
 
 // A grab's velocity (its parameters checked but the anchor's place, which the caller checks
 // against its volume).
-Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, Falloff falloff) {
+Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
   if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
   checkRadius(radius);
   if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
@@ -1394,7 +1424,7 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, Fallof
   if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.plateau = plateau;
   v.outerScale = 1 / (1 - plateau);
-  v.falloffShape = falloff;
+  v.falloffShape = falloffOf(plateau);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
@@ -1515,7 +1545,7 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
       from = from - along * (ball * share);
     }
   }
-  return grabVelocity(from, d, radius, ball / radius, Falloff::Quartic);
+  return grabVelocity(from, d, radius, ball / radius);
 }
 
 }  // namespace
@@ -1529,7 +1559,7 @@ Vec3 WarpMap::forward(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinemen
 Vec3 WarpMap::inverse(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinement * field_->v.substeps(), -1); }
 
 WarpMap grabMap(Vec3 anchor, Vec3 d, double radius) {
-  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0, Falloff::Quintic)}));
+  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0)}));
 }
 
 WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
@@ -1539,7 +1569,7 @@ WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius)
 Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
   checkBase(vol, base);
   checkAnchor(vol, anchor);
-  return applyWarp(vol, base, grabVelocity(anchor, d, radius, 0, Falloff::Quintic), pool);
+  return applyWarp(vol, base, grabVelocity(anchor, d, radius, 0), pool);
 }
 
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {
@@ -1636,13 +1666,11 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
   return applyWarp(vol, vol, v, pool);
 }
 
-double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0, Falloff::Quintic); }
+double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0); }
 
 // The widest plateau a move has: a sunk ball fitted to a narrower tip has a wider outer part,
 // and a smaller bound.
-double snakeHookSlopeBound(double travel, double radius) {
-  return capsuleSlope(travel, radius, kPlateau, Falloff::Quartic);
-}
+double snakeHookSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, kPlateau); }
 
 double elasticGrabSlopeBound(double travel, double radius, double volume) {
   return elasticSlope(travel * elasticLoadPerTravel(radius, volume), radius);
