@@ -46,8 +46,8 @@ constexpr float kMaxBand = 8.0f;
 // reference and the voxels already decoded: unpacking is exact. On the pig, 30-dab strokes:
 // 4.5x against the other side, 2.6x with the predictor alone, 2.57x for raw floats. The mask
 // leaves zstd the changed voxels alone (most of a brick is as it was): against all four planes
-// of every voxel, packing took 30% fewer instructions and the frames came out 5-9% smaller
-// (docs/benchmark-log.md, capacity, 2026-11-30 06:20).
+// of every voxel, packing took 30% fewer instructions and the frames came out 0.8-9% smaller
+// (5.5% on the dab_message bench; docs/benchmark-log.md, capacity, 2026-11-30 06:20).
 std::uint32_t ordered(float f) {
   std::uint32_t u;
   std::memcpy(&u, &f, 4);

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <malloc.h>
+#include <zstd.h>
 
 #include <cstdint>
 #include <cstring>
@@ -190,6 +191,32 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     service::PackedBricks bad = p;
     bad.frame.resize(bad.frame.size() / 2);
     CHECK_THROWS_AS(service::unpackBricks(bad, against), std::runtime_error);
+  }
+  SECTION("records that do not fit their frame are refused") {
+    // One brick against its changed copy: a record of its mask (64 bytes) and the differing
+    // voxels' bytes. The same content recompressed unpacks; each damage below is refused by the
+    // records' own checks (zstd accepts the frames).
+    const service::PackedBricks one = service::packBricks({coords[0]}, {ptrs[0]}, {against[0]});
+    std::vector<unsigned char> content(ZSTD_getFrameContentSize(one.frame.data(), one.frame.size()));
+    REQUIRE(ZSTD_decompress(content.data(), content.size(), one.frame.data(), one.frame.size()) == content.size());
+    REQUIRE(content.size() > 64 + 4 * 128);
+    const auto repacked = [&](const std::vector<unsigned char>& c) {
+      service::PackedBricks q = one;
+      q.frame.resize(ZSTD_compressBound(c.size()));
+      q.frame.resize(ZSTD_compress(q.frame.data(), q.frame.size(), c.data(), c.size(), 1));
+      return q;
+    };
+    const std::vector<BrickRef> same = service::unpackBricks(repacked(content), {against[0]});
+    REQUIRE(same.size() == 1);
+    CHECK(std::memcmp(same[0].data->v, refs[0].data->v, sizeof(Brick)) == 0);
+    std::vector<unsigned char> allChanged = content;  // a mask claiming every voxel, short of bytes
+    std::fill(allChanged.begin(), allChanged.begin() + 64, 0xff);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(allChanged), {against[0]}), std::runtime_error);
+    std::vector<unsigned char> trailing = content;
+    trailing.push_back(0);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(trailing), {against[0]}), std::runtime_error);
+    const std::vector<unsigned char> cut(content.begin(), content.begin() + 40);  // the mask cut short
+    CHECK_THROWS_AS(service::unpackBricks(repacked(cut), {against[0]}), std::runtime_error);
   }
   SECTION("other references are refused, not unpacked into wrong bricks") {
     auto changed = std::make_shared<Brick>(*others[0].data);
