@@ -10,7 +10,7 @@
 // two to a message) along a great circle from a random point of a cap of the
 // sphere, kStrokeMessages messages a stroke. The clients take turns message by
 // message and their strokes cross, so the session's steps fold and seal by the
-// hub's own rules (History::fold): `undo_steps` of `strokes` strokes.
+// hub's own rules (History::fold): `session_undo_steps` of `strokes` strokes.
 //
 // Timed (measurement): from hub.text() of the request until every client's link
 // has been handed the change's splat delta and the requester its response, with
@@ -23,7 +23,11 @@
 // messages as Session::strokeDabs alone (with beginStroke / endStroke alike) on
 // a Session of the same volume: the engine, the fold and sealing, the digest
 // and the bricks around; the difference is the hub's broadcast, JSON and
-// hand-overs.
+// hand-overs. Instructions (tests/bench/instructions.py) count the calling
+// thread and the hub's worker, which starts counting at its first hand-over (in
+// the untimed first message): with --threads 1 that is all of the work; with
+// more, the engine pool's other threads hand nothing over and go uncounted, and
+// the Session alone runs on one thread whatever --threads says.
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -269,8 +273,8 @@ MARZIPAN_BENCH("dab_message") {
         {"dab_radius", kRadius},
         {"dabs_per_message", kDabsPerMessage},
         {"strokes", begun},
-        {"undo_steps", session.steps().size()},
-        {"history_bytes", session.history().bytes()},
+        {"session_undo_steps", session.steps().size()},
+        {"session_history_bytes", session.history().bytes()},
         {"session_median_ms", sessionTiming.median_ms},
         {"session_measurement", sessionTiming.measurement}});
 }
