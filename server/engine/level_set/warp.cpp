@@ -1175,7 +1175,17 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // everywhere) the radius 8 helix in moves of 2 vu left its path 0.31-0.32 vu (0.01 without).
   // With the trilinear read (before 2026-11-30) exact distances at the tip moved its zero set
   // inwards move after move (the 200 vu tentacle's path read 0.44 vu outside its surface).
-  constexpr double kTipFeetReach = 1, kTipFeetBall = 3;
+  // The reach is 1.4 vu (1 before 2026-11-30): on a straight tentacle (radius 8, ball 4) the
+  // tip's rim, 4 vu ahead of the anchor, was cut by the reach's edge: inside voxels with foot
+  // points next to outside ones 5.3-5.5 vu from the plateau's segment with phi1 / |grad phi1|,
+  // gradient error 0.147 there after 200 vu in moves of 2 vu (0.059 at 1.4; 0.12-0.16 at
+  // 1.25-1.35). And on the sides just behind the tip, which every move resamples while its
+  // support reaches them, phi1 / |grad phi1| moved the zero set out by about 0.002 vu a move
+  // (|grad phi1| read above 1 outside the convex side, below 1 inside, its central differences
+  // reaching the marched layer behind), and the redistance keeps those voxels: the sides' mean
+  // 0.009 in moves of 1 vu (the exact cylinder's 0.005-0.006). That same outward drift holds the
+  // helix's path (above) inside the clay: at 1.4 it reads 0.13 vu outside, at 1.5 0.23.
+  constexpr double kTipFeetReach = 1.4, kTipFeetBall = 3;
   constexpr double kSlopeStep = 0.5;
   // Newton steps to a foot point (at most: they stop once the next would be shorter than
   // kFootConverged vu; a 3-radius grab's figures moved by under 1% with 5 or 8), the residual
