@@ -231,12 +231,18 @@ struct Velocity {
   // d falloff / d t2 = W'(u) outerScale / (2 t), set once instead of divided per point
   // (a snake hook move integrates the flow at a thousand points, four sub-steps of two
   // falloffs each); for kPlateau it is 2, the same bits as the division.
-  double plateau = 0, plateau2 = 0;  // plateau and its square (setPlateau())
-  void setPlateau(double p) { plateau = p, plateau2 = p * p; }
+  // plateau and what follows from it, set together by setPlateau(): its square, outerScale, and
+  // falloffOf(plateau) (a test of the plateau here, before the plateau's own, cost a snake hook
+  // move 1.7% more instructions). A path pinch's kernel is the falloff in closed form: it sets
+  // none of them.
+  double plateau = 0, plateau2 = 0;
   double outerScale = 1 / (1 - kPlateau);
-  // falloffOf(plateau), set with it (a test of the plateau here, before the plateau's own, cost
-  // a snake hook move 1.7% more instructions).
   Falloff falloffShape = Falloff::Quartic;
+  void setPlateau(double p) {
+    plateau = p, plateau2 = p * p;
+    outerScale = 1 / (1 - p);
+    falloffShape = falloffOf(p);
+  }
   double falloff(double t2) const {
     if (t2 <= plateau2) return 1;
     const double u = (std::sqrt(t2) - plateau) * outerScale;
@@ -1232,6 +1238,18 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     }
     return std::fabs(phi) < kFootResidual;
   };
+  // The nearer to p of `onSurface`, a point of the zero set, and the foot point Newton steps
+  // find from p's projection on the tangent plane there: the point alone lies off p's normal
+  // where the surface curves.
+  const auto nearerFoot = [&](Vec3 p, Vec3 onSurface) {
+    const Vec3 g = slopeOfWarped(onSurface, nullptr, true);
+    if (dot(g, g) > 1e-12) {
+      const Vec3 n = normalized(g);
+      Vec3 onPlane = p - n * dot(p - onSurface, n);
+      if (project(onPlane) && length(onPlane - p) <= length(onSurface - p)) return onPlane;
+    }
+    return onSurface;
+  };
   // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
   // them: every voxel the flow moves within a voxel of the changed ones is looked at.
   if (!moved.empty()) moved = moved.grown(1).intersect(work);
@@ -1270,10 +1288,9 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
           }
         if (bound == 1 && value != 0) continue;  // not next to the zero set
         const bool feet = feetAt(p);
-        const auto slope = [&](Vec3 at, double* phi) { return slopeOfWarped(at, phi, feet); };
         double mag;
         if (!feet) {
-          const double len = length(slope(p, nullptr));
+          const double len = length(slopeOfWarped(p, nullptr, false));
           mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
         } else {
           // The surface crosses an edge of the voxel: its foot point lies within a voxel (one
@@ -1292,15 +1309,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
               const double mid = 0.5 * (lo + hi);
               ((readNearAnywhere(v.flow(p + (other - p) * mid, steps, -1)) < 0) == neg ? lo : hi) = mid;
             }
-            const Vec3 crossing = p + (other - p) * (0.5 * (lo + hi));
-            foot = crossing;
-            double phi = 0;
-            const Vec3 g = slope(crossing, &phi);
-            if (dot(g, g) > 1e-12) {
-              const Vec3 n = normalized(g);
-              Vec3 onPlane = p - n * dot(p - crossing, n);
-              if (project(onPlane) && length(onPlane - p) <= length(crossing - p)) foot = onPlane;
-            }
+            foot = nearerFoot(p, p + (other - p) * (0.5 * (lo + hi)));
           }
           mag = length(foot - p);
         }
@@ -1372,13 +1381,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
               Vec3 foot = p;
               foot[a] += side;
               if (!project(foot)) continue;
-              double phi = 0;
-              const Vec3 g = slopeOfWarped(foot, &phi, true);
-              if (dot(g, g) > 1e-12) {
-                const Vec3 n = normalized(g);
-                Vec3 onPlane = p - n * dot(p - foot, n);
-                if (project(onPlane) && length(onPlane - p) < length(foot - p)) foot = onPlane;
-              }
+              foot = nearerFoot(p, foot);
               if (length(foot - p) < nearest) nearest = length(foot - p), found = true;
             }
           if (found) feet.emplace_back(k, float(std::copysign(nearest, double(s.warped.v[k]))));
@@ -1490,8 +1493,6 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.setPlateau(plateau);
-  v.outerScale = 1 / (1 - plateau);
-  v.falloffShape = falloffOf(plateau);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
