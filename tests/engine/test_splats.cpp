@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
@@ -468,6 +469,60 @@ TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
   // Quantization is idempotent: re-encoding decoded points gives the same points back (on the
   // octahedron's folded seam two codes may name one normal, so compare points, not bytes).
   CHECK(decodeSplats(encodeSplats(back)) == back);
+}
+
+TEST_CASE("splat points encoded four at a time are the bytes of each encoded alone", "[splats]") {
+  // A block of one point takes the one-point encoder; a block of 4k points the four-at-a-time
+  // one where the build has it. Points of every kind: clamped positions, normals of any length
+  // and of the lower half, zero and signed-zero components, subnormal normals, huge values.
+  std::mt19937 rng(32);
+  std::uniform_real_distribution<float> pos(-3.0f, 11.0f), dir(-1.5f, 1.5f);  // around brick (3, 1, 0)
+  std::vector<Splat> points;
+  const float tiny = 1e-40f, huge = 3e38f;
+  const std::vector<Splat> special = {
+      {0, 0, 0, 0, 0, 0},        {-0.0f, 8, 10, -0.0f, -0.0f, -0.0f}, {-2, -2, -2, 0, 0, -1},
+      {9.999f, 10, 30, 1, 0, 0}, {huge, -huge, 1, huge, huge, -huge},  {1, 2, 3, tiny, 0, -tiny},
+      {1, 2, 3, tiny, tiny, tiny}, {1, 2, 3, 0, tiny, 0},             {4, 4, 4, -0.5f, 0.5f, -0.0f},
+      {4, 4, 4, 0, -1, -1e-30f}, {4, 4, 4, 1e-30f, 0, 0},              {4, 4, 4, -0.25f, -0.75f, -0.0f}};
+  for (int round = 0; round < 3; ++round) points.insert(points.end(), special.begin(), special.end());
+  for (int i = 0; i < 4000; ++i) {
+    Splat s{24 + pos(rng), 8 + pos(rng), pos(rng), dir(rng), dir(rng), dir(rng)};
+    if (i % 7 == 0) s.nz = 0;
+    if (i % 11 == 0) s.nx = -0.0f;
+    points.push_back(s);
+  }
+  std::shuffle(points.begin() + std::ptrdiff_t(special.size()), points.end(), rng);
+  for (const bool painted : {false, true}) {
+    INFO((painted ? "painted" : "unpainted"));
+    const std::size_t pointBytes = painted ? kSplatPaintedPointBytes : kSplatPointBytes;
+    for (std::size_t at = 0; at + 512 <= points.size(); at += 500) {
+      BrickSplats block{{3, 1, 0}, std::vector<Splat>(points.begin() + std::ptrdiff_t(at),
+                                                      points.begin() + std::ptrdiff_t(at + 512)), {}};
+      if (painted)
+        for (std::size_t i = 0; i < block.points.size(); ++i)
+          block.texels.push_back({std::uint8_t(i), std::uint8_t(3 * i), std::uint8_t(7 * i), std::uint8_t(255 - i)});
+      std::vector<std::uint8_t> all, one;
+      encodeSplatBlock(block, all);
+      REQUIRE(all.size() == kSplatBrickHeaderBytes + pointBytes * 512);
+      for (std::size_t i = 0; i < block.points.size(); ++i) {
+        BrickSplats alone{block.brick, {block.points[i]}, {}};
+        if (painted) alone.texels = {block.texels[i]};
+        encodeSplatBlock(alone, one);
+        INFO("point " << at + i);
+        REQUIRE(std::equal(one.begin() + kSplatBrickHeaderBytes, one.end(),
+                           all.begin() + std::ptrdiff_t(kSplatBrickHeaderBytes + pointBytes * i)));
+      }
+    }
+  }
+  // Non-finite values are refused wherever they sit among the points.
+  for (const std::size_t i : {0, 1, 5, 510, 511})
+    for (const int field : {0, 2, 3, 5}) {
+      BrickSplats bad{{0, 0, 0}, std::vector<Splat>(points.begin(), points.begin() + 512), {}};
+      constexpr float Splat::*kFields[6] = {&Splat::x, &Splat::y, &Splat::z, &Splat::nx, &Splat::ny, &Splat::nz};
+      bad.points[i].*kFields[field] = field % 2 ? std::numeric_limits<float>::infinity() : std::nanf("");
+      std::vector<std::uint8_t> out;
+      CHECK_THROWS_AS(encodeSplatBlock(bad, out), EngineError);
+    }
 }
 
 TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the order given", "[splats]") {
