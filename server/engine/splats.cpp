@@ -4,7 +4,9 @@
 // throughout, neighbours' faces on the same side) is skipped after one counting pass. Others
 // are copied once into a 10^3 array with a one-voxel ring (faces only: the splat of a voxel
 // reads its six neighbours, never edge or corner neighbours); the test runs as byte
-// operations over that array, and only voxels whose byte survives are visited.
+// operations over that array, and only voxels whose byte survives are visited. Their splats
+// are worked out four at a time in SSE2 (splats4), lane by lane the float operations of the
+// scalar definition (splatAt, which MARZIPAN_SCALAR_KERNELS builds take) in its order.
 #include "splats.hpp"
 
 #include <algorithm>
@@ -236,9 +238,78 @@ void classify(const float* g, std::uint8_t* inside, std::uint8_t* near) {
   }
 }
 
-float clampPosition(float q, float origin) {
-  return std::clamp(q, origin + kPosLow, origin + kPosLow + kPosStep * float(kPosMax));
+// The encodable range of foot points along an axis of a brick with origin coordinate `origin`.
+float positionLow(float origin) { return origin + kPosLow; }
+float positionHigh(float origin) { return origin + kPosLow + kPosStep * float(kPosMax); }
+
+#if !defined(MARZIPAN_SSE2)
+float clampPosition(float q, float origin) { return std::clamp(q, positionLow(origin), positionHigh(origin)); }
+
+// The splat of the surface voxel at padded index c of g, voxel (px, py, pz) of the brick with
+// origin o.
+Splat splatAt(const float* g, int c, Int3 p, Int3 o) {
+  const float d = g[c];
+  // Twice the gradient: only its direction is kept.
+  const GradStencil st = GradStencil::inArray(g + c, kStride[0], kStride[1], kStride[2]);
+  const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
+  const float len2 = gx * gx + gy * gy + gz * gz;
+  const float px = float(p.x), py = float(p.y), pz = float(p.z);
+  Splat sp{px, py, pz, 0, 0, 1};
+  if (len2 > 0) {
+    const float inv = 1 / std::sqrt(len2);
+    sp.nx = gx * inv;
+    sp.ny = gy * inv;
+    sp.nz = gz * inv;
+    sp.x = clampPosition(px - d * sp.nx, float(o.x));
+    sp.y = clampPosition(py - d * sp.ny, float(o.y));
+    sp.z = clampPosition(pz - d * sp.nz, float(o.z));
+  }
+  return sp;
 }
+#else
+// splatAt for the four surface voxels at padded indices cell[0..4) of g, voxel k at (at[0][k],
+// at[1][k], at[2][k]), into out[0..4): lane by lane the same float operations in the same
+// order. std::clamp(q, lo, hi) is max(lo, q) then min(hi, ...) in that operand order, which
+// keeps a NaN as clamp does.
+void splats4(const float* g, const int* cell, const std::int32_t* const at[3], Int3 o, Splat* out) {
+  // Each voxel's row g[c - 1 .. c + 2], transposed: its x neighbours and its value per lane.
+  __m128 r0 = _mm_loadu_ps(g + cell[0] - 1), r1 = _mm_loadu_ps(g + cell[1] - 1), r2 = _mm_loadu_ps(g + cell[2] - 1),
+         r3 = _mm_loadu_ps(g + cell[3] - 1);
+  _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+  const auto lanes = [&](int offset) {
+    return _mm_set_ps(g[cell[3] + offset], g[cell[2] + offset], g[cell[1] + offset], g[cell[0] + offset]);
+  };
+  const __m128 d = r1;
+  const __m128 gx = _mm_sub_ps(r2, r0), gy = _mm_sub_ps(lanes(kStride[1]), lanes(-kStride[1])),
+               gz = _mm_sub_ps(lanes(kStride[2]), lanes(-kStride[2]));
+  const __m128 len2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy)), _mm_mul_ps(gz, gz));
+  const __m128 some = _mm_cmpgt_ps(len2, _mm_setzero_ps());
+  const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), _mm_sqrt_ps(len2));
+  const __m128 n[3] = {_mm_mul_ps(gx, inv), _mm_mul_ps(gy, inv), _mm_mul_ps(gz, inv)};
+  const float origin[3] = {float(o.x), float(o.y), float(o.z)};
+  const float fallbackNormal[3] = {0, 0, 1};
+  __m128 f[6];  // x, y, z, nx, ny, nz per lane
+  for (int a = 0; a < 3; ++a) {
+    const __m128 p = _mm_cvtepi32_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(at[a])));
+    const __m128 q = _mm_sub_ps(p, _mm_mul_ps(d, n[a]));
+    const __m128 foot = _mm_min_ps(_mm_set1_ps(positionHigh(origin[a])), _mm_max_ps(_mm_set1_ps(positionLow(origin[a])), q));
+    f[a] = _mm_or_ps(_mm_and_ps(some, foot), _mm_andnot_ps(some, p));
+    f[3 + a] = _mm_or_ps(_mm_and_ps(some, n[a]), _mm_andnot_ps(some, _mm_set1_ps(fallbackNormal[a])));
+  }
+  // Back to six floats per splat: rows (x0 y0 z0 nx0), (ny0 nz0 x1 y1), (z1 nx1 ny1 nz1), ...
+  const __m128 xyLo = _mm_unpacklo_ps(f[0], f[1]), xyHi = _mm_unpackhi_ps(f[0], f[1]);
+  const __m128 znLo = _mm_unpacklo_ps(f[2], f[3]), znHi = _mm_unpackhi_ps(f[2], f[3]);
+  const __m128 nnLo = _mm_unpacklo_ps(f[4], f[5]), nnHi = _mm_unpackhi_ps(f[4], f[5]);
+  static_assert(sizeof(Splat) == 6 * sizeof(float), "a splat is six packed floats");
+  float* w = reinterpret_cast<float*>(out);
+  _mm_storeu_ps(w, _mm_movelh_ps(xyLo, znLo));
+  _mm_storeu_ps(w + 4, _mm_shuffle_ps(nnLo, xyLo, _MM_SHUFFLE(3, 2, 1, 0)));
+  _mm_storeu_ps(w + 8, _mm_movehl_ps(nnLo, znLo));
+  _mm_storeu_ps(w + 12, _mm_movelh_ps(xyHi, znHi));
+  _mm_storeu_ps(w + 16, _mm_shuffle_ps(nnHi, xyHi, _MM_SHUFFLE(3, 2, 1, 0)));
+  _mm_storeu_ps(w + 20, _mm_movehl_ps(nnHi, znHi));
+}
+#endif
 
 void checkBrick(const Volume& vol, Int3 b) {
   if (!inGrid(vol, b)) {
@@ -280,33 +351,33 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
             zs = std::min(kBrickSide, dims.z - o.z);
   const std::uint32_t xBits = (1u << xs) - 1;
 
-  Splat found[kBrickVoxels];
-  std::uint16_t voxelOf[kBrickVoxels];  // each splat's voxel, Bricks::index
+  // The surface voxels first (room for a last group of four), then their splats.
+  constexpr int kRoom = kBrickVoxels + 3;
+  int cell[kRoom];                       // padded index
+  std::int32_t at[3][kRoom];             // voxel coordinates
+  std::uint16_t voxelOf[kBrickVoxels];  // Bricks::index
   int count = 0;
   for (int z = 0; z < zs; ++z)
     for (int y = 0; y < ys; ++y)
       for (std::uint32_t m = packBytes(surface + padIndex(0, y, z)) & xBits; m; m &= m - 1) {
         const int x = std::countr_zero(m);
-        const int c = padIndex(x, y, z);
-        const float d = g[c];
-        // Twice the gradient: only its direction is kept.
-        const GradStencil st = GradStencil::inArray(g + c, kStride[0], kStride[1], kStride[2]);
-        const float gx = st.difference(0), gy = st.difference(1), gz = st.difference(2);
-        const float len2 = gx * gx + gy * gy + gz * gz;
-        const float px = float(o.x + x), py = float(o.y + y), pz = float(o.z + z);
-        voxelOf[count] = std::uint16_t(Bricks::index(x, y, z));
-        Splat& sp = found[count++];
-        sp = {px, py, pz, 0, 0, 1};
-        if (len2 > 0) {
-          const float inv = 1 / std::sqrt(len2);
-          sp.nx = gx * inv;
-          sp.ny = gy * inv;
-          sp.nz = gz * inv;
-          sp.x = clampPosition(px - d * sp.nx, float(o.x));
-          sp.y = clampPosition(py - d * sp.ny, float(o.y));
-          sp.z = clampPosition(pz - d * sp.nz, float(o.z));
-        }
+        cell[count] = padIndex(x, y, z);
+        at[0][count] = o.x + x, at[1][count] = o.y + y, at[2][count] = o.z + z;
+        voxelOf[count++] = std::uint16_t(Bricks::index(x, y, z));
       }
+  Splat found[kRoom];
+#if defined(MARZIPAN_SSE2)
+  for (int i = count; i % 4 != 0; ++i) {  // the last group filled up with its first voxel
+    cell[i] = cell[i & ~3];
+    for (int a = 0; a < 3; ++a) at[a][i] = at[a][i & ~3];
+  }
+  for (int i = 0; i < count; i += 4) {
+    const std::int32_t* const lanes[3] = {at[0] + i, at[1] + i, at[2] + i};
+    splats4(g, cell + i, lanes, o, found + i);
+  }
+#else
+  for (int i = 0; i < count; ++i) found[i] = splatAt(g, cell[i], {at[0][i], at[1][i], at[2][i]}, o);
+#endif
   out.points.assign(found, found + count);
   // The voxels of a brick without channels all read the base colour, weight 0: its points take
   // the session's base colour on the client, and carry nothing.
