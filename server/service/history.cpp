@@ -51,7 +51,9 @@ constexpr float kMaxBand = 8.0f;
 std::uint32_t ordered(float f) {
   std::uint32_t u;
   std::memcpy(&u, &f, 4);
-  return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+  // ~u for a set sign bit, else u with it set: u xor all ones or xor the sign bit, without a
+  // branch, so that the loops over a brick vectorize.
+  return u ^ (static_cast<std::uint32_t>(static_cast<std::int32_t>(u) >> 31) | 0x80000000u);
 }
 
 float unordered(std::uint32_t u) {
