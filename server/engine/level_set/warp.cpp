@@ -1190,7 +1190,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // (|grad phi1| read above 1 outside the convex side, below 1 inside, its central differences
   // reaching the marched layer behind), and the redistance keeps those voxels: the sides' mean
   // 0.009 in moves of 1 vu (the exact cylinder's 0.005-0.006). That same outward drift holds the
-  // helix's path (above) inside the clay: at 1.4 it reads 0.13 vu outside, at 1.5 0.23.
+  // helix's path (above) inside the clay: at 1.4 it read 0.13 vu outside, at 1.5 0.23 (with
+  // the young tentacle's wider support, snakeHookVelocity(), 0.010 vu inside at 1.4).
   constexpr double kTipFeetReach = 1.4, kTipFeetBall = 3;
   constexpr double kSlopeStep = 0.5;
   // Newton steps to a foot point (at most: they stop once the next would be shorter than
@@ -1478,8 +1479,10 @@ void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
 }
 
 // A grab's velocity (its parameters checked but the anchor's place, which the caller checks
-// against its volume).
-Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
+// against its volume): d at most kMaxWarpTravelPerRadius times `radius`, the brush's, and the
+// support `support` vu (the brush's radius but for a snake hook's young tentacle,
+// snakeHookVelocity()), `plateau` a share of it.
+Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, double support) {
   if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
   checkRadius(radius);
   if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
@@ -1487,7 +1490,7 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau) {
     throw EngineError(ErrorKind::TooLarge, "d", "must be at most 8 radii long");
   Velocity v;
   v.anchor = anchor;
-  v.radius = radius;
+  v.radius = support;
   v.seg = d;
   v.segLength2 = dot(d, d);
   v.segLength = std::sqrt(v.segLength2);
@@ -1508,6 +1511,9 @@ constexpr double kSinkClearance = 0.25;
 // The sunk ball's radius is the tip's (tipRadius()), at most the plateau's and at least this
 // share of it (a tentacle pinched thin elsewhere keeps the ball from shrinking with it).
 constexpr double kLeastBall = 0.5;
+// The support of a move whose ball sinks only in part, by the share `share` (0 < share < 1):
+// 1 + kYoungWidening (1 - share) radii, at most kMaxWarpRadius.
+constexpr double kYoungWidening = 0.5;
 // The eight unit directions across a move (`along`, a unit vector), 45 degrees apart: where the
 // tip's section is sampled.
 std::array<Vec3, 8> raysAcross(Vec3 along) {
@@ -1603,17 +1609,34 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
   // ball is as wide as the tip (tipRadius()): clay inside the ball never moves against it, so
   // a tip narrower than the plateau kept its flat cap in the ball, and read gradient error
   // 0.120 there after the 200 vu path (0.099 with the ball fitted).
-  double ball = kPlateau * radius;
+  double ball = kPlateau * radius, share = 0;
   if (length(d) > 0) {
     const Vec3 along = normalized(d);
     const Vec3 sunk = from - along * ball;
-    const double share = sinkShare(vol, sunk, along, radius);
+    share = sinkShare(vol, sunk, along, radius);
     if (share > 0) {
       ball = std::max(kLeastBall * ball, tipRadius(vol, sunk, along, ball));
       from = from - along * (ball * share);
     }
   }
-  return grabVelocity(from, d, radius, ball / radius);
+  // While the ball sinks only in part, the tentacle is young (as in its first moves out of a
+  // body), and its foot is still being drawn: the move's support is then wider than the
+  // radius, up to half again as the share falls, the ball's size kept, so that the falloff's
+  // outer part reaches down the stub and draws the fold where it leaves the body into a broad
+  // fillet. With the brush's support the moves' falloff stopped at the same ring on the body,
+  // move after move, and the stub rose from it as a wall: a fold whose radius of curvature was
+  // about a voxel, where the exact field of that shape read gradient error 0.126 and ours 0.129
+  // after the 200 vu path (tests/engine/level_set/test_warp.cpp). The widening fades as the
+  // ball sinks: half again the radius at every partial share fed itself (the wider flank kept
+  // the ring of sinkShare() in the clay, the share partial), a 70 vu helix in moves of 1 vu
+  // widened 64 of its 70 moves and cost 54% more instructions (fading: 3%). A move before the
+  // ball sinks at all, off a body, keeps the brush's support, the ring the browser shows: a
+  // wider support there draws the fillet as well, but costs every such move 13-19% more
+  // (1.09-1.125 radii). Within the brush's support, other falloffs ((1 - u^a)^b) or other balls
+  // left the exact field's fold at 0.086-0.143 (docs/benchmark-log.md, Warps).
+  const double support =
+      share > 0 && share < 1 ? std::min(radius * (1 + kYoungWidening * (1 - share)), kMaxWarpRadius) : radius;
+  return grabVelocity(from, d, radius, ball / support, support);
 }
 
 }  // namespace
@@ -1627,7 +1650,7 @@ Vec3 WarpMap::forward(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinemen
 Vec3 WarpMap::inverse(Vec3 p) const { return field_->v.flow(p, kWarpMapRefinement * field_->v.substeps(), -1); }
 
 WarpMap grabMap(Vec3 anchor, Vec3 d, double radius) {
-  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0)}));
+  return WarpMap(std::make_shared<const WarpMap::Field>(WarpMap::Field{grabVelocity(anchor, d, radius, 0, radius)}));
 }
 
 WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius) {
@@ -1637,7 +1660,7 @@ WarpMap snakeHookMap(const Volume& vol, Vec3 anchor, Vec3 target, double radius)
 Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius, ThreadPool& pool) {
   checkBase(vol, base);
   checkAnchor(vol, anchor);
-  return applyWarp(vol, base, grabVelocity(anchor, d, radius, 0), pool);
+  return applyWarp(vol, base, grabVelocity(anchor, d, radius, 0, radius), pool);
 }
 
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool) {

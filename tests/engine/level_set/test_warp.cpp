@@ -356,8 +356,9 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   checkFollowsPath(v, path);
   // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
   // of a slice across y, a slice of the slanting tentacle a little longer than its section)
-  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 4.51 and 4.62 vu
-  // (the plateau's radius is 4; 4.58 and 4.72 with the tip's foot points 1 vu past the plateau,
+  // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 4.51 and 4.72 vu
+  // (4.51 and 4.62 before the young tentacle's wider support, warp.cpp, snakeHookVelocity;
+  // the plateau's radius is 4; 4.58 and 4.72 with the tip's foot points 1 vu past the plateau,
   // warp.cpp, kTipFeetReach) with the cubic read next to the zero set (warp.cpp, tricubic());
   // with the trilinear one, whose bias ate into the tentacle at every move, 3.61 and 4.18, and
   // 3.29 and 3.91 before the plateau's ball sank into the tip (warp.cpp, snakeHookVelocity).
@@ -371,7 +372,8 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   CHECK(sectionRadius(230) >= 4.4);
   CHECK(sectionRadius(160) >= 4.5);
   // The tentacle above its foot (y >= 68; the sphere's top is at 60) within the brushes' max:
-  // measured 2026-11-30 0.0512 / 0.0050 (max / mean) with the tip's kept voxels given foot
+  // measured 2026-11-30 0.0474 / 0.00497 (max / mean; 0.0512 / 0.0050 before the young
+  // tentacle's wider support) with the tip's kept voxels given foot
   // points (warp.cpp, kTipFeetReach; 0.0773 / 0.0053 with the reach 1 vu, not 1.4); with
   // phi1 / |grad phi1| there 0.187 / 0.0071, the tip
   // sharper than the exact field's (0.036-0.050) and a ridge the falloff behind the tip drew
@@ -384,25 +386,28 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   INFO("gradient error above the foot: max " << above.max << " mean " << above.mean);
   CHECK(above.max <= 0.1);
   CHECK(above.mean <= 0.0065);
-  // The whole volume within the brushes' mean, 0.005, not within their max: measured
-  // 2026-11-30 max 0.129 / mean 0.00339 (0.00355 with the reach 1 vu), the max under y 68
-  // (0.187 / 0.00455 without the tip's
-  // foot points, the max above; with the trilinear read 0.117 / 0.00444, the max at the foot).
-  // At the foot, the concave fold the first moves draw out of the sphere before the tentacle is
-  // thin enough for the ball to sink (y 56-64; the exact field of the first 8 moves reads 0.126
-  // there: the test below), whose curvature the falloff's edge sets. The grab's quintic falloff
-  // (warp.cpp, Falloff; W' and W'' zero at the rim) made it worse, 0.143 / 0.00396, and the
-  // tentacle above the foot 0.113 / 0.0060 (2026-11-30; (1 - t^2)^3: 0.139 / 0.00367, 0.139).
-  checkSoundSolid(v, 0.14, 0.005);
+  // The whole volume within the brushes' 0.1 and 0.005: measured 2026-11-30 0.0474 / 0.00324,
+  // the max above the foot. The foot, where the tentacle leaves the sphere (y 56-64), is a broad
+  // fillet: the moves whose ball sinks only in part, while the tentacle is young, have a wider
+  // support (warp.cpp, snakeHookVelocity). With the brush's support there the moves' falloff
+  // stopped at the same ring on the sphere and the stub rose from it as a wall, a concave fold
+  // about a voxel round: 0.129 / 0.00339 at the foot (the exact field of the first 8 moves read
+  // 0.126 there: the test below; 0.187 / 0.00455 without the tip's foot points, the max above;
+  // with the trilinear read 0.117 / 0.00444). The grab's quintic falloff (warp.cpp, Falloff; W'
+  // and W'' zero at the rim) made that fold worse, 0.143 / 0.00396, and the tentacle above the
+  // foot 0.113 / 0.0060 ((1 - t^2)^3: 0.139 / 0.00367, 0.139).
+  checkSoundSolid(v, 0.1, 0.004);
 }
 
 TEST_CASE("a snake hook pulls a tentacle straight up within the brushes' gradient error", "[warp][snake_hook][topology]") {
   // 200 vu straight up from the sphere's top at radius 8, in moves of 2 and of 1 vu. Measured
-  // 2026-11-30 (max / mean, the whole volume; above the foot, y >= 68): moves of 2 vu 0.0995 /
-  // 0.00365, 0.0585 / 0.00516; moves of 1 vu 0.1010 / 0.00420, 0.0699 / 0.00624; the max under y
-  // 68, at the foot the first moves draw out of the sphere (the test above). With the tip's foot
-  // points 1 vu past the plateau (warp.cpp, kTipFeetReach), not 1.4: 0.147 / 0.00445 (the max at
-  // the tip's rim) and 0.101 / 0.00531 (the sides behind the tip drifting out at every move).
+  // 2026-11-30 (max / mean, the whole volume; above the foot, y >= 68): moves of 2 vu 0.0626 /
+  // 0.00346, 0.0583 / 0.00515; moves of 1 vu 0.0698 / 0.00391, 0.0698 / 0.00624. Before the young
+  // tentacle's wider support (warp.cpp, snakeHookVelocity) 0.0995 / 0.00365 and 0.1010 / 0.00420,
+  // the max under y 68, at the fold the first moves drew out of the sphere (the test above).
+  // With the tip's foot points 1 vu past the plateau (warp.cpp, kTipFeetReach), not 1.4: 0.147 /
+  // 0.00445 (the max at the tip's rim) and 0.101 / 0.00531 (the sides behind the tip drifting
+  // out at every move).
   const Vec3 c{48, 40, 48};
   const double r = 8;
   for (const double step : {2.0, 1.0}) {
@@ -416,7 +421,7 @@ TEST_CASE("a snake hook pulls a tentacle straight up within the brushes' gradien
     INFO("gradient error above the foot: max " << above.max << " mean " << above.mean);
     CHECK(above.max <= 0.075);
     CHECK(above.mean <= 0.0065);
-    checkSoundSolid(v, step == 2 ? 0.1 : 0.102, 0.0045);
+    checkSoundSolid(v, 0.1, 0.0045);
   }
 }
 
@@ -439,10 +444,14 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   checkSoundSolid(v, 1, 1);  // the gradient error: against the exact field's, below
   const AgainstExact m = againstExact(v, {c, 20, maps});
   // The plateau's ball sinks into the tip once the tentacle is thinner than the support (from
-  // the third move here), and the tip becomes its round front: the exact field reads 0.062 at
-  // the tip (slices y 72-80). Its max is at the tentacle's foot on the sphere (y 56-60), the
-  // concave fold the first moves made before the ball sank, past the brushes' 0.1 for any field
-  // of this shape. Measured (2026-11-30): exact 0.126 / 0.00145, ours 0.129 / 0.00235, both at
+  // the third move here), and the tip becomes its round front; while it sinks in part the
+  // support is wider (warp.cpp, snakeHookVelocity), and the foot on the sphere (y 56-60) a broad
+  // fillet. Measured (2026-11-30): exact 0.0657 / 0.00125, ours 0.0919 / 0.00204, both at the
+  // tip (y 75); |ours - exact| 0.142 / 0.0032. Ours reads the young tip sharper than the exact
+  // field does (0.106 there before the wider support too): ours is held within 0.03 of the
+  // exact field, not 0.02, and within the brushes' 0.1. With the brush's support the foot was a concave
+  // fold about a voxel round, past the brushes' 0.1 for any field of that shape: exact 0.126 /
+  // 0.00145, ours 0.129 / 0.00235, both at
   // the foot; |ours - exact| 0.199 / 0.0036 with the cubic read next to the zero set (warp.cpp,
   // tricubic()) and the tip's kept voxels given foot points (kTipFeetReach), 0.214 / 0.0041
   // without them (ours 0.129 / 0.00220), 0.208 / 0.0054 with the trilinear read (ours 0.117 /
@@ -451,9 +460,10 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   // the surface (2026-11-29) the tip
   // was a flat cap whose rim sharpened with every move: exact 0.167 / 0.00173 at the tip, ours
   // 0.141 / 0.00221, |ours - exact| 0.296 / 0.0073.
-  CHECK(m.exact.max > 0.1);
+  CHECK(m.exact.max <= 0.1);
   CHECK(m.exact.mean <= 0.005);
-  checkNearExact(m, 0.001, 0.25, 0.0047);
+  CHECK(m.ours.max <= 0.1);
+  checkNearExact(m, 0.001, 0.2, 0.004, 0.03);
 }
 
 TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[warp][snake_hook][topology]") {
@@ -462,10 +472,11 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
   // sideways at each turn and the bend sheared into a sheet thinner than a voxel: 3 components
   // with 1 vu moves, 4 with 4 vu moves, 10 with 8 vu moves at radius 6.
   // The gradient error is not within the brushes' limits: the largest at the turns, where the
-  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.233 / 0.0062, 0.247 /
-  // 0.0101, 0.504 / 0.0282 with the cubic read next to the zero set (warp.cpp, tricubic()) and
-  // the tip's foot points (kTipFeetReach); 0.253 / 0.0096, 0.247 / 0.0113, 0.525 / 0.0316
-  // without those;
+  // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.135 / 0.0048, 0.233 /
+  // 0.0091, 0.546 / 0.0240 with the young tentacle's wider support (warp.cpp,
+  // snakeHookVelocity); 0.234 / 0.0051, 0.247 / 0.0091, 0.538 / 0.0240 before it; 0.233 /
+  // 0.0062, 0.247 / 0.0101, 0.504 / 0.0282 with the tip's foot points 1 vu past the plateau
+  // (kTipFeetReach), not 1.4; 0.253 / 0.0096, 0.247 / 0.0113, 0.525 / 0.0316 without those;
   // 0.240 / 0.0082, 0.244 / 0.0111, 0.532 / 0.0316 with the trilinear one (2026-11-29, before
   // the plateau's ball sank into the tip: 0.30 / 0.0111, 0.23 / 0.0123, 0.47 / 0.038).
   struct Case {
@@ -966,9 +977,11 @@ TEST_CASE("a snake hook of the smallest radius pulls out a thin tentacle along t
       INFO("path " << which << ", moves of " << step << " vu");
       checkFollowsPath(v, path);
       // The gradient error past the brushes' limits, largest at the turns (as with the right
-      // angles above): measured at radius 4 (max / mean) 0.196 / 0.0082 and 0.254 / 0.0096
-      // slanting, 0.299 / 0.0070 and 0.289 / 0.0095 on the helix, 0.801 / 0.0164 and 0.894 /
-      // 0.0201 along the right angles, 4 vu apart, as the radius (at radius 5 with the trilinear
+      // angles above): measured at radius 4 (max / mean) 0.273 / 0.0083 and 0.253 / 0.0092
+      // slanting, 0.224 / 0.0065 and 0.313 / 0.0090 on the helix, 0.728 / 0.0155 and 0.872 /
+      // 0.0193 along the right angles, 4 vu apart, as the radius (2026-11-30; before the young
+      // tentacle's wider support, warp.cpp, snakeHookVelocity, 0.196 / 0.0082, 0.254 / 0.0096,
+      // 0.299 / 0.0070, 0.289 / 0.0095, 0.801 / 0.0164 and 0.894 / 0.0201; at radius 5 with the trilinear
       // read 0.136 / 0.0064, 0.140 / 0.0077, 0.275 / 0.0058, 0.278 / 0.0073, 0.677 / 0.0172 and
       // 0.779 / 0.0207).
       if (which < 2) checkSoundSolid(v, 0.33, 0.011);
@@ -981,11 +994,12 @@ TEST_CASE("a snake hook keeps its tip over 70 vu of 1 vu moves and a helix path 
   // 70 vu from a sphere of radius 12, slanting with a turn and along a helix whose radius of
   // curvature is 14 vu. Each move resamples the tip; with the trilinear interpolant there the zero
   // set sank h^2 kappa / 8 a move into the tip, and the loss added up (warp.cpp, tricubic()).
-  // Measured 2026-11-30: the tip's largest |value| after a move 0.123 and 0.073 at radius 4
-  // (slant, helix), 0.043 at radius 5 (helix), 0.026 and 0.019 at radius 8 (moves of 1 and 2
-  // vu); the path within 0.017 vu of the clay at radius 8 in moves of 1 vu, 0.125 vu outside it
-  // in moves of 2 vu (inside, -0.010, with the tip's foot points 1 vu past the plateau, not 1.4;
-  // warp.cpp, kTipFeetReach). The tip's kept voxels take foot
+  // Measured 2026-11-30: the tip's largest |value| after a move 0.127 and 0.072 at radius 4
+  // (slant, helix), 0.043 at radius 5 (helix), 0.026 and 0.018 at radius 8 (moves of 1 and 2
+  // vu); the path within 0.016 vu of the clay at radius 8 in moves of 1 vu, and inside it,
+  // -0.010, in moves of 2 vu (0.125 vu outside it before the young tentacle's wider support,
+  // warp.cpp, snakeHookVelocity; inside, -0.010, with the tip's foot points 1 vu past the
+  // plateau, not 1.4; warp.cpp, kTipFeetReach). The tip's kept voxels take foot
   // points at radius 8 only (warp.cpp, kTipFeetBall): on the thinner tips, or farther from the
   // plateau, they left the helix's path 0.75-1.28 vu (radius 5) and 0.23-0.32 vu (radius 8, moves
   // of 2 vu, 1.5-2 vu past the plateau) outside the clay. Before the cubic read: at radius 5
@@ -1017,8 +1031,9 @@ TEST_CASE("a snake hook keeps its tip over 70 vu of 1 vu moves and a helix path 
     INFO("largest |value| at the tip after a move " << worstTip);
     CHECK(worstTip <= 0.25);
     // At radius 4 and 5 the thin tentacle (1-1.3 vu thick about the path) cuts a little inside
-    // the helix's curve, which the later moves' falloff drags towards the chord: measured 0.233
-    // (radius 4) and 0.266 vu (radius 5) outside the clay at most, 25 vu before the tip (in
+    // the helix's curve, which the later moves' falloff drags towards the chord: measured 0.147
+    // (radius 4) and 0.220 vu (radius 5) outside the clay at most (0.233 and 0.266 before the
+    // young tentacle's wider support, warp.cpp, snakeHookVelocity), 25 vu before the tip (in
     // moves of 2 vu radius 4 left it 0.67 vu outside, not tested).
     if (r > 5) {
       checkFollowsPath(v, path);
