@@ -3,8 +3,9 @@
 // Speed: a brick that provably has no splat (one side of the surface and |d| >= kSurfaceNear
 // throughout, neighbours' faces on the same side) is skipped after one counting pass. Others
 // are copied once into a 10^3 array with a one-voxel ring (faces only: the splat of a voxel
-// reads its six neighbours, never edge or corner neighbours); the test runs as byte
-// operations over that array, and only voxels whose byte survives are visited. Their splats
+// reads its six neighbours, never edge or corner neighbours); the test runs on 64-bit words,
+// one per brick slice (the brick's inside and near bits, the ring's inside bits, shifted onto
+// each other), and only voxels whose bit survives are visited. Their splats
 // are worked out four at a time in SSE2 (splats4), lane by lane the float operations of the
 // scalar definition (splatAt, which MARZIPAN_SCALAR_KERNELS builds take) in its order.
 #include "splats.hpp"
@@ -144,7 +145,13 @@ bool provablyEmpty(const BrickLookup& look, Int3 b, const float* own, float ownV
 void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownValue, float* g) {
   const Volume& vol = look.volume();
   const float band = vol.band();
-  std::fill(g, g + kPadVoxels, band);
+  // What the rows below leave unwritten: the ring's first and last slices, and its edges
+  // along z (never read as a voxel's neighbours, but within the whole rows that are read).
+  std::fill(g, g + kPad * kPad, band);
+  std::fill(g + kPadVoxels - kPad * kPad, g + kPadVoxels, band);
+  for (int z = 0; z < kBrickSide; ++z)
+    for (const int y : {-1, kBrickSide})
+      for (const int x : {-1, kBrickSide}) g[padIndex(x, y, z)] = band;
   for (int z = 0; z < kBrickSide; ++z)
     for (int y = 0; y < kBrickSide; ++y) {
       float* row = g + padIndex(0, y, z);
@@ -191,20 +198,6 @@ void gatherPadded(const BrickLookup& look, Int3 b, const float* own, float ownVa
   }
 }
 
-// The 8 bytes of 0/1 of a brick row (the first at the lowest address) packed into 8 bits, bit i
-// from byte i. Rows of another length need another packing: the static_assert above holds the
-// side at the wire's 8. p may be read up to 16 bytes on (the padded array has them).
-std::uint32_t packBytes(const std::uint8_t* p) {
-#if defined(MARZIPAN_SSE2)
-  const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
-  return std::uint32_t(_mm_movemask_epi8(_mm_slli_epi16(v, 7))) & 0xffu;
-#else
-  std::uint64_t w = 0;
-  for (int i = 0; i < 8; ++i) w |= std::uint64_t(p[i]) << (8 * i);
-  return std::uint32_t((w * 0x0102040810204080ull) >> 56);
-#endif
-}
-
 #if defined(MARZIPAN_SSE2)
 // Sixteen floats from v as bytes: all ones where v < 0 (inBytes) and where |v| < kSurfaceNear
 // (nearBytes), zero elsewhere; the comparisons' all-ones lanes narrowed by saturating packs (-1
@@ -223,23 +216,52 @@ inline void classify16(const float* v, __m128i& inBytes, __m128i& nearBytes) {
 }
 #endif
 
-// The bytes over the padded array: inside[i] = g[i] < 0, near[i] = |g[i]| < kSurfaceNear, 0 or 1.
-void classify(const float* g, std::uint8_t* inside, std::uint8_t* near) {
-  int i = 0;
+static_assert(kBrickSide == 8, "a brick slice is one 64-bit word");
+constexpr std::uint64_t kColumn0 = 0x0101010101010101ull, kColumn7 = kColumn0 << 7, kRow0 = 0xffull,
+                        kRow7 = kRow0 << 56;
+
+// The bits of slice z whose voxel lies in the domain.
+std::uint64_t domainSlice(const Volume& vol, Int3 b, int z) {
+  const Int3 o = Bricks::origin(b), dims = vol.dims();
+  if (o.z + z >= dims.z) return 0;
+  const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y);
+  if (xs == kBrickSide && ys == kBrickSide) return ~std::uint64_t(0);
+  std::uint64_t slice = 0;
+  for (int y = 0; y < ys; ++y) slice |= ((std::uint64_t(1) << xs) - 1) << (kBrickSide * y);
+  return slice;
+}
+
+// Inside and near bits of the 64 voxels of slice z of a brick's data.
+void sliceBits(const float* v, std::uint64_t& inside, std::uint64_t& near) {
+  std::uint64_t in = 0, nr = 0;
 #if defined(MARZIPAN_SSE2)
-  // Sixteen at a time, the bytes masked to 1.
-  const __m128i one = _mm_set1_epi8(1);
-  for (; i + 16 <= kPadVoxels; i += 16) {
+  for (int i = 0; i < kBrickSide * kBrickSide; i += 16) {
     __m128i inBytes, nearBytes;
-    classify16(g + i, inBytes, nearBytes);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(inside + i), _mm_and_si128(inBytes, one));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(near + i), _mm_and_si128(nearBytes, one));
+    classify16(v + i, inBytes, nearBytes);
+    in |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(inBytes))) << i;
+    nr |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(nearBytes))) << i;
+  }
+#else
+  for (int i = 0; i < kBrickSide * kBrickSide; ++i) {
+    in |= std::uint64_t(v[i] < 0) << i;
+    nr |= std::uint64_t(std::fabs(v[i]) < kSurfaceNear) << i;
   }
 #endif
-  for (; i < kPadVoxels; ++i) {
-    inside[i] = g[i] < 0;
-    near[i] = std::fabs(g[i]) < kSurfaceNear;
-  }
+  inside = in;
+  near = nr;
+}
+
+// Bit i: v[i] < 0, over the 8 floats of a brick row.
+std::uint32_t rowInside(const float* v) {
+#if defined(MARZIPAN_SSE2)
+  const __m128 zero = _mm_setzero_ps();
+  return std::uint32_t(_mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(v), zero)) |
+                       _mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(v + 4), zero)) << 4);
+#else
+  std::uint32_t m = 0;
+  for (int i = 0; i < kBrickSide; ++i) m |= std::uint32_t(v[i] < 0) << i;
+  return m;
+#endif
 }
 
 // The encodable range of foot points along an axis of a brick with origin coordinate `origin`.
@@ -335,25 +357,29 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   float g[kPadVoxels];
   gatherPadded(look, b, own, ownValue, g);
 
-  // The test as bytes over the whole padded array (plain loops the compiler vectorizes):
-  // inside[i] = d < 0, then surface[i] = near | any of the six neighbours on the other side.
-  // Entries on the ring come out meaningless and are never used.
-  // packBytes reads 16 bytes from a brick row's start: they lie in [kLo, kHi), all set.
-  std::uint8_t inside[kPadVoxels], near[kPadVoxels], surface[kPadVoxels];
-  classify(g, inside, near);
-  constexpr int kLo = kPad * kPad, kHi = kPadVoxels - kPad * kPad;
-  for (int i = kLo; i < kHi; ++i) {
-    const std::uint8_t s = inside[i];
-    surface[i] = near[i] | (s ^ inside[i - 1]) | (s ^ inside[i + 1]) |
-                 (s ^ inside[i - kPad]) | (s ^ inside[i + kPad]) | (s ^ inside[i - kPad * kPad]) |
-                 (s ^ inside[i + kPad * kPad]);
-  }
-
+  // The test on 64-bit words, bit x + 8 y of slice z (as bricksAroundChanges): d < 0 and
+  // |d| < kSurfaceNear of the brick's voxels in the domain, d < 0 of the ring's (from g, which
+  // reads past the domain as +band); a voxel is next to the surface when near or when a face
+  // neighbour's inside bit differs. Then its splat, in voxel order.
   const Int3 o = Bricks::origin(b);
-  const Int3 dims = vol.dims();
-  const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y),
-            zs = std::min(kBrickSide, dims.z - o.z);
-  const std::uint32_t xBits = (1u << xs) - 1;
+  const int zs = std::min(kBrickSide, vol.dims().z - o.z);
+  std::uint64_t in[kBrickSide + 2], nearBits[kBrickSide], domain[kBrickSide];  // in: slices -1 .. kBrickSide
+  for (int z = 0; z < kBrickSide; ++z) {
+    domain[z] = domainSlice(vol, b, z);
+    if (own) {
+      sliceBits(own + Bricks::index(0, 0, z), in[z + 1], nearBits[z]);
+    } else {
+      in[z + 1] = ownValue < 0 ? ~std::uint64_t(0) : 0;
+      nearBits[z] = std::fabs(ownValue) < kSurfaceNear ? ~std::uint64_t(0) : 0;
+    }
+    in[z + 1] &= domain[z];
+    nearBits[z] &= domain[z];
+  }
+  for (const int z : {-1, kBrickSide}) {
+    std::uint64_t slice = 0;
+    for (int y = 0; y < kBrickSide; ++y) slice |= std::uint64_t(rowInside(g + padIndex(0, y, z))) << (kBrickSide * y);
+    in[z + 1] = slice;
+  }
 
   // The surface voxels first (room for a last group of four), then their splats.
   constexpr int kRoom = kBrickVoxels + 3;
@@ -361,14 +387,25 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   std::int32_t at[3][kRoom];             // voxel coordinates
   std::uint16_t voxelOf[kBrickVoxels];  // Bricks::index
   int count = 0;
-  for (int z = 0; z < zs; ++z)
-    for (int y = 0; y < ys; ++y)
-      for (std::uint32_t m = packBytes(surface + padIndex(0, y, z)) & xBits; m; m &= m - 1) {
-        const int x = std::countr_zero(m);
-        cell[count] = padIndex(x, y, z);
-        at[0][count] = o.x + x, at[1][count] = o.y + y, at[2][count] = o.z + z;
-        voxelOf[count++] = std::uint16_t(Bricks::index(x, y, z));
-      }
+  for (int z = 0; z < zs; ++z) {
+    std::uint64_t xLow = 0, xHigh = 0;
+    for (int y = 0; y < kBrickSide; ++y) {
+      xLow |= std::uint64_t(g[padIndex(-1, y, z)] < 0) << (kBrickSide * y);
+      xHigh |= std::uint64_t(g[padIndex(kBrickSide, y, z)] < 0) << (kBrickSide - 1 + kBrickSide * y);
+    }
+    const std::uint64_t yLow = rowInside(g + padIndex(0, -1, z)),
+                        yHigh = std::uint64_t(rowInside(g + padIndex(0, kBrickSide, z))) << (kBrickSide * (kBrickSide - 1));
+    const std::uint64_t c = in[z + 1];
+    const std::uint64_t surface = nearBits[z] | (c ^ (((c << 1) & ~kColumn0) | xLow)) |
+                                  (c ^ (((c >> 1) & ~kColumn7) | xHigh)) | (c ^ ((c << kBrickSide) | yLow)) |
+                                  (c ^ ((c >> kBrickSide) | yHigh)) | (c ^ in[z]) | (c ^ in[z + 2]);
+    for (std::uint64_t m = surface & domain[z]; m; m &= m - 1) {
+      const int bit = std::countr_zero(m), x = bit % kBrickSide, y = bit / kBrickSide;
+      cell[count] = padIndex(x, y, z);
+      at[0][count] = o.x + x, at[1][count] = o.y + y, at[2][count] = o.z + z;
+      voxelOf[count++] = std::uint16_t(Bricks::index(x, y, z));
+    }
+  }
   Splat found[kRoom];
 #if defined(MARZIPAN_SSE2)
   for (int i = count; i % 4 != 0; ++i) {  // the last group filled up with its first voxel
@@ -462,54 +499,6 @@ struct BrickBits {
   unsigned ready[2] = {0, 0};  // slices of inside and near worked out
   std::uint64_t inside[2][kBrickSide], near[2][kBrickSide], diff[kBrickSide];
 };
-static_assert(kBrickSide == 8, "a brick slice is one 64-bit word");
-constexpr std::uint64_t kColumn0 = 0x0101010101010101ull, kColumn7 = kColumn0 << 7, kRow0 = 0xffull,
-                        kRow7 = kRow0 << 56;
-
-// The bits of slice z whose voxel lies in the domain.
-std::uint64_t domainSlice(const Volume& vol, Int3 b, int z) {
-  const Int3 o = Bricks::origin(b), dims = vol.dims();
-  if (o.z + z >= dims.z) return 0;
-  const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y);
-  if (xs == kBrickSide && ys == kBrickSide) return ~std::uint64_t(0);
-  std::uint64_t slice = 0;
-  for (int y = 0; y < ys; ++y) slice |= ((std::uint64_t(1) << xs) - 1) << (kBrickSide * y);
-  return slice;
-}
-
-// Inside and near bits of the 64 voxels of slice z of a brick's data.
-void sliceBits(const float* v, std::uint64_t& inside, std::uint64_t& near) {
-  std::uint64_t in = 0, nr = 0;
-#if defined(MARZIPAN_SSE2)
-  for (int i = 0; i < kBrickSide * kBrickSide; i += 16) {
-    __m128i inBytes, nearBytes;
-    classify16(v + i, inBytes, nearBytes);
-    in |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(inBytes))) << i;
-    nr |= std::uint64_t(std::uint32_t(_mm_movemask_epi8(nearBytes))) << i;
-  }
-#else
-  for (int i = 0; i < kBrickSide * kBrickSide; ++i) {
-    in |= std::uint64_t(v[i] < 0) << i;
-    nr |= std::uint64_t(std::fabs(v[i]) < kSurfaceNear) << i;
-  }
-#endif
-  inside = in;
-  near = nr;
-}
-
-// Bit i: v[i] < 0, over the 8 floats of a brick row.
-std::uint32_t rowInside(const float* v) {
-#if defined(MARZIPAN_SSE2)
-  const __m128 zero = _mm_setzero_ps();
-  return std::uint32_t(_mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(v), zero)) |
-                       _mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(v + 4), zero)) << 4);
-#else
-  std::uint32_t m = 0;
-  for (int i = 0; i < kBrickSide; ++i) m |= std::uint32_t(v[i] < 0) << i;
-  return m;
-#endif
-}
-
 // The bits of slice z whose value differs bit for bit between a and b (either may be null: the
 // uniform value ua or ub throughout).
 std::uint64_t sliceDiff(const float* a, float ua, const float* b, float ub) {
