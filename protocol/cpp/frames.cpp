@@ -92,7 +92,10 @@ std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, s
   if (payload.size() > kMaxFramePayload)
     throw std::invalid_argument("binary frame payload of " + std::to_string(payload.size()) +
                                 " bytes does not fit the 32-bit length field");
-  std::vector<std::uint8_t> out(kFrameHeaderBytes + payload.size());
+  // The header written in place, the payload appended: no zeroing of what the copy fills.
+  std::vector<std::uint8_t> out;
+  out.reserve(kFrameHeaderBytes + payload.size());
+  out.resize(kFrameHeaderBytes);
   std::uint8_t* p = out.data();
   std::copy(kFrameMagic.begin(), kFrameMagic.end(), p);
   le::put16(p + kVersionOffset, kFrameFormatVersion);
@@ -100,7 +103,7 @@ std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, s
   le::put32(p + kRequestIdOffset, requestId);
   le::put64(p + kRevisionOffset, revision);
   le::put32(p + kLengthOffset, std::uint32_t(payload.size()));
-  std::copy(payload.begin(), payload.end(), p + kFrameHeaderBytes);
+  out.insert(out.end(), payload.begin(), payload.end());
   return out;
 }
 

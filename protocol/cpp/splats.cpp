@@ -249,8 +249,9 @@ std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p, std::uint16_t ve
   return p;
 }
 
-// A buffer of `bytes` bytes with its header written for blocks of the given brick keys holding
-// `points` points in all; refuses a key listed twice.
+// The header of a buffer for blocks of the given brick keys holding `points` points in all, with
+// room for `bytes` bytes in all (the blocks are appended, or written after a resize); refuses a
+// key listed twice.
 std::vector<std::uint8_t> startBuffer(std::vector<std::uint64_t>& keys, std::size_t points, std::size_t bytes,
                                       std::uint16_t version) {
   std::sort(keys.begin(), keys.end());
@@ -258,7 +259,9 @@ std::vector<std::uint8_t> startBuffer(std::vector<std::uint64_t>& keys, std::siz
     throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
   if (keys.size() > 0xffffffffu || points > 0xffffffffu)
     throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
-  std::vector<std::uint8_t> out(bytes);
+  std::vector<std::uint8_t> out;
+  out.reserve(bytes);
+  out.resize(kSplatHeaderBytes);
   std::uint8_t* p = out.data();
   std::memcpy(p, kMagic, 4);
   put16(p + 4, version);
@@ -307,7 +310,9 @@ std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks, s
     keys.push_back(splatBrickKey(b.brick));
     points += b.points.size();
   }
-  std::vector<std::uint8_t> out = startBuffer(keys, points, encodedSplatsSize(bricks, version), version);
+  const std::size_t bytes = encodedSplatsSize(bricks, version);
+  std::vector<std::uint8_t> out = startBuffer(keys, points, bytes, version);
+  out.resize(bytes);
   std::uint8_t* p = out.data() + kSplatHeaderBytes;
   for (const auto& b : bricks) p = writeBlock(b, p, version);
   return out;
@@ -336,11 +341,7 @@ std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std:
     bytes += b.size();
   }
   std::vector<std::uint8_t> out = startBuffer(keys, points, bytes, version);
-  std::uint8_t* p = out.data() + kSplatHeaderBytes;
-  for (const auto& b : blocks) {
-    if (!b.empty()) std::memcpy(p, b.data(), b.size());
-    p += b.size();
-  }
+  for (const auto& b : blocks) out.insert(out.end(), b.begin(), b.end());
   return out;
 }
 
