@@ -247,8 +247,13 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
 // point, up to its radius where the tip is thinner than the support, so that the tip is the
 // ball's round front (warp.cpp, snakeHookVelocity). The caller then takes target as the
 // next anchor. A drag is the composition of its moves, so a long one pulls out a tentacle
-// along the pointer's path.
+// along the pointer's path. The changed region is the capsule of the move's support around
+// the segment: `radius`, but while the ball sinks only in part (a young tentacle, whose foot is
+// still being drawn) up to snakeHookSupportBound(radius).
 Edit snakeHook(Volume& vol, Vec3 anchor, Vec3 target, double radius, ThreadPool& pool = ThreadPool::serial());
+// The widest support a snake hook move of brush radius `radius` has (vu): half again the
+// radius, at most kMaxWarpRadius. A caller sizing a move's work before it runs reads it here.
+double snakeHookSupportBound(double radius);
 
 // The map of one grab call or one snake hook move, for exact references (tests): the same
 // velocity, scaled as the call scales it, as a map of points. forward(p) is where the flow

@@ -202,16 +202,19 @@ WarpCall anchoredCall(const WarpStroke& w, Vec3 anchor, Vec3 p) {
 
 // One engine call's work (warpStrokeCost): its support's box grown by the resampler's margin,
 // and its sub-steps from the engine's bound of |grad v| (level_set.hpp, grabSlopeBound and the
-// others; a grab's landing factor, near 1, taken as 1).
+// others; a grab's landing factor, near 1, taken as 1). A snake hook move's support is the
+// widest it can be (snakeHookSupportBound: a young tentacle's moves reach past the radius), as
+// which moves are young depends on the moves before them.
 double warpCallVoxels(const Volume& vol, const WarpStroke& w, const WarpCall& c) {
-  const double margin = vol.band() + 3, r = w.radius;
+  const double margin = vol.band() + 3;
+  const double r = w.tool == WarpTool::SnakeHook ? snakeHookSupportBound(w.radius) : w.radius;
   Vec3 half{r + margin, r + margin, r + margin};
   double lipschitz = 0;
   switch (w.tool) {
     case WarpTool::Grab:
     case WarpTool::SnakeHook:
       for (int a = 0; a < 3; ++a) half[a] += std::abs(c.d[a]) / 2;
-      lipschitz = w.tool == WarpTool::Grab ? grabSlopeBound(length(c.d), r) : snakeHookSlopeBound(length(c.d), r);
+      lipschitz = w.tool == WarpTool::Grab ? grabSlopeBound(length(c.d), r) : snakeHookSlopeBound(length(c.d), w.radius);
       break;
     case WarpTool::ElasticGrab:
       half = half + Vec3{2 * r, 2 * r, 2 * r};

@@ -352,7 +352,8 @@ TEST_CASE("session warp: a cost grows with the drag and caps at the engine's tra
 }
 
 TEST_CASE("session warp: a call's cost takes its sub-steps from the engine's bound of |grad v|", "[session][warp]") {
-  // Pairs of calls over the same box (grab and snake hook of one move; elastic grab at two
+  // Pairs of calls over the same box (grab and snake hook of one move, the grab's radius the
+  // snake hook's widest support, snakeHookSupportBound; elastic grab at two
   // volumes; the affine warps, whose box is the radius's, at two amounts; a pinch path's move at
   // two strengths) cost in the ratio of 1 + kWarpStepVoxels * ceil(bound / kWarpStretchPerStep),
   // the bound the engine's (level_set.hpp), which its calls take their sub-steps from.
@@ -362,8 +363,9 @@ TEST_CASE("session warp: a call's cost takes its sub-steps from the engine's bou
   const auto work = [](double bound) { return 1 + kWarpStepVoxels * std::ceil(bound / kWarpStretchPerStep); };
   const auto ratio = [&](const WarpStroke& w1, Vec3 p1, const WarpStroke& w2, Vec3 p2) { return cost(w1, p1) / cost(w2, p2); };
   const Vec3 d{30, 0, 0};
-  CHECK(ratio(settings(WarpTool::Grab, 10), a + d, settings(WarpTool::SnakeHook, 10), a + d) ==
-        Approx(work(grabSlopeBound(30, 10)) / work(snakeHookSlopeBound(30, 10))).epsilon(1e-12));
+  REQUIRE(snakeHookSupportBound(10) == 15);
+  CHECK(ratio(settings(WarpTool::Grab, 15), a + d, settings(WarpTool::SnakeHook, 10), a + d) ==
+        Approx(work(grabSlopeBound(30, 15)) / work(snakeHookSlopeBound(30, 10))).epsilon(1e-12));
   WarpStroke hard = settings(WarpTool::ElasticGrab, 8), soft = hard;
   soft.volume = 0;
   const Vec3 e{10, 0, 0};
@@ -381,7 +383,7 @@ TEST_CASE("session warp: a call's cost takes its sub-steps from the engine's bou
   CHECK(ratio(settings(WarpTool::PinchAlong, 6), a + e, settings(WarpTool::PinchAlong, 6, std::nullopt, 0.5), a + e) ==
         Approx(work(pinchAlongSlopeBound(10, 1, 6)) / work(pinchAlongSlopeBound(10, 0.5, 6))).epsilon(1e-12));
   // Each pair's calls take different sub-steps: the ratios say which bound was read.
-  CHECK(work(grabSlopeBound(30, 10)) != work(snakeHookSlopeBound(30, 10)));
+  CHECK(work(grabSlopeBound(30, 15)) != work(snakeHookSlopeBound(30, 10)));
   CHECK(work(elasticGrabSlopeBound(10, 8, 0.5)) != work(elasticGrabSlopeBound(10, 8, 0)));
   CHECK(work(twistSlopeBound(1.5 * pi / 2)) != work(twistSlopeBound(0.5 * pi / 2)));
   CHECK(work(localScaleSlopeBound(std::exp2(1.5))) != work(localScaleSlopeBound(std::exp2(0.5))));

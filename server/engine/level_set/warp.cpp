@@ -1635,7 +1635,7 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
   // (1.09-1.125 radii). Within the brush's support, other falloffs ((1 - u^a)^b) or other balls
   // left the exact field's fold at 0.086-0.143 (docs/benchmark-log.md, Warps).
   const double support =
-      share > 0 && share < 1 ? std::min(radius * (1 + kYoungWidening * (1 - share)), kMaxWarpRadius) : radius;
+      share > 0 && share < 1 ? std::min(radius * (1 + kYoungWidening * (1 - share)), snakeHookSupportBound(radius)) : radius;
   return grabVelocity(from, d, radius, ball / support, support);
 }
 
@@ -1758,6 +1758,8 @@ Edit pinchAlong(Volume& vol, Vec3 from, Vec3 to, Vec3 normal, double amount, dou
 }
 
 double grabSlopeBound(double travel, double radius) { return capsuleSlope(travel, radius, 0); }
+
+double snakeHookSupportBound(double radius) { return std::min(radius * (1 + kYoungWidening), kMaxWarpRadius); }
 
 // The widest plateau a move has: a sunk ball fitted to a narrower tip has a wider outer part,
 // and a smaller bound.

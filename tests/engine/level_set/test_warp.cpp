@@ -466,6 +466,42 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   checkNearExact(m, 0.001, 0.2, 0.004, 0.03);
 }
 
+TEST_CASE("a young tentacle's moves reach past the radius, never past snakeHookSupportBound", "[warp][snake_hook]") {
+  // The hub sizes a snake hook move's work before it runs from snakeHookSupportBound (service/
+  // apply_op.cpp): every voxel a move changes lies within that support of the move's segment,
+  // plus the reach of its redistance (band + 1, applyWarp) and a voxel. The segment is taken
+  // from half a radius behind the anchor (the ball sinks behind it by at most the plateau's
+  // radius), so the distances below are at most the true ones. The first 12 moves of the
+  // straight 200 vu pull above, while the ball sinks only in part, reach past the radius itself.
+  const Vec3 c{48, 40, 48};
+  const double r = 8;
+  Volume v = makeSphere({96, 128, 96}, c, 20);
+  const double reach = v.band() + 2;
+  Vec3 at = c + Vec3{0, 20, 0};
+  double farthest = 0;
+  for (int i = 0; i < 12; ++i) {
+    const Vec3 next = at + Vec3{0, 2, 0};
+    const Volume before = v;
+    snakeHook(v, at, next, r);
+    const Vec3 from = at - Vec3{0, r / 2, 0};
+    double move = 0;
+    for (int z = 0; z < 96; ++z)
+      for (int y = 0; y < 128; ++y)
+        for (int x = 0; x < 96; ++x) {
+          if (std::bit_cast<std::uint32_t>(v.at(x, y, z)) == std::bit_cast<std::uint32_t>(before.at(x, y, z))) continue;
+          const Vec3 p{double(x), double(y), double(z)};
+          const double t = std::clamp(p.y, from.y, next.y);
+          move = std::max(move, length(p - Vec3{from.x, t, from.z}));
+        }
+    INFO("move " << i << ": changed up to " << move << " vu from its segment");
+    CHECK(move <= snakeHookSupportBound(r) + reach);
+    farthest = std::max(farthest, move);
+    at = next;
+  }
+  INFO("the farthest change " << farthest << " vu");
+  CHECK(farthest > r + reach);
+}
+
 TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[warp][snake_hook][topology]") {
   // Up, +x, +z, -x and up again, 24 vu each, in moves of `step` vu: a pig's tail of right angles.
   // Before each move started from the side of the tip that faces it, the tip was dragged
