@@ -96,8 +96,8 @@ MARZIPAN_BENCH("grab_message") {
 namespace {
 
 // Scenarios `name`: a path-dependent warp's move against an add-blob dab of the same radius (8),
-// each `reps` times at random points of the sphere: draw(rng) picks a move, apply(v, pool) makes
-// it. Untimed, as many moves and dabs as timed run first, on copies freed before the timing, so
+// each `reps` times at random points of the sphere: draw(rng, s, i) picks the i-th move of the
+// run (the runs start from the sphere), apply(v, pool) makes it. Untimed, as many moves and dabs as timed run first, on copies freed before the timing, so
 // that the changed bricks' memory is recycled for both: without it the moves, timed first, grew
 // the heap and paid the first touch of their new bricks' pages, and the dabs after them reused
 // the freed moves' memory (one thread, the snake hook read 2.7-3.1x the dab timed first and 1.5x
@@ -113,14 +113,15 @@ void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw dr
     std::mt19937 other{seed + 1};
     Volume warm = sphere, dabbed = sphere;
     for (int i = 0; i < reps; ++i) {
-      draw(other, s);
+      draw(other, s, i);
       apply(warm, r, pool);
       addBlob(dabbed, BrushParams{s.centre + randomUnit(other) * s.radius, r, 1}, pool);
     }
   }
   std::mt19937 rng{seed};
   Volume v = sphere;
-  const Timing move = measure(reps, [&] { draw(rng, s); }, [&] { apply(v, r, pool); });
+  int i = 0;
+  const Timing move = measure(reps, [&] { draw(rng, s, i++); }, [&] { apply(v, r, pool); });
   v = sphere;
   BrushParams p{{}, r, 1};
   const Timing dab = measure(
@@ -137,10 +138,34 @@ MARZIPAN_BENCH("snake_hook") {
   Vec3 anchor, step;
   moveAgainstDab(
       opt, "snake_hook", 9,
-      [&](std::mt19937& rng, const WarpSphere& s) {
+      [&](std::mt19937& rng, const WarpSphere& s, int) {
         const Vec3 n = randomUnit(rng);
         anchor = s.centre + n * s.radius;
         step = normalized(n + randomUnit(rng) * 0.5) * 2.0;
+      },
+      [&](Volume& v, double r, ThreadPool& pool) { snakeHook(v, anchor, anchor + step, r, pool); });
+}
+
+// The moves of tentacles being pulled, every one timed: a snake hook stroke of 30 moves of 2 vu
+// (60 vu) from a random point of the sphere on one of its diagonals (the 256^3 grid holds the
+// tentacle there), slanting a little, then the next from another point. "snake_hook" times a
+// move off the sphere, which a stroke makes once: its later moves, along the tentacle with the
+// plateau's ball sunk into the tip, the tip's foot points and (while it is young) the wider
+// support, cost more, and instructions.py's mean over these moves is the stroke's.
+MARZIPAN_BENCH("snake_hook_tentacle") {
+  constexpr int kTentacleMoves = 30;
+  Vec3 anchor, step;
+  moveAgainstDab(
+      opt, "snake_hook_tentacle", 13,
+      [&](std::mt19937& rng, const WarpSphere& s, int i) {
+        if (i % kTentacleMoves == 0) {
+          std::uniform_int_distribution<int> sign(0, 1);
+          const Vec3 n = normalized(Vec3{sign(rng) ? 1.0 : -1.0, sign(rng) ? 1.0 : -1.0, sign(rng) ? 1.0 : -1.0});
+          anchor = s.centre + n * s.radius;
+          step = normalized(n + randomUnit(rng) * 0.15) * 2.0;
+        } else {
+          anchor = anchor + step;
+        }
       },
       [&](Volume& v, double r, ThreadPool& pool) { snakeHook(v, anchor, anchor + step, r, pool); });
 }
@@ -151,7 +176,7 @@ MARZIPAN_BENCH("pinch_path") {
   Vec3 from, to, n;
   moveAgainstDab(
       opt, "pinch_path", 11,
-      [&](std::mt19937& rng, const WarpSphere& s) {
+      [&](std::mt19937& rng, const WarpSphere& s, int) {
         n = randomUnit(rng);
         from = s.centre + n * s.radius;
         to = from + normalized(cross(n, randomUnit(rng))) * 2.0;

@@ -514,15 +514,19 @@ TEST_CASE("splat points encoded four at a time are the bytes of each encoded alo
       }
     }
   }
-  // Non-finite values are refused wherever they sit among the points.
-  for (const std::size_t i : {0, 1, 5, 510, 511})
-    for (const int field : {0, 2, 3, 5}) {
-      BrickSplats bad{{0, 0, 0}, std::vector<Splat>(points.begin(), points.begin() + 512), {}};
-      constexpr float Splat::*kFields[6] = {&Splat::x, &Splat::y, &Splat::z, &Splat::nx, &Splat::ny, &Splat::nz};
-      bad.points[i].*kFields[field] = field % 2 ? std::numeric_limits<float>::infinity() : std::nanf("");
-      std::vector<std::uint8_t> out;
-      CHECK_THROWS_AS(encodeSplatBlock(bad, out), EngineError);
-    }
+  // Non-finite values are refused wherever they sit among the points, in every field: with an
+  // odd count (511: 3066 floats) the last point's ny and nz lie past the last whole group of four
+  // floats, which the check takes one by one.
+  for (const std::size_t count : {512, 511})
+    for (const std::size_t i : {std::size_t(0), std::size_t(1), std::size_t(5), count - 2, count - 1})
+      for (int field = 0; field < 6; ++field) {
+        BrickSplats bad{{0, 0, 0}, std::vector<Splat>(points.begin(), points.begin() + std::ptrdiff_t(count)), {}};
+        constexpr float Splat::*kFields[6] = {&Splat::x, &Splat::y, &Splat::z, &Splat::nx, &Splat::ny, &Splat::nz};
+        bad.points[i].*kFields[field] = field % 2 ? std::numeric_limits<float>::infinity() : std::nanf("");
+        std::vector<std::uint8_t> out;
+        INFO(count << " points, point " << i << ", field " << field);
+        CHECK_THROWS_AS(encodeSplatBlock(bad, out), EngineError);
+      }
 }
 
 TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the order given", "[splats]") {

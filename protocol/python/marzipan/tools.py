@@ -172,7 +172,7 @@ PARAMETERS = {
     "maximum": 64,
     "default": 8,
     "in": ["stroke"],
-    "description": "radius of the snake hook: nothing farther than this from the move's segment moves; the tentacle is about half as thick, and a thinner one is lost to the grid",
+    "description": "radius of the snake hook: nothing farther than this from the move's segment moves, but while the tentacle is young (its tip still about as wide as the brush), when a move reaches up to half again as far so that the tentacle leaves the body in a smooth fillet; the tentacle is about half as thick, and a thinner one is lost to the grid",
   },
   "elastic_radius": {
     "id": "elastic_radius",

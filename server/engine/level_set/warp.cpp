@@ -82,6 +82,10 @@ struct Velocity {
   double segLength = 0;
   Vec3 segAxis;
   double scale = 1;
+  // Capsule: the plateau's radius (vu) as the caller gave it; plateau * radius may round below
+  // it (a snake hook's young move: ball / support * support), and the tip's foot points
+  // (applyWarp, kTipFeetBall) are decided on it.
+  double ball = 0;
   // Affine: A (row-major), inner part of the radius where P = 1.
   double A[3][3] = {};
   // Elastic: a bi-scale regularized Kelvinlet (de Goes & James 2017) centred on anchor under
@@ -1201,7 +1205,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   constexpr double kFootResidual = 0.05, kFootConverged = 1e-3;
   constexpr int kCrossingBisections = 12;
   const bool footPoints = v.kind == Velocity::Kind::Capsule && v.plateau == 0;
-  const double tipBall = v.kind == Velocity::Kind::Capsule ? v.plateau * v.radius : 0;
+  const double tipBall = v.kind == Velocity::Kind::Capsule ? v.ball : 0;
   const bool tipFeet = tipBall >= kTipFeetBall;
   // Whether the kept voxel at p takes its foot point.
   const auto feetAt = [&](Vec3 p) {
@@ -1481,8 +1485,8 @@ void landAnchor(Velocity& v, Vec3 anchor, Vec3 d) {
 // A grab's velocity (its parameters checked but the anchor's place, which the caller checks
 // against its volume): d at most kMaxWarpTravelPerRadius times `radius`, the brush's, and the
 // support `support` vu (the brush's radius but for a snake hook's young tentacle,
-// snakeHookVelocity()), `plateau` a share of it.
-Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, double support) {
+// snakeHookVelocity()) and the plateau's radius `ball` vu (0 for a grab).
+Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double ball, double support) {
   if (!isFinite(anchor)) throw EngineError(ErrorKind::InvalidArgument, "anchor", "must be three finite numbers");
   checkRadius(radius);
   if (!isFinite(d)) throw EngineError(ErrorKind::InvalidArgument, "d", "must be three finite numbers");
@@ -1495,7 +1499,8 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double plateau, double
   v.segLength2 = dot(d, d);
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
-  v.setPlateau(plateau);
+  v.ball = ball;
+  v.setPlateau(ball / support);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
@@ -1636,7 +1641,7 @@ Velocity snakeHookVelocity(const Volume& vol, Vec3 anchor, Vec3 target, double r
   // left the exact field's fold at 0.086-0.143 (docs/benchmark-log.md, Warps).
   const double support =
       share > 0 && share < 1 ? std::min(radius * (1 + kYoungWidening * (1 - share)), snakeHookSupportBound(radius)) : radius;
-  return grabVelocity(from, d, radius, ball / support, support);
+  return grabVelocity(from, d, radius, ball, support);
 }
 
 }  // namespace
