@@ -12,10 +12,11 @@
 import { test } from "node:test";
 import assert from "node:assert/strict";
 
-import { canvasCenter, drag, sessionPage, shot, text, useServerAndBrowser } from "./client-page.mjs";
+import { canvasCenter, drag, LOW_DENSITY, sessionPage, shot, text, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 
-useServerAndBrowser({ hintDismissed: true });
+// Its checks read the model and the camera, never the picture: LOW_DENSITY.
+useServerAndBrowser({ hintDismissed: true, deviceScaleFactor: LOW_DENSITY });
 
 test("Space+drag orbits around the point under the press; the stabiliser calms a shaky drag", { timeout: 180000 }, async (t) => {
   const { page, errors, sent } = await sessionPage(128, "sphere");

@@ -10,8 +10,10 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { ensureArtifactsDir, serverAndBrowser, settled } from "./harness.mjs";
+import { drawn, ensureArtifactsDir, LOW_DENSITY, serverAndBrowser, settled } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
+
+export { drawn, LOW_DENSITY };
 
 export const artifacts = ensureArtifactsDir();
 
@@ -21,8 +23,32 @@ export let env = null;
 // hintDismissed: the files other than client.test.mjs ran, while they were one file with it,
 // in the browser profile whose hint its first test had dismissed for good; so their pages
 // start, the hint not over the pixels they read.
-export function useServerAndBrowser({ hintDismissed = false } = {}) {
-  env = serverAndBrowser({ hasTouch: true, localStorage: hintDismissed ? { "marzipan.hint-dismissed": "dismissed" } : {} });
+// deviceScaleFactor: LOW_DENSITY for a file that reads no pixel measure at the page's size in
+// device pixels (halfDensity() for part of a file).
+export function useServerAndBrowser({ hintDismissed = false, deviceScaleFactor = 1 } = {}) {
+  env = serverAndBrowser({ hasTouch: true, deviceScaleFactor, localStorage: hintDismissed ? { "marzipan.hint-dismissed": "dismissed" } : {} });
+}
+
+// Sets `page`'s screen to LOW_DENSITY (CSS size unchanged), for a part of a file that measures
+// no pixels; the returned function gives it back density 1 and resolves once the canvas has its
+// full size in device pixels again. The override stays set (at density 1) for the page's life:
+// leaving it would drop the viewport's size too.
+export async function halfDensity(page) {
+  const cdp = await env.browser.context.newCDPSession(page);
+  const { width, height } = page.viewportSize();
+  const density = async (deviceScaleFactor) => {
+    await cdp.send("Emulation.setDeviceMetricsOverride", { width, height, deviceScaleFactor, mobile: false });
+    await page.evaluate(() => window.marzipan.renderer.requestRedraw());
+    await page.waitForFunction(
+      ([d, w, h]) => {
+        const c = document.getElementById("view");
+        return devicePixelRatio === d && innerWidth === w && innerHeight === h && c.width === Math.round(c.clientWidth * d);
+      },
+      [deviceScaleFactor, width, height],
+    );
+  };
+  await density(LOW_DENSITY);
+  return () => density(1);
 }
 
 // --- reading the page ------------------------------------------------------------------------
@@ -34,14 +60,6 @@ export const data = (page, id, key) => page.evaluate(([i, k]) => document.getEle
 // people list, the name labels over their rings; web-client/ui/presence-view.js) is hidden for
 // the shot, since the checks below read the model and the backdrop from its pixels.
 const CANVAS_ONLY = ".people, .presence-labels { visibility: hidden !important; }";
-
-// Resolves once the page has drawn a frame begun after this call: the renderer draws in a
-// requestAnimationFrame callback, so a redraw requested before this has run by the time the
-// second of two such callbacks runs, however late a loaded machine makes the frames. After a
-// fixed wait, it makes sure that the picture taken next is the one asked for.
-export async function drawn(page) {
-  await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
-}
 
 export async function shot(page, name) {
   const png = await page.locator("#view").screenshot({ style: CANVAS_ONLY });

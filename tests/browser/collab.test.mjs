@@ -14,10 +14,11 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { digest, ensureArtifactsDir, revision, serverAndBrowser, settled } from "./harness.mjs";
+import { digest, ensureArtifactsDir, LOW_DENSITY, revision, serverAndBrowser, settled } from "./harness.mjs";
 
 const artifacts = ensureArtifactsDir();
-const env = serverAndBrowser();
+// Its checks read the pages' state, never their pictures: LOW_DENSITY.
+const env = serverAndBrowser({ deviceScaleFactor: LOW_DENSITY });
 const clientId = (page) => page.evaluate(() => window.marzipan.session.info.client);
 const errorsShown = (page) => page.evaluate(() => window.marzipan.messages.history.filter((m) => m.kind === "error").map((m) => m.text));
 

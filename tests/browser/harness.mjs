@@ -75,6 +75,14 @@ export function startServer(extraArgs = []) {
   });
 }
 
+// A screen of half the pixels per CSS pixel: the page's layout, its camera and every position
+// in CSS pixels are those of density 1, its canvas has a quarter of the device pixels. Headless
+// Chromium draws WebGL with SwiftShader on the CPU, and a pointer move over the canvas waits for
+// the frame its brush cursor asks (0.52 s per move at density 1, 0.21 s at this one, for the
+// 128³ sphere at 1100 × 760 on the 2-core VM, 2026-11-30): the files whose checks count pixels
+// only against thresholds that a quarter of them still passes by far, or none, use it.
+export const LOW_DENSITY = 0.5;
+
 // Chromium with a fresh profile directory; resolves with {context, close}. The context saves
 // downloads and allows them; hasTouch gives its pages a touch screen besides the mouse;
 // localStorage holds items every page of the context finds in its storage from the start.
@@ -125,7 +133,15 @@ export async function settled(page, timeout = 60000) {
     null,
     { timeout },
   );
-  await page.waitForTimeout(150); // the redraw after the last splats is one animation frame away
+  await drawn(page); // the redraw after the last splats is one animation frame away
+}
+
+// Resolves once the page has drawn a frame begun after this call: the renderer draws in a
+// requestAnimationFrame callback, so a redraw requested before this has run by the time the
+// second of two such callbacks runs, however late a loaded machine makes the frames. After a
+// fixed wait, it makes sure that the picture taken next is the one asked for.
+export async function drawn(page) {
+  await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
 }
 
 // A test file's server and browser: started before its first test, closed after its last, the
