@@ -293,11 +293,25 @@ Splat splatAt(const float* g, int c, Int3 p, Int3 o) {
   return sp;
 }
 #else
-// splatAt for the four surface voxels at padded indices cell[0..4) of g, voxel k at (at[0][k],
-// at[1][k], at[2][k]), into out[0..4): lane by lane the same float operations in the same
-// order. std::clamp(q, lo, hi) is max(lo, q) then min(hi, ...) in that operand order, which
-// keeps a NaN as clamp does.
-void splats4(const float* g, const int* cell, const std::int32_t* const at[3], Int3 o, Splat* out) {
+// splatAt for the four surface voxels voxel[0..4) (Bricks::index) of the brick with origin o,
+// g its padded array, into out[0..4): lane by lane the same float operations in the same order.
+// std::clamp(q, lo, hi) is max(lo, q) then min(hi, ...) in that operand order, which keeps a NaN
+// as clamp does.
+void splats4(const float* g, const std::int32_t* voxel, Int3 o, Splat* out) {
+  // Each lane's local coordinates, its voxel's coordinates and its padded index
+  // padIndex(x, y, z) = padIndex(0, 0, 0) + x + kPad y + kPad^2 z (10 y = 8 y + 2 y, 100 z =
+  // 64 z + 32 z + 4 z: SSE2 has no 32-bit multiply).
+  static_assert(kBrickSide == 8 && kPad == 10, "the shifts below");
+  const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(voxel)), seven = _mm_set1_epi32(7);
+  const __m128i lx = _mm_and_si128(v, seven), ly = _mm_and_si128(_mm_srli_epi32(v, 3), seven), lz = _mm_srli_epi32(v, 6);
+  const __m128i padded = _mm_add_epi32(
+      _mm_add_epi32(_mm_set1_epi32(padIndex(0, 0, 0)), lx),
+      _mm_add_epi32(_mm_add_epi32(_mm_slli_epi32(ly, 3), _mm_slli_epi32(ly, 1)),
+                    _mm_add_epi32(_mm_add_epi32(_mm_slli_epi32(lz, 6), _mm_slli_epi32(lz, 5)), _mm_slli_epi32(lz, 2))));
+  alignas(16) std::int32_t cell[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(cell), padded);
+  const __m128i at[3] = {_mm_add_epi32(lx, _mm_set1_epi32(o.x)), _mm_add_epi32(ly, _mm_set1_epi32(o.y)),
+                         _mm_add_epi32(lz, _mm_set1_epi32(o.z))};
   // Each voxel's row g[c - 1 .. c + 2], transposed: its x neighbours and its value per lane.
   __m128 r0 = _mm_loadu_ps(g + cell[0] - 1), r1 = _mm_loadu_ps(g + cell[1] - 1), r2 = _mm_loadu_ps(g + cell[2] - 1),
          r3 = _mm_loadu_ps(g + cell[3] - 1);
@@ -316,7 +330,7 @@ void splats4(const float* g, const int* cell, const std::int32_t* const at[3], I
   const float fallbackNormal[3] = {0, 0, 1};
   __m128 f[6];  // x, y, z, nx, ny, nz per lane
   for (int a = 0; a < 3; ++a) {
-    const __m128 p = _mm_cvtepi32_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(at[a])));
+    const __m128 p = _mm_cvtepi32_ps(at[a]);
     const __m128 q = _mm_sub_ps(p, _mm_mul_ps(d, n[a]));
     const __m128 foot = _mm_min_ps(_mm_set1_ps(positionHigh(origin[a])), _mm_max_ps(_mm_set1_ps(positionLow(origin[a])), q));
     f[a] = _mm_or_ps(_mm_and_ps(some, foot), _mm_andnot_ps(some, p));
@@ -381,12 +395,11 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
     in[z + 1] = slice;
   }
 
-  // The surface voxels first (room for a last group of four), then their splats.
+  // The surface voxels first (Bricks::index; room for a last group of four), then their splats.
   constexpr int kRoom = kBrickVoxels + 3;
-  int cell[kRoom];                       // padded index
-  std::int32_t at[3][kRoom];             // voxel coordinates
-  std::uint16_t voxelOf[kBrickVoxels];  // Bricks::index
+  std::int32_t voxel[kRoom];
   int count = 0;
+  static_assert(Bricks::index(0, 0, 1) == kBrickSide * kBrickSide, "bit x + 8 y of slice z is voxel bit + 64 z");
   for (int z = 0; z < zs; ++z) {
     std::uint64_t xLow = 0, xHigh = 0;
     for (int y = 0; y < kBrickSide; ++y) {
@@ -399,25 +412,18 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
     const std::uint64_t surface = nearBits[z] | (c ^ (((c << 1) & ~kColumn0) | xLow)) |
                                   (c ^ (((c >> 1) & ~kColumn7) | xHigh)) | (c ^ ((c << kBrickSide) | yLow)) |
                                   (c ^ ((c >> kBrickSide) | yHigh)) | (c ^ in[z]) | (c ^ in[z + 2]);
-    for (std::uint64_t m = surface & domain[z]; m; m &= m - 1) {
-      const int bit = std::countr_zero(m), x = bit % kBrickSide, y = bit / kBrickSide;
-      cell[count] = padIndex(x, y, z);
-      at[0][count] = o.x + x, at[1][count] = o.y + y, at[2][count] = o.z + z;
-      voxelOf[count++] = std::uint16_t(Bricks::index(x, y, z));
-    }
+    const int slice = Bricks::index(0, 0, z);
+    for (std::uint64_t m = surface & domain[z]; m; m &= m - 1) voxel[count++] = slice + std::countr_zero(m);
   }
   Splat found[kRoom];
 #if defined(MARZIPAN_SSE2)
-  for (int i = count; i % 4 != 0; ++i) {  // the last group filled up with its first voxel
-    cell[i] = cell[i & ~3];
-    for (int a = 0; a < 3; ++a) at[a][i] = at[a][i & ~3];
-  }
-  for (int i = 0; i < count; i += 4) {
-    const std::int32_t* const lanes[3] = {at[0] + i, at[1] + i, at[2] + i};
-    splats4(g, cell + i, lanes, o, found + i);
-  }
+  for (int i = count; i % 4 != 0; ++i) voxel[i] = voxel[i & ~3];  // the last group filled up with its first voxel
+  for (int i = 0; i < count; i += 4) splats4(g, voxel + i, o, found + i);
 #else
-  for (int i = 0; i < count; ++i) found[i] = splatAt(g, cell[i], {at[0][i], at[1][i], at[2][i]}, o);
+  for (int i = 0; i < count; ++i) {
+    const int x = voxel[i] % kBrickSide, y = voxel[i] / kBrickSide % kBrickSide, z = voxel[i] / (kBrickSide * kBrickSide);
+    found[i] = splatAt(g, padIndex(x, y, z), {o.x + x, o.y + y, o.z + z}, o);
+  }
 #endif
   out.points.assign(found, found + count);
   // The voxels of a brick without channels all read the base colour, weight 0: its points take
@@ -425,7 +431,7 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   if (const BrickPaint* paint = own && count > 0 ? vol.brickPaint(b) : nullptr) {
     out.texels.resize(std::size_t(count));
     for (int i = 0; i < count; ++i) {
-      const Texel& t = paint->t[voxelOf[i]];
+      const Texel& t = paint->t[voxel[i]];
       out.texels[std::size_t(i)] = {t.r, t.g, t.b, t.mask};
     }
   }
