@@ -220,15 +220,16 @@ static_assert(kBrickSide == 8, "a brick slice is one 64-bit word");
 constexpr std::uint64_t kColumn0 = 0x0101010101010101ull, kColumn7 = kColumn0 << 7, kRow0 = 0xffull,
                         kRow7 = kRow0 << 56;
 
-// The bits of slice z whose voxel lies in the domain.
-std::uint64_t domainSlice(const Volume& vol, Int3 b, int z) {
+// Bit x + 8 y of domain[z]: voxel (x, y, z) of brick b lies in the domain.
+void domainSlices(const Volume& vol, Int3 b, std::uint64_t domain[kBrickSide]) {
   const Int3 o = Bricks::origin(b), dims = vol.dims();
-  if (o.z + z >= dims.z) return 0;
   const int xs = std::min(kBrickSide, dims.x - o.x), ys = std::min(kBrickSide, dims.y - o.y);
-  if (xs == kBrickSide && ys == kBrickSide) return ~std::uint64_t(0);
-  std::uint64_t slice = 0;
-  for (int y = 0; y < ys; ++y) slice |= ((std::uint64_t(1) << xs) - 1) << (kBrickSide * y);
-  return slice;
+  std::uint64_t slice = ~std::uint64_t(0);
+  if (xs < kBrickSide || ys < kBrickSide) {
+    slice = 0;
+    for (int y = 0; y < ys; ++y) slice |= ((std::uint64_t(1) << xs) - 1) << (kBrickSide * y);
+  }
+  for (int z = 0; z < kBrickSide; ++z) domain[z] = o.z + z < dims.z ? slice : 0;
 }
 
 // Inside and near bits of the 64 voxels of slice z of a brick's data.
@@ -262,6 +263,24 @@ std::uint32_t rowInside(const float* v) {
   for (int i = 0; i < kBrickSide; ++i) m |= std::uint32_t(v[i] < 0) << i;
   return m;
 #endif
+}
+
+// Bit 8 y: v[stride y] < 0, for y in [0, kBrickSide) (a column of a slice: the bits of x = 0 of
+// a slice word; shifted left by kBrickSide - 1, of x = kBrickSide - 1).
+std::uint64_t columnInside(const float* v, int stride) {
+  std::uint32_t m = 0;
+#if defined(MARZIPAN_SSE2)
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 lo = _mm_set_ps(v[3 * stride], v[2 * stride], v[stride], v[0]),
+               hi = _mm_set_ps(v[7 * stride], v[6 * stride], v[5 * stride], v[4 * stride]);
+  m = std::uint32_t(_mm_movemask_ps(_mm_cmplt_ps(lo, zero)) | _mm_movemask_ps(_mm_cmplt_ps(hi, zero)) << 4);
+#else
+  for (int y = 0; y < kBrickSide; ++y) m |= std::uint32_t(v[stride * y] < 0) << y;
+#endif
+  // Bit y of m to bit 8 y: m copied into every byte, byte y keeps its bit y, a byte that is not
+  // zero sets its top bit (adding 0x7f carries no further), shifted down to the byte's bottom.
+  const std::uint64_t kept = (std::uint64_t(m) * 0x0101010101010101ull) & 0x8040201008040201ull;
+  return (((kept + 0x7f7f7f7f7f7f7f7full) | kept) & 0x8080808080808080ull) >> 7;
 }
 
 // The encodable range of foot points along an axis of a brick with origin coordinate `origin`.
@@ -378,8 +397,8 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   const Int3 o = Bricks::origin(b);
   const int zs = std::min(kBrickSide, vol.dims().z - o.z);
   std::uint64_t in[kBrickSide + 2], nearBits[kBrickSide], domain[kBrickSide];  // in: slices -1 .. kBrickSide
+  domainSlices(vol, b, domain);
   for (int z = 0; z < kBrickSide; ++z) {
-    domain[z] = domainSlice(vol, b, z);
     if (own) {
       sliceBits(own + Bricks::index(0, 0, z), in[z + 1], nearBits[z]);
     } else {
@@ -401,11 +420,8 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   int count = 0;
   static_assert(Bricks::index(0, 0, 1) == kBrickSide * kBrickSide, "bit x + 8 y of slice z is voxel bit + 64 z");
   for (int z = 0; z < zs; ++z) {
-    std::uint64_t xLow = 0, xHigh = 0;
-    for (int y = 0; y < kBrickSide; ++y) {
-      xLow |= std::uint64_t(g[padIndex(-1, y, z)] < 0) << (kBrickSide * y);
-      xHigh |= std::uint64_t(g[padIndex(kBrickSide, y, z)] < 0) << (kBrickSide - 1 + kBrickSide * y);
-    }
+    const std::uint64_t xLow = columnInside(g + padIndex(-1, 0, z), kPad),
+                        xHigh = columnInside(g + padIndex(kBrickSide, 0, z), kPad) << (kBrickSide - 1);
     const std::uint64_t yLow = rowInside(g + padIndex(0, -1, z)),
                         yHigh = std::uint64_t(rowInside(g + padIndex(0, kBrickSide, z))) << (kBrickSide * (kBrickSide - 1));
     const std::uint64_t c = in[z + 1];
@@ -504,6 +520,7 @@ struct BrickBits {
   bool same = true;
   unsigned ready[2] = {0, 0};  // slices of inside and near worked out
   std::uint64_t inside[2][kBrickSide], near[2][kBrickSide], diff[kBrickSide];
+  std::uint64_t domain[kBrickSide];  // domainSlices
 };
 // The bits of slice z whose value differs bit for bit between a and b (either may be null: the
 // uniform value ua or ub throughout).
@@ -583,10 +600,9 @@ class StateBits {
       m = std::uint64_t(rowInside(x.data[s] + Bricks::index(0, y, z))) << (kBrickSide * y);
     } else {
       const int c = part == kColumn0 ? 0 : kBrickSide - 1;
-      for (int y = 0; y < kBrickSide; ++y)
-        m |= std::uint64_t(x.data[s][Bricks::index(c, y, z)] < 0) << (c + kBrickSide * y);
+      m = columnInside(x.data[s] + Bricks::index(c, 0, z), kBrickSide) << c;
     }
-    return m & domainSlice(vol_, x.brick, z);
+    return m & x.domain[z];
   }
   std::uint64_t near(BrickBits& x, int s, int z) const {
     s = x.same ? 0 : s;
@@ -598,6 +614,7 @@ class StateBits {
   BrickBits make(Int3 b, const BrickChange* c) const {
     BrickBits x;
     x.brick = b;
+    domainSlices(vol_, b, x.domain);
     const float band = vol_.band();
     x.change = c;
     if (c) {
@@ -615,7 +632,7 @@ class StateBits {
       if (x.same) {
         x.diff[z] = 0;
       } else {
-        x.diff[z] = domainSlice(vol_, b, z) & sliceDiff(x.data[0] ? x.data[0] + at : nullptr, x.u[0],
+        x.diff[z] = x.domain[z] & sliceDiff(x.data[0] ? x.data[0] + at : nullptr, x.u[0],
                                                         x.data[1] ? x.data[1] + at : nullptr, x.u[1]);
       }
     }
@@ -628,9 +645,8 @@ class StateBits {
       x.inside[s][z] = x.u[s] < 0 ? ~std::uint64_t(0) : 0;
       x.near[s][z] = std::fabs(x.u[s]) < kSurfaceNear ? ~std::uint64_t(0) : 0;
     }
-    const std::uint64_t domain = domainSlice(vol_, x.brick, z);
-    x.inside[s][z] &= domain;
-    x.near[s][z] &= domain;
+    x.inside[s][z] &= x.domain[z];
+    x.near[s][z] &= x.domain[z];
     x.ready[s] |= 1u << z;
   }
 
@@ -685,7 +701,7 @@ bool sameSplats(StateBits& bits, Int3 b) {
   std::uint64_t nb[6];
   for (int z = 0; z < kBrickSide; ++z) {
     // Affected: the voxel or a neighbour differs (past the domain, nothing differs).
-    const std::uint64_t affected = (own.diff[z] | diffNextTo(own, n, z)) & domainSlice(bits.volume(), b, z);
+    const std::uint64_t affected = (own.diff[z] | diffNextTo(own, n, z)) & own.domain[z];
     if (!affected) continue;
     // One of them next to the surface in either state decides.
     for (int s = 0; s < 2; ++s) {
