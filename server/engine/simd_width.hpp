@@ -1,10 +1,11 @@
 // Which vector width the engine's kernels use: the evolve sub-steps (level_set/kernels.hpp) and
 // a stroke's window search (level_set/swept_window.hpp), the march's per-side state bytes
-// (fast_marching.cpp) and the volume's whole brick rows (volume.cpp). Each has an SSE2 form and
-// an AVX2 form compiled for AVX2 function by function (__attribute__((target))) and chosen at
-// run time, so that the binary still runs on CPUs without it. Every width does each voxel's
-// (each dab's) float and double operations in the scalar definition's order, so every width
-// gives the same results bit for bit; the switch lets tests compare them on one CPU.
+// (fast_marching.cpp), the volume's whole brick rows (volume.cpp) and the splat extraction's
+// slice bits (splats.cpp). Each has an SSE2 form and an AVX2 form compiled for AVX2 function by
+// function (__attribute__((target))) and chosen at run time, so that the binary still runs on
+// CPUs without it. Every width does each voxel's (each dab's) float and double operations in the
+// scalar definition's order, so every width gives the same results bit for bit; the switch lets
+// tests compare them on one CPU.
 #pragma once
 
 #include <atomic>

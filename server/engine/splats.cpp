@@ -5,7 +5,8 @@
 // are copied once into a 10^3 array with a one-voxel ring (faces only: the splat of a voxel
 // reads its six neighbours, never edge or corner neighbours); the test runs on 64-bit words,
 // one per brick slice (the brick's inside and near bits, the ring's inside bits, shifted onto
-// each other), and only voxels whose bit survives are visited. Their splats
+// each other; a slice's bits from its floats in AVX2 where simd_width.hpp allows it, comparisons
+// only, so the same bits), and only voxels whose bit survives are visited. Their splats
 // are worked out four at a time in SSE2 (splats4), lane by lane the float operations of the
 // scalar definition (splatAt, which MARZIPAN_SCALAR_KERNELS builds take) in its order.
 #include "splats.hpp"
@@ -22,10 +23,13 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#include "simd_width.hpp"  // MARZIPAN_SSE2, MARZIPAN_AVX2
+#if defined(MARZIPAN_AVX2)
+#include <immintrin.h>
+#endif
 
 #include "brick_table.hpp"
 #include "errors.hpp"
-#include "simd_width.hpp"  // MARZIPAN_SSE2
 #include "stencil.hpp"
 
 namespace marzipan {
@@ -232,8 +236,38 @@ void domainSlices(const Volume& vol, Int3 b, std::uint64_t domain[kBrickSide]) {
   for (int z = 0; z < kBrickSide; ++z) domain[z] = o.z + z < dims.z ? slice : 0;
 }
 
+#if defined(MARZIPAN_AVX2)
+// sliceBits thirty-two floats at a time: the comparisons' lanes narrowed by packs, which
+// interleave the 128-bit halves, then put back in order by a permutation of 32-bit groups.
+__attribute__((target("avx2"))) void sliceBitsAvx2(const float* v, std::uint64_t& inside, std::uint64_t& near) {
+  const __m256 zero = _mm256_setzero_ps(), nearBound = _mm256_set1_ps(kSurfaceNear);
+  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256i order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+  std::uint64_t in = 0, nr = 0;
+  for (int i = 0; i < kBrickSide * kBrickSide; i += 32) {
+    __m256i a[4], b[4];
+    for (int k = 0; k < 4; ++k) {
+      const __m256 x = _mm256_loadu_ps(v + i + 8 * k);
+      a[k] = _mm256_castps_si256(_mm256_cmp_ps(x, zero, _CMP_LT_OQ));
+      b[k] = _mm256_castps_si256(_mm256_cmp_ps(_mm256_and_ps(x, magnitude), nearBound, _CMP_LT_OQ));
+    }
+    const __m256i inBytes = _mm256_permutevar8x32_epi32(
+        _mm256_packs_epi16(_mm256_packs_epi32(a[0], a[1]), _mm256_packs_epi32(a[2], a[3])), order);
+    const __m256i nearBytes = _mm256_permutevar8x32_epi32(
+        _mm256_packs_epi16(_mm256_packs_epi32(b[0], b[1]), _mm256_packs_epi32(b[2], b[3])), order);
+    in |= std::uint64_t(std::uint32_t(_mm256_movemask_epi8(inBytes))) << i;
+    nr |= std::uint64_t(std::uint32_t(_mm256_movemask_epi8(nearBytes))) << i;
+  }
+  inside = in;
+  near = nr;
+}
+#endif
+
 // Inside and near bits of the 64 voxels of slice z of a brick's data.
 void sliceBits(const float* v, std::uint64_t& inside, std::uint64_t& near) {
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return sliceBitsAvx2(v, inside, near);
+#endif
   std::uint64_t in = 0, nr = 0;
 #if defined(MARZIPAN_SSE2)
   for (int i = 0; i < kBrickSide * kBrickSide; i += 16) {

@@ -18,6 +18,7 @@
 #include "engine/errors.hpp"
 #include "engine/level_set.hpp"
 #include "engine/paint.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "engine/stencil.hpp"
@@ -243,6 +244,33 @@ TEST_CASE("splats are bit for bit the definition evaluated in float", "[splats]"
     CHECK(got.size() > 100);
     CHECK(got == want);
   }
+}
+
+TEST_CASE("splats and the bricks around a change are the same at both vector widths", "[splats]") {
+  // A sphere cut by the domain's far faces, a block of it overwritten with the values on the
+  // edges of the slice tests (signed zeros, +-kSurfaceNear and the floats next to them,
+  // subnormals), then a blob over both.
+  Volume v = makeSphere({61, 53, 47}, {38.3, 31.1, 28.4}, 20);
+  const float n = kSurfaceNear, tiny = std::numeric_limits<float>::denorm_min();
+  const float edges[] = {0.0f, -0.0f, n, -n, std::nextafter(n, 0.0f), -std::nextafter(n, 0.0f),
+                         std::nextafter(n, 2.0f), tiny, -tiny, -1.5f, 2.5f};
+  const Box block{{36, 12, 20}, {52, 28, 36}};
+  std::vector<float> values(std::size_t(block.voxels()));
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = edges[(i * 7 + i / 13) % std::size(edges)];
+  v.scatter(block, values.data(), block);
+  const Volume was = v;
+  const Edit e = addBlob(v, BrushParams{{44, 20, 28}, 9.0, 1.0});
+  REQUIRE(!e.empty());
+  auto atWidth = [&](simd_width::Width w) {
+    simd_width::limitWidth(w);
+    return std::make_tuple(toMap(extractAllSplats(was)), toMap(extractAllSplats(v)), bricksAroundChanges(v, e.changes));
+  };
+  const auto sse2 = atWidth(simd_width::Width::Sse2);
+  const auto widest = atWidth(simd_width::Width::Widest);
+  CHECK(std::get<0>(sse2) == exactSplats(was));
+  CHECK(std::get<1>(sse2) == exactSplats(v));
+  CHECK(std::get<2>(sse2).size() > 4);
+  CHECK(widest == sse2);
 }
 
 TEST_CASE("splats do not depend on the thread count", "[splats]") {
