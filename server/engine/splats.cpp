@@ -538,8 +538,24 @@ std::vector<BrickSplats> extractAllSplats(const Volume& vol, ThreadPool& pool) {
 namespace {
 
 bool zyxLess(Int3 a, Int3 b) { return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x); }
-// The same as a function object, which sorts inline.
-constexpr auto zyxOrder = [](Int3 a, Int3 b) { return zyxLess(a, b); };
+
+// Brick b's index in a grid of n bricks, x fastest: in-grid bricks sort z, y, x as their indices.
+std::uint64_t gridIndex(Int3 n, Int3 b) {
+  return std::uint64_t(b.x) + std::uint64_t(n.x) * (std::uint64_t(b.y) + std::uint64_t(n.y) * std::uint64_t(b.z));
+}
+
+// The bricks of the grid indices `at`, sorted z, y, x and without duplicates (at is sorted).
+std::vector<Int3> sortedBricks(Int3 n, std::vector<std::uint64_t>& at) {
+  std::sort(at.begin(), at.end());
+  at.erase(std::unique(at.begin(), at.end()), at.end());
+  std::vector<Int3> out;
+  out.reserve(at.size());
+  for (const std::uint64_t i : at) {
+    const std::uint64_t row = i / std::uint64_t(n.x);
+    out.push_back({int(i % std::uint64_t(n.x)), int(row % std::uint64_t(n.y)), int(row / std::uint64_t(n.y))});
+  }
+  return out;
+}
 
 // What bricksAroundChanges reads of a brick in the two states (0: before the changes, 1: after),
 // worked out slice by slice as needed: bit x + 8 y of word z of `inside` is d < 0, of `near`
@@ -686,10 +702,7 @@ class StateBits {
 
   // Where the probe for brick b starts: its index in the grid, hashed (Fibonacci).
   std::size_t slot(Int3 b) const {
-    const Int3 n = vol_.brickDims();
-    const std::uint64_t key =
-        std::uint64_t(b.x) + std::uint64_t(n.x) * (std::uint64_t(b.y) + std::uint64_t(n.y) * std::uint64_t(b.z));
-    return std::size_t((key * 0x9e3779b97f4a7c15ull) >> 24) & (slots_.size() - 1);
+    return std::size_t((gridIndex(vol_.brickDims(), b) * 0x9e3779b97f4a7c15ull) >> 24) & (slots_.size() - 1);
   }
   void grow() {
     slots_.assign(2 * slots_.size(), -1);
@@ -764,8 +777,9 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
     if (inGrid(vol, c.brick)) sorted.push_back(&c);
   std::sort(sorted.begin(), sorted.end(),
             [](const BrickChange* a, const BrickChange* b) { return zyxLess(a->brick, b->brick); });
-  std::vector<Int3> out;
-  out.reserve(sorted.size() * 7);
+  const Int3 n = vol.brickDims();
+  std::vector<std::uint64_t> listed;  // grid indices
+  listed.reserve(sorted.size() * 7);
   // A brick changed twice in one list has no one state to compare: every changed brick and
   // every face neighbour stays.
   for (std::size_t i = 1; i < sorted.size(); ++i)
@@ -773,28 +787,25 @@ std::vector<Int3> bricksAroundChanges(const Volume& vol, const std::vector<Brick
       for (const BrickChange* c : sorted)
         for (int j = -1; j < 6; ++j) {
           const Int3 nb = j < 0 ? c->brick : c->brick + kSix[j];
-          if (inGrid(vol, nb)) out.push_back(nb);
+          if (inGrid(vol, nb)) listed.push_back(gridIndex(n, nb));
         }
-      std::sort(out.begin(), out.end(), zyxOrder);
-      out.erase(std::unique(out.begin(), out.end()), out.end());
-      return out;
+      return sortedBricks(n, listed);
     }
   // The changed bricks and those face neighbours whose layer of them next to them differs:
   // no other brick reads a changed value.
   StateBits bits(vol, sorted);
   for (std::size_t i = 0; i < sorted.size(); ++i) {
     const BrickBits& c = bits.changed(i);
-    out.push_back(c.brick);
+    listed.push_back(gridIndex(n, c.brick));
     const std::uint64_t* d = c.diff;
     std::uint64_t all = 0;
     for (int z = 0; z < kBrickSide; ++z) all |= d[z];
     const bool layer[6] = {(all & kColumn0) != 0, (all & kColumn7) != 0, (all & kRow0) != 0,
                            (all & kRow7) != 0,    d[0] != 0,              d[kBrickSide - 1] != 0};
     for (int k = 0; k < 6; ++k)
-      if (layer[k] && inGrid(vol, c.brick + kSix[k])) out.push_back(c.brick + kSix[k]);
+      if (layer[k] && inGrid(vol, c.brick + kSix[k])) listed.push_back(gridIndex(n, c.brick + kSix[k]));
   }
-  std::sort(out.begin(), out.end(), zyxOrder);
-  out.erase(std::unique(out.begin(), out.end()), out.end());
+  std::vector<Int3> out = sortedBricks(n, listed);
   // Of those, the bricks whose blocks provably come out the same are left out.
   std::erase_if(out, [&](Int3 b) { return sameSplats(bits, b); });
   return out;

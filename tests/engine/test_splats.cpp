@@ -370,6 +370,15 @@ std::vector<Int3> checkAround(const Volume& was, const Volume& now, const std::v
 
 }  // namespace
 
+TEST_CASE("the bricks around a list naming a brick twice are the changed bricks and all their face neighbours", "[splats]") {
+  const Volume v({20, 20, 20});  // 3 x 3 x 3 bricks, the last cut by the domain's edge
+  const auto change = [&](Int3 b) { return BrickChange{b, v.brick(b), v.brick(b)}; };
+  const std::vector<BrickChange> changes = {change({2, 1, 1}), change({0, 0, 0}), change({0, 0, 0})};
+  const std::vector<Int3> want = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 1, 0}, {0, 0, 1}, {2, 0, 1},
+                                  {1, 1, 1}, {2, 1, 1}, {2, 2, 1}, {2, 1, 2}};
+  CHECK(bricksAroundChanges(v, changes) == want);
+}
+
 TEST_CASE("the bricks around a one-voxel change list every brick whose splats change, for every voxel", "[splats]") {
   const Volume v = makeSphere({64, 64, 64}, {31.5, 32.2, 30.8}, 20);
   // A stored brick becoming another stored brick, and a uniform outside brick becoming stored.
