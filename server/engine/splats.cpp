@@ -563,6 +563,10 @@ std::vector<Int3> sortedBricks(Int3 n, std::vector<std::uint64_t>& at) {
 // past the domain's far edge read as extraction reads them, +band: outside, not near, the same
 // in both states. A brick the changes leave alone has one state (same).
 struct BrickBits {
+  BrickBits() = default;
+  // Made in place in StateBits' table, the words left as they are until worked out.
+  explicit BrickBits(Int3 b) : brick(b) {}
+
   Int3 brick;
   const BrickChange* change;  // null: unchanged
   const float* data[2];
@@ -623,7 +627,7 @@ class StateBits {
     if (!inGrid(vol_, b)) return 0;
     for (std::size_t h = slot(b);; h = (h + 1) & (slots_.size() - 1)) {
       if (slots_[h] < 0) {
-        bits_.push_back(make(b, change));
+        make(bits_.emplace_back(b), change);
         slots_[h] = std::int64_t(bits_.size() - 1);
         if (2 * bits_.size() > slots_.size()) grow();
         return bits_.size() - 1;
@@ -661,9 +665,8 @@ class StateBits {
   }
 
  private:
-  BrickBits make(Int3 b, const BrickChange* c) const {
-    BrickBits x;
-    x.brick = b;
+  void make(BrickBits& x, const BrickChange* c) const {
+    const Int3 b = x.brick;
     domainSlices(vol_, b, x.domain);
     const float band = vol_.band();
     x.change = c;
@@ -686,7 +689,6 @@ class StateBits {
                                                         x.data[1] ? x.data[1] + at : nullptr, x.u[1]);
       }
     }
-    return x;
   }
   void work(BrickBits& x, int s, int z) const {
     if (x.data[s]) {
