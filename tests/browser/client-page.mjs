@@ -23,8 +23,8 @@ export let env = null;
 // hintDismissed: the files other than client.test.mjs ran, while they were one file with it,
 // in the browser profile whose hint its first test had dismissed for good; so their pages
 // start, the hint not over the pixels they read.
-// deviceScaleFactor: LOW_DENSITY for a file that reads no pixel measure at the page's size in
-// device pixels (halfDensity() for part of a file).
+// deviceScaleFactor: below 1 for a file that reads no pixel measure at the page's size in device
+// pixels (LOW_DENSITY where it reads no pixels at all; lowDensity() for part of a file).
 export function useServerAndBrowser({ hintDismissed = false, deviceScaleFactor = 1 } = {}) {
   env = serverAndBrowser({ hasTouch: true, deviceScaleFactor, localStorage: hintDismissed ? { "marzipan.hint-dismissed": "dismissed" } : {} });
 }
@@ -33,7 +33,7 @@ export function useServerAndBrowser({ hintDismissed = false, deviceScaleFactor =
 // no pixels; the returned function gives it back density 1 and resolves once the canvas has its
 // full size in device pixels again. The override stays set (at density 1) for the page's life:
 // leaving it would drop the viewport's size too.
-export async function halfDensity(page) {
+export async function lowDensity(page) {
   const cdp = await env.browser.context.newCDPSession(page);
   const { width, height } = page.viewportSize();
   const density = async (deviceScaleFactor) => {

@@ -10,7 +10,7 @@ import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, canvasCenter, data, drag, drawn, halfDensity, reach, RIM_LIMIT, roughness, scrub, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, canvasCenter, data, drag, drawn, lowDensity, reach, RIM_LIMIT, roughness, scrub, sessionPage, shot, useServerAndBrowser } from "./client-page.mjs";
 import { revision, settled } from "./harness.mjs";
 import { backdropPixels, rimRoughness } from "./rim.mjs";
 
@@ -23,9 +23,9 @@ test("a stroke's dabs land on the surface as it was at the press, and it stands 
   assert.ok(Math.abs(r0 - 44.8) < 1, `the sphere's splats reach ${r0} vu`);
   const [cx, cy] = await canvasCenter(page);
   await page.locator("#radius").fill("8");
-  // The scrubs and the groove read the splats, not the picture: at a quarter of the pixels
+  // The scrubs and the groove read the splats, not the picture: at a sixteenth of the pixels
   // (LOW_DENSITY) until the close-up, whose pixels are measured at density 1.
-  const fullDensity = await halfDensity(page);
+  const fullDensity = await lowDensity(page);
   const strengths = [0.25, 0.5, 0.75, 1];
   const growth = { 1: {}, 12: {} }; // passes -> strength -> vu
   for (const passes of [1, 12])

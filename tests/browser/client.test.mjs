@@ -19,9 +19,9 @@ import { digest, revision, settled } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
 
 // Its pixel checks are fractions of the canvas and changes of more than 500 or 1000 pixels, which
-// its pictures pass many times over at a quarter of the pixels (LOW_DENSITY; 2026-11-30: the
+// its pictures pass many times over at a quarter of the pixels (density 0.5; 2026-11-30: the
 // stroke 7026, the CSG click 11677, gradient-error shading 64650).
-useServerAndBrowser({ deviceScaleFactor: LOW_DENSITY });
+useServerAndBrowser({ deviceScaleFactor: 0.5 });
 
 test("create, sculpt, undo, share, watch frames, export and reconnect", { timeout: 450000 }, async (t) => {
   const errors = [];
@@ -184,7 +184,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   });
   assert.equal(dims[4], 2);
   assert.deepEqual(dims.slice(0, 2), [2 * dims[2], 2 * dims[3]], `canvas ${dims}`);
-  // What follows reads no pixels; its drag redraws at LOW_DENSITY, not at 16 times its pixels.
+  // What follows reads no pixels; its drag redraws at LOW_DENSITY, not at 64 times its pixels.
   await cdp.send("Emulation.setDeviceMetricsOverride", { width: 900, height: 640, deviceScaleFactor: LOW_DENSITY, mobile: false });
   assert.match(await text(viewer, "stat-session"), /view only/);
   assert.equal(await viewer.locator("#role-badge").isVisible(), true, "a view-only page says so");

@@ -75,13 +75,13 @@ export function startServer(extraArgs = []) {
   });
 }
 
-// A screen of half the pixels per CSS pixel: the page's layout, its camera and every position
-// in CSS pixels are those of density 1, its canvas has a quarter of the device pixels. Headless
-// Chromium draws WebGL with SwiftShader on the CPU, and a pointer move over the canvas waits for
-// the frame its brush cursor asks (0.52 s per move at density 1, 0.21 s at this one, for the
-// 128³ sphere at 1100 × 760 on the 2-core VM, 2026-11-30): the files whose checks count pixels
-// only against thresholds that a quarter of them still passes by far, or none, use it.
-export const LOW_DENSITY = 0.5;
+// A screen of a quarter of a pixel per CSS pixel, for what reads no pixels: the page's layout,
+// its camera and every position in CSS pixels are those of density 1, its canvas has a
+// sixteenth of the device pixels. Headless Chromium draws WebGL with SwiftShader on the CPU, and
+// a pointer move over the canvas waits for the frame its brush cursor asks: the 128³ sphere at
+// 1100 × 760 took 0.52 s a frame at density 1, 0.21 s at 0.5 and 0.11 s at 0.25 on the 2-core VM
+// (2026-11-30), and collab.test.mjs 106 s at 0.5, 70 s at 0.25.
+export const LOW_DENSITY = 0.25;
 
 // Chromium with a fresh profile directory; resolves with {context, close}. The context saves
 // downloads and allows them; hasTouch gives its pages a touch screen besides the mouse;
