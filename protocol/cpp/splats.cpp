@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
 #if defined(__SSE2__) && !defined(MARZIPAN_SCALAR_KERNELS)
 #include <emmintrin.h>
@@ -40,14 +41,24 @@ std::uint32_t positionCode(float q, float origin) {
   return std::uint32_t(t + 0.5f);
 }
 
+// A normal so short that 1 / l1 overflows (subnormal components: no tool makes one, but the
+// codec takes any finite splat) is first scaled by 2^64, which keeps its direction, all that is
+// encoded: unscaled, inf * 0 made a NaN whose conversion to an integer is undefined (UBSan).
+constexpr float kTinyNormalScale = 0x1p64f;
+
 std::uint64_t encodePoint(const Splat& s, Int3 origin) {
   float u = 0, v = 0;
-  const float l1 = std::fabs(s.nx) + std::fabs(s.ny) + std::fabs(s.nz);
+  float nx = s.nx, ny = s.ny, nz = s.nz;
+  float l1 = std::fabs(nx) + std::fabs(ny) + std::fabs(nz);
+  if (l1 > 0 && !(1 / l1 <= std::numeric_limits<float>::max())) {
+    nx *= kTinyNormalScale, ny *= kTinyNormalScale, nz *= kTinyNormalScale;
+    l1 = std::fabs(nx) + std::fabs(ny) + std::fabs(nz);
+  }
   if (l1 > 0) {
     const float inv = 1 / l1;
-    u = s.nx * inv;
-    v = s.ny * inv;
-    if (s.nz < 0) {
+    u = nx * inv;
+    v = ny * inv;
+    if (nz < 0) {
       const float fu = (1 - std::fabs(v)) * signOrPlus(u), fv = (1 - std::fabs(u)) * signOrPlus(v);
       u = fu;
       v = fv;
@@ -73,8 +84,8 @@ inline __m128i roundedCode(__m128 t, float hi) {
 
 // encodePoint for the four splats at s, lane by lane the same float operations in the same
 // order, written as four little-endian u64 at p (`stride` bytes apart). False, with nothing
-// written, when a normal's octahedral coordinate comes out NaN (all three components
-// subnormal: 1 / l1 overflows), which the scalar code converts its own way.
+// written, when a normal is so short that 1 / l1 overflows (subnormal components), which the
+// scalar code scales first (kTinyNormalScale).
 bool encodePoints4(const Splat* s, Int3 origin, std::uint8_t* p, std::size_t stride) {
   static_assert(sizeof(Splat) == 6 * sizeof(float), "a splat is six packed floats");
   // Each splat as three pairs (x, y), (z, nx), (ny, nz); two splats' pairs to a register, then
@@ -101,6 +112,8 @@ bool encodePoints4(const Splat* s, Int3 origin, std::uint8_t* p, std::size_t str
   const __m128 l1 = _mm_add_ps(_mm_add_ps(_mm_and_ps(nx, magnitude), _mm_and_ps(ny, magnitude)), _mm_and_ps(nz, magnitude));
   const __m128 some = _mm_cmpgt_ps(l1, zero);
   const __m128 inv = _mm_div_ps(one, l1);
+  if (_mm_movemask_ps(_mm_and_ps(some, _mm_cmpeq_ps(inv, _mm_set1_ps(std::numeric_limits<float>::infinity())))) != 0)
+    return false;
   __m128 u = _mm_and_ps(some, _mm_mul_ps(nx, inv)), v = _mm_and_ps(some, _mm_mul_ps(ny, inv));
   const auto signOrPlus4 = [&](__m128 c) {
     const __m128 negative = _mm_cmplt_ps(c, zero);
@@ -111,7 +124,6 @@ bool encodePoints4(const Splat* s, Int3 origin, std::uint8_t* p, std::size_t str
   const __m128 lower = _mm_cmplt_ps(nz, zero);  // only where l1 > 0
   u = _mm_or_ps(_mm_and_ps(lower, fu), _mm_andnot_ps(lower, u));
   v = _mm_or_ps(_mm_and_ps(lower, fv), _mm_andnot_ps(lower, v));
-  if (_mm_movemask_ps(_mm_cmpunord_ps(u, v)) != 0) return false;
   const __m128 octScale = _mm_set1_ps(float(kOctMax) / 2);
   const __m128i cu = roundedCode(_mm_mul_ps(_mm_add_ps(u, one), octScale), float(kOctMax));
   const __m128i cv = roundedCode(_mm_mul_ps(_mm_add_ps(v, one), octScale), float(kOctMax));

@@ -717,7 +717,9 @@ std::vector<StrokeId> Session::endStaleStrokes(std::size_t maxBytes, std::int64_
     ended.push_back(strokes_.begin()->first);
     endStroke(strokes_.begin()->first);
   }
-  for (auto& [id, st] : strokes_) {
+  // Not a structured binding: clang 14 (the sanitizer builds') cannot capture one.
+  for (auto& entry : strokes_) {
+    Stroke& st = entry.second;
     st.heldBricks = 0;
     st.changedAtCount = changedBricks_;
     forHeldBricks(st.start, volume_, [&](const Brick*) { ++st.heldBricks; });

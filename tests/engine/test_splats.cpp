@@ -551,6 +551,17 @@ TEST_CASE("splat points encoded four at a time are the bytes of each encoded alo
       }
     }
   }
+  // Normals so short that 1 / l1 overflows keep their direction (protocol/cpp/splats.cpp,
+  // kTinyNormalScale): unscaled, a zero component made a NaN, whose conversion to an integer was
+  // undefined (clang's UBSan stopped here), and (0, 1e-40, 0) came back as (-0, 0, -1).
+  for (const Splat& s : {Splat{1, 2, 3, 0, tiny, 0}, Splat{1, 2, 3, tiny, 0, -tiny}, Splat{1, 2, 3, -tiny, tiny, tiny}}) {
+    const std::vector<BrickSplats> back = decodeSplats(encodeSplats({BrickSplats{{0, 0, 0}, {s}, {}}}));
+    REQUIRE(back.size() == 1);
+    REQUIRE(back[0].points.size() == 1);
+    const Vec3 n = normal(back[0].points[0]), expected{s.nx * 1e30, s.ny * 1e30, s.nz * 1e30};
+    INFO("decoded normal " << n.x << " " << n.y << " " << n.z);
+    CHECK(degreesBetween(n, expected) < 0.2);
+  }
   // Non-finite values are refused wherever they sit among the points, in every field: with an
   // odd count (511: 3066 floats) the last point's ny and nz lie past the last whole group of four
   // floats, which the check takes one by one.

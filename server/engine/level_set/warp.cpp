@@ -85,7 +85,7 @@ struct Velocity {
   // Capsule: the plateau's radius (vu) as the caller gave it; plateau * radius may round below
   // it (a snake hook's young move: ball / support * support), and the tip's foot points
   // (applyWarp, kTipFeetBall) are decided on it.
-  double ball = 0;
+  double plateauBall = 0;
   // Affine: A (row-major), inner part of the radius where P = 1.
   double A[3][3] = {};
   // Elastic: a bi-scale regularized Kelvinlet (de Goes & James 2017) centred on anchor under
@@ -1205,7 +1205,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   constexpr double kFootResidual = 0.05, kFootConverged = 1e-3;
   constexpr int kCrossingBisections = 12;
   const bool footPoints = v.kind == Velocity::Kind::Capsule && v.plateau == 0;
-  const double tipBall = v.kind == Velocity::Kind::Capsule ? v.ball : 0;
+  const double tipBall = v.kind == Velocity::Kind::Capsule ? v.plateauBall : 0;
   const bool tipFeet = tipBall >= kTipFeetBall;
   // Whether the kept voxel at p takes its foot point.
   const auto feetAt = [&](Vec3 p) {
@@ -1499,7 +1499,7 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double ball, double su
   v.segLength2 = dot(d, d);
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
-  v.ball = ball;
+  v.plateauBall = ball;
   v.setPlateau(ball / support);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
