@@ -234,31 +234,23 @@ std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p, std::uint16_t ve
   put16(p + 6, std::uint32_t(b.points.size()) | (painted ? kSplatPaintedBit : 0));
   p += kSplatBrickHeaderBytes;
   const Int3 o{b.brick.x * kSplatBrickSide, b.brick.y * kSplatBrickSide, b.brick.z * kSplatBrickSide};
+  // Point i's word at p + i * stride, its texel (painted) after the word. A group of four that
+  // encodePoints4 refuses (a normal too short to invert) leaves the rest of the block to the
+  // one-point encoder, which writes the same bytes.
+  const std::size_t stride = painted ? kSplatPaintedPointBytes : kSplatPointBytes, n = b.points.size();
   std::size_t i = 0;
 #if defined(MARZIPAN_SPLATS_SSE2)
-  const std::size_t stride = painted ? kSplatPaintedPointBytes : kSplatPointBytes;
-  for (; i + 4 <= b.points.size(); i += 4) {
-    if (!encodePoints4(b.points.data() + i, o, p, stride))
-      for (std::size_t k = 0; k < 4; ++k) put64(p + k * stride, encodePoint(b.points[i + k], o));
-    if (painted)
-      for (std::size_t k = 0; k < 4; ++k) {
-        const SplatTexel& t = b.texels[i + k];
-        std::uint8_t* c = p + k * stride + kSplatPointBytes;
-        c[0] = t.r, c[1] = t.g, c[2] = t.b, c[3] = t.mask;
-      }
-    p += 4 * stride;
-  }
+  for (; i + 4 <= n; i += 4)
+    if (!encodePoints4(b.points.data() + i, o, p + i * stride, stride)) break;
 #endif
-  for (; i < b.points.size(); ++i) {
-    put64(p, encodePoint(b.points[i], o));
-    p += kSplatPointBytes;
-    if (painted) {
-      const SplatTexel& t = b.texels[i];
-      p[0] = t.r, p[1] = t.g, p[2] = t.b, p[3] = t.mask;
-      p += kSplatPaintedPointBytes - kSplatPointBytes;
+  for (; i < n; ++i) put64(p + i * stride, encodePoint(b.points[i], o));
+  if (painted)
+    for (std::size_t k = 0; k < n; ++k) {
+      const SplatTexel& t = b.texels[k];
+      std::uint8_t* c = p + k * stride + kSplatPointBytes;
+      c[0] = t.r, c[1] = t.g, c[2] = t.b, c[3] = t.mask;
     }
-  }
-  return p;
+  return p + n * stride;
 }
 
 // The header of a buffer for blocks of the given brick keys holding `points` points in all, with

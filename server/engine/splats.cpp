@@ -286,6 +286,20 @@ void sliceBits(const float* v, std::uint64_t& inside, std::uint64_t& near) {
   near = nr;
 }
 
+// sliceBits of slice z of a brick whose data is `data`, or whose every voxel reads `uniform`
+// (data null), kept to its voxels in the domain (`domain`, domainSlices()'s word of z).
+void brickSliceBits(const float* data, float uniform, int z, std::uint64_t domain, std::uint64_t& inside,
+                    std::uint64_t& near) {
+  if (data) {
+    sliceBits(data + Bricks::index(0, 0, z), inside, near);
+  } else {
+    inside = uniform < 0 ? ~std::uint64_t(0) : 0;
+    near = std::fabs(uniform) < kSurfaceNear ? ~std::uint64_t(0) : 0;
+  }
+  inside &= domain;
+  near &= domain;
+}
+
 // Bit i: v[i] < 0, over the 8 floats of a brick row.
 std::uint32_t rowInside(const float* v) {
 #if defined(MARZIPAN_SSE2)
@@ -432,16 +446,7 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   const int zs = std::min(kBrickSide, vol.dims().z - o.z);
   std::uint64_t in[kBrickSide + 2], nearBits[kBrickSide], domain[kBrickSide];  // in: slices -1 .. kBrickSide
   domainSlices(vol, b, domain);
-  for (int z = 0; z < kBrickSide; ++z) {
-    if (own) {
-      sliceBits(own + Bricks::index(0, 0, z), in[z + 1], nearBits[z]);
-    } else {
-      in[z + 1] = ownValue < 0 ? ~std::uint64_t(0) : 0;
-      nearBits[z] = std::fabs(ownValue) < kSurfaceNear ? ~std::uint64_t(0) : 0;
-    }
-    in[z + 1] &= domain[z];
-    nearBits[z] &= domain[z];
-  }
+  for (int z = 0; z < kBrickSide; ++z) brickSliceBits(own, ownValue, z, domain[z], in[z + 1], nearBits[z]);
   for (const int z : {-1, kBrickSide}) {
     std::uint64_t slice = 0;
     for (int y = 0; y < kBrickSide; ++y) slice |= std::uint64_t(rowInside(g + padIndex(0, y, z))) << (kBrickSide * y);
@@ -691,14 +696,7 @@ class StateBits {
     }
   }
   void work(BrickBits& x, int s, int z) const {
-    if (x.data[s]) {
-      sliceBits(x.data[s] + Bricks::index(0, 0, z), x.inside[s][z], x.near[s][z]);
-    } else {
-      x.inside[s][z] = x.u[s] < 0 ? ~std::uint64_t(0) : 0;
-      x.near[s][z] = std::fabs(x.u[s]) < kSurfaceNear ? ~std::uint64_t(0) : 0;
-    }
-    x.inside[s][z] &= x.domain[z];
-    x.near[s][z] &= x.domain[z];
+    brickSliceBits(x.data[s], x.u[s], z, x.domain[z], x.inside[s][z], x.near[s][z]);
     x.ready[s] |= 1u << z;
   }
 
