@@ -29,15 +29,23 @@ export function useServerAndBrowser({ hintDismissed = false, deviceScaleFactor =
   env = serverAndBrowser({ hasTouch: true, deviceScaleFactor, localStorage: hintDismissed ? { "marzipan.hint-dismissed": "dismissed" } : {} });
 }
 
-// Sets `page`'s screen to LOW_DENSITY (CSS size unchanged), for a part of a file that measures
-// no pixels; the returned function gives it back density 1 and resolves once the canvas has its
-// full size in device pixels again. The override stays set (at density 1) for the page's life:
-// leaving it would drop the viewport's size too.
+// Gives `page`'s screen `deviceScaleFactor` device pixels per CSS pixel, its CSS size (the
+// context's viewport) unchanged, through `cdp` (a CDP session of the page). The override stays
+// set for the page's life: leaving it would drop the viewport's size too. It does not wait for
+// the page to take it: a page not yet loaded has nothing to wait for.
+export async function screenDensity(page, cdp, deviceScaleFactor) {
+  const { width, height } = page.viewportSize();
+  await cdp.send("Emulation.setDeviceMetricsOverride", { width, height, deviceScaleFactor, mobile: false });
+}
+
+// Sets `page`'s screen to LOW_DENSITY, for a part of a file that measures no pixels; the
+// returned function gives it back density 1 and resolves once the canvas has its full size in
+// device pixels again.
 export async function lowDensity(page) {
   const cdp = await env.browser.context.newCDPSession(page);
   const { width, height } = page.viewportSize();
   const density = async (deviceScaleFactor) => {
-    await cdp.send("Emulation.setDeviceMetricsOverride", { width, height, deviceScaleFactor, mobile: false });
+    await screenDensity(page, cdp, deviceScaleFactor);
     await page.evaluate(() => window.marzipan.renderer.requestRedraw());
     await page.waitForFunction(
       ([d, w, h]) => {

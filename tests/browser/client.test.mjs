@@ -14,7 +14,7 @@ import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 
-import { artifacts, canvasCenter, changedPixels, checkStl, collectErrors, createSession, data, drag, drawn, env, LOW_DENSITY, modelFraction, shot, text, useServerAndBrowser } from "./client-page.mjs";
+import { artifacts, canvasCenter, changedPixels, checkStl, collectErrors, createSession, data, drag, drawn, env, LOW_DENSITY, modelFraction, screenDensity, shot, text, useServerAndBrowser } from "./client-page.mjs";
 import { digest, revision, settled } from "./harness.mjs";
 import { decodePng } from "./png.mjs";
 
@@ -175,7 +175,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   const viewer = await env.browser.context.newPage();
   collectErrors(viewer, errors);
   const cdp = await env.browser.context.newCDPSession(viewer);
-  await cdp.send("Emulation.setDeviceMetricsOverride", { width: 900, height: 640, deviceScaleFactor: 2, mobile: false });
+  await screenDensity(viewer, cdp, 2);
   await viewer.goto(viewLink);
   await settled(viewer);
   const dims = await viewer.evaluate(() => {
@@ -185,7 +185,7 @@ test("create, sculpt, undo, share, watch frames, export and reconnect", { timeou
   assert.equal(dims[4], 2);
   assert.deepEqual(dims.slice(0, 2), [2 * dims[2], 2 * dims[3]], `canvas ${dims}`);
   // What follows reads no pixels; its drag redraws at LOW_DENSITY, not at 64 times its pixels.
-  await cdp.send("Emulation.setDeviceMetricsOverride", { width: 900, height: 640, deviceScaleFactor: LOW_DENSITY, mobile: false });
+  await screenDensity(viewer, cdp, LOW_DENSITY);
   assert.match(await text(viewer, "stat-session"), /view only/);
   assert.equal(await viewer.locator("#role-badge").isVisible(), true, "a view-only page says so");
   assert.equal(await viewer.locator("#undo").isDisabled(), true, "a viewer cannot undo");
