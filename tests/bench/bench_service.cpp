@@ -195,11 +195,26 @@ MARZIPAN_BENCH("dab_message") {
   std::vector<std::vector<Vec3>> dabsOf;
   std::vector<int> clientOf;
   int next = 0;
+  // The next message's texts, made before it is timed: a client's JSON is not the server's work.
+  // A stroke's stroke.begin and stroke.end go with its first and last message (the load tool's
+  // clients send them too); the strokes' ids are 1, 2, ... in the order they begin.
+  std::uint64_t begun = 0;
+  std::string beginText, dabsText, endText;
   auto drawMessage = [&] {
     const int k = next;
-    if (sent[k] % kStrokeMessages == 0) paths[k].restart(rng);
+    const bool first = sent[k] % kStrokeMessages == 0, last = (sent[k] + 1) % kStrokeMessages == 0;
+    if (first) paths[k].restart(rng);
     std::vector<Vec3> dabs;
     for (int d = 0; d < kDabsPerMessage; ++d) dabs.push_back(paths[k].next());
+    beginText.clear();
+    if (first) {
+      beginText = request(id++, "stroke.begin", strokeParams);
+      strokes[k] = ++begun;
+    }
+    json list = json::array();
+    for (const Vec3& p : dabs) list.push_back({{"center", {p.x, p.y, p.z}}, {"pressure", 1}});
+    dabsText = request(id++, "stroke.dabs", {{"stroke", strokes[k]}, {"dabs", std::move(list)}});
+    endText = last ? request(id++, "stroke.end", {{"stroke", strokes[k]}}) : std::string();
     dabsOf.push_back(std::move(dabs));
     clientOf.push_back(k);
   };
@@ -215,20 +230,12 @@ MARZIPAN_BENCH("dab_message") {
     hub.text(clients[k], text);
     for (int j = 0; j < kClients; ++j) links[j]->waitFor(texts[j], binaries[j]);
   };
-  // A stroke's stroke.begin and stroke.end go with its first and last message:
-  // the load tool's clients send them too. The strokes' ids are 1, 2, ... in
-  // the order they begin.
-  std::uint64_t begun = 0;
   auto send = [&] {
     const int k = next;
-    if (sent[k] % kStrokeMessages == 0) {
-      call(k, request(id++, "stroke.begin", strokeParams), false);
-      strokes[k] = ++begun;
-    }
-    json list = json::array();
-    for (const Vec3& p : dabsOf.back()) list.push_back({{"center", {p.x, p.y, p.z}}, {"pressure", 1}});
-    call(k, request(id++, "stroke.dabs", {{"stroke", strokes[k]}, {"dabs", std::move(list)}}), true);
-    if (++sent[k] % kStrokeMessages == 0) call(k, request(id++, "stroke.end", {{"stroke", strokes[k]}}), false);
+    if (!beginText.empty()) call(k, beginText, false);
+    call(k, dabsText, true);
+    if (!endText.empty()) call(k, endText, false);
+    ++sent[k];
     next = (k + 1) % kClients;
   };
   for (const auto& l : links) {
