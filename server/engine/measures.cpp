@@ -245,11 +245,17 @@ std::uint64_t brickDigestTerm(Int3 brick, const BrickRef& ref) {
   if (!ref.data && !ref.inside) return 0;
   std::uint64_t h = mixWord(0x6a09e667f3bcc908ull, brickKey(brick) | (ref.data ? 1ull : 2ull) << 62);
   if (ref.data) {
-    for (int i = 0; i < kBrickVoxels; i += 2) {
-      std::uint64_t w;
-      std::memcpy(&w, ref.data->v + i, sizeof w);
-      h = mixWord(h, w);
-    }
+    // Eight words a pass, the same words in the same order: one a pass took 9 instructions a
+    // word, 4 of them the loop's, where 8 take 5.4 (a session hashes each brick a message
+    // changed, ~30 for a stroke message of two r 8 dabs).
+    static_assert(kBrickVoxels % 16 == 0);
+    const float* v = ref.data->v;
+    for (int i = 0; i < kBrickVoxels; i += 16)
+      for (int k = 0; k < 16; k += 2) {
+        std::uint64_t w;
+        std::memcpy(&w, v + i + k, sizeof w);
+        h = mixWord(h, w);
+      }
     if (ref.paint) {
       h = mixWord(h, 0x3c6ef372fe94f82bull);
       for (int i = 0; i < kBrickVoxels; i += 2) {
