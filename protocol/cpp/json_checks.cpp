@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <set>
 #include <sstream>
 #include <vector>
 
@@ -249,39 +248,83 @@ std::string jsonErrorText(const std::string& what) {
 }
 }  // namespace
 
-json parseJsonText(std::string_view text) {
-  std::vector<std::set<std::string>> openObjects;
-  std::string duplicate;
-  const json::parser_callback_t noteKeys = [&](int depth, json::parse_event_t event, json& parsed) {
-    // The parser itself does not recurse, but copying, comparing or writing a value does, once
-    // per level: a 1 MiB frame of brackets would overflow the stack. Refused while reading,
-    // before the levels exist.
-    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
-        depth >= kMaxJsonDepth)
-      throw OpError("", "not valid JSON: nested deeper than " + std::to_string(kMaxJsonDepth) + " arrays and objects");
-    switch (event) {
-      case json::parse_event_t::object_start:
-        openObjects.emplace_back();
-        break;
-      case json::parse_event_t::object_end:
-        openObjects.pop_back();
-        break;
-      case json::parse_event_t::key:
-        if (!openObjects.back().insert(parsed.get<std::string>()).second && duplicate.empty())
-          duplicate = parsed.get<std::string>();
-        break;
-      default:
-        break;
-    }
+namespace {
+
+// nlohmann's SAX events built into a value as its own DOM parser builds it, refusing a level past
+// kMaxJsonDepth as it opens (the parser itself does not recurse, but copying, comparing or
+// writing a value does, once per level: a 1 MiB frame of brackets would overflow the stack) and
+// noting the first key an object repeats. The object being built is where its keys are looked
+// up: the callback parser this replaces kept a set of each object's keys beside it and took
+// 45K instructions for a two-dab stroke.dabs (docs/benchmark-log.md, capacity, 2026-11-30).
+class CheckedDom {
+ public:
+  explicit CheckedDom(json& root) : root_(root) {}
+  std::string duplicate;  // the first key an object repeated, if any
+
+  bool null() { return put(nullptr); }
+  bool boolean(bool v) { return put(v); }
+  bool number_integer(json::number_integer_t v) { return put(v); }
+  bool number_unsigned(json::number_unsigned_t v) { return put(v); }
+  bool number_float(json::number_float_t v, const json::string_t&) { return put(v); }
+  bool string(json::string_t& v) { return put(v); }
+  bool binary(json::binary_t& v) { return put(std::move(v)); }
+  bool start_object(std::size_t) { return open(json::value_t::object); }
+  bool start_array(std::size_t) { return open(json::value_t::array); }
+  bool end_object() { return close(); }
+  bool end_array() { return close(); }
+  bool key(json::string_t& k) {
+    // A repeated key's later value replaces the earlier, as in nlohmann's own parser.
+    const auto [at, added] = open_.back()->get_ref<json::object_t&>().try_emplace(k);
+    if (!added && duplicate.empty()) duplicate = k;
+    element_ = &at->second;
     return true;
-  };
+  }
+  template <class Exception>
+  bool parse_error(std::size_t, const std::string&, const Exception& e) {
+    throw e;
+  }
+
+ private:
+  json* place() {
+    if (open_.empty()) return &root_;
+    json& top = *open_.back();
+    if (top.is_array()) return &top.get_ref<json::array_t&>().emplace_back();
+    return element_;
+  }
+  template <class V>
+  bool put(V&& v) {
+    *place() = json(std::forward<V>(v));
+    return true;
+  }
+  bool open(json::value_t kind) {
+    if (open_.size() >= std::size_t(kMaxJsonDepth))
+      throw OpError("", "not valid JSON: nested deeper than " + std::to_string(kMaxJsonDepth) + " arrays and objects");
+    json* v = place();
+    *v = json(kind);
+    open_.push_back(v);
+    return true;
+  }
+  bool close() {
+    open_.pop_back();
+    return true;
+  }
+  json& root_;
+  std::vector<json*> open_;  // the arrays and objects being read, outermost first
+  json* element_ = nullptr;  // the member the last key named
+};
+
+}  // namespace
+
+json parseJsonText(std::string_view text) {
   json value;
+  CheckedDom dom(value);
   try {
-    value = json::parse(text.begin(), text.end(), noteKeys);
+    json::sax_parse(text.begin(), text.end(), &dom);
   } catch (const json::exception& e) {
     throw OpError("", "not valid JSON: " + jsonErrorText(e.what()));
   }
-  if (!duplicate.empty()) throw OpError(excerpt(duplicate), "key " + inQuotes(duplicate) + " appears more than once");
+  if (!dom.duplicate.empty())
+    throw OpError(excerpt(dom.duplicate), "key " + inQuotes(dom.duplicate) + " appears more than once");
   return value;
 }
 
