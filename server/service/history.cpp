@@ -42,12 +42,16 @@ constexpr float kMaxBand = 8.0f;
 // sign have zero high bytes. A brick against a reference is written as a mask of its voxels
 // whose difference is not zero (kMaskBytes) and then byte p of each of those differences in
 // plane p; a predicted brick as byte p of every voxel's in plane p (kBrickBytes). The bricks'
-// records, in order, become one zstd frame. Each step is a bijection on 32-bit words given the
-// reference and the voxels already decoded: unpacking is exact. On the pig, 30-dab strokes:
-// 4.5x against the other side, 2.6x with the predictor alone, 2.57x for raw floats. The mask
-// leaves zstd the changed voxels alone (most of a brick is as it was): against all four planes
-// of every voxel, packing took 30% fewer instructions and the frames came out 0.8-9% smaller
-// (5.5% on the dab_message bench; docs/benchmark-log.md, capacity, 2026-11-30 06:20).
+// records, in order, become one zstd frame, but for the low planes (bytes 0 and 1) of the
+// bricks against a reference, which follow it as they are, in the same order. Each step is a
+// bijection on 32-bit words given the reference and the voxels already decoded: unpacking is
+// exact. On the pig, 30-dab strokes: 4.5x against the other side, 2.6x with the predictor
+// alone, 2.57x for raw floats. The mask leaves zstd the changed voxels alone (most of a brick
+// is as it was): against all four planes of every voxel, packing took 30% fewer instructions
+// and the frames came out 0.8-9% smaller (5.5% on the dab_message bench). The low planes of
+// the changed voxels are close to noise: zstd made them no smaller and spent a third of its
+// time on them; kept out of it they take 0.8% less memory in all and the packing 25% fewer
+// instructions (docs/benchmark-log.md, capacity, 2026-11-30 06:20 and 13:00).
 std::uint32_t ordered(float f) {
   std::uint32_t u;
   std::memcpy(&u, &f, 4);
@@ -76,9 +80,15 @@ std::uint32_t predict(const float* v, const float* reference, int i) {
 }
 
 constexpr std::size_t kMaskBytes = kBrickVoxels / 8;
+constexpr int kLowPlanes = 2;  // the planes of a brick against a reference kept out of zstd
 
-// Writes brick b's record at out; returns its size.
-std::size_t splitPlanes(const Brick& b, const float* reference, unsigned char* out) {
+// The bytes of a brick's record that go through zstd, and of its low planes that do not.
+struct RecordBytes {
+  std::size_t packed = 0, low = 0;
+};
+
+// Writes brick b's record at out, its low planes (against a reference) at low.
+RecordBytes splitPlanes(const Brick& b, const float* reference, unsigned char* out, unsigned char* low) {
   if (reference) {
     // The differences first, in a loop the compiler vectorizes; then the mask and the bytes of
     // the voxels that differ.
@@ -110,46 +120,49 @@ std::size_t splitPlanes(const Brick& b, const float* reference, unsigned char* o
     for (int w = 0; w < kBrickVoxels / 64; ++w)
       for (std::uint64_t m = mask[w]; m; m &= m - 1, ++n) {
         const std::uint32_t d = z[64 * w + std::countr_zero(m)];
-        for (int p = 0; p < 4; ++p) planes[p * count + n] = static_cast<unsigned char>(d >> (8 * p));
+        for (int p = 0; p < kLowPlanes; ++p) low[p * count + n] = static_cast<unsigned char>(d >> (8 * p));
+        for (int p = kLowPlanes; p < 4; ++p) planes[(p - kLowPlanes) * count + n] = static_cast<unsigned char>(d >> (8 * p));
       }
-    return kMaskBytes + 4 * std::size_t(count);
+    return {kMaskBytes + (4 - kLowPlanes) * std::size_t(count), kLowPlanes * std::size_t(count)};
   }
   for (int i = 0; i < kBrickVoxels; ++i) {
     const std::uint32_t z = zigzag(ordered(b.v[i]) - predict(b.v, reference, i));
     for (int p = 0; p < 4; ++p) out[p * kBrickVoxels + i] = static_cast<unsigned char>(z >> (8 * p));
   }
-  return kBrickBytes;
+  return {kBrickBytes, 0};
 }
 
-// Reads the record of a brick at in, of at most `size` bytes, into b; returns its size, or 0
-// when it does not fit in them.
-std::size_t joinPlanes(const unsigned char* in, std::size_t size, const float* reference, Brick& b) {
+// Reads the record of a brick at in, of at most `size` bytes, and its low planes at low, of at
+// most `lowSize`, into b; returns their sizes, or a packed size of 0 when they do not fit.
+RecordBytes joinPlanes(const unsigned char* in, std::size_t size, const unsigned char* low, std::size_t lowSize,
+                       const float* reference, Brick& b) {
   if (reference) {
-    if (size < kMaskBytes) return 0;
+    if (size < kMaskBytes) return {};
     std::uint64_t mask[kBrickVoxels / 64];
     std::memcpy(mask, in, kMaskBytes);
     std::size_t count = 0;
     for (const std::uint64_t m : mask) count += std::size_t(std::popcount(m));
-    if (size - kMaskBytes < 4 * count) return 0;
+    if (size - kMaskBytes < (4 - kLowPlanes) * count || lowSize < kLowPlanes * count) return {};
     std::memcpy(b.v, reference, sizeof b.v);
     const unsigned char* planes = in + kMaskBytes;
     std::size_t n = 0;
     for (int w = 0; w < kBrickVoxels / 64; ++w)
       for (std::uint64_t m = mask[w]; m; m &= m - 1, ++n) {
         std::uint32_t z = 0;
-        for (int p = 0; p < 4; ++p) z |= std::uint32_t(planes[p * count + n]) << (8 * p);
+        for (int p = 0; p < kLowPlanes; ++p) z |= std::uint32_t(low[p * count + n]) << (8 * p);
+        for (int p = kLowPlanes; p < 4; ++p) z |= std::uint32_t(planes[(p - kLowPlanes) * count + n]) << (8 * p);
         const int i = 64 * w + std::countr_zero(m);
         b.v[i] = unordered(ordered(reference[i]) + unzigzag(z));
       }
-    return kMaskBytes + 4 * count;
+    return {kMaskBytes + (4 - kLowPlanes) * count, kLowPlanes * count};
   }
-  if (size < kBrickBytes) return 0;
+  if (size < kBrickBytes) return {};
   for (int i = 0; i < kBrickVoxels; ++i) {
     std::uint32_t z = 0;
     for (int p = 0; p < 4; ++p) z |= std::uint32_t(in[p * kBrickVoxels + i]) << (8 * p);
     b.v[i] = unordered(predict(b.v, reference, i) + unzigzag(z));
   }
-  return kBrickBytes;
+  return {kBrickBytes, 0};
 }
 
 // A cheap fingerprint of the references a step was packed against: unpacking against other
@@ -176,7 +189,7 @@ constexpr std::size_t kKeptScratchBytes = std::size_t(8) << 20;
 // initialisation, and fresh buffers page faults and zeroing, on every step.
 struct Scratch {
   std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx{ZSTD_createCCtx(), &ZSTD_freeCCtx};
-  std::vector<unsigned char> planes, frame;
+  std::vector<unsigned char> planes, low, frame;
 };
 
 Scratch& scratch() {
@@ -248,9 +261,10 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
     return p;
   }
   Scratch& z = scratch();
-  const std::size_t bound = dataBricks * (kMaskBytes + kBrickBytes);
+  const std::size_t bound = dataBricks * (kMaskBytes + kBrickBytes), lowBound = dataBricks * kLowPlanes * kBrickVoxels;
   if (z.planes.size() < bound) z.planes.resize(bound);
-  std::size_t size = 0;
+  if (z.low.size() < lowBound) z.low.resize(lowBound);
+  RecordBytes size;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     const BrickRef* r = refs[i];
     if (!r->data) {
@@ -258,16 +272,23 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
       continue;
     }
     p.kinds.push_back(PackedBricks::kData);
-    size += splitPlanes(*r->data, against[i]->data ? against[i]->data->v : nullptr, z.planes.data() + size);
+    const RecordBytes s = splitPlanes(*r->data, against[i]->data ? against[i]->data->v : nullptr,
+                                      z.planes.data() + size.packed, z.low.data() + size.low);
+    size.packed += s.packed;
+    size.low += s.low;
   }
-  if (z.frame.size() < ZSTD_compressBound(size)) z.frame.resize(ZSTD_compressBound(size));
+  if (z.frame.size() < ZSTD_compressBound(size.packed)) z.frame.resize(ZSTD_compressBound(size.packed));
   const std::size_t n =
-      ZSTD_compressCCtx(z.cctx.get(), z.frame.data(), z.frame.size(), z.planes.data(), size, kZstdLevel);
+      ZSTD_compressCCtx(z.cctx.get(), z.frame.data(), z.frame.size(), z.planes.data(), size.packed, kZstdLevel);
   if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
-  p.frame.assign(z.frame.begin(), z.frame.begin() + std::ptrdiff_t(n));  // exactly n bytes, no slack
+  p.packed = n;
+  p.frame.resize(n + size.low);  // exactly these bytes, no slack
+  std::memcpy(p.frame.data(), z.frame.data(), n);
+  if (size.low) std::memcpy(p.frame.data() + n, z.low.data(), size.low);
   if (bound > kKeptScratchBytes) {
     // A whole-volume step: do not keep its buffers for the life of the thread.
     z.planes = {};
+    z.low = {};
     z.frame = {};
   }
   return p;
@@ -280,25 +301,29 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
   for (const auto k : p.kinds) dataBricks += k == PackedBricks::kData;
   const auto damaged = [] { return std::runtime_error("zstd: an undo step does not unpack to its bricks"); };
   std::vector<unsigned char> planes;
+  if (p.packed > p.frame.size()) throw damaged();
+  const unsigned char* low = p.frame.data() + p.packed;
+  const std::size_t lowSize = p.frame.size() - p.packed;
   if (dataBricks) {
-    const unsigned long long size = ZSTD_getFrameContentSize(p.frame.data(), p.frame.size());
+    const unsigned long long size = ZSTD_getFrameContentSize(p.frame.data(), p.packed);
     if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN || size > dataBricks * (kMaskBytes + kBrickBytes))
       throw damaged();
     planes.resize(std::size_t(size));
-    const std::size_t n = ZSTD_decompress(planes.data(), planes.size(), p.frame.data(), p.frame.size());
+    const std::size_t n = ZSTD_decompress(planes.data(), planes.size(), p.frame.data(), p.packed);
     if (ZSTD_isError(n) || n != planes.size()) throw damaged();
   }
   std::vector<BrickRef> out;
   out.reserve(p.kinds.size());
-  std::size_t next = 0;
+  RecordBytes next;
   for (std::size_t i = 0; i < p.kinds.size(); ++i) {
     BrickRef r;
     if (p.kinds[i] == PackedBricks::kData) {
       auto b = std::make_shared_for_overwrite<Brick>();  // joinPlanes sets every voxel
-      const std::size_t used = joinPlanes(planes.data() + next, planes.size() - next,
-                                          against[i]->data ? against[i]->data->v : nullptr, *b);
-      if (used == 0) throw damaged();
-      next += used;
+      const RecordBytes used = joinPlanes(planes.data() + next.packed, planes.size() - next.packed, low + next.low,
+                                          lowSize - next.low, against[i]->data ? against[i]->data->v : nullptr, *b);
+      if (used.packed == 0) throw damaged();
+      next.packed += used.packed;
+      next.low += used.low;
       r.data = std::move(b);
     } else {
       r.inside = p.kinds[i] == PackedBricks::kInside;
@@ -306,7 +331,7 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
     if (!p.paints.empty()) r.paint = p.paints[i];
     out.push_back(std::move(r));
   }
-  if (next != planes.size()) throw damaged();
+  if (next.packed != planes.size() || next.low != lowSize) throw damaged();
   return out;
 }
 

@@ -193,30 +193,45 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     CHECK_THROWS_AS(service::unpackBricks(bad, against), std::runtime_error);
   }
   SECTION("records that do not fit their frame are refused") {
-    // One brick against its changed copy: a record of its mask (64 bytes) and the differing
-    // voxels' bytes. The same content recompressed unpacks; each damage below is refused by the
-    // records' own checks (zstd accepts the frames).
+    // One brick against its changed copy: a record of its mask (64 bytes) and the high bytes of
+    // the differing voxels in the zstd frame, their low bytes (two planes) after it. The same
+    // content recompressed unpacks; each damage below is refused by the records' own checks
+    // (zstd accepts the frames).
     const service::PackedBricks one = service::packBricks({coords[0]}, {ptrs[0]}, {against[0]});
-    std::vector<unsigned char> content(ZSTD_getFrameContentSize(one.frame.data(), one.frame.size()));
-    REQUIRE(ZSTD_decompress(content.data(), content.size(), one.frame.data(), one.frame.size()) == content.size());
-    REQUIRE(content.size() > 64 + 4 * 128);
-    const auto repacked = [&](const std::vector<unsigned char>& c) {
+    REQUIRE(one.packed < one.frame.size());
+    std::vector<unsigned char> content(ZSTD_getFrameContentSize(one.frame.data(), one.packed));
+    REQUIRE(ZSTD_decompress(content.data(), content.size(), one.frame.data(), one.packed) == content.size());
+    const std::vector<unsigned char> low(one.frame.begin() + std::ptrdiff_t(one.packed), one.frame.end());
+    // 171 of the 512 voxels changed (every third): 2 high and 2 low bytes each.
+    REQUIRE(content.size() == 64 + 2 * 171);
+    REQUIRE(low.size() == 2 * 171);
+    const auto repacked = [&](const std::vector<unsigned char>& c, const std::vector<unsigned char>& l) {
       service::PackedBricks q = one;
       q.frame.resize(ZSTD_compressBound(c.size()));
-      q.frame.resize(ZSTD_compress(q.frame.data(), q.frame.size(), c.data(), c.size(), 1));
+      q.packed = ZSTD_compress(q.frame.data(), q.frame.size(), c.data(), c.size(), 1);
+      q.frame.resize(q.packed);
+      q.frame.insert(q.frame.end(), l.begin(), l.end());
       return q;
     };
-    const std::vector<BrickRef> same = service::unpackBricks(repacked(content), {against[0]});
+    const std::vector<BrickRef> same = service::unpackBricks(repacked(content, low), {against[0]});
     REQUIRE(same.size() == 1);
     CHECK(std::memcmp(same[0].data->v, refs[0].data->v, sizeof(Brick)) == 0);
     std::vector<unsigned char> allChanged = content;  // a mask claiming every voxel, short of bytes
     std::fill(allChanged.begin(), allChanged.begin() + 64, 0xff);
-    CHECK_THROWS_AS(service::unpackBricks(repacked(allChanged), {against[0]}), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(allChanged, low), {against[0]}), std::runtime_error);
     std::vector<unsigned char> trailing = content;
     trailing.push_back(0);
-    CHECK_THROWS_AS(service::unpackBricks(repacked(trailing), {against[0]}), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(trailing, low), {against[0]}), std::runtime_error);
     const std::vector<unsigned char> cut(content.begin(), content.begin() + 40);  // the mask cut short
-    CHECK_THROWS_AS(service::unpackBricks(repacked(cut), {against[0]}), std::runtime_error);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(cut, low), {against[0]}), std::runtime_error);
+    std::vector<unsigned char> lowTrailing = low;
+    lowTrailing.push_back(0);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(content, lowTrailing), {against[0]}), std::runtime_error);
+    const std::vector<unsigned char> lowCut(low.begin(), low.end() - 1);
+    CHECK_THROWS_AS(service::unpackBricks(repacked(content, lowCut), {against[0]}), std::runtime_error);
+    service::PackedBricks past = one;  // the zstd frame said to run past the bytes
+    past.packed = past.frame.size() + 1;
+    CHECK_THROWS_AS(service::unpackBricks(past, {against[0]}), std::runtime_error);
   }
   SECTION("other references are refused, not unpacked into wrong bricks") {
     auto changed = std::make_shared<Brick>(*others[0].data);
