@@ -49,9 +49,9 @@ constexpr float kMaxBand = 8.0f;
 // alone, 2.57x for raw floats. The mask leaves zstd the changed voxels alone (most of a brick
 // is as it was): against all four planes of every voxel, packing took 30% fewer instructions
 // and the frames came out 0.8-9% smaller (5.5% on the dab_message bench). The low planes of
-// the changed voxels are close to noise: zstd made them no smaller and spent a third of its
-// time on them; kept out of it they take 0.8% less memory in all and the packing 25% fewer
-// instructions (docs/benchmark-log.md, capacity, 2026-11-30 06:20 and 13:00).
+// the changed voxels are close to noise, which zstd made no smaller: kept out of it, the steps
+// take 0.8% less memory on the dab_message bench (2.5% on the pig's strokes) and the packing a
+// quarter fewer instructions (docs/benchmark-log.md, capacity, 2026-11-30 06:20 and 12:40).
 std::uint32_t ordered(float f) {
   std::uint32_t u;
   std::memcpy(&u, &f, 4);
