@@ -786,27 +786,42 @@ constexpr int kBlockReach = 2;
 
 struct InverseLattice {
   Int3 origin, nodes;
-  std::vector<Vec3> offset;     // X(node) - node, x fastest
-  std::vector<Vec3> preimage;   // node + offset (up to rounding X(node)), for cellValue()
+  std::vector<Vec3> offset;  // X(node) - node, x fastest
 
-  void build(const Velocity& v, const Box& work, ThreadPool& pool, const ProgressShare& progress) {
+  // withBlocks: findBlocks() was called, and each node's blocks are noted (nodeBlocks).
+  void build(const Velocity& v, const Box& work, bool withBlocks, ThreadPool& pool, const ProgressShare& progress) {
     origin = work.lo;
     for (int a = 0; a < 3; ++a) nodes[a] = (work.size()[a] + kLatticeStep - 1) / kLatticeStep + 1;
     offset.assign(std::size_t(nodes.x) * nodes.y * nodes.z, Vec3{});
-    preimage.resize(offset.size());
+    if (withBlocks) {
+      nodeBlocks.resize(offset.size());
+      for (int a = 0; a < 3; ++a) {
+        nodeAxisBlocks[std::size_t(a)].resize(std::size_t(nodes[a]));
+        for (int i = 0; i < nodes[a]; ++i) nodeAxisBlocks[std::size_t(a)][std::size_t(i)] = axisBlocks(a, double(origin[a] + kLatticeStep * i));
+      }
+    }
     const int steps = v.substeps();
     pool.parallelFor(std::size_t(nodes.z), [&](std::size_t k) {
       progress.check();
       for (int j = 0; j < nodes.y; ++j)
         for (int i = 0; i < nodes.x; ++i) {
-          const Vec3 p{double(origin.x + kLatticeStep * i), double(origin.y + kLatticeStep * j),
-                       double(origin.z + kLatticeStep * int(k))};
-          const std::size_t n = std::size_t(i) + std::size_t(nodes.x) * (std::size_t(j) + std::size_t(nodes.y) * k);
-          if (v.moves(p)) offset[n] = v.flow(p, steps, -1) - p;
-          preimage[n] = p + offset[n];
+          const Vec3 p = node(i, j, int(k));
+          const std::size_t n = index(i, j, int(k));
+          const bool moves = v.moves(p);
+          if (moves) offset[n] = v.flow(p, steps, -1) - p;
+          if (withBlocks)
+            nodeBlocks[n] = moves ? blocksOf(p + offset[n])
+                                  : nodeAxisBlocks[0][std::size_t(i)] | nodeAxisBlocks[1][std::size_t(j)] | nodeAxisBlocks[2][k];
         }
       progress.advance(1.0 / nodes.z);
     });
+  }
+
+  Vec3 node(int i, int j, int k) const {
+    return {double(origin.x + kLatticeStep * i), double(origin.y + kLatticeStep * j), double(origin.z + kLatticeStep * k)};
+  }
+  std::size_t index(int i, int j, int k) const {
+    return std::size_t(i) + std::size_t(nodes.x) * (std::size_t(j) + std::size_t(nodes.y) * std::size_t(k));
   }
 
   // Where the lattice's cells read one value. A cell's voxels read the base inside the box of
@@ -817,9 +832,24 @@ struct InverseLattice {
   // cellValue() looks up a cell's.
   std::vector<float> blockValue;
   Int3 blockOrigin, blockCount;
+  // Per node, the blocks (from blockOrigin) that trilinear() reads for points within rounding
+  // of its preimage: the first's three coordinates and the last's negated, kOffBlocks where
+  // that is off the grid or the blocks noted; a cell's blocks are then the lanewise least of
+  // its eight corners' (the box of the preimages' blocks is the blocks of the preimages' box:
+  // the block of a coordinate is monotonic in it), 8 loads and 7 minima. Per cell, the
+  // preimages' box had taken ~450 instructions with the loop over its blocks (a grab at 20 vu
+  // looks up ~8,000 cells).
+  using NodeBlocks = std::int16_t __attribute__((vector_size(16)));
+  static constexpr std::int16_t kOffBlocks = std::numeric_limits<std::int16_t>::min();
+  std::vector<NodeBlocks> nodeBlocks;
+  // The blocks of value +band and of value -band in [0, i) x [0, j) x [0, k) of the blocks
+  // noted, packed as plus + 2^32 minus (mod 2^64 the box sums of the inclusion-exclusion are
+  // exact): whether a cell's blocks are all one such value is 8 loads.
+  std::vector<std::uint64_t> bandCounts;
+  float bandValue = 0;
   Box gridBox;
 
-  void findBlocks(const Volume& vol, const DenseGrid& base, const Box& within, ThreadPool& pool) {
+  void findBlocks(const Volume& vol, const DenseGrid& base, const Box& within, float band, ThreadPool& pool) {
     // vol's value per block of kUniformBlock^3 voxels (in volume coordinates, within bricks)
     // over base's box, NaN where it varies, lies within kExactNear of 0 or leaves the domain:
     // a brick stored uniform gives its blocks at once, the others are scanned.
@@ -827,7 +857,7 @@ struct InverseLattice {
     const Box box = within.intersect(base.box);
     const Int3 b0{blockOf(box.lo.x), blockOf(box.lo.y), blockOf(box.lo.z)};
     const Int3 nb{blockOf(box.hi.x - 1) - b0.x + 1, blockOf(box.hi.y - 1) - b0.y + 1, blockOf(box.hi.z - 1) - b0.z + 1};
-    blockOrigin = b0, blockCount = nb, gridBox = base.box;
+    blockOrigin = b0, blockCount = nb, bandValue = band;
     blockValue.assign(std::size_t(nb.x) * std::size_t(nb.y) * std::size_t(nb.z), std::numeric_limits<float>::quiet_NaN());
     const Int3 dims = vol.dims();
     pool.parallelFor(std::size_t(nb.z), [&](std::size_t kz) {
@@ -856,37 +886,68 @@ struct InverseLattice {
         }
       }
     });
+    // The counts, one pass over the blocks (a few thousand).
+    const std::size_t cx = std::size_t(nb.x) + 1, cxy = cx * (std::size_t(nb.y) + 1);
+    bandCounts.assign(cxy * (std::size_t(nb.z) + 1), 0);
+    for (int k = 0; k < nb.z; ++k)
+      for (int j = 0; j < nb.y; ++j)
+        for (int i = 0; i < nb.x; ++i) {
+          const float u = blockAt(b0.x + i, b0.y + j, b0.z + k);
+          const std::uint64_t own = u == band ? 1 : u == -band ? std::uint64_t(1) << 32 : 0;
+          std::uint64_t* c = bandCounts.data() + std::size_t(i + 1) + cx * std::size_t(j + 1) + cxy * std::size_t(k + 1);
+          *c = own + c[-1] + c[-std::ptrdiff_t(cx)] + c[-std::ptrdiff_t(cxy)] - c[-std::ptrdiff_t(cx) - 1] -
+               c[-std::ptrdiff_t(cxy) - 1] - c[-std::ptrdiff_t(cxy + cx)] + c[-std::ptrdiff_t(cxy + cx) - 1];
+        }
+    gridBox = base.box;
   }
+
+  // The blocks of the voxels trilinear() reads for points within 1e-6 of the preimage q, all
+  // within the grid (off it trilinear() reads +band), as NodeBlocks: a cell's voxels' reads are
+  // convex combinations of its corners' preimages up to a few ulps. One vector per axis, which
+  // sets its two lanes. From the grid's corner up truncation is the floor (and std::floor a
+  // sequence of instructions without SSE4.1), and an arithmetic shift the floor of a division
+  // by the block's side: blockOf(c) - blockOrigin for c = int(from) + gridBox.lo.
+  NodeBlocks axisBlocks(int a, double q) const {
+    static_assert(kUniformBlock == 4);
+    const double from = q - 1e-6 - gridBox.lo[a], to = q + 1e-6 - gridBox.lo[a];
+    const int shift = gridBox.lo[a] - kUniformBlock * blockOrigin[a];
+    const int first = from >= 0 ? (int(from) + shift) >> 2 : -1;
+    const int last = to < gridBox.hi[a] - gridBox.lo[a] - 1 ? (int(to) + 1 + shift) >> 2 : blockCount[a];
+    NodeBlocks out{};
+    out[a] = first >= 0 ? std::int16_t(first) : kOffBlocks;
+    out[a + 3] = last < blockCount[a] ? std::int16_t(-last) : kOffBlocks;
+    return out;
+  }
+  NodeBlocks blocksOf(Vec3 q) const { return axisBlocks(0, q.x) | axisBlocks(1, q.y) | axisBlocks(2, q.z); }
+  // axisBlocks() of the nodes' own coordinates (the preimages of the nodes the flow leaves
+  // alone, most of them), per axis.
+  std::array<std::vector<NodeBlocks>, 3> nodeAxisBlocks;
 
   // The value every voxel of cell (i, j, k) reads from the base, when findBlocks() found one
   // block value over all it can read, else NaN.
   float cellValue(int i, int j, int k) const {
     const std::size_t sx = std::size_t(nodes.x), sxy = sx * std::size_t(nodes.y);
-    const Vec3* o = preimage.data() + std::size_t(i) + sx * std::size_t(j) + sxy * std::size_t(k);
-    // The box of the corners' preimages.
-    Vec3 lo = o[0], hi = o[0];
-    for (const std::size_t c : {std::size_t(1), sx, sx + 1, sxy, sxy + 1, sxy + sx, sxy + sx + 1}) {
-      const Vec3 q = o[c];
-      lo.x = std::min(lo.x, q.x), hi.x = std::max(hi.x, q.x);
-      lo.y = std::min(lo.y, q.y), hi.y = std::max(hi.y, q.y);
-      lo.z = std::min(lo.z, q.z), hi.z = std::max(hi.z, q.z);
+    const NodeBlocks* o = nodeBlocks.data() + index(i, j, k);
+    const auto least = [](NodeBlocks a, NodeBlocks b) { return a < b ? a : b; };
+    const NodeBlocks m = least(least(least(o[0], o[1]), least(o[sx], o[sx + 1])),
+                               least(least(o[sxy], o[sxy + 1]), least(o[sxy + sx], o[sxy + sx + 1])));
+    if (m[0] < 0 || m[1] < 0 || m[2] < 0 || m[3] == kOffBlocks || m[4] == kOffBlocks || m[5] == kOffBlocks)
+      return std::numeric_limits<float>::quiet_NaN();
+    const int x0 = m[0], y0 = m[1], z0 = m[2], x1 = -m[3], y1 = -m[4], z1 = -m[5];
+    const float value = blockValue[std::size_t(x0) + std::size_t(blockCount.x) * (std::size_t(y0) + std::size_t(blockCount.y) * std::size_t(z0))];
+    if (value == bandValue || value == -bandValue) {
+      const std::size_t cx = std::size_t(blockCount.x) + 1, cxy = cx * (std::size_t(blockCount.y) + 1);
+      const auto at = [&](int x, int y, int z) { return bandCounts[std::size_t(x) + cx * std::size_t(y) + cxy * std::size_t(z)]; };
+      const std::uint64_t inBox = at(x1 + 1, y1 + 1, z1 + 1) - at(x0, y1 + 1, z1 + 1) - at(x1 + 1, y0, z1 + 1) - at(x1 + 1, y1 + 1, z0) +
+                                  at(x0, y0, z1 + 1) + at(x0, y1 + 1, z0) + at(x1 + 1, y0, z0) - at(x0, y0, z0);
+      const std::uint64_t all = std::uint64_t(x1 - x0 + 1) * std::uint64_t(y1 - y0 + 1) * std::uint64_t(z1 - z0 + 1);
+      return inBox == (value == bandValue ? all : all << 32) ? value : std::numeric_limits<float>::quiet_NaN();
     }
-    // The blocks of the voxels trilinear() reads for points in [lo, hi], padded for the
-    // interpolation's rounding (a convex combination of the corners up to a few ulps), all
-    // within the grid (off it trilinear() reads +band). From the grid's corner up truncation is
-    // the floor (and std::floor a sequence of instructions without SSE4.1).
-    int b0[3], b1[3];
-    for (int a = 0; a < 3; ++a) {
-      const double from = lo[a] - 1e-6 - gridBox.lo[a], to = hi[a] + 1e-6 - gridBox.lo[a];
-      if (!(from >= 0) || !(to < gridBox.hi[a] - gridBox.lo[a] - 1)) return std::numeric_limits<float>::quiet_NaN();
-      b0[a] = blockOf(int(from) + gridBox.lo[a]), b1[a] = blockOf(int(to) + 1 + gridBox.lo[a]);
-      if (b0[a] < blockOrigin[a] || b1[a] >= blockOrigin[a] + blockCount[a]) return std::numeric_limits<float>::quiet_NaN();
-    }
-    const float value = blockAt(b0[0], b0[1], b0[2]);
-    for (int bz = b0[2]; bz <= b1[2]; ++bz)
-      for (int by = b0[1]; by <= b1[1]; ++by)
-        for (int bx = b0[0]; bx <= b1[0]; ++bx)
-          if (!(blockAt(bx, by, bz) == value)) return std::numeric_limits<float>::quiet_NaN();
+    if (!(value == value)) return value;
+    for (int bz = z0; bz <= z1; ++bz)
+      for (int by = y0; by <= y1; ++by)
+        for (int bx = x0; bx <= x1; ++bx)
+          if (!(blockAt(blockOrigin.x + bx, blockOrigin.y + by, blockOrigin.z + bz) == value)) return std::numeric_limits<float>::quiet_NaN();
     return value;
   }
 
@@ -1025,7 +1086,11 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   s.warped.sx = s.base.sx;
   s.warped.sxy = s.base.sxy;
   s.warped.v.assign(s.base.v.begin(), s.base.v.end());
-  s.lattice.build(v, work, pool, share.part(kLatticeShare));
+  // Only the distances of an unpainted volume can be read a cell at a time (the channels want
+  // each voxel's preimage).
+  const bool painted = base.paintedBricks() != 0 || vol.paintedBricks() != 0;
+  if (!painted) s.lattice.findBlocks(base, s.base, work.grown(kBlockReach), band, pool);
+  s.lattice.build(v, work, !painted, pool, share.part(kLatticeShare));
 
   // Channels (../../channels.hpp), for a painted volume only: the colour is read back through
   // the same inverse map as the distance (the texel of the voxel nearest X(x)), so it moves
@@ -1035,7 +1100,6 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // distance and colour when a voxel of weight 255 lies on the clay's way from X(x) to x (x's
   // own left out), as a level-set tool stops the voxels of weight 255 (listing.cpp): a grab's
   // deep inside, which no mask reaches, is not carried through a frozen band into the air.
-  const bool painted = base.paintedBricks() != 0 || vol.paintedBricks() != 0;
   bool masked = false;
   if (painted) {
     s.texels.resize(std::size_t(gridBox.voxels()));
@@ -1048,10 +1112,6 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     for (int a = 0; a < 3; ++a) c[a] = int(std::floor(q[a] + 0.5));
     return s.base.box.contains(c) ? std::ptrdiff_t(s.base.index(c)) : -1;
   };
-
-  // Only the distances of an unpainted volume can be read a cell at a time (the channels want
-  // each voxel's preimage).
-  if (!painted) s.lattice.findBlocks(base, s.base, work.grown(kBlockReach), pool);
 
   // Each pair of slices z of `work` (a layer of the lattice's cells) resamples its voxels and
   // notes, per slice, the box of those that changed, and of those whose channels changed.
