@@ -825,8 +825,24 @@ json cameraJson(const Camera& c) {
   return {{"eye", vec3Json(c.eye)}, {"target", vec3Json(c.target)}, {"up", vec3Json(c.up)}, {"fov", c.fovY_degrees}};
 }
 
+namespace {
+
+// A value as the texts below write it.
+void appendDump(std::string& out, const json& v) { out += v.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+}  // namespace
+
+// The envelopes are written around their parts' own texts, with the keys in the order json's
+// objects keep them (sorted): the bytes an envelope object's dump gave, without the deep copy of
+// the result or params into it (a notification and a response per message; they were 47K
+// instructions of a stroke message, docs/benchmark-log.md, capacity, 2026-11-30).
 std::string resultText(const json& id, const json& result) {
-  return json{{"jsonrpc", "2.0"}, {"id", id}, {"result", result}}.dump(-1, ' ', false, json::error_handler_t::replace);
+  std::string out = "{\"id\":";
+  appendDump(out, id);
+  out += ",\"jsonrpc\":\"2.0\",\"result\":";
+  appendDump(out, result);
+  out += '}';
+  return out;
 }
 
 std::string errorText(const json& id, RpcCode code, const std::string& message, const json& data) {
@@ -836,8 +852,12 @@ std::string errorText(const json& id, RpcCode code, const std::string& message, 
 }
 
 std::string notificationText(std::string_view method, const json& params) {
-  return json{{"jsonrpc", "2.0"}, {"method", method}, {"params", params}}.dump(-1, ' ', false,
-                                                                                 json::error_handler_t::replace);
+  std::string out = "{\"jsonrpc\":\"2.0\",\"method\":";
+  appendDump(out, json(method));
+  out += ",\"params\":";
+  appendDump(out, params);
+  out += '}';
+  return out;
 }
 
 json vec3Json(Vec3 v) { return json::array({v.x, v.y, v.z}); }

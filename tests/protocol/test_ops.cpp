@@ -333,3 +333,26 @@ TEST_CASE("an unknown key of control characters is quoted short in its error (fo
     CHECK(r.error->message.size() < 160);
   }
 }
+
+TEST_CASE("a response and a notification are the dumps of their envelope objects", "[rpc]") {
+  // resultText and notificationText write the envelope around their parts' texts; these are the
+  // bytes the envelope objects themselves dump to, invalid UTF-8 replaced as there.
+  const auto dumped = [](const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); };
+  const json box{{"lo", {1, 2, 3}}, {"hi", {4, 5, 6}}};
+  const std::vector<json> ids{7, 4294967295u, -3, "a \"quoted\" id", "bad \xff utf-8", nullptr};
+  const std::vector<json> values{json::object(),
+                                 {{"revision", 12}, {"applied", 2}, {"roi", box}, {"plane", {0.5, -1e-300, 2}}},
+                                 {{"z", "last"}, {"a", "first \xfe"}, {"m", json::array()}},
+                                 "text",
+                                 nullptr};
+  for (const json& id : ids)
+    for (const json& v : values) {
+      INFO(dumped(id) << " " << dumped(v));
+      CHECK(resultText(id, v) == dumped({{"jsonrpc", "2.0"}, {"id", id}, {"result", v}}));
+    }
+  for (const char* method : {"session.changed", "a \"method\" \x80"})
+    for (const json& v : values) {
+      INFO(method << " " << dumped(v));
+      CHECK(notificationText(method, v) == dumped({{"jsonrpc", "2.0"}, {"method", method}, {"params", v}}));
+    }
+}
