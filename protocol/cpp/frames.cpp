@@ -87,24 +87,32 @@ FrameDecodeResult decodeFrameHeader(std::span<const std::uint8_t> bytes, std::ui
 
 std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                                       std::span<const std::uint8_t> payload) {
-  if (!isFrameKind(std::uint32_t(kind)))
-    throw std::invalid_argument("binary frame kind " + std::to_string(unsigned(kind)) + " is unknown");
-  if (payload.size() > kMaxFramePayload)
-    throw std::invalid_argument("binary frame payload of " + std::to_string(payload.size()) +
-                                " bytes does not fit the 32-bit length field");
-  // The header written in place, the payload appended: no zeroing of what the copy fills.
+  // The header's room left, the payload appended: no zeroing of what the copy fills.
   std::vector<std::uint8_t> out;
   out.reserve(kFrameHeaderBytes + payload.size());
   out.resize(kFrameHeaderBytes);
-  std::uint8_t* p = out.data();
+  out.insert(out.end(), payload.begin(), payload.end());
+  return encodeFrameInPlace(kind, requestId, revision, std::move(out));
+}
+
+std::vector<std::uint8_t> encodeFrameInPlace(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
+                                             std::vector<std::uint8_t> buffer) {
+  if (!isFrameKind(std::uint32_t(kind)))
+    throw std::invalid_argument("binary frame kind " + std::to_string(unsigned(kind)) + " is unknown");
+  if (buffer.size() < kFrameHeaderBytes)
+    throw std::invalid_argument("a frame's buffer of " + std::to_string(buffer.size()) + " bytes has no room for its header");
+  const std::size_t payload = buffer.size() - kFrameHeaderBytes;
+  if (payload > kMaxFramePayload)
+    throw std::invalid_argument("binary frame payload of " + std::to_string(payload) +
+                                " bytes does not fit the 32-bit length field");
+  std::uint8_t* p = buffer.data();
   std::copy(kFrameMagic.begin(), kFrameMagic.end(), p);
   le::put16(p + kVersionOffset, kFrameFormatVersion);
   le::put16(p + kKindOffset, std::uint16_t(kind));
   le::put32(p + kRequestIdOffset, requestId);
   le::put64(p + kRevisionOffset, revision);
-  le::put32(p + kLengthOffset, std::uint32_t(payload.size()));
-  out.insert(out.end(), payload.begin(), payload.end());
-  return out;
+  le::put32(p + kLengthOffset, std::uint32_t(payload));
+  return buffer;
 }
 
 }  // namespace marzipan::protocol

@@ -94,5 +94,10 @@ FrameDecodeResult decodeFrameHeader(std::span<const std::uint8_t> bytes, std::ui
 // FrameKind or a payload longer than kMaxFramePayload.
 std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                                       std::span<const std::uint8_t> payload);
+// The same frame made in place of `buffer`, whose first kFrameHeaderBytes are room the caller
+// left for the header and the rest the payload: no copy of a payload written where it goes.
+// Throws as encodeFrame, and std::invalid_argument for a buffer shorter than a header.
+std::vector<std::uint8_t> encodeFrameInPlace(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
+                                             std::vector<std::uint8_t> buffer);
 
 }  // namespace marzipan::protocol

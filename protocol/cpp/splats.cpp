@@ -254,19 +254,19 @@ std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p, std::uint16_t ve
 }
 
 // The header of a buffer for blocks of the given brick keys holding `points` points in all, with
-// room for `bytes` bytes in all (the blocks are appended, or written after a resize); refuses a
-// key listed twice.
+// room for `bytes` bytes in all (the blocks are appended, or written after a resize), after
+// `headroom` bytes left unset; refuses a key listed twice.
 std::vector<std::uint8_t> startBuffer(std::vector<std::uint64_t>& keys, std::size_t points, std::size_t bytes,
-                                      std::uint16_t version) {
+                                      std::uint16_t version, std::size_t headroom = 0) {
   std::sort(keys.begin(), keys.end());
   if (std::adjacent_find(keys.begin(), keys.end()) != keys.end())
     throw EngineError(ErrorKind::InvalidArgument, "brick", "a brick is listed twice");
   if (keys.size() > 0xffffffffu || points > 0xffffffffu)
     throw EngineError(ErrorKind::TooLarge, "splats", "more than 2^32 - 1 bricks or points");
   std::vector<std::uint8_t> out;
-  out.reserve(bytes);
-  out.resize(kSplatHeaderBytes);
-  std::uint8_t* p = out.data();
+  out.reserve(headroom + bytes);
+  out.resize(headroom + kSplatHeaderBytes);
+  std::uint8_t* p = out.data() + headroom;
   std::memcpy(p, kMagic, 4);
   put16(p + 4, version);
   put16(p + 6, 0);
@@ -330,7 +330,7 @@ void encodeSplatBlock(const BrickSplats& brick, std::vector<std::uint8_t>& out, 
 }
 
 std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std::uint8_t>>& blocks,
-                                          std::uint16_t version) {
+                                          std::uint16_t version, std::size_t headroom) {
   checkVersion(version);
   std::vector<std::uint64_t> keys;
   keys.reserve(blocks.size());
@@ -344,7 +344,7 @@ std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std:
     points += c.n;
     bytes += b.size();
   }
-  std::vector<std::uint8_t> out = startBuffer(keys, points, bytes, version);
+  std::vector<std::uint8_t> out = startBuffer(keys, points, bytes, version, headroom);
   for (const auto& b : blocks) out.insert(out.end(), b.begin(), b.end());
   return out;
 }

@@ -87,9 +87,10 @@ void encodeSplatBlock(const BrickSplats& brick, std::vector<std::uint8_t>& out,
 // as encodeSplats of their bricks (a server that keeps each brick's block, to send only those
 // that changed, joins them without encoding again). Throws as encodeSplats does for a brick
 // listed twice; a block that is not one brick's in that version (its length disagrees with its
-// N) is an InvalidArgument.
+// N) is an InvalidArgument. The buffer follows `headroom` bytes of room for the caller (a frame's
+// header: encodeFrameInPlace), unset.
 std::vector<std::uint8_t> joinSplatBlocks(const std::vector<std::span<const std::uint8_t>>& blocks,
-                                          std::uint16_t version = kSplatFormatVersion);
+                                          std::uint16_t version = kSplatFormatVersion, std::size_t headroom = 0);
 
 // A valid buffer of either version as version 1 (the same bytes for version 1; version 2's
 // colours dropped): what a client that did not opt into colour gets. Throws as decodeSplats.

@@ -594,6 +594,9 @@ TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the ord
   std::vector<std::span<const std::uint8_t>> spans(blocks.begin(), blocks.end());
   CHECK(joinSplatBlocks(spans) == encodeSplats(bricks));
   CHECK(joinSplatBlocks({}) == encodeSplats({}));
+  // After room left for a frame's header: the same buffer behind it.
+  const std::vector<std::uint8_t> roomy = joinSplatBlocks(spans, kSplatFormatVersion, 24);
+  CHECK(std::vector<std::uint8_t>(roomy.begin() + 24, roomy.end()) == encodeSplats(bricks));
   // The refusals of encodeSplats, and blocks that are not one brick's.
   spans.push_back(blocks[3]);
   CHECK_THROWS_AS(joinSplatBlocks(spans), EngineError);

@@ -145,6 +145,15 @@ TEST_CASE("frames: encoding writes every field little-endian at its offset") {
   CHECK(errorOf(bytes, 2) == FrameErrorCode::TooLarge);
   CHECK_THROWS_AS(encodeFrame(FrameKind(0), 1, 1, payload), std::invalid_argument);
   CHECK_THROWS_AS(encodeFrame(FrameKind(12), 1, 1, payload), std::invalid_argument);
+  // In place: the same bytes from a buffer holding the payload after room for the header.
+  std::vector<std::uint8_t> room(kFrameHeaderBytes, 0xee);
+  room.insert(room.end(), payload.begin(), payload.end());
+  CHECK(encodeFrameInPlace(FrameKind::MeshPly, 0xA1B2C3D4u, 0x1122334455667788ull, room) == want);
+  CHECK(encodeFrameInPlace(FrameKind::MeshPly, 1, 1, std::vector<std::uint8_t>(kFrameHeaderBytes)) ==
+        encodeFrame(FrameKind::MeshPly, 1, 1, {}));
+  CHECK_THROWS_AS(encodeFrameInPlace(FrameKind::MeshPly, 1, 1, std::vector<std::uint8_t>(kFrameHeaderBytes - 1)),
+                  std::invalid_argument);
+  CHECK_THROWS_AS(encodeFrameInPlace(FrameKind(12), 1, 1, room), std::invalid_argument);
 }
 
 TEST_CASE("frames: every single-byte change to a header field is caught or decoded as that field") {

@@ -102,7 +102,7 @@ SharedBytes plainFrame(const Bytes& frame) {
   return makeFrame(f.header.kind, f.header.requestId, f.header.revision, splatsAsVersion1(f.payload));
 }
 
-std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol) {
+std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fresh, const Volume& vol, std::size_t headroom) {
   std::vector<std::span<const std::uint8_t>> changed;
   changed.reserve(fresh.size());
   std::vector<std::uint8_t> block;
@@ -116,7 +116,7 @@ std::vector<std::uint8_t> HeldSplats::delta(const std::vector<BrickSplats>& fres
     *held = std::move(kept);
     changed.emplace_back(*held);
   }
-  std::vector<std::uint8_t> buffer = joinSplatBlocks(changed);
+  std::vector<std::uint8_t> buffer = joinSplatBlocks(changed, kSplatFormatVersion, headroom);
   if (bytes > kMaxBytes || (bytes > kCheckBytes && bytes > vol.memoryBytes() / 2)) {
     blocks.clear();
     bytes = 0;
@@ -131,8 +131,10 @@ SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bri
   held.of = &ss;
   held.revision = ss.revision();
   try {
-    const std::vector<std::uint8_t> payload = held.delta(extractSplats(ss.volume(), bricks), ss.volume());
-    return makeFrame(protocol::FrameKind::SplatsDelta, 0, ss.revision(), payload);
+    // The delta written after room for the frame's header: ~12 KB not copied again.
+    return std::make_shared<const Bytes>(
+        protocol::encodeFrameInPlace(protocol::FrameKind::SplatsDelta, 0, ss.revision(),
+                                     held.delta(extractSplats(ss.volume(), bricks), ss.volume(), protocol::kFrameHeaderBytes)));
   } catch (...) {
     held.clear();  // it may record blocks that were never sent
     throw;

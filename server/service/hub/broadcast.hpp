@@ -95,8 +95,9 @@ struct HeldSplats {
   void clear();
   // The splat buffer (protocol/cpp/splats.hpp) of the bricks of `fresh` whose blocks differ from
   // the recorded ones (or are not recorded), which it records; then the bound, for a record of
-  // vol's splats. fresh: distinct bricks (bricksAroundChanges' list).
-  std::vector<std::uint8_t> delta(const std::vector<BrickSplats>& fresh, const Volume& vol);
+  // vol's splats. fresh: distinct bricks (bricksAroundChanges' list). The buffer follows
+  // `headroom` bytes of room for a frame's header (joinSplatBlocks).
+  std::vector<std::uint8_t> delta(const std::vector<BrickSplats>& fresh, const Volume& vol, std::size_t headroom = 0);
 };
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
