@@ -768,7 +768,7 @@ constexpr int kLatticeStep = 2;
 // integrated at the voxel: they hold the zero set (and the lattice's error, measured up to
 // 0.76 vu at the peak of a 3-radius grab, stays below the margin).
 constexpr float kExactNear = 2.0f;
-static_assert((kLatticeStep & (kLatticeStep - 1)) == 0, "InverseLattice::inverse multiplies by 1 / kLatticeStep");
+static_assert(kLatticeStep == 2, "InverseLattice::inverse: a voxel's weights are 0 or 1/2");
 // The redistance's moved boxes are the boxes of the changed voxels of slabs of this many
 // slices. With one box of them all, grown by a voxel (before 2026-11-29), a snake hook move of
 // 2 vu at radius 8 took 5.07M instructions; with slabs of 1, 2, 4 or 8 slices 4.83M, 4.76M,
@@ -964,22 +964,35 @@ struct InverseLattice {
                       std::size_t(blockCount.x) * (std::size_t(by - blockOrigin.y) + std::size_t(blockCount.y) * std::size_t(bz - blockOrigin.z))];
   }
 
-  Vec3 inverse(Vec3 p) const {
-    double t[3];
-    int c[3];
-    for (int a = 0; a < 3; ++a) {
-      // The step is a power of two (the product is exact); truncation gives floor's cell
-      // wherever the clamp lets it matter (q >= 0).
-      const double q = (p[a] - origin[a]) * (1.0 / kLatticeStep);
-      c[a] = std::clamp(int(q), 0, nodes[a] - 2);
-      t[a] = q - c[a];
-    }
+  // X(p) at the voxel p = (x, y, z) of `work`, the offsets interpolated trilinearly between
+  // the nodes of its cell, along row(y, z). The nodes are kLatticeStep = 2 apart, so a voxel's
+  // weight along each axis is 0 (on a node's plane) or 1/2: a weight of 0 takes the first of
+  // each pair, as a + (b - a) 0 does up to the sign of a zero (which p + offset does not
+  // see), and the interpolation runs only across the axes of weight 1/2, half its 4 + 2 + 1
+  // steps on average.
+  struct Row {
+    const Vec3* o;  // the offsets of row (y, z)'s first cell
+    bool ty, tz;    // whether its weights along y and z are 1/2
+  };
+  Row row(int y, int z) const {
+    const unsigned dy = unsigned(y - origin.y), dz = unsigned(z - origin.z);
+    return {offset.data() + index(0, int(dy / kLatticeStep), int(dz / kLatticeStep)), dy % kLatticeStep != 0, dz % kLatticeStep != 0};
+  }
+  Vec3 inverse(const Row& r, Vec3 p, int x) const {
+    const unsigned dx = unsigned(x - origin.x);
     const std::size_t sx = std::size_t(nodes.x), sxy = sx * std::size_t(nodes.y);
-    const Vec3* o = offset.data() + std::size_t(c[0]) + sx * std::size_t(c[1]) + sxy * std::size_t(c[2]);
-    const auto lerp = [](Vec3 a, Vec3 b, double w) { return a + (b - a) * w; };
-    const Vec3 y0 = lerp(lerp(o[0], o[1], t[0]), lerp(o[sx], o[sx + 1], t[0]), t[1]);
-    const Vec3 y1 = lerp(lerp(o[sxy], o[sxy + 1], t[0]), lerp(o[sxy + sx], o[sxy + sx + 1], t[0]), t[1]);
-    return p + lerp(y0, y1, t[2]);
+    const Vec3* o = r.o + dx / kLatticeStep;
+    const bool tx = dx % kLatticeStep != 0;
+    const auto half = [](Vec3 a, Vec3 b) { return a + (b - a) * 0.5; };
+    const auto alongX = [&](std::size_t at) { return tx ? half(o[at], o[at + 1]) : o[at]; };
+    Vec3 c = alongX(0);
+    if (r.ty) c = half(c, alongX(sx));
+    if (r.tz) {
+      Vec3 above = alongX(sxy);
+      if (r.ty) above = half(above, alongX(sxy + sx));
+      c = half(c, above);
+    }
+    return p + c;
   }
 };
 
@@ -1172,6 +1185,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         while (x1 > x0 && !v.moves({double(x1 - 1), double(y), double(z)})) --x1;
         runOf(y, z) = {x0, x1};
         const int cy = (y - work.lo.y) / kLatticeStep;
+        const InverseLattice::Row latticeRow = s.lattice.row(y, z);
         float* cellRow = nullptr;
         if (!painted && x1 > x0) {
           if (cells.empty()) cells.assign(std::size_t(cellsX) * std::size_t(s.lattice.nodes.y - 1), std::numeric_limits<float>::infinity());
@@ -1191,7 +1205,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
             }
           }
           const Vec3 p{double(x), double(y), double(z)};
-          Vec3 q = s.lattice.inverse(p);
+          Vec3 q = s.lattice.inverse(latticeRow, p, x);
           float value = float(read(q));
           // Near the zero set the surface's place is read: there X is integrated at the voxel.
           if (std::fabs(value) < kExactNear) {
