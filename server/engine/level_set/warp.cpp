@@ -1342,6 +1342,13 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // taps reach a voxel farther, into the clamped band across a thin tip, and a straight
   // tentacle's tip read gradient error 0.199 after 200 vu (0.075 with the central differences).
   const bool cubicSlope = footPoints;
+  // Whether the central differences at q read within the grid (the tests of
+  // centralDifferences<false>, which then all pass, left out): a foot point's mostly do.
+  const auto stencilInGrid = [&](Vec3 q) {
+    for (int a = 0; a < 3; ++a)
+      if (!(q[a] - kSlopeStep - reads.lo[a] >= 0 && q[a] + kSlopeStep - reads.lo[a] < reads.size[a] - 1)) return false;
+    return true;
+  };
   const auto slopeOfWarped = [&](Vec3 at, double* phi, bool anywhere) {
     double DX[3][3];
     const Vec3 q = v.inverseWithJacobian(at, steps, DX);
@@ -1349,7 +1356,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     double value;
     if (!(cubicSlope && anywhere)) {
       if (phi) *phi = readNearAnywhere(q);
-      g0 = inGrid && !anywhere ? centralDifferences<true>(reads, q, kSlopeStep, band) : centralDifferences<false>(reads, q, kSlopeStep, band);
+      g0 = inGrid && (!anywhere || stencilInGrid(q)) ? centralDifferences<true>(reads, q, kSlopeStep, band)
+                                                     : centralDifferences<false>(reads, q, kSlopeStep, band);
     } else if (tricubic<true>(reads, q, value, &g0)) {
       if (phi) *phi = value;
     } else {
