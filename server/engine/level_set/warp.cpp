@@ -270,14 +270,25 @@ struct Velocity {
 
   // falloff(t2) and falloffSlope(t2), sharing the root.
   std::pair<double, double> falloffWithSlope(double t2) const {
-    if (t2 <= plateau2) return {1, 0};
-    const double t = std::sqrt(t2);
-    const double u = (t - plateau) * outerScale;
-    if (falloffShape == Falloff::Quintic) {
+    return falloffShape == Falloff::Quintic ? shapeFalloffWithSlope<Falloff::Quintic>(t2)
+                                            : shapeFalloffWithSlope<Falloff::Quartic>(t2);
+  }
+  // falloffWithSlope() of the shape kShape (falloffShape), as shapeFalloff(): the quintic's
+  // plateau is 0 and its outerScale 1, and its test is that of t = 0, where the slope would
+  // divide by t.
+  template <Falloff kShape>
+  [[gnu::always_inline]] std::pair<double, double> shapeFalloffWithSlope(double t2) const {
+    if constexpr (kShape == Falloff::Quintic) {
+      if (t2 <= 0) return {1, 0};
+      const double u = std::sqrt(t2);
       const double w = u * (1 - u);
-      return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * outerScale * w * w / t};
+      return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * w * w / u};
+    } else {
+      if (t2 <= plateau2) return {1, 0};
+      const double t = std::sqrt(t2);
+      const double u = (t - plateau) * outerScale;
+      return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
     }
-    return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
   }
 
   // v(y) and its Jacobian J (J[i][j] = d v_i / d y_j).
@@ -520,7 +531,9 @@ struct Velocity {
   // q, the squared distance to its line, which the flow keeps. With f(a, q) the speed, the
   // backward flow is a' = -f, and the variational equation follows m = da/da0 and
   // w = da/dq by the same midpoint rule (the general one restricted to this flow):
-  // X(y) = y + axis (a - a0), DX = I + axis (m axis + 2 w off - axis)^T.
+  // X(y) = y + axis (a - a0), DX = I + axis (m axis + 2 w off - axis)^T. The falloff's shape is
+  // a parameter, as capsuleFlow()'s.
+  template <Falloff kShape>
   Vec3 capsuleInverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) X[i][j] = i == j ? 1 : 0;
@@ -542,7 +555,7 @@ struct Velocity {
       const double rho2 = q + e * e;
       Speed out;
       if (rho2 >= R2) return out;
-      const auto [fall, fallSlope] = falloffWithSlope(rho2 / R2);
+      const auto [fall, fallSlope] = shapeFalloffWithSlope<kShape>(rho2 / R2);
       const double slope = speed * fallSlope / R2;
       out.f = speed * fall;
       out.fa = slope * 2 * (a < 0 ? a : e);
@@ -554,8 +567,10 @@ struct Velocity {
     double a = a0, m = 1, w = 0;
     for (int i = 0; i < n;) {
       if (a >= 0 && a <= length && inside.f > 0) {
-        // Sub-steps that start and end between the end planes: f_a = 0 there.
-        const int k = int(std::min(double(n - i), std::floor(a / (dt * inside.f))));
+        // Sub-steps that start and end between the end planes: f_a = 0 there. room >= 0:
+        // truncation is its floor (as in capsuleFlow()).
+        const double room = a / (dt * inside.f);
+        const int k = room < n - i ? int(room) : n - i;
         if (k > 0) {
           a -= k * (dt * inside.f);
           w -= k * (dt * inside.fq);
@@ -581,7 +596,9 @@ struct Velocity {
   // The same backwards, with the Jacobian of the map y -> X(y) (the variational equation
   // dJ/dt = -grad v J, by the same midpoint rule).
   Vec3 inverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
-    if (kind == Kind::Capsule) return capsuleInverseWithJacobian(y, n, X);
+    if (kind == Kind::Capsule)
+      return falloffShape == Falloff::Quintic ? capsuleInverseWithJacobian<Falloff::Quintic>(y, n, X)
+                                              : capsuleInverseWithJacobian<Falloff::Quartic>(y, n, X);
     if (kind == Kind::PathPinch) return pinchInverseWithJacobian(y, n, X);
     const double dt = 1.0 / n;
     double J[3][3], Jm[3][3], M[3][3], G[3][3];
