@@ -120,12 +120,13 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound) {
   Vec3 c;
   for (int a = 0; a < 3; ++a) {
     const json& x = v[std::size_t(a)];
-    const std::string element = inQuotes(key) + "[" + std::to_string(a) + "]";
-    if (!x.is_number()) throw OpError(std::string(key), element + " must be a number, got " + describe(x));
+    // Written only for an error: a dab's centre is read three numbers a dab.
+    const auto element = [&] { return inQuotes(key) + "[" + std::to_string(a) + "]"; };
+    if (!x.is_number()) throw OpError(std::string(key), element() + " must be a number, got " + describe(x));
     c[a] = x.get<double>();
-    if (!std::isfinite(c[a])) throw OpError(std::string(key), element + " must be a finite number");
+    if (!std::isfinite(c[a])) throw OpError(std::string(key), element() + " must be a finite number");
     if (std::abs(c[a]) > bound)
-      throw OpError(std::string(key), element + " must be within +-" + formatNumber(bound) + " vu, got " +
+      throw OpError(std::string(key), element() + " must be within +-" + formatNumber(bound) + " vu, got " +
                                           formatNumber(c[a]));
   }
   return c;
@@ -197,11 +198,12 @@ SrgbColor colorValue(const json& v, std::string_view key) {
   std::uint8_t c[3];
   for (std::size_t a = 0; a < 3; ++a) {
     const json& x = v[a];
-    const std::string element = inQuotes(key) + "[" + std::to_string(a) + "]";
     const bool ok = x.is_number_unsigned() ? x.get<std::uint64_t>() <= 255
                     : x.is_number_integer()  ? x.get<std::int64_t>() >= 0 && x.get<std::int64_t>() <= 255
                                              : false;
-    if (!ok) throw OpError(std::string(key), element + " must be an integer from 0 to 255, got " + describe(x));
+    if (!ok)
+      throw OpError(std::string(key), inQuotes(key) + "[" + std::to_string(a) + "] must be an integer from 0 to 255, got " +
+                                          describe(x));
     c[a] = std::uint8_t(x.get<std::uint64_t>());
   }
   return {c[0], c[1], c[2]};

@@ -523,7 +523,6 @@ StrokeDabsParams parseStrokeDabsParams(const json& params, std::size_t maxDabs) 
   p.dabs.reserve(dabs.size());
   for (std::size_t i = 0; i < dabs.size(); ++i) {
     const json& d = dabs[i];
-    const std::string where = "\"dabs\"[" + std::to_string(i) + "]";
     try {
       if (!d.is_object()) fail("dab", "must be an object {center | ray, pressure?}, got " + describe(d));
       checkKeys(d, {"center", "ray", "pressure"}, "a dab");
@@ -539,7 +538,7 @@ StrokeDabsParams parseStrokeDabsParams(const json& params, std::size_t maxDabs) 
       }
       p.dabs.push_back(dab);
     } catch (const OpError& e) {
-      throw OpError("dabs", where + ": " + e.message());
+      throw OpError("dabs", "\"dabs\"[" + std::to_string(i) + "]: " + e.message());
     }
   }
   return p;

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "protocol/cpp/ops.hpp"
+#include "protocol/cpp/json_checks.hpp"
 #include "protocol/cpp/rpc.hpp"
 
 using namespace marzipan;
@@ -355,4 +356,25 @@ TEST_CASE("a response and a notification are the dumps of their envelope objects
       INFO(method << " " << dumped(v));
       CHECK(notificationText(method, v) == dumped({{"jsonrpc", "2.0"}, {"method", method}, {"params", v}}));
     }
+}
+
+TEST_CASE("a bad dab and a bad colour are named down to the element", "[rpc]") {
+  // The element's name is written only for an error (not for every number read): these are the
+  // texts it gives.
+  const auto messageOf = [](const auto& parse) -> std::string {
+    try {
+      parse();
+    } catch (const OpError& e) {
+      return e.message();
+    }
+    return "";
+  };
+  const json dabs{{"stroke", 1}, {"dabs", {{{"center", {1, 2, 3}}}, {{"center", {1, 2, 1e300}}, {"pressure", 1}}}}};
+  CHECK(messageOf([&] { parseStrokeDabsParams(dabs, 16); }) ==
+        "\"dabs\"[1]: \"center\"[2] must be within +-1e+06 vu, got 1e+300");
+  const json notNumber{{"stroke", 1}, {"dabs", {{{"center", {1, "2", 3}}}}}};
+  CHECK(messageOf([&] { parseStrokeDabsParams(notNumber, 16); }) ==
+        "\"dabs\"[0]: \"center\"[1] must be a number, got the string \"2\"");
+  CHECK(messageOf([] { checks::colorValue(json{0, 255, 256}, "color"); }) ==
+        "\"color\"[2] must be an integer from 0 to 255, got the integer 256");
 }
