@@ -185,11 +185,28 @@ std::uint64_t fingerprint(const std::vector<const BrickRef*>& refs) {
 // Buffers of up to this size stay with their thread (a stroke of 128^3 packs ~1 MiB).
 constexpr std::size_t kKeptScratchBytes = std::size_t(8) << 20;
 
+// A scratch buffer that grows without zeroing what will be written over.
+struct ScratchBytes {
+  std::unique_ptr<unsigned char[]> bytes;
+  std::size_t size = 0;
+  unsigned char* atLeast(std::size_t n) {
+    if (size < n) {
+      bytes = std::make_unique_for_overwrite<unsigned char[]>(n);
+      size = n;
+    }
+    return bytes.get();
+  }
+  void release() {
+    bytes.reset();
+    size = 0;
+  }
+};
+
 // One compression context and buffers per thread, reused: a fresh context costs its tables'
 // initialisation, and fresh buffers page faults and zeroing, on every step.
 struct Scratch {
   std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx{ZSTD_createCCtx(), &ZSTD_freeCCtx};
-  std::vector<unsigned char> planes, low, frame;
+  ScratchBytes planes, low, frame;
 };
 
 Scratch& scratch() {
@@ -262,8 +279,8 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
   }
   Scratch& z = scratch();
   const std::size_t bound = dataBricks * (kMaskBytes + kBrickBytes), lowBound = dataBricks * kLowPlanes * kBrickVoxels;
-  if (z.planes.size() < bound) z.planes.resize(bound);
-  if (z.low.size() < lowBound) z.low.resize(lowBound);
+  unsigned char* const planes = z.planes.atLeast(bound);
+  unsigned char* const low = z.low.atLeast(lowBound);
   RecordBytes size;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     const BrickRef* r = refs[i];
@@ -273,23 +290,23 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
     }
     p.kinds.push_back(PackedBricks::kData);
     const RecordBytes s = splitPlanes(*r->data, against[i]->data ? against[i]->data->v : nullptr,
-                                      z.planes.data() + size.packed, z.low.data() + size.low);
+                                      planes + size.packed, low + size.low);
     size.packed += s.packed;
     size.low += s.low;
   }
-  if (z.frame.size() < ZSTD_compressBound(size.packed)) z.frame.resize(ZSTD_compressBound(size.packed));
-  const std::size_t n =
-      ZSTD_compressCCtx(z.cctx.get(), z.frame.data(), z.frame.size(), z.planes.data(), size.packed, kZstdLevel);
+  const std::size_t frameBound = ZSTD_compressBound(size.packed);
+  unsigned char* const frame = z.frame.atLeast(frameBound);
+  const std::size_t n = ZSTD_compressCCtx(z.cctx.get(), frame, frameBound, planes, size.packed, kZstdLevel);
   if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
   p.packed = n;
-  p.frame.resize(n + size.low);  // exactly these bytes, no slack
-  std::memcpy(p.frame.data(), z.frame.data(), n);
-  if (size.low) std::memcpy(p.frame.data() + n, z.low.data(), size.low);
+  p.frame.reserve(n + size.low);  // exactly these bytes, no slack (and not zeroed first)
+  p.frame.insert(p.frame.end(), frame, frame + n);
+  p.frame.insert(p.frame.end(), low, low + size.low);
   if (bound > kKeptScratchBytes) {
     // A whole-volume step: do not keep its buffers for the life of the thread.
-    z.planes = {};
-    z.low = {};
-    z.frame = {};
+    z.planes.release();
+    z.low.release();
+    z.frame.release();
   }
   return p;
 }
