@@ -859,6 +859,39 @@ std::string notificationText(std::string_view method, const json& params) {
   return out;
 }
 
+std::string sessionChangedText(std::uint64_t revision, int by, std::string_view cause, const Box& roi,
+                               std::string_view digest, bool canUndo, bool canRedo) {
+  // The params' keys in the order json's objects keep them (sorted), as notificationText writes
+  // them: every edit sends this to every client, and building the object and dumping it took
+  // ~27K instructions a stroke message (docs/benchmark-log.md, capacity, 2026-11-30).
+  std::string out = "{\"jsonrpc\":\"2.0\",\"method\":\"session.changed\",\"params\":{\"by\":";
+  out += std::to_string(by);
+  out += ",\"can_redo\":";
+  out += canRedo ? "true" : "false";
+  out += ",\"can_undo\":";
+  out += canUndo ? "true" : "false";
+  out += ",\"cause\":";
+  appendDump(out, json(cause));
+  out += ",\"digest\":";
+  appendDump(out, json(digest));
+  out += ",\"revision\":";
+  out += std::to_string(revision);
+  out += ",\"roi\":";
+  if (roi.empty()) {
+    out += "null";
+  } else {
+    const auto corner = [&](const char* key, Int3 c) {
+      out += key;
+      out += std::to_string(c.x) + "," + std::to_string(c.y) + "," + std::to_string(c.z) + "]";
+    };
+    corner("{\"hi\":[", roi.hi);
+    corner(",\"lo\":[", roi.lo);
+    out += '}';
+  }
+  out += "}}";
+  return out;
+}
+
 json vec3Json(Vec3 v) { return json::array({v.x, v.y, v.z}); }
 
 json boxJson(const Box& b) {

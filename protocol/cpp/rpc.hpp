@@ -319,6 +319,11 @@ std::string resultText(const nlohmann::json& id, const nlohmann::json& result);
 std::string errorText(const nlohmann::json& id, RpcCode code, const std::string& message,
                       const nlohmann::json& data = nullptr);
 std::string notificationText(std::string_view method, const nlohmann::json& params);
+// The session.changed notification (PROTOCOL.md) that every edit sends each client of its
+// session: the bytes of notificationText of its params object, written directly. roi: null
+// when empty, as boxJson.
+std::string sessionChangedText(std::uint64_t revision, int by, std::string_view cause, const Box& roi,
+                               std::string_view digest, bool canUndo, bool canRedo);
 
 // {"lo":[x,y,z],"hi":[x,y,z]}, or null for an empty box.
 nlohmann::json boxJson(const Box& b);

@@ -378,3 +378,26 @@ TEST_CASE("a bad dab and a bad colour are named down to the element", "[rpc]") {
   CHECK(messageOf([] { checks::colorValue(json{0, 255, 256}, "color"); }) ==
         "\"color\"[2] must be an integer from 0 to 255, got the integer 256");
 }
+
+TEST_CASE("session.changed is notificationText of its params object", "[rpc]") {
+  const auto expected = [](std::uint64_t revision, int by, const std::string& cause, const Box& roi,
+                           const std::string& digest, bool canUndo, bool canRedo) {
+    return notificationText("session.changed", {{"revision", revision},
+                                                {"by", by},
+                                                {"cause", cause},
+                                                {"roi", boxJson(roi)},
+                                                {"digest", digest},
+                                                {"can_undo", canUndo},
+                                                {"can_redo", canRedo}});
+  };
+  const std::vector<Box> rois{Box{}, Box{{1, 2, 3}, {40, 50, 60}}, Box{{-5, 0, 7}, {-4, 1, 2147483647}}};
+  for (const Box& roi : rois)
+    for (const std::uint64_t revision : {std::uint64_t(1), std::uint64_t(9007199254740991)})
+      for (const bool undo : {false, true}) {
+        INFO(revision << " " << undo);
+        CHECK(sessionChangedText(revision, 3, "stroke", roi, "0123456789abcdef", undo, !undo) ==
+              expected(revision, 3, "stroke", roi, "0123456789abcdef", undo, !undo));
+        CHECK(sessionChangedText(revision, -1, "a \"cause\" \x01\xff", roi, "", !undo, !undo) ==
+              expected(revision, -1, "a \"cause\" \x01\xff", roi, "", !undo, !undo));
+      }
+}

@@ -58,13 +58,8 @@ void HeldSplats::clear() {
 void Broadcaster::changed(LiveSession& s, const HubClient& by, std::string_view cause, const Box& roi,
                           const std::vector<Int3>& bricks, bool full) {
   const Session& ss = *s.session;
-  const std::string text = protocol::notificationText("session.changed", {{"revision", ss.revision()},
-                                                                          {"by", by.clientId},
-                                                                          {"cause", cause},
-                                                                          {"roi", protocol::boxJson(roi)},
-                                                                          {"digest", digestText(ss.digest())},
-                                                                          {"can_undo", ss.canUndo()},
-                                                                          {"can_redo", ss.canRedo()}});
+  const std::string text = protocol::sessionChangedText(ss.revision(), by.clientId, cause, roi, digestText(ss.digest()),
+                                                        ss.canUndo(), ss.canRedo());
   const auto members = s.members();
   // The other clients first: they need not wait for the splats to be extracted.
   bool splatsMode = false;
