@@ -1228,7 +1228,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
         for (int x = x0; x < x1; ++x) {
           const std::size_t k = s.warped.index({x, y, z});
           if (cellRow) {
-            const int ci = (x - work.lo.x) / kLatticeStep;
+            // x >= work.lo.x: unsigned, the division is a shift (a signed one rounds towards 0).
+            const int ci = int(unsigned(x - work.lo.x) / kLatticeStep);
             float& u = cellRow[ci];
             if (u == std::numeric_limits<float>::infinity()) u = s.lattice.cellValue(ci, cy, int(layer));
             // A voxel that reads its own value stays, whether the flow moves it or not.
