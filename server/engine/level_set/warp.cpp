@@ -821,12 +821,16 @@ constexpr int kBlockReach = 2;
 struct InverseLattice {
   Int3 origin, nodes;
   std::vector<Vec3> offset;  // X(node) - node, x fastest
+  // X(node) as flow() gave it, for the nodes the flow moves (moves()): a voxel on a node that
+  // wants the exact flow (the resample, kExactNear) takes it from here, the same bits.
+  std::vector<Vec3> image;
 
   // withBlocks: findBlocks() was called, and each node's blocks are noted (nodeBlocks).
   void build(const Velocity& v, const Box& work, bool withBlocks, ThreadPool& pool, const ProgressShare& progress) {
     origin = work.lo;
     for (int a = 0; a < 3; ++a) nodes[a] = (work.size()[a] + kLatticeStep - 1) / kLatticeStep + 1;
     offset.assign(std::size_t(nodes.x) * nodes.y * nodes.z, Vec3{});
+    image.resize(offset.size());
     if (withBlocks) {
       nodeBlocks.resize(offset.size());
       for (int a = 0; a < 3; ++a) {
@@ -842,7 +846,7 @@ struct InverseLattice {
           const Vec3 p = node(i, j, int(k));
           const std::size_t n = index(i, j, int(k));
           const bool moves = v.moves(p);
-          if (moves) offset[n] = v.flow(p, steps, -1) - p;
+          if (moves) image[n] = v.flow(p, steps, -1), offset[n] = image[n] - p;
           if (withBlocks)
             nodeBlocks[n] = moves ? blocksOf(p + offset[n])
                                   : nodeAxisBlocks[0][std::size_t(i)] | nodeAxisBlocks[1][std::size_t(j)] | nodeAxisBlocks[2][k];
@@ -1011,6 +1015,13 @@ struct InverseLattice {
   Row row(int y, int z) const {
     const unsigned dy = unsigned(y - origin.y), dz = unsigned(z - origin.z);
     return {offset.data() + index(0, int(dy / kLatticeStep), int(dz / kLatticeStep)), dy % kLatticeStep != 0, dz % kLatticeStep != 0};
+  }
+  // X(p) exactly (image) when the voxel p = (x, y, z) of row(y, z) lies on a node the flow
+  // moves, else null.
+  const Vec3* imageAt(const Row& r, int x) const {
+    const unsigned dx = unsigned(x - origin.x);
+    if (r.ty || r.tz || dx % kLatticeStep != 0) return nullptr;
+    return image.data() + (r.o - offset.data()) + dx / kLatticeStep;
   }
   Vec3 inverse(const Row& r, Vec3 p, int x) const {
     const unsigned dx = unsigned(x - origin.x);
@@ -1244,7 +1255,8 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
           float value = float(read(q));
           // Near the zero set the surface's place is read: there X is integrated at the voxel.
           if (std::fabs(value) < kExactNear) {
-            q = v.flow(p, steps, -1);
+            const Vec3* onNode = s.lattice.imageAt(latticeRow, x);
+            q = onNode ? *onNode : v.flow(p, steps, -1);
             value = float(readNear(q));
           }
           if (painted) {
