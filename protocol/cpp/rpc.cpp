@@ -836,10 +836,14 @@ void appendDump(std::string& out, const json& v) { out += v.dump(-1, ' ', false,
 // the result or params into it (a notification and a response per message; they were 47K
 // instructions of a stroke message, docs/benchmark-log.md, capacity, 2026-11-30).
 std::string resultText(const json& id, const json& result) {
+  return resultTextOfJson(id, result.dump(-1, ' ', false, json::error_handler_t::replace));
+}
+
+std::string resultTextOfJson(const json& id, std::string_view result) {
   std::string out = "{\"id\":";
   appendDump(out, id);
   out += ",\"jsonrpc\":\"2.0\",\"result\":";
-  appendDump(out, result);
+  out += result;
   out += '}';
   return out;
 }
@@ -855,6 +859,36 @@ std::string notificationText(std::string_view method, const json& params) {
   appendDump(out, json(method));
   out += ",\"params\":";
   appendDump(out, params);
+  out += '}';
+  return out;
+}
+
+namespace {
+
+// A box as the dump of boxJson(b) writes it.
+void appendBox(std::string& out, const Box& b) {
+  if (b.empty()) {
+    out += "null";
+    return;
+  }
+  const auto corner = [&](const char* key, Int3 c) {
+    out += key;
+    out += std::to_string(c.x) + "," + std::to_string(c.y) + "," + std::to_string(c.z) + "]";
+  };
+  corner("{\"hi\":[", b.hi);
+  corner(",\"lo\":[", b.lo);
+  out += '}';
+}
+
+}  // namespace
+
+std::string strokeDabsResultJson(std::uint64_t revision, std::uint64_t applied, const Box& roi) {
+  std::string out = "{\"applied\":";
+  out += std::to_string(applied);
+  out += ",\"revision\":";
+  out += std::to_string(revision);
+  out += ",\"roi\":";
+  appendBox(out, roi);
   out += '}';
   return out;
 }
@@ -877,17 +911,7 @@ std::string sessionChangedText(std::uint64_t revision, int by, std::string_view 
   out += ",\"revision\":";
   out += std::to_string(revision);
   out += ",\"roi\":";
-  if (roi.empty()) {
-    out += "null";
-  } else {
-    const auto corner = [&](const char* key, Int3 c) {
-      out += key;
-      out += std::to_string(c.x) + "," + std::to_string(c.y) + "," + std::to_string(c.z) + "]";
-    };
-    corner("{\"hi\":[", roi.hi);
-    corner(",\"lo\":[", roi.lo);
-    out += '}';
-  }
+  appendBox(out, roi);
   out += "}}";
   return out;
 }

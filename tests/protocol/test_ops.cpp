@@ -401,3 +401,14 @@ TEST_CASE("session.changed is notificationText of its params object", "[rpc]") {
               expected(revision, -1, "a \"cause\" \x01\xff", roi, "", !undo, !undo));
       }
 }
+
+TEST_CASE("a stroke.dabs result written directly is the dump of its object", "[rpc]") {
+  for (const Box& roi : {Box{}, Box{{1, 2, 3}, {40, 50, 60}}, Box{{-5, 0, 7}, {-4, 1, 2147483647}}})
+    for (const std::uint64_t revision : {std::uint64_t(1), std::uint64_t(9007199254740991)})
+      for (const std::uint64_t applied : {std::uint64_t(0), std::uint64_t(16)}) {
+        const json result{{"revision", revision}, {"applied", applied}, {"roi", boxJson(roi)}};
+        const std::string text = strokeDabsResultJson(revision, applied, roi);
+        CHECK(text == result.dump());
+        CHECK(resultTextOfJson(json(12), text) == resultText(json(12), result));
+      }
+}

@@ -78,6 +78,9 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
 
   // --- answering ---------------------------------------------------------------------------------
   void sendResult(HubClient& c, const std::optional<nlohmann::json>& id, const nlohmann::json& result);
+  // The result's text when it was written directly (resultJson not empty), else `result`'s.
+  void sendResult(HubClient& c, const std::optional<nlohmann::json>& id, const nlohmann::json& result,
+                  const std::string& resultJson);
   void sendError(HubClient& c, const nlohmann::json& id, bool notification, const Failure& f);
   void sendError(HubClient& c, const std::optional<nlohmann::json>& id, const Failure& f);
 

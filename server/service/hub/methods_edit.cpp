@@ -147,21 +147,30 @@ void answerDabs(HubCore& hub, const std::shared_ptr<HubClient>& c, LiveSession& 
                 const protocol::StrokeDabsParams& p, const std::vector<DabsMessage>& merged,
                 std::vector<protocol::DabParam> params, const ApplyResult& a) {
   // Every message of the application answers its revision and box; `applied` counts its own dabs.
-  const json roi = protocol::boxJson(a.changed ? a.roi : Box{});
   auto appliedIn = [&a](std::size_t from, std::size_t count) -> std::size_t {
     if (!a.changed) return 0;
     const auto begin = a.hits.begin() + std::ptrdiff_t(from);
     return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
   };
-  r.result = {{"revision", a.revision}, {"applied", appliedIn(0, p.dabs.size())}, {"roi", roi}};
-  // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
-  if (a.plane) r.result["plane"] = planeJson(*a.plane);
+  // Without a plane, the result's text is written directly: every stroke message is answered so.
+  const Box box = a.changed ? a.roi : Box{};
+  const auto answer = [&](std::size_t from, std::size_t count, json& result, std::string& text) {
+    const std::size_t applied = appliedIn(from, count);
+    if (!a.plane) {
+      text = protocol::strokeDabsResultJson(a.revision, applied, box);
+      return;
+    }
+    // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
+    result = {{"revision", a.revision}, {"applied", applied}, {"roi", protocol::boxJson(box)}};
+    result["plane"] = planeJson(*a.plane);
+  };
+  answer(0, p.dabs.size(), r.result, r.resultJson);
   std::size_t from = p.dabs.size();
   for (const DabsMessage& m : merged) {
     if (hub.options.events.request) hub.options.events.request("stroke.dabs");
-    json result{{"revision", a.revision}, {"applied", appliedIn(from, m.params.dabs.size())}, {"roi", roi}};
-    if (a.plane) result["plane"] = planeJson(*a.plane);
-    r.merged.push_back({m.id, result, m.raw.arrived});
+    Reply::Merged done{m.id, nullptr, {}, m.raw.arrived};
+    answer(from, m.params.dabs.size(), done.result, done.resultJson);
+    r.merged.push_back(std::move(done));
     from += m.params.dabs.size();
   }
   // A warp stroke's message that took its anchor is recorded though it changed nothing: the

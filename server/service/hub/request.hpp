@@ -35,6 +35,7 @@ struct Call {
 struct Reply {
   SharedBytes frame;  // a binary answer, sent before the result
   nlohmann::json result;
+  std::string resultJson;  // the result's text, when written directly: then `result` is not read
   std::function<void()> after;  // on the strand, after the response went out
   // Released once the work is over, answered or failed (offStrand: on the worker, after the
   // response or the error went out).
@@ -48,6 +49,7 @@ struct Reply {
   struct Merged {
     std::optional<nlohmann::json> id;  // absent: a notification, not answered
     nlohmann::json result;
+    std::string resultJson;  // as Reply's
     Clock::time_point arrived;
   };
   std::vector<Merged> merged;

@@ -17,6 +17,11 @@ void HubCore::sendResult(HubClient& c, const std::optional<json>& id, const json
   if (id) c.link->sendText(protocol::resultText(*id, result));
 }
 
+void HubCore::sendResult(HubClient& c, const std::optional<json>& id, const json& result, const std::string& resultJson) {
+  if (resultJson.empty()) return sendResult(c, id, result);
+  if (id) c.link->sendText(protocol::resultTextOfJson(*id, resultJson));
+}
+
 void HubCore::sendError(HubClient& c, const json& id, bool notification, const Failure& f) {
   if (options.events.error) options.events.error(int(f.code));
   if (!notification) c.link->sendText(protocol::errorText(id, f.code, f.message, f.data));
@@ -59,8 +64,8 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
         self->durability.confirmHeld(*s);
       }
       if (r.frame) c->link->sendBinary(r.frame, false);
-      self->sendResult(*c, id, r.result);
-      for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result);
+      self->sendResult(*c, id, r.result, r.resultJson);
+      for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result, m.resultJson);
       if (edit && self->options.events.editLatency) {
         const Clock::time_point now = Clock::now();
         self->options.events.editLatency(std::chrono::duration<double>(now - arrived).count());
