@@ -298,7 +298,6 @@ PackedBricks packBricks(const std::vector<Int3>& bricks, const std::vector<const
   unsigned char* const frame = z.frame.atLeast(frameBound);
   const std::size_t n = ZSTD_compressCCtx(z.cctx.get(), frame, frameBound, planes, size.packed, kZstdLevel);
   if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
-  p.packed = n;
   p.frame.reserve(n + size.low);  // exactly these bytes, no slack (and not zeroed first)
   p.frame.insert(p.frame.end(), frame, frame + n);
   p.frame.insert(p.frame.end(), low, low + size.low);
@@ -318,15 +317,18 @@ std::vector<BrickRef> unpackBricks(const PackedBricks& p, const std::vector<cons
   for (const auto k : p.kinds) dataBricks += k == PackedBricks::kData;
   const auto damaged = [] { return std::runtime_error("zstd: an undo step does not unpack to its bricks"); };
   std::vector<unsigned char> planes;
-  if (p.packed > p.frame.size()) throw damaged();
-  const unsigned char* low = p.frame.data() + p.packed;
-  const std::size_t lowSize = p.frame.size() - p.packed;
+  // The zstd frame's own headers say where it ends and the low planes begin: a field for it
+  // would make every packed side's shared block 16 bytes larger (kStepBytes).
+  const std::size_t packed = p.frame.empty() ? 0 : ZSTD_findFrameCompressedSize(p.frame.data(), p.frame.size());
+  if (ZSTD_isError(packed)) throw damaged();
+  const unsigned char* low = p.frame.data() + packed;
+  const std::size_t lowSize = p.frame.size() - packed;
   if (dataBricks) {
-    const unsigned long long size = ZSTD_getFrameContentSize(p.frame.data(), p.packed);
+    const unsigned long long size = ZSTD_getFrameContentSize(p.frame.data(), packed);
     if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN || size > dataBricks * (kMaskBytes + kBrickBytes))
       throw damaged();
     planes.resize(std::size_t(size));
-    const std::size_t n = ZSTD_decompress(planes.data(), planes.size(), p.frame.data(), p.packed);
+    const std::size_t n = ZSTD_decompress(planes.data(), planes.size(), p.frame.data(), packed);
     if (ZSTD_isError(n) || n != planes.size()) throw damaged();
   }
   std::vector<BrickRef> out;

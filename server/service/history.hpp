@@ -80,8 +80,7 @@ struct PackedBricks {
   std::vector<Int3> bricks;
   std::vector<std::uint8_t> kinds;     // per brick: kOutside, kInside or kData
   std::vector<unsigned char> frame;    // zstd frame of the kData bricks' records (history.cpp), in order,
-                                       // then their low planes as they are
-  std::size_t packed = 0;              // the zstd frame's bytes of `frame`
+                                       // then their low planes as they are (the zstd frame says where it ends)
   std::vector<std::shared_ptr<const BrickPaint>> paints;  // per brick its channels; empty: none has any
   std::uint64_t against = 0;           // fingerprint of the references
   static constexpr std::uint8_t kOutside = 0, kInside = 1, kData = 2;

@@ -198,18 +198,18 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     // content recompressed unpacks; each damage below is refused by the records' own checks
     // (zstd accepts the frames).
     const service::PackedBricks one = service::packBricks({coords[0]}, {ptrs[0]}, {against[0]});
-    REQUIRE(one.packed < one.frame.size());
-    std::vector<unsigned char> content(ZSTD_getFrameContentSize(one.frame.data(), one.packed));
-    REQUIRE(ZSTD_decompress(content.data(), content.size(), one.frame.data(), one.packed) == content.size());
-    const std::vector<unsigned char> low(one.frame.begin() + std::ptrdiff_t(one.packed), one.frame.end());
+    const std::size_t packed = ZSTD_findFrameCompressedSize(one.frame.data(), one.frame.size());
+    REQUIRE(packed < one.frame.size());
+    std::vector<unsigned char> content(ZSTD_getFrameContentSize(one.frame.data(), packed));
+    REQUIRE(ZSTD_decompress(content.data(), content.size(), one.frame.data(), packed) == content.size());
+    const std::vector<unsigned char> low(one.frame.begin() + std::ptrdiff_t(packed), one.frame.end());
     // 171 of the 512 voxels changed (every third): 2 high and 2 low bytes each.
     REQUIRE(content.size() == 64 + 2 * 171);
     REQUIRE(low.size() == 2 * 171);
     const auto repacked = [&](const std::vector<unsigned char>& c, const std::vector<unsigned char>& l) {
       service::PackedBricks q = one;
       q.frame.resize(ZSTD_compressBound(c.size()));
-      q.packed = ZSTD_compress(q.frame.data(), q.frame.size(), c.data(), c.size(), 1);
-      q.frame.resize(q.packed);
+      q.frame.resize(ZSTD_compress(q.frame.data(), q.frame.size(), c.data(), c.size(), 1));
       q.frame.insert(q.frame.end(), l.begin(), l.end());
       return q;
     };
@@ -229,9 +229,9 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
     CHECK_THROWS_AS(service::unpackBricks(repacked(content, lowTrailing), {against[0]}), std::runtime_error);
     const std::vector<unsigned char> lowCut(low.begin(), low.end() - 1);
     CHECK_THROWS_AS(service::unpackBricks(repacked(content, lowCut), {against[0]}), std::runtime_error);
-    service::PackedBricks past = one;  // the zstd frame said to run past the bytes
-    past.packed = past.frame.size() + 1;
-    CHECK_THROWS_AS(service::unpackBricks(past, {against[0]}), std::runtime_error);
+    service::PackedBricks cutFrame = one;  // a byte of the zstd frame itself missing
+    cutFrame.frame.erase(cutFrame.frame.begin() + std::ptrdiff_t(packed) - 1);
+    CHECK_THROWS_AS(service::unpackBricks(cutFrame, {against[0]}), std::runtime_error);
   }
   SECTION("other references are refused, not unpacked into wrong bricks") {
     auto changed = std::make_shared<Brick>(*others[0].data);
