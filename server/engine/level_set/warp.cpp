@@ -846,7 +846,10 @@ struct InverseLattice {
           const Vec3 p = node(i, j, int(k));
           const std::size_t n = index(i, j, int(k));
           const bool moves = v.moves(p);
-          if (moves) image[n] = v.flow(p, steps, -1), offset[n] = image[n] - p;
+          if (moves) {
+            image[n] = v.flow(p, steps, -1);
+            offset[n] = image[n] - p;
+          }
           if (withBlocks)
             nodeBlocks[n] = moves ? blocksOf(p + offset[n])
                                   : nodeAxisBlocks[0][std::size_t(i)] | nodeAxisBlocks[1][std::size_t(j)] | nodeAxisBlocks[2][k];
@@ -879,6 +882,9 @@ struct InverseLattice {
   // looks up ~8,000 cells).
   using NodeBlocks = std::int16_t __attribute__((vector_size(16)));
   static constexpr std::int16_t kOffBlocks = std::numeric_limits<std::int16_t>::min();
+  // A grid's blocks along an axis (the support within the domain, grown by a few voxels) fit
+  // the lanes.
+  static_assert(kMaxDomainSide / kUniformBlock + 16 < std::numeric_limits<std::int16_t>::max());
   std::vector<NodeBlocks> nodeBlocks;
   // The blocks of value +band and of value -band in [0, i) x [0, j) x [0, k) of the blocks
   // noted, packed as plus + 2^32 minus (mod 2^64 the box sums of the inclusion-exclusion are
@@ -1016,8 +1022,9 @@ struct InverseLattice {
     const unsigned dy = unsigned(y - origin.y), dz = unsigned(z - origin.z);
     return {offset.data() + index(0, int(dy / kLatticeStep), int(dz / kLatticeStep)), dy % kLatticeStep != 0, dz % kLatticeStep != 0};
   }
-  // X(p) exactly (image) when the voxel p = (x, y, z) of row(y, z) lies on a node the flow
-  // moves, else null.
+  // X(p) exactly (image) when the voxel p = (x, y, z) of row(y, z) lies on a node, else null.
+  // Only for a voxel the flow moves: image holds only the moving nodes' (the others keep a
+  // previous call's), and the resample asks only within each row's run of moving voxels.
   const Vec3* imageAt(const Row& r, int x) const {
     const unsigned dx = unsigned(x - origin.x);
     if (r.ty || r.tz || dx % kLatticeStep != 0) return nullptr;
@@ -1345,8 +1352,13 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   // below kFootSure of kFootConverged: a step of l after one of l0 predicts l^3 / l0^2 for the
   // next (Newton's l_next ~ K l^2, K from the pair). The read was there to stop the steps, and in
   // the benches' grabs and tentacles every such read did (40% of a grab's foot points, 75% of
-  // a tentacle tip's took the second step): the same foot points, a slope fewer. At 0.1 some
-  // tentacles' tips (radius 8, moves of 1 and 2 vu from a sphere of 25) took other bits.
+  // a tentacle tip's took the second step): a slope fewer. It is a prediction, not a proof: of
+  // the 20,206 skips in [warp]'s tests one would have taken a third step, of 1.3e-3 vu (predicted
+  // 2e-6), and its foot point lies that far from where it would (2026-11-30 review; the
+  // steps' own tolerance is kFootConverged). At 0.1 some tentacles' tips (radius 8, moves of 1
+  // and 2 vu from a sphere of 25) took other bits in the benches. Not where the caller wants the
+  // slope at the foot point (grabTipFeet): the cubic read gives it with phi1, so the skip would
+  // save nothing there.
   constexpr int kFootSteps = 3;
   constexpr double kFootResidual = 0.05, kFootConverged = 1e-3, kFootSure = 0.01;
   constexpr int kCrossingBisections = 12;
@@ -1412,10 +1424,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
       at = at - g * (phi / g2);
       const double taken = std::fabs(phi) / std::sqrt(g2);
       if (step == 0) first = taken;
-      if (step == 1 && taken * taken * taken < kFootSure * kFootConverged * first * first) {
-        if (slopeThere) *slopeThere = slopeOfWarped(at, nullptr, true);
-        return true;
-      }
+      if (!slopeThere && step == 1 && taken * taken * taken < kFootSure * kFootConverged * first * first) return true;
       g = slopeOfWarped(at, &phi, true);
     }
     if (slopeThere) *slopeThere = g;
