@@ -22,6 +22,15 @@ FrameDecodeResult refuse(FrameErrorCode code, std::string message) {
   return FrameDecodeResult{std::nullopt, FrameError{code, std::move(message)}};
 }
 
+// What encodeFrame and encodeFrameInPlace refuse, checked before either allocates or writes.
+void checkFrame(FrameKind kind, std::size_t payloadBytes) {
+  if (!isFrameKind(std::uint32_t(kind)))
+    throw std::invalid_argument("binary frame kind " + std::to_string(unsigned(kind)) + " is unknown");
+  if (payloadBytes > kMaxFramePayload)
+    throw std::invalid_argument("binary frame payload of " + std::to_string(payloadBytes) +
+                                " bytes does not fit the 32-bit length field");
+}
+
 }  // namespace
 
 std::string_view frameKindName(FrameKind kind) {
@@ -87,6 +96,7 @@ FrameDecodeResult decodeFrameHeader(std::span<const std::uint8_t> bytes, std::ui
 
 std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                                       std::span<const std::uint8_t> payload) {
+  checkFrame(kind, payload.size());
   // The header's room left, the payload appended: no zeroing of what the copy fills.
   std::vector<std::uint8_t> out;
   out.reserve(kFrameHeaderBytes + payload.size());
@@ -97,14 +107,10 @@ std::vector<std::uint8_t> encodeFrame(FrameKind kind, std::uint32_t requestId, s
 
 std::vector<std::uint8_t> encodeFrameInPlace(FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                                              std::vector<std::uint8_t> buffer) {
-  if (!isFrameKind(std::uint32_t(kind)))
-    throw std::invalid_argument("binary frame kind " + std::to_string(unsigned(kind)) + " is unknown");
   if (buffer.size() < kFrameHeaderBytes)
     throw std::invalid_argument("a frame's buffer of " + std::to_string(buffer.size()) + " bytes has no room for its header");
   const std::size_t payload = buffer.size() - kFrameHeaderBytes;
-  if (payload > kMaxFramePayload)
-    throw std::invalid_argument("binary frame payload of " + std::to_string(payload) +
-                                " bytes does not fit the 32-bit length field");
+  checkFrame(kind, payload);
   std::uint8_t* p = buffer.data();
   std::copy(kFrameMagic.begin(), kFrameMagic.end(), p);
   le::put16(p + kVersionOffset, kFrameFormatVersion);

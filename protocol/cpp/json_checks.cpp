@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -30,6 +31,8 @@ std::string inQuotes(std::string_view s) {
     if (q.size() <= kMaxQuotedBytes || chars <= 4) return q;
   }
 }
+
+std::string elementName(std::string_view key, std::size_t i) { return inQuotes(key) + "[" + std::to_string(i) + "]"; }
 
 std::string formatNumber(double v) {
   std::ostringstream s;
@@ -121,7 +124,7 @@ Vec3 vec3Value(const json& v, std::string_view key, double bound) {
   for (int a = 0; a < 3; ++a) {
     const json& x = v[std::size_t(a)];
     // Written only for an error: a dab's centre is read three numbers a dab.
-    const auto element = [&] { return inQuotes(key) + "[" + std::to_string(a) + "]"; };
+    const auto element = [&] { return elementName(key, std::size_t(a)); };
     if (!x.is_number()) throw OpError(std::string(key), element() + " must be a number, got " + describe(x));
     c[a] = x.get<double>();
     if (!std::isfinite(c[a])) throw OpError(std::string(key), element() + " must be a finite number");
@@ -202,7 +205,7 @@ SrgbColor colorValue(const json& v, std::string_view key) {
                     : x.is_number_integer()  ? x.get<std::int64_t>() >= 0 && x.get<std::int64_t>() <= 255
                                              : false;
     if (!ok)
-      throw OpError(std::string(key), inQuotes(key) + "[" + std::to_string(a) + "] must be an integer from 0 to 255, got " +
+      throw OpError(std::string(key), elementName(key, a) + " must be an integer from 0 to 255, got " +
                                           describe(x));
     c[a] = std::uint8_t(x.get<std::uint64_t>());
   }
@@ -256,12 +259,13 @@ namespace {
 // kMaxJsonDepth as it opens (the parser itself does not recurse, but copying, comparing or
 // writing a value does, once per level: a 1 MiB frame of brackets would overflow the stack) and
 // noting the first key an object repeats. The object being built is where its keys are looked
-// up: the callback parser this replaces kept a set of each object's keys beside it and took
-// 45K instructions for a two-dab stroke.dabs (docs/benchmark-log.md, capacity, 2026-11-30).
+// up: with the callback parser this replaces, which kept a set of each object's keys beside it,
+// parseJsonText took 53.8K instructions a dab_message message, 39.5K since
+// (docs/benchmark-log.md, capacity, 2026-11-30).
 class CheckedDom {
  public:
   explicit CheckedDom(json& root) : root_(root) {}
-  std::string duplicate;  // the first key an object repeated, if any
+  std::optional<std::string> duplicate;  // the first key an object repeated ("" is a key too)
 
   bool null() { return put(nullptr); }
   bool boolean(bool v) { return put(v); }
@@ -277,7 +281,7 @@ class CheckedDom {
   bool key(json::string_t& k) {
     // A repeated key's later value replaces the earlier, as in nlohmann's own parser.
     const auto [at, added] = open_.back()->get_ref<json::object_t&>().try_emplace(k);
-    if (!added && duplicate.empty()) duplicate = k;
+    if (!added && !duplicate) duplicate = k;
     element_ = &at->second;
     return true;
   }
@@ -325,8 +329,8 @@ json parseJsonText(std::string_view text) {
   } catch (const json::exception& e) {
     throw OpError("", "not valid JSON: " + jsonErrorText(e.what()));
   }
-  if (!dom.duplicate.empty())
-    throw OpError(excerpt(dom.duplicate), "key " + inQuotes(dom.duplicate) + " appears more than once");
+  if (dom.duplicate)
+    throw OpError(excerpt(*dom.duplicate), "key " + inQuotes(*dom.duplicate) + " appears more than once");
   return value;
 }
 

@@ -25,6 +25,8 @@ using nlohmann::json;
 
 std::string excerpt(std::string_view s, std::size_t maxChars = 40);
 std::string inQuotes(std::string_view s);
+// An array element's name in a message: "key"[i].
+std::string elementName(std::string_view key, std::size_t i);
 std::string formatNumber(double v);
 // What a value is, for "got ..." in messages.
 std::string describe(const json& v);

@@ -382,7 +382,7 @@ CreateParams parseCreateParams(const json& params) {
     try {
       p.size[a] = int(integerInRange(size[std::size_t(a)], "size", 8, kMaxDomainSide));
     } catch (const OpError& e) {
-      throw OpError("size", "\"size\"[" + std::to_string(a) + "]" + e.message().substr(6));
+      throw OpError("size", elementName("size", std::size_t(a)) + e.message().substr(6));
     }
   }
   const std::string solid = stringValue(require(params, "solid", context), "solid");
@@ -538,7 +538,7 @@ StrokeDabsParams parseStrokeDabsParams(const json& params, std::size_t maxDabs) 
       }
       p.dabs.push_back(dab);
     } catch (const OpError& e) {
-      throw OpError("dabs", "\"dabs\"[" + std::to_string(i) + "]: " + e.message());
+      throw OpError("dabs", elementName("dabs", i) + ": " + e.message());
     }
   }
   return p;

@@ -330,7 +330,8 @@ std::string notificationText(std::string_view method, const nlohmann::json& para
 std::string sessionChangedText(std::uint64_t revision, int by, std::string_view cause, const Box& roi,
                                std::string_view digest, bool canUndo, bool canRedo);
 
-// {"lo":[x,y,z],"hi":[x,y,z]}, or null for an empty box.
+// {"lo":[x,y,z],"hi":[x,y,z]}, or null for an empty box. strokeDabsResultJson and
+// sessionChangedText write the same shape directly; the [rpc] tests hold them to it.
 nlohmann::json boxJson(const Box& b);
 nlohmann::json vec3Json(Vec3 v);
 // [r, g, b], as the wire writes a colour.

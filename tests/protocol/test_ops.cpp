@@ -230,6 +230,10 @@ TEST_CASE("a repeated key is refused, not silently resolved", "[ops]") {
   CHECK_THAT(e.message(), Catch::Contains("more than once"));
   const OpError tool = errorOf(std::string(R"({"tool":"add_blob","tool":"remove_blob","center":[1,2,3]})"));
   CHECK(tool.field() == "tool");
+  // The empty key is a key: its repeat was taken as "no repeat" (2026-11-30 review).
+  const OpError empty = errorOf(std::string(R"({"tool":"add_blob","center":[1,2,3],"":1,"":2})"));
+  CHECK(empty.field().empty());
+  CHECK_THAT(empty.message(), Catch::Contains("key \"\" appears more than once"));
 }
 
 TEST_CASE("toJson writes the canonical form and parsing it gives the same op", "[ops]") {
