@@ -880,15 +880,24 @@ void appendBox(std::string& out, const Box& b) {
   out += '}';
 }
 
-}  // namespace
-
-std::string strokeDabsResultJson(std::uint64_t revision, std::uint64_t applied, const Box& roi) {
-  std::string out = "{\"applied\":";
-  out += std::to_string(applied);
+// ,"revision":r,"roi":box: the last keys, in sorted order, of a stroke result and of session.changed.
+void appendRevisionRoi(std::string& out, std::uint64_t revision, const Box& roi) {
   out += ",\"revision\":";
   out += std::to_string(revision);
   out += ",\"roi\":";
   appendBox(out, roi);
+}
+
+}  // namespace
+
+std::string strokeDabsResultJson(std::uint64_t revision, std::uint64_t applied, const Box& roi, const json& plane) {
+  std::string out = "{\"applied\":";
+  out += std::to_string(applied);
+  if (!plane.is_null()) {
+    out += ",\"plane\":";
+    appendDump(out, plane);
+  }
+  appendRevisionRoi(out, revision, roi);
   out += '}';
   return out;
 }
@@ -908,10 +917,7 @@ std::string sessionChangedText(std::uint64_t revision, int by, std::string_view 
   appendDump(out, json(cause));
   out += ",\"digest\":";
   appendDump(out, json(digest));
-  out += ",\"revision\":";
-  out += std::to_string(revision);
-  out += ",\"roi\":";
-  appendBox(out, roi);
+  appendRevisionRoi(out, revision, roi);
   out += "}}";
   return out;
 }

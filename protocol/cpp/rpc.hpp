@@ -318,9 +318,11 @@ void parseNoParams(const nlohmann::json& params, Method m);
 std::string resultText(const nlohmann::json& id, const nlohmann::json& result);
 // The same response around a result's text (JSON of an object, as its dump writes it).
 std::string resultTextOfJson(const nlohmann::json& id, std::string_view result);
-// A stroke.dabs result without a plane ({"applied", "revision", "roi"}: PROTOCOL.md), as the dump
-// of its object: the text every stroke message is answered with, written directly.
-std::string strokeDabsResultJson(std::uint64_t revision, std::uint64_t applied, const Box& roi);
+// A stroke.dabs result ({"applied", "revision", "roi"} and, for a stroke with a plane, "plane":
+// PROTOCOL.md) as the dump of its object: the text every stroke message is answered with,
+// written directly. plane: its object (service planeJson), null for none.
+std::string strokeDabsResultJson(std::uint64_t revision, std::uint64_t applied, const Box& roi,
+                                 const nlohmann::json& plane);
 std::string errorText(const nlohmann::json& id, RpcCode code, const std::string& message,
                       const nlohmann::json& data = nullptr);
 std::string notificationText(std::string_view method, const nlohmann::json& params);

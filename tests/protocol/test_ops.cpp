@@ -407,12 +407,21 @@ TEST_CASE("session.changed is notificationText of its params object", "[rpc]") {
 }
 
 TEST_CASE("a stroke.dabs result written directly is the dump of its object", "[rpc]") {
-  for (const Box& roi : {Box{}, Box{{1, 2, 3}, {40, 50, 60}}, Box{{-5, 0, 7}, {-4, 1, 2147483647}}})
-    for (const std::uint64_t revision : {std::uint64_t(1), std::uint64_t(9007199254740991)})
-      for (const std::uint64_t applied : {std::uint64_t(0), std::uint64_t(16)}) {
-        const json result{{"revision", revision}, {"applied", applied}, {"roi", boxJson(roi)}};
-        const std::string text = strokeDabsResultJson(revision, applied, roi);
-        CHECK(text == result.dump());
-        CHECK(resultTextOfJson(json(12), text) == resultText(json(12), result));
-      }
+  // No plane, and a flatten stroke's plane (service planeJson's shape) with values json writes
+  // in its shortest form, an exponent and a signed zero.
+  const json planes[] = {nullptr, {{"point", {12.5, -0.1, 1e-300}}, {"normal", {0.0, -0.0, 1.0}}},
+                         {{"point", {1.0 / 3.0, 2e21, -7.0}}, {"normal", {0.6, 0.8, 0.0}}}};
+  for (const json& plane : planes)
+    for (const Box& roi : {Box{}, Box{{1, 2, 3}, {40, 50, 60}}, Box{{-5, 0, 7}, {-4, 1, 2147483647}}})
+      for (const std::uint64_t revision : {std::uint64_t(1), std::uint64_t(9007199254740991)})
+        for (const std::uint64_t applied : {std::uint64_t(0), std::uint64_t(16)}) {
+          json result{{"revision", revision}, {"applied", applied}, {"roi", boxJson(roi)}};
+          if (!plane.is_null()) result["plane"] = plane;
+          const std::string text = strokeDabsResultJson(revision, applied, roi, plane);
+          CHECK(text == result.dump());
+          CHECK(resultTextOfJson(json(12), text) == resultText(json(12), result));
+        }
+  CHECK(strokeDabsResultJson(5, 2, Box{{1, 2, 3}, {4, 5, 6}}, planes[1]) ==
+        R"({"applied":2,"plane":{"normal":[0.0,-0.0,1.0],"point":[12.5,-0.1,1e-300]},"revision":5,)"
+        R"("roi":{"hi":[4,5,6],"lo":[1,2,3]}})");
 }

@@ -81,6 +81,8 @@ struct HubCore : std::enable_shared_from_this<HubCore> {
   // The result's text when it was written directly (resultJson not empty), else `result`'s.
   void sendResult(HubClient& c, const std::optional<nlohmann::json>& id, const nlohmann::json& result,
                   const std::string& resultJson);
+  // A result written as text (JSON of an object).
+  void sendResultText(HubClient& c, const std::optional<nlohmann::json>& id, std::string_view resultJson);
   void sendError(HubClient& c, const nlohmann::json& id, bool notification, const Failure& f);
   void sendError(HubClient& c, const std::optional<nlohmann::json>& id, const Failure& f);
 

@@ -152,25 +152,18 @@ void answerDabs(HubCore& hub, const std::shared_ptr<HubClient>& c, LiveSession& 
     const auto begin = a.hits.begin() + std::ptrdiff_t(from);
     return std::size_t(std::count_if(begin, begin + std::ptrdiff_t(count), [](const auto& h) { return h.has_value(); }));
   };
-  // Without a plane, the result's text is written directly: every stroke message is answered so.
+  // Every message's result is written as one text. Flatten and contrast (and clay with a
+  // height) answer the stroke's plane too, once its first dab fitted it.
   const Box box = a.changed ? a.roi : Box{};
-  const auto answer = [&](std::size_t from, std::size_t count, json& result, std::string& text) {
-    const std::size_t applied = appliedIn(from, count);
-    if (!a.plane) {
-      text = protocol::strokeDabsResultJson(a.revision, applied, box);
-      return;
-    }
-    // Flatten and contrast (and clay with a height): the stroke's plane once its first dab fitted it.
-    result = {{"revision", a.revision}, {"applied", applied}, {"roi", protocol::boxJson(box)}};
-    result["plane"] = planeJson(*a.plane);
+  const json plane = a.plane ? planeJson(*a.plane) : json();
+  const auto answer = [&](std::size_t from, std::size_t count) {
+    return protocol::strokeDabsResultJson(a.revision, appliedIn(from, count), box, plane);
   };
-  answer(0, p.dabs.size(), r.result, r.resultJson);
+  r.resultJson = answer(0, p.dabs.size());
   std::size_t from = p.dabs.size();
   for (const DabsMessage& m : merged) {
     if (hub.options.events.request) hub.options.events.request("stroke.dabs");
-    Reply::Merged done{m.id, nullptr, {}, m.raw.arrived};
-    answer(from, m.params.dabs.size(), done.result, done.resultJson);
-    r.merged.push_back(std::move(done));
+    r.merged.push_back({m.id, answer(from, m.params.dabs.size()), m.raw.arrived});
     from += m.params.dabs.size();
   }
   // A warp stroke's message that took its anchor is recorded though it changed nothing: the

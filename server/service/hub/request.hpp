@@ -35,7 +35,8 @@ struct Call {
 struct Reply {
   SharedBytes frame;  // a binary answer, sent before the result
   nlohmann::json result;
-  std::string resultJson;  // the result's text, when written directly: then `result` is not read
+  // The result's text, when written directly (stroke.dabs): then `result` is not read.
+  std::string resultJson;
   std::function<void()> after;  // on the strand, after the response went out
   // Released once the work is over, answered or failed (offStrand: on the worker, after the
   // response or the error went out).
@@ -48,8 +49,7 @@ struct Reply {
   // in order, and counts as an edit of its own for the latency figures.
   struct Merged {
     std::optional<nlohmann::json> id;  // absent: a notification, not answered
-    nlohmann::json result;
-    std::string resultJson;  // as Reply's
+    std::string resultJson;  // the result's text
     Clock::time_point arrived;
   };
   std::vector<Merged> merged;

@@ -19,6 +19,10 @@ void HubCore::sendResult(HubClient& c, const std::optional<json>& id, const json
 
 void HubCore::sendResult(HubClient& c, const std::optional<json>& id, const json& result, const std::string& resultJson) {
   if (resultJson.empty()) return sendResult(c, id, result);
+  sendResultText(c, id, resultJson);
+}
+
+void HubCore::sendResultText(HubClient& c, const std::optional<json>& id, std::string_view resultJson) {
   if (id) c.link->sendText(protocol::resultTextOfJson(*id, resultJson));
 }
 
@@ -65,7 +69,7 @@ void HubCore::onStrand(const std::shared_ptr<HubClient>& c, std::shared_ptr<Live
       }
       if (r.frame) c->link->sendBinary(r.frame, false);
       self->sendResult(*c, id, r.result, r.resultJson);
-      for (const Reply::Merged& m : r.merged) self->sendResult(*c, m.id, m.result, m.resultJson);
+      for (const Reply::Merged& m : r.merged) self->sendResultText(*c, m.id, m.resultJson);
       if (edit && self->options.events.editLatency) {
         const Clock::time_point now = Clock::now();
         self->options.events.editLatency(std::chrono::duration<double>(now - arrived).count());
