@@ -1,8 +1,10 @@
 // HeldSplats (service/hub/broadcast.hpp): a delta lists the bricks whose encoded points differ
-// from what the session's clients were sent, and the record starts afresh past its bound.
+// from what the session's clients were sent, and the record starts afresh past its bound; the
+// splat frames made from the buffers.
 #include <catch2/catch.hpp>
 
 #include <cstdint>
+#include <stdexcept>
 #include <vector>
 
 #include "engine/solids.hpp"
@@ -143,6 +145,21 @@ TEST_CASE("held splats: the record counts the memory its blocks keep, not only w
     CHECK(held.bytes == kept);
     CHECK(kept < 100 * (kSplatBrickHeaderBytes + 16 + HeldSplats::kEntryBytes));
   }
+}
+
+TEST_CASE("a frame made in place of its buffer is the frame made around its payload, not a copy", "[hub][splats]") {
+  const Volume v = makeSolid(SolidKind::Sphere, {32, 32, 32});
+  const std::vector<BrickSplats> fresh = extractAllSplats(v);
+  HeldSplats held;
+  Bytes roomy = held.delta(fresh, v, protocol::kFrameHeaderBytes);
+  const std::uint8_t* const payloadAt = roomy.data();
+  const Bytes payload(roomy.begin() + std::ptrdiff_t(protocol::kFrameHeaderBytes), roomy.end());
+  REQUIRE(payload == encodeSplats(fresh));
+  const SharedBytes frame = makeFrameInPlace(protocol::FrameKind::SplatsDelta, 9, 123456789012ull, std::move(roomy));
+  CHECK(*frame == *makeFrame(protocol::FrameKind::SplatsDelta, 9, 123456789012ull, payload));
+  CHECK(frame->data() == payloadAt);
+  CHECK_THROWS_AS(makeFrameInPlace(protocol::FrameKind::SplatsDelta, 0, 1, Bytes(protocol::kFrameHeaderBytes - 1)),
+                  std::invalid_argument);
 }
 
 TEST_CASE("a splat frame for a client of version 1: the same frame, its colours dropped", "[hub][splats][paint]") {

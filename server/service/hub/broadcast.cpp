@@ -19,6 +19,10 @@ SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::ui
   return std::make_shared<const Bytes>(protocol::encodeFrame(kind, requestId, revision, payload));
 }
 
+SharedBytes makeFrameInPlace(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision, Bytes buffer) {
+  return std::make_shared<const Bytes>(protocol::encodeFrameInPlace(kind, requestId, revision, std::move(buffer)));
+}
+
 std::pair<std::vector<std::uint8_t>*, bool> HeldBlocks::findOrAdd(std::uint64_t key) {
   if (2 * (size_ + 1) > entries_.size()) {
     std::vector<Entry> old = std::move(entries_);
@@ -127,9 +131,8 @@ SharedBytes Broadcaster::deltaFrame(LiveSession& s, const std::vector<Int3>& bri
   held.revision = ss.revision();
   try {
     // The delta written after room for the frame's header: ~12 KB not copied again.
-    return std::make_shared<const Bytes>(
-        protocol::encodeFrameInPlace(protocol::FrameKind::SplatsDelta, 0, ss.revision(),
-                                     held.delta(extractSplats(ss.volume(), bricks), ss.volume(), protocol::kFrameHeaderBytes)));
+    return makeFrameInPlace(protocol::FrameKind::SplatsDelta, 0, ss.revision(),
+                            held.delta(extractSplats(ss.volume(), bricks), ss.volume(), protocol::kFrameHeaderBytes));
   } catch (...) {
     held.clear();  // it may record blocks that were never sent
     throw;

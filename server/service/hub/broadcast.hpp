@@ -102,6 +102,9 @@ struct HeldSplats {
 
 SharedBytes makeFrame(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision,
                       std::span<const std::uint8_t> payload);
+// The same frame made in place of `buffer` (protocol::encodeFrameInPlace: its first
+// kFrameHeaderBytes are room for the header, the rest the payload).
+SharedBytes makeFrameInPlace(protocol::FrameKind kind, std::uint32_t requestId, std::uint64_t revision, Bytes buffer);
 // A frame of splats (full or delta, either version) with its payload as splat format version 1.
 SharedBytes plainFrame(const Bytes& frame);
 
