@@ -192,15 +192,88 @@ struct MovedAppender {
 }
 
 #if defined(MARZIPAN_AVX2)
-// collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):
-// the same voxels, foot points and search (footPoint and lanesAvx2 inlined), so the same list.
+// footPoint of four voxels of one row (grid indices i, x coordinates x; y, z the row's) in the
+// lanes of AVX2 vectors, normals n and foot points q: footPoint's operations in its order
+// (float differences widened, then double), so the same bits. Along a row the band's voxels
+// mostly come in runs of consecutive indices (run: i[k] = i[0] + k), whose neighbours are then
+// read four at a time.
+__attribute__((target("avx2"))) inline void footPointsAvx2(const DenseGrid& g, const std::size_t i[4], bool run,
+                                                           const int x[4], int y, int z, __m256d n[3], __m256d q[3]) {
+  const float* const v = g.v.data();
+  const std::ptrdiff_t sy = std::ptrdiff_t(g.sx), sz = std::ptrdiff_t(g.sxy);
+  __m128 d, dx, dy, dz;
+  if (run) {
+    const float* a = v + i[0];
+    d = _mm_loadu_ps(a);
+    dx = _mm_sub_ps(_mm_loadu_ps(a + 1), _mm_loadu_ps(a - 1));
+    dy = _mm_sub_ps(_mm_loadu_ps(a + sy), _mm_loadu_ps(a - sy));
+    dz = _mm_sub_ps(_mm_loadu_ps(a + sz), _mm_loadu_ps(a - sz));
+  } else {
+    const float* a[4] = {v + i[0], v + i[1], v + i[2], v + i[3]};
+    d = _mm_setr_ps(a[0][0], a[1][0], a[2][0], a[3][0]);
+    dx = _mm_setr_ps(a[0][1] - a[0][-1], a[1][1] - a[1][-1], a[2][1] - a[2][-1], a[3][1] - a[3][-1]);
+    dy = _mm_setr_ps(a[0][sy] - a[0][-sy], a[1][sy] - a[1][-sy], a[2][sy] - a[2][-sy], a[3][sy] - a[3][-sy]);
+    dz = _mm_setr_ps(a[0][sz] - a[0][-sz], a[1][sz] - a[1][-sz], a[2][sz] - a[2][-sz], a[3][sz] - a[3][-sz]);
+  }
+  const __m256d half = _mm256_set1_pd(0.5), zero = _mm256_setzero_pd();
+  const __m256d gx = _mm256_mul_pd(half, _mm256_cvtps_pd(dx)), gy = _mm256_mul_pd(half, _mm256_cvtps_pd(dy)),
+                gz = _mm256_mul_pd(half, _mm256_cvtps_pd(dz));
+  // normalized(): l = sqrt(x x + y y + z z), l > 0 ? g / l : 0.
+  const __m256d l = _mm256_sqrt_pd(
+      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(gx, gx), _mm256_mul_pd(gy, gy)), _mm256_mul_pd(gz, gz)));
+  const __m256d positive = _mm256_cmp_pd(l, zero, _CMP_GT_OQ), dist = _mm256_cvtps_pd(d);
+  n[0] = _mm256_and_pd(positive, _mm256_div_pd(gx, l));
+  n[1] = _mm256_and_pd(positive, _mm256_div_pd(gy, l));
+  n[2] = _mm256_and_pd(positive, _mm256_div_pd(gz, l));
+  q[0] = _mm256_sub_pd(_mm256_setr_pd(x[0], x[1], x[2], x[3]), _mm256_mul_pd(n[0], dist));
+  q[1] = _mm256_sub_pd(_mm256_set1_pd(y), _mm256_mul_pd(n[1], dist));
+  q[2] = _mm256_sub_pd(_mm256_set1_pd(z), _mm256_mul_pd(n[2], dist));
+}
+
+// Up to four voxels of one row that reach a stroke's window, waiting to be listed together.
+struct RowBatch {
+  std::size_t index[4];
+  int x[4];
+  int count = 0;
+};
+
+// The batch's windows (SweptWindow::rowWindowsAvx2, then the memory's part per voxel), appended
+// in order. c is at the batch's row.
 template <bool kAnchored>
-__attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const Box& region, float band,
-                                                      const SweptWindow& window, const BandVoxels& voxels,
-                                                      std::size_t begin, std::size_t end, MovedVoxels& out,
-                                                      const Motion* m, const ProgressShare& progress) {
+__attribute__((target("avx2"))) void listBatchAvx2(const DenseGrid& g, const SweptWindow& window,
+                                                   SweptWindow::Cursor& c, RowBatch& b, MovedAppender& add) {
+  // The indices of a row's voxels grow: four of them span 3 only in a run.
+  const bool run = b.count == 4 && b.index[3] == b.index[0] + 3;
+  for (int k = b.count; k < 4; ++k) b.index[k] = b.index[b.count - 1], b.x[k] = b.x[b.count - 1];
+  __m256d n[3], q[3];
+  footPointsAvx2(g, b.index, run, b.x, c.y, c.z, n, q);
+  alignas(32) double w[4];
+  _mm256_store_pd(w, window.rowWindowsAvx2<kAnchored>(b.x, q, n, c));
+  if (!c.memory.empty()) {
+    alignas(32) double qs[3][4], ns[3][4];
+    for (int a = 0; a < 3; ++a) _mm256_store_pd(qs[a], q[a]), _mm256_store_pd(ns[a], n[a]);
+    for (int k = 0; k < b.count; ++k) {
+      if (!(w[k] > 0)) continue;
+      const __m256d qa[3] = {_mm256_set1_pd(qs[0][k]), _mm256_set1_pd(qs[1][k]), _mm256_set1_pd(qs[2][k])};
+      const __m256d na[3] = {_mm256_set1_pd(ns[0][k]), _mm256_set1_pd(ns[1][k]), _mm256_set1_pd(ns[2][k])};
+      w[k] = window.memoryExcessAvx2<kAnchored>(b.x[k], qa, na, w[k], c);
+    }
+  }
+  for (int k = 0; k < b.count; ++k) add.add(b.index[k], w[k]);
+  b.count = 0;
+}
+
+// collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):
+// the voxels that reach the window, four of a row at a time (listBatchAvx2). The same voxels,
+// foot points and windows in the same order as the search per voxel, so the same list.
+template <bool kAnchored>
+__attribute__((target("avx2"))) void collectRowsAvx2(const DenseGrid& g, const Box& region, float band,
+                                                     const SweptWindow& window, const BandVoxels& voxels,
+                                                     std::size_t begin, std::size_t end, MovedVoxels& out,
+                                                     const Motion* m, const ProgressShare& progress) {
   MovedAppender add(out, m, end - begin);
   SweptWindow::Cursor cursor;
+  RowBatch batch;
   for (std::size_t k = begin; k < end; ++k) {
     if (k % kVoxelsPerCheck == 0) progress.check();
     const std::size_t i = voxels.index[k];
@@ -210,10 +283,13 @@ __attribute__((target("avx2"))) void collectLanesAvx2(const DenseGrid& g, const 
       k = skipOutside(g, region, voxels, k + 1, end, p) - 1;
       continue;
     }
+    if (batch.count != 0 && (p.y != cursor.y || p.z != cursor.z)) listBatchAvx2<kAnchored>(g, window, cursor, batch, add);
     if (!window.reaches(p, cursor)) continue;
-    const FootPoint f = footPoint(g, i, p);
-    add.add(i, window.lanesAvx2<kAnchored>(p, f.point, f.normal, cursor));
+    batch.index[batch.count] = i;
+    batch.x[batch.count] = p.x;
+    if (++batch.count == 4) listBatchAvx2<kAnchored>(g, window, cursor, batch, add);
   }
+  if (batch.count != 0) listBatchAvx2<kAnchored>(g, window, cursor, batch, add);
   add.finish();
 }
 #endif
@@ -248,8 +324,8 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
   }
 #if defined(MARZIPAN_AVX2)
   if (window && window->searchesAvx2()) {
-    if (window->anchored()) return collectLanesAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);
-    return collectLanesAvx2<false>(g, region, band, *window, voxels, begin, end, out, m, progress);
+    if (window->anchored()) return collectRowsAvx2<true>(g, region, band, *window, voxels, begin, end, out, m, progress);
+    return collectRowsAvx2<false>(g, region, band, *window, voxels, begin, end, out, m, progress);
   }
 #endif
   MovedAppender add(out, m, end - begin);

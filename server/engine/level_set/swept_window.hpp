@@ -445,8 +445,9 @@ class SweptWindow {
   }
 
  public:
-  // Whether search takes searchAvx2 now (then a caller compiled for AVX2 may call lanesAvx2
-  // itself, with the foot point in registers rather than passed through two calls).
+  // Whether search takes searchAvx2 now (then a caller compiled for AVX2 may list four voxels
+  // of a row at a time itself, rowWindowsAvx2 then memoryExcessAvx2, with the foot points in
+  // registers rather than passed through two calls: search's bits).
   bool searchesAvx2() const {
     return lanes_ && simd_width::useAvx2() && !(dabs_.size() == 1 && memory_.empty());
   }
@@ -474,8 +475,74 @@ class SweptWindow {
       best = _mm256_max_pd(best, quadWindows<kAnchored>(l, j, qa, na, back, _mm256_cmp_pd(at, last, _CMP_LT_OS)));
     const double w = largestLane(best);
     if (w <= 0 || c.memory.empty()) return w;
+    return memoryExcessAvx2<kAnchored>(p.x, qa, na, w, c);
+  }
+
+  // lanesAvx2's message part for four voxels of c's row at once (x: theirs, ascending; a batch
+  // of fewer repeats its last), a voxel a lane, with their foot points q and normals n in lanes:
+  // each dab of the row whose ROI holds one of their x is read once for the four, each lane
+  // masked by whether the dab's ROI holds its x. Per voxel and dab the operations of
+  // quadWindows, and the largest of the same values (in another order: only a zero's sign could
+  // differ, and every window here is >= +0), so the same bits. Along a stroke a voxel lies in
+  // about eight ROIs, so four voxels read each dab about as often as lanesAvx2 reads four dabs a
+  // voxel, without its setup per voxel. The memory is memoryExcessAvx2's.
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline __m256d rowWindowsAvx2(const int x[4], const __m256d q[3],
+                                                                                    const __m256d n[3],
+                                                                                    Cursor& c) const {
+    Cursor::Lanes& l = c.dabLanes;
+    l.at(x[0]);
+    const std::size_t from = l.first;
+    l.at(x[3]);
+    const std::size_t to = l.last;
+    const LaneArrays& arr = *l.arrays;
+    const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
+    const __m256d abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
+    const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+    const __m256d xs = _mm256_setr_pd(x[0], x[1], x[2], x[3]);
+    __m256d best = zero;
+    for (std::size_t j = from; j < to; ++j) {
+      const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(_mm256_broadcast_sd(arr.lo.data() + j), xs, _CMP_LE_OS),
+                                           _mm256_cmp_pd(xs, _mm256_broadcast_sd(arr.hi.data() + j), _CMP_LT_OS));
+      __m256d w = _mm256_broadcast_sd(arr.weight.data() + j);
+      const __m256d centre[3] = {_mm256_broadcast_sd(arr.center[0].data() + j),
+                                 _mm256_broadcast_sd(arr.center[1].data() + j),
+                                 _mm256_broadcast_sd(arr.center[2].data() + j)};
+      __m256d at[3] = {q[0], q[1], q[2]};
+      if constexpr (kAnchored) {
+        const __m256d axis[3] = {_mm256_broadcast_sd(arr.normal[0].data() + j),
+                                 _mm256_broadcast_sd(arr.normal[1].data() + j),
+                                 _mm256_broadcast_sd(arr.normal[2].data() + j)};
+        const __m256d facing = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(axis[0], n[0]), _mm256_mul_pd(axis[1], n[1])),
+                                             _mm256_mul_pd(axis[2], n[2]));
+        w = _mm256_mul_pd(w, _mm256_max_pd(facing, zero));
+        const __m256d along = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(q[0], centre[0]), axis[0]),
+                                                          _mm256_mul_pd(_mm256_sub_pd(q[1], centre[1]), axis[1])),
+                                            _mm256_mul_pd(_mm256_sub_pd(q[2], centre[2]), axis[2]));
+        const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
+        for (int a = 0; a < 3; ++a) at[a] = _mm256_sub_pd(q[a], _mm256_mul_pd(axis[a], moved));
+      }
+      for (int a = 0; a < 3; ++a) {
+        const __m256d t = _mm256_mul_pd(_mm256_and_pd(_mm256_sub_pd(at[a], centre[a]), abs), invR);
+        const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
+        w = _mm256_mul_pd(w, _mm256_andnot_pd(_mm256_cmp_pd(t, one, _CMP_GE_OS), _mm256_mul_pd(u, u)));
+      }
+      best = _mm256_max_pd(best, _mm256_and_pd(inside, w));
+    }
+    return best;
+  }
+
+  // lanesAvx2's memory part: w (> 0, the message's largest window at voxel x of c's row, foot
+  // point qa, normal na) less the memory's largest there, or less the first memory window found
+  // to reach it.
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline double memoryExcessAvx2(int x, const __m256d qa[3],
+                                                                                      const __m256d na[3], double w,
+                                                                                      Cursor& c) const {
+    const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+    const __m256d four = _mm256_set1_pd(4.0), offsets = _mm256_setr_pd(0, 1, 2, 3);
     Cursor::Lanes& ml = c.memoryLanes;
-    ml.at(p.x);
+    ml.at(x);
     const __m256d enough = _mm256_set1_pd(w), memoryLast = _mm256_set1_pd(double(ml.last));
     double excess;
     // The lanes from the one that reached w at a voxel before, in lanes rather than by window():
@@ -485,8 +552,8 @@ class SweptWindow {
       const __m256d inside = _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(double(j)), offsets), memoryLast, _CMP_LT_OS);
       if (reaching(c, j, quadWindows<kAnchored>(ml, j, qa, na, back, inside), enough, w, excess)) return excess;
     }
-    best = _mm256_setzero_pd();
-    at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
+    __m256d best = _mm256_setzero_pd();
+    __m256d at = _mm256_add_pd(_mm256_set1_pd(double(ml.first)), offsets);
     for (std::size_t j = ml.first; j < ml.last; j += 4, at = _mm256_add_pd(at, four)) {
       const __m256d m = quadWindows<kAnchored>(ml, j, qa, na, back, _mm256_cmp_pd(at, memoryLast, _CMP_LT_OS));
       if (reaching(c, j, m, enough, w, excess)) return excess;
