@@ -174,7 +174,7 @@ Edit closeSolid(Volume& vol, double r, ThreadPool& pool = ThreadPool::serial());
 // in [1, 64].
 Edit advectInSubsteps(Volume& vol, double distance, int substeps, ThreadPool& pool = ThreadPool::serial());
 
-// --- warps (level_set/warp.cpp) ----------------------------------------------------------
+// --- warps (level_set/warp*.cpp, level_set/README.md) --------------------------------------------
 // Warp tools (docs/method.md §3, Warps): grab, elastic grab, snake hook, twist, local scale,
 // pinch, pinch along a path. Sign and units as in volume.hpp (vu; d < 0 inside).
 //
@@ -216,7 +216,7 @@ inline constexpr double kMinWarpRadius = 1;
 inline constexpr double kMaxWarpRadius = 64;
 // A snake hook's radius is at least this (the registry's snake_radius): its tentacle is about
 // half the radius thick, and the grid loses a thinner one. Measured 2026-11-30 with the
-// resample's cubic read next to the zero set (level_set/warp.cpp): at radius 4 the tip held on
+// resample's cubic read next to the zero set (level_set/warp_reads.hpp): at radius 4 the tip held on
 // every path tried, 30 and 70 vu in moves of 1 and 2 vu; at radius 3 it was lost after 13-59
 // moves of a 70 vu drag (docs/method.md §3, Warps).
 inline constexpr double kMinSnakeHookRadius = 4;
@@ -227,7 +227,7 @@ inline constexpr double kWarpStretchPerStep = 0.25;
 
 // Grab: moves `anchor` (a point on the surface of base, picked by the caller) by d. The velocity
 // is d * W(rho / radius), W(t) = 1 - (6t^5 - 15t^4 + 10t^3) for t < 1 (flat at both ends: no tip
-// at the centre, no fold at the rim; level_set/warp.cpp, Falloff), rho the distance to the segment from
+// at the centre, no fold at the rim; level_set/warp_fields.hpp, Falloff), rho the distance to the segment from
 // anchor to anchor + d: the anchor travels along that segment at speed d and lands on
 // anchor + d (checked; the velocity would be scaled by a 1-D search if it did not land within
 // kWarpAnchorTolerance). A point beside the anchor at distance rho moves by W(rho / radius) d,
@@ -245,7 +245,7 @@ Edit grab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double radius,
 // under a (a itself when the move is along the tip's normal), so that at a turn of the path
 // the tip is pulled out of its side, not sheared sideways; the plateau's ball sinks behind that
 // point, up to its radius where the tip is thinner than the support, so that the tip is the
-// ball's round front (warp.cpp, snakeHookVelocity). The caller then takes target as the
+// ball's round front (level_set/warp_tools.cpp, snakeHookVelocity). The caller then takes target as the
 // next anchor. A drag is the composition of its moves, so a long one pulls out a tentacle
 // along the pointer's path. The changed region is the capsule of the move's support around
 // the segment: `radius`, but while the ball sinks only in part (a young tentacle, whose foot is

@@ -275,7 +275,7 @@ TEST_CASE("warps give the same bits on any number of threads", "[warp][threads]"
     twist(parallel, base, surfacePoint(), {0.3, 1, 0.2}, 1.0, 12, *pool);
     CHECK(sameField(serial, parallel));
     // A snake hook long enough for its ball to sink into the tip at radius 8 (the tip's voxels
-    // then take foot points: warp.cpp, kTipFeetBall), and a pinch along a path.
+    // then take foot points: warp_feet.cpp, kTipFeetBall), and a pinch along a path.
     Vec3 at = surfacePoint();
     for (int i = 0; i < 12; ++i) {
       const Vec3 next = at + Vec3{0.5, 2, 0.25};
@@ -303,13 +303,13 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     CHECK(std::fabs(v.sample(a + dir * r)) <= 0.25);
     checkSoundSolid(v);
     const AgainstExact m = againstExact(v, {c, 20, {grabMap(a, dir * r, r)}});
-    // Measured 2026-11-30 with the quintic falloff (warp.cpp, Falloff): exact 0.0402 / 0.00087,
+    // Measured 2026-11-30 with the quintic falloff (warp_fields.hpp, Falloff): exact 0.0402 / 0.00087,
     // ours 0.0465 / 0.00104; |ours - exact| 0.0966 / 0.00163. With the quartic (1 - t^2)^2:
     // exact 0.0314 / 0.00087, ours 0.0429 / 0.00102; |ours - exact| 0.121 / 0.00165
-    // (2026-11-30, the cubic read next to the zero set: warp.cpp, tricubic(); with the trilinear
+    // (2026-11-30, the cubic read next to the zero set: warp_reads.hpp, tricubic(); with the trilinear
     // one 0.0410 / 0.00109 and 0.130 / 0.00211; ours 0.0402 / 0.00164 before the foot points of
     // the voxels next to the zero set,
-    // warp.cpp; the exact means 0.00108 and 0.00439 against the coarser reference of then,
+    // warp_feet.cpp; the exact means 0.00108 and 0.00439 against the coarser reference of then,
     // whose chords lay up to 0.005 vu inside the surface).
     CHECK(m.exact.max <= 0.05);
     checkNearExact(m, 0.0005, 0.105, 0.0019);
@@ -320,7 +320,7 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     INFO("value at a + d " << v.sample(a + dir * (3 * r)));
     CHECK(std::fabs(v.sample(a + dir * (3 * r))) <= 0.25);
     // Measured 2026-11-30 with the tip's second layer given foot points after the march
-    // (warp.cpp, kGrabTipReach): ours 0.0867 / 0.00196, exact 0.0978 / 0.00149; |ours - exact|
+    // (warp_feet.cpp, kGrabTipReach): ours 0.0867 / 0.00196, exact 0.0978 / 0.00149; |ours - exact|
     // 0.140 / 0.00270. Before, with the march's values there (up to 0.1 vu short inside the
     // tip, on the ridge between its sides): 0.122 / 0.00200, |ours - exact| 0.140 / 0.00271.
     checkSoundSolid(v, 0.09, 0.005);
@@ -333,11 +333,11 @@ TEST_CASE("a grab of one and of three radii leaves one sound solid, near the exa
     CHECK(m.exact.max <= 0.1);
     CHECK(m.exact.mean <= 0.005);
     // Ours with the quartic, measured 2026-11-30 with the cubic read next to the zero set
-    // (warp.cpp, tricubic()): max 0.264 / mean 0.00220, |ours - exact| max 0.186 / mean 0.00285. With the trilinear read,
+    // (warp_reads.hpp, tricubic()): max 0.264 / mean 0.00220, |ours - exact| max 0.186 / mean 0.00285. With the trilinear read,
     // whose bias rounded the sharp tip off a little, 0.233 / 0.00222 and 0.196 / 0.0031 (0.0051
     // against the coarser reference): nearer the exact field, with a gradient error's max 0.028
     // above the exact field's at a tip whose radius of curvature is about a voxel. Before the
-    // foot points (warp.cpp): 0.293 / 0.0116 and 0.343 / 0.0142, the sheared sides' voxels next
+    // foot points (warp_feet.cpp): 0.293 / 0.0116 and 0.343 / 0.0142, the sheared sides' voxels next
     // to the zero set 0.1-0.3 vu off.
     checkNearExact(m, 0.001, 0.15, 0.003, 0.03);
   }
@@ -357,11 +357,11 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   // The tentacle keeps its thickness: the equivalent radius of its cross-section (inside voxels
   // of a slice across y, a slice of the slanting tentacle a little longer than its section)
   // 30 vu under the tip, and at the middle of the path. Measured 2026-11-30: 4.51 and 4.72 vu
-  // (4.51 and 4.62 before the young tentacle's wider support, warp.cpp, snakeHookVelocity;
+  // (4.51 and 4.62 before the young tentacle's wider support, warp_tools.cpp, snakeHookVelocity;
   // the plateau's radius is 4; 4.58 and 4.72 with the tip's foot points 1 vu past the plateau,
-  // warp.cpp, kTipFeetReach) with the cubic read next to the zero set (warp.cpp, tricubic());
+  // warp_feet.cpp, kTipFeetReach) with the cubic read next to the zero set (warp_reads.hpp, tricubic());
   // with the trilinear one, whose bias ate into the tentacle at every move, 3.61 and 4.18, and
-  // 3.29 and 3.91 before the plateau's ball sank into the tip (warp.cpp, snakeHookVelocity).
+  // 3.29 and 3.91 before the plateau's ball sank into the tip (warp_tools.cpp, snakeHookVelocity).
   const auto sectionRadius = [&](int y) {
     std::size_t in = 0;
     for (int z = 0; z < v.dims().z; ++z)
@@ -374,10 +374,10 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   // The tentacle above its foot (y >= 68; the sphere's top is at 60) within the brushes' max:
   // measured 2026-11-30 0.0474 / 0.00497 (max / mean; 0.0512 / 0.0050 before the young
   // tentacle's wider support) with the tip's kept voxels given foot
-  // points (warp.cpp, kTipFeetReach; 0.0773 / 0.0053 with the reach 1 vu, not 1.4); with
+  // points (warp_feet.cpp, kTipFeetReach; 0.0773 / 0.0053 with the reach 1 vu, not 1.4); with
   // phi1 / |grad phi1| there 0.187 / 0.0071, the tip
   // sharper than the exact field's (0.036-0.050) and a ridge the falloff behind the tip drew
-  // along the side at y 152-161. With the trilinear read next to the zero set (warp.cpp,
+  // along the side at y 152-161. With the trilinear read next to the zero set (warp_reads.hpp,
   // tricubic()), whose bias ate into convex parts at every move, the tentacle thinned and the
   // tip was rounded off: 0.0994 (0.193 before the plateau's ball sank into the tip, the flat
   // cap's sharpening rim). A ball fitted to the thicker tip (up to 0.75 radius) made the tip
@@ -389,11 +389,11 @@ TEST_CASE("a snake hook pulls out a tentacle along the pointer's path", "[warp][
   // The whole volume within the brushes' 0.1 and 0.005: measured 2026-11-30 0.0474 / 0.00324,
   // the max above the foot. The foot, where the tentacle leaves the sphere (y 56-64), is a broad
   // fillet: the moves whose ball sinks only in part, while the tentacle is young, have a wider
-  // support (warp.cpp, snakeHookVelocity). With the brush's support there the moves' falloff
+  // support (warp_tools.cpp, snakeHookVelocity). With the brush's support there the moves' falloff
   // stopped at the same ring on the sphere and the stub rose from it as a wall, a concave fold
   // about a voxel round: 0.129 / 0.00339 at the foot (the exact field of the first 8 moves read
   // 0.126 there: the test below; 0.187 / 0.00455 without the tip's foot points, the max above;
-  // with the trilinear read 0.117 / 0.00444). The grab's quintic falloff (warp.cpp, Falloff; W'
+  // with the trilinear read 0.117 / 0.00444). The grab's quintic falloff (warp_fields.hpp, Falloff; W'
   // and W'' zero at the rim) made that fold worse, 0.143 / 0.00396, and the tentacle above the
   // foot 0.113 / 0.0060 ((1 - t^2)^3: 0.139 / 0.00367, 0.139).
   checkSoundSolid(v, 0.1, 0.004);
@@ -403,9 +403,9 @@ TEST_CASE("a snake hook pulls a tentacle straight up within the brushes' gradien
   // 200 vu straight up from the sphere's top at radius 8, in moves of 2 and of 1 vu. Measured
   // 2026-11-30 (max / mean, the whole volume; above the foot, y >= 68): moves of 2 vu 0.0626 /
   // 0.00346, 0.0583 / 0.00515; moves of 1 vu 0.0698 / 0.00391, 0.0698 / 0.00624. Before the young
-  // tentacle's wider support (warp.cpp, snakeHookVelocity) 0.0995 / 0.00365 and 0.1010 / 0.00420,
+  // tentacle's wider support (warp_tools.cpp, snakeHookVelocity) 0.0995 / 0.00365 and 0.1010 / 0.00420,
   // the max under y 68, at the fold the first moves drew out of the sphere (the test above).
-  // With the tip's foot points 1 vu past the plateau (warp.cpp, kTipFeetReach), not 1.4: 0.147 /
+  // With the tip's foot points 1 vu past the plateau (warp_feet.cpp, kTipFeetReach), not 1.4: 0.147 /
   // 0.00445 (the max at the tip's rim) and 0.101 / 0.00531 (the sides behind the tip drifting
   // out at every move).
   const Vec3 c{48, 40, 48};
@@ -445,17 +445,17 @@ TEST_CASE("a snake hook's first moves near the exact distance of the carried sph
   const AgainstExact m = againstExact(v, {c, 20, maps});
   // The plateau's ball sinks into the tip once the tentacle is thinner than the support (from
   // the third move here), and the tip becomes its round front; while it sinks in part the
-  // support is wider (warp.cpp, snakeHookVelocity), and the foot on the sphere (y 56-60) a broad
+  // support is wider (warp_tools.cpp, snakeHookVelocity), and the foot on the sphere (y 56-60) a broad
   // fillet. Measured (2026-11-30): exact 0.0657 / 0.00125, ours 0.0919 / 0.00204, both at the
   // tip (y 75); |ours - exact| 0.142 / 0.0032. Ours reads the young tip sharper than the exact
   // field does (0.106 there before the wider support too): ours is held within 0.03 of the
   // exact field, not 0.02, and within the brushes' 0.1. With the brush's support the foot was a concave
   // fold about a voxel round, past the brushes' 0.1 for any field of that shape: exact 0.126 /
   // 0.00145, ours 0.129 / 0.00235, both at
-  // the foot; |ours - exact| 0.199 / 0.0036 with the cubic read next to the zero set (warp.cpp,
+  // the foot; |ours - exact| 0.199 / 0.0036 with the cubic read next to the zero set (warp_reads.hpp,
   // tricubic()) and the tip's kept voxels given foot points (kTipFeetReach), 0.214 / 0.0041
   // without them (ours 0.129 / 0.00220), 0.208 / 0.0054 with the trilinear read (ours 0.117 /
-  // 0.00219). With the grab's quintic falloff (warp.cpp, Falloff) the exact field read 0.148 /
+  // 0.00219). With the grab's quintic falloff (warp_fields.hpp, Falloff) the exact field read 0.148 /
   // 0.00153 and ours 0.143 (2026-11-30; (1 - t^2)^3: 0.139 and 0.145). With the ball on
   // the surface (2026-11-29) the tip
   // was a flat cap whose rim sharpened with every move: exact 0.167 / 0.00173 at the tip, ours
@@ -509,7 +509,7 @@ TEST_CASE("a snake hook along a path of right angles leaves one tentacle", "[war
   // with 1 vu moves, 4 with 4 vu moves, 10 with 8 vu moves at radius 6.
   // The gradient error is not within the brushes' limits: the largest at the turns, where the
   // tip is pulled out of its side. Measured 2026-11-30 (max / mean): 0.135 / 0.0048, 0.233 /
-  // 0.0091, 0.546 / 0.0240 with the young tentacle's wider support (warp.cpp,
+  // 0.0091, 0.546 / 0.0240 with the young tentacle's wider support (warp_tools.cpp,
   // snakeHookVelocity); 0.234 / 0.0051, 0.247 / 0.0091, 0.538 / 0.0240 before it; 0.233 /
   // 0.0062, 0.247 / 0.0101, 0.504 / 0.0282 with the tip's foot points 1 vu past the plateau
   // (kTipFeetReach), not 1.4; 0.253 / 0.0096, 0.247 / 0.0113, 0.525 / 0.0316 without those;
@@ -985,7 +985,7 @@ TEST_CASE("a partial weight moves a warped voxel by (1 - w/255) of its free move
 TEST_CASE("a snake hook of the smallest radius pulls out a thin tentacle along the path", "[warp][snake_hook][topology]") {
   // 30 vu from a sphere of radius 12 in moves of 1 and 2 vu: slanting with a turn, along a
   // helix, and along right angles. At kMinSnakeHookRadius (4) the tentacle is about 2 vu thick.
-  // With the trilinear read next to the zero set (before 2026-11-30, warp.cpp, tricubic()) the
+  // With the trilinear read next to the zero set (before 2026-11-30, warp_reads.hpp, tricubic()) the
   // tip thinned by about 0.07 vu a move at radius 3 and was lost (the largest value on the
   // path): radius 3 slanting 3.0 (the band: the tip left the clay after 26 moves of 1 vu) and
   // 0.29-0.37 in moves of 2 vu, 3.0 on the helix; radius 4 on the helix 0.35; radius 2, 3.0
@@ -1016,7 +1016,7 @@ TEST_CASE("a snake hook of the smallest radius pulls out a thin tentacle along t
       // angles above): measured at radius 4 (max / mean) 0.273 / 0.0083 and 0.253 / 0.0092
       // slanting, 0.224 / 0.0065 and 0.313 / 0.0090 on the helix, 0.728 / 0.0155 and 0.872 /
       // 0.0193 along the right angles, 4 vu apart, as the radius (2026-11-30; before the young
-      // tentacle's wider support, warp.cpp, snakeHookVelocity, 0.196 / 0.0082, 0.254 / 0.0096,
+      // tentacle's wider support, warp_tools.cpp, snakeHookVelocity, 0.196 / 0.0082, 0.254 / 0.0096,
       // 0.299 / 0.0070, 0.289 / 0.0095, 0.801 / 0.0164 and 0.894 / 0.0201; at radius 5 with the trilinear
       // read 0.136 / 0.0064, 0.140 / 0.0077, 0.275 / 0.0058, 0.278 / 0.0073, 0.677 / 0.0172 and
       // 0.779 / 0.0207).
@@ -1029,14 +1029,14 @@ TEST_CASE("a snake hook keeps its tip over 70 vu of 1 vu moves and a helix path 
           "[warp][snake_hook][topology]") {
   // 70 vu from a sphere of radius 12, slanting with a turn and along a helix whose radius of
   // curvature is 14 vu. Each move resamples the tip; with the trilinear interpolant there the zero
-  // set sank h^2 kappa / 8 a move into the tip, and the loss added up (warp.cpp, tricubic()).
+  // set sank h^2 kappa / 8 a move into the tip, and the loss added up (warp_reads.hpp, tricubic()).
   // Measured 2026-11-30: the tip's largest |value| after a move 0.127 and 0.072 at radius 4
   // (slant, helix), 0.043 at radius 5 (helix), 0.026 and 0.018 at radius 8 (moves of 1 and 2
   // vu); the path within 0.016 vu of the clay at radius 8 in moves of 1 vu, and inside it,
   // -0.010, in moves of 2 vu (0.125 vu outside it before the young tentacle's wider support,
-  // warp.cpp, snakeHookVelocity; inside, -0.010, with the tip's foot points 1 vu past the
-  // plateau, not 1.4; warp.cpp, kTipFeetReach). The tip's kept voxels take foot
-  // points at radius 8 only (warp.cpp, kTipFeetBall): on the thinner tips, or farther from the
+  // warp_tools.cpp, snakeHookVelocity; inside, -0.010, with the tip's foot points 1 vu past the
+  // plateau, not 1.4; warp_feet.cpp, kTipFeetReach). The tip's kept voxels take foot
+  // points at radius 8 only (warp_feet.cpp, kTipFeetBall): on the thinner tips, or farther from the
   // plateau, they left the helix's path 0.75-1.28 vu (radius 5) and 0.23-0.32 vu (radius 8, moves
   // of 2 vu, 1.5-2 vu past the plateau) outside the clay. Before the cubic read: at radius 5
   // the helix's tip left the clay at move 41 (3 vu off, the band), at radius 4 the slant's at
@@ -1069,7 +1069,7 @@ TEST_CASE("a snake hook keeps its tip over 70 vu of 1 vu moves and a helix path 
     // At radius 4 and 5 the thin tentacle (1-1.3 vu thick about the path) cuts a little inside
     // the helix's curve, which the later moves' falloff drags towards the chord: measured 0.147
     // (radius 4) and 0.220 vu (radius 5) outside the clay at most (0.233 and 0.266 before the
-    // young tentacle's wider support, warp.cpp, snakeHookVelocity), 25 vu before the tip (in
+    // young tentacle's wider support, warp_tools.cpp, snakeHookVelocity), 25 vu before the tip (in
     // moves of 2 vu radius 4 left it 0.67 vu outside, not tested).
     if (r > 5) {
       checkFollowsPath(v, path);
