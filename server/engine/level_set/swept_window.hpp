@@ -497,7 +497,6 @@ class SweptWindow {
     const std::size_t to = l.last;
     const LaneArrays& arr = *l.arrays;
     const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
-    const __m256d abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
     const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
     const __m256d xs = _mm256_setr_pd(x[0], x[1], x[2], x[3]);
     __m256d best = zero;
@@ -522,10 +521,12 @@ class SweptWindow {
         const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
         for (int a = 0; a < 3; ++a) at[a] = _mm256_sub_pd(q[a], _mm256_mul_pd(axis[a], moved));
       }
+      // quadWindows' factor without its absolute value: t t is the same bits for -t (rounding
+      // is symmetric), and t >= 1 exactly where fl(t t) >= 1, where u = 1 - t t <= 0.
       for (int a = 0; a < 3; ++a) {
-        const __m256d t = _mm256_mul_pd(_mm256_and_pd(_mm256_sub_pd(at[a], centre[a]), abs), invR);
+        const __m256d t = _mm256_mul_pd(_mm256_sub_pd(at[a], centre[a]), invR);
         const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
-        w = _mm256_mul_pd(w, _mm256_andnot_pd(_mm256_cmp_pd(t, one, _CMP_GE_OS), _mm256_mul_pd(u, u)));
+        w = _mm256_mul_pd(w, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_GT_OQ), _mm256_mul_pd(u, u)));
       }
       best = _mm256_max_pd(best, _mm256_and_pd(inside, w));
     }
