@@ -7,8 +7,9 @@
 // one per brick slice (the brick's inside and near bits, the ring's inside bits, shifted onto
 // each other; a slice's bits from its floats in AVX2 where simd_width.hpp allows it, comparisons
 // only, so the same bits), and only voxels whose bit survives are visited. Their splats
-// are worked out four at a time in SSE2 (splats4), lane by lane the float operations of the
-// scalar definition (splatAt, which MARZIPAN_SCALAR_KERNELS builds take) in its order.
+// are worked out four at a time in SSE2 (splats4), eight at a time in AVX2 where simd_width.hpp
+// allows it (splats8), lane by lane the float operations of the scalar definition (splatAt,
+// which MARZIPAN_SCALAR_KERNELS builds take) in its order.
 #include "splats.hpp"
 
 #include <algorithm>
@@ -360,6 +361,22 @@ Splat splatAt(const float* g, int c, Int3 p, Int3 o) {
   return sp;
 }
 #else
+// Four splats from their six fields (x, y, z, nx, ny, nz, a lane each) into out[0..4): back to
+// six floats per splat, rows (x0 y0 z0 nx0), (ny0 nz0 x1 y1), (z1 nx1 ny1 nz1), ...
+void storeSplats4(const __m128 f[6], Splat* out) {
+  const __m128 xyLo = _mm_unpacklo_ps(f[0], f[1]), xyHi = _mm_unpackhi_ps(f[0], f[1]);
+  const __m128 znLo = _mm_unpacklo_ps(f[2], f[3]), znHi = _mm_unpackhi_ps(f[2], f[3]);
+  const __m128 nnLo = _mm_unpacklo_ps(f[4], f[5]), nnHi = _mm_unpackhi_ps(f[4], f[5]);
+  static_assert(sizeof(Splat) == 6 * sizeof(float), "a splat is six packed floats");
+  float* w = reinterpret_cast<float*>(out);
+  _mm_storeu_ps(w, _mm_movelh_ps(xyLo, znLo));
+  _mm_storeu_ps(w + 4, _mm_shuffle_ps(nnLo, xyLo, _MM_SHUFFLE(3, 2, 1, 0)));
+  _mm_storeu_ps(w + 8, _mm_movehl_ps(nnLo, znLo));
+  _mm_storeu_ps(w + 12, _mm_movelh_ps(xyHi, znHi));
+  _mm_storeu_ps(w + 16, _mm_shuffle_ps(nnHi, xyHi, _MM_SHUFFLE(3, 2, 1, 0)));
+  _mm_storeu_ps(w + 20, _mm_movehl_ps(nnHi, znHi));
+}
+
 // splatAt for the four surface voxels voxel[0..4) (Bricks::index) of the brick with origin o,
 // g its padded array, into out[0..4): lane by lane the same float operations in the same order.
 // std::clamp(q, lo, hi) is max(lo, q) then min(hi, ...) in that operand order, which keeps a NaN
@@ -403,18 +420,51 @@ void splats4(const float* g, const std::int32_t* voxel, Int3 o, Splat* out) {
     f[a] = _mm_or_ps(_mm_and_ps(some, foot), _mm_andnot_ps(some, p));
     f[3 + a] = _mm_or_ps(_mm_and_ps(some, n[a]), _mm_andnot_ps(some, _mm_set1_ps(fallbackNormal[a])));
   }
-  // Back to six floats per splat: rows (x0 y0 z0 nx0), (ny0 nz0 x1 y1), (z1 nx1 ny1 nz1), ...
-  const __m128 xyLo = _mm_unpacklo_ps(f[0], f[1]), xyHi = _mm_unpackhi_ps(f[0], f[1]);
-  const __m128 znLo = _mm_unpacklo_ps(f[2], f[3]), znHi = _mm_unpackhi_ps(f[2], f[3]);
-  const __m128 nnLo = _mm_unpacklo_ps(f[4], f[5]), nnHi = _mm_unpackhi_ps(f[4], f[5]);
-  static_assert(sizeof(Splat) == 6 * sizeof(float), "a splat is six packed floats");
-  float* w = reinterpret_cast<float*>(out);
-  _mm_storeu_ps(w, _mm_movelh_ps(xyLo, znLo));
-  _mm_storeu_ps(w + 4, _mm_shuffle_ps(nnLo, xyLo, _MM_SHUFFLE(3, 2, 1, 0)));
-  _mm_storeu_ps(w + 8, _mm_movehl_ps(nnLo, znLo));
-  _mm_storeu_ps(w + 12, _mm_movelh_ps(xyHi, znHi));
-  _mm_storeu_ps(w + 16, _mm_shuffle_ps(nnHi, xyHi, _MM_SHUFFLE(3, 2, 1, 0)));
-  _mm_storeu_ps(w + 20, _mm_movehl_ps(nnHi, znHi));
+  storeSplats4(f, out);
+}
+#endif
+
+#if defined(MARZIPAN_AVX2)
+// splats4 for the eight surface voxels voxel[0..8) into out[0..8): each lane's value and six
+// neighbours gathered from g (one instruction a field, where splats4 transposes rows and sets
+// lanes one by one), then the same float operations in the same order on eight lanes, and the
+// two halves written back as splats4 writes its four (storeSplats4).
+__attribute__((target("avx2"))) void splats8(const float* g, const std::int32_t* voxel, Int3 o, Splat* out) {
+  static_assert(kBrickSide == 8 && kPad == 10, "the shifts below");
+  const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(voxel)), seven = _mm256_set1_epi32(7);
+  const __m256i lx = _mm256_and_si256(v, seven), ly = _mm256_and_si256(_mm256_srli_epi32(v, 3), seven),
+                lz = _mm256_srli_epi32(v, 6);
+  const __m256i cell = _mm256_add_epi32(
+      _mm256_add_epi32(_mm256_set1_epi32(padIndex(0, 0, 0)), lx),
+      _mm256_add_epi32(_mm256_mullo_epi32(ly, _mm256_set1_epi32(kPad)), _mm256_mullo_epi32(lz, _mm256_set1_epi32(kPad * kPad))));
+  const __m256 d = _mm256_i32gather_ps(g, cell, 4);
+  const __m256 gx = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[0], cell, 4), _mm256_i32gather_ps(g - kStride[0], cell, 4));
+  const __m256 gy = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[1], cell, 4), _mm256_i32gather_ps(g - kStride[1], cell, 4));
+  const __m256 gz = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[2], cell, 4), _mm256_i32gather_ps(g - kStride[2], cell, 4));
+  const __m256 len2 =
+      _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(gx, gx), _mm256_mul_ps(gy, gy)), _mm256_mul_ps(gz, gz));
+  const __m256 some = _mm256_cmp_ps(len2, _mm256_setzero_ps(), _CMP_GT_OQ);
+  const __m256 inv = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_sqrt_ps(len2));
+  const __m256 n[3] = {_mm256_mul_ps(gx, inv), _mm256_mul_ps(gy, inv), _mm256_mul_ps(gz, inv)};
+  const __m256i local[3] = {lx, ly, lz};
+  const int origin[3] = {o.x, o.y, o.z};
+  const float fallbackNormal[3] = {0, 0, 1};
+  __m256 f[6];  // x, y, z, nx, ny, nz per lane
+  for (int a = 0; a < 3; ++a) {
+    const __m256 p = _mm256_cvtepi32_ps(_mm256_add_epi32(local[a], _mm256_set1_epi32(origin[a])));
+    const __m256 q = _mm256_sub_ps(p, _mm256_mul_ps(d, n[a]));
+    const __m256 foot = _mm256_min_ps(_mm256_set1_ps(positionHigh(float(origin[a]))),
+                                      _mm256_max_ps(_mm256_set1_ps(positionLow(float(origin[a]))), q));
+    f[a] = _mm256_blendv_ps(p, foot, some);
+    f[3 + a] = _mm256_blendv_ps(_mm256_set1_ps(fallbackNormal[a]), n[a], some);
+  }
+  __m128 low[6], high[6];
+  for (int k = 0; k < 6; ++k) {
+    low[k] = _mm256_castps256_ps128(f[k]);
+    high[k] = _mm256_extractf128_ps(f[k], 1);
+  }
+  storeSplats4(low, out);
+  storeSplats4(high, out + 4);
 }
 #endif
 
@@ -453,8 +503,8 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
     in[z + 1] = slice;
   }
 
-  // The surface voxels first (Bricks::index; room for a last group of four), then their splats.
-  constexpr int kRoom = kBrickVoxels + 3;
+  // The surface voxels first (Bricks::index; room for a last group of eight), then their splats.
+  constexpr int kRoom = kBrickVoxels + 7;
   std::int32_t voxel[kRoom];
   int count = 0;
   static_assert(Bricks::index(0, 0, 1) == kBrickSide * kBrickSide, "bit x + 8 y of slice z is voxel bit + 64 z");
@@ -472,8 +522,17 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
   }
   Splat found[kRoom];
 #if defined(MARZIPAN_SSE2)
-  for (int i = count; i % 4 != 0; ++i) voxel[i] = voxel[i & ~3];  // the last group filled up with its first voxel
-  for (int i = 0; i < count; i += 4) splats4(g, voxel + i, o, found + i);
+  // The last group filled up with its first voxel.
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) {
+    for (int i = count; i % 8 != 0; ++i) voxel[i] = voxel[i & ~7];
+    for (int i = 0; i < count; i += 8) splats8(g, voxel + i, o, found + i);
+  } else
+#endif
+  {
+    for (int i = count; i % 4 != 0; ++i) voxel[i] = voxel[i & ~3];
+    for (int i = 0; i < count; i += 4) splats4(g, voxel + i, o, found + i);
+  }
 #else
   for (int i = 0; i < count; ++i) {
     const int x = voxel[i] % kBrickSide, y = voxel[i] / kBrickSide % kBrickSide, z = voxel[i] / (kBrickSide * kBrickSide);
