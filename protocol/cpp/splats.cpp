@@ -1,11 +1,13 @@
 // The splat wire codec. Byte layout and quantization: see splats.hpp.
 //
-// Speed: where the build has SSE2 the encoder quantizes four points at a time, lane by lane
-// the same float operations in the same order as the one-point encodePoint (which takes the
-// rest of a block), so both write the same bytes.
+// Speed: where the build has SSE2 the encoder quantizes four points at a time, and eight in
+// AVX2 where splat_width.hpp allows it, lane by lane the same float operations in the same
+// order as the one-point encodePoint (which takes the rest of a block), so all write the same
+// bytes.
 #include "splats.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -13,10 +15,16 @@
 #if defined(__SSE2__) && !defined(MARZIPAN_SCALAR_KERNELS)
 #include <emmintrin.h>
 #define MARZIPAN_SPLATS_SSE2 1
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define MARZIPAN_SPLATS_AVX2 1
+#endif
 #endif
 
+#include "protocol/cpp/cpu.hpp"
 #include "protocol/cpp/errors.hpp"
 #include "protocol/cpp/little_endian.hpp"
+#include "protocol/cpp/splat_width.hpp"
 
 namespace marzipan {
 
@@ -82,6 +90,16 @@ inline __m128i roundedCode(__m128 t, float hi) {
   return _mm_cvttps_epi32(_mm_add_ps(c, _mm_set1_ps(0.5f)));
 }
 
+// The words of four points, bits 0..31 in lo's lanes and 32..63 in hi's, as little-endian u64
+// at p, `stride` bytes apart.
+void storeWords4(__m128i lo, __m128i hi, std::uint8_t* p, std::size_t stride) {
+  const __m128i first = _mm_unpacklo_epi32(lo, hi), second = _mm_unpackhi_epi32(lo, hi);
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(p), first);
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + stride), _mm_unpackhi_epi64(first, first));
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + 2 * stride), second);
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + 3 * stride), _mm_unpackhi_epi64(second, second));
+}
+
 // encodePoint for the four splats at s, lane by lane the same float operations in the same
 // order, written as four little-endian u64 at p (`stride` bytes apart). False, with nothing
 // written, when a normal is so short that 1 / l1 overflows (subnormal components), which the
@@ -128,17 +146,71 @@ bool encodePoints4(const Splat* s, Int3 origin, std::uint8_t* p, std::size_t str
   const __m128i cu = roundedCode(_mm_mul_ps(_mm_add_ps(u, one), octScale), float(kOctMax));
   const __m128i cv = roundedCode(_mm_mul_ps(_mm_add_ps(v, one), octScale), float(kOctMax));
 
-  // Bits 0..31 and 32..63 of each point's word (Z straddles them), then interleaved.
+  // Bits 0..31 and 32..63 of each point's word (Z straddles them).
   const __m128i lo = _mm_or_si128(_mm_or_si128(x, _mm_slli_epi32(y, kPosBits)), _mm_slli_epi32(z, 2 * kPosBits));
   const __m128i hi = _mm_or_si128(_mm_or_si128(_mm_srli_epi32(z, 32 - 2 * kPosBits), _mm_slli_epi32(cu, 3 * kPosBits - 32)),
                                   _mm_slli_epi32(cv, 3 * kPosBits + kOctBits - 32));
-  const __m128i first = _mm_unpacklo_epi32(lo, hi), second = _mm_unpackhi_epi32(lo, hi);
-  _mm_storel_epi64(reinterpret_cast<__m128i*>(p), first);
-  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + stride), _mm_unpackhi_epi64(first, first));
-  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + 2 * stride), second);
-  _mm_storel_epi64(reinterpret_cast<__m128i*>(p + 3 * stride), _mm_unpackhi_epi64(second, second));
+  storeWords4(lo, hi, p, stride);
   return true;
 }
+#endif
+
+#if defined(MARZIPAN_SPLATS_AVX2)
+// encodePoints4 for eight splats: each field's eight values gathered (one instruction a field),
+// then the same float operations in the same order on eight lanes, and the two halves' words
+// written as encodePoints4 writes its four. False, with nothing written, as encodePoints4.
+__attribute__((target("avx2"))) bool encodePoints8(const Splat* s, Int3 origin, std::uint8_t* p, std::size_t stride) {
+  static_assert(sizeof(Splat) == 6 * sizeof(float), "a splat is six packed floats");
+  const float* f = reinterpret_cast<const float*>(s);
+  const __m256i splat = _mm256_setr_epi32(0, 6, 12, 18, 24, 30, 36, 42);
+  const __m256 zero = _mm256_setzero_ps(), half = _mm256_set1_ps(0.5f);
+  // clamp(t, 0, hi) + 0.5 truncated, as roundedCode.
+  const __m256 posMax = _mm256_set1_ps(float(kPosMax)), octMax = _mm256_set1_ps(float(kOctMax));
+  const __m256 low = _mm256_set1_ps(kPosLow), scale = _mm256_set1_ps(1 / kPosStep);
+  __m256i code[3];
+  const int o[3] = {origin.x, origin.y, origin.z};
+  for (int a = 0; a < 3; ++a) {
+    const __m256 q = _mm256_i32gather_ps(f + a, splat, 4);
+    const __m256 t = _mm256_mul_ps(_mm256_sub_ps(_mm256_sub_ps(q, _mm256_set1_ps(float(o[a]))), low), scale);
+    code[a] = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_min_ps(_mm256_max_ps(t, zero), posMax), half));
+  }
+
+  const __m256 one = _mm256_set1_ps(1.0f), minusOne = _mm256_set1_ps(-1.0f);
+  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 nx = _mm256_i32gather_ps(f + 3, splat, 4), ny = _mm256_i32gather_ps(f + 4, splat, 4),
+               nz = _mm256_i32gather_ps(f + 5, splat, 4);
+  const __m256 l1 = _mm256_add_ps(_mm256_add_ps(_mm256_and_ps(nx, magnitude), _mm256_and_ps(ny, magnitude)),
+                                  _mm256_and_ps(nz, magnitude));
+  const __m256 some = _mm256_cmp_ps(l1, zero, _CMP_GT_OS);
+  const __m256 inv = _mm256_div_ps(one, l1);
+  if (_mm256_movemask_ps(_mm256_and_ps(
+          some, _mm256_cmp_ps(inv, _mm256_set1_ps(std::numeric_limits<float>::infinity()), _CMP_EQ_OQ))) != 0)
+    return false;
+  __m256 u = _mm256_and_ps(some, _mm256_mul_ps(nx, inv)), v = _mm256_and_ps(some, _mm256_mul_ps(ny, inv));
+  const __m256 signU = _mm256_blendv_ps(one, minusOne, _mm256_cmp_ps(u, zero, _CMP_LT_OS));
+  const __m256 signV = _mm256_blendv_ps(one, minusOne, _mm256_cmp_ps(v, zero, _CMP_LT_OS));
+  const __m256 fu = _mm256_mul_ps(_mm256_sub_ps(one, _mm256_and_ps(v, magnitude)), signU);
+  const __m256 fv = _mm256_mul_ps(_mm256_sub_ps(one, _mm256_and_ps(u, magnitude)), signV);
+  const __m256 lower = _mm256_cmp_ps(nz, zero, _CMP_LT_OS);  // only where l1 > 0
+  u = _mm256_blendv_ps(u, fu, lower);
+  v = _mm256_blendv_ps(v, fv, lower);
+  const __m256 octScale = _mm256_set1_ps(float(kOctMax) / 2);
+  const __m256i cu = _mm256_cvttps_epi32(
+      _mm256_add_ps(_mm256_min_ps(_mm256_max_ps(_mm256_mul_ps(_mm256_add_ps(u, one), octScale), zero), octMax), half));
+  const __m256i cv = _mm256_cvttps_epi32(
+      _mm256_add_ps(_mm256_min_ps(_mm256_max_ps(_mm256_mul_ps(_mm256_add_ps(v, one), octScale), zero), octMax), half));
+
+  const __m256i lo = _mm256_or_si256(_mm256_or_si256(code[0], _mm256_slli_epi32(code[1], kPosBits)),
+                                     _mm256_slli_epi32(code[2], 2 * kPosBits));
+  const __m256i hi = _mm256_or_si256(
+      _mm256_or_si256(_mm256_srli_epi32(code[2], 32 - 2 * kPosBits), _mm256_slli_epi32(cu, 3 * kPosBits - 32)),
+      _mm256_slli_epi32(cv, 3 * kPosBits + kOctBits - 32));
+  storeWords4(_mm256_castsi256_si128(lo), _mm256_castsi256_si128(hi), p, stride);
+  storeWords4(_mm256_extracti128_si256(lo, 1), _mm256_extracti128_si256(hi, 1), p + 4 * stride, stride);
+  return true;
+}
+
+std::atomic<bool> useAvx2{splat_width::avx2Available()};
 #endif
 
 Splat decodePoint(std::uint64_t w, Int3 origin) {
@@ -191,10 +263,28 @@ std::size_t encodedSplatsSize(const std::vector<BrickSplats>& bricks, std::uint1
 namespace {
 
 // Whether every position and normal is finite: no float with all exponent bits set.
+#if defined(MARZIPAN_SPLATS_AVX2)
+// Whether the first 8 * (floats / 8) floats at bytes are finite; *done: that count.
+__attribute__((target("avx2"))) bool allFiniteAvx2(const std::uint8_t* bytes, std::size_t floats, std::size_t* done) {
+  const __m256i exponent = _mm256_set1_epi32(0x7f800000);
+  __m256i bad = _mm256_setzero_si256();
+  std::size_t i = 0;
+  for (; i + 8 <= floats; i += 8) {
+    const __m256i w = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(bytes + 4 * i));
+    bad = _mm256_or_si256(bad, _mm256_cmpeq_epi32(_mm256_and_si256(w, exponent), exponent));
+  }
+  *done = i;
+  return _mm256_movemask_epi8(bad) == 0;
+}
+#endif
+
 bool allFinite(const std::vector<Splat>& points) {
   const std::size_t floats = 6 * points.size();
   const auto* bytes = reinterpret_cast<const std::uint8_t*>(points.data());
   std::size_t i = 0;
+#if defined(MARZIPAN_SPLATS_AVX2)
+  if (useAvx2.load(std::memory_order_relaxed) && !allFiniteAvx2(bytes, floats, &i)) return false;
+#endif
 #if defined(MARZIPAN_SPLATS_SSE2)
   const __m128i exponent = _mm_set1_epi32(0x7f800000);
   __m128i bad = _mm_setzero_si128();
@@ -239,6 +329,11 @@ std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p, std::uint16_t ve
   // one-point encoder, which writes the same bytes.
   const std::size_t stride = painted ? kSplatPaintedPointBytes : kSplatPointBytes, n = b.points.size();
   std::size_t i = 0;
+#if defined(MARZIPAN_SPLATS_AVX2)
+  if (useAvx2.load(std::memory_order_relaxed))
+    for (; i + 8 <= n; i += 8)
+      if (!encodePoints8(b.points.data() + i, o, p + i * stride, stride)) break;
+#endif
 #if defined(MARZIPAN_SPLATS_SSE2)
   for (; i + 4 <= n; i += 4)
     if (!encodePoints4(b.points.data() + i, o, p + i * stride, stride)) break;
@@ -303,6 +398,21 @@ std::uint16_t readVersion(std::span<const std::uint8_t> bytes) {
 }
 
 }  // namespace
+
+bool splat_width::avx2Available() {
+#if defined(MARZIPAN_SPLATS_AVX2)
+  static const bool has = cpu::hasAvx2();
+  return has;
+#else
+  return false;
+#endif
+}
+
+void splat_width::allowAvx2([[maybe_unused]] bool allowed) {
+#if defined(MARZIPAN_SPLATS_AVX2)
+  useAvx2.store(allowed && avx2Available(), std::memory_order_relaxed);
+#endif
+}
 
 std::vector<std::uint8_t> encodeSplats(const std::vector<BrickSplats>& bricks, std::uint16_t version) {
   checkVersion(version);

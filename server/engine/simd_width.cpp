@@ -1,13 +1,12 @@
 #include "simd_width.hpp"
 
+#include "protocol/cpp/cpu.hpp"
+
 namespace marzipan::simd_width {
 
 bool avx2Available() {
 #if defined(MARZIPAN_AVX2)
-  static const bool has = [] {
-    __builtin_cpu_init();  // may run before the constructors that would otherwise set it up
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
+  static const bool has = cpu::hasAvx2();
   return has;
 #else
   return false;

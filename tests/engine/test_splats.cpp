@@ -22,6 +22,7 @@
 #include "engine/solids.hpp"
 #include "engine/splats.hpp"
 #include "engine/stencil.hpp"
+#include "protocol/cpp/splat_width.hpp"
 #include "protocol/cpp/splats.hpp"
 #include "engine/thread_pool.hpp"
 #include "engine/volume.hpp"
@@ -508,10 +509,12 @@ TEST_CASE("splat encoding: exact layout and quantization error", "[splats]") {
   CHECK(decodeSplats(encodeSplats(back)) == back);
 }
 
-TEST_CASE("splat points encoded four at a time are the bytes of each encoded alone", "[splats]") {
-  // A block of one point takes the one-point encoder; a block of 4k points the four-at-a-time
-  // one where the build has it. Points of every kind: clamped positions, normals of any length
-  // and of the lower half, zero and signed-zero components, subnormal normals, huge values.
+TEST_CASE("splat points encoded four or eight at a time are the bytes of each encoded alone", "[splats]") {
+  // A block of one point takes the one-point encoder; a block of 512 points the four-at-a-time
+  // one where the build has it, or the eight-at-a-time one where the CPU has AVX2 (each width in
+  // turn; a group one refuses, for a subnormal normal, leaves the rest of the block to the
+  // narrower ones). Points of every kind: clamped positions, normals of any length and of the
+  // lower half, zero and signed-zero components, subnormal normals, huge values.
   std::mt19937 rng(32);
   std::uniform_real_distribution<float> pos(-3.0f, 11.0f), dir(-1.5f, 1.5f);  // around brick (3, 1, 0)
   std::vector<Splat> points;
@@ -529,28 +532,32 @@ TEST_CASE("splat points encoded four at a time are the bytes of each encoded alo
     points.push_back(s);
   }
   std::shuffle(points.begin() + std::ptrdiff_t(special.size()), points.end(), rng);
-  for (const bool painted : {false, true}) {
-    INFO((painted ? "painted" : "unpainted"));
-    const std::size_t pointBytes = painted ? kSplatPaintedPointBytes : kSplatPointBytes;
-    for (std::size_t at = 0; at + 512 <= points.size(); at += 500) {
-      BrickSplats block{{3, 1, 0}, std::vector<Splat>(points.begin() + std::ptrdiff_t(at),
-                                                      points.begin() + std::ptrdiff_t(at + 512)), {}};
-      if (painted)
-        for (std::size_t i = 0; i < block.points.size(); ++i)
-          block.texels.push_back({std::uint8_t(i), std::uint8_t(3 * i), std::uint8_t(7 * i), std::uint8_t(255 - i)});
-      std::vector<std::uint8_t> all, one;
-      encodeSplatBlock(block, all);
-      REQUIRE(all.size() == kSplatBrickHeaderBytes + pointBytes * 512);
-      for (std::size_t i = 0; i < block.points.size(); ++i) {
-        BrickSplats alone{block.brick, {block.points[i]}, {}};
-        if (painted) alone.texels = {block.texels[i]};
-        encodeSplatBlock(alone, one);
-        INFO("point " << at + i);
-        REQUIRE(std::equal(one.begin() + kSplatBrickHeaderBytes, one.end(),
-                           all.begin() + std::ptrdiff_t(kSplatBrickHeaderBytes + pointBytes * i)));
+  for (const bool avx2 : {false, true}) {
+    splat_width::allowAvx2(avx2);
+    for (const bool painted : {false, true}) {
+      INFO((painted ? "painted" : "unpainted") << (avx2 ? ", AVX2 allowed" : ", SSE2"));
+      const std::size_t pointBytes = painted ? kSplatPaintedPointBytes : kSplatPointBytes;
+      for (std::size_t at = 0; at + 512 <= points.size(); at += 500) {
+        BrickSplats block{{3, 1, 0}, std::vector<Splat>(points.begin() + std::ptrdiff_t(at),
+                                                        points.begin() + std::ptrdiff_t(at + 512)), {}};
+        if (painted)
+          for (std::size_t i = 0; i < block.points.size(); ++i)
+            block.texels.push_back({std::uint8_t(i), std::uint8_t(3 * i), std::uint8_t(7 * i), std::uint8_t(255 - i)});
+        std::vector<std::uint8_t> all, one;
+        encodeSplatBlock(block, all);
+        REQUIRE(all.size() == kSplatBrickHeaderBytes + pointBytes * 512);
+        for (std::size_t i = 0; i < block.points.size(); ++i) {
+          BrickSplats alone{block.brick, {block.points[i]}, {}};
+          if (painted) alone.texels = {block.texels[i]};
+          encodeSplatBlock(alone, one);
+          INFO("point " << at + i);
+          REQUIRE(std::equal(one.begin() + kSplatBrickHeaderBytes, one.end(),
+                             all.begin() + std::ptrdiff_t(kSplatBrickHeaderBytes + pointBytes * i)));
+        }
       }
     }
   }
+  splat_width::allowAvx2(true);
   // Normals so short that 1 / l1 overflows keep their direction (protocol/cpp/splats.cpp,
   // kTinyNormalScale): unscaled, a zero component made a NaN, whose conversion to an integer was
   // undefined (clang's UBSan stopped here), and (0, 1e-40, 0) came back as (-0, 0, -1).
@@ -562,19 +569,24 @@ TEST_CASE("splat points encoded four at a time are the bytes of each encoded alo
     INFO("decoded normal " << n.x << " " << n.y << " " << n.z);
     CHECK(degreesBetween(n, expected) < 0.2);
   }
-  // Non-finite values are refused wherever they sit among the points, in every field: with an
-  // odd count (511: 3066 floats) the last point's ny and nz lie past the last whole group of four
-  // floats, which the check takes one by one.
-  for (const std::size_t count : {512, 511})
-    for (const std::size_t i : {std::size_t(0), std::size_t(1), std::size_t(5), count - 2, count - 1})
-      for (int field = 0; field < 6; ++field) {
-        BrickSplats bad{{0, 0, 0}, std::vector<Splat>(points.begin(), points.begin() + std::ptrdiff_t(count)), {}};
-        constexpr float Splat::*kFields[6] = {&Splat::x, &Splat::y, &Splat::z, &Splat::nx, &Splat::ny, &Splat::nz};
-        bad.points[i].*kFields[field] = field % 2 ? std::numeric_limits<float>::infinity() : std::nanf("");
-        std::vector<std::uint8_t> out;
-        INFO(count << " points, point " << i << ", field " << field);
-        CHECK_THROWS_AS(encodeSplatBlock(bad, out), EngineError);
-      }
+  // Non-finite values are refused wherever they sit among the points, in every field, at each
+  // width: with an odd count (511: 3066 floats) the last point's ny and nz lie past the last
+  // whole group of four (or eight) floats, which the check takes one by one; with 510 (3060
+  // floats) the last four lie past the last group of eight, which the four-wide check takes.
+  for (const bool avx2 : {false, true}) {
+    splat_width::allowAvx2(avx2);
+    for (const std::size_t count : {512, 511, 510})
+      for (const std::size_t i : {std::size_t(0), std::size_t(1), std::size_t(5), count - 2, count - 1})
+        for (int field = 0; field < 6; ++field) {
+          BrickSplats bad{{0, 0, 0}, std::vector<Splat>(points.begin(), points.begin() + std::ptrdiff_t(count)), {}};
+          constexpr float Splat::*kFields[6] = {&Splat::x, &Splat::y, &Splat::z, &Splat::nx, &Splat::ny, &Splat::nz};
+          bad.points[i].*kFields[field] = field % 2 ? std::numeric_limits<float>::infinity() : std::nanf("");
+          std::vector<std::uint8_t> out;
+          INFO(count << " points, point " << i << ", field " << field << (avx2 ? ", AVX2 allowed" : ", SSE2"));
+          CHECK_THROWS_AS(encodeSplatBlock(bad, out), EngineError);
+        }
+  }
+  splat_width::allowAvx2(true);
 }
 
 TEST_CASE("splat blocks joined into a buffer are encodeSplats' bytes, in the order given", "[splats]") {
