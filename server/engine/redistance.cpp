@@ -10,7 +10,10 @@
 #endif
 
 #include "chunked_pass.hpp"
-#include "simd_width.hpp"  // MARZIPAN_SSE2
+#include "simd_width.hpp"  // MARZIPAN_SSE2, MARZIPAN_AVX2
+#if defined(MARZIPAN_AVX2)
+#include <immintrin.h>
+#endif
 #include "volume.hpp"
 
 namespace marzipan {
@@ -135,6 +138,36 @@ std::uint32_t nearMask16(const float* v, float band) {
   for (std::size_t x = 0; x < n; ++x) f[x] = std::uint8_t(pos[x] ^ (v[x] < 0 ? flip[x] : 0));
 }
 
+#if defined(MARZIPAN_AVX2)
+// signFlags' 32 voxels from x on with AVX2: the same bytes.
+[[gnu::always_inline]] __attribute__((target("avx2"))) inline void signBlockAvx2(const float* v, std::uint8_t* f,
+                                                                               const std::uint8_t* pos,
+                                                                               const std::uint8_t* flip, std::size_t x) {
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256i m0 = _mm256_castps_si256(_mm256_cmp_ps(_mm256_loadu_ps(v + x), zero, _CMP_LT_OS));
+  const __m256i m1 = _mm256_castps_si256(_mm256_cmp_ps(_mm256_loadu_ps(v + x + 8), zero, _CMP_LT_OS));
+  const __m256i m2 = _mm256_castps_si256(_mm256_cmp_ps(_mm256_loadu_ps(v + x + 16), zero, _CMP_LT_OS));
+  const __m256i m3 = _mm256_castps_si256(_mm256_cmp_ps(_mm256_loadu_ps(v + x + 24), zero, _CMP_LT_OS));
+  // The packs work within 128-bit halves: their 4-byte groups come out as m0 m1 m2 m3 of the
+  // low halves, then of the high ones, which the permutation puts back in order.
+  const __m256i packed = _mm256_packs_epi16(_mm256_packs_epi32(m0, m1), _mm256_packs_epi32(m2, m3));
+  const __m256i neg = _mm256_permutevar8x32_epi32(packed, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
+  const __m256i p = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(pos + x));
+  const __m256i fl = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flip + x));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(f + x), _mm256_xor_si256(p, _mm256_and_si256(neg, fl)));
+}
+
+// signFlags 32 voxels at a time (a slice of a stroke's box is a few thousand), ending with a
+// block that overlaps the one before; shorter runs are signFlags'.
+__attribute__((target("avx2"))) void signFlagsAvx2(const float* v, std::uint8_t* f, std::size_t n,
+                                                   const std::uint8_t* pos, const std::uint8_t* flip) {
+  if (n < 32) return signFlags(v, f, n, pos, flip);
+  std::size_t x = 0;
+  for (; x + 32 <= n; x += 32) signBlockAvx2(v, f, pos, flip, x);
+  if (x < n) signBlockAvx2(v, f, pos, flip, n - 32);
+}
+#endif
+
 // A tool's grid is split into fixed pieces (z-slabs of the grid, runs of the band list), each
 // worked on alone: the result does not depend on the thread count. Grids smaller than this
 // are worked on the calling thread only: waking the pool would cost more than it saves.
@@ -249,6 +282,39 @@ void flagPattern(std::size_t n, const std::uint16_t* reset, const std::uint16_t*
   }
 }
 
+#if defined(MARZIPAN_AVX2)
+// flagPattern 32 positions at a time with AVX2 (the rest as flagPattern does them): the same
+// bytes.
+__attribute__((target("avx2"))) void flagPatternAvx2(std::size_t n, const std::uint16_t* reset,
+                                                     const std::uint16_t* marked, const std::uint8_t* interior,
+                                                     std::uint8_t base, std::uint8_t resetPos, std::uint8_t resetFlip,
+                                                     std::uint8_t* pos, std::uint8_t* flip) {
+  const __m256i zero = _mm256_setzero_si256(), baseV = _mm256_set1_epi8(char(base));
+  const __m256i resetPosV = _mm256_set1_epi8(char(resetPos)), resetFlipV = _mm256_set1_epi8(char(resetFlip));
+  const __m256i negV = _mm256_set1_epi8(char(kNeg)), markedV = _mm256_set1_epi8(char(kMarked));
+  std::size_t x = 0;
+  for (; x + 32 <= n; x += 32) {
+    // 0xff where no box holds the position: the packs work within 128-bit halves, whose 8-byte
+    // groups the permutation puts back in order.
+    const auto none = [&](const std::uint16_t* c) __attribute__((always_inline, target("avx2"))) {
+      const __m256i a = _mm256_cmpeq_epi16(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(c + x)), zero);
+      const __m256i b = _mm256_cmpeq_epi16(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(c + x + 16)), zero);
+      return _mm256_permute4x64_epi64(_mm256_packs_epi16(a, b), 0xd8);
+    };
+    const __m256i outside = none(reset), unmarked = none(marked);
+    __m256i p = _mm256_or_si256(_mm256_andnot_si256(outside, resetPosV), _mm256_and_si256(outside, baseV));
+    p = _mm256_or_si256(p, _mm256_andnot_si256(unmarked, markedV));
+    if (interior) p = _mm256_or_si256(p, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(interior + x)));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(pos + x), p);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(flip + x),
+                        _mm256_or_si256(_mm256_andnot_si256(outside, resetFlipV), _mm256_and_si256(outside, negV)));
+  }
+  if (x < n)
+    flagPattern(n - x, reset + x, marked + x, interior ? interior + x : nullptr, base, resetPos, resetFlip, pos + x,
+                flip + x);
+}
+#endif
+
 // The flags of z-slices [z0, z1) of g. Each voxel's byte depends only on its position and the
 // sign of its value, so any split into slabs gives the same bytes.
 void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layout, int z0, int z1, FlagPiece& fp,
@@ -291,11 +357,22 @@ void flagSlices(const DenseGrid& g, std::uint8_t* flags, const FlagLayout& layou
       }
     if (y0 < y1) {
       const std::size_t from = std::size_t(y0) * g.sx;
-      flagPattern(std::size_t(y1 - y0) * g.sx, fp.resetCount.data() + from, fp.markedCount.data() + from,
-                  innerZ ? fp.interior.data() + from : nullptr, layout.base, resetPos, resetFlip, fp.pos.data() + from,
-                  fp.flip.data() + from);
+#if defined(MARZIPAN_AVX2)
+      const auto pattern = simd_width::useAvx2() ? flagPatternAvx2 : flagPattern;
+#else
+      const auto pattern = flagPattern;
+#endif
+      pattern(std::size_t(y1 - y0) * g.sx, fp.resetCount.data() + from, fp.markedCount.data() + from,
+              innerZ ? fp.interior.data() + from : nullptr, layout.base, resetPos, resetFlip, fp.pos.data() + from,
+              fp.flip.data() + from);
     }
     const std::size_t slice = std::size_t(z) * n;
+#if defined(MARZIPAN_AVX2)
+    if (simd_width::useAvx2()) {
+      signFlagsAvx2(v + slice, flags + slice, n, fp.pos.data(), fp.flip.data());
+      continue;
+    }
+#endif
     signFlags(v + slice, flags + slice, n, fp.pos.data(), fp.flip.data());
   }
 }
