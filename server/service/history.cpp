@@ -2,11 +2,15 @@
 #include "service/history.hpp"
 
 #include "engine/progress.hpp"
+#include "engine/simd_width.hpp"  // MARZIPAN_AVX2
 
 #include <zstd.h>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+#if defined(MARZIPAN_AVX2)
+#include <immintrin.h>
 #endif
 
 #include <algorithm>
@@ -87,33 +91,70 @@ struct RecordBytes {
   std::size_t packed = 0, low = 0;
 };
 
+#if defined(MARZIPAN_AVX2)
+// The zigzagged differences z of v against reference and their mask (bit i: z[i] != 0), eight
+// voxels at a time: the integer operations of ordered and zigzag, so the same words. Returns the
+// count of differing voxels.
+__attribute__((target("avx2,popcnt"))) int differencesAvx2(const float* v, const float* reference, std::uint32_t* z,
+                                                            std::uint64_t* mask) {
+  const __m256i sign = _mm256_set1_epi32(std::int32_t(0x80000000u)), zero = _mm256_setzero_si256();
+  int count = 0;
+  for (int w = 0; w < kBrickVoxels / 64; ++w) {
+    std::uint64_t m = 0;
+    for (int k = 0; k < 64; k += 8) {
+      const int i = 64 * w + k;
+      const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(v + i)),
+                    b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(reference + i));
+      const __m256i d = _mm256_sub_epi32(_mm256_xor_si256(a, _mm256_or_si256(_mm256_srai_epi32(a, 31), sign)),
+                                         _mm256_xor_si256(b, _mm256_or_si256(_mm256_srai_epi32(b, 31), sign)));
+      const __m256i zz = _mm256_xor_si256(_mm256_slli_epi32(d, 1), _mm256_srai_epi32(d, 31));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(z + i), zz);
+      const int same = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(zz, zero)));
+      m |= std::uint64_t(~same & 0xff) << k;
+    }
+    mask[w] = m;
+    count += std::popcount(m);
+  }
+  return count;
+}
+#endif
+
+// The zigzagged differences and their mask, as differencesAvx2, at the width simd_width allows.
+int differences(const float* v, const float* reference, std::uint32_t* z, std::uint64_t* mask) {
+#if defined(MARZIPAN_AVX2)
+  if (simd_width::useAvx2()) return differencesAvx2(v, reference, z, mask);
+#endif
+  // In a loop the compiler vectorizes.
+  for (int i = 0; i < kBrickVoxels; ++i) z[i] = zigzag(ordered(v[i]) - ordered(reference[i]));
+  int count = 0;
+  for (int w = 0; w < kBrickVoxels / 64; ++w) {
+    std::uint64_t m = 0;
+#if defined(__SSE2__)
+    // 16 words at a time: their comparisons with zero, packed to bytes, as 16 bits.
+    const __m128i zero = _mm_setzero_si128();
+    for (int k = 0; k < 64; k += 16) {
+      const __m128i* q = reinterpret_cast<const __m128i*>(z + 64 * w + k);
+      const __m128i e0 = _mm_cmpeq_epi32(_mm_loadu_si128(q), zero), e1 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 1), zero),
+                    e2 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 2), zero), e3 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 3), zero);
+      const int same = _mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(e0, e1), _mm_packs_epi32(e2, e3)));
+      m |= std::uint64_t(~same & 0xffff) << k;
+    }
+#else
+    for (int k = 0; k < 64; ++k) m |= std::uint64_t(z[64 * w + k] != 0) << k;
+#endif
+    mask[w] = m;
+    count += std::popcount(m);
+  }
+  return count;
+}
+
 // Writes brick b's record at out, its low planes (against a reference) at low.
 RecordBytes splitPlanes(const Brick& b, const float* reference, unsigned char* out, unsigned char* low) {
   if (reference) {
-    // The differences first, in a loop the compiler vectorizes; then the mask and the bytes of
-    // the voxels that differ.
+    // The differences first; then the mask and the bytes of the voxels that differ.
     std::uint32_t z[kBrickVoxels];
-    for (int i = 0; i < kBrickVoxels; ++i) z[i] = zigzag(ordered(b.v[i]) - ordered(reference[i]));
     std::uint64_t mask[kBrickVoxels / 64];
-    int count = 0;
-    for (int w = 0; w < kBrickVoxels / 64; ++w) {
-      std::uint64_t m = 0;
-#if defined(__SSE2__)
-      // 16 words at a time: their comparisons with zero, packed to bytes, as 16 bits.
-      const __m128i zero = _mm_setzero_si128();
-      for (int k = 0; k < 64; k += 16) {
-        const __m128i* q = reinterpret_cast<const __m128i*>(z + 64 * w + k);
-        const __m128i e0 = _mm_cmpeq_epi32(_mm_loadu_si128(q), zero), e1 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 1), zero),
-                      e2 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 2), zero), e3 = _mm_cmpeq_epi32(_mm_loadu_si128(q + 3), zero);
-        const int same = _mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(e0, e1), _mm_packs_epi32(e2, e3)));
-        m |= std::uint64_t(~same & 0xffff) << k;
-      }
-#else
-      for (int k = 0; k < 64; ++k) m |= std::uint64_t(z[64 * w + k] != 0) << k;
-#endif
-      mask[w] = m;
-      count += std::popcount(m);
-    }
+    const int count = differences(b.v, reference, z, mask);
     std::memcpy(out, mask, kMaskBytes);
     unsigned char* planes = out + kMaskBytes;
     int n = 0;

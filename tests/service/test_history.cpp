@@ -16,6 +16,7 @@
 #include "engine/level_set.hpp"
 #include "engine/measures.hpp"
 #include "engine/paint.hpp"
+#include "engine/simd_width.hpp"
 #include "engine/solids.hpp"
 #include "service/history.hpp"
 
@@ -174,6 +175,13 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
   for (const auto& r : others) against.push_back(&r);
   const service::PackedBricks p = service::packBricks(coords, ptrs, against);
   CHECK(p.bricks.size() == 8);
+  // The same bytes at both vector widths (the differences and their mask eight voxels at a time
+  // in AVX2).
+  simd_width::limitWidth(simd_width::Width::Sse2);
+  const service::PackedBricks narrow = service::packBricks(coords, ptrs, against);
+  simd_width::limitWidth(simd_width::Width::Widest);
+  CHECK(narrow.frame == p.frame);
+  CHECK(narrow.kinds == p.kinds);
   const std::vector<BrickRef> back = service::unpackBricks(p, against);
   REQUIRE(back.size() == refs.size());
   for (std::size_t i = 0; i < refs.size(); ++i) {
