@@ -492,17 +492,17 @@ class SweptWindow {
                                                                                     Cursor& c) const {
     Cursor::Lanes& l = c.dabLanes;
     l.at(x[0]);
-    const std::size_t from = l.first;
+    const std::size_t from = l.first, holdsFirst = l.last;
     l.at(x[3]);
     const std::size_t to = l.last;
+    // The dabs [whole, wholeEnd) hold all four x (their ROIs' hi past x[3], lo at or before
+    // x[0]): read without the mask. Those before and after are masked.
+    const std::size_t whole = l.first, wholeEnd = std::max(whole, holdsFirst);
     const LaneArrays& arr = *l.arrays;
     const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
     const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
     const __m256d xs = _mm256_setr_pd(x[0], x[1], x[2], x[3]);
-    __m256d best = zero;
-    for (std::size_t j = from; j < to; ++j) {
-      const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(_mm256_broadcast_sd(arr.lo.data() + j), xs, _CMP_LE_OS),
-                                           _mm256_cmp_pd(xs, _mm256_broadcast_sd(arr.hi.data() + j), _CMP_LT_OS));
+    const auto window = [&](std::size_t j) __attribute__((always_inline, target("avx2"))) {
       __m256d w = _mm256_broadcast_sd(arr.weight.data() + j);
       const __m256d centre[3] = {_mm256_broadcast_sd(arr.center[0].data() + j),
                                  _mm256_broadcast_sd(arr.center[1].data() + j),
@@ -528,8 +528,17 @@ class SweptWindow {
         const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
         w = _mm256_mul_pd(w, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_GT_OQ), _mm256_mul_pd(u, u)));
       }
-      best = _mm256_max_pd(best, _mm256_and_pd(inside, w));
-    }
+      return w;
+    };
+    const auto masked = [&](std::size_t j) __attribute__((always_inline, target("avx2"))) {
+      const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(_mm256_broadcast_sd(arr.lo.data() + j), xs, _CMP_LE_OS),
+                                           _mm256_cmp_pd(xs, _mm256_broadcast_sd(arr.hi.data() + j), _CMP_LT_OS));
+      return _mm256_and_pd(inside, window(j));
+    };
+    __m256d best = zero;
+    for (std::size_t j = from; j < whole; ++j) best = _mm256_max_pd(best, masked(j));
+    for (std::size_t j = whole; j < wholeEnd; ++j) best = _mm256_max_pd(best, window(j));
+    for (std::size_t j = wholeEnd; j < to; ++j) best = _mm256_max_pd(best, masked(j));
     return best;
   }
 
