@@ -141,6 +141,11 @@ struct MovedAppender {
     }
     push(i);
   }
+  // Grid voxel i, whose window is > 0, with its advection step (setSpeed's, computed by the caller).
+  [[gnu::always_inline]] void addStep(std::size_t i, float step) {
+    out.step[count] = step;
+    push(i);
+  }
   // Grid voxel i, whose window is > 0, at an advection speed of its own.
   void addSpeed(std::size_t i, double speed) {
     out.step[count] = float(m->dt * float(speed));
@@ -259,7 +264,16 @@ __attribute__((target("avx2"))) void listBatchAvx2(const DenseGrid& g, const Swe
       w[k] = window.memoryExcessAvx2<kAnchored>(b.x[k], qa, na, w[k], c);
     }
   }
-  for (int k = 0; k < b.count; ++k) add.add(b.index[k], w[k]);
+  if (add.m && add.m->kind == Motion::Kind::Advect) {
+    // setSpeed's steps four at a time: float(speed * w), then float(dt * that).
+    alignas(16) float steps[4];
+    const __m128 speed = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_set1_pd(add.m->speed), _mm256_load_pd(w)));
+    _mm_store_ps(steps, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_set1_pd(add.m->dt), _mm256_cvtps_pd(speed))));
+    for (int k = 0; k < b.count; ++k)
+      if (w[k] > 0) add.addStep(b.index[k], steps[k]);
+  } else {
+    for (int k = 0; k < b.count; ++k) add.add(b.index[k], w[k]);
+  }
   b.count = 0;
 }
 
