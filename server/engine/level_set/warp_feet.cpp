@@ -173,75 +173,75 @@ struct WarpedSurface : WarpPass {
   }
 
   // The kept voxels within moved (keptVoxels()).
-  std::vector<std::vector<std::pair<std::size_t, float>>> kept(Box& moved, const Runs& runs, ThreadPool& pool,
-                                                               const ProgressShare& progress) const {
-  // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
-  // them: every voxel the flow moves within a voxel of the changed ones is looked at.
-  if (!moved.empty()) moved = moved.grown(1).intersect(work);
-  const int movedSlices = moved.size().z;
-  std::vector<std::vector<std::pair<std::size_t, float>>> kept(std::size_t(std::max(0, moved.size().z)));
-  pool.parallelFor(std::size_t(std::max(0, movedSlices)), [&](std::size_t i) {
-    progress.check();
-    const int z = moved.lo.z + int(i);
-    auto& out = kept[i];
-    // Most voxels have no neighbour across the zero set: a row's are tested at once first (a
-    // loop the compiler vectorizes), the few others looked at one by one.
-    std::vector<int> across;
-    const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
-    for (int y = moved.lo.y; y < moved.hi.y; ++y) {
-      const auto [r0, r1] = runs.at(y, z);
-      const int x0 = std::max(r0, moved.lo.x), x1 = std::min(r1, moved.hi.x);
-      if (x1 <= x0) continue;
-      const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
-      across.resize(std::size_t(x1 - x0));
-      for (std::ptrdiff_t x = 0; x < x1 - x0; ++x) {
-        const bool neg = w[x] < 0;
-        across[std::size_t(x)] = (w[x] == 0) | ((w[x - 1] < 0) != neg) | ((w[x + 1] < 0) != neg) | ((w[x - sx] < 0) != neg) |
-                                 ((w[x + sx] < 0) != neg) | ((w[x - sxy] < 0) != neg) | ((w[x + sxy] < 0) != neg);
-      }
-      for (int x = x0; x < x1; ++x) {
-        if (!across[std::size_t(x - x0)]) continue;
-        const std::size_t k = s.warped.index({x, y, z});
-        const float value = s.warped.v[k];
-        const bool neg = value < 0;
-        const Vec3 p{double(x), double(y), double(z)};
-        double bound = 1;
-        for (int a = 0; a < 3; ++a)
-          for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
-            const float nb = s.warped.v[j];
-            if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
-          }
-        if (bound == 1 && value != 0) continue;  // not next to the zero set
-        const bool feet = feetAt(p);
-        double mag;
-        if (!feet) {
-          const double len = length(slopeOfWarped(p, nullptr, false));
-          mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
-        } else {
-          // The surface crosses an edge of the voxel: its foot point lies within a voxel (one
-          // farther is another part of the surface, reached along a curving gradient).
-          Vec3 foot = p;
-          if (!(std::fabs(value) < band && project(foot) && length(foot - p) <= 1)) {
-            // The neighbour across whose edge the linear crossing is nearest (at `bound`).
-            Vec3 other = p;
-            for (int a = 0; a < 3; ++a)
-              for (const int side : {-1, 1}) {
-                const float nb = s.warped.v[std::size_t(std::ptrdiff_t(k) + side * std::ptrdiff_t(s.warped.stride(a)))];
-                if ((nb < 0) != neg && double(value) / (double(value) - nb) == bound) other = p, other[a] += side;
-              }
-            double lo = 0, hi = 1;
-            for (int halving = 0; halving < kCrossingBisections; ++halving) {
-              const double mid = 0.5 * (lo + hi);
-              ((readNearAnywhere(v.flow(p + (other - p) * mid, steps, -1)) < 0) == neg ? lo : hi) = mid;
-            }
-            foot = nearerFoot(p, p + (other - p) * (0.5 * (lo + hi)));
-          }
-          mag = length(foot - p);
+  std::vector<std::vector<std::pair<std::size_t, float>>> keptValues(Box& moved, const Runs& runs, ThreadPool& pool,
+                                                                     const ProgressShare& progress) const {
+    // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
+    // them: every voxel the flow moves within a voxel of the changed ones is looked at.
+    if (!moved.empty()) moved = moved.grown(1).intersect(work);
+    const int movedSlices = moved.size().z;
+    std::vector<std::vector<std::pair<std::size_t, float>>> kept(std::size_t(std::max(0, moved.size().z)));
+    pool.parallelFor(std::size_t(std::max(0, movedSlices)), [&](std::size_t i) {
+      progress.check();
+      const int z = moved.lo.z + int(i);
+      auto& out = kept[i];
+      // Most voxels have no neighbour across the zero set: a row's are tested at once first (a
+      // loop the compiler vectorizes), the few others looked at one by one.
+      std::vector<int> across;
+      const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
+      for (int y = moved.lo.y; y < moved.hi.y; ++y) {
+        const auto [r0, r1] = runs.at(y, z);
+        const int x0 = std::max(r0, moved.lo.x), x1 = std::min(r1, moved.hi.x);
+        if (x1 <= x0) continue;
+        const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
+        across.resize(std::size_t(x1 - x0));
+        for (std::ptrdiff_t x = 0; x < x1 - x0; ++x) {
+          const bool neg = w[x] < 0;
+          across[std::size_t(x)] = (w[x] == 0) | ((w[x - 1] < 0) != neg) | ((w[x + 1] < 0) != neg) | ((w[x - sx] < 0) != neg) |
+                                   ((w[x + sx] < 0) != neg) | ((w[x - sxy] < 0) != neg) | ((w[x + sxy] < 0) != neg);
         }
-        out.emplace_back(k, float(std::copysign(mag, double(value))));
+        for (int x = x0; x < x1; ++x) {
+          if (!across[std::size_t(x - x0)]) continue;
+          const std::size_t k = s.warped.index({x, y, z});
+          const float value = s.warped.v[k];
+          const bool neg = value < 0;
+          const Vec3 p{double(x), double(y), double(z)};
+          double bound = 1;
+          for (int a = 0; a < 3; ++a)
+            for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
+              const float nb = s.warped.v[j];
+              if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
+            }
+          if (bound == 1 && value != 0) continue;  // not next to the zero set
+          const bool feet = feetAt(p);
+          double mag;
+          if (!feet) {
+            const double len = length(slopeOfWarped(p, nullptr, false));
+            mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
+          } else {
+            // The surface crosses an edge of the voxel: its foot point lies within a voxel (one
+            // farther is another part of the surface, reached along a curving gradient).
+            Vec3 foot = p;
+            if (!(std::fabs(value) < band && project(foot) && length(foot - p) <= 1)) {
+              // The neighbour across whose edge the linear crossing is nearest (at `bound`).
+              Vec3 other = p;
+              for (int a = 0; a < 3; ++a)
+                for (const int side : {-1, 1}) {
+                  const float nb = s.warped.v[std::size_t(std::ptrdiff_t(k) + side * std::ptrdiff_t(s.warped.stride(a)))];
+                  if ((nb < 0) != neg && double(value) / (double(value) - nb) == bound) other = p, other[a] += side;
+                }
+              double lo = 0, hi = 1;
+              for (int halving = 0; halving < kCrossingBisections; ++halving) {
+                const double mid = 0.5 * (lo + hi);
+                ((readNearAnywhere(v.flow(p + (other - p) * mid, steps, -1)) < 0) == neg ? lo : hi) = mid;
+              }
+              foot = nearerFoot(p, p + (other - p) * (0.5 * (lo + hi)));
+            }
+            mag = length(foot - p);
+          }
+          out.emplace_back(k, float(std::copysign(mag, double(value))));
+        }
       }
-    }
-  });
+    });
     return kept;
   }
 
@@ -307,7 +307,7 @@ struct WarpedSurface : WarpPass {
 
 std::vector<std::vector<std::pair<std::size_t, float>>> keptVoxels(const WarpPass& w, Box& moved, const Runs& runs,
                                                                    ThreadPool& pool, const ProgressShare& progress) {
-  return WarpedSurface(w).kept(moved, runs, pool, progress);
+  return WarpedSurface(w).keptValues(moved, runs, pool, progress);
 }
 
 void grabTipFeet(const WarpPass& w, const Box& within) { WarpedSurface(w).grabTip(within); }
