@@ -176,7 +176,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
 
   // Each pair of slices z of `work` (a layer of the lattice's cells) resamples its voxels and
   // notes, per slice, the box of those that changed, and of those whose channels changed.
-  const WarpPass pass(v, s, work, band);
+  const WarpPass pass(v, s, work, band, painted);
   const int slices = work.size().z;
   std::vector<Box> changed(std::size_t(std::max(0, slices))), recoloured(changed.size());
   Runs runs(work);

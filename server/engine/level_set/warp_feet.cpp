@@ -139,12 +139,19 @@ struct WarpedSurface : WarpPass {
     for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
     return g;
   }
+  // phi1 and its gradient at the voxel of index k (keptValues()).
+  struct Slope {
+    std::size_t k;
+    double phi;
+    Vec3 g;
+  };
   // Newton steps from `at` onto the zero set of phi1; false where phi1 is flat or they do not
   // converge. `slopeThere`, when given, gets the gradient of phi1 at the foot point found (the
-  // last step's, nearerFoot()'s normal there).
-  bool project(Vec3& at, Vec3* slopeThere = nullptr) const {
-    double phi = 0;
-    Vec3 g = slopeOfWarped(at, &phi, true);
+  // last step's, nearerFoot()'s normal there); `start`, when given, holds phi1 and its gradient
+  // at `at`.
+  bool project(Vec3& at, Vec3* slopeThere = nullptr, const Slope* start = nullptr) const {
+    double phi = start ? start->phi : 0;
+    Vec3 g = start ? start->g : slopeOfWarped(at, &phi, true);
     double first = 0;  // the first step's length
     for (int step = 0; step < kFootSteps; ++step) {
       const double g2 = dot(g, g);
@@ -172,74 +179,114 @@ struct WarpedSurface : WarpPass {
     return onSurface;
   }
 
+  // Calls f(x, y, k) for each voxel of slice z of `moved` within its row's moving run that lies
+  // on the zero set or has a neighbour across it, in index order. `across`: scratch.
+  template <class F>
+  [[gnu::always_inline]] void acrossZero(const Box& moved, const Runs& runs, int z, std::vector<int>& across, F f) const {
+    // Most voxels have no neighbour across the zero set: a row's are tested at once first (a
+    // loop the compiler vectorizes), the few others looked at one by one.
+    const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
+    for (int y = moved.lo.y; y < moved.hi.y; ++y) {
+      const auto [r0, r1] = runs.at(y, z);
+      const int x0 = std::max(r0, moved.lo.x), x1 = std::min(r1, moved.hi.x);
+      if (x1 <= x0) continue;
+      const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
+      across.resize(std::size_t(x1 - x0));
+      for (std::ptrdiff_t x = 0; x < x1 - x0; ++x) {
+        const bool neg = w[x] < 0;
+        across[std::size_t(x)] = (w[x] == 0) | ((w[x - 1] < 0) != neg) | ((w[x + 1] < 0) != neg) | ((w[x - sx] < 0) != neg) |
+                                 ((w[x + sx] < 0) != neg) | ((w[x - sxy] < 0) != neg) | ((w[x + sxy] < 0) != neg);
+      }
+      for (int x = x0; x < x1; ++x)
+        if (across[std::size_t(x - x0)]) f(x, y, s.warped.index({x, y, z}));
+    }
+  }
+
   // The kept voxels within moved (keptVoxels()).
   std::vector<std::vector<std::pair<std::size_t, float>>> keptValues(Box& moved, const Runs& runs, ThreadPool& pool,
                                                                      const ProgressShare& progress) const {
     // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
     // them: every voxel the flow moves within a voxel of the changed ones is looked at.
     if (!moved.empty()) moved = moved.grown(1).intersect(work);
-    const int movedSlices = moved.size().z;
-    std::vector<std::vector<std::pair<std::size_t, float>>> kept(std::size_t(std::max(0, moved.size().z)));
-    pool.parallelFor(std::size_t(std::max(0, movedSlices)), [&](std::size_t i) {
+    const std::size_t slices = std::size_t(std::max(0, moved.size().z));
+    // The voxels next to the zero set, and where the resample read them through the lattice alone
+    // (|value| >= exactNear, WarpPass), their values through the flow at the voxel with the slope
+    // there for the pass below, written before it: the bounds of the crossings read them as
+    // their neighbours' values. Every such read is decided on the values the resample left.
+    struct Candidate {
+      int x, y;
+      std::size_t k;
+    };
+    std::vector<std::vector<Candidate>> candidates(slices);
+    std::vector<std::vector<Slope>> exact(slices);
+    const bool readExact = exactNear < kExactNear;
+    if (readExact) {
+      pool.parallelFor(slices, [&](std::size_t i) {
+        progress.check();
+        const int z = moved.lo.z + int(i);
+        std::vector<int> across;
+        acrossZero(moved, runs, z, across, [&](int x, int y, std::size_t k) {
+          candidates[i].push_back({x, y, k});
+          if (!(std::fabs(s.warped.v[k]) >= exactNear)) return;
+          Slope e{k, 0, {}};
+          e.g = slopeOfWarped({double(x), double(y), double(z)}, &e.phi, true);
+          exact[i].push_back(e);
+        });
+      });
+      for (const std::vector<Slope>& slice : exact)
+        for (const Slope& e : slice) s.warped.v[e.k] = float(e.phi);
+    }
+    std::vector<std::vector<std::pair<std::size_t, float>>> kept(slices);
+    pool.parallelFor(slices, [&](std::size_t i) {
       progress.check();
       const int z = moved.lo.z + int(i);
       auto& out = kept[i];
-      // Most voxels have no neighbour across the zero set: a row's are tested at once first (a
-      // loop the compiler vectorizes), the few others looked at one by one.
-      std::vector<int> across;
-      const std::ptrdiff_t sx = std::ptrdiff_t(s.warped.sx), sxy = std::ptrdiff_t(s.warped.sxy);
-      for (int y = moved.lo.y; y < moved.hi.y; ++y) {
-        const auto [r0, r1] = runs.at(y, z);
-        const int x0 = std::max(r0, moved.lo.x), x1 = std::min(r1, moved.hi.x);
-        if (x1 <= x0) continue;
-        const float* w = s.warped.v.data() + s.warped.index({x0, y, z});
-        across.resize(std::size_t(x1 - x0));
-        for (std::ptrdiff_t x = 0; x < x1 - x0; ++x) {
-          const bool neg = w[x] < 0;
-          across[std::size_t(x)] = (w[x] == 0) | ((w[x - 1] < 0) != neg) | ((w[x + 1] < 0) != neg) | ((w[x - sx] < 0) != neg) |
-                                   ((w[x + sx] < 0) != neg) | ((w[x - sxy] < 0) != neg) | ((w[x + sxy] < 0) != neg);
-        }
-        for (int x = x0; x < x1; ++x) {
-          if (!across[std::size_t(x - x0)]) continue;
-          const std::size_t k = s.warped.index({x, y, z});
-          const float value = s.warped.v[k];
-          const bool neg = value < 0;
-          const Vec3 p{double(x), double(y), double(z)};
-          double bound = 1;
-          for (int a = 0; a < 3; ++a)
-            for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
-              const float nb = s.warped.v[j];
-              if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
-            }
-          if (bound == 1 && value != 0) continue;  // not next to the zero set
-          const bool feet = feetAt(p);
-          double mag;
-          if (!feet) {
-            const double len = length(slopeOfWarped(p, nullptr, false));
-            mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
-          } else {
-            // The surface crosses an edge of the voxel: its foot point lies within a voxel (one
-            // farther is another part of the surface, reached along a curving gradient).
-            Vec3 foot = p;
-            if (!(std::fabs(value) < band && project(foot) && length(foot - p) <= 1)) {
-              // The neighbour across whose edge the linear crossing is nearest (at `bound`).
-              Vec3 other = p;
-              for (int a = 0; a < 3; ++a)
-                for (const int side : {-1, 1}) {
-                  const float nb = s.warped.v[std::size_t(std::ptrdiff_t(k) + side * std::ptrdiff_t(s.warped.stride(a)))];
-                  if ((nb < 0) != neg && double(value) / (double(value) - nb) == bound) other = p, other[a] += side;
-                }
-              double lo = 0, hi = 1;
-              for (int halving = 0; halving < kCrossingBisections; ++halving) {
-                const double mid = 0.5 * (lo + hi);
-                ((readNearAnywhere(v.flow(p + (other - p) * mid, steps, -1)) < 0) == neg ? lo : hi) = mid;
-              }
-              foot = nearerFoot(p, p + (other - p) * (0.5 * (lo + hi)));
-            }
-            mag = length(foot - p);
+      std::size_t next = 0;  // exact[i]'s first not yet passed
+      const auto keep = [&](int x, int y, std::size_t k) __attribute__((always_inline)) {
+        const Slope* known = next < exact[i].size() && exact[i][next].k == k ? &exact[i][next++] : nullptr;
+        const float value = s.warped.v[k];
+        const bool neg = value < 0;
+        const Vec3 p{double(x), double(y), double(z)};
+        double bound = 1;
+        for (int a = 0; a < 3; ++a)
+          for (const std::size_t j : {k - s.warped.stride(a), k + s.warped.stride(a)}) {
+            const float nb = s.warped.v[j];
+            if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
           }
-          out.emplace_back(k, float(std::copysign(mag, double(value))));
+        if (bound == 1 && value != 0) return;  // not next to the zero set
+        const bool feet = feetAt(p);
+        double mag;
+        if (!feet) {
+          const double len = length(known ? known->g : slopeOfWarped(p, nullptr, false));
+          mag = len > 1e-6 ? std::min(std::fabs(double(value)) / len, bound) : bound;
+        } else {
+          // The surface crosses an edge of the voxel: its foot point lies within a voxel (one
+          // farther is another part of the surface, reached along a curving gradient).
+          Vec3 foot = p;
+          if (!(std::fabs(value) < band && project(foot, nullptr, known) && length(foot - p) <= 1)) {
+            // The neighbour across whose edge the linear crossing is nearest (at `bound`).
+            Vec3 other = p;
+            for (int a = 0; a < 3; ++a)
+              for (const int side : {-1, 1}) {
+                const float nb = s.warped.v[std::size_t(std::ptrdiff_t(k) + side * std::ptrdiff_t(s.warped.stride(a)))];
+                if ((nb < 0) != neg && double(value) / (double(value) - nb) == bound) other = p, other[a] += side;
+              }
+            double lo = 0, hi = 1;
+            for (int halving = 0; halving < kCrossingBisections; ++halving) {
+              const double mid = 0.5 * (lo + hi);
+              ((readNearAnywhere(v.flow(p + (other - p) * mid, steps, -1)) < 0) == neg ? lo : hi) = mid;
+            }
+            foot = nearerFoot(p, p + (other - p) * (0.5 * (lo + hi)));
+          }
+          mag = length(foot - p);
         }
+        out.emplace_back(k, float(std::copysign(mag, double(value))));
+      };
+      if (readExact) {
+        for (const auto& [x, y, k] : candidates[i]) keep(x, y, k);
+      } else {
+        std::vector<int> across;
+        acrossZero(moved, runs, z, across, keep);
       }
     });
     return kept;

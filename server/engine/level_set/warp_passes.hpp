@@ -38,6 +38,11 @@ inline Box unite(const Box& a, const Box& b) {
   return u;
 }
 
+// The |value| read through the lattice below which the resample reads a voxel again through the
+// flow integrated at it (warp_resample.cpp): kExactNear, or less where the lattice's error is
+// known to be smaller.
+float exactNear(const Velocity& v, bool painted);
+
 // One warp's field, grids and reads of the base, as its passes see them.
 struct WarpPass {
   const Velocity& v;
@@ -52,10 +57,15 @@ struct WarpPass {
   // When the grid holds that with a voxel to spare (a support within the domain: the margin is
   // wider), they are read without trilinear()'s tests.
   bool inGrid;
+  // The resample reads a voxel whose value through the lattice is below this again through the
+  // flow integrated at it (exactNear()); where it is below kExactNear, the kept-voxel pass reads
+  // the others next to the zero set so itself.
+  float exactNear;
 
-  WarpPass(const Velocity& field, WarpScratch& scratch, const Box& within, float bandValue)
+  WarpPass(const Velocity& field, WarpScratch& scratch, const Box& within, float bandValue, bool painted)
       : v(field), s(scratch), work(within), band(bandValue), steps(field.substeps()), reads(scratch.base),
-        inGrid(field.support().grown(3).intersect(scratch.base.box) == field.support().grown(3)) {}
+        inGrid(field.support().grown(3).intersect(scratch.base.box) == field.support().grown(3)),
+        exactNear(warp::exactNear(field, painted)) {}
 
   [[gnu::always_inline]] double read(Vec3 at) const {
     return inGrid ? trilinear<true>(reads, at, band) : trilinear(reads, at, band);
