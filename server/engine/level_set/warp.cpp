@@ -152,11 +152,10 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   s.warped.sx = s.base.sx;
   s.warped.sxy = s.base.sxy;
   s.warped.v.assign(s.base.v.begin(), s.base.v.end());
-  // Only the distances of an unpainted volume can be read a cell at a time (the channels want
-  // each voxel's preimage).
   const bool painted = base.paintedBricks() != 0 || vol.paintedBricks() != 0;
-  if (!painted) s.lattice.findBlocks(base, s.base, work.grown(kBlockReach), band, pool);
-  s.lattice.build(v, work, !painted, pool, share.part(kLatticeShare));
+  const WarpPass pass(v, s, work, band, painted);
+  if (pass.cells) s.lattice.findBlocks(base, s.base, work.grown(kBlockReach), band, pool);
+  s.lattice.build(v, work, pass.cells, pool, share.part(kLatticeShare));
 
   // Channels (../../channels.hpp), for a painted volume only: the colour is read back through
   // the same inverse map as the distance (the texel of the voxel nearest X(x)), so it moves
@@ -176,7 +175,6 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
 
   // Each pair of slices z of `work` (a layer of the lattice's cells) resamples its voxels and
   // notes, per slice, the box of those that changed, and of those whose channels changed.
-  const WarpPass pass(v, s, work, band, painted);
   const int slices = work.size().z;
   std::vector<Box> changed(std::size_t(std::max(0, slices))), recoloured(changed.size());
   Runs runs(work);

@@ -43,6 +43,11 @@ inline Box unite(const Box& a, const Box& b) {
 // known to be smaller.
 float exactNear(const Velocity& v, bool painted);
 
+// Whether the resample settles a lattice cell whose reads are all one block value of the base
+// at once (InverseLattice::findBlocks, cellValue): not on a painted volume (the channels want
+// each voxel's preimage), and not for a small snake hook (warp_resample.cpp).
+bool readsCells(const Velocity& v, bool painted);
+
 // One warp's field, grids and reads of the base, as its passes see them.
 struct WarpPass {
   const Velocity& v;
@@ -61,11 +66,13 @@ struct WarpPass {
   // flow integrated at it (exactNear()); where it is below kExactNear, the kept-voxel pass reads
   // the others next to the zero set so itself.
   float exactNear;
+  // Whether the resample settles the lattice's cells of one value at once (readsCells()).
+  bool cells;
 
   WarpPass(const Velocity& field, WarpScratch& scratch, const Box& within, float bandValue, bool painted)
       : v(field), s(scratch), work(within), band(bandValue), steps(field.substeps()), reads(scratch.base),
         inGrid(field.support().grown(3).intersect(scratch.base.box) == field.support().grown(3)),
-        exactNear(warp::exactNear(field, painted)) {}
+        exactNear(warp::exactNear(field, painted)), cells(readsCells(field, painted)) {}
 
   [[gnu::always_inline]] double read(Vec3 at) const {
     return inGrid ? trilinear<true>(reads, at, band) : trilinear(reads, at, band);

@@ -25,6 +25,19 @@ namespace marzipan::level_set::warp {
 // painted volume's colours are read at the preimage the distance is.
 constexpr double kLatticeErrorMargin = 2, kExactNearFloor = 0.25;
 
+// The blocks of one value pay where much of the support lies deep inside or far outside (a
+// grab's). A snake hook's support of radius 8 is mostly its tentacle's band: 4 of a move's 435
+// cells were of one value, and finding the blocks and the nodes' ranges cost more than those
+// cells saved (2026-11-30, the same bits either way: a cell's voxels read its one value):
+// `snake_hook_tentacle` 5.588M -> 5.338M instructions a move, `snake_hook`'s move off the
+// sphere 4.310M -> 4.087M. Up to kSmallSnakeHook (radius 8's support widened by half, as a
+// young tentacle's is); larger ones were not measured and keep them.
+constexpr double kSmallSnakeHook = 12;
+
+bool readsCells(const Velocity& v, bool painted) {
+  return !painted && !(v.kind == Velocity::Kind::Capsule && v.plateau > 0 && v.radius <= kSmallSnakeHook);
+}
+
 float exactNear(const Velocity& v, bool painted) {
   if (painted || v.kind != Velocity::Kind::Capsule || !(v.plateau > 0)) return kExactNear;
   const double error = v.lipschitz() * kLatticeStep * kLatticeStep / v.radius;
@@ -71,7 +84,7 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
         const int cy = (y - work.lo.y) / kLatticeStep;
         const InverseLattice::Row latticeRow = s.lattice.row(y, z);
         float* cellRow = nullptr;
-        if (!painted && x1 > x0) {
+        if (w.cells && x1 > x0) {
           if (cells.empty()) cells.assign(std::size_t(cellsX) * std::size_t(s.lattice.nodes.y - 1), std::numeric_limits<float>::infinity());
           cellRow = cells.data() + std::size_t(cellsX) * std::size_t(cy);
         }
