@@ -183,7 +183,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
   Box moved{}, texelsMoved{};
   for (const Box& c : changed) moved = unite(moved, c);
   for (const Box& c : recoloured) texelsMoved = unite(texelsMoved, c);
-  std::vector<std::vector<std::pair<std::size_t, float>>> kept = keptVoxels(pass, moved, runs, pool, resampling);
+  const KeptVoxels& kept = keptVoxels(pass, moved, runs, pool, resampling);
   // The kept voxels' values, and the boxes of the voxels that changed, per slab of kMovedSlab
   // slices: the redistance's moved boxes (the surface moved only through the cells touching
   // them), its region those grown by the reach.

@@ -83,6 +83,35 @@ constexpr int kCrossingBisections = 12;
 // tip: a voxel there read 0.2 vu past its distance (0.097).
 constexpr double kGrabTipReach = 3, kGrabTipFoot = 2.5;
 
+// phi1 and its gradient at the voxel of index k (WarpedSurface::keptValues()).
+struct Slope {
+  std::size_t k;
+  double phi;
+  Vec3 g;
+};
+// A voxel next to the zero set, (x, y) of its slice and its index.
+struct Candidate {
+  int x, y;
+  std::size_t k;
+};
+// The kept pass's lists per slice, kept from one call to the next on the calling thread (as
+// WarpScratch): allocated afresh, they were 1% of a tentacle's move.
+struct KeptScratch {
+  std::vector<std::vector<Candidate>> candidates;
+  std::vector<std::vector<Slope>> exact;
+  std::vector<std::vector<int>> across;
+  KeptVoxels kept;
+
+  void start(std::size_t slices) {
+    candidates.resize(slices), exact.resize(slices), across.resize(slices), kept.resize(slices);
+    for (std::size_t i = 0; i < slices; ++i) candidates[i].clear(), exact[i].clear(), kept[i].clear();
+  }
+};
+KeptScratch& keptScratch() {
+  thread_local KeptScratch s;
+  return s;
+}
+
 // The zero set of phi1 = phi0 o X, as the kept voxels next to it reach it: the slope of phi1
 // through the map's Jacobian, Newton steps to a foot point, and the two passes that use them.
 struct WarpedSurface : WarpPass {
@@ -139,12 +168,6 @@ struct WarpedSurface : WarpPass {
     for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
     return g;
   }
-  // phi1 and its gradient at the voxel of index k (keptValues()).
-  struct Slope {
-    std::size_t k;
-    double phi;
-    Vec3 g;
-  };
   // Newton steps from `at` onto the zero set of phi1; false where phi1 is flat or they do not
   // converge. `slopeThere`, when given, gets the gradient of phi1 at the foot point found (the
   // last step's, nearerFoot()'s normal there); `start`, when given, holds phi1 and its gradient
@@ -203,8 +226,7 @@ struct WarpedSurface : WarpPass {
   }
 
   // The kept voxels within moved (keptVoxels()).
-  std::vector<std::vector<std::pair<std::size_t, float>>> keptValues(Box& moved, const Runs& runs, ThreadPool& pool,
-                                                                     const ProgressShare& progress) const {
+  const KeptVoxels& keptValues(Box& moved, const Runs& runs, ThreadPool& pool, const ProgressShare& progress) const {
     // A voxel squeezed next to the zero set may read +-band, its old value, and still be one of
     // them: every voxel the flow moves within a voxel of the changed ones is looked at.
     if (!moved.empty()) moved = moved.grown(1).intersect(work);
@@ -213,19 +235,16 @@ struct WarpedSurface : WarpPass {
     // (|value| >= exactNear, WarpPass), their values through the flow at the voxel with the slope
     // there for the pass below, written before it: the bounds of the crossings read them as
     // their neighbours' values. Every such read is decided on the values the resample left.
-    struct Candidate {
-      int x, y;
-      std::size_t k;
-    };
-    std::vector<std::vector<Candidate>> candidates(slices);
-    std::vector<std::vector<Slope>> exact(slices);
+    KeptScratch& scratch = keptScratch();
+    scratch.start(slices);
+    auto& candidates = scratch.candidates;
+    auto& exact = scratch.exact;
     const bool readExact = exactNear < kExactNear;
     if (readExact) {
       pool.parallelFor(slices, [&](std::size_t i) {
         progress.check();
         const int z = moved.lo.z + int(i);
-        std::vector<int> across;
-        acrossZero(moved, runs, z, across, [&](int x, int y, std::size_t k) {
+        acrossZero(moved, runs, z, scratch.across[i], [&](int x, int y, std::size_t k) {
           candidates[i].push_back({x, y, k});
           if (!(std::fabs(s.warped.v[k]) >= exactNear)) return;
           Slope e{k, 0, {}};
@@ -236,7 +255,7 @@ struct WarpedSurface : WarpPass {
       for (const std::vector<Slope>& slice : exact)
         for (const Slope& e : slice) s.warped.v[e.k] = float(e.phi);
     }
-    std::vector<std::vector<std::pair<std::size_t, float>>> kept(slices);
+    KeptVoxels& kept = scratch.kept;
     pool.parallelFor(slices, [&](std::size_t i) {
       progress.check();
       const int z = moved.lo.z + int(i);
@@ -285,8 +304,7 @@ struct WarpedSurface : WarpPass {
       if (readExact) {
         for (const auto& [x, y, k] : candidates[i]) keep(x, y, k);
       } else {
-        std::vector<int> across;
-        acrossZero(moved, runs, z, across, keep);
+        acrossZero(moved, runs, z, scratch.across[i], keep);
       }
     });
     return kept;
@@ -352,8 +370,7 @@ struct WarpedSurface : WarpPass {
 
 }  // namespace
 
-std::vector<std::vector<std::pair<std::size_t, float>>> keptVoxels(const WarpPass& w, Box& moved, const Runs& runs,
-                                                                   ThreadPool& pool, const ProgressShare& progress) {
+const KeptVoxels& keptVoxels(const WarpPass& w, Box& moved, const Runs& runs, ThreadPool& pool, const ProgressShare& progress) {
   return WarpedSurface(w).keptValues(moved, runs, pool, progress);
 }
 

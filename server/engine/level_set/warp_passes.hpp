@@ -119,9 +119,10 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
 
 // The kept voxels (warp_feet.cpp): within `moved` (the changed voxels' box, grown here by a
 // voxel within the work box), the resampled voxels next to the zero set and their distances,
-// per slice of `moved`, as (index, value) pairs.
-std::vector<std::vector<std::pair<std::size_t, float>>> keptVoxels(const WarpPass& w, Box& moved, const Runs& runs,
-                                                                   ThreadPool& pool, const ProgressShare& progress);
+// per slice of `moved`, as (index, value) pairs; the calling thread's scratch, valid until its
+// next call.
+using KeptVoxels = std::vector<std::vector<std::pair<std::size_t, float>>>;
+const KeptVoxels& keptVoxels(const WarpPass& w, Box& moved, const Runs& runs, ThreadPool& pool, const ProgressShare& progress);
 
 // A grab's tip after the redistance of `within` (warp_feet.cpp): the voxels a layer in from
 // the kept ones there take their distances to the kept ones' foot points.
