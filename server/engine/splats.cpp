@@ -438,9 +438,14 @@ __attribute__((target("avx2"))) void splats8(const float* g, const std::int32_t*
       _mm256_add_epi32(_mm256_set1_epi32(padIndex(0, 0, 0)), lx),
       _mm256_add_epi32(_mm256_mullo_epi32(ly, _mm256_set1_epi32(kPad)), _mm256_mullo_epi32(lz, _mm256_set1_epi32(kPad * kPad))));
   const __m256 d = _mm256_i32gather_ps(g, cell, 4);
-  const __m256 gx = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[0], cell, 4), _mm256_i32gather_ps(g - kStride[0], cell, 4));
-  const __m256 gy = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[1], cell, 4), _mm256_i32gather_ps(g - kStride[1], cell, 4));
-  const __m256 gz = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[2], cell, 4), _mm256_i32gather_ps(g - kStride[2], cell, 4));
+  // The reads below a voxel index from cell - kPad * kPad, so that every base pointer lies within
+  // g's array (g - stride would point before it).
+  const __m256i below = _mm256_sub_epi32(cell, _mm256_set1_epi32(kStride[2]));
+  const __m256 gx = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[0], cell, 4),
+                                  _mm256_i32gather_ps(g + kStride[2] - kStride[0], below, 4));
+  const __m256 gy = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[1], cell, 4),
+                                  _mm256_i32gather_ps(g + kStride[2] - kStride[1], below, 4));
+  const __m256 gz = _mm256_sub_ps(_mm256_i32gather_ps(g + kStride[2], cell, 4), _mm256_i32gather_ps(g, below, 4));
   const __m256 len2 =
       _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(gx, gx), _mm256_mul_ps(gy, gy)), _mm256_mul_ps(gz, gz));
   const __m256 some = _mm256_cmp_ps(len2, _mm256_setzero_ps(), _CMP_GT_OQ);
@@ -503,8 +508,10 @@ BrickSplats extractWith(const BrickLookup& look, Int3 b) {
     in[z + 1] = slice;
   }
 
-  // The surface voxels first (Bricks::index; room for a last group of eight), then their splats.
-  constexpr int kRoom = kBrickVoxels + 7;
+  // The surface voxels first (Bricks::index), then their splats. A last group of eight, filled
+  // up with copies, still fits: at most every voxel is a surface voxel, a whole number of eights.
+  constexpr int kRoom = kBrickVoxels;
+  static_assert(kRoom % 8 == 0);
   std::int32_t voxel[kRoom];
   int count = 0;
   static_assert(Bricks::index(0, 0, 1) == kBrickSide * kBrickSide, "bit x + 8 y of slice z is voxel bit + 64 z");
