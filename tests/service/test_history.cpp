@@ -19,6 +19,7 @@
 #include "engine/simd_width.hpp"
 #include "engine/solids.hpp"
 #include "service/history.hpp"
+#include "../engine/support.hpp"
 
 using namespace marzipan;
 using service::History;
@@ -177,9 +178,11 @@ TEST_CASE("history: packed bricks unpack to the same bits", "[history]") {
   CHECK(p.bricks.size() == 8);
   // The same bytes at both vector widths (the differences and their mask eight voxels at a time
   // in AVX2).
-  simd_width::limitWidth(simd_width::Width::Sse2);
-  const service::PackedBricks narrow = service::packBricks(coords, ptrs, against);
-  simd_width::limitWidth(simd_width::Width::Widest);
+  const service::PackedBricks narrow = [&] {
+    const test::WidestWidthAtExit restore;
+    simd_width::limitWidth(simd_width::Width::Sse2);
+    return service::packBricks(coords, ptrs, against);
+  }();
   CHECK(narrow.frame == p.frame);
   CHECK(narrow.kinds == p.kinds);
   const std::vector<BrickRef> back = service::unpackBricks(p, against);
