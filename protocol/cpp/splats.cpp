@@ -324,9 +324,10 @@ std::uint8_t* writeBlock(const BrickSplats& b, std::uint8_t* p, std::uint16_t ve
   put16(p + 6, std::uint32_t(b.points.size()) | (painted ? kSplatPaintedBit : 0));
   p += kSplatBrickHeaderBytes;
   const Int3 o{b.brick.x * kSplatBrickSide, b.brick.y * kSplatBrickSide, b.brick.z * kSplatBrickSide};
-  // Point i's word at p + i * stride, its texel (painted) after the word. A group of four that
-  // encodePoints4 refuses (a normal too short to invert) leaves the rest of the block to the
-  // one-point encoder, which writes the same bytes.
+  // Point i's word at p + i * stride, its texel (painted) after the word. A group of eight (or
+  // four) that encodePoints8 (encodePoints4) refuses, a normal too short to invert, leaves the
+  // rest of the block to the narrower encoder after it, and at last to the one-point encoder:
+  // all write the same bytes.
   const std::size_t stride = painted ? kSplatPaintedPointBytes : kSplatPointBytes, n = b.points.size();
   std::size_t i = 0;
 #if defined(MARZIPAN_SPLATS_AVX2)
