@@ -359,9 +359,10 @@ void collectMoved(const DenseGrid& g, const Box& region, float band, const Motio
   MovedAppender add(out, m, end - begin);
   SweptWindow::Cursor cursor;
 #if defined(MARZIPAN_SSE2)
-  // A brush's windows two voxels at a time (the square root and divisions of the foot point
-  // are most of a voxel's cost); the voxels are added in the same order. (Four at a time with
-  // AVX2 took as long: gathering the neighbours into lanes cost what the lanes saved.)
+  // A brush's windows two voxels at a time where the window does not search with AVX2 (the
+  // square root and divisions of the foot point are most of a voxel's cost); the voxels are
+  // added in the same order. (With AVX2 a brush takes collectRowsAvx2: its runs' neighbours are
+  // read four at a time, which a gather per voxel into lanes did not pay for.)
   const PreparedDab* const brush = window ? window->brush() : nullptr;
   std::size_t pending[2];
   Int3 pendingPoint[2];
