@@ -146,6 +146,18 @@ struct MovedAppender {
     out.step[count] = step;
     push(i);
   }
+  // Grid voxels i to i + 3, whose windows are > 0: the position of the first, where the caller
+  // writes their four speed entries (or windows).
+  [[gnu::always_inline]] std::size_t pushFour(std::size_t i) {
+    if (run.count != 0 && run.index + run.count == i) {
+      run.count += 4;
+    } else {
+      if (run.count != 0) pushRun(out.runs, run);
+      run = {std::uint32_t(i), count, 4};
+    }
+    count += 4;
+    return count - 4;
+  }
   // Grid voxel i, whose window is > 0, at an advection speed of its own.
   void addSpeed(std::size_t i, double speed) {
     out.step[count] = float(m->dt * float(speed));
@@ -253,7 +265,11 @@ __attribute__((target("avx2"))) void listBatchAvx2(const DenseGrid& g, const Swe
   __m256d n[3], q[3];
   footPointsAvx2(g, b.index, run, b.x, c.y, c.z, n, q);
   alignas(32) double w[4];
-  _mm256_store_pd(w, window.rowWindowsAvx2<kAnchored>(b.x, q, n, c));
+  if constexpr (!kAnchored) {
+    _mm256_store_pd(w, window.brush() ? window.brushWindowsAvx2(q, n) : window.rowWindowsAvx2<false>(b.x, q, n, c));
+  } else {
+    _mm256_store_pd(w, window.rowWindowsAvx2<true>(b.x, q, n, c));
+  }
   if (!c.memory.empty()) {
     alignas(32) double qs[3][4], ns[3][4];
     for (int a = 0; a < 3; ++a) _mm256_store_pd(qs[a], q[a]), _mm256_store_pd(ns[a], n[a]);
@@ -264,17 +280,32 @@ __attribute__((target("avx2"))) void listBatchAvx2(const DenseGrid& g, const Swe
       w[k] = window.memoryExcessAvx2<kAnchored>(b.x[k], qa, na, w[k], c);
     }
   }
-  if (add.m && add.m->kind == Motion::Kind::Advect) {
-    // setSpeed's steps four at a time: float(speed * w), then float(dt * that).
-    alignas(16) float steps[4];
-    const __m128 speed = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_set1_pd(add.m->speed), _mm256_load_pd(w)));
-    _mm_store_ps(steps, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_set1_pd(add.m->dt), _mm256_cvtps_pd(speed))));
-    for (int k = 0; k < b.count; ++k)
-      if (w[k] > 0) add.addStep(b.index[k], steps[k]);
-  } else {
-    for (int k = 0; k < b.count; ++k) add.add(b.index[k], w[k]);
-  }
+  // A run of four that all move (most batches of a brush) is appended at once.
+  const __m256d ws = _mm256_load_pd(w);
+  const bool four = run && _mm256_movemask_pd(_mm256_cmp_pd(ws, _mm256_setzero_pd(), _CMP_GT_OQ)) == 15;
+  const int count = b.count;
   b.count = 0;
+  if (!add.m) {
+    if (four) return _mm256_storeu_pd(add.out.window.data() + add.pushFour(b.index[0]), ws);
+    for (int k = 0; k < count; ++k) add.add(b.index[k], w[k]);
+    return;
+  }
+  // setSpeed's entries four at a time: float(speed * w), then float(dt * that) (an advection's
+  // step) or dt * that in double (a curvature factor).
+  const __m128 speed = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_set1_pd(add.m->speed), ws));
+  const __m256d dt = _mm256_set1_pd(add.m->dt);
+  if (add.m->kind == Motion::Kind::Advect) {
+    const __m128 steps = _mm256_cvtpd_ps(_mm256_mul_pd(dt, _mm256_cvtps_pd(speed)));
+    if (four) return _mm_storeu_ps(add.out.step.data() + add.pushFour(b.index[0]), steps);
+    alignas(16) float step[4];
+    _mm_store_ps(step, steps);
+    for (int k = 0; k < count; ++k)
+      if (w[k] > 0) add.addStep(b.index[k], step[k]);
+  } else {
+    const __m256d factors = _mm256_mul_pd(dt, _mm256_cvtps_pd(speed));
+    if (four) return _mm256_storeu_pd(add.out.factor.data() + add.pushFour(b.index[0]), factors);
+    for (int k = 0; k < count; ++k) add.add(b.index[k], w[k]);
+  }
 }
 
 // collectMoved's loop where the window searches its lanes with AVX2 (SweptWindow::searchesAvx2):

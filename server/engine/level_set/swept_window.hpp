@@ -501,36 +501,10 @@ class SweptWindow {
     // x[0]): read without the mask. Those before and after are masked.
     const std::size_t whole = l.first, wholeEnd = std::max(whole, holdsFirst);
     const LaneArrays& arr = *l.arrays;
-    const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
-    const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+    const __m256d zero = _mm256_setzero_pd();
     const __m256d xs = _mm256_setr_pd(x[0], x[1], x[2], x[3]);
     const auto window = [&](std::size_t j) __attribute__((always_inline, target("avx2"))) {
-      __m256d w = _mm256_broadcast_sd(arr.weight.data() + j);
-      const __m256d centre[3] = {_mm256_broadcast_sd(arr.center[0].data() + j),
-                                 _mm256_broadcast_sd(arr.center[1].data() + j),
-                                 _mm256_broadcast_sd(arr.center[2].data() + j)};
-      __m256d at[3] = {q[0], q[1], q[2]};
-      if constexpr (kAnchored) {
-        const __m256d axis[3] = {_mm256_broadcast_sd(arr.normal[0].data() + j),
-                                 _mm256_broadcast_sd(arr.normal[1].data() + j),
-                                 _mm256_broadcast_sd(arr.normal[2].data() + j)};
-        const __m256d facing = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(axis[0], n[0]), _mm256_mul_pd(axis[1], n[1])),
-                                             _mm256_mul_pd(axis[2], n[2]));
-        w = _mm256_mul_pd(w, _mm256_max_pd(facing, zero));
-        const __m256d along = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(q[0], centre[0]), axis[0]),
-                                                          _mm256_mul_pd(_mm256_sub_pd(q[1], centre[1]), axis[1])),
-                                            _mm256_mul_pd(_mm256_sub_pd(q[2], centre[2]), axis[2]));
-        const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
-        for (int a = 0; a < 3; ++a) at[a] = _mm256_sub_pd(q[a], _mm256_mul_pd(axis[a], moved));
-      }
-      // quadWindows' factor without its absolute value: t t is the same bits for -t (rounding
-      // is symmetric), and t >= 1 exactly where fl(t t) >= 1, where u = 1 - t t <= 0.
-      for (int a = 0; a < 3; ++a) {
-        const __m256d t = _mm256_mul_pd(_mm256_sub_pd(at[a], centre[a]), invR);
-        const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
-        w = _mm256_mul_pd(w, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_GT_OQ), _mm256_mul_pd(u, u)));
-      }
-      return w;
+      return dabWindowsAvx2<kAnchored>(arr, j, q, n);
     };
     const auto masked = [&](std::size_t j) __attribute__((always_inline, target("avx2"))) {
       const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(_mm256_broadcast_sd(arr.lo.data() + j), xs, _CMP_LE_OS),
@@ -542,6 +516,14 @@ class SweptWindow {
     for (std::size_t j = whole; j < wholeEnd; ++j) best = _mm256_max_pd(best, window(j));
     for (std::size_t j = wholeEnd; j < to; ++j) best = _mm256_max_pd(best, masked(j));
     return best;
+  }
+
+  // rowWindowsAvx2 for a brush (brush() not null) at four voxels of a row its ROI holds (the
+  // cursor's row, x in [xLo, xHi)): its one dab's window, read without a search or a mask (the
+  // value rowWindowsAvx2 takes the largest of with +0, which every window here is at least).
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline __m256d brushWindowsAvx2(const __m256d q[3],
+                                                                                      const __m256d n[3]) const {
+    return dabWindowsAvx2<false>(allDabs_, 0, q, n);
   }
 
   // lanesAvx2's memory part: w (> 0, the message's largest window at voxel x of c's row, foot
@@ -575,6 +557,42 @@ class SweptWindow {
   }
 
  private:
+  // Dab j of arr's window at four voxels (a lane each) with foot points q and normals n:
+  // quadWindows' operations for one dab (rowWindowsAvx2's per dab and voxel).
+  template <bool kAnchored>
+  [[gnu::always_inline]] __attribute__((target("avx2"))) inline __m256d dabWindowsAvx2(const LaneArrays& arr,
+                                                                                    std::size_t j,
+                                                                                    const __m256d q[3],
+                                                                                    const __m256d n[3]) const {
+    const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(), invR = _mm256_set1_pd(inverseRadius_);
+    __m256d w = _mm256_broadcast_sd(arr.weight.data() + j);
+    const __m256d centre[3] = {_mm256_broadcast_sd(arr.center[0].data() + j),
+                               _mm256_broadcast_sd(arr.center[1].data() + j),
+                               _mm256_broadcast_sd(arr.center[2].data() + j)};
+    __m256d at[3] = {q[0], q[1], q[2]};
+    if constexpr (kAnchored) {
+      const __m256d back[2] = {_mm256_set1_pd(std::min(0.0, anchor_)), _mm256_set1_pd(std::max(0.0, anchor_))};
+      const __m256d axis[3] = {_mm256_broadcast_sd(arr.normal[0].data() + j),
+                               _mm256_broadcast_sd(arr.normal[1].data() + j),
+                               _mm256_broadcast_sd(arr.normal[2].data() + j)};
+      const __m256d facing = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(axis[0], n[0]), _mm256_mul_pd(axis[1], n[1])),
+                                           _mm256_mul_pd(axis[2], n[2]));
+      w = _mm256_mul_pd(w, _mm256_max_pd(facing, zero));
+      const __m256d along = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_sub_pd(q[0], centre[0]), axis[0]),
+                                                        _mm256_mul_pd(_mm256_sub_pd(q[1], centre[1]), axis[1])),
+                                          _mm256_mul_pd(_mm256_sub_pd(q[2], centre[2]), axis[2]));
+      const __m256d moved = _mm256_min_pd(_mm256_max_pd(along, back[0]), back[1]);
+      for (int a = 0; a < 3; ++a) at[a] = _mm256_sub_pd(q[a], _mm256_mul_pd(axis[a], moved));
+    }
+    // quadWindows' factor without its absolute value: t t is the same bits for -t (rounding
+    // is symmetric), and t >= 1 exactly where fl(t t) >= 1, where u = 1 - t t <= 0.
+    for (int a = 0; a < 3; ++a) {
+      const __m256d t = _mm256_mul_pd(_mm256_sub_pd(at[a], centre[a]), invR);
+      const __m256d u = _mm256_sub_pd(one, _mm256_mul_pd(t, t));
+      w = _mm256_mul_pd(w, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_GT_OQ), _mm256_mul_pd(u, u)));
+    }
+    return w;
+  }
 #endif
 
 #if defined(MARZIPAN_SSE2)
