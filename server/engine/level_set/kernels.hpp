@@ -78,9 +78,12 @@ inline void storePartial(float* out, __m128 x, std::uint32_t n) {
 // a list-ordered array) or dst[run.index + j] (dst: a grid). lanes(i, k) computes the voxels
 // from grid index i = run.index + j, list position k = run.first + j on: with SSE2 four at once
 // (an __m128; past the run's end it may read up to 3 voxels and 3 list entries more, which the
-// callers provide, and only the run's own are stored), without one (a float). Kernels hold what
-// they read by value: a store of a vector may alias anything, so the compiler would reload
-// whatever they reach by reference after each one.
+// callers provide, and only the run's own are stored), without one (a float). A run of four or
+// more ends with the four (eight) voxels that end it, stored again over those already stored:
+// every voxel is computed alone from v, which dst never is, so the values are the same, and the
+// store needs no mask (a run's tail cost as much as its blocks along the band's short rows).
+// Kernels hold what they read by value: a store of a vector may alias anything, so the compiler
+// would reload whatever they reach by reference after each one.
 template <bool kDstIsGrid, class Lanes>
 void overRuns(const Run* r, const Run* end, float* dst, Lanes lanes) {
   for (; r != end; ++r) {
@@ -89,7 +92,11 @@ void overRuns(const Run* r, const Run* end, float* dst, Lanes lanes) {
     std::size_t j = 0;
 #if defined(MARZIPAN_SSE2)
     for (; j + 4 <= count; j += 4) _mm_storeu_ps(out + j, lanes(index + j, first + j));
-    if (j < count) storePartial(out + j, lanes(index + j, first + j), std::uint32_t(count - j));
+    if (j < count && count >= 4) {
+      _mm_storeu_ps(out + count - 4, lanes(index + count - 4, first + count - 4));
+    } else if (j < count) {
+      storePartial(out + j, lanes(index + j, first + j), std::uint32_t(count - j));
+    }
 #else
     for (; j < count; ++j) out[j] = lanes(index + j, first + j);
 #endif
@@ -97,8 +104,9 @@ void overRuns(const Run* r, const Run* end, float* dst, Lanes lanes) {
 }
 
 #if defined(MARZIPAN_AVX2)
-// overRuns eight at once (lanes.eight, an __m256) while 5 or more voxels of a run are left,
-// then four (lanes(i, k)): past a run's end it reads no further than overRuns.
+// overRuns eight at once (lanes.eight, an __m256), a run of eight or more ending with its last
+// eight; a shorter one with its first eight masked when 5 or more, else four (lanes(i, k)): past
+// a run's end it reads no further than overRuns.
 template <bool kDstIsGrid, class Lanes>
 __attribute__((target("avx2"))) void overRunsAvx2(const Run* r, const Run* end, float* dst, Lanes lanes) {
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -108,7 +116,9 @@ __attribute__((target("avx2"))) void overRunsAvx2(const Run* r, const Run* end, 
     std::size_t j = 0;
     for (; j + 8 <= count; j += 8) _mm256_storeu_ps(out + j, lanes.eight(index + j, first + j));
     const std::size_t left = count - j;
-    if (left > 4) {
+    if (left > 0 && count >= 8) {
+      _mm256_storeu_ps(out + count - 8, lanes.eight(index + count - 8, first + count - 8));
+    } else if (left > 4) {
       const __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(int(left)), lane);
       _mm256_maskstore_ps(out + j, mask, lanes.eight(index + j, first + j));
     } else if (left == 4) {
