@@ -18,12 +18,16 @@ namespace marzipan::level_set::warp {
 // 0.069: the trilinear read's own bias beside the cubic one's) and 1.08 of it on the benches'
 // tentacles (0.417 of 0.385; 2026-11-30). Twice that and kExactNearFloor more keeps every
 // voxel read through the lattice alone on the side of the zero set the flow at it would put it,
-// and whether it lies next to the zero set with it; the kept-voxel pass (warp_feet.cpp) reads
-// the values of those next to it through the flow. A tentacle's move read 1,386 voxels through
-// the flow, a third of them only to settle the value of a voxel the redistance then replaces.
-// Not for the others: a grab's lattice erred by up to 0.76 vu (kExactNear's margin), and a
-// painted volume's colours are read at the preimage the distance is.
-constexpr double kLatticeErrorMargin = 2, kExactNearFloor = 0.25;
+// and whether it lies next to the zero set with it. The floor is for the trilinear read's own
+// bias, h^2 kappa / 8 along each axis, which does not shrink with the move: over [warp]'s tests
+// and the tentacle bench the error at the voxels within 1.5 vu of the zero set came within
+// 0.011 vu of twice the scale, so 0.1 leaves 0.11 vu (0.25 before 2026-11-30: 1% more
+// instructions a tentacle's move). The kept-voxel pass (warp_feet.cpp) reads the values of
+// those next to the zero set through the flow. A tentacle's move read 1,386 voxels through the
+// flow (at the floor of 0.25), a third of them only to settle the value of a voxel the
+// redistance then replaces. Not for the others: a grab's lattice erred by up to 0.76 vu
+// (kExactNear's margin), and a painted volume's colours are read at the preimage the distance is.
+constexpr double kLatticeErrorMargin = 2, kExactNearFloor = 0.1;
 
 // The blocks of one value pay where much of the support lies deep inside or far outside (a
 // grab's). A snake hook's support of radius 8 is mostly its tentacle's band: 4 of a move's 435
