@@ -63,6 +63,11 @@ template <bool kInGrid = false>
 
 // The central differences of trilinear() over +-h along each axis at p, (read(p + h e_a) -
 // read(p - h e_a)) / (2 h), each axis's cells found once for the six reads (the same bits).
+// Within the grid, where each of y and z reads the cell below p - h and the next above p + h
+// (h = 1/2 always, up to rounding), the four reads across y and z take their values along x at
+// p.x from nine rows of the 3 x 3 around them, where each read interpolated its own four (16),
+// and the two across z share their middle row's value along y: the same operations on the same
+// values, the same bits, with 11 of the 28 lerps left out.
 template <bool kInGrid>
 [[gnu::always_inline]] inline Vec3 centralDifferences(const GridReads& g, Vec3 p, double h, float band) {
   ReadAxis at[3], below[3], above[3];
@@ -70,6 +75,28 @@ template <bool kInGrid>
     at[a] = readAxis<kInGrid>(p[a], g.lo[a], g.size[a]);
     below[a] = readAxis<kInGrid>(p[a] - h, g.lo[a], g.size[a]);
     above[a] = readAxis<kInGrid>(p[a] + h, g.lo[a], g.size[a]);
+  }
+  if constexpr (kInGrid) {
+    const long dy = at[1].cell - below[1].cell, dz = at[2].cell - below[2].cell;
+    if (above[1].cell == below[1].cell + 1 && above[2].cell == below[2].cell + 1 && (dy | dz) >> 1 == 0) {
+      const auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
+      // along[j][k]: the value along x at p.x on the row (below y + j, below z + k).
+      double along[3][3];
+      const float* c = g.v + std::size_t(at[0].cell) + g.sx * std::size_t(below[1].cell) + g.sxy * std::size_t(below[2].cell);
+      for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j) {
+          const float* r = c + g.sx * std::size_t(j) + g.sxy * std::size_t(k);
+          along[j][k] = lerp(r[0], r[1], at[0].t);
+        }
+      const auto acrossY = [&](long j, double t) {
+        return lerp(lerp(along[j][dz], along[j + 1][dz], t), lerp(along[j][dz + 1], along[j + 1][dz + 1], t), at[2].t);
+      };
+      double inZ[3];  // along y at p.y on the rows below z + k
+      for (int k = 0; k < 3; ++k) inZ[k] = lerp(along[dy][k], along[dy + 1][k], at[1].t);
+      return {(trilinearAt<true>(g, above[0], at[1], at[2], band) - trilinearAt<true>(g, below[0], at[1], at[2], band)) / (2 * h),
+              (acrossY(1, above[1].t) - acrossY(0, below[1].t)) / (2 * h),
+              (lerp(inZ[1], inZ[2], above[2].t) - lerp(inZ[0], inZ[1], below[2].t)) / (2 * h)};
+    }
   }
   return {(trilinearAt<kInGrid>(g, above[0], at[1], at[2], band) - trilinearAt<kInGrid>(g, below[0], at[1], at[2], band)) / (2 * h),
           (trilinearAt<kInGrid>(g, at[0], above[1], at[2], band) - trilinearAt<kInGrid>(g, at[0], below[1], at[2], band)) / (2 * h),
