@@ -10,12 +10,27 @@
 #include <cmath>
 #include <numbers>
 #include <utility>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "engine/geometry.hpp"
 #include "engine/level_set.hpp"
 
 namespace marzipan::level_set::warp {
 
+
+// The square root of the falloffs' per-sub-step evaluations: std::sqrt's own (the same
+// correctly rounded root) tests its argument for errno's sake and calls the library below 0,
+// three instructions a root, two roots an end-cap sub-step of the flow and of the inverse map.
+[[gnu::always_inline]] inline double falloffRoot(double x) {
+#if defined(__SSE2__)
+  const __m128d v = _mm_set_sd(x);
+  return _mm_cvtsd_f64(_mm_sqrt_sd(v, v));
+#else
+  return std::sqrt(x);
+#endif
+}
 
 // The plateau (Velocity::falloff) of snake hook and of the affine warps.
 constexpr double kPlateau = 0.5;
@@ -247,11 +262,11 @@ struct Velocity {
   template <Falloff kShape>
   [[gnu::always_inline]] double shapeFalloff(double t2) const {
     if constexpr (kShape == Falloff::Quintic) {
-      const double u = std::sqrt(t2);
+      const double u = falloffRoot(t2);
       return 1 - u * u * u * (10 - u * (15 - 6 * u));
     } else {
       if (t2 <= plateau2) return 1;
-      const double u = (std::sqrt(t2) - plateau) * outerScale;
+      const double u = (falloffRoot(t2) - plateau) * outerScale;
       return (1 - u * u) * (1 - u * u);
     }
   }
@@ -270,12 +285,12 @@ struct Velocity {
   [[gnu::always_inline]] std::pair<double, double> shapeFalloffWithSlope(double t2) const {
     if constexpr (kShape == Falloff::Quintic) {
       if (t2 <= 0) return {1, 0};
-      const double u = std::sqrt(t2);
+      const double u = falloffRoot(t2);
       const double w = u * (1 - u);
       return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * w * w / u};
     } else {
       if (t2 <= plateau2) return {1, 0};
-      const double t = std::sqrt(t2);
+      const double t = falloffRoot(t2);
       const double u = (t - plateau) * outerScale;
       return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
     }
