@@ -79,7 +79,8 @@ inline void storePartial(float* out, __m128 x, std::uint32_t n) {
 // from grid index i = run.index + j, list position k = run.first + j on: with SSE2 four at once
 // (an __m128; past the run's end it may read up to 3 voxels and 3 list entries more, which the
 // callers provide, and only the run's own are stored), without one (a float). A run of four or
-// more ends with the four (eight) voxels that end it, stored again over those already stored:
+// more (eight or more with AVX2, where a run of five to seven takes a masked eight) ends with the
+// four (eight) voxels that end it, stored again over those already stored:
 // every voxel is computed alone from v, which dst never is, so the values are the same, and the
 // store needs no mask (a run's tail cost as much as its blocks along the band's short rows).
 // Kernels hold what they read by value: a store of a vector may alias anything, so the compiler

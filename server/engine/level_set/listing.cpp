@@ -342,6 +342,9 @@ __attribute__((target("avx2"))) void collectRowsAvx2(const DenseGrid& g, const B
       const int lo = std::max(region.lo.x, cursor.xLo), hi = std::min(region.hi.x, cursor.xHi);
       acceptLo = acceptHi = rowStart;
       if (lo < hi) acceptLo = xToIndex + std::size_t(lo), acceptHi = xToIndex + std::size_t(hi);
+      // The loop below leaves the row only at acceptHi: never past the row's end, whatever box
+      // the caller gathered.
+      acceptHi = std::min(acceptHi, rowEnd);
     }
     if (i < acceptLo || i >= acceptHi) continue;
     // The row's entries in [acceptLo, acceptHi) follow each other in the list: taken in a loop

@@ -447,9 +447,9 @@ class SweptWindow {
  public:
   // Whether search takes searchAvx2 now (then a caller compiled for AVX2 may list four voxels
   // of a row at a time itself, rowWindowsAvx2 then memoryExcessAvx2, with the foot points in
-  // registers rather than passed through two calls: search's bits). A brush too: its one dab is
-  // read as a stroke's, without the mask where it holds all four voxels (a 70^3 add blob 30.1M
-  // -> 28.5M instructions against listing.cpp's SSE2 pairs, 2026-11-30).
+  // registers rather than passed through two calls: search's bits). A brush too, whose one dab
+  // needs no search and no mask: brushWindowsAvx2 (a 70^3 add blob 30.1M -> 28.5M instructions
+  // against listing.cpp's SSE2 pairs, 2026-11-30).
   bool searchesAvx2() const {
     return lanes_ && simd_width::useAvx2();
   }

@@ -67,7 +67,7 @@ template <bool kInGrid = false>
 // (h = 1/2 always, up to rounding), the four reads across y and z take their values along x at
 // p.x from nine rows of the 3 x 3 around them, where each read interpolated its own four (16),
 // and the two across z share their middle row's value along y: the same operations on the same
-// values, the same bits, with 11 of the 28 lerps left out.
+// values, the same bits, with 8 of the 28 lerps left out (16 along x become 9, and one across y).
 template <bool kInGrid>
 [[gnu::always_inline]] inline Vec3 centralDifferences(const GridReads& g, Vec3 p, double h, float band) {
   ReadAxis at[3], below[3], above[3];

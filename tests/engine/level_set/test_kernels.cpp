@@ -24,7 +24,7 @@ TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[le
   // region in pieces (1 and 2 threads) and a small one, sharpening's clamped Laplacian,
   // advection of add / remove blob, strokes of each tool with memory and a height, and
   // brushes at the domain's faces. A sphere's band has runs of every length, so every tail
-  // (full eights, a masked eight, four, one to three) is taken. The digest after each
+  // (full eights, the last eight stored again, a masked eight, four, one to three) is taken. The digest after each
   // application is compared, so a difference is caught where it first appears.
   if (!test::avx2OrSkipped()) return;
   const test::WidestWidthAtExit restore;
