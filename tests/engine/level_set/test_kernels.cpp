@@ -19,6 +19,21 @@
 
 using namespace marzipan;
 
+namespace {
+
+// run(pool)'s digests are `pinned` on 1 and 2 threads at the widest width, and on 1 with SSE2.
+template <class Run>
+void checkPinnedAtBothWidths(const Run& run, const std::vector<std::string>& pinned) {
+  const test::WidestWidthAtExit restore;
+  ThreadPool one(1), two(2);
+  CHECK(run(one) == pinned);
+  CHECK(run(two) == pinned);
+  simd_width::limitWidth(simd_width::Width::Sse2);
+  CHECK(run(one) == pinned);
+}
+
+}  // namespace
+
 TEST_CASE("evolve's AVX2 kernels give the SSE2 kernels' field bit for bit", "[level_set][determinism][avx2]") {
   // Every kind of sub-step through both widths: smoothing's 32 curvature steps over a large
   // region in pieces (1 and 2 threads) and a small one, sharpening's clamped Laplacian,
@@ -218,12 +233,7 @@ TEST_CASE("the surface tools' strokes are pinned", "[level_set][determinism][pin
                                            "9da2690d98c48f72", "c47e2d951aa4015e", "2f13e262860aeccd",
                                            "5203409cc37e43cc", "35e4c3b0d91d053b", "46a3d3e24c5dbe73",
                                            "54e5909a076ea842"};
-  const test::WidestWidthAtExit restore;
-  ThreadPool one(1), two(2);
-  CHECK(run(one) == pinned);
-  CHECK(run(two) == pinned);
-  simd_width::limitWidth(simd_width::Width::Sse2);
-  CHECK(run(one) == pinned);
+  checkPinnedAtBothWidths(run, pinned);
 }
 
 TEST_CASE("the warps are pinned", "[level_set][determinism][pinned][warp]") {
@@ -262,10 +272,5 @@ TEST_CASE("the warps are pinned", "[level_set][determinism][pinned][warp]") {
                                            "2e20804c63f0fc45", "9cb9e0c01e496516", "3ae6766c2662e802",
                                            "b1288e318131b018", "69eff388b7d56976", "d384b1df6e0baa02",
                                            "ebfc38a9b6c44046"};
-  const test::WidestWidthAtExit restore;
-  ThreadPool one(1), two(2);
-  CHECK(run(one) == pinned);
-  CHECK(run(two) == pinned);
-  simd_width::limitWidth(simd_width::Width::Sse2);
-  CHECK(run(one) == pinned);
+  checkPinnedAtBothWidths(run, pinned);
 }
