@@ -1,9 +1,9 @@
 // Which vector width the engine's kernels use: the evolve sub-steps (level_set/kernels.hpp), a
 // stroke's window search and its listing's batches of four voxels (level_set/swept_window.hpp),
 // the march's per-side state bytes (fast_marching.cpp), the redistance's flags pass
-// (redistance.cpp), the volume's whole brick rows (volume.cpp), the splat extraction's slice
-// bits, its splats eight at a time and the slice compare of the bricks around a change
-// (splats.cpp), and, outside the engine, the undo records' differences (service/history.cpp).
+// (redistance_flags.cpp), the volume's whole brick rows (volume.cpp), a brick slice's bits
+// (splat_slices.hpp), the splats eight at a time (splats.cpp) and the slice compare of the bricks
+// around a change (splats_around.cpp), and, outside the engine, the undo records' differences (service/history.cpp).
 // Each has an SSE2 form and an AVX2 form compiled for AVX2 function by
 // function (__attribute__((target))) and chosen at run time, so that the binary still runs on
 // CPUs without it. Every width does each voxel's (each dab's) float and double operations in the
