@@ -89,10 +89,12 @@ struct Slope {
   double phi;
   Vec3 g;
 };
-// A voxel next to the zero set, (x, y) of its slice and its index.
+// A voxel next to the zero set, (x, y) of its slice and its index, and the resample's read of
+// it through the flow (null where it read it through the lattice alone).
 struct Candidate {
   int x, y;
   std::size_t k;
+  const ExactRead* read;
 };
 // The kept pass's lists per slice, kept from one call to the next on the calling thread (as
 // WarpScratch): allocated afresh, they were 1% of a tentacle's move.
@@ -150,8 +152,25 @@ struct WarpedSurface : WarpPass {
     return true;
   }
   Vec3 slopeOfWarped(Vec3 at, double* phi, bool anywhere) const {
+    if (v.kind == Velocity::Kind::Capsule) {
+      Vec3 along;
+      const Vec3 q = v.capsuleInverse(at, steps, along);
+      return slopeThrough(q, along, phi, anywhere);
+    }
     double DX[3][3];
     const Vec3 q = v.inverseWithJacobian(at, steps, DX);
+    return slopeThrough(q, DX, phi, anywhere);
+  }
+  // DX^T g, DX = I + segAxis along^T (a capsule's, Velocity::capsuleInverse()) or a matrix.
+  Vec3 transposeTimes(const Vec3& along, Vec3 g) const { return g + along * dot(v.segAxis, g); }
+  static Vec3 transposeTimes(const double (&DX)[3][3], Vec3 g) {
+    Vec3 out;
+    for (int a = 0; a < 3; ++a) out[a] = DX[0][a] * g.x + DX[1][a] * g.y + DX[2][a] * g.z;
+    return out;
+  }
+  // slopeOfWarped() with X = q and its Jacobian DX at hand.
+  template <class Jacobian>
+  [[gnu::always_inline]] Vec3 slopeThrough(Vec3 q, const Jacobian& DX, double* phi, bool anywhere) const {
     Vec3 g0;
     double value;
     if (!(cubicSlope && anywhere)) {
@@ -164,9 +183,7 @@ struct WarpedSurface : WarpPass {
       if (phi) *phi = trilinear(reads, q, band);
       g0 = centralDifferences<false>(reads, q, kSlopeStep, band);
     }
-    Vec3 g;
-    for (int a = 0; a < 3; ++a) g[a] = DX[0][a] * g0.x + DX[1][a] * g0.y + DX[2][a] * g0.z;
-    return g;
+    return transposeTimes(DX, g0);
   }
   // Newton steps from `at` onto the zero set of phi1; false where phi1 is flat or they do not
   // converge. `slopeThere`, when given, gets the gradient of phi1 at the foot point found (the
@@ -234,19 +251,26 @@ struct WarpedSurface : WarpPass {
     // The voxels next to the zero set, and where the resample read them through the lattice alone
     // (|value| >= exactNear, WarpPass), their values through the flow at the voxel with the slope
     // there for the pass below, written before it: the bounds of the crossings read them as
-    // their neighbours' values. Every such read is decided on the values the resample left.
+    // their neighbours' values. Every such read is decided on the values the resample left. The
+    // others' slopes come from the resample's reads (ExactRead), but for a voxel on a lattice
+    // node (the node's flow, without the Jacobian).
     KeptScratch& scratch = keptScratch();
     scratch.start(slices);
     auto& candidates = scratch.candidates;
     auto& exact = scratch.exact;
-    const bool readExact = exactNear < kExactNear;
-    if (readExact) {
+    if (exactSlopes) {
       pool.parallelFor(slices, [&](std::size_t i) {
         progress.check();
         const int z = moved.lo.z + int(i);
+        // The resample's reads through the flow in this slice (WarpPass::exactSlopes), in index
+        // order as the candidates.
+        const std::vector<ExactRead>& flowReads = s.exactReads[std::size_t(z - work.lo.z)];
+        std::size_t r = 0;
         acrossZero(moved, runs, z, scratch.across[i], [&](int x, int y, std::size_t k) {
-          candidates[i].push_back({x, y, k});
-          if (!(std::fabs(s.warped.v[k]) >= exactNear)) return;
+          while (r < flowReads.size() && flowReads[r].k < k) ++r;
+          const ExactRead* read = r < flowReads.size() && flowReads[r].k == k ? &flowReads[r] : nullptr;
+          candidates[i].push_back({x, y, k, read});
+          if (read || !(std::fabs(s.warped.v[k]) >= exactNear)) return;
           Slope e{k, 0, {}};
           e.g = slopeOfWarped({double(x), double(y), double(z)}, &e.phi, true);
           exact[i].push_back(e);
@@ -261,7 +285,7 @@ struct WarpedSurface : WarpPass {
       const int z = moved.lo.z + int(i);
       auto& out = kept[i];
       std::size_t next = 0;  // exact[i]'s first not yet passed
-      const auto keep = [&](int x, int y, std::size_t k) __attribute__((always_inline)) {
+      const auto keep = [&](int x, int y, std::size_t k, const ExactRead* read) __attribute__((always_inline)) {
         const Slope* known = next < exact[i].size() && exact[i][next].k == k ? &exact[i][next++] : nullptr;
         const float value = s.warped.v[k];
         const bool neg = value < 0;
@@ -273,6 +297,11 @@ struct WarpedSurface : WarpPass {
             if ((nb < 0) != neg) bound = std::min(bound, double(value) / (double(value) - nb));
           }
         if (bound == 1 && value != 0) return;  // not next to the zero set
+        Slope fromRead;
+        if (read) {
+          fromRead = {k, read->phi, slopeThrough(read->q, read->along, nullptr, false)};
+          known = &fromRead;
+        }
         const bool feet = feetAt(p);
         double mag;
         if (!feet) {
@@ -301,10 +330,10 @@ struct WarpedSurface : WarpPass {
         }
         out.emplace_back(k, float(std::copysign(mag, double(value))));
       };
-      if (readExact) {
-        for (const auto& [x, y, k] : candidates[i]) keep(x, y, k);
+      if (exactSlopes) {
+        for (const auto& [x, y, k, read] : candidates[i]) keep(x, y, k, read);
       } else {
-        acrossZero(moved, runs, z, scratch.across[i], keep);
+        acrossZero(moved, runs, z, scratch.across[i], [&](int x, int y, std::size_t k) { keep(x, y, k, nullptr); });
       }
     });
     return kept;

@@ -536,12 +536,15 @@ struct Velocity {
   // q, the squared distance to its line, which the flow keeps. With f(a, q) the speed, the
   // backward flow is a' = -f, and the variational equation follows m = da/da0 and
   // w = da/dq by the same midpoint rule (the general one restricted to this flow):
-  // X(y) = y + axis (a - a0), DX = I + axis (m axis + 2 w off - axis)^T. The falloff's shape is
-  // a parameter, as capsuleFlow()'s.
+  // X(y) = y + axis (a - a0), DX = I + axis along^T with along = m axis + 2 w off - axis, handed
+  // back as `along` (a slope takes DX^T g = g + along (axis . g), without the matrix). The
+  // falloff's shape is a parameter, as capsuleFlow()'s. a takes capsuleFlow(y, n, -1)'s
+  // operations, so X is the flow's bit for bit: the resample reads a snake hook's voxels next
+  // to the zero set through this, and the kept-voxel pass takes their slopes from what it read
+  // (warp_passes.hpp, ExactRead).
   template <Falloff kShape>
-  Vec3 capsuleInverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) X[i][j] = i == j ? 1 : 0;
+  [[gnu::noinline]] Vec3 capsuleInverseAlong(Vec3 y, int n, Vec3& along) const {
+    along = {};
     if (!(segLength2 > 0)) return y;
     const double length = segLength, R2 = radius * radius;
     const Vec3 axis = segAxis;
@@ -555,7 +558,7 @@ struct Velocity {
     struct Speed {
       double f = 0, fa = 0, fq = 0;
     };
-    const auto speedAt = [&](double a) {
+    const auto speedAt = [&](double a) __attribute__((always_inline)) {
       const double e = a < 0 ? -a : a > length ? a - length : 0;
       const double rho2 = q + e * e;
       Speed out;
@@ -568,17 +571,20 @@ struct Velocity {
       return out;
     };
     const double dt = 1.0 / n;
-    const Speed inside = speedAt(0);  // between the end planes
+    // Between the end planes: the falloff and speedAt(0).fq, and capsuleFlow()'s step there
+    // backwards (-dt is its dt, exactly).
+    const auto [insideFall, insideSlope] = shapeFalloffWithSlope<kShape>(q / R2);
+    const double insideFq = speed * insideSlope / R2, step = -dt * speed * insideFall;
     double a = a0, m = 1, w = 0;
     for (int i = 0; i < n;) {
-      if (a >= 0 && a <= length && inside.f > 0) {
+      if (a >= 0 && a <= length && step != 0) {
         // Sub-steps that start and end between the end planes: f_a = 0 there. room >= 0:
         // truncation is its floor (as in capsuleFlow()).
-        const double room = a / (dt * inside.f);
+        const double room = step < 0 ? a / -step : (length - a) / step;
         const int k = room < n - i ? int(room) : n - i;
         if (k > 0) {
-          a -= k * (dt * inside.f);
-          w -= k * (dt * inside.fq);
+          a += k * step;
+          w -= k * (dt * insideFq);
           i += k;
           continue;
         }
@@ -592,18 +598,25 @@ struct Velocity {
       w -= dt * (s1.fa * wMid + s1.fq);
       ++i;
     }
-    const Vec3 g = axis * (m - 1) + off * (2 * w);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) X[i][j] += axis[i] * g[j];
+    along = axis * (m - 1) + off * (2 * w);
     return y + axis * (a - a0);
+  }
+  // capsuleInverseAlong() of the field's falloff shape.
+  Vec3 capsuleInverse(Vec3 y, int n, Vec3& along) const {
+    return falloffShape == Falloff::Quintic ? capsuleInverseAlong<Falloff::Quintic>(y, n, along)
+                                            : capsuleInverseAlong<Falloff::Quartic>(y, n, along);
   }
 
   // The same backwards, with the Jacobian of the map y -> X(y) (the variational equation
   // dJ/dt = -grad v J, by the same midpoint rule).
   Vec3 inverseWithJacobian(Vec3 y, int n, double X[3][3]) const {
-    if (kind == Kind::Capsule)
-      return falloffShape == Falloff::Quintic ? capsuleInverseWithJacobian<Falloff::Quintic>(y, n, X)
-                                              : capsuleInverseWithJacobian<Falloff::Quartic>(y, n, X);
+    if (kind == Kind::Capsule) {
+      Vec3 along;
+      const Vec3 x = capsuleInverse(y, n, along);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) X[i][j] = (i == j ? 1 : 0) + segAxis[i] * along[j];
+      return x;
+    }
     if (kind == Kind::PathPinch) return pinchInverseWithJacobian(y, n, X);
     const double dt = 1.0 / n;
     double J[3][3], Jm[3][3], M[3][3], G[3][3];

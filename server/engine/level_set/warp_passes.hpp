@@ -20,11 +20,26 @@
 
 namespace marzipan::level_set::warp {
 
+// A voxel (of index k) that the resample read through the inverse map integrated at it: X(x),
+// phi1 there and the map's Jacobian, I + segAxis along^T (a snake hook's capsule,
+// Velocity::capsuleInverse(); WarpPass::exactSlopes). The kept-voxel pass (warp_feet.cpp)
+// takes the slope of such a voxel next to the zero set from these instead of integrating the
+// map again.
+struct ExactRead {
+  std::size_t k;
+  double phi;
+  Vec3 q, along;
+  // The resample fills in the rest (not zeroed first).
+  explicit ExactRead(std::size_t index) : k(index) {}
+};
+
 struct WarpScratch {
   DenseGrid base, warped;
   InverseLattice lattice;
   // The channels of base over the grids' box, and the warped ones (painted volumes only).
   std::vector<Texel> texels, warpedTexels;
+  // The resample's ExactReads per slice of the work box, in index order (WarpPass::exactSlopes).
+  std::vector<std::vector<ExactRead>> exactReads;
 };
 
 inline Box unite(const Box& a, const Box& b) {
@@ -68,11 +83,17 @@ struct WarpPass {
   float exactNear;
   // Whether the resample settles the lattice's cells of one value at once (readsCells()).
   bool cells;
+  // Whether the resample integrates the map's Jacobian with X where it reads through the flow,
+  // and keeps them (WarpScratch::exactReads): where the kept-voxel pass reads the others next to
+  // the zero set itself (exactNear below kExactNear, a snake hook's capsule), almost every voxel
+  // it reads so is next to the zero set and wants its slope there.
+  bool exactSlopes;
 
   WarpPass(const Velocity& field, WarpScratch& scratch, const Box& within, float bandValue, bool painted)
       : v(field), s(scratch), work(within), band(bandValue), steps(field.substeps()), reads(scratch.base),
         inGrid(field.support().grown(3).intersect(scratch.base.box) == field.support().grown(3)),
-        exactNear(warp::exactNear(field, painted)), cells(readsCells(field, painted)) {}
+        exactNear(warp::exactNear(field, painted)), cells(readsCells(field, painted)),
+        exactSlopes(exactNear < kExactNear && field.kind == Velocity::Kind::Capsule) {}
 
   [[gnu::always_inline]] double read(Vec3 at) const {
     return inGrid ? trilinear<true>(reads, at, band) : trilinear(reads, at, band);

@@ -61,6 +61,7 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
     return s.base.box.contains(c) ? std::ptrdiff_t(s.base.index(c)) : -1;
   };
 
+  if (w.exactSlopes && s.exactReads.size() < std::size_t(std::max(0, slices))) s.exactReads.resize(std::size_t(slices));
   pool.parallelFor(std::size_t(std::max(0, layers)), [&](std::size_t layer) {
     progress.check();
     // The layer's cells' values (cellValue()), found as its voxels first need them: unknown
@@ -78,6 +79,8 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
         any = true;
       };
       Box tc{};
+      std::vector<ExactRead>* exactReads = w.exactSlopes ? &s.exactReads[std::size_t(i)] : nullptr;
+      if (exactReads) exactReads->clear();
       for (int y = work.lo.y; y < work.hi.y; ++y) {
         // The row's voxels that the flow moves, one run (the support is convex): only they
         // are resampled, and the others never ask for their cells' values.
@@ -115,8 +118,15 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
           // Near the zero set the surface's place is read: there X is integrated at the voxel.
           if (std::fabs(value) < w.exactNear) {
             const Vec3* onNode = s.lattice.imageAt(latticeRow, x);
-            q = onNode ? *onNode : v.flow(p, steps, -1);
-            value = float(w.readNear(q));
+            if (!onNode && exactReads) {
+              ExactRead& e = exactReads->emplace_back(k);
+              e.q = q = v.capsuleInverse(p, steps, e.along);
+              e.phi = w.readNear(q);
+              value = float(e.phi);
+            } else {
+              q = onNode ? *onNode : v.flow(p, steps, -1);
+              value = float(w.readNear(q));
+            }
           }
           if (painted) {
             bool stopped = false;
