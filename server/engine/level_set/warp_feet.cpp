@@ -64,12 +64,17 @@ constexpr double kSlopeStep = 0.5;
 // a tentacle tip's took the second step): a slope fewer. It is a prediction, not a proof: of
 // the 20,206 skips in [warp]'s tests one would have taken a third step, of 1.3e-3 vu (predicted
 // 2e-6), and its foot point lies that far from where it would (2026-11-30 review; the
-// steps' own tolerance is kFootConverged). At 0.1 some tentacles' tips (radius 8, moves of 1
-// and 2 vu from a sphere of 25) took other bits in the benches. Not where the caller wants the
+// steps' own tolerance is kFootConverged). kFootSure was 0.01 until 2026-11-30 17:40 UTC,
+// when a tentacle's tip still read again after 78 of its 249 foot points' second steps a move;
+// at 0.1, 27 (3% fewer instructions a tentacle's move). Reading on after every second step (a
+// probe), of the 32,415 skips at 0.1 in the tentacle bench 11 would have taken a third step,
+// the longest 1.4e-3 vu, and of [warp]'s 189,134, 148, the longest 4.4e-3 vu ([warp]'s figures
+// moved in their fifth or sixth digit: the 200 vu tentacle's gradient error 0.0697761 ->
+// 0.0697744). At 1, 487 of the bench's and up to 0.011 vu. Not where the caller wants the
 // slope at the foot point (grabTipFeet): the cubic read gives it with phi1, so the skip would
 // save nothing there.
 constexpr int kFootSteps = 3;
-constexpr double kFootResidual = 0.05, kFootConverged = 1e-3, kFootSure = 0.01;
+constexpr double kFootResidual = 0.05, kFootConverged = 1e-3, kFootSure = 0.1;
 constexpr int kCrossingBisections = 12;
 // A grab's tip, where the anchor lands (anchor + d), is the warped surface's most curved
 // part, and the march from the kept voxels leaves the voxels a layer in from them short of
