@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#if defined(__SSE2__)
+// The scalar build (MARZIPAN_SCALAR_KERNELS) takes the lanes' mask without SSE2 (simd_width.hpp).
+#include "engine/simd_width.hpp"
+#if defined(MARZIPAN_SSE2)
 #include <emmintrin.h>
 #endif
 
@@ -66,12 +68,12 @@ constexpr double kSlopeStep = 0.5;
 // below kFootSure of kFootConverged: a step of l after one of l0 predicts l^3 / l0^2 for the
 // next (Newton's l_next ~ K l^2, K from the pair). The read was there to stop the steps, and in
 // the benches' grabs and tentacles every such read did (40% of a grab's foot points, 75% of
-// a tentacle tip's took the second step): a slope fewer. It is a prediction, not a proof: of
-// the 20,206 skips in [warp]'s tests one would have taken a third step, of 1.3e-3 vu (predicted
-// 2e-6), and its foot point lies that far from where it would (2026-11-30 review; the
-// steps' own tolerance is kFootConverged). kFootSure was 0.01 until 2026-11-30 17:40 UTC,
+// a tentacle tip's took the second step): a slope fewer. It is a prediction, not a proof: at 0.01, of
+// the 142,766 skips in [warp]'s tests one would have taken a third step, of 1.3e-3 vu (predicted
+// 2e-6), and its foot point lies that far from where it would (2026-11-30; the steps' own
+// tolerance is kFootConverged). kFootSure was 0.01 until 2026-11-30 17:40 UTC,
 // when a tentacle's tip still read again after 78 of its 249 foot points' second steps a move;
-// at 0.1, 27 (3% fewer instructions a tentacle's move). Reading on after every second step (a
+// at 0.1, 27 (1.2% fewer instructions a tentacle's move). Reading on after every second step (a
 // probe), of the 32,415 skips at 0.1 in the tentacle bench 11 would have taken a third step,
 // the longest 1.4e-3 vu, and of [warp]'s 189,134, 148, the longest 4.4e-3 vu ([warp]'s figures
 // moved in their fifth or sixth digit: the 200 vu tentacle's gradient error 0.0697761 ->
@@ -100,7 +102,8 @@ struct Slope {
   Vec3 g;
 };
 // A voxel next to the zero set, (x, y) of its slice and its index, and the resample's read of
-// it through the flow (null where it read it through the lattice alone).
+// it through the flow (null where it did not: read through the lattice alone, or on a lattice
+// node).
 struct Candidate {
   int x, y;
   std::size_t k;
@@ -261,7 +264,7 @@ struct WarpedSurface : WarpPass {
         const Lanes across = (here == zero) | ((load(c - 1) < zero) ^ neg) | ((load(c + 1) < zero) ^ neg) |
                              ((load(c - sx) < zero) ^ neg) | ((load(c + sx) < zero) ^ neg) | ((load(c - sxy) < zero) ^ neg) |
                              ((load(c + sxy) < zero) ^ neg);
-#if defined(__SSE2__)
+#if defined(MARZIPAN_SSE2)
         unsigned bits = unsigned(_mm_movemask_ps(__m128(across)));
 #else
         unsigned bits = 0;

@@ -85,7 +85,10 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
       for (int y = work.lo.y; y < work.hi.y; ++y) {
         // The row's voxels that the flow moves, one run (the support is convex): only they
         // are resampled, and the others never ask for their cells' values.
-        auto [x0, x1] = v.row(y, z, work);
+        // Not a structured binding: the lambdas below read x0, which clang 14 cannot capture
+        // from one.
+        const std::pair<int, int> rowRange = v.row(y, z, work);
+        int x0 = rowRange.first, x1 = rowRange.second;
         while (x0 < x1 && !v.moves({double(x0), double(y), double(z)})) ++x0;
         while (x1 > x0 && !v.moves({double(x1 - 1), double(y), double(z)})) --x1;
         runs.at(y, z) = {x0, x1};
