@@ -240,7 +240,8 @@ TEST_CASE("the warps are pinned", "[level_set][determinism][pinned][warp]") {
   // Recorded 2026-11-30 (main at b994e9a), after the day's changes to the resampler and the
   // foot points, which were held to the same bits by scratch programs only: each warp once on a
   // sphere (grab by one and by three radii, elastic grab, twist, local scale, pinch, pinch along a
-  // path), then a twelve-move snake hook that turns, a digest after each call. The same field
+  // path), then a twelve-move snake hook that turns, a digest after each call (and a radius-8
+  // tentacle, below). The same field
   // bit for bit on 1 and 2 threads, with AVX2 and SSE2, and in the scalar build.
   auto run = [](ThreadPool& pool) {
     Volume v = makeSphere({64, 64, 64}, {32, 32, 32}, 20);
@@ -266,11 +267,21 @@ TEST_CASE("the warps are pinned", "[level_set][determinism][pinned][warp]") {
       anchor = anchor + step;
       if (k % 4 == 3) record();
     }
+    // A radius-8 tentacle: its ball (4 vu) takes the tip's foot points, and its kept voxels
+    // their slopes from the resample's reads through the flow (added 2026-11-30 18:30 UTC).
+    anchor = {32 - 20 / std::sqrt(2.0), 32 + 20 / std::sqrt(2.0), 32};
+    for (int k = 0; k < 6; ++k) {
+      const Vec3 step = k < 3 ? Vec3{-1.4, 1.4, 0.2} : Vec3{-1.2, 1.2, 1};
+      snakeHook(v, anchor, anchor + step, 8, pool);
+      anchor = anchor + step;
+      if (k % 2 == 1) record();
+    }
     return digests;
   };
   const std::vector<std::string> pinned = {"c545fea158c7205b", "47671e284ba8b4c2", "3b1cf929202f015b",
                                            "2e20804c63f0fc45", "9cb9e0c01e496516", "3ae6766c2662e802",
                                            "b1288e318131b018", "69eff388b7d56976", "d384b1df6e0baa02",
-                                           "ebfc38a9b6c44046"};
+                                           "ebfc38a9b6c44046", "1751f226e553ebfe", "79ea58a884bbf380",
+                                           "91ea5f26db00f6a2"};
   checkPinnedAtBothWidths(run, pinned);
 }
