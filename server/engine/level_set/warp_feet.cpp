@@ -308,15 +308,35 @@ struct WarpedSurface : WarpPass {
         // order as the candidates.
         const std::vector<ExactRead>& flowReads = s.exactReads[std::size_t(z - work.lo.z)];
         std::size_t r = 0;
+        // slopeOfWarped() two voxels at a time, X integrated for both at once
+        // (Velocity::capsuleInverse2(), each with its own bits, as the resample's reads): a
+        // Slope waits, its voxel in g, for the next or for the slice's end.
+        bool waiting = false;
         acrossZero(moved, runs, z, [&](int x, int y, std::size_t k) {
           while (r < flowReads.size() && flowReads[r].k < k) ++r;
           const ExactRead* read = r < flowReads.size() && flowReads[r].k == k ? &flowReads[r] : nullptr;
           candidates[i].push_back({x, y, k, read});
           if (read || !(std::fabs(s.warped.v[k]) >= exactNear)) return;
+          const Vec3 p{double(x), double(y), double(z)};
+          if (!waiting) {
+            exact[i].push_back({k, 0, p});
+            waiting = true;
+            return;
+          }
+          Slope& before = exact[i].back();
+          const Vec3 at[2] = {before.g, p};
+          Vec3 to[2], along[2];
+          v.capsuleInverse2(at, steps, to, along);
+          before.g = slopeThrough(to[0], along[0], &before.phi, true);
           Slope e{k, 0, {}};
-          e.g = slopeOfWarped({double(x), double(y), double(z)}, &e.phi, true);
+          e.g = slopeThrough(to[1], along[1], &e.phi, true);
           exact[i].push_back(e);
+          waiting = false;
         });
+        if (waiting) {
+          Slope& last = exact[i].back();
+          last.g = slopeOfWarped(last.g, &last.phi, true);
+        }
       });
       for (const std::vector<Slope>& slice : exact)
         for (const Slope& e : slice) s.warped.v[e.k] = float(e.phi);

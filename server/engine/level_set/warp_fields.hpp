@@ -546,23 +546,34 @@ struct Velocity {
   // operations, so X is the flow's bit for bit: the resample reads a snake hook's voxels next
   // to the zero set through this, and the kept-voxel pass takes their slopes from what it read
   // (warp_passes.hpp, ExactRead).
-  template <Falloff kShape>
-  [[gnu::noinline]] Vec3 capsuleInverseAlong(Vec3 y, int n, Vec3& along) const {
-    along = {};
-    if (!(segLength2 > 0)) return y;
+  // It integrates kLanes points at once (y[l] to x[l] and along[l]), each lane by its own
+  // operations, so that each lane's bits are those of the lane alone. An end cap's sub-step is
+  // a serial chain (a falloff's division, root and products, twice), and a path takes two or
+  // three: their latency, not their instructions, is the inverse map's time (15% of a
+  // tentacle's move's samples against 7% of its instructions, 2026-11-30). Two lanes both in
+  // end caps take their sub-step together in the halves of vectors of doubles (capCapSubStep());
+  // a lane between the end planes, or alone, takes its own. The resample and the kept pass
+  // integrate their voxels two at a time (capsuleInverse2()).
+  template <Falloff kShape, int kLanes>
+  [[gnu::noinline]] void capsuleInverseLanes(const Vec3* y, int n, Vec3* x, Vec3* along) const {
+    for (int l = 0; l < kLanes; ++l) x[l] = y[l], along[l] = {};
+    if (!(segLength2 > 0)) return;
     const double length = segLength, R2 = radius * radius;
     const Vec3 axis = segAxis;
-    const Vec3 r = y - anchor;
-    const double a0 = dot(r, axis);
-    const Vec3 off = r - axis * a0;
-    const double q = dot(off, off);
-    if (q >= R2) return y;
     const double speed = scale * length;
+    const double dt = 1.0 / n;
+    // A lane: a along seg, m, w and the sub-steps taken; q its squared distance to the line.
+    struct Lane {
+      Vec3 off;
+      double a0 = 0, q = 0, a = 0, m = 1, w = 0, insideFq = 0, step = 0;
+      int i = 0;
+      bool inside = false, outside = false;
+    };
     // f, df/da and df/dq at a.
     struct Speed {
       double f = 0, fa = 0, fq = 0;
     };
-    const auto speedAt = [&](double a) __attribute__((always_inline)) {
+    const auto speedAt = [&](double q, double a) __attribute__((always_inline)) {
       const double e = a < 0 ? -a : a > length ? a - length : 0;
       const double rho2 = q + e * e;
       Speed out;
@@ -574,52 +585,166 @@ struct Velocity {
       out.fq = slope;
       return out;
     };
-    const double dt = 1.0 / n;
     // Between the end planes: speedAt(0).fq and capsuleFlow()'s step there backwards (-dt is
     // its dt, exactly). A snake hook's (the quartic's) segment is short against its support, and
     // most paths stay in an end cap: there they are found once a sub-step starts between the
     // planes (0.3% of a tentacle's move); a grab's is long, and found at once (found as a snake
     // hook's, a grab of 60 vu took 0.7% more instructions).
-    double insideFq = 0, step = 0;
-    bool inside = false;
-    const auto findInside = [&]() __attribute__((always_inline)) {
-      const auto [insideFall, insideSlope] = shapeFalloffWithSlope<kShape>(q / R2);
-      insideFq = speed * insideSlope / R2, step = -dt * speed * insideFall, inside = true;
+    const auto findInside = [&](Lane& p) __attribute__((always_inline)) {
+      const auto [insideFall, insideSlope] = shapeFalloffWithSlope<kShape>(p.q / R2);
+      p.insideFq = speed * insideSlope / R2, p.step = -dt * speed * insideFall, p.inside = true;
     };
-    if constexpr (kShape != Falloff::Quartic) findInside();
-    double a = a0, m = 1, w = 0;
-    for (int i = 0; i < n;) {
-      if (a >= 0 && a <= length) {
-        if (kShape == Falloff::Quartic && !inside) findInside();
-        if (step != 0) {
+    Lane lanes[kLanes];
+    for (int l = 0; l < kLanes; ++l) {
+      Lane& p = lanes[l];
+      const Vec3 r = y[l] - anchor;
+      p.a0 = dot(r, axis);
+      p.off = r - axis * p.a0;
+      p.q = dot(p.off, p.off);
+      p.a = p.a0;
+      // Beyond the support the point stays put.
+      p.outside = p.q >= R2;
+      if (p.outside) p.i = n;
+      else if constexpr (kShape != Falloff::Quartic) findInside(p);
+    }
+    const auto between = [&](const Lane& p) { return p.a >= 0 && p.a <= length; };
+    const auto advance = [&](Lane& p) __attribute__((always_inline)) {
+      if (between(p)) {
+        if (kShape == Falloff::Quartic && !p.inside) findInside(p);
+        if (p.step != 0) {
           // Sub-steps that start and end between the end planes: f_a = 0 there. room >= 0:
           // truncation is its floor (as in capsuleFlow()).
-          const double room = step < 0 ? a / -step : (length - a) / step;
-          const int k = room < n - i ? int(room) : n - i;
+          const double room = p.step < 0 ? p.a / -p.step : (length - p.a) / p.step;
+          const int k = room < n - p.i ? int(room) : n - p.i;
           if (k > 0) {
-            a += k * step;
-            w -= k * (dt * insideFq);
-            i += k;
-            continue;
+            p.a += k * p.step;
+            p.w -= k * (dt * p.insideFq);
+            p.i += k;
+            return;
           }
         }
       }
-      const Speed s0 = speedAt(a);
-      const double mid = a - 0.5 * dt * s0.f;
-      const double mMid = m - 0.5 * dt * s0.fa * m, wMid = w - 0.5 * dt * (s0.fa * w + s0.fq);
-      const Speed s1 = speedAt(mid);
-      a -= dt * s1.f;
-      m -= dt * s1.fa * mMid;
-      w -= dt * (s1.fa * wMid + s1.fq);
-      ++i;
+      const Speed s0 = speedAt(p.q, p.a);
+      const double mid = p.a - 0.5 * dt * s0.f;
+      const double mMid = p.m - 0.5 * dt * s0.fa * p.m, wMid = p.w - 0.5 * dt * (s0.fa * p.w + s0.fq);
+      const Speed s1 = speedAt(p.q, mid);
+      p.a -= dt * s1.f;
+      p.m -= dt * s1.fa * mMid;
+      p.w -= dt * (s1.fa * wMid + s1.fq);
+      ++p.i;
+    };
+    for (;;) {
+#if defined(__SSE2__)
+      if constexpr (kLanes == 2) {
+        Lane &p = lanes[0], &r = lanes[1];
+        if (p.i < n && r.i < n && !between(p) && !between(r)) {
+          capCapSubStep<kShape>(p, r, dt, length, R2, speed);
+          continue;
+        }
+      }
+#endif
+      bool busy = false;
+      for (int l = 0; l < kLanes; ++l)
+        if (lanes[l].i < n) busy = true, advance(lanes[l]);
+      if (!busy) break;
     }
-    along = axis * (m - 1) + off * (2 * w);
-    return y + axis * (a - a0);
+    for (int l = 0; l < kLanes; ++l) {
+      const Lane& p = lanes[l];
+      if (p.outside) continue;
+      along[l] = axis * (p.m - 1) + p.off * (2 * p.w);
+      x[l] = y[l] + axis * (p.a - p.a0);
+    }
   }
-  // capsuleInverseAlong() of the field's falloff shape.
+#if defined(__SSE2__)
+  // One midpoint sub-step of capsuleInverseLanes() for two lanes p and r in end caps, in the
+  // two halves of vectors (p low, r high): speedAt()'s and the sub-step's operations in their
+  // order, each selection by its comparison's mask, so that each half's result is its lane's
+  // alone. Where both lanes' comparisons agree (the common case) a branch takes the side
+  // instead: the CPU predicts it and runs on ahead of the division and the root, as it does
+  // along one lane's branches, where the masks' selections had made a pair of paths cost
+  // about two single ones (a loop of a shell of points, 2026-11-30).
+  template <Falloff kShape, class Lane>
+  [[gnu::always_inline]] void capCapSubStep(Lane& p, Lane& r, double dt, double length, double R2,
+                                            double speed) const {
+    const __m128d zero = _mm_setzero_pd(), one = _mm_set1_pd(1), two = _mm_set1_pd(2);
+    const __m128d len = _mm_set1_pd(length), r2 = _mm_set1_pd(R2), sp = _mm_set1_pd(speed);
+    const auto select = [](__m128d mask, __m128d a, __m128d b) __attribute__((always_inline)) {
+      return _mm_or_pd(_mm_and_pd(mask, a), _mm_andnot_pd(mask, b));
+    };
+    const __m128d q = _mm_set_pd(r.q, p.q);
+    struct Speeds {
+      __m128d f, fa, fq;
+    };
+    const auto speedAt = [&](__m128d a) __attribute__((always_inline)) {
+      // Branches on the lanes' masks where both agree (the common case, which the CPU predicts
+      // and runs ahead of the division and the root), the masks' selections where they differ.
+      const __m128d below = _mm_cmplt_pd(a, zero), over = _mm_cmpgt_pd(a, len);
+      const int belowBits = _mm_movemask_pd(below), overBits = _mm_movemask_pd(over);
+      __m128d e;
+      if (belowBits == 3) e = _mm_sub_pd(zero, a);
+      else if (overBits == 3) e = _mm_sub_pd(a, len);
+      else e = select(below, _mm_sub_pd(zero, a), select(over, _mm_sub_pd(a, len), zero));
+      const __m128d rho2 = _mm_add_pd(q, _mm_mul_pd(e, e));
+      const __m128d within = _mm_cmplt_pd(rho2, r2);  // !(rho2 >= R2): no NaN here
+      const int withinBits = _mm_movemask_pd(within);
+      if (withinBits == 0) return Speeds{zero, zero, zero};
+      const __m128d t2 = _mm_div_pd(rho2, r2);
+      __m128d fall, fallSlope;
+      const __m128d flat = _mm_cmple_pd(t2, kShape == Falloff::Quintic ? zero : _mm_set1_pd(plateau2));
+      const int flatBits = _mm_movemask_pd(flat);
+      if (flatBits == 3) {
+        fall = one, fallSlope = zero;
+      } else {
+        if constexpr (kShape == Falloff::Quintic) {
+          const __m128d u = _mm_sqrt_pd(t2);
+          const __m128d w = _mm_mul_pd(u, _mm_sub_pd(one, u));
+          const __m128d inner = _mm_sub_pd(_mm_set1_pd(15), _mm_mul_pd(_mm_set1_pd(6), u));
+          const __m128d poly = _mm_sub_pd(_mm_set1_pd(10), _mm_mul_pd(u, inner));
+          fall = _mm_sub_pd(one, _mm_mul_pd(_mm_mul_pd(_mm_mul_pd(u, u), u), poly));
+          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-15), w), w), u);
+        } else {
+          const __m128d t = _mm_sqrt_pd(t2);
+          const __m128d u = _mm_mul_pd(_mm_sub_pd(t, _mm_set1_pd(plateau)), _mm_set1_pd(outerScale));
+          const __m128d rest = _mm_sub_pd(one, _mm_mul_pd(u, u));
+          fall = _mm_mul_pd(rest, rest);
+          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-2 * outerScale), u), rest), t);
+        }
+        if (flatBits != 0) fall = select(flat, one, fall), fallSlope = select(flat, zero, fallSlope);
+      }
+      const __m128d slope = _mm_div_pd(_mm_mul_pd(sp, fallSlope), r2);
+      const __m128d side = belowBits == 3 ? a : belowBits == 0 ? e : select(below, a, e);
+      const __m128d fa = _mm_mul_pd(_mm_mul_pd(slope, two), side);
+      const __m128d f = _mm_mul_pd(sp, fall);
+      if (withinBits == 3) return Speeds{f, fa, slope};
+      return Speeds{_mm_and_pd(within, f), _mm_and_pd(within, fa), _mm_and_pd(within, slope)};
+    };
+    const __m128d half = _mm_set1_pd(0.5 * dt), step = _mm_set1_pd(dt);
+    __m128d a = _mm_set_pd(r.a, p.a), m = _mm_set_pd(r.m, p.m), w = _mm_set_pd(r.w, p.w);
+    const Speeds s0 = speedAt(a);
+    const __m128d mid = _mm_sub_pd(a, _mm_mul_pd(half, s0.f));
+    const __m128d mMid = _mm_sub_pd(m, _mm_mul_pd(_mm_mul_pd(half, s0.fa), m));
+    const __m128d wMid = _mm_sub_pd(w, _mm_mul_pd(half, _mm_add_pd(_mm_mul_pd(s0.fa, w), s0.fq)));
+    const Speeds s1 = speedAt(mid);
+    a = _mm_sub_pd(a, _mm_mul_pd(step, s1.f));
+    m = _mm_sub_pd(m, _mm_mul_pd(_mm_mul_pd(step, s1.fa), mMid));
+    w = _mm_sub_pd(w, _mm_mul_pd(step, _mm_add_pd(_mm_mul_pd(s1.fa, wMid), s1.fq)));
+    _mm_storel_pd(&p.a, a), _mm_storeh_pd(&r.a, a);
+    _mm_storel_pd(&p.m, m), _mm_storeh_pd(&r.m, m);
+    _mm_storel_pd(&p.w, w), _mm_storeh_pd(&r.w, w);
+    ++p.i, ++r.i;
+  }
+#endif
+  // capsuleInverseLanes() of one point, of the field's falloff shape.
   Vec3 capsuleInverse(Vec3 y, int n, Vec3& along) const {
-    return falloffShape == Falloff::Quintic ? capsuleInverseAlong<Falloff::Quintic>(y, n, along)
-                                            : capsuleInverseAlong<Falloff::Quartic>(y, n, along);
+    Vec3 x;
+    if (falloffShape == Falloff::Quintic) capsuleInverseLanes<Falloff::Quintic, 1>(&y, n, &x, &along);
+    else capsuleInverseLanes<Falloff::Quartic, 1>(&y, n, &x, &along);
+    return x;
+  }
+  // capsuleInverse() of two points, y[l] to x[l] and along[l], each with its own bits.
+  void capsuleInverse2(const Vec3 (&y)[2], int n, Vec3 (&x)[2], Vec3 (&along)[2]) const {
+    if (falloffShape == Falloff::Quintic) capsuleInverseLanes<Falloff::Quintic, 2>(y, n, x, along);
+    else capsuleInverseLanes<Falloff::Quartic, 2>(y, n, x, along);
   }
 
   // The same backwards, with the Jacobian of the map y -> X(y) (the variational equation

@@ -110,6 +110,21 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
           if (!rowChanged) first = x, rowChanged = true;
           last = x;
         };
+        // Unpainted, the row's reads through the flow are integrated two at a time
+        // (Velocity::capsuleInverse2(): the two chains of divisions and roots overlap, each with
+        // its own bits): one waits in `pending` (its place in exactReads, e.q its voxel) for the
+        // next, or for the row's end. settle() finishes it once its X is known, after voxels
+        // past it may have changed.
+        std::ptrdiff_t pending = -1;
+        int pendingX = 0;
+        const auto settle = [&](ExactRead& e, int x) {
+          e.phi = w.readNear(e.q);
+          const float value = float(e.phi);
+          if (value == s.base.v[e.k]) return;
+          s.warped.v[e.k] = value;
+          first = rowChanged ? std::min(first, x) : x, last = rowChanged ? std::max(last, x) : x;
+          rowChanged = true;
+        };
         // One voxel. `general`: whether the row may settle cells of one value or carry colours
         // (else a loop without those tests, which the compiler had left in it: 1.6% of a
         // tentacle's move).
@@ -135,7 +150,21 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
             const Vec3* onNode = s.lattice.imageAt(latticeRow, x);
             if (!onNode && exactReads) {
               ExactRead& e = exactReads->emplace_back(k);
-              e.q = q = v.capsuleInverse(p, steps, e.along);
+              if (painted) {
+                e.q = q = v.capsuleInverse(p, steps, e.along);
+              } else if (pending < 0) {
+                // Waits for the row's next read through the flow, to be integrated with it.
+                e.q = p, pending = std::ptrdiff_t(exactReads->size() - 1), pendingX = x;
+                return;
+              } else {
+                ExactRead& waiting = (*exactReads)[std::size_t(pending)];
+                const Vec3 at[2] = {waiting.q, p};
+                Vec3 to[2], along[2];
+                v.capsuleInverse2(at, steps, to, along);
+                waiting.q = to[0], waiting.along = along[0], e.q = q = to[1], e.along = along[1];
+                settle(waiting, pendingX);
+                pending = -1;
+              }
               e.phi = w.readNear(q);
               value = float(e.phi);
             } else {
@@ -174,6 +203,12 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
           for (int x = x0; x < x1; ++x) voxel(x, std::true_type{});
         } else {
           for (int x = x0; x < x1; ++x) voxel(x, std::false_type{});
+        }
+        if (pending >= 0) {
+          ExactRead& e = (*exactReads)[std::size_t(pending)];
+          e.q = v.capsuleInverse(e.q, steps, e.along);
+          settle(e, pendingX);
+          pending = -1;
         }
         if (rowChanged) note(first, y), note(last, y);
       }

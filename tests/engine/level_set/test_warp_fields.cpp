@@ -1,10 +1,12 @@
-// The warps' velocity fields (server/engine/level_set/warp_fields.hpp): a support's row range.
-// Points in vu, volume coordinates.
+// The warps' velocity fields (server/engine/level_set/warp_fields.hpp): a support's row range, and
+// a capsule's inverse map of two points at once. Points in vu, volume coordinates.
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <random>
+#include <vector>
 
 #include "engine/level_set/warp_fields.hpp"
 
@@ -56,4 +58,58 @@ TEST_CASE("a support's row range holds every voxel the field moves, tangent ones
     missed += outsideTheirRow(capsule(anchor, i % 2 ? std::round(radius(rng)) : radius(rng), seg), box);
   }
   CHECK(missed == 0);
+}
+
+TEST_CASE("a capsule's inverse map of two points gives each its own bits", "[warp][fields]") {
+  // Velocity::capsuleInverse2() integrates two paths at once, in the two halves of vectors
+  // where both lie in end caps: each must come out as capsuleInverse() of its point alone,
+  // the quartic with a plateau (a snake hook's) and the quintic (a grab's), pairs in the
+  // same end cap, in different ones, between the end planes and outside the support.
+  for (const double plateau : {0.5, 0.0}) {
+    Velocity v = capsule({0.3, -0.2, 0.1}, 6, {2.5, 1.0, -0.7});
+    v.setPlateau(plateau);
+    v.scale = 0.8;
+    std::vector<Vec3> points;
+    int caps = 0, between = 0, outside = 0;
+    for (int z = -7; z <= 7; ++z)
+      for (int y = -7; y <= 7; ++y)
+        for (int x = -7; x <= 10; ++x) {
+          const Vec3 p{double(x), double(y), double(z)};
+          const Vec3 r = p - v.anchor;
+          const double a = dot(r, v.segAxis);
+          const Vec3 off = r - v.segAxis * a;
+          if (dot(off, off) >= v.radius * v.radius) ++outside;
+          else if (a >= 0 && a <= v.segLength) ++between;
+          else ++caps;
+          points.push_back(p);
+        }
+    CHECK(caps > 1000);
+    CHECK(between > 100);
+    CHECK(outside > 100);
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+    for (int n = 1; n <= 4; ++n) {
+      int differ = 0, moved = 0;
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        // The next point (mostly the same end cap or side) and one anywhere.
+        for (const std::size_t j : {(i + 1) % points.size(), pick(rng)}) {
+          const Vec3 y[2] = {points[i], points[j]};
+          Vec3 x[2], along[2];
+          v.capsuleInverse2(y, n, x, along);
+          for (int l = 0; l < 2; ++l) {
+            Vec3 alongAlone;
+            const Vec3 alone = v.capsuleInverse(y[l], n, alongAlone);
+            // Bit for bit (a -0 against a 0 counts).
+            const double pair[6] = {x[l].x, x[l].y, x[l].z, along[l].x, along[l].y, along[l].z};
+            const double single[6] = {alone.x, alone.y, alone.z, alongAlone.x, alongAlone.y, alongAlone.z};
+            if (std::memcmp(pair, single, sizeof pair) != 0) ++differ;
+            if (!(alone == y[l])) ++moved;
+          }
+        }
+      }
+      INFO("plateau " << plateau << ", " << n << " sub-steps");
+      CHECK(differ == 0);
+      CHECK(moved > 1000);
+    }
+  }
 }
