@@ -310,8 +310,9 @@ struct WarpedSurface : WarpPass {
         std::size_t r = 0;
         // slopeOfWarped() two voxels at a time, X integrated for both at once
         // (Velocity::capsuleInverse2(), each with its own bits, as the resample's reads): a
-        // Slope waits, its voxel in g, for the next or for the slice's end.
+        // Slope waits, its voxel at waitingAt, for the next or for the slice's end.
         bool waiting = false;
+        Vec3 waitingAt;
         acrossZero(moved, runs, z, [&](int x, int y, std::size_t k) {
           while (r < flowReads.size() && flowReads[r].k < k) ++r;
           const ExactRead* read = r < flowReads.size() && flowReads[r].k == k ? &flowReads[r] : nullptr;
@@ -319,12 +320,12 @@ struct WarpedSurface : WarpPass {
           if (read || !(std::fabs(s.warped.v[k]) >= exactNear)) return;
           const Vec3 p{double(x), double(y), double(z)};
           if (!waiting) {
-            exact[i].push_back({k, 0, p});
-            waiting = true;
+            exact[i].push_back({k, 0, {}});
+            waitingAt = p, waiting = true;
             return;
           }
           Slope& before = exact[i].back();
-          const Vec3 at[2] = {before.g, p};
+          const Vec3 at[2] = {waitingAt, p};
           Vec3 to[2], along[2];
           v.capsuleInverse2(at, steps, to, along);
           before.g = slopeThrough(to[0], along[0], &before.phi, true);
@@ -335,7 +336,7 @@ struct WarpedSurface : WarpPass {
         });
         if (waiting) {
           Slope& last = exact[i].back();
-          last.g = slopeOfWarped(last.g, &last.phi, true);
+          last.g = slopeOfWarped(waitingAt, &last.phi, true);
         }
       });
       for (const std::vector<Slope>& slice : exact)

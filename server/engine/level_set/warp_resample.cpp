@@ -112,8 +112,8 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
         };
         // Unpainted, the row's reads through the flow are integrated two at a time
         // (Velocity::capsuleInverse2(): the two chains of divisions and roots overlap, each with
-        // its own bits): one waits in `pending` (its place in exactReads, e.q its voxel) for the
-        // next, or for the row's end. settle() finishes it once its X is known, after voxels
+        // its own bits): one waits in `pending` (its place in exactReads; its voxel is pendingX of
+        // the row) for the next, or for the row's end. settle() finishes it once its X is known, after voxels
         // past it may have changed.
         std::ptrdiff_t pending = -1;
         int pendingX = 0;
@@ -154,11 +154,11 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
                 e.q = q = v.capsuleInverse(p, steps, e.along);
               } else if (pending < 0) {
                 // Waits for the row's next read through the flow, to be integrated with it.
-                e.q = p, pending = std::ptrdiff_t(exactReads->size() - 1), pendingX = x;
+                pending = std::ptrdiff_t(exactReads->size() - 1), pendingX = x;
                 return;
               } else {
                 ExactRead& waiting = (*exactReads)[std::size_t(pending)];
-                const Vec3 at[2] = {waiting.q, p};
+                const Vec3 at[2] = {{double(pendingX), double(y), double(z)}, p};
                 Vec3 to[2], along[2];
                 v.capsuleInverse2(at, steps, to, along);
                 waiting.q = to[0], waiting.along = along[0], e.q = q = to[1], e.along = along[1];
@@ -206,7 +206,7 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
         }
         if (pending >= 0) {
           ExactRead& e = (*exactReads)[std::size_t(pending)];
-          e.q = v.capsuleInverse(e.q, steps, e.along);
+          e.q = v.capsuleInverse({double(pendingX), double(y), double(z)}, steps, e.along);
           settle(e, pendingX);
           pending = -1;
         }
