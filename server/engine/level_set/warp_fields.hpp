@@ -229,70 +229,78 @@ struct Velocity {
   Vec3 elastic(Vec3 r) const {
     return (kelvinlet(r, load, eps, nu) - kelvinlet(r, load, 2 * eps, nu)) * scale;
   }
-  // The falloff P(t) = 1 for t <= plateau, W(u) (Falloff: without a plateau the quintic, else
-  // the quartic) from there to t = 1, u going from 0 to 1.
+  // The falloff P = 1 within the plateau, W(u) (Falloff: without a plateau the quintic, else
+  // the quartic) from there to the support's edge, of the squared distance rho2 (vu^2) from
+  // the anchor (the segment, for a capsule): u = (t - plateau) / (1 - plateau), t the distance
+  // in radii, going from 0 to 1.
   // Inside the plateau the field moves as a whole: an affine warp is exact there, and a snake
   // hook's tip keeps its thickness (with no plateau every move thinned it until the tentacle
   // was a needle thinner than a voxel and the tip was lost). A grab has none: a plateau
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
   // plateau is 0, kPlateau, or a snake hook's ball fitted to a narrower tip
-  // (snakeHookVelocity()): u is (t - plateau) times outerScale = 1 / (1 - plateau), and
-  // d falloff / d t2 = W'(u) outerScale / (2 t), set once instead of divided per point
-  // (a snake hook move integrates the flow at a thousand points, four sub-steps of two
-  // falloffs each); for kPlateau it is 2, the same bits as the division.
-  // plateau and what follows from it, set together by setPlateau(): its square, outerScale, and
-  // falloffOf(plateau) (a test of the plateau here, before the plateau's own, cost a snake hook
-  // move 1.7% more instructions). A path pinch's kernel is the falloff in closed form: it sets
-  // none of them.
-  double plateau = 0, plateau2 = 0;
-  double outerScale = 1 / (1 - kPlateau);
+  // (snakeHookVelocity()).
+  // u is sqrt(rho2) uScale - uShift, a root, a product and a difference: the flow of a capsule
+  // is a chain of these, each sub-step's two falloffs waiting on the one before, and their
+  // latency, not their instructions, is its time. Until 2026-11-30 19:55 UTC u came from
+  // sqrt(rho2 / radius^2), a division more on that chain, and d P / d rho2 from d P / d t^2 by
+  // two more (with capsuleFlow()'s halfStep and fullStep, 3-4% of a tentacle's move's wall
+  // time; the flow's doubles moved in their last bits, the pinned warps' fields kept theirs).
+  // plateau and what follows from it and from radius, set together by setPlateau() once radius
+  // is set: flatRho2 (within it P = 1), uScale, uShift, invRadius and falloffOf(plateau) (a test
+  // of the plateau here, before the plateau's own, cost a snake hook move 1.7% more
+  // instructions). A path pinch's kernel is the falloff in closed form: it sets none of them.
+  double plateau = 0, flatRho2 = 0;
+  double uScale = 1, uShift = 0, invRadius = 1;
   Falloff falloffShape = Falloff::Quartic;
   void setPlateau(double p) {
-    plateau = p, plateau2 = p * p;
-    outerScale = 1 / (1 - p);
+    plateau = p;
+    flatRho2 = p * p * radius * radius;
+    invRadius = 1 / radius;
+    uScale = 1 / ((1 - p) * radius), uShift = p / (1 - p);
     falloffShape = falloffOf(p);
   }
-  double falloff(double t2) const {
-    return falloffShape == Falloff::Quintic ? shapeFalloff<Falloff::Quintic>(t2) : shapeFalloff<Falloff::Quartic>(t2);
+  double falloff(double rho2) const {
+    return falloffShape == Falloff::Quintic ? shapeFalloff<Falloff::Quintic>(rho2) : shapeFalloff<Falloff::Quartic>(rho2);
   }
   // falloff() of the shape kShape (falloffShape). The quintic has no plateau (falloffOf()):
-  // u = (t - 0) 1 = t, and its value at t2 = 0 is 1 without the plateau's test (a grab's flow
-  // takes two falloffs a sub-step: with capsuleFlow()'s truncation, 1.6% of a 20 vu grab's
-  // instructions left out).
+  // u = t, and its value at rho2 = 0 is 1 without the plateau's test (a grab's flow takes two
+  // falloffs a sub-step: with capsuleFlow()'s truncation, 1.6% of a 20 vu grab's instructions
+  // left out).
   template <Falloff kShape>
-  [[gnu::always_inline]] double shapeFalloff(double t2) const {
+  [[gnu::always_inline]] double shapeFalloff(double rho2) const {
     if constexpr (kShape == Falloff::Quintic) {
-      const double u = falloffRoot(t2);
+      const double u = falloffRoot(rho2) * invRadius;
       return 1 - u * u * u * (10 - u * (15 - 6 * u));
     } else {
-      if (t2 <= plateau2) return 1;
-      const double u = (falloffRoot(t2) - plateau) * outerScale;
+      if (rho2 <= flatRho2) return 1;
+      const double u = falloffRoot(rho2) * uScale - uShift;
       return (1 - u * u) * (1 - u * u);
     }
   }
-  // d falloff / d t2.
-  double falloffSlope(double t2) const { return falloffWithSlope(t2).second; }
+  // d falloff / d rho2.
+  double falloffSlope(double rho2) const { return falloffWithSlope(rho2).second; }
 
-  // falloff(t2) and falloffSlope(t2), sharing the root.
-  std::pair<double, double> falloffWithSlope(double t2) const {
-    return falloffShape == Falloff::Quintic ? shapeFalloffWithSlope<Falloff::Quintic>(t2)
-                                            : shapeFalloffWithSlope<Falloff::Quartic>(t2);
+  // falloff(rho2) and falloffSlope(rho2), sharing the root.
+  std::pair<double, double> falloffWithSlope(double rho2) const {
+    return falloffShape == Falloff::Quintic ? shapeFalloffWithSlope<Falloff::Quintic>(rho2)
+                                            : shapeFalloffWithSlope<Falloff::Quartic>(rho2);
   }
-  // falloffWithSlope() of the shape kShape (falloffShape), as shapeFalloff(): the quintic's
-  // plateau is 0 and its outerScale 1, and its test is that of t = 0, where the slope would
-  // divide by t.
+  // falloffWithSlope() of the shape kShape (falloffShape), as shapeFalloff(): d W / d rho2 =
+  // W'(u) du/dt / (2 t radius^2), t = sqrt(rho2) / radius; the quintic's test is that of
+  // rho2 = 0, where the slope would divide by 0.
   template <Falloff kShape>
-  [[gnu::always_inline]] std::pair<double, double> shapeFalloffWithSlope(double t2) const {
+  [[gnu::always_inline]] std::pair<double, double> shapeFalloffWithSlope(double rho2) const {
     if constexpr (kShape == Falloff::Quintic) {
-      if (t2 <= 0) return {1, 0};
-      const double u = falloffRoot(t2);
+      if (rho2 <= 0) return {1, 0};
+      const double root = falloffRoot(rho2);
+      const double u = root * invRadius;
       const double w = u * (1 - u);
-      return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * w * w / u};
+      return {1 - u * u * u * (10 - u * (15 - 6 * u)), -15 * invRadius * w * w / root};
     } else {
-      if (t2 <= plateau2) return {1, 0};
-      const double t = falloffRoot(t2);
-      const double u = (t - plateau) * outerScale;
-      return {(1 - u * u) * (1 - u * u), -2 * outerScale * u * (1 - u * u) / t};
+      if (rho2 <= flatRho2) return {1, 0};
+      const double root = falloffRoot(rho2);
+      const double u = root * uScale - uShift;
+      return {(1 - u * u) * (1 - u * u), -2 * uScale * u * (1 - u * u) / root};
     }
   }
 
@@ -330,17 +338,17 @@ struct Velocity {
       const double rho2 = dot(off, off);
       if (rho2 >= R2) return {};
       // grad rho^2 = 2 off whether t is clamped or not (off is normal to seg when it is not).
-      const Vec3 g = off * (2 * scale * falloffSlope(rho2 / R2) / R2);
+      const Vec3 g = off * (2 * scale * falloffSlope(rho2));
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) J[i][j] = seg[i] * g[j];
-      return seg * (scale * falloff(rho2 / R2));
+      return seg * (scale * falloff(rho2));
     }
     const double r2 = dot(r, r);
     if (r2 >= R2) return {};
-    const double p = falloff(r2 / R2);
+    const double p = falloff(r2);
     const Vec3 ar{A[0][0] * r.x + A[0][1] * r.y + A[0][2] * r.z, A[1][0] * r.x + A[1][1] * r.y + A[1][2] * r.z,
                   A[2][0] * r.x + A[2][1] * r.y + A[2][2] * r.z};
-    const Vec3 g = r * (2 * falloffSlope(r2 / R2) / R2);
+    const Vec3 g = r * (2 * falloffSlope(r2));
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) J[i][j] = p * A[i][j] + ar[i] * g[j];
     return ar * p;
@@ -355,11 +363,11 @@ struct Velocity {
       const Vec3 off = r - seg * t;
       const double rho2 = dot(off, off);
       if (rho2 >= R2) return {};
-      return seg * (scale * falloff(rho2 / R2));
+      return seg * (scale * falloff(rho2));
     }
     const double r2 = dot(r, r);
     if (r2 >= R2) return {};
-    const double p = falloff(r2 / R2);
+    const double p = falloff(r2);
     if (kind == Kind::Elastic) return elastic(r) * p;
     return Vec3{A[0][0] * r.x + A[0][1] * r.y + A[0][2] * r.z, A[1][0] * r.x + A[1][1] * r.y + A[1][2] * r.z,
                 A[2][0] * r.x + A[2][1] * r.y + A[2][2] * r.z} *
@@ -507,14 +515,17 @@ struct Velocity {
     const double perp2 = dot(off, off);
     if (perp2 >= R2) return y;
     const double speed = scale * length;
-    const auto velocity = [&](double a) {
+    const auto falloffAt = [&](double a) {
       const double e = a < 0 ? -a : a > length ? a - length : 0;
       const double rho2 = perp2 + e * e;
-      return rho2 < R2 ? speed * shapeFalloff<kShape>(rho2 / R2) : 0.0;
+      return rho2 < R2 ? shapeFalloff<kShape>(rho2) : 0.0;
     };
     // Where the speed is zero (beyond the end caps) every sub-step stays put.
-    if (velocity(a0) == 0) return y;
-    const double dt = direction / n, step = dt * speed * shapeFalloff<kShape>(perp2 / R2);
+    if (speed * falloffAt(a0) == 0) return y;
+    // A half and a whole sub-step's move at full speed, so that the chain from one falloff to
+    // the next holds one product, not two (shapeFalloff()).
+    const double dt = direction / n, halfStep = 0.5 * dt * speed, fullStep = dt * speed;
+    const double step = fullStep * shapeFalloff<kShape>(perp2);
     double a = a0;
     for (int i = 0; i < n;) {
       if (a >= 0 && a <= length && step != 0) {
@@ -529,8 +540,8 @@ struct Velocity {
           continue;
         }
       }
-      const double mid = a + 0.5 * dt * velocity(a);
-      a += dt * velocity(mid);
+      const double mid = a + halfStep * falloffAt(a);
+      a += fullStep * falloffAt(mid);
       ++i;
     }
     return y + axis * (a - a0);
@@ -548,7 +559,7 @@ struct Velocity {
   // (warp_passes.hpp, ExactRead).
   // It integrates kLanes points at once (y[l] to x[l] and along[l]), each lane by its own
   // operations, so that each lane's bits are those of the lane alone. An end cap's sub-step is
-  // a serial chain (a falloff's division, root and products, twice), and a path takes two or
+  // a serial chain (a falloff's root and products, twice), and a path takes two or
   // three: their latency, not their instructions, is the inverse map's time (15% of a
   // tentacle's move's samples against 7% of its instructions, 2026-11-30). Two lanes both in
   // end caps take their sub-step together in the halves of vectors of doubles (capCapSubStep());
@@ -561,7 +572,8 @@ struct Velocity {
     const double length = segLength, R2 = radius * radius;
     const Vec3 axis = segAxis;
     const double speed = scale * length;
-    const double dt = 1.0 / n;
+    // capsuleFlow()'s halfStep and fullStep backwards (its dt is -dt: the same bits negated).
+    const double dt = 1.0 / n, halfStep = 0.5 * dt * speed, fullStep = dt * speed;
     // A lane: a along seg, m, w and the sub-steps taken; q its squared distance to the line.
     struct Lane {
       Vec3 off;
@@ -569,18 +581,18 @@ struct Velocity {
       int i = 0;
       bool inside = false, outside = false;
     };
-    // f, df/da and df/dq at a.
+    // The falloff (the speed over `speed`), df/da and df/dq at a.
     struct Speed {
-      double f = 0, fa = 0, fq = 0;
+      double fall = 0, fa = 0, fq = 0;
     };
     const auto speedAt = [&](double q, double a) __attribute__((always_inline)) {
       const double e = a < 0 ? -a : a > length ? a - length : 0;
       const double rho2 = q + e * e;
       Speed out;
       if (rho2 >= R2) return out;
-      const auto [fall, fallSlope] = shapeFalloffWithSlope<kShape>(rho2 / R2);
-      const double slope = speed * fallSlope / R2;
-      out.f = speed * fall;
+      const auto [fall, fallSlope] = shapeFalloffWithSlope<kShape>(rho2);
+      const double slope = speed * fallSlope;
+      out.fall = fall;
       out.fa = slope * 2 * (a < 0 ? a : e);
       out.fq = slope;
       return out;
@@ -591,8 +603,8 @@ struct Velocity {
     // planes (0.3% of a tentacle's move); a grab's is long, and found at once (found as a snake
     // hook's, a grab of 60 vu took 0.7% more instructions).
     const auto findInside = [&](Lane& p) __attribute__((always_inline)) {
-      const auto [insideFall, insideSlope] = shapeFalloffWithSlope<kShape>(p.q / R2);
-      p.insideFq = speed * insideSlope / R2, p.step = -dt * speed * insideFall, p.inside = true;
+      const auto [insideFall, insideSlope] = shapeFalloffWithSlope<kShape>(p.q);
+      p.insideFq = speed * insideSlope, p.step = -dt * speed * insideFall, p.inside = true;
     };
     Lane lanes[kLanes];
     for (int l = 0; l < kLanes; ++l) {
@@ -625,10 +637,10 @@ struct Velocity {
         }
       }
       const Speed s0 = speedAt(p.q, p.a);
-      const double mid = p.a - 0.5 * dt * s0.f;
+      const double mid = p.a - halfStep * s0.fall;
       const double mMid = p.m - 0.5 * dt * s0.fa * p.m, wMid = p.w - 0.5 * dt * (s0.fa * p.w + s0.fq);
       const Speed s1 = speedAt(p.q, mid);
-      p.a -= dt * s1.f;
+      p.a -= fullStep * s1.fall;
       p.m -= dt * s1.fa * mMid;
       p.w -= dt * (s1.fa * wMid + s1.fq);
       ++p.i;
@@ -638,7 +650,7 @@ struct Velocity {
       if constexpr (kLanes == 2) {
         Lane &p = lanes[0], &r = lanes[1];
         if (p.i < n && r.i < n && !between(p) && !between(r)) {
-          capCapSubStep<kShape>(p, r, dt, length, R2, speed);
+          capCapSubStep<kShape>(p, r, dt, length, R2, speed, halfStep, fullStep);
           continue;
         }
       }
@@ -660,12 +672,12 @@ struct Velocity {
   // two halves of vectors (p low, r high): speedAt()'s and the sub-step's operations in their
   // order, each selection by its comparison's mask, so that each half's result is its lane's
   // alone. Where both lanes' comparisons agree (the common case) a branch takes the side
-  // instead: the CPU predicts it and runs on ahead of the division and the root, as it does
+  // instead: the CPU predicts it and runs on ahead of the root, as it does
   // along one lane's branches, where the masks' selections had made a pair of paths cost
   // about two single ones (a loop of a shell of points, 2026-11-30).
   template <Falloff kShape, class Lane>
   [[gnu::always_inline]] void capCapSubStep(Lane& p, Lane& r, double dt, double length, double R2,
-                                            double speed) const {
+                                            double speed, double halfStep, double fullStep) const {
     const __m128d zero = _mm_setzero_pd(), one = _mm_set1_pd(1), two = _mm_set1_pd(2);
     const __m128d len = _mm_set1_pd(length), r2 = _mm_set1_pd(R2), sp = _mm_set1_pd(speed);
     const auto select = [](__m128d mask, __m128d a, __m128d b) __attribute__((always_inline)) {
@@ -673,11 +685,11 @@ struct Velocity {
     };
     const __m128d q = _mm_set_pd(r.q, p.q);
     struct Speeds {
-      __m128d f, fa, fq;
+      __m128d fall, fa, fq;
     };
     const auto speedAt = [&](__m128d a) __attribute__((always_inline)) {
       // Branches on the lanes' masks where both agree (the common case, which the CPU predicts
-      // and runs ahead of the division and the root), the masks' selections where they differ.
+      // and runs ahead of the root), the masks' selections where they differ.
       const __m128d below = _mm_cmplt_pd(a, zero), over = _mm_cmpgt_pd(a, len);
       const int belowBits = _mm_movemask_pd(below), overBits = _mm_movemask_pd(over);
       __m128d e;
@@ -688,44 +700,45 @@ struct Velocity {
       const __m128d within = _mm_cmplt_pd(rho2, r2);  // !(rho2 >= R2): no NaN here
       const int withinBits = _mm_movemask_pd(within);
       if (withinBits == 0) return Speeds{zero, zero, zero};
-      const __m128d t2 = _mm_div_pd(rho2, r2);
       __m128d fall, fallSlope;
-      const __m128d flat = _mm_cmple_pd(t2, kShape == Falloff::Quintic ? zero : _mm_set1_pd(plateau2));
+      const __m128d flat = _mm_cmple_pd(rho2, kShape == Falloff::Quintic ? zero : _mm_set1_pd(flatRho2));
       const int flatBits = _mm_movemask_pd(flat);
       if (flatBits == 3) {
         fall = one, fallSlope = zero;
       } else {
+        const __m128d root = _mm_sqrt_pd(rho2);
         if constexpr (kShape == Falloff::Quintic) {
-          const __m128d u = _mm_sqrt_pd(t2);
+          const __m128d inv = _mm_set1_pd(invRadius);
+          const __m128d u = _mm_mul_pd(root, inv);
           const __m128d w = _mm_mul_pd(u, _mm_sub_pd(one, u));
           const __m128d inner = _mm_sub_pd(_mm_set1_pd(15), _mm_mul_pd(_mm_set1_pd(6), u));
           const __m128d poly = _mm_sub_pd(_mm_set1_pd(10), _mm_mul_pd(u, inner));
           fall = _mm_sub_pd(one, _mm_mul_pd(_mm_mul_pd(_mm_mul_pd(u, u), u), poly));
-          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-15), w), w), u);
+          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-15), inv), w), w), root);
         } else {
-          const __m128d t = _mm_sqrt_pd(t2);
-          const __m128d u = _mm_mul_pd(_mm_sub_pd(t, _mm_set1_pd(plateau)), _mm_set1_pd(outerScale));
+          const __m128d scaleU = _mm_set1_pd(uScale);
+          const __m128d u = _mm_sub_pd(_mm_mul_pd(root, scaleU), _mm_set1_pd(uShift));
           const __m128d rest = _mm_sub_pd(one, _mm_mul_pd(u, u));
           fall = _mm_mul_pd(rest, rest);
-          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-2 * outerScale), u), rest), t);
+          fallSlope = _mm_div_pd(_mm_mul_pd(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(-2), scaleU), u), rest), root);
         }
         if (flatBits != 0) fall = select(flat, one, fall), fallSlope = select(flat, zero, fallSlope);
       }
-      const __m128d slope = _mm_div_pd(_mm_mul_pd(sp, fallSlope), r2);
+      const __m128d slope = _mm_mul_pd(sp, fallSlope);
       const __m128d side = belowBits == 3 ? a : belowBits == 0 ? e : select(below, a, e);
       const __m128d fa = _mm_mul_pd(_mm_mul_pd(slope, two), side);
-      const __m128d f = _mm_mul_pd(sp, fall);
-      if (withinBits == 3) return Speeds{f, fa, slope};
-      return Speeds{_mm_and_pd(within, f), _mm_and_pd(within, fa), _mm_and_pd(within, slope)};
+      if (withinBits == 3) return Speeds{fall, fa, slope};
+      return Speeds{_mm_and_pd(within, fall), _mm_and_pd(within, fa), _mm_and_pd(within, slope)};
     };
     const __m128d half = _mm_set1_pd(0.5 * dt), step = _mm_set1_pd(dt);
+    const __m128d halfMove = _mm_set1_pd(halfStep), fullMove = _mm_set1_pd(fullStep);
     __m128d a = _mm_set_pd(r.a, p.a), m = _mm_set_pd(r.m, p.m), w = _mm_set_pd(r.w, p.w);
     const Speeds s0 = speedAt(a);
-    const __m128d mid = _mm_sub_pd(a, _mm_mul_pd(half, s0.f));
+    const __m128d mid = _mm_sub_pd(a, _mm_mul_pd(halfMove, s0.fall));
     const __m128d mMid = _mm_sub_pd(m, _mm_mul_pd(_mm_mul_pd(half, s0.fa), m));
     const __m128d wMid = _mm_sub_pd(w, _mm_mul_pd(half, _mm_add_pd(_mm_mul_pd(s0.fa, w), s0.fq)));
     const Speeds s1 = speedAt(mid);
-    a = _mm_sub_pd(a, _mm_mul_pd(step, s1.f));
+    a = _mm_sub_pd(a, _mm_mul_pd(fullMove, s1.fall));
     m = _mm_sub_pd(m, _mm_mul_pd(_mm_mul_pd(step, s1.fa), mMid));
     w = _mm_sub_pd(w, _mm_mul_pd(step, _mm_add_pd(_mm_mul_pd(s1.fa, wMid), s1.fq)));
     _mm_storel_pd(&p.a, a), _mm_storeh_pd(&r.a, a);

@@ -111,7 +111,7 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
           last = x;
         };
         // Unpainted, the row's reads through the flow are integrated two at a time
-        // (Velocity::capsuleInverse2(): the two chains of divisions and roots overlap, each with
+        // (Velocity::capsuleInverse2(): the two chains of roots and products overlap, each with
         // its own bits): one waits in `pending` (its place in exactReads; its voxel is pendingX of
         // the row) for the next, or for the row's end. settle() finishes it once its X is known, after voxels
         // past it may have changed.
