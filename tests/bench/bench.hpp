@@ -13,6 +13,7 @@
 #include <ctime>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -45,6 +46,25 @@ inline double processCpuMs() {
   return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
 }
 
+// A Timing of per-call wall and CPU times (ms), in the order they were taken.
+inline Timing timingOf(std::vector<double> ms, std::vector<double> cpu, int measurement) {
+  std::sort(ms.begin(), ms.end());
+  std::sort(cpu.begin(), cpu.end());
+  return {ms[ms.size() / 2], ms.front(), ms.back(), int(ms.size()), cpu[cpu.size() / 2], measurement};
+}
+
+// One timed call of f: wall and CPU ms appended, and collected when instructions are counted.
+template <class F>
+void timeCall(F&& f, bool counting, std::vector<double>& ms, std::vector<double>& cpu) {
+  const double c0 = processCpuMs();
+  const auto t0 = std::chrono::steady_clock::now();
+  if (counting) toggleInstructionCount();
+  f();
+  if (counting) toggleInstructionCount();
+  ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  cpu.push_back(processCpuMs() - c0);
+}
+
 // Runs setup() then f() `reps` times; only f is timed.
 template <class Setup, class F>
 Timing measure(int reps, Setup&& setup, F&& f) {
@@ -52,17 +72,39 @@ Timing measure(int reps, Setup&& setup, F&& f) {
   const bool counting = countingInstructions();
   for (int r = 0; r < reps; ++r) {
     setup();
-    const double c0 = processCpuMs();
-    const auto t0 = std::chrono::steady_clock::now();
-    if (counting) toggleInstructionCount();
-    f();
-    if (counting) toggleInstructionCount();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    cpu.push_back(processCpuMs() - c0);
+    timeCall(f, counting, ms, cpu);
   }
-  std::sort(ms.begin(), ms.end());
-  std::sort(cpu.begin(), cpu.end());
-  return {ms[ms.size() / 2], ms.front(), ms.back(), reps, cpu[cpu.size() / 2], counting ? dumpInstructionCount(reps) : 0};
+  return timingOf(std::move(ms), std::move(cpu), counting ? dumpInstructionCount(reps) : 0);
+}
+
+// Two series taken in turn, setupA(), fA(), setupB(), fB() `reps` times, for a ratio of their
+// times: the machine's speed drifts (these VMs' by up to 40% from one run to the next, and
+// within a run), and a drift then falls on both series alike, where two series one after the
+// other each took a stretch of their own (a tentacle's move against the dab read 2.2-2.9x in
+// runs of one binary, 2026-11-30). `pairRatio` gets the median of fA's time over fB's, call by
+// call. Under callgrind the series run one after the other, each its own measurement (the
+// counts do not drift).
+template <class SetupA, class FA, class SetupB, class FB>
+std::pair<Timing, Timing> measurePair(int reps, SetupA&& setupA, FA&& fA, SetupB&& setupB, FB&& fB, double* pairRatio) {
+  const bool counting = countingInstructions();
+  std::vector<double> msA, cpuA, msB, cpuB;
+  if (counting) {
+    for (int r = 0; r < reps; ++r) setupA(), timeCall(fA, true, msA, cpuA);
+    const int a = dumpInstructionCount(reps);
+    for (int r = 0; r < reps; ++r) setupB(), timeCall(fB, true, msB, cpuB);
+    const int b = dumpInstructionCount(reps);
+    *pairRatio = 0;
+    return {timingOf(std::move(msA), std::move(cpuA), a), timingOf(std::move(msB), std::move(cpuB), b)};
+  }
+  std::vector<double> ratios;
+  for (int r = 0; r < reps; ++r) {
+    setupA(), timeCall(fA, false, msA, cpuA);
+    setupB(), timeCall(fB, false, msB, cpuB);
+    ratios.push_back(msA.back() / msB.back());
+  }
+  std::sort(ratios.begin(), ratios.end());
+  *pairRatio = ratios[ratios.size() / 2];
+  return {timingOf(std::move(msA), std::move(cpuA), 0), timingOf(std::move(msB), std::move(cpuB), 0)};
 }
 template <class F>
 Timing measure(int reps, F&& f) {

@@ -96,12 +96,14 @@ MARZIPAN_BENCH("grab_message") {
 namespace {
 
 // Scenarios `name`: a path-dependent warp's move against an add-blob dab of the same radius (8),
-// each `reps` times at random points of the sphere: draw(rng, s, i) picks the i-th move of the
-// run (the runs start from the sphere), apply(v, pool) makes it. Untimed, as many moves and dabs as timed run first, on copies freed before the timing, so
-// that the changed bricks' memory is recycled for both: without it the moves, timed first, grew
-// the heap and paid the first touch of their new bricks' pages, and the dabs after them reused
-// the freed moves' memory (one thread, the snake hook read 2.7-3.1x the dab timed first and 1.5x
-// timed after it; 2026-11-29, load ~6).
+// each `reps` times at random points of the sphere, a move and a dab in turn (measurePair):
+// draw(rng, s, i) picks the i-th move of the run (the runs start from the sphere), apply(v,
+// pool) makes it. Untimed, as many moves and dabs as timed run first, on copies freed before
+// the timing, so that the changed bricks' memory is recycled for both: without it the moves,
+// timed first, grew the heap and paid the first touch of their new bricks' pages, and the dabs
+// after them reused the freed moves' memory (one thread, the snake hook read 2.7-3.1x the dab
+// timed first and 1.5x timed after it; 2026-11-29, load ~6). `ratio_to_dab` is the ratio of
+// the medians, `pair_ratio_to_dab` the median of a move's time over the next dab's.
 template <class Draw, class Apply>
 void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw draw, Apply apply) {
   const WarpSphere s = warpSphere(opt);
@@ -118,16 +120,21 @@ void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw dr
       addBlob(dabbed, BrushParams{s.centre + randomUnit(other) * s.radius, r, 1}, pool);
     }
   }
-  std::mt19937 rng{seed};
-  Volume v = sphere;
+  // The moves and the dabs in turn (measurePair): each its own volume, and the dabs their own
+  // points (before 2026-11-30 20:30 UTC the dabs followed the moves, on the moves' generator).
+  std::mt19937 rng{seed}, dabRng{seed + 2};
+  Volume moved = sphere, dabbed = sphere;
   int i = 0;
-  const Timing move = measure(reps, [&] { draw(rng, s, i++); }, [&] { apply(v, r, pool); });
-  v = sphere;
   BrushParams p{{}, r, 1};
-  const Timing dab = measure(
-      reps, [&] { p.center = s.centre + randomUnit(rng) * s.radius; }, [&] { addBlob(v, p, pool); });
-  emit(name, opt.threads, move,
-       {{"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", move.median_ms / dab.median_ms}});
+  double pairRatio = 0;
+  const auto [move, dab] = measurePair(
+      reps, [&] { draw(rng, s, i++); }, [&] { apply(moved, r, pool); },
+      [&] { p.center = s.centre + randomUnit(dabRng) * s.radius; }, [&] { addBlob(dabbed, p, pool); }, &pairRatio);
+  nlohmann::ordered_json extra{
+      {"radius", r}, {"move_vu", 2}, {"add_blob_dab_ms", dab.median_ms}, {"ratio_to_dab", move.median_ms / dab.median_ms}};
+  if (dab.measurement) extra["dab_measurement"] = dab.measurement;
+  if (pairRatio > 0) extra["pair_ratio_to_dab"] = pairRatio;
+  emit(name, opt.threads, move, extra);
 }
 
 }  // namespace
