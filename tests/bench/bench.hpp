@@ -2,10 +2,11 @@
 // line (at least scenario, threads, median_ms, min_ms, max_ms, reps, then their own figures).
 //
 // Instruction counts (tests/bench/instructions.py): under callgrind started with
-// --collect-atstart=no, measure() collects only the calls it times and dumps them as one part,
-// "marzipan-bench measurement N reps R"; the line that reports a Timing then carries
-// "measurement": N (a scenario reporting a second Timing names it "<what>_measurement"), which
-// the wrapper turns into instructions per call. Outside callgrind nothing changes.
+// --collect-atstart=no, measure() (and each series of measurePair()) collects only the calls it
+// times and dumps them as one part, "marzipan-bench measurement N reps R"; the line that
+// reports a Timing then carries "measurement": N (a scenario reporting a second Timing names it
+// "<what>_measurement"), which the wrapper turns into instructions per call. Outside callgrind
+// nothing changes.
 #pragma once
 
 #include <algorithm>

@@ -99,10 +99,11 @@ namespace {
 // each `reps` times at random points of the sphere, a move and a dab in turn (measurePair):
 // draw(rng, s, i) picks the i-th move of the run (the runs start from the sphere), apply(v,
 // pool) makes it. Untimed, as many moves and dabs as timed run first, on copies freed before
-// the timing, so that the changed bricks' memory is recycled for both: without it the moves,
-// timed first, grew the heap and paid the first touch of their new bricks' pages, and the dabs
-// after them reused the freed moves' memory (one thread, the snake hook read 2.7-3.1x the dab
-// timed first and 1.5x timed after it; 2026-11-29, load ~6). `ratio_to_dab` is the ratio of
+// the timing, so that the changed bricks' memory is recycled for both: without it, when the
+// moves were timed before the dabs (until measurePair), the moves grew the heap and paid the
+// first touch of their new bricks' pages, and the dabs after them reused the freed moves'
+// memory (one thread, the snake hook read 2.7-3.1x the dab timed first and 1.5x timed after
+// it; 2026-11-29, load ~6); timed in turn, each would still pay its own first touches. `ratio_to_dab` is the ratio of
 // the medians, `pair_ratio_to_dab` the median of a move's time over the next dab's.
 template <class Draw, class Apply>
 void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw draw, Apply apply) {
@@ -121,7 +122,7 @@ void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw dr
     }
   }
   // The moves and the dabs in turn (measurePair): each its own volume, and the dabs their own
-  // points (before 2026-11-30 20:30 UTC the dabs followed the moves, on the moves' generator).
+  // points (before 2026-11-30 20:05 UTC the dabs followed the moves, on the moves' generator).
   std::mt19937 rng{seed}, dabRng{seed + 2};
   Volume moved = sphere, dabbed = sphere;
   int i = 0;

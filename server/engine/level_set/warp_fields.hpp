@@ -239,21 +239,22 @@ struct Velocity {
   // turned a long grab into a thinner tentacle (gradient error 0.56 at 3 radii, 0.33 without).
   // plateau is 0, kPlateau, or a snake hook's ball fitted to a narrower tip
   // (snakeHookVelocity()).
-  // u is sqrt(rho2) uScale - uShift, a root, a product and a difference: the flow of a capsule
-  // is a chain of these, each sub-step's two falloffs waiting on the one before, and their
-  // latency, not their instructions, is its time. Until 2026-11-30 19:55 UTC u came from
-  // sqrt(rho2 / radius^2), a division more on that chain, and d P / d rho2 from d P / d t^2 by
-  // two more (with capsuleFlow()'s halfStep and fullStep, 3-4% of a tentacle's move's wall
-  // time; the flow's doubles moved in their last bits, the pinned warps' fields kept theirs).
-  // plateau and what follows from it and from radius, set together by setPlateau() once radius
-  // is set: flatRho2 (within it P = 1), uScale, uShift, invRadius and falloffOf(plateau) (a test
-  // of the plateau here, before the plateau's own, cost a snake hook move 1.7% more
-  // instructions). A path pinch's kernel is the falloff in closed form: it sets none of them.
+  // u is sqrt(rho2) uScale - uShift (the quintic's sqrt(rho2) invRadius): the flow of a capsule
+  // is a chain of falloffs, each sub-step's two waiting on the one before, and their latency,
+  // not their instructions, is its time. Until 2026-11-30 19:55 UTC u came from
+  // sqrt(rho2 / radius^2), a division more on that chain, and d P / d rho2 from d P / d t^2 by a
+  // division more off it (with capsuleFlow()'s halfStep and fullStep, 3-4% of a tentacle's
+  // move's wall time; the flow's doubles moved in their last bits, the pinned warps' fields
+  // kept theirs).
+  // radius, plateau and what follows from them, set together by setSupport(): flatRho2 (within
+  // it P = 1), uScale, uShift, invRadius and falloffOf(plateau) (a test of the plateau here,
+  // before the plateau's own, cost a snake hook move 1.7% more instructions). A path pinch's
+  // kernel is the falloff in closed form: it sets radius alone.
   double plateau = 0, flatRho2 = 0;
   double uScale = 1, uShift = 0, invRadius = 1;
   Falloff falloffShape = Falloff::Quartic;
-  void setPlateau(double p) {
-    plateau = p;
+  void setSupport(double r, double p) {
+    radius = r, plateau = p;
     flatRho2 = p * p * radius * radius;
     invRadius = 1 / radius;
     uScale = 1 / ((1 - p) * radius), uShift = p / (1 - p);
@@ -522,8 +523,8 @@ struct Velocity {
     };
     // Where the speed is zero (beyond the end caps) every sub-step stays put.
     if (speed * falloffAt(a0) == 0) return y;
-    // A half and a whole sub-step's move at full speed, so that the chain from one falloff to
-    // the next holds one product, not two (shapeFalloff()).
+    // A half and a whole sub-step's move at full speed: one product fewer on the chain from one
+    // falloff to the next than speed * W, then dt times that.
     const double dt = direction / n, halfStep = 0.5 * dt * speed, fullStep = dt * speed;
     const double step = fullStep * shapeFalloff<kShape>(perp2);
     double a = a0;

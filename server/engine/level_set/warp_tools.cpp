@@ -43,8 +43,7 @@ Velocity affine(Vec3 anchor, double radius) {
   Velocity v;
   v.kind = Velocity::Kind::Affine;
   v.anchor = anchor;
-  v.radius = radius;
-  v.setPlateau(kPlateau);
+  v.setSupport(radius, kPlateau);
   return v;
 }
 
@@ -82,13 +81,12 @@ Velocity grabVelocity(Vec3 anchor, Vec3 d, double radius, double ball, double su
     throw EngineError(ErrorKind::TooLarge, "d", "must be at most 8 radii long");
   Velocity v;
   v.anchor = anchor;
-  v.radius = support;
   v.seg = d;
   v.segLength2 = dot(d, d);
   v.segLength = std::sqrt(v.segLength2);
   if (v.segLength > 0) v.segAxis = d / v.segLength;
   v.plateauBall = ball;
-  v.setPlateau(ball / support);
+  v.setSupport(support, ball / support);
   // Along the segment v = scale * d: scale 1 lands the anchor on anchor + d up to rounding.
   landAnchor(v, anchor, d);
   return v;
@@ -275,8 +273,7 @@ Edit elasticGrab(Volume& vol, const Volume& base, Vec3 anchor, Vec3 d, double ra
   v.anchor = anchor;
   v.eps = radius;
   v.nu = volume;
-  v.radius = kElasticCutoff * radius;
-  v.setPlateau(kPlateau);
+  v.setSupport(kElasticCutoff * radius, kPlateau);
   // The load that moves the centre by d, before the flow's search.
   v.load = d * elasticLoadPerTravel(radius, volume);
   v.seg = d;

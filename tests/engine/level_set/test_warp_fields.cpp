@@ -67,7 +67,7 @@ TEST_CASE("a capsule's inverse map of two points gives each its own bits", "[war
   // same end cap, in different ones, between the end planes and outside the support.
   for (const double plateau : {0.5, 0.0}) {
     Velocity v = capsule({0.3, -0.2, 0.1}, 6, {2.5, 1.0, -0.7});
-    v.setPlateau(plateau);
+    v.setSupport(v.radius, plateau);
     v.scale = 0.8;
     std::vector<Vec3> points;
     int caps = 0, between = 0, outside = 0;
