@@ -550,7 +550,7 @@ void trimMarchScratch(std::size_t voxels) {
 
 MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
-                               ThreadPool& pool, ProgressShare progress) {
+                               ThreadPool& pool, ProgressShare progress, bool parallelSides) {
   requireRange(band, kMinMarchBand, kMaxMarchBand, "band");
   Scratch& s = scratch();
   const std::uint8_t* f = flags.data();
@@ -566,7 +566,7 @@ MarchStats fastMarchClassified(DenseGrid& g, const std::vector<std::uint8_t>& fl
       side[k] = m.run(seeds, progress.part(0.5));
     }
   };
-  if (pool.threads() > 1 && candidates.size() >= kParallelCandidates) {
+  if (pool.threads() > 1 && (parallelSides || candidates.size() >= kParallelCandidates)) {
     // Each side picks its own seeds, so that neither waits for the other.
     pool.parallelFor(2, [&](std::size_t k) {
       std::size_t count[2];

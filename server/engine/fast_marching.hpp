@@ -84,8 +84,10 @@ void trimMarchScratch(std::size_t voxels);
 // The bytes of the calling thread's march scratch arrays that grow with the grid (for tests).
 std::size_t marchScratchBytes();
 
+// parallelSides: the two sides on two threads of the pool (when it has them) whatever the
+// candidates' count (RedistanceOptions::parallelSides); the same result either way.
 MarchStats fastMarchClassified(DenseGrid& grid, const std::vector<std::uint8_t>& flags,
                                std::span<const std::uint32_t> candidates, float band, MarchOrder order,
-                               ThreadPool& pool, ProgressShare progress = {});
+                               ThreadPool& pool, ProgressShare progress = {}, bool parallelSides = false);
 
 }  // namespace marzipan

@@ -627,7 +627,8 @@ MarchStats redistanceRegion(DenseGrid& g, const Box& region, float band, Outside
     }
   });
   progress.advance(kSetupShare);
-  return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare));
+  return fastMarchClassified(g, s.flags, list->index, band, options.order, pool, progress.part(1 - kSetupShare),
+                             options.parallelSides);
 }
 
 void redistanceVolume(Volume& vol, ThreadPool& pool) {

@@ -78,6 +78,12 @@ struct RedistanceOptions {
   // kink: surfaces meeting or parting) the voxel is marched. docs/method.md §5.
   bool direct = false;
   MarchOrder order = MarchOrder::Second;
+  // The march's two sides on two threads of the pool whatever the band's size (else only from
+  // fastMarchClassified's kParallelCandidates on): for a caller whose passes just ran on the
+  // pool, whose threads still look for work (ThreadPool::kSpin) and take the second side at
+  // once. A small tool's passes run on the calling thread, and waking a sleeping pool thread
+  // for its march cost about what the march saved.
+  bool parallelSides = false;
   // When set: the band voxels of region grown by 1 (clipped to the grid), as collected
   // before the caller changed some of them (it may only have changed voxels of the list).
   // Saves the scan of the box. It may leave out voxels that lie outside every reset box grown
@@ -96,7 +102,8 @@ constexpr double kMaxDirectMotion = 1.0;
 // the zero set when it is 0 or one of its 6 neighbours has the other sign (0 counts as outside).
 // The two sides of the surface are marched on two threads, and the classification before the
 // march is split into fixed pieces on the pool, when the pool has threads and the grid is large
-// enough to pay for waking them (the same result either way).
+// enough to pay for waking them, the sides also when options.parallelSides asks (the same
+// result either way).
 MarchStats redistanceRegion(DenseGrid& grid, const Box& region, float band, Outside outside,
                             const RedistanceOptions& options = {}, ThreadPool& pool = ThreadPool::serial());
 

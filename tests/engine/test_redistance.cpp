@@ -35,6 +35,25 @@ DenseGrid wrongSlopeSphere(Vec3 c, double r) {
 
 }  // namespace
 
+TEST_CASE("a small region's two sides marched on two threads give what one thread gives", "[redistance]") {
+  // RedistanceOptions::parallelSides: a region of 3,072 voxels, far below the march's own
+  // threshold for two threads (8,192 candidates), its sides on two threads all the same (a
+  // warp's).
+  const Vec3 c{35.6, 36.2, 35.1};
+  const DenseGrid before = wrongSlopeSphere(c, 24.3);
+  const Box region{{28, 30, 52}, {44, 46, 64}};
+  ThreadPool one(1), two(2);
+  DenseGrid a = before, b = before;
+  RedistanceOptions options;
+  options.parallelSides = true;
+  const MarchStats sa = redistanceRegion(a, region, kBand, Outside::Source, options, one);
+  const MarchStats sb = redistanceRegion(b, region, kBand, Outside::Source, options, two);
+  CHECK(sa.accepted > 500);
+  CHECK(sa.accepted == sb.accepted);
+  CHECK(a.v == b.v);
+  CHECK(a.v != before.v);
+}
+
 TEST_CASE("redistancing a large region gives a distance field, the same on 1 and 2 threads", "[redistance]") {
   const Vec3 c{35.6, 36.2, 35.1};
   const double r = 24.3;

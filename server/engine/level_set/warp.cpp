@@ -216,6 +216,10 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     options.resetBoxes = resetBoxes;
     options.movedBoxes = movedBoxes;
     options.normalizeKept = false;
+    // The resample and the kept pass just ran on the pool: a tentacle's move (some 4,800
+    // candidates, below the march's own threshold) 1.97x -> 1.73x an r 8 dab's wall time on
+    // two threads (2026-11-30; docs/benchmark-log.md, Warps).
+    options.parallelSides = true;
     options.progress = share.part(kRedistanceShare);
     redistanceRegion(s.warped, region, band, Outside::Source, options, pool);
     if (isGrab(v)) grabTipFeet(pass, region);
