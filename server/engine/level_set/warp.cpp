@@ -217,7 +217,7 @@ Edit applyWarp(Volume& vol, const Volume& base, const Velocity& v, ThreadPool& p
     options.movedBoxes = movedBoxes;
     options.normalizeKept = false;
     // The resample and the kept pass just ran on the pool: a tentacle's move (some 4,800
-    // candidates, below the march's own threshold) 1.97x -> 1.73x an r 8 dab's wall time on
+    // candidates, below the march's own threshold) 1.99x -> 1.74x an r 8 dab's wall time on
     // two threads (2026-11-30; docs/benchmark-log.md, Warps).
     options.parallelSides = true;
     options.progress = share.part(kRedistanceShare);
