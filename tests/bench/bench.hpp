@@ -87,17 +87,12 @@ Timing measure(int reps, Setup&& setup, F&& f) {
 // counts do not drift).
 template <class SetupA, class FA, class SetupB, class FB>
 std::pair<Timing, Timing> measurePair(int reps, SetupA&& setupA, FA&& fA, SetupB&& setupB, FB&& fB, double* pairRatio) {
-  const bool counting = countingInstructions();
-  std::vector<double> msA, cpuA, msB, cpuB;
-  if (counting) {
-    for (int r = 0; r < reps; ++r) setupA(), timeCall(fA, true, msA, cpuA);
-    const int a = dumpInstructionCount(reps);
-    for (int r = 0; r < reps; ++r) setupB(), timeCall(fB, true, msB, cpuB);
-    const int b = dumpInstructionCount(reps);
+  if (countingInstructions()) {
     *pairRatio = 0;
-    return {timingOf(std::move(msA), std::move(cpuA), a), timingOf(std::move(msB), std::move(cpuB), b)};
+    Timing a = measure(reps, setupA, fA);
+    return {a, measure(reps, setupB, fB)};
   }
-  std::vector<double> ratios;
+  std::vector<double> msA, cpuA, msB, cpuB, ratios;
   for (int r = 0; r < reps; ++r) {
     setupA(), timeCall(fA, false, msA, cpuA);
     setupB(), timeCall(fB, false, msB, cpuB);

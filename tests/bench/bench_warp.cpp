@@ -103,8 +103,9 @@ namespace {
 // moves were timed before the dabs (until measurePair), the moves grew the heap and paid the
 // first touch of their new bricks' pages, and the dabs after them reused the freed moves'
 // memory (one thread, the snake hook read 2.7-3.1x the dab timed first and 1.5x timed after
-// it; 2026-11-29, load ~6); timed in turn, each would still pay its own first touches. `ratio_to_dab` is the ratio of
-// the medians, `pair_ratio_to_dab` the median of a move's time over the next dab's.
+// it; 2026-11-29, load ~6); timed in turn, each would still pay its own first touches.
+// `ratio_to_dab` is the ratio of the medians, `pair_ratio_to_dab` the median of a move's time
+// over the next dab's.
 template <class Draw, class Apply>
 void moveAgainstDab(const Options& opt, const char* name, unsigned seed, Draw draw, Apply apply) {
   const WarpSphere s = warpSphere(opt);

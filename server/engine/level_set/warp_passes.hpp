@@ -86,7 +86,8 @@ struct WarpPass {
   // Whether the resample integrates the map's Jacobian with X where it reads through the flow,
   // and keeps them (WarpScratch::exactReads): where the kept-voxel pass reads the others next to
   // the zero set itself (exactNear below kExactNear, a snake hook's capsule), almost every voxel
-  // it reads so is next to the zero set and wants its slope there.
+  // it reads so is next to the zero set and wants its slope there. Never on a painted volume
+  // (exactNear() is kExactNear there).
   bool exactSlopes;
 
   WarpPass(const Velocity& field, WarpScratch& scratch, const Box& within, float bandValue, bool painted)

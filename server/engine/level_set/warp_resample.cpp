@@ -110,11 +110,12 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
           if (!rowChanged) first = x, rowChanged = true;
           last = x;
         };
-        // Unpainted, the row's reads through the flow are integrated two at a time
+        // The row's reads through the flow are integrated two at a time
         // (Velocity::capsuleInverse2(): the two chains of roots and products overlap, each with
         // its own bits): one waits in `pending` (its place in exactReads; its voxel is pendingX of
-        // the row) for the next, or for the row's end. settle() finishes it once its X is known, after voxels
-        // past it may have changed.
+        // the row) for the next, or for the row's end. settle() finishes it once its X is known,
+        // after voxels past it may have changed. Never on a painted volume (WarpPass::
+        // exactSlopes), whose colours below read each voxel's preimage at once.
         std::ptrdiff_t pending = -1;
         int pendingX = 0;
         const auto settle = [&](ExactRead& e, int x) {
@@ -150,9 +151,7 @@ void resample(const WarpPass& w, const Volume& base, bool painted, bool masked, 
             const Vec3* onNode = s.lattice.imageAt(latticeRow, x);
             if (!onNode && exactReads) {
               ExactRead& e = exactReads->emplace_back(k);
-              if (painted) {
-                e.q = q = v.capsuleInverse(p, steps, e.along);
-              } else if (pending < 0) {
+              if (pending < 0) {
                 // Waits for the row's next read through the flow, to be integrated with it.
                 pending = std::ptrdiff_t(exactReads->size() - 1), pendingX = x;
                 return;

@@ -15,11 +15,11 @@ using namespace marzipan::level_set::warp;
 
 namespace {
 
-Velocity capsule(Vec3 anchor, double radius, Vec3 seg) {
+Velocity capsule(Vec3 anchor, double radius, Vec3 seg, double plateau = 0) {
   Velocity v;
   v.kind = Velocity::Kind::Capsule;
   v.anchor = anchor;
-  v.radius = radius;
+  v.setSupport(radius, plateau);
   v.seg = seg;
   v.segLength2 = dot(seg, seg);
   v.segLength = std::sqrt(v.segLength2);
@@ -66,8 +66,7 @@ TEST_CASE("a capsule's inverse map of two points gives each its own bits", "[war
   // the quartic with a plateau (a snake hook's) and the quintic (a grab's), pairs in the
   // same end cap, in different ones, between the end planes and outside the support.
   for (const double plateau : {0.5, 0.0}) {
-    Velocity v = capsule({0.3, -0.2, 0.1}, 6, {2.5, 1.0, -0.7});
-    v.setSupport(v.radius, plateau);
+    Velocity v = capsule({0.3, -0.2, 0.1}, 6, {2.5, 1.0, -0.7}, plateau);
     v.scale = 0.8;
     std::vector<Vec3> points;
     int caps = 0, between = 0, outside = 0;
