@@ -383,12 +383,29 @@ async def sigterm_during_long_operation(binary):
         return f"{heard}; exited {took:.1f} s after SIGTERM"
 
 
+class FinishedFirst(Exception):
+    """The operation reported progress, but its answer came with or before the client's next
+    look (a client starved of CPU reads them together): SIGTERM could not fall within it."""
+
+
 async def sigterm_during_large_brush(binary):
     """Item 3, local tools: SIGTERM in the middle of an add_blob of radius 300 on a 512^3 sphere
     (the largest grid the default limits admit, ~5 s of work on the 2-core VM): the requester
     has op.progress (within 1.5 s on a Release build; the wait is for the first progress, not a
     clock, so that sanitizer builds ~12x slower test the same thing), gets -32016, and the
-    server exits within 10 s."""
+    server exits within 10 s. An answer before any op.progress fails the case; one that came
+    after an op.progress the client read only with it is another try, with a new server (under
+    a loaded ctest, 2026-11-30, the client read the progress and the brush's answer together)."""
+    tries = 3
+    for attempt in range(1, tries + 1):
+        try:
+            return await sigterm_during_large_brush_once(binary) + (f" (try {attempt})" if attempt > 1 else "")
+        except FinishedFirst as e:
+            if attempt == tries:
+                raise AssertionError(f"{tries} tries, each answered before SIGTERM: {e}")
+
+
+async def sigterm_during_large_brush_once(binary):
     with Server(binary, []) as s:
         a = await Client.open(s.url)
         await a.result("session.create", {"size": [512, 512, 512], "solid": "sphere", "view": "none"})
@@ -402,9 +419,11 @@ async def sigterm_during_large_brush(binary):
             expect(time.monotonic() - started < 60, f"no op.progress within 60 s: {fractions()}")
             try:
                 m = await asyncio.wait_for(a.answer(rid), 0.25)
-                raise AssertionError(f"answered before any op.progress, so nothing long was running: {m}")
             except asyncio.TimeoutError:
-                pass
+                continue
+            if any(f > 0 for f in fractions()):
+                raise FinishedFirst(f"op.progress {fractions()} then {m} after {time.monotonic() - started:.1f} s")
+            raise AssertionError(f"answered before any op.progress, so nothing long was running: {m}")
         first = time.monotonic() - started
         # Stop from a thread so this loop keeps reading: the server's close handshake needs a reader.
         stopping = asyncio.create_task(asyncio.to_thread(s.stop, 20))
